@@ -1,0 +1,59 @@
+"""The ``edc-bench`` command line: one module per command.
+
+Each command module defines ``add_parser(subparsers)`` and ``run(args) -> int``
+and imports what it needs inside ``run``, so ``edc-bench --help`` stays fast.
+Errors raised on purpose (:class:`~edc_bench.errors.EdcBenchError`) become one
+clear line; anything else is an internal error with its own exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from edc_bench.cli.exit_codes import ExitCode
+
+COMMANDS = ("rig", "variants")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every command's subparser."""
+    from edc_bench import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="edc-bench",
+        description="Bench diagnosis of P-EDC solenoid valves over CAN.",
+    )
+    parser.add_argument("--version", action="version", version=f"edc-bench {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        importlib.import_module(f"edc_bench.cli.{name}_cmd").add_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``edc-bench``; returns the process exit code."""
+    from edc_bench.errors import EdcBenchError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args))
+    except EdcBenchError as exc:
+        print(f"edc-bench {args.command}: error: {exc}", file=sys.stderr)
+        return ExitCode.BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"edc-bench {args.command}: interrupted", file=sys.stderr)
+        return ExitCode.INTERRUPTED
+    except Exception as exc:  # noqa: BLE001 - the last line of defence for the technician
+        import traceback
+
+        print(
+            f"edc-bench {args.command}: internal error: {type(exc).__name__}: {exc}\n"
+            "This is a bug in edc-bench; the details below help to fix it.",
+            file=sys.stderr,
+        )
+        traceback.print_exc(file=sys.stderr)
+        return ExitCode.INTERNAL_ERROR

@@ -1,0 +1,29 @@
+"""Arguments shared by several commands."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_variant_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--variant`` and ``--valve`` as every rig-related command takes them."""
+    parser.add_argument("--variant", default=None, metavar="NAME|PART|PATH",
+                        help="pump variant: a name from 'edc-bench variants', a part number or a .toml file "
+                             "(default: p-edc-default)")
+    parser.add_argument("--valve", default="new", metavar="SPEC",
+                        help="simulated valve: new, worn, faulty, or physical values such as "
+                             "clearance=0.22,roughness=1.5 (default: new)")
+
+
+def parse_host_port(text: str) -> tuple[str, int]:
+    """Parse ``HOST:PORT`` for argparse, with a clear message."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT such as 127.0.0.1:5000, got {text!r}")
+    try:
+        number = int(port)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"port {port!r} is not a number") from None
+    if not 0 <= number <= 65535:
+        raise argparse.ArgumentTypeError(f"port {number} is outside 0..65535")
+    return host, number

@@ -1,0 +1,23 @@
+"""Exit codes of ``edc-bench``, one per outcome a script may act on."""
+
+from __future__ import annotations
+
+import enum
+
+
+class ExitCode(enum.IntEnum):
+    """Process exit codes.
+
+    ``PASS``..``INVALID`` are the verdict of a bench test; the others say the
+    command could not do its job.
+    """
+
+    OK = 0
+    PASS = 0
+    MARGINAL = 10
+    FAIL = 11
+    INVALID = 12
+    BAD_INPUT = 2
+    RIG_ERROR = 3
+    INTERRUPTED = 130
+    INTERNAL_ERROR = 70

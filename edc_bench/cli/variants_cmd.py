@@ -1,0 +1,22 @@
+"""``edc-bench variants``: list the pump variant library."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser("variants", help="list pump variants", description="List the pump variants in the library.")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """List variant names, part numbers and files."""
+    from edc_bench.config import DEFAULT_VARIANT, available_variants, load_variant
+
+    for name, path in available_variants().items():
+        variant = load_variant(path)
+        mark = " (default)" if name == DEFAULT_VARIANT else ""
+        print(f"{name:<20} {variant.pump.part_number:<14} {variant.pump.description}{mark}")
+    return 0

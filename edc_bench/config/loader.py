@@ -1,0 +1,156 @@
+"""Find and load pump variant files, with errors a technician can act on."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from edc_bench.config.models import Variant
+from edc_bench.errors import ConfigError
+
+DEFAULT_VARIANT = "p-edc-default"
+
+
+def variant_dirs() -> list[Path]:
+    """Folders searched for variant files, first match wins.
+
+    A non-editable install carries the library inside the package
+    (``edc_bench/_variants``); a source checkout reads ``configs/`` beside the
+    package.
+    """
+    package_dir = Path(__file__).resolve().parent.parent
+    dirs = [package_dir / "_variants", package_dir.parent / "configs"]
+    return [d for d in dirs if d.is_dir()]
+
+
+def available_variants() -> dict[str, Path]:
+    """Variant names (file stems) and their files, from :func:`variant_dirs`."""
+    found: dict[str, Path] = {}
+    for folder in variant_dirs():
+        for path in sorted(folder.glob("*.toml")):
+            found.setdefault(path.stem, path)
+    return found
+
+
+def _describe_location(loc: tuple[Any, ...]) -> str:
+    parts = [str(p) for p in loc]
+    if not parts:
+        return "variant"
+    head = f"[{parts[0]}]"
+    return head + ("." + ".".join(parts[1:]) if len(parts) > 1 else "")
+
+
+def format_validation_error(source: str, error: ValidationError, data: dict[str, Any] | None = None) -> str:
+    """Turn a pydantic error into lines naming file, field, value and expectation.
+
+    Parameters
+    ----------
+    source : str
+        File name (or other origin) shown at the start of each line.
+    error : pydantic.ValidationError
+        The validation error.
+    data : dict, optional
+        The raw input, used to list the allowed keys for an unknown key.
+
+    Returns
+    -------
+    str
+        One line per problem.
+    """
+    lines = []
+    for item in error.errors(include_url=False):
+        loc = tuple(item.get("loc", ()))
+        where = _describe_location(loc)
+        kind = item.get("type", "")
+        value = item.get("input")
+        if kind == "extra_forbidden":
+            allowed = _allowed_keys(loc[:-1])
+            hint = f"; expected one of: {', '.join(allowed)}" if allowed else ""
+            lines.append(f"{source}: {where}: unknown key{hint}")
+        elif kind == "missing":
+            lines.append(f"{source}: {where}: required key is missing")
+        else:
+            message = str(item.get("msg", "invalid")).removeprefix("Value error, ")
+            shown = "" if isinstance(value, dict) else f" = {value!r}"
+            lines.append(f"{source}: {where}{shown}: {message}")
+    return "\n".join(lines)
+
+
+def _allowed_keys(loc: tuple[Any, ...]) -> list[str]:
+    model: Any = Variant
+    for part in loc:
+        field = model.model_fields.get(str(part)) if hasattr(model, "model_fields") else None
+        if field is None:
+            return []
+        model = field.annotation
+    return sorted(model.model_fields) if hasattr(model, "model_fields") else []
+
+
+def parse_variant(data: dict[str, Any], source: str = "<variant>") -> Variant:
+    """Validate a variant given as a dict (the parsed TOML).
+
+    Raises
+    ------
+    ConfigError
+        With one line per problem, naming ``source``, the field and the value.
+    """
+    try:
+        return Variant.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(format_validation_error(source, exc, data)) from None
+
+
+def load_variant(name_or_path: str | Path | None = None) -> Variant:
+    """Load a pump variant by name or by TOML file path.
+
+    Parameters
+    ----------
+    name_or_path : str or pathlib.Path, optional
+        A variant name from the library (``edc-bench variants``), a part
+        number, or a path to a ``.toml`` file. The default variant if omitted.
+
+    Returns
+    -------
+    Variant
+        The validated variant.
+
+    Raises
+    ------
+    ConfigError
+        If no such variant exists, the file cannot be read or parsed, or a
+        value is invalid.
+    """
+    key = str(name_or_path) if name_or_path is not None else DEFAULT_VARIANT
+    path = _resolve(key)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read variant file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    return parse_variant(data, str(path))
+
+
+def _resolve(key: str) -> Path:
+    candidate = Path(key)
+    if candidate.suffix == ".toml" or "/" in key or candidate.is_file():
+        if not candidate.is_file():
+            raise ConfigError(f"variant file {key!r} does not exist")
+        return candidate
+    library = available_variants()
+    if key in library:
+        return library[key]
+    for path in library.values():
+        try:
+            pump = tomllib.loads(path.read_text(encoding="utf-8")).get("pump", {})
+        except (OSError, tomllib.TOMLDecodeError):
+            continue
+        if pump.get("part_number") == key:
+            return path
+    names = ", ".join(sorted(library)) or "(none found)"
+    raise ConfigError(f"unknown variant {key!r}: give a name ({names}), a part number, or a path to a .toml file")

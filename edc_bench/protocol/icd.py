@@ -1,0 +1,232 @@
+"""ICD v1 frames as typed values: make bytes, parse bytes, no I/O.
+
+All layouts, ids and E2E data ids come from the DBC in ``firmware_proto``;
+nothing about the wire format is written here twice. ``make_*`` functions
+return payload bytes (with the CRC filled in where the ICD asks for one);
+``parse_*`` functions check length and CRC and return a named tuple.
+"""
+
+from __future__ import annotations
+
+import enum
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from edc_bench.errors import E2EError, ProtocolError
+from edc_bench.protocol.crc import e2e_crc
+from edc_bench.protocol.layout import MessageLayout, compile_message
+
+BENCH_CMD_ID = 0x120
+RIG_FEEDBACK_ID = 0x121
+RIG_HEARTBEAT_ID = 0x720
+
+
+class Mode(enum.IntEnum):
+    """``BENCH_CMD.Mode``."""
+
+    SAFE = 0
+    RUN = 1
+
+
+class RigState(enum.IntEnum):
+    """``RIG_HEARTBEAT.State``."""
+
+    BOOT = 0
+    READY = 1
+    RUNNING = 2
+    FAULT = 3
+
+
+class FaultCode(enum.IntEnum):
+    """``RIG_HEARTBEAT.FaultCode``: why the rig latched FAULT."""
+
+    NONE = 0
+    WATCHDOG = 1
+    OVER_CURRENT = 2
+    LVDT_FAULT = 3
+    TRAVEL_LIMIT = 4
+    SUPPLY_LOW = 5
+
+
+class BenchCmd(NamedTuple):
+    """Decoded ``BENCH_CMD``."""
+
+    counter: int
+    mode: int
+    drive_v: float
+    reference_mm: float
+
+
+class RigFeedback(NamedTuple):
+    """Decoded ``RIG_FEEDBACK``."""
+
+    counter: int
+    amp_enabled: bool
+    watchdog_tripped: bool
+    over_current: bool
+    lvdt_fault: bool
+    travel_limit: bool
+    position_mm: float
+    current_a: float
+
+    @property
+    def any_fault(self) -> bool:
+        """True if any fault flag is set."""
+        return self.watchdog_tripped or self.over_current or self.lvdt_fault or self.travel_limit
+
+
+class RigHeartbeat(NamedTuple):
+    """Decoded ``RIG_HEARTBEAT``."""
+
+    state: RigState
+    fault_code: FaultCode
+    fw_major: int
+    fw_minor: int
+    supply_v: float
+
+
+class Icd:
+    """The compiled ICD: one layout per message, read from the DBC once.
+
+    Parameters
+    ----------
+    dbc_file : pathlib.Path, optional
+        DBC to load; the packaged ICD v1 by default.
+    """
+
+    def __init__(self, dbc_file: Path | None = None) -> None:
+        import cantools  # deferred: only needed once, at start-up
+
+        from firmware_proto import dbc_path
+
+        self.dbc_file = Path(dbc_file) if dbc_file is not None else dbc_path()
+        self.database = cantools.database.load_file(str(self.dbc_file))
+        self.bench_cmd = self._layout("BENCH_CMD", BENCH_CMD_ID)
+        self.rig_feedback = self._layout("RIG_FEEDBACK", RIG_FEEDBACK_ID)
+        self.rig_heartbeat = self._layout("RIG_HEARTBEAT", RIG_HEARTBEAT_ID)
+        self.bench_cmd_data_id = self._data_id("BENCH_CMD")
+        self.rig_feedback_data_id = self._data_id("RIG_FEEDBACK")
+        attributes = self.database.dbc.attributes
+        self.watchdog_ms = int(attributes["WatchdogMs"].value)
+        self.bitrate = int(attributes["Baudrate"].value)
+        self.version = (int(attributes["IcdVersionMajor"].value), int(attributes["IcdVersionMinor"].value))
+
+    def _layout(self, name: str, expected_id: int) -> MessageLayout:
+        message = self.database.get_message_by_name(name)
+        if message.frame_id != expected_id:
+            raise ProtocolError(
+                f"{self.dbc_file}: message {name} has id {message.frame_id:#x}, ICD v1 fixes {expected_id:#x}"
+            )
+        return compile_message(message)
+
+    def _data_id(self, name: str) -> int:
+        message = self.database.get_message_by_name(name)
+        attribute = message.dbc.attributes.get("E2EDataId") if message.dbc else None
+        if attribute is None:
+            raise ProtocolError(f"{self.dbc_file}: message {name} has no E2EDataId attribute")
+        return int(attribute.value)
+
+    # -- BENCH_CMD -----------------------------------------------------------
+    def make_bench_cmd(self, counter: int, mode: int, drive_v: float, reference_mm: float) -> bytes:
+        """Payload of a ``BENCH_CMD`` with its CRC.
+
+        Parameters
+        ----------
+        counter : int
+            Rolling counter, 0..255.
+        mode : int
+            :class:`Mode` value.
+        drive_v : float
+            Drive voltage in V (-32.768..32.767).
+        reference_mm : float
+            Rack reference in mm (0..65.535).
+
+        Returns
+        -------
+        bytes
+            The 8 payload bytes.
+        """
+        body = self.bench_cmd.encode(0, counter, mode, drive_v, reference_mm)
+        return bytes((e2e_crc(self.bench_cmd_data_id, body),)) + body[1:]
+
+    def parse_bench_cmd(self, payload: bytes | bytearray) -> BenchCmd:
+        """Check and decode a ``BENCH_CMD`` payload.
+
+        Raises
+        ------
+        E2EError
+            If the CRC does not match.
+        ProtocolError
+            If the payload has the wrong length.
+        """
+        values = self.bench_cmd.decode(payload)
+        if values[0] != e2e_crc(self.bench_cmd_data_id, payload):
+            raise E2EError(f"BENCH_CMD CRC mismatch: got {values[0]:#04x}")
+        return BenchCmd(values[1], values[2], values[3], values[4])
+
+    # -- RIG_FEEDBACK --------------------------------------------------------
+    def make_rig_feedback(
+        self,
+        counter: int,
+        *,
+        amp_enabled: bool,
+        watchdog_tripped: bool,
+        over_current: bool,
+        lvdt_fault: bool,
+        travel_limit: bool,
+        position_mm: float,
+        current_a: float,
+    ) -> bytes:
+        """Payload of a ``RIG_FEEDBACK`` with its CRC."""
+        body = self.rig_feedback.encode(
+            0, counter, amp_enabled, watchdog_tripped, over_current, lvdt_fault, travel_limit,
+            position_mm, current_a,
+        )
+        return bytes((e2e_crc(self.rig_feedback_data_id, body),)) + body[1:]
+
+    def parse_rig_feedback(self, payload: bytes | bytearray) -> RigFeedback:
+        """Check and decode a ``RIG_FEEDBACK`` payload.
+
+        Raises
+        ------
+        E2EError
+            If the CRC does not match.
+        ProtocolError
+            If the payload has the wrong length.
+        """
+        v = self.rig_feedback.decode(payload)
+        if v[0] != e2e_crc(self.rig_feedback_data_id, payload):
+            raise E2EError(f"RIG_FEEDBACK CRC mismatch: got {v[0]:#04x}")
+        return RigFeedback(v[1], bool(v[2]), bool(v[3]), bool(v[4]), bool(v[5]), bool(v[6]), v[7], v[8])
+
+    # -- RIG_HEARTBEAT -------------------------------------------------------
+    def make_heartbeat(self, state: RigState, fault_code: FaultCode, fw_major: int, fw_minor: int,
+                       supply_v: float) -> bytes:
+        """Payload of a ``RIG_HEARTBEAT`` (no E2E protection in ICD v1)."""
+        return self.rig_heartbeat.encode(int(state), int(fault_code), fw_major, fw_minor, supply_v)
+
+    def parse_heartbeat(self, payload: bytes | bytearray) -> RigHeartbeat:
+        """Decode a ``RIG_HEARTBEAT`` payload.
+
+        Raises
+        ------
+        ProtocolError
+            If the payload has the wrong length or an unknown state or fault code.
+        """
+        v = self.rig_heartbeat.decode(payload)
+        try:
+            return RigHeartbeat(RigState(v[0]), FaultCode(v[1]), v[2], v[3], v[4])
+        except ValueError as exc:
+            raise ProtocolError(f"RIG_HEARTBEAT: {exc}") from None
+
+    def choices(self, message: str, signal: str) -> dict[int, str]:
+        """Value table of a signal as written in the DBC (for checks and display)."""
+        sig: Any = self.database.get_message_by_name(message).get_signal_by_name(signal)
+        return {int(k): str(v) for k, v in (sig.choices or {}).items()}
+
+
+@lru_cache(maxsize=1)
+def default_icd() -> Icd:
+    """The packaged ICD v1, loaded once per process."""
+    return Icd()

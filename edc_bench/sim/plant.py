@@ -1,0 +1,265 @@
+"""The physical plant behind the rig: rack, spring, coil, amplifier, friction.
+
+Paper eqs. 1-4 with a spring preload and friction with stiction::
+
+    m x'' + c x' + k' x + F_pre + F_f = k_i i          (k' = k - k_x)
+    L i' + R i = k_A u
+    F_f = F_c sgn(x')  while sliding;  |F_f| <= F_s at rest (stiction)
+
+Units: x in mm, x' in mm/s, i in A, u in V, forces in N, mass in kg (used as
+``mass_kg * 1e-3`` N s^2/mm so that the equation holds with x in mm).
+
+Integration is exact for the linear part: between friction events the state
+``z = [x, x', i]`` obeys ``z' = A z + B w`` with a constant input
+``w = [k_A u, -(F_pre + F_c s)]``, and one step is ``z <- Phi z + Gamma w``
+with ``Phi, Gamma`` from the matrix exponential (the stiff coil, L/R ~ 1 ms,
+needs no small steps). A whole command period is taken in one step unless the
+velocity changes sign or the rack sits stuck; then the period is replayed in
+quanta of ``quantum_s`` (0.1 ms) with a Karnopp stick/slip rule, so that
+stick-slip at reversals ("chattering", paper Figs. 4c and 5c) is resolved.
+The plant knows nothing of buses, files or wall-clock time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+DEFAULT_QUANTUM_S = 1e-4
+# Karnopp dead band: below this speed a rack whose forces are within stiction
+# sticks. Without it an overdamped approach would slide forever, ever slower.
+STICK_SPEED_MM_S = 1e-3
+
+
+@dataclass(frozen=True)
+class PlantParameters:
+    """Physical parameters of one rack actuator with one valve fitted.
+
+    Attributes
+    ----------
+    mass_kg : float
+        Moving mass m.
+    spring_n_per_mm, magnetic_stiffness_n_per_mm : float
+        Spring stiffness k and the magnet's negative stiffness k_x.
+    preload_n : float
+        Spring preload F_pre pushing the rack towards 0 mm (no delivery).
+    damping_n_s_per_mm : float
+        Total viscous damping c (pump and valve).
+    coulomb_friction_n, stiction_friction_n : float
+        Sliding friction F_c and breakaway friction F_s (F_s >= F_c).
+    resistance_ohm, inductance_h : float
+        Coil R and L.
+    force_constant_n_per_a : float
+        k_i.
+    amplifier_gain, amplifier_limit_v : float
+        k_A and the amplifier's output limit on u.
+    stroke_mm : float
+        Hard stops at 0 and ``stroke_mm``.
+    """
+
+    mass_kg: float
+    spring_n_per_mm: float
+    magnetic_stiffness_n_per_mm: float
+    preload_n: float
+    damping_n_s_per_mm: float
+    coulomb_friction_n: float
+    stiction_friction_n: float
+    resistance_ohm: float
+    inductance_h: float
+    force_constant_n_per_a: float
+    amplifier_gain: float
+    amplifier_limit_v: float
+    stroke_mm: float
+
+    @property
+    def net_stiffness_n_per_mm(self) -> float:
+        """k' = k - k_x."""
+        return self.spring_n_per_mm - self.magnetic_stiffness_n_per_mm
+
+    @property
+    def mass_n_s2_per_mm(self) -> float:
+        """Mass in the units of the equation of motion (x in mm)."""
+        return self.mass_kg * 1e-3
+
+    def state_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """Continuous-time ``A`` (3x3) and ``B`` (3x2) for ``z = [x, x', i]``.
+
+        Inputs are ``w = [coil voltage k_A u in V, constant force in N]``.
+        """
+        m = self.mass_n_s2_per_mm
+        a = np.array(
+            [
+                [0.0, 1.0, 0.0],
+                [-self.net_stiffness_n_per_mm / m, -self.damping_n_s_per_mm / m, self.force_constant_n_per_a / m],
+                [0.0, 0.0, -self.resistance_ohm / self.inductance_h],
+            ]
+        )
+        b = np.array([[0.0, 0.0], [0.0, 1.0 / m], [1.0 / self.inductance_h, 0.0]])
+        return a, b
+
+    def equilibrium_mm(self, drive_v: float) -> float:
+        """Frictionless rest position for a constant drive (ignoring the stops)."""
+        current_a = self.amplifier_gain * drive_v / self.resistance_ohm
+        return (self.force_constant_n_per_a * current_a - self.preload_n) / self.net_stiffness_n_per_mm
+
+    def drive_for_position_v(self, position_mm: float) -> float:
+        """Constant drive that holds the rack at ``position_mm`` without friction."""
+        force_n = self.net_stiffness_n_per_mm * position_mm + self.preload_n
+        return force_n / self.force_constant_n_per_a * self.resistance_ohm / self.amplifier_gain
+
+
+class _Step:
+    """Precomputed exact discretisation for a step of n quanta, as floats."""
+
+    __slots__ = ("p", "g")
+
+    def __init__(self, a: np.ndarray, b: np.ndarray, dt_s: float) -> None:
+        aug = np.zeros((5, 5))
+        aug[:3, :3] = a
+        aug[:3, 3:] = b
+        e = expm(aug * dt_s)
+        self.p = tuple(float(v) for v in e[:3, :3].ravel())
+        self.g = tuple(float(v) for v in e[:3, 3:].ravel())
+
+
+class Plant:
+    """State and stepping of the rack actuator.
+
+    Parameters
+    ----------
+    params : PlantParameters
+        The physics.
+    quantum_s : float, optional
+        Finest time step, used around velocity reversals and while stuck.
+    position_mm : float, optional
+        Initial rack position (at rest), 0 by default (the safe stop).
+    """
+
+    def __init__(self, params: PlantParameters, quantum_s: float = DEFAULT_QUANTUM_S,
+                 position_mm: float = 0.0) -> None:
+        if params.stiction_friction_n < params.coulomb_friction_n:
+            raise ValueError("stiction_friction_n must be >= coulomb_friction_n")
+        self.params = params
+        self.quantum_s = quantum_s
+        self._a, self._b = params.state_matrices()
+        self._steps: dict[int, _Step] = {}
+        self._quantum = self._step(1)
+        self.x_mm = float(position_mm)
+        self.v_mm_s = 0.0
+        self.i_a = 0.0
+        self.stuck = True
+        self.drive_v = 0.0
+        self.elapsed_quanta = 0
+        self.stick_events = 0  # transitions from sliding to stuck, for analysis
+        p = params
+        self._m = p.mass_n_s2_per_mm
+        self._k = p.net_stiffness_n_per_mm
+        self._ki = p.force_constant_n_per_a
+        self._fpre = p.preload_n
+        self._fc = p.coulomb_friction_n
+        self._fs = p.stiction_friction_n
+        self._stroke = p.stroke_mm
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time since creation."""
+        return self.elapsed_quanta * self.quantum_s
+
+    def _step(self, n: int) -> _Step:
+        step = self._steps.get(n)
+        if step is None:
+            step = _Step(self._a, self._b, n * self.quantum_s)
+            self._steps[n] = step
+        return step
+
+    def prepare(self, max_quanta: int) -> None:
+        """Precompute steps of 1..max_quanta quanta (avoids a first-use delay in real time)."""
+        for n in range(1, max_quanta + 1):
+            self._step(n)
+
+    def set_drive_v(self, drive_v: float) -> None:
+        """Set the amplifier input (held until changed); clipped to the amplifier limit."""
+        limit = self.params.amplifier_limit_v
+        if drive_v != drive_v:  # NaN: an amplifier has no such input; treat as 0 V
+            drive_v = 0.0
+        self.drive_v = -limit if drive_v < -limit else (limit if drive_v > limit else drive_v)
+
+    def net_force_at_rest_n(self) -> float:
+        """Force on the rack if it were at rest, before friction."""
+        return self._ki * self.i_a - self._k * self.x_mm - self._fpre
+
+    def advance(self, n_quanta: int) -> None:
+        """Advance the plant by ``n_quanta`` quanta with the current drive.
+
+        Parameters
+        ----------
+        n_quanta : int
+            Number of quanta (``quantum_s`` each) to integrate.
+        """
+        if n_quanta <= 0:
+            return
+        self.elapsed_quanta += n_quanta
+        coil_v = self.params.amplifier_gain * self.drive_v
+        if not self.stuck:
+            sign = 1.0 if self.v_mm_s > 0.0 else -1.0
+            x, v, i = self._propagate(self._step(n_quanta), coil_v, sign)
+            if v * sign > STICK_SPEED_MM_S and 0.0 < x < self._stroke:
+                self.x_mm, self.v_mm_s, self.i_a = x, v, i
+                return
+        # A reversal, a stop, or a stuck rack inside this period: replay finely.
+        for _ in range(n_quanta):
+            self._advance_quantum(coil_v)
+
+    def _propagate(self, step: _Step, coil_v: float, sign: float) -> tuple[float, float, float]:
+        p, g = step.p, step.g
+        x, v, i = self.x_mm, self.v_mm_s, self.i_a
+        f = -(self._fpre + self._fc * sign)
+        return (
+            p[0] * x + p[1] * v + p[2] * i + g[0] * coil_v + g[1] * f,
+            p[3] * x + p[4] * v + p[5] * i + g[2] * coil_v + g[3] * f,
+            p[6] * x + p[7] * v + p[8] * i + g[4] * coil_v + g[5] * f,
+        )
+
+    def _advance_quantum(self, coil_v: float) -> None:
+        q = self._quantum
+        if self.stuck:
+            net = self.net_force_at_rest_n()
+            at_low = self.x_mm <= 0.0 and net <= 0.0
+            at_high = self.x_mm >= self._stroke and net >= 0.0
+            if abs(net) <= self._fs or at_low or at_high:
+                # rack held by stiction or a stop; only the coil current evolves
+                self.i_a = q.p[8] * self.i_a + q.g[4] * coil_v
+                return
+            sign = 1.0 if net > 0.0 else -1.0
+        else:
+            sign = 1.0 if self.v_mm_s > 0.0 else -1.0
+        x0, v0 = self.x_mm, self.v_mm_s
+        x, v, i = self._propagate(q, coil_v, sign)
+        self.stuck = False
+        if v * sign <= 0.0:
+            # velocity reached zero inside the quantum: stop there (Karnopp)
+            frac = v0 / (v0 - v) if v0 != v else 0.0
+            x = x0 + frac * (x - x0)
+            v = 0.0
+            self.stuck = True
+            self.stick_events += 1
+        elif abs(v) < STICK_SPEED_MM_S and abs(self._ki * i - self._k * x - self._fpre) <= self._fs:
+            v = 0.0
+            self.stuck = True
+            self.stick_events += 1
+        if x <= 0.0:
+            x, v, self.stuck = 0.0, 0.0, True
+        elif x >= self._stroke:
+            x, v, self.stuck = self._stroke, 0.0, True
+        self.x_mm, self.v_mm_s, self.i_a = x, v, i
+
+    def natural_frequency_rad_s(self) -> float:
+        """Undamped natural frequency of the linearised mechanics, sqrt(k'/m)."""
+        return math.sqrt(self._k / self._m)
+
+    def damping_ratio(self) -> float:
+        """Damping ratio of the linearised mechanics, c / (2 sqrt(k' m))."""
+        return self.params.damping_n_s_per_mm / (2.0 * math.sqrt(self._k * self._m))

@@ -1,0 +1,178 @@
+"""The simulated rig: the firmware prototype over the simulated plant.
+
+:class:`SimulatedRig` is time-explicit and knows no bus: the caller says what
+time it is. The in-process runner (lockstep with a simulated clock) and the
+real-time slcan server both drive it through :meth:`SimulatedRig.advance_to`
+and :meth:`SimulatedRig.receive`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from edc_bench.config.models import Variant
+from edc_bench.sim.plant import DEFAULT_QUANTUM_S, Plant
+from edc_bench.sim.sensors import NoisySensor
+from edc_bench.sim.valve import FeedforwardParameters, ValveSpec, feedforward_truth, plant_parameters
+from firmware_proto.firmware import Frame, FirmwareLimits, RigFirmware
+
+
+class SimulatedRigHardware:
+    """The firmware's hardware interface over the plant and sensor models.
+
+    Attributes
+    ----------
+    supply_v : float
+        Supply voltage it reports (settable for fault injection).
+    lvdt_disconnected : bool
+        If True the LVDT reads NaN (fault injection).
+    """
+
+    def __init__(self, plant: Plant, lvdt: NoisySensor, current: NoisySensor, supply_v: float) -> None:
+        self.plant = plant
+        self.lvdt = lvdt
+        self.current = current
+        self.supply_v = supply_v
+        self.lvdt_disconnected = False
+
+    def sample_position_mm(self) -> float:
+        """LVDT reading of the true rack position."""
+        if self.lvdt_disconnected:
+            return math.nan
+        return self.lvdt.sample(self.plant.x_mm)
+
+    def sample_current_a(self) -> float:
+        """Current sensor reading of the true coil current."""
+        return self.current.sample(self.plant.i_a)
+
+    def set_drive_v(self, drive_v: float) -> None:
+        """Drive the amplifier."""
+        self.plant.set_drive_v(drive_v)
+
+    def supply_voltage_v(self) -> float:
+        """Supply voltage."""
+        return self.supply_v
+
+
+def firmware_limits(variant: Variant) -> FirmwareLimits:
+    """Firmware limits of a variant's rig section."""
+    rig = variant.rig
+    return FirmwareLimits(
+        drive_limit_v=rig.drive_limit_v,
+        over_current_a=rig.over_current_a,
+        travel_min_mm=rig.travel_min_mm,
+        travel_max_mm=rig.travel_max_mm,
+        lvdt_min_mm=-1.0,
+        lvdt_max_mm=variant.rack.stroke_mm + 1.0,
+        supply_min_v=rig.supply_min_v,
+        watchdog_s=rig.watchdog_ms * 1e-3,
+        heartbeat_period_s=rig.heartbeat_period_ms * 1e-3,
+        boot_s=rig.boot_ms * 1e-3,
+    )
+
+
+@dataclass(frozen=True)
+class RigOptions:
+    """Knobs of the simulation that are not part of the variant.
+
+    Attributes
+    ----------
+    stiction : bool
+        Breakaway friction above Coulomb friction (default); False makes the
+        plant match the identification model.
+    sensor_noise : bool
+        Sensor noise, quantisation and offsets (default); False gives exact
+        readings.
+    quantum_s : float
+        Plant time quantum.
+    """
+
+    stiction: bool = True
+    sensor_noise: bool = True
+    quantum_s: float = DEFAULT_QUANTUM_S
+
+
+class SimulatedRig:
+    """A whole simulated rig: plant, sensors, amplifier and firmware.
+
+    Parameters
+    ----------
+    variant : Variant
+        Pump variant.
+    valve : ValveSpec
+        The valve fitted.
+    seed : int, optional
+        Seed of the sensor noise; same seed, same run.
+    options : RigOptions, optional
+        Simulation knobs.
+    """
+
+    def __init__(self, variant: Variant, valve: ValveSpec, seed: int = 0,
+                 options: RigOptions | None = None) -> None:
+        self.variant = variant
+        self.valve = valve
+        self.seed = seed
+        self.options = options or RigOptions()
+        self.plant_params = plant_parameters(variant, valve, stiction=self.options.stiction)
+        self.plant = Plant(self.plant_params, quantum_s=self.options.quantum_s)
+        rng = np.random.default_rng(seed)
+        lvdt_model, current_model = variant.sensors.lvdt, variant.sensors.current
+        if not self.options.sensor_noise:
+            lvdt_model = lvdt_model.model_copy(update={"noise_sd": 0.0, "offset": 0.0, "resolution": 1e-9})
+            current_model = current_model.model_copy(update={"noise_sd": 0.0, "offset": 0.0, "resolution": 1e-9})
+        self.hardware = SimulatedRigHardware(
+            self.plant,
+            NoisySensor(lvdt_model, rng.spawn(1)[0]),
+            NoisySensor(current_model, rng.spawn(1)[0]),
+            variant.rig.supply_voltage_v,
+        )
+        self.firmware = RigFirmware(self.hardware, firmware_limits(variant), start_s=0.0)
+        self._quanta_per_s = 1.0 / self.options.quantum_s
+
+    @property
+    def truth(self) -> FeedforwardParameters:
+        """True feedforward parameters of this rig's plant."""
+        return feedforward_truth(self.plant_params)
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time the plant has reached."""
+        return self.plant.time_s
+
+    def _advance_plant_to(self, t_s: float) -> None:
+        target = int(round(t_s * self._quanta_per_s))
+        self.plant.advance(target - self.plant.elapsed_quanta)
+
+    def advance_to(self, t_s: float) -> list[Frame]:
+        """Let time pass up to ``t_s``, running firmware timers on the way.
+
+        Returns
+        -------
+        list of (int, bytes)
+            Frames the rig sent meanwhile (heartbeats), in order.
+        """
+        out: list[Frame] = []
+        firmware = self.firmware
+        while True:
+            due = firmware.next_deadline_s()
+            if due > t_s:
+                break
+            self._advance_plant_to(due)
+            out.extend(firmware.on_time(due))
+        self._advance_plant_to(t_s)
+        return out
+
+    def receive(self, can_id: int, data: bytes | bytearray, t_s: float) -> list[Frame]:
+        """Deliver a frame at ``t_s`` (time is advanced to ``t_s`` first).
+
+        Returns
+        -------
+        list of (int, bytes)
+            Frames the rig sent, timers first, then the reply.
+        """
+        out = self.advance_to(t_s)
+        out.extend(self.firmware.on_frame(can_id, data, t_s))
+        return out

@@ -1,0 +1,23 @@
+"""Shared fixtures."""
+
+from __future__ import annotations
+
+import pytest
+
+from edc_bench.config import Variant, load_variant
+from edc_bench.protocol import Icd, default_icd
+
+
+@pytest.fixture(scope="session")
+def icd() -> Icd:
+    return default_icd()
+
+
+@pytest.fixture(scope="session")
+def variant() -> Variant:
+    return load_variant("p-edc-default")
+
+
+@pytest.fixture(scope="session", params=["p-edc-default", "p-edc-long"])
+def any_variant(request: pytest.FixtureRequest) -> Variant:
+    return load_variant(request.param)

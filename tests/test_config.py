@@ -1,0 +1,104 @@
+"""Variant files: both shipped variants load; bad ones are refused with clear messages."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from edc_bench.config import available_variants, load_variant, parse_variant
+from edc_bench.errors import ConfigError
+
+
+def _raw(name: str = "p-edc-default") -> dict:
+    return tomllib.loads(available_variants()[name].read_text())
+
+
+def test_library_has_two_distinct_variants() -> None:
+    default, other = load_variant("p-edc-default"), load_variant("p-edc-long")
+    assert default.rack.stroke_mm != other.rack.stroke_mm
+    assert default.coil.resistance_ohm != other.coil.resistance_ohm
+    assert default.rack.spring_n_per_mm != other.rack.spring_n_per_mm
+
+
+def test_default_variant_and_lookup_by_part_number_and_path() -> None:
+    assert load_variant().name == "p-edc-default"
+    assert load_variant("PE-EDC-0002").name == "p-edc-long"
+    assert load_variant(str(available_variants()["p-edc-long"])).name == "p-edc-long"
+
+
+def _write(tmp_path: Path, data: dict) -> Path:
+    lines = []
+
+    def emit(prefix: str, table: dict) -> None:
+        scalars = {k: v for k, v in table.items() if not isinstance(v, dict)}
+        if prefix:
+            lines.append(f"[{prefix}]")
+        for k, v in scalars.items():
+            lines.append(f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"')
+        for k, v in table.items():
+            if isinstance(v, dict):
+                emit(f"{prefix}.{k}" if prefix else k, v)
+
+    emit("", data)
+    path = tmp_path / "bad.toml"
+    path.write_text("\n".join(lines).replace("True", "true").replace("False", "false"))
+    return path
+
+
+def test_written_copy_round_trips(tmp_path: Path) -> None:
+    assert load_variant(_write(tmp_path, _raw())).name == "p-edc-default"
+
+
+@pytest.mark.parametrize(
+    ("mutate", "expected"),
+    [
+        (lambda d: d["rack"].update(stroke_mm=-3.0), r"\[rack\]\.stroke_mm = -3.0: Input should be greater than 0"),
+        (lambda d: d["rack"].update(strok_mm=20.0), r"\[rack\]\.strok_mm: unknown key; expected one of: .*stroke_mm"),
+        (lambda d: d["coil"].pop("resistance_ohm"), r"\[coil\]\.resistance_ohm: required key is missing"),
+        (lambda d: d["coil"].update(inductance_mh="1 mH"), r"\[coil\]\.inductance_mh = '1 mH': Input should be a valid number"),
+        (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: coil, pump, rack, rig, sensors, valve"),
+        (lambda d: d["rig"].update(travel_max_mm=25.0), r"travel limits must satisfy.*25.0 <= 20.0"),
+        (lambda d: d["rack"].update(mid_stroke_mm=30.0), r"mid_stroke_mm \(30.0\) must lie inside the stroke"),
+        (lambda d: d["coil"].update(magnetic_stiffness_n_per_mm=3.0), r"no stable rest position"),
+        (lambda d: d["rig"].update(drive_limit_v=30.0), r"drive_limit_v \(30.0\) must not exceed coil.amplifier_limit_v"),
+        (lambda d: d["rig"].update(over_current_a=2.0), r"needs .* A, at or above rig.over_current_a"),
+        (lambda d: d["valve"]["presets"].pop("faulty"), r"presets must define new, worn and faulty; missing: faulty"),
+        (lambda d: d["valve"].update(stiction_ratio=0.5), r"\[valve\]\.stiction_ratio = 0.5: Input should be greater than or equal to 1"),
+        (lambda d: d["pump"].update(name="Bad Name"), r"\[pump\]\.name = 'Bad Name': String should match pattern"),
+        (lambda d: d["sensors"]["lvdt"].update(resolution=0.0), r"\[sensors\]\.lvdt\.resolution = 0.0"),
+    ],
+    ids=["negative", "unknown-key", "missing", "wrong-type", "unknown-section", "travel", "mid-stroke",
+         "unstable", "drive-limit", "over-current", "preset", "stiction", "name", "nested"],
+)
+def test_bad_variant_is_refused_naming_file_field_and_value(tmp_path: Path, mutate, expected: str) -> None:
+    data = _raw()
+    mutate(data)
+    path = _write(tmp_path, data)
+    with pytest.raises(ConfigError, match=expected) as info:
+        load_variant(path)
+    assert str(path) in str(info.value)
+
+
+def test_not_toml(tmp_path: Path) -> None:
+    path = tmp_path / "broken.toml"
+    path.write_text("[rack\nstroke_mm = 1")
+    with pytest.raises(ConfigError, match=r"broken.toml: not valid TOML"):
+        load_variant(path)
+
+
+def test_missing_file_and_unknown_name() -> None:
+    with pytest.raises(ConfigError, match=r"variant file 'nope/x.toml' does not exist"):
+        load_variant("nope/x.toml")
+    with pytest.raises(ConfigError, match=r"unknown variant 'p-edc-nope': give a name \(p-edc-default, p-edc-long"):
+        load_variant("p-edc-nope")
+
+
+def test_several_errors_are_all_reported() -> None:
+    data = _raw()
+    data["rack"]["stroke_mm"] = 0
+    data["coil"]["resistance_ohm"] = -1
+    with pytest.raises(ConfigError) as info:
+        parse_variant(data, "mem.toml")
+    assert len(str(info.value).splitlines()) == 2
