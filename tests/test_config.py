@@ -31,15 +31,21 @@ def test_default_variant_and_lookup_by_part_number_and_path() -> None:
 def _write(tmp_path: Path, data: dict) -> Path:
     lines = []
 
-    def emit(prefix: str, table: dict) -> None:
-        scalars = {k: v for k, v in table.items() if not isinstance(v, dict)}
+    def is_table_list(v: object) -> bool:
+        return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)
+
+    def emit(prefix: str, table: dict, array: bool = False) -> None:
+        scalars = {k: v for k, v in table.items() if not isinstance(v, dict) and not is_table_list(v)}
         if prefix:
-            lines.append(f"[{prefix}]")
+            lines.append(f"[[{prefix}]]" if array else f"[{prefix}]")
         for k, v in scalars.items():
-            lines.append(f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"')
+            lines.append(f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v!r}")
         for k, v in table.items():
             if isinstance(v, dict):
                 emit(f"{prefix}.{k}" if prefix else k, v)
+            elif is_table_list(v):
+                for item in v:
+                    emit(f"{prefix}.{k}" if prefix else k, item, array=True)
 
     emit("", data)
     path = tmp_path / "bad.toml"
@@ -58,7 +64,7 @@ def test_written_copy_round_trips(tmp_path: Path) -> None:
         (lambda d: d["rack"].update(strok_mm=20.0), r"\[rack\]\.strok_mm: unknown key; expected one of: .*stroke_mm"),
         (lambda d: d["coil"].pop("resistance_ohm"), r"\[coil\]\.resistance_ohm: required key is missing"),
         (lambda d: d["coil"].update(inductance_mh="1 mH"), r"\[coil\]\.inductance_mh = '1 mH': Input should be a valid number"),
-        (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: coil, pump, rack, rig, sensors, valve"),
+        (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: acceptance, coil, controller, estimator, excitation, pump, rack, rig"),
         (lambda d: d["rig"].update(travel_max_mm=25.0), r"travel limits must satisfy.*25.0 <= 20.0"),
         (lambda d: d["rack"].update(mid_stroke_mm=30.0), r"mid_stroke_mm \(30.0\) must lie inside the stroke"),
         (lambda d: d["coil"].update(magnetic_stiffness_n_per_mm=3.0), r"no stable rest position"),

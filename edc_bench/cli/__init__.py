@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from edc_bench.cli.exit_codes import ExitCode
 
-COMMANDS = ("rig", "variants")
+COMMANDS = ("test", "rig", "variants")
 
 
 def build_parser() -> argparse.ArgumentParser:

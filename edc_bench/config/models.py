@@ -9,7 +9,7 @@ mid-stroke reachable without tripping over-current) are checked in
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -123,6 +123,102 @@ class RigSection(_Section):
     boot_ms: NonNegativeFloat = 200.0
 
 
+class ToneSection(_Section):
+    """One sine of the excitation."""
+
+    frequency_hz: Annotated[float, Field(gt=0, le=50, allow_inf_nan=False)]
+    amplitude_mm: PositiveFloat
+    phase_deg: Annotated[float, Field(ge=-360, le=360, allow_inf_nan=False)] = 0.0
+
+
+class ExcitationSection(_Section):
+    """The reference the rack follows during a test (about mid-stroke).
+
+    ``shape = "sine"`` uses only the first tone (the paper's 0.5 Hz sine; it
+    cannot separate a3 from a1, see DESIGN.md). ``"multisine"`` sums all tones.
+    """
+
+    shape: Literal["sine", "multisine"] = "multisine"
+    tones: Annotated[list[ToneSection], Field(min_length=1, max_length=8)]
+    move_s: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 1.0
+    fade_s: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 1.0
+    duration_s: Annotated[float, Field(gt=0, le=600, allow_inf_nan=False)] = 30.0
+
+    @property
+    def active_tones(self) -> list[ToneSection]:
+        """The tones the shape uses."""
+        return self.tones[:1] if self.shape == "sine" else self.tones
+
+    @model_validator(mode="after")
+    def _long_enough(self) -> ExcitationSection:
+        if self.duration_s <= self.move_s + self.fade_s:
+            raise ValueError(
+                f"duration_s ({self.duration_s}) must exceed move_s + fade_s ({self.move_s + self.fade_s})"
+            )
+        return self
+
+
+class ControllerSection(_Section):
+    """Loop rate and PID feedback gains, checked against the nominal plant."""
+
+    period_s: Annotated[float, Field(ge=1e-4, le=0.01, allow_inf_nan=False)] = 0.001
+    kp_v_per_mm: NonNegativeFloat
+    ki_v_per_mm_s: NonNegativeFloat
+    kd_v_s_per_mm: NonNegativeFloat
+    derivative_filter_hz: PositiveFloat = 100.0
+    min_gain_margin_db: NonNegativeFloat = 6.0
+    min_phase_margin_deg: Annotated[float, Field(ge=0, le=90, allow_inf_nan=False)] = 30.0
+
+
+PARAMETER_NAMES = ("a3", "a2", "a1", "a0", "b", "af")
+
+
+class EstimatorSection(_Section):
+    """Online estimation of the feedforward parameters.
+
+    Parameters not listed in ``estimate`` stay at their nominal value (from
+    the variant's physics); list only what the excitation makes identifiable.
+    """
+
+    kind: Literal["rls", "gradient"] = "rls"
+    estimate: Annotated[list[Literal["a3", "a2", "a1", "a0", "b", "af"]], Field(min_length=1)] = [
+        "a2", "a1", "a0", "b", "af",
+    ]
+    forgetting_factor: Annotated[float, Field(gt=0.99, le=1.0, allow_inf_nan=False)] = 0.9995
+    initial_std_rel: PositiveFloat = 1.0
+    gradient_gains_per_s: dict[Literal["a3", "a2", "a1", "a0", "b", "af"], PositiveFloat] | PositiveFloat = Field(
+        default=40.0, description="gradient law: one gain for all normalised parameters, or one per parameter",
+    )
+    reversal_exclusion: Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)] = Field(
+        default=0.3, description="no update while |r'| is below this fraction of its peak (stick windows)",
+    )
+
+    @model_validator(mode="after")
+    def _af_and_a1(self) -> EstimatorSection:
+        missing = {"a1", "af"} - set(self.estimate)
+        if missing:
+            raise ValueError(f"estimate must include a1 and af (the diagnosis features); missing {sorted(missing)}")
+        if len(set(self.estimate)) != len(self.estimate):
+            raise ValueError("estimate lists a parameter twice")
+        if isinstance(self.gradient_gains_per_s, dict):
+            missing_gains = set(self.estimate) - set(self.gradient_gains_per_s)
+            if missing_gains:
+                raise ValueError(f"gradient_gains_per_s needs a gain for {sorted(missing_gains)}")
+        return self
+
+
+class AcceptanceSection(_Section):
+    """When a test counts as trustworthy (else INVALID)."""
+
+    settle_band_rel: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.02
+    convergence_window_s: PositiveFloat = 5.0
+    max_condition_number: Annotated[float, Field(gt=1, allow_inf_nan=False)] = 1e4
+    max_missed_replies_in_row: Annotated[int, Field(ge=1, le=100)] = 5
+    max_overrun_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
+    reply_timeout_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.8
+    ready_timeout_s: PositiveFloat = 3.0
+
+
 class Variant(_Section):
     """A pump variant: everything the bench and the simulated rig need.
 
@@ -135,6 +231,10 @@ class Variant(_Section):
     valve: ValveSection
     sensors: SensorsSection
     rig: RigSection
+    excitation: ExcitationSection
+    controller: ControllerSection
+    estimator: EstimatorSection = EstimatorSection()
+    acceptance: AcceptanceSection = AcceptanceSection()
 
     @property
     def name(self) -> str:
@@ -179,6 +279,27 @@ class Variant(_Section):
             raise ValueError(
                 f"holding the rack at travel_max_mm needs {hold_a:.2f} A, at or above rig.over_current_a "
                 f"({rig.over_current_a} A): raise over_current_a or lower travel_max_mm"
+            )
+        excitation = self.excitation
+        swing_mm = sum(t.amplitude_mm for t in excitation.active_tones)
+        if not rig.travel_min_mm < rack.mid_stroke_mm - swing_mm and rack.mid_stroke_mm + swing_mm < rig.travel_max_mm:
+            raise ValueError(
+                f"the excitation swings {swing_mm:g} mm about mid-stroke ({rack.mid_stroke_mm} mm), beyond the "
+                f"travel limits [{rig.travel_min_mm}, {rig.travel_max_mm}]: lower the tone amplitudes"
+            )
+        shortest_s = excitation.move_s + excitation.fade_s + self.acceptance.convergence_window_s
+        if excitation.duration_s <= shortest_s:
+            raise ValueError(
+                f"excitation.duration_s ({excitation.duration_s:g} s) is too short: the move ({excitation.move_s:g} s),"
+                f" the fade-in ({excitation.fade_s:g} s) and the convergence window "
+                f"({self.acceptance.convergence_window_s:g} s) need more than {shortest_s:g} s"
+            )
+        nyquist_hz = 0.5 / self.controller.period_s
+        fastest = max(t.frequency_hz for t in excitation.active_tones)
+        if fastest > nyquist_hz / 10:
+            raise ValueError(
+                f"excitation tone at {fastest} Hz is too fast for a {self.controller.period_s * 1e3:g} ms period: "
+                f"keep tones below {nyquist_hz / 10:g} Hz"
             )
         hold_v = hold_a * coil.resistance_ohm / coil.amplifier_gain
         if hold_v >= rig.drive_limit_v:

@@ -75,6 +75,8 @@ class SlcanRigServer:
         self._hosts: dict[int, _Host] = {}
         self._t0 = 0.0
         self._stop = False
+        #: Busy-poll while a host is connected (real-time fidelity at the cost of a core).
+        self.poll_while_connected = True
 
     def stop(self) -> None:
         """Ask :meth:`serve_forever` to return (safe to call from a signal handler)."""
@@ -169,7 +171,10 @@ class SlcanRigServer:
             now = self._now()
             for can_id, data in rig.advance_to(now):
                 self._broadcast(SlcanDevice.format_frame(can_id, data))
-            wait_s = min(_MAX_WAIT_S, max(0.0, rig.firmware.next_deadline_s() - self._now()))
+            if self._hosts and self.poll_while_connected:
+                wait_s = 0.0  # poll: a sleeping process on a VM can wake milliseconds late
+            else:
+                wait_s = min(_MAX_WAIT_S, max(0.0, rig.firmware.next_deadline_s() - self._now()))
             for key, _ in self._selector.select(timeout=wait_s):
                 kind, obj = key.data
                 if kind == "listen":

@@ -1,0 +1,244 @@
+"""Run a bench test from Python: the API a test engineer scripts against.
+
+Example
+-------
+On the simulated rig, in simulated time::
+
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant
+
+    result = run_simulated_test(load_variant("p-edc-default"), valve="worn", seed=3)
+    print(result.verdict, result.features, result.truth)
+
+On any python-can bus (a real rig, or ``edc-bench rig`` over slcan)::
+
+    import can
+    from edc_bench.bench import run_bench_test
+    from edc_bench.control.clock import RealTimeClock
+
+    with can.Bus(interface="slcan", channel="socket://127.0.0.1:5000", bitrate=500000,
+                 sleep_after_open=0) as bus:
+        result = run_bench_test(bus, RealTimeClock(), load_variant(), valve_id="V-0042")
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+import numpy as np
+
+from edc_bench import __version__
+from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.analysis import Identification, analyse, timing_summary
+from edc_bench.control.build import nominal_plant
+from edc_bench.control.clock import Clock, SimulatedClock
+from edc_bench.control.fel import FelController
+from edc_bench.control.loop import BenchLoop, LoopOutcome, ProgressFn
+from edc_bench.control.stability import LoopMargins, check_variant_gains
+from edc_bench.protocol import Icd, default_icd
+from edc_bench.records.trace import CanFrameLog
+from edc_bench.sim.valve import FeedforwardParameters, ValveSpec, parse_valve_spec
+
+#: Verdict while no classifier is installed: the test itself was trustworthy,
+#: but nothing has judged the valve yet. Never reported as PASS.
+UNCLASSIFIED = "UNCLASSIFIED"
+INVALID = "INVALID"
+
+
+@dataclass
+class BenchResult:
+    """Everything one bench test produced.
+
+    Attributes
+    ----------
+    verdict : str
+        ``INVALID`` (the test is not to be trusted; see ``reasons``) or, until
+        the classifier is installed, ``UNCLASSIFIED``.
+    reasons : list of str
+        Why the verdict is what it is.
+    parameters : dict
+        ``name -> {"value", "std", "estimated"}`` for a3, a2, a1, a0, b, af.
+    features : dict
+        ``{"af": ..., "a1": ...}``, the diagnosis inputs.
+    converged : bool
+        af and a1 settled and stayed settled.
+    truth : FeedforwardParameters or None
+        The simulated plant's true parameters (simulated rig only).
+    """
+
+    verdict: str
+    reasons: list[str]
+    parameters: dict[str, dict[str, Any]]
+    features: dict[str, float]
+    converged: bool
+    identification: Identification | None
+    timing: dict[str, float]
+    outcome: LoopOutcome
+    margins: LoopMargins | None
+    variant: Variant
+    valve_id: str
+    started_at: str
+    clock: str
+    trace: dict[str, np.ndarray]
+    frames: CanFrameLog
+    truth: FeedforwardParameters | None = None
+    simulation: dict[str, Any] | None = None
+    software_version: str = __version__
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _judge(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
+           timing: dict[str, float]) -> list[str]:
+    """Reasons the test is not trustworthy (empty if it is)."""
+    reasons = []
+    acc = variant.acceptance
+    if outcome.abort_reason:
+        reasons.append(f"aborted: {outcome.abort_reason}")
+    if ident is None:
+        return reasons or ["no identification"]
+    if not outcome.abort_reason and not ident.converged:
+        settle = ", ".join(f"{n} {ident.settle_s[n]:.1f} s" for n in ("af", "a1"))
+        reasons.append(f"not converged: af and a1 must settle within {acc.settle_band_rel:.0%} for the last "
+                       f"{acc.convergence_window_s:g} s (settle times {settle})")
+    if ident.condition_number > acc.max_condition_number:
+        reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
+                       f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
+    ticks = max(int(timing.get("ticks", 0)), 1)
+    if timing.get("overruns", 0) / ticks > acc.max_overrun_fraction:
+        reasons.append(f"timing: {timing['overruns']} of {ticks} ticks overran "
+                       f"(limit {acc.max_overrun_fraction:.1%})")
+    if outcome.missed_replies / ticks > acc.max_overrun_fraction:
+        reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing")
+    return reasons
+
+
+def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id: str = "",
+                   icd: Icd | None = None, progress: ProgressFn | None = None,
+                   truth: FeedforwardParameters | None = None, check_gains: bool = True) -> BenchResult:
+    """Run one bench test on ``bus``.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        Bus to the rig (any python-can interface).
+    clock : Clock
+        :class:`~edc_bench.control.clock.SimulatedClock` (lockstep with an
+        in-process rig) or :class:`~edc_bench.control.clock.RealTimeClock`.
+    variant : Variant
+        Pump variant.
+    valve_id : str, optional
+        Identity of the valve under test, for the record.
+    icd : Icd, optional
+        Compiled ICD (the packaged one by default).
+    progress : callable, optional
+        ``progress(tick, ticks, controller, rack_mm)`` every 250 ticks.
+    truth : FeedforwardParameters, optional
+        True parameters, when the rig is simulated.
+    check_gains : bool, optional
+        Check the PID gains' margins with python-control first (default).
+
+    Returns
+    -------
+    BenchResult
+        Also when the test was aborted: then the verdict is INVALID and the
+        trace holds what was measured.
+
+    Raises
+    ------
+    ConfigError
+        If the variant's gains are unstable or marginal on its nominal plant.
+    """
+    margins = check_variant_gains(variant, nominal_plant(variant)) if check_gains else None
+    started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    loop = BenchLoop(bus, clock, variant, icd or default_icd(), progress)
+    outcome = loop.run()
+    trace = loop.trace.view()
+    timing = timing_summary(trace, variant.controller.period_s)
+    timing["missed_replies"] = outcome.missed_replies
+    timing["cpu_steal_s"] = outcome.cpu_steal_s
+    controller: FelController | None = loop.controller
+    ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
+    reasons = _judge(variant, outcome, ident, timing)
+    parameters: dict[str, dict[str, Any]] = {}
+    if ident is not None and controller is not None:
+        estimated = {PARAMETER_NAMES[i] for i in controller.estimated}
+        for name in PARAMETER_NAMES:
+            entry: dict[str, Any] = {"value": ident.final[name], "std": ident.std[name],
+                                     "estimated": name in estimated}
+            if truth is not None:
+                entry["truth"] = getattr(truth, name)
+                entry["error_rel"] = ident.final[name] / getattr(truth, name) - 1.0
+            parameters[name] = entry
+    features = {n: (ident.final[n] if ident else math.nan) for n in ("af", "a1")}
+    return BenchResult(
+        verdict=INVALID if reasons else UNCLASSIFIED,
+        reasons=reasons or ["test trustworthy; no classifier installed yet, so the valve is not judged"],
+        parameters=parameters,
+        features=features,
+        converged=bool(ident and ident.converged and not outcome.abort_reason),
+        identification=ident,
+        timing=timing,
+        outcome=outcome,
+        margins=margins,
+        variant=variant,
+        valve_id=valve_id,
+        started_at=started,
+        clock="simulated" if isinstance(clock, SimulatedClock) else "real-time",
+        trace=trace,
+        frames=loop.frames,
+        truth=truth,
+    )
+
+
+_channels = itertools.count()
+
+
+def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
+                       valve_id: str = "", stiction: bool = True, sensor_noise: bool = True,
+                       progress: ProgressFn | None = None, check_gains: bool = True) -> BenchResult:
+    """Run a bench test against the simulated rig in process, in simulated time.
+
+    Parameters
+    ----------
+    variant : Variant
+        Pump variant.
+    valve : str or ValveSpec
+        ``new``, ``worn``, ``faulty``, physical values (see
+        :func:`~edc_bench.sim.valve.parse_valve_spec`) or a spec.
+    seed : int
+        Seed of the rig's sensor noise.
+    stiction, sensor_noise : bool
+        Switch the plant's stiction and the sensors' noise off to get the
+        plant the identification model assumes.
+
+    Returns
+    -------
+    BenchResult
+        With ``truth`` set to the simulated plant's parameters.
+    """
+    from edc_bench.sim.inprocess import InProcessRig
+    from edc_bench.sim.rig import RigOptions, SimulatedRig
+
+    spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
+    rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise))
+    channel = f"edc-bench-sim-{next(_channels)}"
+    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bench_bus, \
+         can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as rig_bus:
+        clock = SimulatedClock(InProcessRig(rig_bus, rig))
+        result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, progress=progress,
+                                truth=rig.truth, check_gains=check_gains)
+    result.simulation = {
+        "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
+                  "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},
+        "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise,
+        "coulomb_friction_n": rig.plant_params.coulomb_friction_n,
+        "damping_n_s_per_mm": rig.plant_params.damping_n_s_per_mm,
+        "rig_counters": {"accepted": rig.firmware.counters.accepted, "bad_crc": rig.firmware.counters.bad_crc,
+                         "watchdog_trips": rig.firmware.counters.watchdog_trips},
+    }
+    return result

@@ -1,0 +1,194 @@
+"""``edc-bench test``: run one bench test and write its record."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from edc_bench.cli.common import add_variant_arguments
+from edc_bench.cli.exit_codes import ExitCode
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "test",
+        help="run a bench test (default: simulated rig, simulated time)",
+        description="Run one bench test: drive the rack along the variant's reference, identify the valve's "
+                    "friction (af) and damping (a1), and write a record folder. Without bus arguments the "
+                    "simulated rig runs in process in simulated time. With --interface/--channel (or "
+                    "python-can's config file or CAN_INTERFACE/CAN_CHANNEL environment variables) it drives "
+                    "that bus in real time.",
+    )
+    add_variant_arguments(p)
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulated rig's sensor noise (default: 0)")
+    p.add_argument("--duration-s", type=float, default=None, metavar="S",
+                   help="test duration in seconds (default: the variant's, 30 s)")
+    p.add_argument("--estimator", choices=("rls", "gradient"), default=None,
+                   help="override the variant's estimator (rls: recursive least squares; gradient: the paper's law)")
+    p.add_argument("--realtime", action="store_true",
+                   help="run in real time; without a bus, starts the simulated rig as a process and drives it over slcan")
+    p.add_argument("--interface", default=None, help="python-can interface, e.g. slcan, socketcan, pcan")
+    p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
+    p.add_argument("--bitrate", type=int, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    p.add_argument("--valve-id", default="", metavar="ID", help="identity of the valve under test, for the record")
+    p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
+                   help="folder for record folders (default: ./records)")
+    p.add_argument("--json", action="store_true", help="print only a JSON summary on stdout")
+    p.add_argument("--no-stiction", action="store_true",
+                   help="simulated rig: Coulomb friction only (the plant the identification model assumes)")
+    p.add_argument("--no-sensor-noise", action="store_true", help="simulated rig: exact sensor readings")
+    p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
+    p.set_defaults(run=run)
+
+
+def _variant(args: argparse.Namespace) -> Any:
+    from edc_bench.config import load_variant, parse_variant
+
+    variant = load_variant(args.variant)
+    data = variant.model_dump(mode="python")
+    if args.duration_s is not None:
+        data["excitation"]["duration_s"] = args.duration_s
+    if args.estimator is not None:
+        data["estimator"]["kind"] = args.estimator
+    return parse_variant(data, f"variant {variant.name} with command-line overrides")
+
+
+def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
+    """Bus settings from flags, python-can's environment or config file; None for the in-process rig."""
+    import can
+
+    given = {k: v for k, v in (("interface", args.interface), ("channel", args.channel),
+                               ("bitrate", args.bitrate)) if v is not None}
+    if "interface" not in given and "channel" not in given:
+        # python-can's own sources, in its order of precedence: environment, then config file
+        configured = {**can.util.load_file_config(), **can.util.load_environment_config()}
+        if not configured.get("interface"):
+            return None
+        given = {**{k: configured[k] for k in ("interface", "channel", "bitrate") if configured.get(k)}, **given}
+        if "bitrate" in given:
+            given["bitrate"] = int(given["bitrate"])
+    return given
+
+
+class _Progress:
+    """Live progress: one updating line on a terminal, a line per 5 s otherwise."""
+
+    def __init__(self, stream: Any, period_s: float) -> None:
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.period_s = period_s
+        self._last_logged = -1
+
+    def __call__(self, k: int, ticks: int, ctl: Any, rack_mm: float) -> None:
+        left_s = (ticks - k) * self.period_s
+        params = ctl.parameters()
+        line = (f"{left_s:5.1f} s left | rack {rack_mm:6.2f} mm, reference {ctl.r_prev_mm:6.2f} mm "
+                f"| af {params[5]:8.5f} V | a1 {params[2]:9.6f} V s/mm")
+        if self.tty:
+            self.stream.write("\r" + line)
+            self.stream.flush()
+        elif int(k * self.period_s) // 5 != self._last_logged:
+            self._last_logged = int(k * self.period_s) // 5
+            self.stream.write(line + "\n")
+
+    def done(self) -> None:
+        if self.tty:
+            self.stream.write("\r" + " " * 100 + "\r")
+            self.stream.flush()
+
+
+def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
+    """The JSON summary of a test."""
+    from edc_bench.records.writer import json_safe
+
+    out = {
+        "verdict": result.verdict,
+        "reasons": result.reasons,
+        "valve_id": result.valve_id,
+        "variant": result.variant.name,
+        "features": result.features,
+        "parameters": result.parameters,
+        "converged": result.converged,
+        "settle_s": None if result.identification is None else result.identification.settle_s,
+        "condition_number": None if result.identification is None else result.identification.condition_number,
+        "timing": result.timing,
+        "clock": result.clock,
+        "record_dir": str(record_dir) if record_dir else None,
+    }
+    if result.truth is not None:
+        out["truth"] = result.truth._asdict()
+    return json_safe(out)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the test, write the record, report."""
+    from edc_bench.bench import INVALID, run_bench_test, run_simulated_test
+    from edc_bench.bus import open_bus
+    from edc_bench.control.clock import RealTimeClock
+    from edc_bench.protocol import default_icd
+    from edc_bench.records.record import write_record
+    from edc_bench.sim.valve import parse_valve_spec
+
+    variant = _variant(args)
+    bus_config = _bus_config(args)
+    quiet = args.json
+    progress = None if quiet else _Progress(sys.stderr, variant.controller.period_s)
+    log = (lambda line: None) if quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+
+    if bus_config is None and not args.realtime:
+        valve = parse_valve_spec(args.valve, variant)
+        log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
+            f"simulated time, {variant.excitation.duration_s:g} s")
+        result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
+                                    stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
+                                    progress=progress)
+    else:
+        icd = default_icd()
+        if bus_config is None:
+            from edc_bench.sim.process import rig_process
+
+            parse_valve_spec(args.valve, variant)  # refuse a bad spec before starting anything
+            with rig_process(args.variant, args.valve, args.seed) as channel:
+                log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
+                with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
+                    result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress)
+        else:
+            log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
+            with open_bus(bus_config, icd.bitrate) as bus:
+                result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress)
+    if progress is not None:
+        progress.done()
+
+    record_dir = write_record(result, args.out, figure=not args.no_figure)
+    if args.json:
+        print(json.dumps(summary(result, record_dir), indent=2))
+    else:
+        _print_report(result, record_dir)
+    return ExitCode.INVALID if result.verdict == INVALID else ExitCode.OK
+
+
+def _print_report(result: Any, record_dir: Path) -> None:
+    print(f"verdict: {result.verdict}")
+    for reason in result.reasons:
+        print(f"  - {reason}")
+    print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm")
+    print("parameters:")
+    for name, p in result.parameters.items():
+        tail = ""
+        if "truth" in p:
+            tail = f"   truth {p['truth']:.6g} ({p['error_rel']:+.1%})"
+        kind = "" if p["estimated"] else "   (fixed at nominal)"
+        print(f"  {name:>2} = {p['value']:.6g} +/- {p['std']:.2g}{tail}{kind}")
+    ident = result.identification
+    if ident is not None:
+        print(f"converged: {result.converged} (settle af {ident.settle_s['af']:.1f} s, a1 {ident.settle_s['a1']:.1f} s;"
+              f" condition number {ident.condition_number:.3g})")
+    t = result.timing
+    if t.get("ticks"):
+        print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, overruns {t['overruns']}, "
+              f"missed replies {result.outcome.missed_replies}, CPU steal meanwhile {t['cpu_steal_s']:.2f} s")
+    print(f"record: {record_dir}")

@@ -1,0 +1,1 @@
+"""Reference, PID, feedforward, estimators, clocks and the tick loop."""

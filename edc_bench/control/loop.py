@@ -1,0 +1,275 @@
+"""The bench loop: the one place where time, bus I/O and controller math meet.
+
+Phases: wait for the rig's READY heartbeat (re-arming a latched FAULT with
+SAFE), a SAFE command to synchronise the counter and read the rack's start
+position, then one RUN command per tick, each answered by a RIG_FEEDBACK
+within the tick. Every way out, normal or not, ends with SAFE commands.
+
+Per tick nothing is allocated beyond what python-can and the codec must:
+the trace and the frame log are preallocated arrays.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import can
+
+from edc_bench.config.models import Variant
+from edc_bench.control.build import build_controller
+from edc_bench.control.clock import Clock, cpu_steal_s
+from edc_bench.control.fel import FelController
+from edc_bench.errors import ProtocolError
+from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, Icd, Mode, RigState
+from edc_bench.records.trace import CanFrameLog, Trace
+
+# flag bits of trace column rig_flags
+FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
+
+ProgressFn = Callable[[int, int, FelController, float], None]
+
+
+@dataclass
+class LoopOutcome:
+    """What happened in the loop, beyond the trace."""
+
+    ticks_planned: int
+    ticks_run: int = 0
+    missed_replies: int = 0
+    max_missed_in_row: int = 0
+    bad_replies: int = 0
+    overruns: int = 0
+    abort_reason: str | None = None
+    rig_state_at_start: str | None = None
+    fw_version: str | None = None
+    safe_confirmed: bool = False
+    heartbeats: int = 0
+    cpu_steal_s: float = 0.0
+    events: list[str] = field(default_factory=list)
+
+
+class BenchLoop:
+    """Runs one bench test on a bus with a clock.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The bench's bus to the rig.
+    clock : Clock
+        Simulated (lockstep) or real time.
+    variant : Variant
+        Pump variant.
+    icd : Icd
+        The compiled ICD.
+    progress : callable, optional
+        ``progress(tick, ticks, controller, rack_mm)``, called every 250 ticks.
+    """
+
+    def __init__(self, bus: can.BusABC, clock: Clock, variant: Variant, icd: Icd,
+                 progress: ProgressFn | None = None) -> None:
+        self.bus = bus
+        self.clock = clock
+        self.variant = variant
+        self.icd = icd
+        self.progress = progress
+        self.period_s = variant.controller.period_s
+        self.ticks = int(round(variant.excitation.duration_s / self.period_s))
+        self.trace = Trace(self.ticks)
+        # a command and a reply per tick, heartbeats, and the phases around the ticks
+        self.frames = CanFrameLog(2 * self.ticks + self.ticks // 50 + 4096)
+        self.outcome = LoopOutcome(ticks_planned=self.ticks)
+        self.controller: FelController | None = None
+        self._counter = 0
+        self._rig_state: RigState | None = None
+        self._t_s = 0.0
+
+    # -- frames ----------------------------------------------------------------
+    def _send(self, mode: int, drive_v: float, reference_mm: float) -> int:
+        self._counter = (self._counter + 1) & 0xFF
+        data = self.icd.make_bench_cmd(self._counter, mode, drive_v, min(max(reference_mm, 0.0), 65.535))
+        self.bus.send(can.Message(arbitration_id=BENCH_CMD_ID, data=data, is_extended_id=False))
+        self.frames.add(self._t_s, BENCH_CMD_ID, data, False)
+        self.clock.after_send(self._t_s)
+        return self._counter
+
+    def _receive(self, counter: int | None, deadline_s: float):
+        """Read frames until the reply to ``counter`` or the deadline; log every frame."""
+        bus, icd, clock = self.bus, self.icd, self.clock
+        waits = clock.waits_for_replies
+        while True:
+            timeout = max(0.0, deadline_s - clock.now_s()) if waits else 0.0
+            msg = bus.recv(timeout)
+            if msg is None:
+                return None
+            now = clock.now_s() if waits else self._t_s
+            self.frames.add(now, msg.arbitration_id, msg.data, True)
+            can_id = msg.arbitration_id
+            if can_id == RIG_FEEDBACK_ID and counter is not None:
+                try:
+                    reply = icd.parse_rig_feedback(msg.data)
+                except ProtocolError:
+                    self.outcome.bad_replies += 1
+                    continue
+                if reply.counter == counter:
+                    return reply
+            elif can_id == RIG_HEARTBEAT_ID:
+                try:
+                    beat = icd.parse_heartbeat(msg.data)
+                except ProtocolError:
+                    continue
+                self.outcome.heartbeats += 1
+                self._rig_state = beat.state
+                if self.outcome.fw_version is None:
+                    self.outcome.fw_version = f"{beat.fw_major}.{beat.fw_minor}"
+
+    # -- phases ----------------------------------------------------------------
+    def _wait_ready(self) -> bool:
+        """Wait for READY, re-arming a FAULT with SAFE. False on timeout."""
+        step = 0.01
+        limit = self.variant.acceptance.ready_timeout_s
+        rearmed = False
+        while self._t_s < limit:
+            self._t_s += step
+            self.clock.wait_until(self._t_s)
+            self._receive(None, self._t_s + step * 0.5)
+            if self.outcome.rig_state_at_start is None and self._rig_state is not None:
+                self.outcome.rig_state_at_start = self._rig_state.name
+            if self._rig_state is RigState.READY:
+                return True
+            if self._rig_state in (RigState.FAULT, RigState.RUNNING) and not rearmed:
+                self.outcome.events.append(f"rig was {self._rig_state.name} at start: sent SAFE to re-arm")
+                counter = self._send(Mode.SAFE, 0.0, 0.0)
+                self._receive(counter, self._t_s + step * 0.5)
+                rearmed = True
+        return False
+
+    def _safe_stop(self) -> None:
+        """Send SAFE until the rig confirms its amplifier is off (up to 5 tries)."""
+        for _ in range(5):
+            self._t_s = max(self._t_s + self.period_s, self.clock.now_s())
+            self.clock.wait_until(self._t_s)
+            counter = self._send(Mode.SAFE, 0.0, 0.0)
+            reply = self._receive(counter, self._t_s + 0.02)
+            if reply is not None and not reply.amp_enabled:
+                self.outcome.safe_confirmed = True
+                return
+
+    def run(self) -> LoopOutcome:
+        """Run the test; always ends with SAFE. Returns what happened."""
+        gc_was_enabled = gc.isenabled()
+        gc.collect()
+        gc.freeze()  # objects alive now are never scanned again
+        gc.disable()  # and no collection interrupts a tick
+        self.clock.start()
+        steal_at_start = cpu_steal_s()
+        try:
+            if not self._wait_ready():
+                state = self._rig_state.name if self._rig_state else "no heartbeat"
+                self.outcome.abort_reason = (
+                    f"rig not READY within {self.variant.acceptance.ready_timeout_s:g} s ({state})"
+                )
+                return self.outcome
+            self._run_ticks()
+        except KeyboardInterrupt:
+            self.outcome.abort_reason = "interrupted by the operator"
+        finally:
+            try:
+                self._safe_stop()
+            finally:
+                self.outcome.cpu_steal_s = cpu_steal_s() - steal_at_start
+                if gc_was_enabled:
+                    gc.enable()
+                gc.unfreeze()
+        return self.outcome
+
+    def _run_ticks(self) -> None:
+        T = self.period_s
+        # synchronise the counter and read where the rack is
+        self._t_s += T
+        self.clock.wait_until(self._t_s)
+        counter = self._send(Mode.SAFE, 0.0, 0.0)
+        # not time-critical: frames queued since connecting may come first
+        first = self._receive(counter, self._t_s + 0.1)
+        if first is None:
+            self.outcome.abort_reason = "no reply to the first SAFE command"
+            return
+        position_mm = first.position_mm
+        current_a = first.current_a
+        self.controller = ctl = build_controller(self.variant, position_mm)
+
+        cols = self.trace.columns
+        t_col, late_col, reply_col = cols["t_s"], cols["lateness_s"], cols["reply_latency_s"]
+        r_col, r1_col = cols["reference_mm"], cols["reference_velocity_mm_s"]
+        x_col, i_col = cols["position_mm"], cols["current_a"]
+        u_col, u1_col, u2_col = cols["drive_v"], cols["feedforward_v"], cols["feedback_v"]
+        adapt_col, ok_col, flag_col = cols["adapting"], cols["reply_ok"], cols["rig_flags"]
+        param_cols = [cols[f"{n}_hat"] for n in ("a3", "a2", "a1", "a0", "b", "af")]
+        acceptance = self.variant.acceptance
+        reply_window_s = T * acceptance.reply_timeout_fraction
+        max_in_row = acceptance.max_missed_replies_in_row
+        t_start = max(self._t_s, self.clock.now_s()) + T
+        outcome = self.outcome
+        missed_in_row = 0
+        progress = self.progress
+        clock = self.clock
+
+        for k in range(self.ticks):
+            t_k = t_start + k * T
+            self._t_s = t_k
+            lateness = clock.wait_until(t_k)
+            if lateness > T:
+                outcome.overruns += 1
+            u = ctl.step(k, position_mm)
+            sent_s = clock.now_s()
+            counter = self._send(Mode.RUN, u, ctl.r_prev_mm)
+            reply = self._receive(counter, t_k + reply_window_s)
+            reply_col[k] = clock.now_s() - sent_s if reply is not None else math.nan
+            if reply is None:
+                outcome.missed_replies += 1
+                missed_in_row += 1
+                outcome.max_missed_in_row = max(outcome.max_missed_in_row, missed_in_row)
+                flags = 0
+            else:
+                missed_in_row = 0
+                position_mm, current_a = reply.position_mm, reply.current_a
+                flags = (
+                    reply.amp_enabled * FLAG_AMP | reply.watchdog_tripped * FLAG_WATCHDOG
+                    | reply.over_current * FLAG_OVER_CURRENT | reply.lvdt_fault * FLAG_LVDT
+                    | reply.travel_limit * FLAG_TRAVEL
+                )
+            t_col[k] = t_k - t_start
+            late_col[k] = lateness
+            r_col[k] = ctl.r_prev_mm
+            r1_col[k] = ctl.r1_mm_s
+            x_col[k] = position_mm
+            i_col[k] = current_a
+            u_col[k] = u
+            u1_col[k] = ctl.u1_v
+            u2_col[k] = ctl.u2_v
+            adapt_col[k] = ctl.adapting
+            ok_col[k] = reply is not None
+            flag_col[k] = flags
+            params = ctl.parameters()
+            for j in range(6):
+                param_cols[j][k] = params[j]
+            self.trace.rows = k + 1
+            outcome.ticks_run = k + 1
+            if reply is not None and reply.any_fault:
+                outcome.abort_reason = "rig fault: " + ", ".join(
+                    name for name, bit in (("watchdog tripped", reply.watchdog_tripped),
+                                           ("over-current", reply.over_current),
+                                           ("LVDT fault", reply.lvdt_fault),
+                                           ("travel limit", reply.travel_limit)) if bit
+                )
+                return
+            if reply is not None and not reply.amp_enabled:
+                outcome.abort_reason = "rig amplifier not enabled while running"
+                return
+            if missed_in_row > max_in_row:
+                outcome.abort_reason = f"{missed_in_row} replies missing in a row (limit {max_in_row})"
+                return
+            if progress is not None and k % 250 == 0:
+                progress(k, self.ticks, ctl, position_mm)

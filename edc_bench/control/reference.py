@@ -1,0 +1,121 @@
+"""Rack reference: soft start to mid-stroke, then a sum of sines, with exact
+derivatives up to the third.
+
+    r(t) = x0 + (r_mid - x0) S((t - 0) / T_move)                 move
+         + E((t - T_move) / T_fade) sum_j A_j sin(w_j (t - T_move))  excitation
+
+S and E are C3 smoothsteps (degree-7 polynomials with zero first to third
+derivatives at both ends), so r, r', r'' and r''' are continuous: the first
+tick does not jump and the feedforward's r''' term never spikes. Derivatives
+of the product E * sines come from Leibniz' rule.
+
+With one tone, r''' = -w^2 r' exactly and r'' = -w^2 (r - r_mid): a3 and a1
+cannot be told apart (DESIGN.md section 2, point 4). Use two tones or more.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Tone:
+    """One sine of the excitation."""
+
+    frequency_hz: float
+    amplitude_mm: float
+    phase_rad: float = 0.0
+
+
+def smoothstep7(u: float) -> tuple[float, float, float, float]:
+    """C3 smoothstep and its first three derivatives with respect to ``u``.
+
+    ``S(u) = 35u^4 - 84u^5 + 70u^6 - 20u^7`` on [0, 1], 0 before, 1 after.
+    """
+    if u <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    if u >= 1.0:
+        return 1.0, 0.0, 0.0, 0.0
+    u2 = u * u
+    u3 = u2 * u
+    u4 = u3 * u
+    s = u4 * (35.0 - 84.0 * u + 70.0 * u2 - 20.0 * u3)
+    d1 = u3 * (140.0 - 420.0 * u + 420.0 * u2 - 140.0 * u3)
+    d2 = u2 * (420.0 - 1680.0 * u + 2100.0 * u2 - 840.0 * u3)
+    d3 = u * (840.0 - 5040.0 * u + 8400.0 * u2 - 4200.0 * u3)
+    return s, d1, d2, d3
+
+
+class Reference:
+    """The reference of one bench test.
+
+    Parameters
+    ----------
+    start_mm : float
+        Rack position when the test starts (measured).
+    mid_mm : float
+        Centre of the excitation (mid-stroke).
+    tones : sequence of Tone
+        The excitation.
+    move_s : float
+        Duration of the smooth move from ``start_mm`` to ``mid_mm``.
+    fade_s : float
+        Duration of the excitation's smooth fade-in, after the move.
+    """
+
+    def __init__(self, start_mm: float, mid_mm: float, tones: tuple[Tone, ...], move_s: float,
+                 fade_s: float) -> None:
+        if move_s <= 0 or fade_s <= 0:
+            raise ValueError("move_s and fade_s must be positive")
+        self.start_mm = start_mm
+        self.mid_mm = mid_mm
+        self.tones = tuple(tones)
+        self.move_s = move_s
+        self.fade_s = fade_s
+        self._w = tuple(2.0 * math.pi * t.frequency_hz for t in self.tones)
+
+    @property
+    def excitation_start_s(self) -> float:
+        """Time at which the excitation begins (end of the move)."""
+        return self.move_s
+
+    @property
+    def peak_velocity_mm_s(self) -> float:
+        """Upper bound of |r'| during the excitation."""
+        return sum(t.amplitude_mm * w for t, w in zip(self.tones, self._w, strict=True))
+
+    def at(self, t_s: float) -> tuple[float, float, float, float]:
+        """``(r, r', r'', r''')`` at time ``t_s`` (mm, mm/s, mm/s^2, mm/s^3)."""
+        span = self.mid_mm - self.start_mm
+        s0, s1, s2, s3 = smoothstep7(t_s / self.move_s)
+        inv = 1.0 / self.move_s
+        r = self.start_mm + span * s0
+        r1 = span * s1 * inv
+        r2 = span * s2 * inv * inv
+        r3 = span * s3 * inv * inv * inv
+        tau = t_s - self.move_s
+        if tau <= 0.0:
+            return r, r1, r2, r3
+        # sum of sines and its derivatives
+        g0 = g1 = g2 = g3 = 0.0
+        for tone, w in zip(self.tones, self._w, strict=True):
+            phase = w * tau + tone.phase_rad
+            sn = tone.amplitude_mm * math.sin(phase)
+            cs = tone.amplitude_mm * math.cos(phase)
+            g0 += sn
+            g1 += w * cs
+            g2 -= w * w * sn
+            g3 -= w * w * w * cs
+        e0, e1, e2, e3 = smoothstep7(tau / self.fade_s)
+        f = 1.0 / self.fade_s
+        e1 *= f
+        e2 *= f * f
+        e3 *= f * f * f
+        # Leibniz: (E g)^(n) = sum C(n,k) E^(k) g^(n-k)
+        return (
+            r + e0 * g0,
+            r1 + e0 * g1 + e1 * g0,
+            r2 + e0 * g2 + 2.0 * e1 * g1 + e2 * g0,
+            r3 + e0 * g3 + 3.0 * e1 * g2 + 3.0 * e2 * g1 + e3 * g0,
+        )

@@ -1,0 +1,115 @@
+"""Check a variant's PID gains against its nominal plant (python-control).
+
+The loop analysed is the one the bench runs: the plant discretised with a
+zero-order hold at the tick period, one period of delay (the rack sample
+used at tick k was taken at tick k-1, DESIGN 3.1), and the discrete PID with
+its filtered derivative exactly as :class:`~edc_bench.control.pid.Pid`
+computes it. Friction is left out (the nominal plant is the linear one).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+from edc_bench.config.models import Variant
+from edc_bench.errors import ConfigError
+from edc_bench.sim.plant import PlantParameters
+
+
+@dataclass(frozen=True)
+class LoopMargins:
+    """Stability margins of the bench's feedback loop.
+
+    Attributes
+    ----------
+    gain_margin_db : float
+        Gain margin (inf if the phase never crosses -180 degrees).
+    phase_margin_deg : float
+        Phase margin (inf if the gain never crosses 1).
+    crossover_hz : float
+        Gain crossover frequency (nan if none).
+    closed_loop_stable : bool
+        All closed-loop poles strictly inside the unit circle.
+    max_pole_radius : float
+        Largest closed-loop pole magnitude.
+    """
+
+    gain_margin_db: float
+    phase_margin_deg: float
+    crossover_hz: float
+    closed_loop_stable: bool
+    max_pole_radius: float
+
+
+def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, derivative_filter_hz: float,
+                 period_s: float) -> LoopMargins:
+    """Margins of PID + one-period delay + ZOH plant.
+
+    Parameters
+    ----------
+    params : PlantParameters
+        Plant (friction ignored).
+    kp, ki, kd : float
+        PID gains (V/mm, V/(mm s), V s/mm).
+    derivative_filter_hz : float
+        Derivative filter corner.
+    period_s : float
+        Tick period.
+
+    Returns
+    -------
+    LoopMargins
+    """
+    import control  # heavy (about 1.5 s): imported only when a check runs
+
+    p = params
+    gain = p.amplifier_gain * p.force_constant_n_per_a
+    coil = control.tf([gain], [p.inductance_h, p.resistance_ohm])
+    mech = control.tf([1.0], [p.mass_n_s2_per_mm, p.damping_n_s_per_mm, p.net_stiffness_n_per_mm])
+    plant_d = control.c2d(coil * mech, period_s, method="zoh")
+    z = control.tf([1.0, 0.0], [1.0], period_s)
+    tau = 1.0 / (2.0 * math.pi * derivative_filter_hz)
+    a = tau / (tau + period_s)
+    b = kd / (tau + period_s)
+    pid = kp + ki * period_s * z / (z - 1) + b * (z - 1) / (z - a)
+    loop = pid * plant_d / z
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gm, pm, _, wpc = control.stability_margins(loop, method="poly")[:4]
+    closed = control.feedback(loop, 1)
+    radius = max(abs(complex(pole)) for pole in closed.poles())
+    gm_db = 20.0 * math.log10(gm) if gm and math.isfinite(gm) and gm > 0 else math.inf
+    return LoopMargins(
+        gain_margin_db=gm_db,
+        phase_margin_deg=float(pm) if pm is not None and math.isfinite(pm) else math.inf,
+        crossover_hz=float(wpc) / (2 * math.pi) if wpc is not None and math.isfinite(wpc) else math.nan,
+        closed_loop_stable=radius < 1.0,
+        max_pole_radius=radius,
+    )
+
+
+def check_variant_gains(variant: Variant, nominal: PlantParameters) -> LoopMargins:
+    """Refuse gains that are unstable or marginal on the variant's nominal plant.
+
+    Raises
+    ------
+    ConfigError
+        Naming the margins found and the minimums the variant asks for.
+    """
+    c = variant.controller
+    m = loop_margins(nominal, c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm, c.derivative_filter_hz, c.period_s)
+    if not m.closed_loop_stable:
+        raise ConfigError(
+            f"variant {variant.name}: PID gains kp={c.kp_v_per_mm}, ki={c.ki_v_per_mm_s}, kd={c.kd_v_s_per_mm} "
+            f"make the loop unstable on the nominal plant (closed-loop pole at radius {m.max_pole_radius:.3f}); "
+            "lower the gains in [controller]"
+        )
+    if m.gain_margin_db < c.min_gain_margin_db or m.phase_margin_deg < c.min_phase_margin_deg:
+        raise ConfigError(
+            f"variant {variant.name}: PID gains leave too little margin on the nominal plant: gain margin "
+            f"{m.gain_margin_db:.1f} dB (need {c.min_gain_margin_db:g}), phase margin {m.phase_margin_deg:.1f} deg "
+            f"(need {c.min_phase_margin_deg:g}); retune [controller]"
+        )
+    return m

@@ -1,0 +1,1 @@
+"""The simulated rig: plant, valve wear, sensors, firmware over them, runners."""

@@ -1,0 +1,42 @@
+"""Start ``edc-bench rig`` as a child process on a free loopback port."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from edc_bench.errors import RigError
+
+
+@contextmanager
+def rig_process(variant: str | None, valve: str, seed: int) -> Iterator[str]:
+    """Run the simulated rig in its own process for the duration of a ``with``.
+
+    Yields
+    ------
+    str
+        The pyserial URL to give python-can's slcan interface
+        (``socket://127.0.0.1:PORT``).
+    """
+    cmd = [sys.executable, "-m", "edc_bench", "rig", "--listen", "127.0.0.1:0", "--valve", valve,
+           "--seed", str(seed)]
+    if variant:
+        cmd += ["--variant", variant]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        match = re.search(r"(socket://127\.0\.0\.1:\d+)", line)
+        if not match:
+            rest = proc.stdout.read() if proc.poll() is not None else ""
+            raise RigError(f"the simulated rig process did not start: {(line + rest).strip()}")
+        yield match.group(1)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
