@@ -1,0 +1,1 @@
+"""Test records: per-tick trace, raw CAN log, record.json, report figure."""
