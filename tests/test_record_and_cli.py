@@ -16,6 +16,7 @@ from edc_bench.config import load_variant, parse_variant
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID
 from edc_bench.records.record import write_record
 from edc_bench.records.trace import TRACE_COLUMNS
+from edc_bench.sim.valve import feedforward_truth, parse_valve_spec, plant_parameters
 
 
 def edc_bench(*args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -113,7 +114,13 @@ def test_cli_refuses_unstable_gains(tmp_path: Path) -> None:
     assert "unstable" in proc.stderr and "Traceback" not in proc.stderr
 
 
-STEAL_LIMIT_S = 0.1  # CPU steal during one 8 s run above which real-time figures say nothing about the code
+STEAL_LIMIT_S = 0.15  # CPU steal during one 12 s run above which real-time figures say nothing about the code
+STALL_LIMIT_US = 10_000  # a bench tick this late means the machine did not run the process
+
+
+def disturbed(timing: dict) -> bool:
+    """The machine, not the code, decided this run: heavy steal, or the bench process not scheduled."""
+    return timing["cpu_steal_s"] >= STEAL_LIMIT_S or timing["lateness_max_us"] >= STALL_LIMIT_US
 
 
 @pytest.mark.realtime
@@ -124,8 +131,9 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
     wake-ups); the default acceptance aborts after 5 replies missing in a row. This test
     checks the real-time path, so its variant tolerates 50 in a row; the record still
     counts every missed reply and overrun. Up to three attempts, each reported. A run that
-    does not complete while the machine's CPU steal stayed low fails the test; if every
-    attempt saw heavy steal, the test is skipped with the measured figures.
+    does not complete although the machine ran it undisturbed (little CPU steal, no tick
+    10 ms late) fails the test; if every attempt was disturbed, the test is skipped with
+    the measured figures.
     """
     source = (Path(__file__).parent.parent / "configs" / "p-edc-default.toml").read_text()
     variant_file = tmp_path / "rt.toml"
@@ -134,7 +142,7 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
     attempts = []
     for attempt in range(3):
         proc = edc_bench("test", "--realtime", "--variant", str(variant_file), "--valve", "worn",
-                         "--duration-s", "8", "--json", "--no-figure", "--out", "rec", cwd=tmp_path)
+                         "--duration-s", "12", "--json", "--no-figure", "--out", "rec", cwd=tmp_path)
         assert proc.returncode in (0, 12), proc.stderr
         summary = json.loads(proc.stdout)
         timing = summary["timing"]
@@ -149,11 +157,17 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
         assert doc["timing"] == timing
         assert doc["loop"]["safe_confirmed"] is True
         assert doc["firmware_version"] == "1.0"
-        if timing["ticks"] == 8000:
+        if timing["ticks"] == 12_000:
             break
-        if timing["cpu_steal_s"] < STEAL_LIMIT_S:
-            pytest.fail(f"real-time test did not complete with little CPU steal: {summary['reasons']} {timing}")
+        if not disturbed(timing):
+            pytest.fail(f"real-time test did not complete on an undisturbed machine: {summary['reasons']} {timing}")
     else:
-        pytest.skip("every attempt ran during heavy CPU steal on this machine: "
-                    + "; ".join(f"{t['ticks']} ticks, steal {t['cpu_steal_s']:.2f} s" for t in attempts))
-    assert timing["missed_replies"] < 800
+        pytest.skip("every attempt was disturbed by this machine: " + "; ".join(
+            f"{t['ticks']} ticks, steal {t['cpu_steal_s']:.2f} s, worst tick {t['lateness_max_us'] / 1e3:.1f} ms late"
+            for t in attempts))
+    assert timing["missed_replies"] < 1200
+    # identification in real time: the rig process runs the worn preset, whose truth is known here
+    variant = load_variant()
+    truth = feedforward_truth(plant_parameters(variant, parse_valve_spec("worn", variant)))
+    assert abs(summary["features"]["af"] / truth.af - 1) < 0.08
+    assert abs(summary["features"]["a1"] / truth.a1 - 1) < 0.20

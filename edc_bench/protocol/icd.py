@@ -127,6 +127,21 @@ class Icd:
             raise ProtocolError(f"{self.dbc_file}: message {name} has no E2EDataId attribute")
         return int(attribute.value)
 
+    # -- E2E -------------------------------------------------------------------
+    @staticmethod
+    def _e2e_encode(layout: MessageLayout, data_id: int, *values: float) -> bytes:
+        """Encode with CRC 0, then put the CRC over data id and bytes 1..7 in byte 0."""
+        body = layout.encode(0, *values)
+        return bytes((e2e_crc(data_id, body),)) + body[1:]
+
+    @staticmethod
+    def _e2e_decode(layout: MessageLayout, data_id: int, payload: bytes | bytearray) -> tuple:
+        """Decode and check the CRC; raises E2EError on a mismatch."""
+        values = layout.decode(payload)
+        if values[0] != e2e_crc(data_id, payload):
+            raise E2EError(f"{layout.name} CRC mismatch: got {values[0]:#04x}")
+        return values
+
     # -- BENCH_CMD -----------------------------------------------------------
     def make_bench_cmd(self, counter: int, mode: int, drive_v: float, reference_mm: float) -> bytes:
         """Payload of a ``BENCH_CMD`` with its CRC.
@@ -147,8 +162,7 @@ class Icd:
         bytes
             The 8 payload bytes.
         """
-        body = self.bench_cmd.encode(0, counter, mode, drive_v, reference_mm)
-        return bytes((e2e_crc(self.bench_cmd_data_id, body),)) + body[1:]
+        return self._e2e_encode(self.bench_cmd, self.bench_cmd_data_id, counter, mode, drive_v, reference_mm)
 
     def parse_bench_cmd(self, payload: bytes | bytearray) -> BenchCmd:
         """Check and decode a ``BENCH_CMD`` payload.
@@ -160,10 +174,8 @@ class Icd:
         ProtocolError
             If the payload has the wrong length.
         """
-        values = self.bench_cmd.decode(payload)
-        if values[0] != e2e_crc(self.bench_cmd_data_id, payload):
-            raise E2EError(f"BENCH_CMD CRC mismatch: got {values[0]:#04x}")
-        return BenchCmd(values[1], values[2], values[3], values[4])
+        v = self._e2e_decode(self.bench_cmd, self.bench_cmd_data_id, payload)
+        return BenchCmd(v[1], v[2], v[3], v[4])
 
     # -- RIG_FEEDBACK --------------------------------------------------------
     def make_rig_feedback(
@@ -179,11 +191,10 @@ class Icd:
         current_a: float,
     ) -> bytes:
         """Payload of a ``RIG_FEEDBACK`` with its CRC."""
-        body = self.rig_feedback.encode(
-            0, counter, amp_enabled, watchdog_tripped, over_current, lvdt_fault, travel_limit,
-            position_mm, current_a,
+        return self._e2e_encode(
+            self.rig_feedback, self.rig_feedback_data_id, counter, amp_enabled, watchdog_tripped, over_current,
+            lvdt_fault, travel_limit, position_mm, current_a,
         )
-        return bytes((e2e_crc(self.rig_feedback_data_id, body),)) + body[1:]
 
     def parse_rig_feedback(self, payload: bytes | bytearray) -> RigFeedback:
         """Check and decode a ``RIG_FEEDBACK`` payload.
@@ -195,9 +206,7 @@ class Icd:
         ProtocolError
             If the payload has the wrong length.
         """
-        v = self.rig_feedback.decode(payload)
-        if v[0] != e2e_crc(self.rig_feedback_data_id, payload):
-            raise E2EError(f"RIG_FEEDBACK CRC mismatch: got {v[0]:#04x}")
+        v = self._e2e_decode(self.rig_feedback, self.rig_feedback_data_id, payload)
         return RigFeedback(v[1], bool(v[2]), bool(v[3]), bool(v[4]), bool(v[5]), bool(v[6]), v[7], v[8])
 
     # -- RIG_HEARTBEAT -------------------------------------------------------
