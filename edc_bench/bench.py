@@ -112,8 +112,9 @@ def _judge(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
     if timing.get("overruns", 0) / ticks > acc.max_overrun_fraction:
         reasons.append(f"timing: {timing['overruns']} of {ticks} ticks overran "
                        f"(limit {acc.max_overrun_fraction:.1%})")
-    if outcome.missed_replies / ticks > acc.max_overrun_fraction:
-        reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing")
+    if outcome.missed_replies / ticks > acc.max_missed_reply_fraction:
+        reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing "
+                       f"(limit {acc.max_missed_reply_fraction:.1%})")
     return reasons
 
 

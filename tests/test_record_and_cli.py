@@ -89,17 +89,17 @@ def test_cli_human_output_shows_the_numbers(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    ("args", "message"),
+    ("args", "message", "code"),
     [
-        (["--variant", "nope"], "unknown variant 'nope'"),
-        (["--valve", "cracked"], "unknown valve 'cracked'"),
-        (["--duration-s", "3"], "duration_s"),
-        (["--interface", "nosuchbus"], "cannot open the CAN bus"),
+        (["--variant", "nope"], "unknown variant 'nope'", 2),
+        (["--valve", "cracked"], "unknown valve 'cracked'", 2),
+        (["--duration-s", "3"], "excitation.duration_s (3 s) is too short", 2),
+        (["--interface", "nosuchbus"], "cannot open the CAN bus (interface=nosuchbus)", 3),
     ],
 )
-def test_cli_bad_input_is_one_clear_line(tmp_path: Path, args: list[str], message: str) -> None:
+def test_cli_bad_input_is_one_clear_line(tmp_path: Path, args: list[str], message: str, code: int) -> None:
     proc = edc_bench("test", *args, cwd=tmp_path)
-    assert proc.returncode == 2
+    assert proc.returncode == code
     assert message in proc.stderr
     assert "Traceback" not in proc.stderr
 
@@ -138,7 +138,8 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
     source = (Path(__file__).parent.parent / "configs" / "p-edc-default.toml").read_text()
     variant_file = tmp_path / "rt.toml"
     variant_file.write_text(source.replace('name = "p-edc-default"', 'name = "rt-test"')
-                            + "\n[acceptance]\nmax_missed_replies_in_row = 50\nmax_overrun_fraction = 0.2\n")
+                            + "\n[acceptance]\nmax_missed_replies_in_row = 50\nmax_overrun_fraction = 0.2\n"
+                            "max_missed_reply_fraction = 0.2\n")
     attempts = []
     for attempt in range(3):
         proc = edc_bench("test", "--realtime", "--variant", str(variant_file), "--valve", "worn",
@@ -171,3 +172,42 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
     truth = feedforward_truth(plant_parameters(variant, parse_valve_spec("worn", variant)))
     assert abs(summary["features"]["af"] / truth.af - 1) < 0.08
     assert abs(summary["features"]["a1"] / truth.a1 - 1) < 0.20
+
+
+class FailingBus(can.BusABC):
+    """A bus whose sends start failing after a number of frames (a cable pulled)."""
+
+    def __init__(self, inner: can.BusABC, fail_after: int) -> None:
+        self.inner = inner
+        self.sent = 0
+        self.fail_after = fail_after
+        super().__init__(channel="failing")
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.sent += 1
+        if self.sent > self.fail_after:
+            raise can.CanOperationError("transmit buffer full")
+        self.inner.send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None):
+        return self.inner.recv(timeout), False
+
+
+def test_bus_error_mid_test_ends_invalid_with_the_data_so_far(tmp_path: Path) -> None:
+    from edc_bench.bench import run_bench_test
+    from edc_bench.control.clock import SimulatedClock
+    from edc_bench.sim.inprocess import InProcessRig
+    from edc_bench.sim.rig import SimulatedRig
+
+    variant = load_variant()
+    rig = SimulatedRig(variant, parse_valve_spec("worn", variant), 1)
+    with can.Bus(interface="virtual", channel="fail-test", preserve_timestamps=True) as bench, \
+         can.Bus(interface="virtual", channel="fail-test", preserve_timestamps=True) as rig_bus:
+        result = run_bench_test(FailingBus(bench, 3000), SimulatedClock(InProcessRig(rig_bus, rig)), variant,
+                                check_gains=False)
+    assert result.verdict == "INVALID"
+    assert any("bus error: CanOperationError" in r for r in result.reasons)
+    assert 2900 < result.timing["ticks"] < 3000  # what was measured before the fault is kept
+    folder = write_record(result, tmp_path)
+    assert json.loads((folder / "record.json").read_text())["verdict"] == "INVALID"
+    assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count

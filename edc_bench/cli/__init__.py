@@ -35,12 +35,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``edc-bench``; returns the process exit code."""
-    from edc_bench.errors import EdcBenchError
+    from edc_bench.errors import EdcBenchError, RigError
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.run(args))
+    except RigError as exc:
+        print(f"edc-bench {args.command}: error: {exc}", file=sys.stderr)
+        return ExitCode.RIG_ERROR
     except EdcBenchError as exc:
         print(f"edc-bench {args.command}: error: {exc}", file=sys.stderr)
         return ExitCode.BAD_INPUT

@@ -215,6 +215,7 @@ class AcceptanceSection(_Section):
     max_condition_number: Annotated[float, Field(gt=1, allow_inf_nan=False)] = 1e4
     max_missed_replies_in_row: Annotated[int, Field(ge=1, le=100)] = 5
     max_overrun_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
+    max_missed_reply_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
     reply_timeout_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.8
     ready_timeout_s: PositiveFloat = 3.0
 

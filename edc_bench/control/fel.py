@@ -92,6 +92,14 @@ class FelController:
             out[i] = theta[j] / self.scales[i]
         return out
 
+    def write_parameters(self, columns: Sequence, row: int) -> None:
+        """Store the current parameters into ``columns[i][row]`` (i over a3..af), no list built."""
+        theta, scales = self.estimator.theta, self.scales
+        for j, i in enumerate(self.estimated):
+            columns[i][row] = theta[j] / scales[i]
+        for i in self.fixed:
+            columns[i][row] = self.nominal[i]
+
     def step(self, k: int, measured_mm: float) -> float:
         """Compute the drive for tick ``k``.
 

@@ -175,9 +175,13 @@ class BenchLoop:
             self._run_ticks()
         except KeyboardInterrupt:
             self.outcome.abort_reason = "interrupted by the operator"
+        except can.CanError as exc:
+            self.outcome.abort_reason = f"bus error: {type(exc).__name__}: {exc}"
         finally:
             try:
                 self._safe_stop()
+            except can.CanError as exc:
+                self.outcome.events.append(f"SAFE could not be sent: {exc}")
             finally:
                 self.outcome.cpu_steal_s = cpu_steal_s() - steal_at_start
                 if gc_was_enabled:
@@ -252,9 +256,7 @@ class BenchLoop:
             adapt_col[k] = ctl.adapting
             ok_col[k] = reply is not None
             flag_col[k] = flags
-            params = ctl.parameters()
-            for j in range(6):
-                param_cols[j][k] = params[j]
+            ctl.write_parameters(param_cols, k)
             self.trace.rows = k + 1
             outcome.ticks_run = k + 1
             if reply is not None and reply.any_fault:

@@ -62,7 +62,8 @@ class CanFrameLog:
         self.t_s = np.zeros(capacity)
         self.can_id = np.zeros(capacity, dtype=np.uint16)
         self.dlc = np.zeros(capacity, dtype=np.uint8)
-        self.data = np.zeros((capacity, 8), dtype=np.uint8)
+        self._raw = bytearray(capacity * 8)  # payloads, 8 bytes a frame; filled by slice assignment
+        self.data = np.frombuffer(self._raw, dtype=np.uint8).reshape(capacity, 8)
         self.rx = np.zeros(capacity, dtype=bool)
         self.count = 0
         self.dropped = 0
@@ -77,6 +78,6 @@ class CanFrameLog:
         self.can_id[n] = can_id
         length = len(data)
         self.dlc[n] = length
-        self.data[n, :length] = np.frombuffer(bytes(data), dtype=np.uint8)
+        self._raw[8 * n : 8 * n + length] = data
         self.rx[n] = rx
         self.count = n + 1

@@ -20,7 +20,6 @@ import socket
 import time
 import tty
 from collections.abc import Callable
-from typing import Protocol
 
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.sim.slcan import SlcanDevice
@@ -36,10 +35,6 @@ def reduce_timer_slack() -> bool:
         return libc.prctl(pr_set_timerslack, 1, 0, 0, 0) == 0
     except (OSError, AttributeError):
         return False
-
-
-class _Stream(Protocol):
-    def fileno(self) -> int: ...
 
 
 class _Host:
