@@ -23,10 +23,12 @@ On any python-can bus (a real rig, or ``edc-bench rig`` over slcan)::
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import itertools
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import can
@@ -44,8 +46,8 @@ from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.trace import CanFrameLog
 from edc_bench.sim.valve import FeedforwardParameters, ValveSpec, parse_valve_spec
 
-#: Verdict while no classifier is installed: the test itself was trustworthy,
-#: but nothing has judged the valve yet. Never reported as PASS.
+#: Verdict of a trustworthy test that was not classified (``classify=False``,
+#: as in baseline calibration). Never reported as PASS.
 UNCLASSIFIED = "UNCLASSIFIED"
 INVALID = "INVALID"
 
@@ -57,8 +59,10 @@ class BenchResult:
     Attributes
     ----------
     verdict : str
-        ``INVALID`` (the test is not to be trusted; see ``reasons``) or, until
-        the classifier is installed, ``UNCLASSIFIED``.
+        ``PASS`` (reusable), ``MARGINAL`` (near the boundary: retest), ``FAIL``
+        (replace), or ``INVALID`` (the test is not to be trusted; see
+        ``reasons``; the classifier is never asked). ``UNCLASSIFIED`` when
+        classification was switched off.
     reasons : list of str
         Why the verdict is what it is.
     parameters : dict
@@ -87,6 +91,8 @@ class BenchResult:
     trace: dict[str, np.ndarray]
     frames: CanFrameLog
     truth: FeedforwardParameters | None = None
+    classification: dict[str, Any] | None = None
+    baseline: dict[str, Any] | None = None
     simulation: dict[str, Any] | None = None
     software_version: str = __version__
     extra: dict[str, Any] = field(default_factory=dict)
@@ -120,7 +126,8 @@ def _judge(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
 
 def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id: str = "",
                    icd: Icd | None = None, progress: ProgressFn | None = None,
-                   truth: FeedforwardParameters | None = None, check_gains: bool = True) -> BenchResult:
+                   truth: FeedforwardParameters | None = None, check_gains: bool = True,
+                   classify: bool = True, classifier_path: Path | None = None) -> BenchResult:
     """Run one bench test on ``bus``.
 
     Parameters
@@ -142,6 +149,11 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         True parameters, when the rig is simulated.
     check_gains : bool, optional
         Check the PID gains' margins with python-control first (default).
+    classify : bool, optional
+        Judge a trustworthy test with the classifier (default); off for
+        baseline calibration.
+    classifier_path : pathlib.Path, optional
+        ONNX model to judge with; the packaged one by default.
 
     Returns
     -------
@@ -176,9 +188,20 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
                 entry["error_rel"] = ident.final[name] / getattr(truth, name) - 1.0
             parameters[name] = entry
     features = {n: (ident.final[n] if ident else math.nan) for n in ("af", "a1")}
+    verdict = INVALID if reasons else UNCLASSIFIED
+    classification = baseline_info = None
+    if not reasons and classify:
+        judged, baseline = classify_features(variant, features["af"], features["a1"], classifier_path)
+        verdict = judged.verdict
+        classification = classification_dict(judged)
+        baseline_info = dataclasses.asdict(baseline)
+        reasons = [f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
+                   f"{judged.distance:+.3f} (marginal band {classification['marginal_band']:g})"]
     return BenchResult(
-        verdict=INVALID if reasons else UNCLASSIFIED,
-        reasons=reasons or ["test trustworthy; no classifier installed yet, so the valve is not judged"],
+        verdict=verdict,
+        reasons=reasons or ["test trustworthy; classification switched off"],
+        classification=classification,
+        baseline=baseline_info,
         parameters=parameters,
         features=features,
         converged=bool(ident and ident.converged and not outcome.abort_reason),
@@ -196,12 +219,41 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     )
 
 
+def classify_features(variant: Variant, af: float, a1: float, classifier_path: Path | None = None):
+    """Judge features with the classifier against the variant's baseline.
+
+    Returns
+    -------
+    (Classification, Baseline)
+    """
+    from edc_bench.diagnosis.baseline import load_baseline
+    from edc_bench.diagnosis.classifier import default_classifier
+
+    baseline = load_baseline(variant)
+    classifier = default_classifier(str(classifier_path) if classifier_path else None)
+    return classifier.classify(*baseline.relative(af, a1)), baseline
+
+
+def classification_dict(judged: Any) -> dict[str, Any]:
+    """A classification as plain data for records and JSON."""
+    from edc_bench.diagnosis.classifier import default_classifier
+
+    model = default_classifier()
+    return {
+        "verdict": judged.verdict, "probability_faulty": judged.probability_faulty, "distance": judged.distance,
+        "features_rel": {"af": judged.features_rel[0], "a1": judged.features_rel[1]}, "model": judged.model,
+        "threshold": model.threshold, "marginal_band": model.marginal_band,
+        "training_data_sha256": model.metadata.get("edc_bench.training_data_sha256"),
+    }
+
+
 _channels = itertools.count()
 
 
 def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
                        valve_id: str = "", stiction: bool = True, sensor_noise: bool = True,
-                       progress: ProgressFn | None = None, check_gains: bool = True) -> BenchResult:
+                       progress: ProgressFn | None = None, check_gains: bool = True,
+                       classify: bool = True) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -222,6 +274,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     BenchResult
         With ``truth`` set to the simulated plant's parameters.
     """
+    from edc_bench.diagnosis.population import is_faulty, resisting_force_n
     from edc_bench.sim.inprocess import InProcessRig
     from edc_bench.sim.rig import RigOptions, SimulatedRig
 
@@ -232,11 +285,13 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
          can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as rig_bus:
         clock = SimulatedClock(InProcessRig(rig_bus, rig))
         result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, progress=progress,
-                                truth=rig.truth, check_gains=check_gains)
+                                truth=rig.truth, check_gains=check_gains, classify=classify)
     result.simulation = {
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},
         "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise,
+        "faulty_by_physics": is_faulty(variant, spec),
+        "resisting_force_n": resisting_force_n(variant, spec),
         "coulomb_friction_n": rig.plant_params.coulomb_friction_n,
         "damping_n_s_per_mm": rig.plant_params.damping_n_s_per_mm,
         "rig_counters": {"accepted": rig.firmware.counters.accepted, "bad_crc": rig.firmware.counters.bad_crc,

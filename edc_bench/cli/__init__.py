@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from edc_bench.cli.exit_codes import ExitCode
 
-COMMANDS = ("test", "rig", "variants")
+COMMANDS = ("test", "rig", "variants", "calibrate", "train", "classify", "evaluate", "paper", "study-boundary")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,7 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"edc-bench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
-        importlib.import_module(f"edc_bench.cli.{name}_cmd").add_parser(sub)
+        importlib.import_module(f"edc_bench.cli.{name.replace('-', '_')}_cmd").add_parser(sub)
     return parser
 
 

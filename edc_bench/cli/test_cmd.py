@@ -113,6 +113,7 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
         "features": result.features,
         "parameters": result.parameters,
         "converged": result.converged,
+        "classification": result.classification,
         "settle_s": None if result.identification is None else result.identification.settle_s,
         "condition_number": None if result.identification is None else result.identification.condition_number,
         "timing": result.timing,
@@ -168,7 +169,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary(result, record_dir), indent=2))
     else:
         _print_report(result, record_dir)
-    return ExitCode.INVALID if result.verdict == INVALID else ExitCode.OK
+    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
+            INVALID: ExitCode.INVALID}.get(result.verdict, ExitCode.OK)
 
 
 def _print_report(result: Any, record_dir: Path) -> None:
@@ -176,6 +178,9 @@ def _print_report(result: Any, record_dir: Path) -> None:
     for reason in result.reasons:
         print(f"  - {reason}")
     print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm")
+    if result.classification is not None:
+        c = result.classification
+        print(f"relative to the new-valve baseline: af x{c['features_rel']['af']:.2f}, a1 x{c['features_rel']['a1']:.2f}")
     print("parameters:")
     for name, p in result.parameters.items():
         tail = ""

@@ -220,6 +220,35 @@ class AcceptanceSection(_Section):
     ready_timeout_s: PositiveFloat = 3.0
 
 
+class PopulationSection(_Section):
+    """How the simulated population of used valves is drawn."""
+
+    clearance_min_mm: PositiveFloat
+    clearance_max_mm: PositiveFloat
+    rough_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.2
+    roughness_max: Annotated[float, Field(ge=1, le=5, allow_inf_nan=False)] = 2.2
+
+    @model_validator(mode="after")
+    def _range(self) -> PopulationSection:
+        if self.clearance_max_mm <= self.clearance_min_mm:
+            raise ValueError("clearance_max_mm must exceed clearance_min_mm")
+        return self
+
+
+class DiagnosisSection(_Section):
+    """The physical limit that makes a valve faulty, and the population.
+
+    A valve is faulty when the force it opposes to the rack at a typical
+    governor speed, Coulomb friction plus damping, exceeds the limit:
+    ``F_c + c * resistance_speed_mm_s > resistance_limit_n``. The label of a
+    simulated valve comes from this physics, never from identified values.
+    """
+
+    resistance_speed_mm_s: PositiveFloat
+    resistance_limit_n: PositiveFloat
+    population: PopulationSection
+
+
 class Variant(_Section):
     """A pump variant: everything the bench and the simulated rig need.
 
@@ -236,6 +265,7 @@ class Variant(_Section):
     controller: ControllerSection
     estimator: EstimatorSection = EstimatorSection()
     acceptance: AcceptanceSection = AcceptanceSection()
+    diagnosis: DiagnosisSection
 
     @property
     def name(self) -> str:

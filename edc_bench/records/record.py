@@ -46,6 +46,8 @@ def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, 
         "firmware_version": result.outcome.fw_version,
         "icd_version": ".".join(str(v) for v in default_icd().version),
         "features": result.features,
+        "classification": result.classification,
+        "baseline": result.baseline,
         "parameters": result.parameters,
         "converged": result.converged,
         "identification": None if ident is None else {

@@ -1,0 +1,77 @@
+"""``edc-bench classify``: judge features, or a recorded test, outside a test."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from edc_bench.cli.exit_codes import ExitCode
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "classify", help="classify af/a1 values or a record folder",
+        description="Judge a valve from its identified af and a1 (--variant with --af and --a1), or from a record "
+                    "folder written by 'edc-bench test'. The record's own verdict is reused if the test was "
+                    "INVALID: a model never judges a bad test.",
+    )
+    p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
+    p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (for --af/--a1)")
+    p.add_argument("--af", type=float, default=None, help="identified af in V")
+    p.add_argument("--a1", type=float, default=None, help="identified a1 in V s/mm")
+    p.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Classify and report."""
+    from edc_bench.bench import classification_dict, classify_features
+    from edc_bench.config import load_variant
+    from edc_bench.errors import ConfigError
+
+    if args.record_dir is not None:
+        if args.af is not None or args.a1 is not None:
+            raise ConfigError("give either a record folder or --af and --a1, not both")
+        record_file = args.record_dir / "record.json"
+        try:
+            record = json.loads(record_file.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"{record_file}: not a readable record ({exc})") from None
+        if record.get("verdict") == "INVALID":
+            out = {"verdict": "INVALID", "reasons": record.get("reasons", []), "record_dir": str(args.record_dir)}
+            _report(out, args.json)
+            return ExitCode.INVALID
+        variant = load_variant(args.variant or record["variant"])
+        af, a1 = record["features"]["af"], record["features"]["a1"]
+    else:
+        if args.af is None or args.a1 is None:
+            raise ConfigError("give --af and --a1 (with --variant), or a record folder")
+        variant = load_variant(args.variant)
+        af, a1 = args.af, args.a1
+    if not (af > 0 and a1 > 0):
+        raise ConfigError(f"af and a1 must be positive, got af={af}, a1={a1}")
+    judged, baseline = classify_features(variant, af, a1, args.model)
+    out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged),
+           "baseline": {"af_v": baseline.af_v, "a1_v_s_per_mm": baseline.a1_v_s_per_mm,
+                        "calibrated": baseline.calibrated, "source": baseline.source}}
+    _report(out, args.json)
+    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL}[judged.verdict]
+
+
+def _report(out: dict, as_json: bool) -> None:
+    from edc_bench.records.writer import json_safe
+
+    if as_json:
+        print(json.dumps(json_safe(out), indent=2))
+        return
+    print(f"verdict: {out['verdict']}")
+    if "probability_faulty" in out:
+        rel = out["features_rel"]
+        print(f"af x{rel['af']:.3f}, a1 x{rel['a1']:.3f} of the new-valve baseline ({out['baseline']['source']})")
+        print(f"P(faulty) = {out['probability_faulty']:.3f}, distance to the boundary {out['distance']:+.3f} "
+              f"(marginal band {out['marginal_band']:g}, {out['model']} model)")
+    for reason in out.get("reasons", []):
+        print(f"  - {reason}")

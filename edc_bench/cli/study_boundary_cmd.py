@@ -1,0 +1,37 @@
+"""``edc-bench study-boundary``: where to put the decision boundary (paper, section 6)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "study-boundary", help="trade-off of needless replacements against faulty valves passed",
+        description="Simulate a large population, move the classifier's boundary in steps, and plot the share of "
+                    "reusable valves replaced needlessly against the share of faulty valves passed.",
+    )
+    p.add_argument("--variants", nargs="+", default=["p-edc-default", "p-edc-long"], metavar="NAME")
+    p.add_argument("--count", type=int, default=1000, help="valves per variant (default: 1000)")
+    p.add_argument("--seed", type=int, default=31, help="population seed (default: 31)")
+    p.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+    p.add_argument("--figure", type=Path, default=Path("boundary-tradeoff.png"), help="output PNG")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Simulate, sweep, plot, print."""
+    from edc_bench.diagnosis.classifier import ValveClassifier
+    from edc_bench.diagnosis.dataset import make_dataset
+    from edc_bench.diagnosis.experiments import boundary_tradeoff, draw_tradeoff
+
+    dataset = make_dataset(args.variants, args.count, args.seed)
+    curve = boundary_tradeoff(ValveClassifier(args.model), dataset)
+    draw_tradeoff(curve, args.figure, f"{len(dataset)} simulated valves ({', '.join(args.variants)})")
+    print("boundary shift   needless replacements   faulty passed")
+    for k in range(0, len(curve["shift"]), 5):
+        print(f"{curve['shift'][k]:+14.2f}   {curve['needless_replacement'][k]:21.1%}   {curve['faulty_passed'][k]:13.1%}")
+    print(f"figure: {args.figure}")
+    return 0

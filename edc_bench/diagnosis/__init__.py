@@ -1,0 +1,1 @@
+"""Diagnosis: valve populations, the batch path, the classifier and the verdict."""

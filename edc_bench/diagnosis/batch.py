@@ -1,0 +1,319 @@
+"""Many bench tests at once: the simulated test vectorised across valves.
+
+The same physics and the same controller as the full loop (DESIGN 3.2) run
+on numpy arrays, one element per valve, without the CAN round trip, the
+codec or the rig firmware: at tick k the controller uses the rack sampled at
+tick k-1, the sample at tick k is taken before the new drive is applied, the
+drive is held for one period. The plant steps exactly (matrix exponential per
+valve); valves whose velocity reverses or that are stuck are replayed in
+0.1 ms quanta with the same Karnopp rule as :class:`~edc_bench.sim.plant.Plant`.
+Sensor noise is drawn from the same model but not the same stream, so a
+valve's identified parameters agree with the full loop's within the noise;
+``tests/test_batch.py`` checks the agreement.
+
+This is what makes populations of thousands of valves cheap enough to train
+and evaluate a classifier on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.build import nominal_parameters, reference_for, regressor_scales
+from edc_bench.sim.plant import STICK_SPEED_MM_S
+from edc_bench.sim.valve import ValveSpec, feedforward_truth, plant_parameters
+
+QUANTA_PER_PERIOD = 10
+HISTORY_EVERY = 10  # ticks between stored estimates (settle times at 10 ms resolution)
+
+
+@dataclass
+class BatchResult:
+    """Identified parameters of many simulated bench tests.
+
+    Attributes
+    ----------
+    parameters : numpy.ndarray
+        (N, 6) final estimates of a3, a2, a1, a0, b, af.
+    truth : numpy.ndarray
+        (N, 6) true values from each valve's physics.
+    converged : numpy.ndarray
+        (N,) af and a1 stayed within the settle band over the last window.
+    settle_s : dict of numpy.ndarray
+        Settle times of af and a1 (s after the excitation starts).
+    condition_number : float
+        Of the (common) regression over the steady excitation.
+    """
+
+    parameters: np.ndarray
+    truth: np.ndarray
+    converged: np.ndarray
+    settle_s: dict[str, np.ndarray]
+    condition_number: float
+    valves: list[ValveSpec]
+    seeds: list[int]
+
+    def feature(self, name: str) -> np.ndarray:
+        """Column of one parameter, e.g. ``feature("af")``."""
+        return self.parameters[:, PARAMETER_NAMES.index(name)]
+
+
+class _VectorPlant:
+    """The plant of N valves (same pump, different friction and damping)."""
+
+    def __init__(self, variant: Variant, valves: Sequence[ValveSpec], stiction: bool, period_s: float) -> None:
+        params = [plant_parameters(variant, v, stiction=stiction) for v in valves]
+        self.params = params
+        p0 = params[0]
+        n = len(params)
+        self.m = p0.mass_n_s2_per_mm
+        self.k = p0.net_stiffness_n_per_mm
+        self.ki = p0.force_constant_n_per_a
+        self.fpre = p0.preload_n
+        self.ka = p0.amplifier_gain
+        self.amp_limit = p0.amplifier_limit_v
+        self.stroke = p0.stroke_mm
+        self.fc = np.array([p.coulomb_friction_n for p in params])
+        self.fs = np.array([p.stiction_friction_n for p in params])
+        aug = np.zeros((n, 5, 5))
+        for j, p in enumerate(params):
+            a, b = p.state_matrices()
+            aug[j, :3, :3] = a
+            aug[j, :3, 3:] = b
+        period = expm(aug * period_s)
+        quantum = expm(aug * (period_s / QUANTA_PER_PERIOD))
+        self.phi, self.gam = period[:, :3, :3], period[:, :3, 3:]
+        self.phi_q, self.gam_q = quantum[:, :3, :3], quantum[:, :3, 3:]
+        self.x = np.zeros(n)
+        self.v = np.zeros(n)
+        self.i = np.zeros(n)
+        self.stuck = np.ones(n, dtype=bool)
+
+    def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
+                   coil_v: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        f = -(self.fpre + self._fc_sel * sign)
+        xn = phi[:, 0, 0] * x + phi[:, 0, 1] * v + phi[:, 0, 2] * i + gam[:, 0, 0] * coil_v + gam[:, 0, 1] * f
+        vn = phi[:, 1, 0] * x + phi[:, 1, 1] * v + phi[:, 1, 2] * i + gam[:, 1, 0] * coil_v + gam[:, 1, 1] * f
+        i_n = phi[:, 2, 2] * i + gam[:, 2, 0] * coil_v
+        return xn, vn, i_n
+
+    def advance_period(self, drive_v: np.ndarray) -> None:
+        coil_v = self.ka * np.clip(drive_v, -self.amp_limit, self.amp_limit)
+        sign = np.where(self.v > 0.0, 1.0, -1.0)
+        self._fc_sel = self.fc
+        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign)
+        ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.stroke)
+        self.x = np.where(ok, xn, self.x)
+        self.v = np.where(ok, vn, self.v)
+        self.i = np.where(ok, i_n, self.i)
+        fine = np.nonzero(~ok)[0]
+        if len(fine):
+            self._advance_fine(fine, coil_v[fine])
+
+    def _advance_fine(self, idx: np.ndarray, coil_v: np.ndarray) -> None:
+        phi, gam = self.phi_q[idx], self.gam_q[idx]
+        fc, fs = self.fc[idx], self.fs[idx]
+        x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
+        k, ki, fpre, stroke = self.k, self.ki, self.fpre, self.stroke
+        self._fc_sel = fc
+        for _ in range(QUANTA_PER_PERIOD):
+            net = ki * i - k * x - fpre
+            hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
+            sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
+            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign)
+            # held racks: only the current evolves
+            i_hold = phi[:, 2, 2] * i + gam[:, 2, 0] * coil_v
+            reversed_ = vn * sign <= 0.0
+            frac = np.where(v != vn, v / np.where(v != vn, v - vn, 1.0), 0.0)
+            x_rev = x + frac * (xn - x)
+            slow = ~reversed_ & (np.abs(vn) < STICK_SPEED_MM_S) & (np.abs(ki * i_n - k * xn - fpre) <= fs)
+            new_stuck = reversed_ | slow
+            xn = np.where(reversed_, x_rev, xn)
+            vn = np.where(new_stuck, 0.0, vn)
+            low, high = xn <= 0.0, xn >= stroke
+            xn = np.where(low, 0.0, np.where(high, stroke, xn))
+            vn = np.where(low | high, 0.0, vn)
+            new_stuck = new_stuck | low | high
+            x = np.where(hold, x, xn)
+            v = np.where(hold, 0.0, vn)
+            i = np.where(hold, i_hold, i_n)
+            stuck = np.where(hold, True, new_stuck)
+        self.x[idx], self.v[idx], self.i[idx], self.stuck[idx] = x, v, i, stuck
+
+
+class _Noise:
+    """Seeded Gaussian noise in blocks of ticks, one column per valve."""
+
+    def __init__(self, seeds: Sequence[int], sd: float, block: int = 1000) -> None:
+        self.rngs = [np.random.default_rng(s) for s in seeds]
+        self.sd = sd
+        self.block = block
+        self._buf = np.zeros((0, len(seeds)))
+        self._row = 0
+
+    def next(self) -> np.ndarray:
+        if self._row >= len(self._buf):
+            self._buf = np.column_stack([r.standard_normal(self.block) for r in self.rngs]) * self.sd
+            self._row = 0
+        row = self._buf[self._row]
+        self._row += 1
+        return row
+
+
+def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
+              sensor_noise: bool = True) -> BatchResult:
+    """Run one simulated bench test per valve, vectorised.
+
+    Parameters
+    ----------
+    variant : Variant
+        Pump variant (the same for all valves).
+    valves : sequence of ValveSpec
+        One per test.
+    seeds : sequence of int
+        Sensor-noise seed per test.
+    stiction, sensor_noise : bool
+        As in :func:`edc_bench.bench.run_simulated_test`.
+
+    Returns
+    -------
+    BatchResult
+    """
+    n = len(valves)
+    if n == 0 or len(seeds) != n:
+        raise ValueError("one seed per valve, and at least one valve")
+    T = variant.controller.period_s
+    ticks = int(round(variant.excitation.duration_s / T))
+    plant = _VectorPlant(variant, valves, stiction, T)
+    lvdt = variant.sensors.lvdt
+    noise = _Noise(seeds, lvdt.noise_sd if sensor_noise else 0.0)
+    resolution = lvdt.resolution if sensor_noise else 1e-9
+    offset = lvdt.offset if sensor_noise else 0.0
+
+    def sample() -> np.ndarray:
+        return np.round((plant.x + offset + noise.next()) / resolution) * resolution
+
+    # the reference is affine in its start position: evaluate it for start 0 and start 1
+    ref0, ref1 = reference_for(variant, 0.0), reference_for(variant, 1.0)
+    start = sample()  # the SAFE reply before the first tick
+    nominal = np.array(nominal_parameters(variant))
+    scales = np.array(regressor_scales(variant))
+    est_idx = [PARAMETER_NAMES.index(p) for p in variant.estimator.estimate]
+    fixed_idx = [i for i in range(6) if i not in est_idx]
+    theta = np.tile([(0.0 if PARAMETER_NAMES[i] in ("a1", "af") else nominal[i]) * scales[i] for i in est_idx],
+                    (n, 1))
+    prior = np.array([max(abs(nominal[i] * scales[i]), 1e-9) * 3.0 * variant.estimator.initial_std_rel
+                      for i in est_idx])
+    est = variant.estimator
+    rls = est.kind == "rls"
+    lam = est.forgetting_factor
+    P = np.tile(np.diag(prior**2), (n, 1, 1))
+    if not rls:
+        gains = est.gradient_gains_per_s
+        gain_vec = np.array([gains[p] for p in est.estimate] if isinstance(gains, dict)
+                            else [gains] * len(est_idx)) * T
+    c = variant.controller
+    tau = 1.0 / (2.0 * math.pi * c.derivative_filter_hz)
+    d_a, d_b = tau / (tau + T), c.kd_v_s_per_mm / (tau + T)
+    limit = variant.rig.drive_limit_v
+    integral = np.zeros(n)
+    deriv = np.zeros(n)
+    last_err = np.full(n, np.nan)
+    sat = np.zeros(n)
+    adapt_from = variant.excitation.move_s
+    reversal = est.reversal_exclusion * ref0.peak_velocity_mm_s
+    r_prev = start.copy()  # reference at the previous tick (r(0) = start)
+    x_meas = start
+    history = np.zeros((ticks // HISTORY_EVERY + 1, 2, n))
+    h_af, h_a1 = est_idx.index(PARAMETER_NAMES.index("af")), est_idx.index(PARAMETER_NAMES.index("a1"))
+    hist_rows = 0
+    w_est_scale = scales[est_idx]
+
+    for k in range(ticks):
+        t = k * T
+        # PID on the error at the sample's time
+        err = r_prev - x_meas
+        prop = c.kp_v_per_mm * err
+        step = c.ki_v_per_mm_s * err * T
+        blocked = ((sat > 0) & (step > 0)) | ((sat < 0) & (step < 0))
+        integral = np.clip(np.where(blocked, integral, integral + step), -limit, limit)
+        deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
+        last_err = err
+        u2 = np.clip(prop + integral + deriv, -limit, limit)
+        # regressor at mid-interval, per valve (only r and its derivatives depend on the start)
+        a0_, a1_ = np.array(ref0.at(t + 0.5 * T)), np.array(ref1.at(t + 0.5 * T))
+        d = a1_ - a0_
+        r3, r2, r1, r = (a0_[3] + start * d[3], a0_[2] + start * d[2], a0_[1] + start * d[1], a0_[0] + start * d[0])
+        sgn = np.sign(r1)
+        w_all = (r3, r2, r1, r, np.ones(n), sgn)
+        w_est = np.column_stack([w_all[i] for i in est_idx]) / w_est_scale
+        fixed_part = sum(nominal[i] * w_all[i] for i in fixed_idx) if fixed_idx else np.zeros(n)
+        u1 = np.einsum("nj,nj->n", theta, w_est) + fixed_part
+        u = u1 + u2
+        sat = np.where(u >= limit, 1.0, np.where(u <= -limit, -1.0, 0.0))
+        u = np.clip(u, -limit, limit)
+        adapting = (sat == 0) & (t >= adapt_from) & (np.abs(r1) >= reversal)
+        if adapting.any():
+            y = u - fixed_part
+            e = y - np.einsum("nj,nj->n", theta, w_est)
+            if rls:
+                pw = np.einsum("nij,nj->ni", P, w_est)
+                denom = lam + np.einsum("nj,nj->n", w_est, pw)
+                gain = pw / denom[:, None]
+                theta = np.where(adapting[:, None], theta + gain * e[:, None], theta)
+                P_new = (P - gain[:, :, None] * pw[:, None, :]) / lam
+                P = np.where(adapting[:, None, None], P_new, P)
+            else:
+                norm = 1.0 + np.einsum("nj,nj->n", w_est, w_est)
+                theta = np.where(adapting[:, None], theta + gain_vec * w_est * (e / norm)[:, None], theta)
+        # the rig: sample, then apply the drive, then one period passes
+        x_meas = sample()
+        plant.advance_period(u)
+        r_prev = ref0.at(t)[0] + start * (ref1.at(t)[0] - ref0.at(t)[0])
+        if k % HISTORY_EVERY == 0:
+            history[hist_rows, 0] = theta[:, h_af]
+            history[hist_rows, 1] = theta[:, h_a1]
+            hist_rows += 1
+
+    final = np.tile(nominal, (n, 1))
+    for j, i in enumerate(est_idx):
+        final[:, i] = theta[:, j] / scales[i]
+    history = history[:hist_rows]
+    t_hist = np.arange(hist_rows) * HISTORY_EVERY * T
+    acc = variant.acceptance
+    settle = {}
+    for name, row in (("af", 0), ("a1", 1)):
+        values = history[:, row, :]
+        fin = values[-1]
+        outside = np.abs(values - fin) > acc.settle_band_rel * np.maximum(np.abs(fin), 1e-12)
+        last_out = np.where(outside.any(axis=0), hist_rows - 1 - np.argmax(outside[::-1], axis=0), -1)
+        settle[name] = np.where(last_out < 0, 0.0, np.maximum(0.0, t_hist[np.minimum(last_out + 1, hist_rows - 1)]
+                                                              - adapt_from))
+    remaining = (ticks - 1) * T - adapt_from - acc.convergence_window_s
+    converged = (settle["af"] <= remaining) & (settle["a1"] <= remaining)
+    truth = np.array([list(feedforward_truth(p)) for p in plant.params])
+    return BatchResult(final, truth, converged, settle, _condition_number(variant, ref0, est_idx),
+                       list(valves), list(seeds))
+
+
+def _condition_number(variant: Variant, ref, est_idx: list[int]) -> float:
+    """Condition number of the normalised regression over the steady excitation (as the full loop)."""
+    T = variant.controller.period_s
+    ex = variant.excitation
+    t = np.arange(int(round((ex.move_s + ex.fade_s) / T)), int(round(ex.duration_s / T))) * T
+    rows = []
+    reversal = variant.estimator.reversal_exclusion * ref.peak_velocity_mm_s
+    for tk in t:
+        r, r1, r2, r3 = ref.at(float(tk) + 0.5 * T)
+        if abs(r1) >= reversal:
+            rows.append((r3, r2, r1, r, 1.0, math.copysign(1.0, r1)))
+    phi = np.array(rows)[:, est_idx]
+    norms = np.linalg.norm(phi, axis=0)
+    norms[norms == 0] = 1.0
+    return float(np.linalg.cond((phi / norms).T @ (phi / norms)))

@@ -1,0 +1,167 @@
+"""The verdict: an ONNX model run with onnxruntime, one session per process.
+
+Given a trustworthy test's af and a1 and the variant's baseline, the model
+gives P(faulty). The signed distance to the decision boundary (in units of
+the relative features, positive on the faulty side) is found geometrically:
+rays in 24 directions are scanned for the nearest change of class, then the
+closest bracket is refined; this holds for any model, also where its
+probability saturates. Inside the model's marginal band the verdict is
+MARGINAL (retest); outside it, FAIL if P(faulty) reaches the threshold, else
+PASS.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from edc_bench.errors import ConfigError
+
+PASS, MARGINAL, FAIL = "PASS", "MARGINAL", "FAIL"
+DEFAULT_MODEL = "valve_mlp.onnx"
+LINEAR_MODEL = "valve_linear.onnx"
+_DIRECTIONS = 24
+_RADII = np.geomspace(1e-3, 3.0, 28)
+_REFINE = 24
+
+
+def packaged_model_path(name: str = DEFAULT_MODEL) -> Path:
+    """Path of a model shipped inside the package."""
+    return Path(str(resources.files("edc_bench.diagnosis").joinpath("models", name)))
+
+
+@dataclass(frozen=True)
+class Classification:
+    """The model's judgement of one valve.
+
+    Attributes
+    ----------
+    verdict : str
+        PASS, MARGINAL or FAIL.
+    probability_faulty : float
+        P(faulty) from the model.
+    distance : float
+        Signed distance to the boundary in relative-feature units
+        (positive: faulty side).
+    features_rel : tuple of float
+        (af/af0, a1/a1_0) as given to the model.
+    """
+
+    verdict: str
+    probability_faulty: float
+    distance: float
+    features_rel: tuple[float, float]
+    model: str
+
+
+class ValveClassifier:
+    """An onnxruntime session on a valve model and the rules around it.
+
+    Parameters
+    ----------
+    path : pathlib.Path, optional
+        ONNX model; the packaged MLP by default.
+    """
+
+    def __init__(self, path: Path | None = None) -> None:
+        import onnxruntime as ort
+
+        self.path = Path(path) if path is not None else packaged_model_path()
+        if not self.path.is_file():
+            raise ConfigError(f"classifier model {self.path} not found; build it with 'edc-bench train'")
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = 1
+        try:
+            self.session = ort.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # noqa: BLE001 - onnxruntime raises its own untyped errors
+            raise ConfigError(f"classifier model {self.path} cannot be loaded: {exc}") from None
+        meta = self.session.get_modelmeta().custom_metadata_map
+        self.metadata = dict(meta)
+        try:
+            self.threshold = float(meta["edc_bench.threshold"])
+            self.marginal_band = float(meta["edc_bench.marginal_band_rel"])
+            self.feature_names = tuple(json.loads(meta["edc_bench.feature_names"]))
+        except (KeyError, ValueError) as exc:
+            raise ConfigError(f"classifier model {self.path} lacks edc-bench metadata ({exc})") from None
+        self.kind = meta.get("edc_bench.model_kind", "?")
+        self._input = self.session.get_inputs()[0].name
+        outputs = [o.name for o in self.session.get_outputs()]
+        self._output = "probabilities" if "probabilities" in outputs else outputs[-1]
+        angles = np.linspace(0.0, 2 * np.pi, _DIRECTIONS, endpoint=False)
+        self._directions = np.column_stack([np.cos(angles), np.sin(angles)])
+
+    def probabilities(self, features_rel: np.ndarray) -> np.ndarray:
+        """P(faulty) for rows of relative features, (N, 2) -> (N,)."""
+        x = np.ascontiguousarray(features_rel, dtype=np.float32)
+        return self.session.run([self._output], {self._input: x})[0][:, 1]
+
+    def distances(self, features_rel: np.ndarray, faulty: np.ndarray | None = None) -> np.ndarray:
+        """Signed distance of each row to the boundary (positive: faulty side).
+
+        Distances beyond the scanned 3.0 are reported as +/-inf.
+        """
+        x = np.asarray(features_rel, dtype=np.float64)
+        n = len(x)
+        if faulty is None:
+            faulty = self.probabilities(x) >= self.threshold
+        dirs = self._directions
+        # stage 1: points x + r u for every direction and radius
+        pts = x[:, None, None, :] + _RADII[None, None, :, None] * dirs[None, :, None, :]
+        side = (self.probabilities(pts.reshape(-1, 2)) >= self.threshold).reshape(n, _DIRECTIONS, len(_RADII))
+        flipped = side != faulty[:, None, None]
+        any_flip = flipped.any(axis=2)
+        first = np.where(any_flip, flipped.argmax(axis=2), len(_RADII))  # (n, dirs)
+        best_dir = first.argmin(axis=1)
+        best = first[np.arange(n), best_dir]
+        found = best < len(_RADII)
+        # stage 2: refine inside the bracket [r_{k-1}, r_k] of the best direction
+        idx = np.minimum(best, len(_RADII) - 1)
+        lo = np.where(idx > 0, _RADII[np.maximum(idx - 1, 0)], 0.0)
+        hi = _RADII[idx]
+        steps = np.linspace(0.0, 1.0, _REFINE + 1)[1:]
+        radii = lo[:, None] + (hi - lo)[:, None] * steps[None, :]
+        u = dirs[best_dir]
+        pts2 = x[:, None, :] + radii[:, :, None] * u[:, None, :]
+        side2 = (self.probabilities(pts2.reshape(-1, 2)) >= self.threshold).reshape(n, _REFINE)
+        flip2 = side2 != faulty[:, None]
+        k2 = np.where(flip2.any(axis=1), flip2.argmax(axis=1), _REFINE - 1)
+        inner = np.where(k2 > 0, radii[np.arange(n), np.maximum(k2 - 1, 0)], lo)
+        dist = 0.5 * (inner + radii[np.arange(n), k2])
+        dist = np.where(found, dist, np.inf)
+        return np.where(faulty, dist, -dist)
+
+    def classify_many(self, features_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Verdicts, P(faulty) and distances for rows of relative features."""
+        p = self.probabilities(features_rel)
+        faulty = p >= self.threshold
+        d = self.distances(features_rel, faulty)
+        verdicts = np.where(np.abs(d) < self.marginal_band, MARGINAL, np.where(faulty, FAIL, PASS))
+        return verdicts, p, d
+
+    def classify(self, af_rel: float, a1_rel: float) -> Classification:
+        """Judge one valve from its relative features."""
+        if not (math.isfinite(af_rel) and math.isfinite(a1_rel)):
+            raise ConfigError(f"features must be finite numbers, got af_rel={af_rel}, a1_rel={a1_rel}")
+        verdicts, p, d = self.classify_many(np.array([[af_rel, a1_rel]]))
+        return Classification(str(verdicts[0]), float(p[0]), float(d[0]), (float(af_rel), float(a1_rel)), self.kind)
+
+    def boundary_grid(self, af_range: tuple[float, float], a1_range: tuple[float, float],
+                      n: int = 200) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """P(faulty) on a grid of relative features, for plots."""
+        af = np.linspace(*af_range, n)
+        a1 = np.linspace(*a1_range, n)
+        A, B = np.meshgrid(af, a1)
+        p = self.probabilities(np.column_stack([A.ravel(), B.ravel()])).reshape(A.shape)
+        return A, B, p
+
+
+@lru_cache(maxsize=4)
+def default_classifier(path: str | None = None) -> ValveClassifier:
+    """One session per model per process (created on first use)."""
+    return ValveClassifier(Path(path) if path else None)

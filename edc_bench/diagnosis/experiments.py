@@ -1,0 +1,243 @@
+"""Studies on simulated populations: held-out evaluation, the paper's
+experiment (Tsai & Tseng 2010, section 5) and the decision-boundary trade-off."""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edc_bench.config import load_variant
+from edc_bench.diagnosis.baseline import Baseline, load_baseline
+from edc_bench.diagnosis.batch import run_batch
+from edc_bench.diagnosis.classifier import FAIL, MARGINAL, ValveClassifier
+from edc_bench.diagnosis.dataset import COLUMNS, Dataset
+from edc_bench.diagnosis.population import (
+    clearance_for_resisting_force,
+    draw_population,
+    is_faulty,
+    new_valves,
+    resisting_force_n,
+)
+from edc_bench.sim.valve import ValveSpec, sample_valve
+
+# --------------------------------------------------------------------------- evaluation
+
+
+def evaluate(classifier: ValveClassifier, dataset: Dataset) -> dict[str, Any]:
+    """Verdicts on a dataset against its physical labels.
+
+    Tests that did not converge are INVALID and not judged (counted apart).
+    """
+    ok = dataset.columns["converged"].astype(bool)
+    verdicts, _, _ = classifier.classify_many(dataset.features[ok])
+    truth = dataset.labels[ok] == 1
+    decided = verdicts != MARGINAL
+    fail = verdicts == FAIL
+    correct = (fail == truth) & decided
+    return {
+        "tests": len(dataset),
+        "invalid": int((~ok).sum()),
+        "judged": int(ok.sum()),
+        "marginal": int((~decided).sum()),
+        "marginal_fraction": float((~decided).mean()) if ok.any() else float("nan"),
+        "accuracy_outside_band": float(correct.sum() / max(decided.sum(), 1)),
+        "faulty_passed": int((~fail & truth & decided).sum()),
+        "reusable_failed": int((fail & ~truth & decided).sum()),
+        "faulty": int(truth.sum()),
+        "reusable": int((~truth).sum()),
+    }
+
+
+# --------------------------------------------------------------------------- the paper
+
+
+PAPER_OUTCOME = {"reusable_right": 10, "reusable": 10, "faulty_right": 7, "faulty": 8}
+
+
+@dataclass
+class PaperExperiment:
+    """The paper's protocol reproduced in simulation."""
+
+    train_features: np.ndarray  # (18, 2) relative
+    train_labels: np.ndarray  # (18,)
+    test_features: np.ndarray  # (54, 2) relative
+    test_valve: np.ndarray  # (54,) valve index 0..17
+    test_truth: np.ndarray  # (18,) faulty by physics
+    test_verdicts: np.ndarray  # (54,)
+    valve_outcome: np.ndarray  # (18,) judged faulty by majority of its 3 tests
+    classifier: ValveClassifier
+    baseline: Baseline
+    variant: str
+
+    @property
+    def reusable_right(self) -> int:
+        return int(((~self.valve_outcome) & ~self.test_truth).sum())
+
+    @property
+    def faulty_right(self) -> int:
+        return int((self.valve_outcome & self.test_truth).sum())
+
+
+def _rows(variant: Any, valves: list[ValveSpec], seed: int, repeats: int) -> np.ndarray:
+    specs = [v for v in valves for _ in range(repeats)]
+    seeds = [seed * 100 + n for n in range(len(specs))]
+    result = run_batch(variant, specs, seeds)
+    return np.column_stack([result.feature("af"), result.feature("a1")])
+
+
+def severely_worn_clearance_mm(variant: Any) -> float:
+    """Clearance of the paper's "severely worn" training valves.
+
+    A network trained on two clusters puts its boundary about halfway between
+    them. The paper's outcome (7 of 8 faulty valves caught, the miss close to
+    the boundary) implies its severely worn valves lay about as far beyond the
+    failure limit as new valves lie below it; so do these: resisting force
+    = limit + (limit - new valve's).
+    """
+    preset = variant.valve.presets["new"]
+    new_force = resisting_force_n(variant, ValveSpec(preset.clearance_mm, preset.roughness))
+    limit = variant.diagnosis.resistance_limit_n
+    return clearance_for_resisting_force(variant, 2 * limit - new_force)
+
+
+def paper_experiment(variant_name: str = "p-edc-default", seed: int = 2010, repeats: int = 3) -> PaperExperiment:
+    """Train on 6 valves (4 new, 2 severely worn) x 3 tests, test on 18 used valves
+    (10 reusable, 8 faulty by physics) x 3 tests, as in the paper's section 5.
+
+    Needs the ``train`` extra (the network is trained on the 18 patterns).
+    """
+    from edc_bench.diagnosis.train import train
+
+    variant = load_variant(variant_name)
+    baseline = load_baseline(variant)
+    rng = np.random.default_rng(seed)
+    severe_clearance = severely_worn_clearance_mm(variant)
+    train_valves = new_valves(variant, 4, seed) + [
+        sample_valve(variant, severe_clearance, rng, label=f"severely-worn-{n}") for n in range(2)]
+    used = draw_population(variant, 400, seed + 1)
+    reusable = [v for v in used if not is_faulty(variant, v)][:10]
+    faulty = [v for v in used if is_faulty(variant, v)][:8]
+    test_valves = reusable + faulty
+    train_abs = _rows(variant, train_valves, seed + 2, repeats)
+    test_abs = _rows(variant, test_valves, seed + 3, repeats)
+    to_rel = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+    train_rel, test_rel = train_abs / to_rel, test_abs / to_rel
+    labels = np.repeat([0, 0, 0, 0, 1, 1], repeats)
+    # 12 new against 6 worn patterns: weigh the classes equally (the worn rows twice), or the
+    # boundary drifts towards the worn cluster and lets faulty valves near the limit pass
+    fit_rel = np.vstack([train_rel, train_rel[labels == 1]])
+    fit_abs = np.vstack([train_abs, train_abs[labels == 1]])
+    fit_labels = np.concatenate([labels, labels[labels == 1]])
+    columns = {name: np.zeros(len(fit_labels)) for name in COLUMNS}
+    columns.update(af=fit_abs[:, 0], a1=fit_abs[:, 1], af_rel=fit_rel[:, 0], a1_rel=fit_rel[:, 1],
+                   faulty=fit_labels.astype(bool), converged=np.ones(len(fit_labels), bool))
+    model = train(Dataset(columns, {"experiment": "paper", "seed": seed}), "mlp", seed)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "paper.onnx"
+        path.write_bytes(model.onnx_bytes)
+        classifier = ValveClassifier(path)
+    verdicts, p_faulty, _ = classifier.classify_many(test_rel)
+    test_valve = np.repeat(np.arange(len(test_valves)), repeats)
+    # the paper has two classes: abnormal when P(faulty) reaches the threshold (no marginal band)
+    abnormal = (p_faulty >= classifier.threshold).reshape(len(test_valves), repeats)
+    judged_faulty = abnormal.sum(axis=1) * 2 > repeats
+    truth = np.array([is_faulty(variant, v) for v in test_valves])
+    return PaperExperiment(train_rel, labels, test_rel, test_valve, truth, verdicts, judged_faulty, classifier,
+                           baseline, variant.name)
+
+
+def draw_figure7(exp: PaperExperiment, path: Path) -> None:
+    """The (af, a1) plane with the test valves, the boundary and the marginal band (paper Fig. 7)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse
+
+    from edc_bench.records.writer import atomic_write
+
+    b = exp.baseline
+    scale = np.array([b.af_v, b.a1_v_s_per_mm])
+    pts = np.vstack([exp.test_features, exp.train_features])
+    lo, hi = pts.min(axis=0) * 0.9, pts.max(axis=0) * 1.08
+    A, B, _ = exp.classifier.boundary_grid((lo[0], hi[0]), (lo[1], hi[1]), n=70)
+    grid = np.column_stack([A.ravel(), B.ravel()])
+    dist = exp.classifier.distances(grid).reshape(A.shape)
+    fig, ax = plt.subplots(figsize=(7.5, 6.0), constrained_layout=True)
+    ax.contour(A * scale[0], B * scale[1], dist, levels=[0.0], colors="k", linewidths=1.5)
+    band = exp.classifier.marginal_band
+    ax.contourf(A * scale[0], B * scale[1], dist, levels=[-band, band], colors=["0.85"])
+    for v in range(len(exp.test_truth)):
+        rows = exp.test_features[exp.test_valve == v] * scale
+        marker = "o" if exp.valve_outcome[v] else "+"
+        color = "C3" if exp.test_truth[v] else "C0"
+        ax.scatter(rows[:, 0], rows[:, 1], marker=marker, s=40, color=color,
+                   facecolors="none" if marker == "o" else color)
+        centre = rows.mean(axis=0)
+        size = np.maximum(rows.max(axis=0) - rows.min(axis=0), scale * 0.04) * 2.2
+        ax.add_patch(Ellipse(centre, size[0], size[1], fill=False, linestyle="--", linewidth=0.7, color="0.4"))
+    train_pts = exp.train_features * scale
+    ax.scatter(train_pts[:, 0], train_pts[:, 1], marker="x", color="0.5", s=25, label="training tests")
+    ax.plot([], [], "k-", label="decision boundary")
+    ax.fill([], [], color="0.85", label=f"marginal band (+/- {band:g} of baseline)")
+    ax.scatter([], [], marker="+", color="k", label="judged normal (majority of 3 tests)")
+    ax.scatter([], [], marker="o", facecolors="none", color="k", label="judged abnormal")
+    ax.scatter([], [], marker="s", color="C0", label="reusable (physics)")
+    ax.scatter([], [], marker="s", color="C3", label="faulty (physics)")
+    ax.set_xlabel("$\\hat a_f$, V")
+    ax.set_ylabel("$\\hat a_1$, V s/mm")
+    ax.set_title(f"Paper's protocol in simulation ({exp.variant}): "
+                 f"{exp.reusable_right}/10 reusable and {exp.faulty_right}/8 faulty right")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
+    atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=110))
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------------- boundary study
+
+
+def boundary_tradeoff(classifier: ValveClassifier, dataset: Dataset,
+                      shifts: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Move the boundary by ``shift`` (relative-feature units, positive: fewer FAILs).
+
+    Returns the rate of reusable valves replaced needlessly and of faulty
+    valves passed for each shift.
+    """
+    ok = dataset.columns["converged"].astype(bool)
+    d = classifier.distances(dataset.features[ok])
+    truth = dataset.labels[ok] == 1
+    shifts = np.linspace(-0.4, 0.4, 81) if shifts is None else shifts
+    needless = np.array([(d[~truth] > s).mean() for s in shifts])
+    passed = np.array([(d[truth] <= s).mean() for s in shifts])
+    return {"shift": shifts, "needless_replacement": needless, "faulty_passed": passed}
+
+
+def draw_tradeoff(curve: dict[str, np.ndarray], path: Path, title: str) -> None:
+    """Plot the trade-off curve."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from edc_bench.records.writer import atomic_write
+
+    fig, ax = plt.subplots(figsize=(6.5, 5.0), constrained_layout=True)
+    ax.plot(curve["needless_replacement"] * 100, curve["faulty_passed"] * 100, "-o", markersize=3)
+    zero = int(np.argmin(np.abs(curve["shift"])))
+    ax.plot(curve["needless_replacement"][zero] * 100, curve["faulty_passed"][zero] * 100, "r*", markersize=14,
+            label="trained boundary")
+    for k in range(0, len(curve["shift"]), 10):
+        ax.annotate(f"{curve['shift'][k]:+.2f}", (curve["needless_replacement"][k] * 100,
+                                                   curve["faulty_passed"][k] * 100), fontsize=7)
+    ax.set_xlabel("reusable valves replaced needlessly, %")
+    ax.set_ylabel("faulty valves passed, %")
+    ax.set_title(title)
+    ax.legend()
+    ax.grid(alpha=0.3)
+    atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=110))
+    plt.close(fig)
