@@ -64,7 +64,7 @@ def test_written_copy_round_trips(tmp_path: Path) -> None:
         (lambda d: d["rack"].update(strok_mm=20.0), r"\[rack\]\.strok_mm: unknown key; expected one of: .*stroke_mm"),
         (lambda d: d["coil"].pop("resistance_ohm"), r"\[coil\]\.resistance_ohm: required key is missing"),
         (lambda d: d["coil"].update(inductance_mh="1 mH"), r"\[coil\]\.inductance_mh = '1 mH': Input should be a valid number"),
-        (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: acceptance, coil, controller, estimator, excitation, pump, rack, rig"),
+        (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: acceptance, coil, controller, diagnosis, estimator, excitation, pump, rack, rig"),
         (lambda d: d["rig"].update(travel_max_mm=25.0), r"travel limits must satisfy.*25.0 <= 20.0"),
         (lambda d: d["rack"].update(mid_stroke_mm=30.0), r"mid_stroke_mm \(30.0\) must lie inside the stroke"),
         (lambda d: d["coil"].update(magnetic_stiffness_n_per_mm=3.0), r"no stable rest position"),
