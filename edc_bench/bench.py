@@ -191,9 +191,9 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     verdict = INVALID if reasons else UNCLASSIFIED
     classification = baseline_info = None
     if not reasons and classify:
-        judged, baseline = classify_features(variant, features["af"], features["a1"], classifier_path)
+        judged, baseline, classifier = classify_features(variant, features["af"], features["a1"], classifier_path)
         verdict = judged.verdict
-        classification = classification_dict(judged)
+        classification = classification_dict(judged, classifier)
         baseline_info = dataclasses.asdict(baseline)
         reasons = [f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
                    f"{judged.distance:+.3f} (marginal band {classification['marginal_band']:g})"]
@@ -224,21 +224,19 @@ def classify_features(variant: Variant, af: float, a1: float, classifier_path: P
 
     Returns
     -------
-    (Classification, Baseline)
+    (Classification, Baseline, ValveClassifier)
+        The judgement, the baseline and the classifier that judged.
     """
     from edc_bench.diagnosis.baseline import load_baseline
     from edc_bench.diagnosis.classifier import default_classifier
 
     baseline = load_baseline(variant)
     classifier = default_classifier(str(classifier_path) if classifier_path else None)
-    return classifier.classify(*baseline.relative(af, a1)), baseline
+    return classifier.classify(*baseline.relative(af, a1)), baseline, classifier
 
 
-def classification_dict(judged: Any) -> dict[str, Any]:
-    """A classification as plain data for records and JSON."""
-    from edc_bench.diagnosis.classifier import default_classifier
-
-    model = default_classifier()
+def classification_dict(judged: Any, model: Any) -> dict[str, Any]:
+    """A classification by ``model`` as plain data for records and JSON."""
     return {
         "verdict": judged.verdict, "probability_faulty": judged.probability_faulty, "distance": judged.distance,
         "features_rel": {"af": judged.features_rel[0], "a1": judged.features_rel[1]}, "model": judged.model,

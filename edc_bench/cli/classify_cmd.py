@@ -53,8 +53,8 @@ def run(args: argparse.Namespace) -> int:
         af, a1 = args.af, args.a1
     if not (af > 0 and a1 > 0):
         raise ConfigError(f"af and a1 must be positive, got af={af}, a1={a1}")
-    judged, baseline = classify_features(variant, af, a1, args.model)
-    out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged),
+    judged, baseline, classifier = classify_features(variant, af, a1, args.model)
+    out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged, classifier),
            "baseline": {"af_v": baseline.af_v, "a1_v_s_per_mm": baseline.a1_v_s_per_mm,
                         "calibrated": baseline.calibrated, "source": baseline.source}}
     _report(out, args.json)

@@ -15,6 +15,18 @@ def add_variant_arguments(parser: argparse.ArgumentParser) -> None:
                              "clearance=0.22,roughness=1.5 (default: new)")
 
 
+def add_population_arguments(parser: argparse.ArgumentParser, count: int, seed: int) -> None:
+    """``--variants``, ``--count``, ``--seed`` and ``--model`` for commands that judge a simulated population."""
+    from pathlib import Path
+
+    parser.add_argument("--variants", nargs="+", default=["p-edc-default", "p-edc-long"], metavar="NAME",
+                        help="variants to draw valves for (default: p-edc-default p-edc-long)")
+    parser.add_argument("--count", type=int, default=count, help=f"valves per variant (default: {count})")
+    parser.add_argument("--seed", type=int, default=seed,
+                        help=f"population seed (default: {seed}; the shipped models were trained with 2026)")
+    parser.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+
+
 def parse_host_port(text: str) -> tuple[str, int]:
     """Parse ``HOST:PORT`` for argparse, with a clear message."""
     host, sep, port = text.rpartition(":")

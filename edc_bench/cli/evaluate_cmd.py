@@ -6,7 +6,8 @@ import argparse
 import json
 import sys
 import time
-from pathlib import Path
+
+from edc_bench.cli.common import add_population_arguments
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -16,10 +17,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Simulate a fresh population (a seed not used in training) through the batch path, judge "
                     "every converged test with the classifier, and compare with the physical labels.",
     )
-    p.add_argument("--variants", nargs="+", default=["p-edc-default", "p-edc-long"], metavar="NAME")
-    p.add_argument("--count", type=int, default=300, help="valves per variant (default: 300)")
-    p.add_argument("--seed", type=int, default=777, help="population seed (default: 777; training uses 2026)")
-    p.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+    add_population_arguments(p, count=300, seed=777)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 

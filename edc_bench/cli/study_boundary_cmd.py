@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from edc_bench.cli.common import add_population_arguments
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
@@ -13,10 +15,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Simulate a large population, move the classifier's boundary in steps, and plot the share of "
                     "reusable valves replaced needlessly against the share of faulty valves passed.",
     )
-    p.add_argument("--variants", nargs="+", default=["p-edc-default", "p-edc-long"], metavar="NAME")
-    p.add_argument("--count", type=int, default=1000, help="valves per variant (default: 1000)")
-    p.add_argument("--seed", type=int, default=31, help="population seed (default: 31)")
-    p.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+    add_population_arguments(p, count=1000, seed=31)
     p.add_argument("--figure", type=Path, default=Path("boundary-tradeoff.png"), help="output PNG")
     p.set_defaults(run=run)
 

@@ -275,7 +275,8 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         # the rig: sample, then apply the drive, then one period passes
         x_meas = sample()
         plant.advance_period(u)
-        r_prev = ref0.at(t)[0] + start * (ref1.at(t)[0] - ref0.at(t)[0])
+        r0_now = ref0.at(t)[0]
+        r_prev = r0_now + start * (ref1.at(t)[0] - r0_now)
         if k % HISTORY_EVERY == 0:
             history[hist_rows, 0] = theta[:, h_af]
             history[hist_rows, 1] = theta[:, h_a1]
