@@ -27,6 +27,7 @@ import dataclasses
 import datetime as _dt
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,8 +42,10 @@ from edc_bench.control.build import nominal_plant
 from edc_bench.control.clock import Clock, SimulatedClock
 from edc_bench.control.fel import FelController
 from edc_bench.control.loop import BenchLoop, LoopOutcome, ProgressFn
+from edc_bench.control.signals import interrupt_guard, stop_requested
 from edc_bench.control.stability import LoopMargins, check_variant_gains
 from edc_bench.protocol import Icd, default_icd
+from edc_bench.records.stream import StreamingCanLog
 from edc_bench.records.trace import CanFrameLog
 from edc_bench.sim.valve import FeedforwardParameters, ValveSpec, parse_valve_spec
 
@@ -111,7 +114,7 @@ def _judge(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
         settle = ", ".join(f"{n} {ident.settle_s[n]:.1f} s" for n in ("af", "a1"))
         reasons.append(f"not converged: af and a1 must settle within {acc.settle_band_rel:.0%} for the last "
                        f"{acc.convergence_window_s:g} s (settle times {settle})")
-    if ident.condition_number > acc.max_condition_number:
+    if not outcome.abort_reason and ident.condition_number > acc.max_condition_number:
         reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
                        f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
     ticks = max(int(timing.get("ticks", 0)), 1)
@@ -127,7 +130,8 @@ def _judge(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
 def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id: str = "",
                    icd: Icd | None = None, progress: ProgressFn | None = None,
                    truth: FeedforwardParameters | None = None, check_gains: bool = True,
-                   classify: bool = True, classifier_path: Path | None = None) -> BenchResult:
+                   classify: bool = True, classifier_path: Path | None = None,
+                   stream_can_log: Callable[[], Path] | None = None) -> BenchResult:
     """Run one bench test on ``bus``.
 
     Parameters
@@ -154,6 +158,10 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         baseline calibration.
     classifier_path : pathlib.Path, optional
         ONNX model to judge with; the packaged one by default.
+    stream_can_log : callable, optional
+        Returns the file to stream the raw CAN log to while the test runs
+        (called once the test is about to start), so that a killed process
+        leaves a readable log.
 
     Returns
     -------
@@ -168,8 +176,13 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     """
     margins = check_variant_gains(variant, nominal_plant(variant)) if check_gains else None
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    loop = BenchLoop(bus, clock, variant, icd or default_icd(), progress)
-    outcome = loop.run()
+    loop = BenchLoop(bus, clock, variant, icd or default_icd(), progress, stop_requested=stop_requested)
+    with interrupt_guard():
+        if stream_can_log is not None:
+            with StreamingCanLog(loop.frames, stream_can_log()):
+                outcome = loop.run()
+        else:
+            outcome = loop.run()
     trace = loop.trace.view()
     timing = timing_summary(trace, variant.controller.period_s)
     timing["missed_replies"] = outcome.missed_replies
@@ -251,7 +264,7 @@ _channels = itertools.count()
 def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
                        valve_id: str = "", stiction: bool = True, sensor_noise: bool = True,
                        progress: ProgressFn | None = None, check_gains: bool = True,
-                       classify: bool = True) -> BenchResult:
+                       classify: bool = True, stream_can_log: Callable[[], Path] | None = None) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -283,7 +296,8 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
          can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as rig_bus:
         clock = SimulatedClock(InProcessRig(rig_bus, rig))
         result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, progress=progress,
-                                truth=rig.truth, check_gains=check_gains, classify=classify)
+                                truth=rig.truth, check_gains=check_gains, classify=classify,
+                                stream_can_log=stream_can_log)
     result.simulation = {
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},

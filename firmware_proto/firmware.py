@@ -130,6 +130,7 @@ class RigFirmware:
         self._boot_done_s = start_s + limits.boot_s
         self._next_heartbeat_s = start_s
         self._watchdog_due_s = math.inf
+        self.heartbeat_enabled = True  # fault injection: a rig whose heartbeat stops
         self.hw.set_drive_v(0.0)
 
     # -- time ------------------------------------------------------------------
@@ -157,7 +158,8 @@ class RigFirmware:
             self.flags["watchdog"] = True
             self._trip(FaultCode.WATCHDOG, out)
         if now_s >= self._next_heartbeat_s:
-            out.append(self._heartbeat())
+            if self.heartbeat_enabled:
+                out.append(self._heartbeat())
             period = self.limits.heartbeat_period_s
             # keep the 10 Hz grid; skip missed beats rather than bursting them
             missed = math.floor((now_s - self._next_heartbeat_s) / period)
@@ -265,9 +267,16 @@ class RigFirmware:
         if self.state is not RigState.FAULT:
             self._enter(RigState.FAULT, out)
 
+    def force_fault(self, code: FaultCode) -> list[Frame]:
+        """Latch a fault from outside the protocol (a hardware monitor, or a test)."""
+        out: list[Frame] = []
+        self._trip(code, out)
+        return out
+
     def _enter(self, state: RigState, out: list[Frame]) -> None:
         self.state = state
-        out.append(self._heartbeat())  # a state change is announced at once
+        if self.heartbeat_enabled:
+            out.append(self._heartbeat())  # a state change is announced at once
 
     def _heartbeat(self) -> Frame:
         supply_v = min(max(self.hw.supply_voltage_v(), 0.0), 655.35)

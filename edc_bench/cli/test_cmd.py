@@ -127,15 +127,33 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the test, write the record, report."""
+    from edc_bench.control.signals import interrupt_guard
+
+    with interrupt_guard():  # the first Ctrl-C aborts the test; later ones cannot cost the record
+        return _run_guarded(args)
+
+
+def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.bench import INVALID, run_bench_test, run_simulated_test
     from edc_bench.bus import open_bus
     from edc_bench.control.clock import RealTimeClock
     from edc_bench.protocol import default_icd
     from edc_bench.records.record import write_record
+    from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
     from edc_bench.sim.valve import parse_valve_spec
 
     variant = _variant(args)
     bus_config = _bus_config(args)
+    folder: list[Path] = []
+
+    def stream_target() -> Path:
+        # the record folder exists from the first frame on: a killed test leaves its CAN log
+        import datetime
+
+        started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+        folder.append(new_record_dir(args.out, args.valve_id or args.valve, variant.name, started))
+        return folder[0] / CAN_LOG_FILE
+
     quiet = args.json
     progress = None if quiet else _Progress(sys.stderr, variant.controller.period_s)
     log = (lambda line: None) if quiet else (lambda line: print(line, file=sys.stderr, flush=True))
@@ -146,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
             f"simulated time, {variant.excitation.duration_s:g} s")
         result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
                                     stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
-                                    progress=progress)
+                                    progress=progress, stream_can_log=stream_target)
     else:
         icd = default_icd()
         if bus_config is None:
@@ -156,15 +174,21 @@ def run(args: argparse.Namespace) -> int:
             with rig_process(args.variant, args.valve, args.seed) as channel:
                 log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
                 with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
-                    result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress)
+                    result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress,
+                                            stream_can_log=stream_target)
         else:
             log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
             with open_bus(bus_config, icd.bitrate) as bus:
-                result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress)
+                result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress,
+                                        stream_can_log=stream_target)
     if progress is not None:
         progress.done()
 
-    record_dir = write_record(result, args.out, figure=not args.no_figure)
+    record_dir = write_record(result, args.out, figure=not args.no_figure, folder=folder[0] if folder else None)
+    if (result.outcome.abort_reason or "").startswith("internal error"):
+        print(f"edc-bench test: {result.outcome.abort_reason}\nThis is a bug in edc-bench; the rig was sent SAFE and "
+              f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
+        return ExitCode.INTERNAL_ERROR
     if args.json:
         print(json.dumps(summary(result, record_dir), indent=2))
     else:

@@ -217,6 +217,11 @@ class AcceptanceSection(_Section):
     max_overrun_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
     max_missed_reply_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
     reply_timeout_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.8
+    heartbeat_timeout_periods: Annotated[float, Field(gt=1, le=20, allow_inf_nan=False)] = 3.0
+    max_tracking_error_mm: PositiveFloat = Field(
+        default=2.0, description="abort if the rack stays this far from its reference (a stuck sensor or rack)"
+    )
+    tracking_error_ticks: Annotated[int, Field(ge=1, le=10000)] = 50
     ready_timeout_s: PositiveFloat = 3.0
 
 

@@ -23,7 +23,7 @@ from edc_bench.control.build import build_controller
 from edc_bench.control.clock import Clock, cpu_steal_s
 from edc_bench.control.fel import FelController
 from edc_bench.errors import ProtocolError
-from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, Icd, Mode, RigState
+from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState
 from edc_bench.records.trace import CanFrameLog, Trace
 
 # flag bits of trace column rig_flags
@@ -48,6 +48,8 @@ class LoopOutcome:
     safe_confirmed: bool = False
     heartbeats: int = 0
     cpu_steal_s: float = 0.0
+    abort_time_s: float | None = None  # trace time at which the abort was decided
+    ticks_start_s: float = 0.0  # clock time of trace time 0 (the frame log's time base)
     events: list[str] = field(default_factory=list)
 
 
@@ -66,15 +68,19 @@ class BenchLoop:
         The compiled ICD.
     progress : callable, optional
         ``progress(tick, ticks, controller, rack_mm)``, called every 250 ticks.
+    stop_requested : callable, optional
+        Polled every tick and while waiting for the rig; True ends the test
+        as an abort (the operator's Ctrl-C or SIGTERM).
     """
 
     def __init__(self, bus: can.BusABC, clock: Clock, variant: Variant, icd: Icd,
-                 progress: ProgressFn | None = None) -> None:
+                 progress: ProgressFn | None = None, stop_requested: Callable[[], bool] | None = None) -> None:
         self.bus = bus
         self.clock = clock
         self.variant = variant
         self.icd = icd
         self.progress = progress
+        self.stop_requested = stop_requested or (lambda: False)
         self.period_s = variant.controller.period_s
         self.ticks = int(round(variant.excitation.duration_s / self.period_s))
         self.trace = Trace(self.ticks)
@@ -84,6 +90,8 @@ class BenchLoop:
         self.controller: FelController | None = None
         self._counter = 0
         self._rig_state: RigState | None = None
+        self._rig_fault_code = 0
+        self._last_heartbeat_s = 0.0
         self._t_s = 0.0
 
     # -- frames ----------------------------------------------------------------
@@ -122,6 +130,8 @@ class BenchLoop:
                     continue
                 self.outcome.heartbeats += 1
                 self._rig_state = beat.state
+                self._rig_fault_code = beat.fault_code
+                self._last_heartbeat_s = now
                 if self.outcome.fw_version is None:
                     self.outcome.fw_version = f"{beat.fw_major}.{beat.fw_minor}"
 
@@ -132,6 +142,8 @@ class BenchLoop:
         limit = self.variant.acceptance.ready_timeout_s
         rearmed = False
         while self._t_s < limit:
+            if self.stop_requested():
+                raise KeyboardInterrupt
             self._t_s += step
             self.clock.wait_until(self._t_s)
             self._receive(None, self._t_s + step * 0.5)
@@ -177,9 +189,14 @@ class BenchLoop:
             self.outcome.abort_reason = "interrupted by the operator"
         except can.CanError as exc:
             self.outcome.abort_reason = f"bus error: {type(exc).__name__}: {exc}"
+        except Exception as exc:  # noqa: BLE001 - a bug must not cost the rig's safety or the data
+            import traceback
+
+            self.outcome.abort_reason = f"internal error: {type(exc).__name__}: {exc}"
+            self.outcome.events.append(traceback.format_exc())
         finally:
             try:
-                self._safe_stop()
+                self._safe_stop()  # run_bench_test's interrupt guard keeps a second Ctrl-C from skipping it
             except can.CanError as exc:
                 self.outcome.events.append(f"SAFE could not be sent: {exc}")
             finally:
@@ -214,13 +231,28 @@ class BenchLoop:
         acceptance = self.variant.acceptance
         reply_window_s = T * acceptance.reply_timeout_fraction
         max_in_row = acceptance.max_missed_replies_in_row
+        max_missed_fraction = acceptance.max_missed_reply_fraction
+        heartbeat_timeout_s = self.variant.rig.heartbeat_period_ms * 1e-3 * acceptance.heartbeat_timeout_periods
+        max_error_mm = acceptance.max_tracking_error_mm
+        error_ticks_limit = acceptance.tracking_error_ticks
+        error_ticks = 0
+        follow_from_k = int(self.variant.excitation.move_s / T)  # the rack must follow once it has arrived
+        rig = self.variant.rig
+        position_range = (rig.travel_min_mm - 1.0, self.variant.rack.stroke_mm + 1.0)
+        self._last_heartbeat_s = max(self._last_heartbeat_s, self._t_s)
         t_start = max(self._t_s, self.clock.now_s()) + T
         outcome = self.outcome
+        outcome.ticks_start_s = t_start
         missed_in_row = 0
         progress = self.progress
         clock = self.clock
 
+        stop_requested = self.stop_requested
         for k in range(self.ticks):
+            if stop_requested():
+                outcome.abort_time_s = k * T
+                outcome.abort_reason = "interrupted by the operator"
+                return
             t_k = t_start + k * T
             self._t_s = t_k
             lateness = clock.wait_until(t_k)
@@ -260,6 +292,7 @@ class BenchLoop:
             self.trace.rows = k + 1
             outcome.ticks_run = k + 1
             if reply is not None and reply.any_fault:
+                outcome.abort_time_s = t_k - t_start
                 outcome.abort_reason = "rig fault: " + ", ".join(
                     name for name, bit in (("watchdog tripped", reply.watchdog_tripped),
                                            ("over-current", reply.over_current),
@@ -268,10 +301,32 @@ class BenchLoop:
                 )
                 return
             if reply is not None and not reply.amp_enabled:
-                outcome.abort_reason = "rig amplifier not enabled while running"
+                outcome.abort_time_s = t_k - t_start
+                state = self._rig_state.name if self._rig_state is not None else "unknown"
+                outcome.abort_reason = (f"rig amplifier off while running (rig state {state}, "
+                                        f"fault code {FaultCode(self._rig_fault_code).name})")
                 return
             if missed_in_row > max_in_row:
                 outcome.abort_reason = f"{missed_in_row} replies missing in a row (limit {max_in_row})"
+            elif k >= 1000 and outcome.missed_replies > max_missed_fraction * (k + 1):
+                outcome.abort_reason = (f"{outcome.missed_replies} of {k + 1} replies missing "
+                                        f"(limit {max_missed_fraction:.1%})")
+            elif t_k - self._last_heartbeat_s > heartbeat_timeout_s:
+                outcome.abort_reason = (f"rig heartbeat lost: none for {(t_k - self._last_heartbeat_s) * 1e3:.0f} ms "
+                                        f"(limit {heartbeat_timeout_s * 1e3:.0f} ms)")
+            elif self._rig_state is RigState.FAULT:
+                outcome.abort_reason = f"rig reported FAULT (fault code {FaultCode(self._rig_fault_code).name})"
+            elif not (position_range[0] <= position_mm <= position_range[1]) or abs(current_a) > rig.over_current_a:
+                outcome.abort_reason = (f"sample out of range: rack {position_mm:.3f} mm, coil {current_a:.3f} A "
+                                        f"(plausible {position_range[0]:g}..{position_range[1]:g} mm, "
+                                        f"|i| <= {rig.over_current_a:g} A)")
+            else:
+                error_ticks = error_ticks + 1 if k > follow_from_k and abs(r_col[k] - position_mm) > max_error_mm else 0
+                if error_ticks >= error_ticks_limit:
+                    outcome.abort_reason = (f"rack does not follow its reference: more than {max_error_mm:g} mm off "
+                                            f"for {error_ticks} ticks (stuck rack or sensor)")
+            if outcome.abort_reason is not None:
+                outcome.abort_time_s = t_k - t_start
                 return
             if progress is not None and k % 250 == 0:
                 progress(k, self.ticks, ctl, position_mm)

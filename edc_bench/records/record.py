@@ -67,7 +67,7 @@ def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, 
     }
 
 
-def write_record(result: BenchResult, out_dir: Path, figure: bool = True) -> Path:
+def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder: Path | None = None) -> Path:
     """Write the record folder of ``result`` under ``out_dir``.
 
     Parameters
@@ -78,13 +78,17 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True) -> Pat
         Parent folder; a new subfolder is created per test.
     figure : bool
         Draw report.png (default).
+    folder : pathlib.Path, optional
+        An existing folder for this test (e.g. the one the CAN log was
+        streamed into); a new one under ``out_dir`` otherwise.
 
     Returns
     -------
     pathlib.Path
         The record folder.
     """
-    folder = new_record_dir(Path(out_dir), result.valve_id, result.variant.name, result.started_at)
+    if folder is None:
+        folder = new_record_dir(Path(out_dir), result.valve_id, result.variant.name, result.started_at)
     files: dict[str, str | None] = {"trace": None, "can_log": None, "figure": None}
     write_trace(folder / TRACE_FILE, result.trace)
     files["trace"] = TRACE_FILE

@@ -9,6 +9,7 @@ and :meth:`SimulatedRig.receive`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,6 +132,12 @@ class SimulatedRig:
         )
         self.firmware = RigFirmware(self.hardware, firmware_limits(variant), start_s=0.0)
         self._quanta_per_s = 1.0 / self.options.quantum_s
+        self._scheduled: list[tuple[float, Callable[[SimulatedRig], list[Frame] | None]]] = []
+
+    def schedule(self, at_s: float, action: Callable[[SimulatedRig], list[Frame] | None]) -> None:
+        """Run ``action(rig)`` once simulated time reaches ``at_s`` (fault injection); frames it returns are sent."""
+        self._scheduled.append((at_s, action))
+        self._scheduled.sort(key=lambda item: item[0])
 
     @property
     def truth(self) -> FeedforwardParameters:
@@ -156,6 +163,10 @@ class SimulatedRig:
         """
         out: list[Frame] = []
         firmware = self.firmware
+        while self._scheduled and self._scheduled[0][0] <= t_s:
+            at_s, action = self._scheduled.pop(0)
+            self._advance_plant_to(max(at_s, self.plant.time_s))
+            out.extend(action(self) or [])
         while True:
             due = firmware.next_deadline_s()
             if due > t_s:

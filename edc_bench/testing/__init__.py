@@ -1,0 +1,1 @@
+"""Helpers for testing edc-bench and the rigs it drives (fault injection)."""
