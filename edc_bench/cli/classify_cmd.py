@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from edc_bench.cli.common import print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode
 
 
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"{record_file}: not a readable record ({exc})") from None
         if record.get("verdict") == "INVALID":
             out = {"verdict": "INVALID", "reasons": record.get("reasons", []), "record_dir": str(args.record_dir)}
-            _report(out, args.json)
+            print_quietly_if_closed(lambda: _report(out, args.json))
             return ExitCode.INVALID
         variant = load_variant(args.variant or record["variant"])
         af, a1 = record["features"]["af"], record["features"]["a1"]
@@ -57,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged, classifier),
            "baseline": {"af_v": baseline.af_v, "a1_v_s_per_mm": baseline.a1_v_s_per_mm,
                         "calibrated": baseline.calibrated, "source": baseline.source}}
-    _report(out, args.json)
+    print_quietly_if_closed(lambda: _report(out, args.json))
     return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL}[judged.verdict]
 
 

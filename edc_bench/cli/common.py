@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 
 def add_variant_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,6 +26,21 @@ def add_population_arguments(parser: argparse.ArgumentParser, count: int, seed: 
     parser.add_argument("--seed", type=int, default=seed,
                         help=f"population seed (default: {seed}; the shipped models were trained with 2026)")
     parser.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+
+
+def print_quietly_if_closed(write: Callable[[], None]) -> None:
+    """Run ``write`` (prints to stdout); if the reader has gone (``| head``), stop printing quietly.
+
+    Commands whose exit code carries a verdict call this so the code survives a closed pipe.
+    """
+    import os
+    import sys
+
+    try:
+        write()
+        sys.stdout.flush()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def parse_host_port(text: str) -> tuple[str, int]:

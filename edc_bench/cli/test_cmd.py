@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from edc_bench.cli.common import add_variant_arguments
+from edc_bench.cli.common import add_variant_arguments, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode
 
 
@@ -190,9 +190,9 @@ def _run_guarded(args: argparse.Namespace) -> int:
               f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
         return ExitCode.INTERNAL_ERROR
     if args.json:
-        print(json.dumps(summary(result, record_dir), indent=2))
+        print_quietly_if_closed(lambda: print(json.dumps(summary(result, record_dir), indent=2)))
     else:
-        _print_report(result, record_dir)
+        print_quietly_if_closed(lambda: _print_report(result, record_dir))
     return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
             INVALID: ExitCode.INVALID}.get(result.verdict, ExitCode.OK)
 

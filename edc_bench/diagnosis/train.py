@@ -68,6 +68,13 @@ def export_onnx(pipeline: Any, metadata: dict[str, str]) -> bytes:
     clf = pipeline.steps[-1][1]
     model = to_onnx(pipeline, sample, options={id(clf): {"zipmap": False}}, target_opset=TARGET_OPSET)
     model.ir_version = IR_VERSION
+    # skl2onnx collects the opset imports in a set: their order follows Python's per-process string
+    # hashing. Sort them so the same model gives the same bytes in every process.
+    imports = sorted((entry.domain, entry.version) for entry in model.opset_import)
+    del model.opset_import[:]
+    for domain, version in imports:
+        entry = model.opset_import.add()
+        entry.domain, entry.version = domain, version
     model.doc_string = "edc-bench valve classifier: P(faulty) from (af/af0, a1/a1_0)"
     del model.metadata_props[:]
     for key, value in sorted(metadata.items()):
