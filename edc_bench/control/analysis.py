@@ -123,8 +123,9 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
 def timing_summary(trace: dict[str, np.ndarray], period_s: float) -> dict[str, float]:
     """Lateness percentiles (us) and overrun count of the ticks."""
     late = trace["lateness_s"]
-    if len(late) == 0:
-        return {"ticks": 0}
+    if len(late) == 0:  # the same keys, so a record's timing always reads the same way
+        return {"ticks": 0, "lateness_p50_us": math.nan, "lateness_p99_us": math.nan, "lateness_p999_us": math.nan,
+                "lateness_max_us": math.nan, "overruns": 0}
     q = np.percentile(late, [50, 99, 99.9]) * 1e6
     return {
         "ticks": int(len(late)),
