@@ -96,8 +96,8 @@ class _VectorPlant:
         self.stuck = np.ones(n, dtype=bool)
 
     def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
-                   coil_v: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        f = -(self.fpre + self._fc_sel * sign)
+                   coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        f = -(self.fpre + fc * sign)
         xn = phi[:, 0, 0] * x + phi[:, 0, 1] * v + phi[:, 0, 2] * i + gam[:, 0, 0] * coil_v + gam[:, 0, 1] * f
         vn = phi[:, 1, 0] * x + phi[:, 1, 1] * v + phi[:, 1, 2] * i + gam[:, 1, 0] * coil_v + gam[:, 1, 1] * f
         i_n = phi[:, 2, 2] * i + gam[:, 2, 0] * coil_v
@@ -106,8 +106,7 @@ class _VectorPlant:
     def advance_period(self, drive_v: np.ndarray) -> None:
         coil_v = self.ka * np.clip(drive_v, -self.amp_limit, self.amp_limit)
         sign = np.where(self.v > 0.0, 1.0, -1.0)
-        self._fc_sel = self.fc
-        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign)
+        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc)
         ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.stroke)
         self.x = np.where(ok, xn, self.x)
         self.v = np.where(ok, vn, self.v)
@@ -121,12 +120,11 @@ class _VectorPlant:
         fc, fs = self.fc[idx], self.fs[idx]
         x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
         k, ki, fpre, stroke = self.k, self.ki, self.fpre, self.stroke
-        self._fc_sel = fc
         for _ in range(QUANTA_PER_PERIOD):
             net = ki * i - k * x - fpre
             hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
             sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
-            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign)
+            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc)
             # held racks: only the current evolves
             i_hold = phi[:, 2, 2] * i + gam[:, 2, 0] * coil_v
             reversed_ = vn * sign <= 0.0

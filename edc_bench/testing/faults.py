@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import can
 
-from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, FaultCode
+from edc_bench.protocol import BENCH_CMD_ID, FaultCode
 
 
 @dataclass
@@ -185,4 +185,4 @@ def schedule_rig_fault(rig, fault: str, at_s: float) -> None:
     rig.schedule(at_s, lambda r: _apply(r, fault))
 
 
-__all__ = ["RIG_FAULTS", "RIG_FEEDBACK_ID", "FaultyBus", "Rule", "schedule_rig_fault"]
+__all__ = ["RIG_FAULTS", "FaultyBus", "Rule", "schedule_rig_fault"]
