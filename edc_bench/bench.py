@@ -287,13 +287,13 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     """
     from edc_bench.diagnosis.population import is_faulty, resisting_force_n
     from edc_bench.sim.inprocess import InProcessRig
+    from edc_bench.sim.lockstep_bus import lockstep_pair
     from edc_bench.sim.rig import RigOptions, SimulatedRig
 
     spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
     rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise))
-    channel = f"edc-bench-sim-{next(_channels)}"
-    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bench_bus, \
-         can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as rig_bus:
+    bench_bus, rig_bus = lockstep_pair(f"edc-bench-sim-{next(_channels)}")
+    with bench_bus, rig_bus:
         clock = SimulatedClock(InProcessRig(rig_bus, rig))
         result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, progress=progress,
                                 truth=rig.truth, check_gains=check_gains, classify=classify,

@@ -52,12 +52,8 @@ def settle_time_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel:
 
 def regressors(controller: FelController, t_s: np.ndarray, period_s: float) -> np.ndarray:
     """The six regressors at the middle of each tick (as the controller used them)."""
-    out = np.empty((len(t_s), 6))
-    at = controller.reference.at
-    for row, t in enumerate(t_s):
-        r, r1, r2, r3 = at(float(t) + 0.5 * period_s)
-        out[row] = (r3, r2, r1, r, 1.0, 1.0 if r1 > 0 else (-1.0 if r1 < 0 else 0.0))
-    return out
+    r, r1, r2, r3 = controller.reference.tabulate(np.asarray(t_s, dtype=float) + 0.5 * period_s)
+    return np.column_stack((r3, r2, r1, r, np.ones_like(r), np.sign(r1)))
 
 
 def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Variant) -> Identification:

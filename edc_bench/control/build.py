@@ -85,4 +85,5 @@ def build_controller(variant: Variant, start_mm: float) -> FelController:
         nominal=nominal, estimated=estimated, scales=scales, drive_limit_v=variant.rig.drive_limit_v,
         period_s=c.period_s, adapt_from_s=variant.excitation.move_s,
         reversal_speed_mm_s=variant.estimator.reversal_exclusion * reference.peak_velocity_mm_s,
+        ticks=int(round(variant.excitation.duration_s / c.period_s)),
     )

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from edc_bench.control.estimators import Estimator
 from edc_bench.control.pid import Pid
 from edc_bench.control.reference import Reference
@@ -54,11 +56,15 @@ class FelController:
         No adaptation before this time (the move to mid-stroke).
     reversal_speed_mm_s : float
         No adaptation while |r'| is below this.
+    ticks : int, optional
+        Number of ticks the test will run. The reference of those ticks is
+        tabulated up front (vectorised), so a tick only looks it up; ticks
+        beyond are computed as they come.
     """
 
     def __init__(self, reference: Reference, pid: Pid, estimator: Estimator, *, nominal: Sequence[float],
                  estimated: Sequence[int], scales: Sequence[float], drive_limit_v: float, period_s: float,
-                 adapt_from_s: float, reversal_speed_mm_s: float) -> None:
+                 adapt_from_s: float, reversal_speed_mm_s: float, ticks: int = 0) -> None:
         if len(nominal) != N_PARAMETERS or len(scales) != N_PARAMETERS:
             raise ValueError("nominal and scales need six entries: a3, a2, a1, a0, b, af")
         self.reference = reference
@@ -75,6 +81,9 @@ class FelController:
         self._w = [0.0] * N_PARAMETERS
         self._w_est = [0.0] * len(self.estimated)
         self._saturated = 0
+        k = np.arange(ticks, dtype=float)
+        mid = reference.tabulate((k + 0.5) * period_s)  # the regressor's times
+        self._table = list(zip(*mid.tolist(), reference.tabulate(k * period_s)[0].tolist(), strict=True))
         # last tick's values, for the recorder
         self.r_mm = reference.at(0.0)[0]
         self.r_prev_mm = self.r_mm
@@ -120,7 +129,11 @@ class FelController:
         error = self.r_prev_mm - measured_mm
         u2 = self.pid.update(error, self._saturated)
 
-        r, r1, r2, r3 = self.reference.at(t + 0.5 * T)
+        if k < len(self._table):
+            r, r1, r2, r3, r_now = self._table[k]
+        else:
+            r, r1, r2, r3 = self.reference.at(t + 0.5 * T)
+            r_now = self.reference.at(t)[0]
         w = self._w
         w[0], w[1], w[2], w[3], w[4] = r3, r2, r1, r, 1.0
         w[5] = 1.0 if r1 > 0.0 else (-1.0 if r1 < 0.0 else 0.0)
@@ -154,6 +167,6 @@ class FelController:
             self.estimator.update(w_est, u - fixed_part)
 
         # the reference at this tick is what the next sample will be compared to
-        self.r_prev_mm = self.reference.at(t)[0]
+        self.r_prev_mm = r_now
         self.r_mm, self.r1_mm_s, self.u1_v, self.u2_v, self.u_v = r, r1, u1, u2, u
         return u

@@ -88,8 +88,9 @@ class _VectorPlant:
             aug[j, :3, 3:] = b
         period = expm(aug * period_s)
         quantum = expm(aug * (period_s / QUANTA_PER_PERIOD))
-        self.phi, self.gam = period[:, :3, :3], period[:, :3, 3:]
-        self.phi_q, self.gam_q = quantum[:, :3, :3], quantum[:, :3, 3:]
+        # coefficients as contiguous rows, so a step indexes no views
+        self.phi, self.gam = _coefficients(period)
+        self.phi_q, self.gam_q = _coefficients(quantum)
         self.x = np.zeros(n)
         self.v = np.zeros(n)
         self.i = np.zeros(n)
@@ -98,13 +99,13 @@ class _VectorPlant:
     def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
                    coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         f = -(self.fpre + fc * sign)
-        xn = phi[:, 0, 0] * x + phi[:, 0, 1] * v + phi[:, 0, 2] * i + gam[:, 0, 0] * coil_v + gam[:, 0, 1] * f
-        vn = phi[:, 1, 0] * x + phi[:, 1, 1] * v + phi[:, 1, 2] * i + gam[:, 1, 0] * coil_v + gam[:, 1, 1] * f
-        i_n = phi[:, 2, 2] * i + gam[:, 2, 0] * coil_v
+        xn = phi[0] * x + phi[1] * v + phi[2] * i + gam[0] * coil_v + gam[1] * f
+        vn = phi[3] * x + phi[4] * v + phi[5] * i + gam[2] * coil_v + gam[3] * f
+        i_n = phi[8] * i + gam[4] * coil_v
         return xn, vn, i_n
 
     def advance_period(self, drive_v: np.ndarray) -> None:
-        coil_v = self.ka * np.clip(drive_v, -self.amp_limit, self.amp_limit)
+        coil_v = self.ka * _clip(drive_v, self.amp_limit)
         sign = np.where(self.v > 0.0, 1.0, -1.0)
         xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc)
         ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.stroke)
@@ -116,7 +117,7 @@ class _VectorPlant:
             self._advance_fine(fine, coil_v[fine])
 
     def _advance_fine(self, idx: np.ndarray, coil_v: np.ndarray) -> None:
-        phi, gam = self.phi_q[idx], self.gam_q[idx]
+        phi, gam = self.phi_q[:, idx], self.gam_q[:, idx]
         fc, fs = self.fc[idx], self.fs[idx]
         x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
         k, ki, fpre, stroke = self.k, self.ki, self.fpre, self.stroke
@@ -126,7 +127,7 @@ class _VectorPlant:
             sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
             xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc)
             # held racks: only the current evolves
-            i_hold = phi[:, 2, 2] * i + gam[:, 2, 0] * coil_v
+            i_hold = phi[8] * i + gam[4] * coil_v
             reversed_ = vn * sign <= 0.0
             frac = np.where(v != vn, v / np.where(v != vn, v - vn, 1.0), 0.0)
             x_rev = x + frac * (xn - x)
@@ -143,6 +144,19 @@ class _VectorPlant:
             i = np.where(hold, i_hold, i_n)
             stuck = np.where(hold, True, new_stuck)
         self.x[idx], self.v[idx], self.i[idx], self.stuck[idx] = x, v, i, stuck
+
+
+def _clip(values: np.ndarray, limit: float) -> np.ndarray:
+    # np.clip's Python wrapper costs several microseconds a call; this is the same for finite limits
+    return np.minimum(np.maximum(values, -limit), limit)
+
+
+def _coefficients(augmented: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of Phi (9, n) and Gamma (6, n) from a stack of augmented exponentials (n, 5, 5)."""
+    n = len(augmented)
+    phi = np.ascontiguousarray(augmented[:, :3, :3].reshape(n, 9).T)
+    gam = np.ascontiguousarray(augmented[:, :3, 3:].reshape(n, 6).T)
+    return phi, gam
 
 
 class _Noise:
@@ -197,8 +211,14 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     def sample() -> np.ndarray:
         return np.round((plant.x + offset + noise.next()) / resolution) * resolution
 
-    # the reference is affine in its start position: evaluate it for start 0 and start 1
+    # the reference is affine in its start position: tabulate it for start 0 and start 1
     ref0, ref1 = reference_for(variant, 0.0), reference_for(variant, 1.0)
+    t_ticks = np.arange(ticks) * T
+    mid0 = ref0.tabulate(t_ticks + 0.5 * T)
+    mid_slope = ref1.tabulate(t_ticks + 0.5 * T) - mid0
+    now0 = ref0.tabulate(t_ticks)[0]
+    now_slope = ref1.tabulate(t_ticks)[0] - now0
+    mid0_rows, mid_slope_rows = mid0.T.tolist(), mid_slope.T.tolist()
     start = sample()  # the SAFE reply before the first tick
     nominal = np.array(nominal_parameters(variant))
     scales = np.array(regressor_scales(variant))
@@ -231,7 +251,9 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     history = np.zeros((ticks // HISTORY_EVERY + 1, 2, n))
     h_af, h_a1 = est_idx.index(PARAMETER_NAMES.index("af")), est_idx.index(PARAMETER_NAMES.index("a1"))
     hist_rows = 0
-    w_est_scale = scales[est_idx]
+    inv_w_est_scale = 1.0 / scales[est_idx]
+    w_est_t = np.empty((len(est_idx), n))  # the estimator's regressors, one row per parameter
+    ones = np.ones(n)
 
     for k in range(ticks):
         t = k * T
@@ -240,22 +262,23 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         prop = c.kp_v_per_mm * err
         step = c.ki_v_per_mm_s * err * T
         blocked = ((sat > 0) & (step > 0)) | ((sat < 0) & (step < 0))
-        integral = np.clip(np.where(blocked, integral, integral + step), -limit, limit)
+        integral = _clip(np.where(blocked, integral, integral + step), limit)
         deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
         last_err = err
-        u2 = np.clip(prop + integral + deriv, -limit, limit)
+        u2 = _clip(prop + integral + deriv, limit)
         # regressor at mid-interval, per valve (only r and its derivatives depend on the start)
-        a0_, a1_ = np.array(ref0.at(t + 0.5 * T)), np.array(ref1.at(t + 0.5 * T))
-        d = a1_ - a0_
+        a0_, d = mid0_rows[k], mid_slope_rows[k]
         r3, r2, r1, r = (a0_[3] + start * d[3], a0_[2] + start * d[2], a0_[1] + start * d[1], a0_[0] + start * d[0])
         sgn = np.sign(r1)
-        w_all = (r3, r2, r1, r, np.ones(n), sgn)
-        w_est = np.column_stack([w_all[i] for i in est_idx]) / w_est_scale
+        w_all = (r3, r2, r1, r, ones, sgn)
+        for j, i in enumerate(est_idx):
+            np.multiply(w_all[i], inv_w_est_scale[j], out=w_est_t[j])
+        w_est = w_est_t.T
         fixed_part = sum(nominal[i] * w_all[i] for i in fixed_idx) if fixed_idx else np.zeros(n)
         u1 = np.einsum("nj,nj->n", theta, w_est) + fixed_part
         u = u1 + u2
         sat = np.where(u >= limit, 1.0, np.where(u <= -limit, -1.0, 0.0))
-        u = np.clip(u, -limit, limit)
+        u = _clip(u, limit)
         adapting = (sat == 0) & (t >= adapt_from) & (np.abs(r1) >= reversal)
         if adapting.any():
             y = u - fixed_part
@@ -264,17 +287,21 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
                 pw = np.einsum("nij,nj->ni", P, w_est)
                 denom = lam + np.einsum("nj,nj->n", w_est, pw)
                 gain = pw / denom[:, None]
-                theta = np.where(adapting[:, None], theta + gain * e[:, None], theta)
-                P_new = (P - gain[:, :, None] * pw[:, None, :]) / lam
-                P = np.where(adapting[:, None, None], P_new, P)
+                if adapting.all():  # the common case: update in place, no copies
+                    theta += gain * e[:, None]
+                    P -= gain[:, :, None] * pw[:, None, :]
+                    P *= 1.0 / lam
+                else:
+                    theta = np.where(adapting[:, None], theta + gain * e[:, None], theta)
+                    P_new = (P - gain[:, :, None] * pw[:, None, :]) / lam
+                    P = np.where(adapting[:, None, None], P_new, P)
             else:
                 norm = 1.0 + np.einsum("nj,nj->n", w_est, w_est)
                 theta = np.where(adapting[:, None], theta + gain_vec * w_est * (e / norm)[:, None], theta)
         # the rig: sample, then apply the drive, then one period passes
         x_meas = sample()
         plant.advance_period(u)
-        r0_now = ref0.at(t)[0]
-        r_prev = r0_now + start * (ref1.at(t)[0] - r0_now)
+        r_prev = now0[k] + start * now_slope[k]
         if k % HISTORY_EVERY == 0:
             history[hist_rows, 0] = theta[:, h_af]
             history[hist_rows, 1] = theta[:, h_a1]
@@ -306,13 +333,10 @@ def _condition_number(variant: Variant, ref, est_idx: list[int]) -> float:
     T = variant.controller.period_s
     ex = variant.excitation
     t = np.arange(int(round((ex.move_s + ex.fade_s) / T)), int(round(ex.duration_s / T))) * T
-    rows = []
     reversal = variant.estimator.reversal_exclusion * ref.peak_velocity_mm_s
-    for tk in t:
-        r, r1, r2, r3 = ref.at(float(tk) + 0.5 * T)
-        if abs(r1) >= reversal:
-            rows.append((r3, r2, r1, r, 1.0, math.copysign(1.0, r1)))
-    phi = np.array(rows)[:, est_idx]
+    r, r1, r2, r3 = ref.tabulate(t + 0.5 * T)
+    keep = np.abs(r1) >= reversal
+    phi = np.column_stack((r3, r2, r1, r, np.ones_like(r), np.sign(r1)))[keep][:, est_idx]
     norms = np.linalg.norm(phi, axis=0)
     norms[norms == 0] = 1.0
     return float(np.linalg.cond((phi / norms).T @ (phi / norms)))

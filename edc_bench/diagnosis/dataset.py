@@ -31,7 +31,7 @@ from edc_bench.records.writer import atomic_write
 from edc_bench.sim.valve import ValveSpec
 
 GENERATOR_VERSION = 1
-CHUNK = 250
+CHUNK = 500
 COLUMNS = ("af", "a1", "af_rel", "a1_rel", "faulty", "converged", "resisting_force_n", "clearance_mm",
            "roughness", "variant_index", "seed")
 

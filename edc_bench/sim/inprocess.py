@@ -19,7 +19,7 @@ class InProcessRig:
     Parameters
     ----------
     bus : can.BusABC
-        The rig's end of the bus (for example a ``virtual`` bus on the same
+        The rig's end of the bus (a :func:`~edc_bench.sim.lockstep_bus.lockstep_pair` end, or a ``virtual`` bus on the same
         channel as the bench's). Create it with ``preserve_timestamps=True``
         (virtual) so frame timestamps are simulated time.
     rig : SimulatedRig
