@@ -187,7 +187,39 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     timing = timing_summary(trace, variant.controller.period_s)
     timing["missed_replies"] = outcome.missed_replies
     timing["cpu_steal_s"] = outcome.cpu_steal_s
-    controller: FelController | None = loop.controller
+    timing["first_tick_unix_s"] = outcome.first_tick_unix_s
+    judged = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,
+                       classifier_path=classifier_path)
+    return BenchResult(
+        **judged,
+        timing=timing,
+        outcome=outcome,
+        margins=margins,
+        variant=variant,
+        valve_id=valve_id,
+        started_at=started,
+        clock="simulated" if isinstance(clock, SimulatedClock) else "real-time",
+        trace=trace,
+        frames=loop.frames,
+        truth=truth,
+    )
+
+
+def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelController | None,
+              outcome: LoopOutcome, timing: dict[str, float], *, truth: FeedforwardParameters | None = None,
+              classify: bool = True, classifier_path: Path | None = None) -> dict[str, Any]:
+    """Identification, trust and verdict of a run, from its trace and its controller.
+
+    Shared by the live test and :mod:`edc_bench.replay`, so a replay judges
+    exactly as the test did.
+
+    Returns
+    -------
+    dict
+        ``verdict``, ``reasons``, ``classification``, ``baseline``,
+        ``parameters``, ``features``, ``converged`` and ``identification``
+        (the :class:`BenchResult` fields of the same names).
+    """
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
     reasons = _judge(variant, outcome, ident, timing)
     parameters: dict[str, dict[str, Any]] = {}
@@ -210,26 +242,16 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         baseline_info = dataclasses.asdict(baseline)
         reasons = [f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
                    f"{judged.distance:+.3f} (marginal band {classification['marginal_band']:g})"]
-    return BenchResult(
-        verdict=verdict,
-        reasons=reasons or ["test trustworthy; classification switched off"],
-        classification=classification,
-        baseline=baseline_info,
-        parameters=parameters,
-        features=features,
-        converged=bool(ident and ident.converged and not outcome.abort_reason),
-        identification=ident,
-        timing=timing,
-        outcome=outcome,
-        margins=margins,
-        variant=variant,
-        valve_id=valve_id,
-        started_at=started,
-        clock="simulated" if isinstance(clock, SimulatedClock) else "real-time",
-        trace=trace,
-        frames=loop.frames,
-        truth=truth,
-    )
+    return {
+        "verdict": verdict,
+        "reasons": reasons or ["test trustworthy; classification switched off"],
+        "classification": classification,
+        "baseline": baseline_info,
+        "parameters": parameters,
+        "features": features,
+        "converged": bool(ident and ident.converged and not outcome.abort_reason),
+        "identification": ident,
+    }
 
 
 def classify_features(variant: Variant, af: float, a1: float, classifier_path: Path | None = None):

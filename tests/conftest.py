@@ -21,3 +21,13 @@ def variant() -> Variant:
 @pytest.fixture(scope="session", params=["p-edc-default", "p-edc-long"])
 def any_variant(request: pytest.FixtureRequest) -> Variant:
     return load_variant(request.param)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _station_dirs(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Keep the tests' history database and caches out of the user's own folders (subprocesses inherit it)."""
+    import os
+
+    base = tmp_path_factory.mktemp("station")
+    os.environ.setdefault("EDC_BENCH_DATA_DIR", str(base / "data"))
+    os.environ.setdefault("EDC_BENCH_CACHE_DIR", str(base / "cache"))

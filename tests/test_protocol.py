@@ -178,3 +178,36 @@ def test_parsing_arbitrary_bytes_raises_only_project_errors(payload: bytes) -> N
             parse(payload)
         except EdcBenchError:
             pass
+
+
+_UNALIGNED_DBC = """VERSION ""
+BS_:
+BU_: A B
+BO_ 1 ODD: 8 A
+ SG_ Nibble : 0|4@1+ (1,0) [0|15] "" B
+ SG_ Wide : 4|12@1- (0.5,-3) [-1027|1020.5] "" B
+ SG_ SignedByte : 16|8@1- (1,0) [-128|127] "" B
+ SG_ Tail : 24|32@1+ (0.01,0) [0|42949672.95] "" B
+"""
+
+
+def test_icd_messages_use_struct_and_other_layouts_fall_back_to_shifts() -> None:
+    from edc_bench.protocol.layout import compile_message
+
+    icd = default_icd()
+    assert icd.bench_cmd.struct_format == "<BBBhHx"
+    assert icd.rig_feedback.struct_format == "<BBBHhx"
+    message = cantools.database.load_string(_UNALIGNED_DBC, "dbc").get_message_by_name("ODD")
+    layout = compile_message(message)
+    assert layout.struct_format is None
+
+    @settings(max_examples=200, deadline=None)
+    @given(_values(message))
+    def check(values: dict[str, float]) -> None:
+        ours = layout.encode(*(values[n] for n in layout.signal_names))
+        assert ours == message.encode(values, scaling=True, strict=True)
+        reference = message.decode(ours, decode_choices=False)
+        for key, value in zip(layout.signal_names, layout.decode(ours), strict=True):
+            assert value == pytest.approx(reference[key], abs=1e-9), key
+
+    check()

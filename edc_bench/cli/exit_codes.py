@@ -17,6 +17,7 @@ class ExitCode(enum.IntEnum):
     MARGINAL = 10
     FAIL = 11
     INVALID = 12
+    NOT_REPRODUCED = 13  # edc-bench replay: the log does not give the recorded result
     BAD_INPUT = 2
     RIG_ERROR = 3
     INTERRUPTED = 130

@@ -123,6 +123,11 @@ class RealTimeClock(Clock):
         """Seconds since :meth:`start`."""
         return (time.perf_counter_ns() - self._t0_ns) * 1e-9
 
+    @property
+    def origin_ns(self) -> int:
+        """``time.perf_counter_ns()`` at time 0 (CLOCK_MONOTONIC on Linux, shared by all processes)."""
+        return self._t0_ns
+
     def wait_until(self, t_s: float) -> float:
         """Sleep, then spin, until ``t_s``; return the lateness."""
         target = self._t0_ns + int(t_s * 1e9)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import gc
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -50,6 +51,7 @@ class LoopOutcome:
     cpu_steal_s: float = 0.0
     abort_time_s: float | None = None  # trace time at which the abort was decided
     ticks_start_s: float = 0.0  # clock time of trace time 0 (the frame log's time base)
+    first_tick_unix_s: float | None = None  # wall-clock time the first tick began (start-up measurements)
     events: list[str] = field(default_factory=list)
 
 
@@ -258,6 +260,8 @@ class BenchLoop:
             lateness = clock.wait_until(t_k)
             if lateness > T:
                 outcome.overruns += 1
+            if k == 0:
+                outcome.first_tick_unix_s = time.time()
             u = ctl.step(k, position_mm)
             sent_s = clock.now_s()
             counter = self._send(Mode.RUN, u, ctl.r_prev_mm)

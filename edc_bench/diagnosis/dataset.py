@@ -91,7 +91,15 @@ def _chunk_worker(args: tuple[Variant, list[ValveSpec], list[int]]) -> tuple[np.
     return result.parameters[:, [5, 2]], result.converged
 
 
-def _run_population(variant: Variant, valves: list[ValveSpec], seeds: list[int], workers: int):
+def run_population(variant: Variant, valves: list[ValveSpec], seeds: list[int],
+                   workers: int) -> tuple[np.ndarray, np.ndarray]:
+    """Batch tests of ``valves`` in chunks of :data:`CHUNK`, over ``workers`` processes.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        Features ``[af, a1]`` per valve, and whether each converged.
+    """
     jobs = [(variant, valves[i:i + CHUNK], seeds[i:i + CHUNK]) for i in range(0, len(valves), CHUNK)]
     if workers > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
@@ -124,7 +132,7 @@ def make_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int
         population_seed = seed * 1000 + v_index
         valves = draw_population(variant, count_per_variant, population_seed)
         seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]
-        features, converged = _run_population(variant, valves, seeds, workers)
+        features, converged = run_population(variant, valves, seeds, workers)
         cols["af"].append(features[:, 0])
         cols["a1"].append(features[:, 1])
         cols["af_rel"].append(features[:, 0] / baseline.af_v)

@@ -1,0 +1,91 @@
+"""``edc-bench replay``: the identification and the verdict again, from a test's CAN log."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from edc_bench.cli.common import print_quietly_if_closed
+from edc_bench.cli.exit_codes import ExitCode
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "replay", help="re-run identification and classification from a test's CAN log",
+        description="Feed the rack positions logged in a record folder's can.log to a fresh controller, tick by "
+                    "tick, and judge the rebuilt trace as the test did. With a record folder the result is "
+                    "compared with the recorded one (exit 0 if reproduced exactly, 13 if not). With --can-log "
+                    "and --variant a raw log is replayed on its own (exit code of the verdict).",
+    )
+    p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
+    p.add_argument("--can-log", type=Path, default=None, metavar="FILE", help="a raw candump-style CAN log")
+    p.add_argument("--variant", default=None, help="with --can-log: the variant the test ran (name, part number, file)")
+    p.add_argument("--model", type=Path, default=None, metavar="ONNX", help="classifier model (default: packaged)")
+    p.add_argument("--json", action="store_true", help="print only JSON")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Replay and report."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.replay import replay_can_log, replay_record
+
+    if (args.record_dir is None) == (args.can_log is None):
+        raise ConfigError("give a record folder, or --can-log FILE with --variant (not both)")
+    if args.record_dir is not None:
+        if args.variant is not None:
+            raise ConfigError("a record folder carries its variant; --variant goes with --can-log")
+        report = replay_record(args.record_dir, args.model)
+    else:
+        from edc_bench.config import load_variant
+
+        if args.variant is None:
+            raise ConfigError("--can-log needs --variant: the variant the test ran with")
+        report = replay_can_log(args.can_log, load_variant(args.variant), args.model)
+    out = _summary(report)
+    print_quietly_if_closed(lambda: _print(out, args.json))
+    if report.compared:
+        return ExitCode.OK if report.reproduced else ExitCode.NOT_REPRODUCED
+    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
+            "INVALID": ExitCode.INVALID}.get(report.judged["verdict"], ExitCode.OK)
+
+
+def _summary(report: Any) -> dict[str, Any]:
+    from edc_bench.records.writer import json_safe
+
+    j = report.judged
+    return json_safe({
+        "verdict": j["verdict"], "reasons": j["reasons"], "features": j["features"],
+        "parameters": {n: {"value": p["value"], "std": p["std"]} for n, p in j["parameters"].items()},
+        "classification": j["classification"], "ticks": report.run.ticks,
+        "missed_replies": report.run.missed_replies,
+        "max_drive_deviation_v": report.run.max_drive_deviation_v,
+        "compared_with_record": report.compared, "reproduced": report.reproduced if report.compared else None,
+        "differences": report.differences,
+    })
+
+
+def _print(out: dict[str, Any], as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(out, indent=2))
+        return
+    print(f"replayed {out['ticks']} ticks ({out['missed_replies']} replies missing); drives match the logged "
+          f"commands to {out['max_drive_deviation_v'] * 1e3:.2f} mV")
+    print(f"verdict: {out['verdict']}")
+    for reason in out["reasons"]:
+        print(f"  - {reason}")
+    print(f"features: af = {out['features']['af']:.6g} V, a1 = {out['features']['a1']:.6g} V s/mm")
+    if out["compared_with_record"]:
+        if out["reproduced"]:
+            print("reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are exactly "
+                  "the recorded ones")
+        else:
+            print("NOT reproduced:")
+            for line in out["differences"]:
+                print(f"  - {line}")
+    else:
+        for line in out["differences"]:
+            print(f"  - {line}")

@@ -1,0 +1,256 @@
+"""Per-tick compute and per-frame codec cost, each next to its floor.
+
+The floors are the same work in the leanest Python I could write: the
+controller tick with every attribute and method call inlined into one
+closure over local lists, and the frames packed with :mod:`struct` (same
+layout, same scaling, same CRC). Each call is timed on its own with
+``perf_counter_ns``, so the figures are per-call percentiles, not averages
+that hide the tail.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from edc_bench.config.models import Variant
+from edc_bench.control.build import build_controller
+from edc_bench.control.estimators import RecursiveLeastSquares
+from edc_bench.control.fel import FelController
+from edc_bench.perf.figures import percentiles
+from edc_bench.protocol import Icd, Mode
+from edc_bench.protocol.crc import e2e_crc
+
+
+def time_calls_ns(fn: Callable[[int], object], count: int) -> np.ndarray:
+    """Time ``fn(k)`` for k in 0..count-1, each call on its own (ns)."""
+    out = np.empty(count)
+    clock = time.perf_counter_ns
+    for k in range(count):
+        t0 = clock()
+        fn(k)
+        out[k] = clock() - t0
+    return out
+
+
+def _measured_positions(ctl: FelController, count: int, seed: int = 1) -> list[float]:
+    """A plausible measured rack: the reference plus 5 um of noise."""
+    rng = np.random.default_rng(seed)
+    k = np.arange(count)
+    r_now = ctl.reference.tabulate(k * ctl.period_s)[0]
+    return (r_now + rng.normal(0.0, 0.005, count)).tolist()
+
+
+def lean_tick(ctl: FelController) -> Callable[[int, float], float]:
+    """The floor: :meth:`FelController.step` inlined into one closure.
+
+    The same arithmetic on the same starting state (reference table, PID,
+    the estimator's parameters and covariance), with no attribute lookups
+    or method calls left in the tick.
+    """
+    table = ctl._table  # noqa: SLF001 - the floor reuses the controller's own precomputed reference
+    pid = ctl.pid
+    kp, ki_t = pid.gains.kp_v_per_mm, pid.gains.ki_v_per_mm_s * pid.period_s
+    d_a, d_b, limit_pid = pid._a, pid._b, pid.output_limit_v  # noqa: SLF001
+    est = ctl.estimator
+    rls = isinstance(est, RecursiveLeastSquares)
+    theta = list(est.theta)
+    P = [list(row) for row in est.P] if rls else None
+    lam = est.lam if rls else 1.0
+    inv_lam = 1.0 / lam
+    gains = list(getattr(est, "gains", ()))
+    idx = ctl.estimated
+    n = len(idx)
+    inv_scale = [1.0 / ctl.scales[i] for i in idx]
+    fixed = [(i, ctl.nominal[i]) for i in ctl.fixed]
+    limit = ctl.drive_limit_v
+    adapt_from_k = int(math.ceil(ctl.adapt_from_s / ctl.period_s - 1e-9))
+    reversal = ctl.reversal_speed_mm_s
+    state = [0.0, 0.0, None, 0, ctl.r_prev_mm]  # integral, derivative, last error, saturated, r_prev
+    w = [0.0] * 6
+    we = [0.0] * n
+    pw = [0.0] * n
+    rng_n = range(n)
+    residual = [0.0, 0.0]  # weight and variance of the a-priori errors, as the estimator keeps them
+
+    def tick(k: int, measured_mm: float) -> float:
+        integral, deriv, last, sat, r_prev = state
+        e = r_prev - measured_mm
+        step = ki_t * e
+        if not (sat > 0 and step > 0.0) and not (sat < 0 and step < 0.0):
+            integral += step
+        if last is not None:
+            deriv = d_a * deriv + d_b * (e - last)
+        integral = limit_pid if integral > limit_pid else (-limit_pid if integral < -limit_pid else integral)
+        u2 = kp * e + integral + deriv
+        u2 = limit_pid if u2 > limit_pid else (-limit_pid if u2 < -limit_pid else u2)
+        r, r1, r2, r3, r_now = table[k]
+        w[0], w[1], w[2], w[3], w[4] = r3, r2, r1, r, 1.0
+        w[5] = 1.0 if r1 > 0.0 else (-1.0 if r1 < 0.0 else 0.0)
+        u1 = 0.0
+        for j in rng_n:
+            wj = w[idx[j]] * inv_scale[j]
+            we[j] = wj
+            u1 += theta[j] * wj
+        fixed_part = 0.0
+        for i, a in fixed:
+            fixed_part += a * w[i]
+        u1 += fixed_part
+        u = u1 + u2
+        sat = 1 if u >= limit else (-1 if u <= -limit else 0)
+        u = limit if sat > 0 else (-limit if sat < 0 else u)
+        if sat == 0 and k >= adapt_from_k and abs(r1) >= reversal:
+            err = u - u1  # a-priori error of the estimator: y - w . theta with y = u - fixed part
+            if not math.isfinite(err):
+                err = 0.0
+            residual[0] = 0.9995 * residual[0] + 1.0
+            residual[1] += (err * err - residual[1]) / residual[0]
+            if rls:
+                denom = lam
+                for i in rng_n:
+                    row = P[i]
+                    acc = 0.0
+                    for j in rng_n:
+                        acc += row[j] * we[j]
+                    pw[i] = acc
+                    denom += we[i] * acc
+                inv = 1.0 / denom
+                for i in rng_n:
+                    theta[i] += pw[i] * inv * err
+                    row = P[i]
+                    ki = pw[i] * inv
+                    for j in range(i, n):
+                        v = (row[j] - ki * pw[j]) * inv_lam
+                        row[j] = v
+                        P[j][i] = v
+            else:
+                norm = 1.0
+                for j in rng_n:
+                    norm += we[j] * we[j]
+                s = err / norm
+                for j in rng_n:
+                    theta[j] += gains[j] * we[j] * s
+        state[0], state[1], state[2], state[3], state[4] = integral, deriv, e, sat, r_now
+        return u
+
+    return tick
+
+
+def tick_compute(variant: Variant, count: int) -> dict[str, float]:
+    """Per-tick cost of the controller and of its floor (us), for the variant's estimator.
+
+    Both run the same ``count`` ticks from the start of a test, on a rack
+    that follows the reference with sensor noise, so the estimator adapts
+    from the end of the move on. Their drive outputs are compared: the floor
+    must do the same arithmetic.
+    """
+    ctl = build_controller(variant, 1.0)
+    floor = lean_tick(build_controller(variant, 1.0))
+    positions = _measured_positions(ctl, count)
+    drives = [0.0] * count
+    floor_drives = [0.0] * count
+
+    def real(k: int) -> None:
+        drives[k] = ctl.step(k, positions[k])
+
+    def lean(k: int) -> None:
+        floor_drives[k] = floor(k, positions[k])
+
+    # interleave short runs of each, so a burst of CPU steal hits both alike
+    real_ns, lean_ns = [], []
+    chunk = 1000
+    step_real = _chunked(real, count, chunk)
+    step_lean = _chunked(lean, count, chunk)
+    for a, b in zip(step_real, step_lean, strict=True):
+        real_ns.append(a)
+        lean_ns.append(b)
+    real_us = np.concatenate(real_ns) / 1e3
+    lean_us = np.concatenate(lean_ns) / 1e3
+    mismatch = float(np.max(np.abs(np.array(drives) - np.array(floor_drives))))
+    p50, p99 = percentiles(real_us)
+    f50, f99 = percentiles(lean_us)
+    return {"p50_us": p50, "p99_us": p99, "floor_p50_us": f50, "floor_p99_us": f99,
+            "max_drive_difference_v": mismatch, "ticks": count}
+
+
+def _chunked(fn: Callable[[int], object], count: int, chunk: int):
+    for start in range(0, count, chunk):
+        stop = min(start + chunk, count)
+        yield time_calls_ns(lambda k, s=start: fn(s + k), stop - start)
+
+
+def struct_floor(icd: Icd) -> tuple[Callable[..., bytes], Callable[[bytes], tuple]]:
+    """BENCH_CMD encode and RIG_FEEDBACK decode with :mod:`struct`: same layout, scaling and CRC.
+
+    The layouts are read from the compiled DBC and must be byte-aligned
+    (they are in ICD v1: CRC, counter, mode or flag byte, then 16-bit fields).
+    """
+    cmd_id, fb_id = icd.bench_cmd_data_id, icd.rig_feedback_data_id
+    pack = struct.Struct("<BBBhHx").pack  # crc, counter, mode, drive (mV), reference (um)
+    unpack = struct.Struct("<BBBHhx").unpack  # crc, counter, flags, position (um), current (mA)
+    _check_byte_layout(icd)
+
+    def encode(counter: int, mode: int, drive_v: float, reference_mm: float) -> bytes:
+        body = pack(0, counter, mode, round(drive_v * 1000.0), round(reference_mm * 1000.0))
+        return bytes((e2e_crc(cmd_id, body),)) + body[1:]
+
+    def decode(payload: bytes) -> tuple:
+        crc, counter, flags, pos, cur = unpack(payload)
+        if crc != e2e_crc(fb_id, payload):
+            raise ValueError("CRC mismatch")
+        return (counter, flags & 1, (flags >> 1) & 1, (flags >> 2) & 1, (flags >> 3) & 1, (flags >> 4) & 1,
+                pos * 0.001, cur * 0.001)
+
+    return encode, decode
+
+
+def _check_byte_layout(icd: Icd) -> None:
+    """Refuse to benchmark a floor whose layout no longer matches the DBC."""
+    expected = {
+        "BENCH_CMD": [(0, 8, 1.0), (8, 8, 1.0), (16, 8, 1.0), (24, 16, 0.001), (40, 16, 0.001)],
+        "RIG_FEEDBACK": [(0, 8, 1.0), (8, 8, 1.0), (16, 1, 1.0), (17, 1, 1.0), (18, 1, 1.0), (19, 1, 1.0),
+                         (20, 1, 1.0), (24, 16, 0.001), (40, 16, 0.001)],
+    }
+    for layout in (icd.bench_cmd, icd.rig_feedback):
+        got = [(s.start_bit, s.length_bits, s.scale) for s in layout.signals]
+        if got != expected[layout.name]:
+            raise RuntimeError(f"{layout.name}'s layout changed ({got}); update the struct floor in {__name__}")
+
+
+def codec(icd: Icd, count: int) -> dict[str, float]:
+    """Per-frame cost (us, p50) of BENCH_CMD encode and RIG_FEEDBACK decode: ours, struct's and cantools'."""
+    enc_floor, dec_floor = struct_floor(icd)
+    feedback = icd.make_rig_feedback(7, amp_enabled=True, watchdog_tripped=False, over_current=False,
+                                     lvdt_fault=False, travel_limit=False, position_mm=12.345, current_a=-0.678)
+    if icd.make_bench_cmd(7, Mode.RUN, 1.234, 12.5) != enc_floor(7, Mode.RUN, 1.234, 12.5):
+        raise RuntimeError("the struct floor does not encode BENCH_CMD as the codec does")
+    cmd_msg = icd.database.get_message_by_name("BENCH_CMD")
+    fb_msg = icd.database.get_message_by_name("RIG_FEEDBACK")
+    cmd_values = {"CRC": 0, "Counter": 7, "Mode": 1, "DriveVoltage": 1.234, "RackReference": 12.5}
+
+    def cantools_encode(_k: int) -> None:
+        body = cmd_msg.encode(cmd_values)
+        bytes((e2e_crc(icd.bench_cmd_data_id, body),)) + body[1:]
+
+    def cantools_decode(_k: int) -> None:
+        fb_msg.decode(feedback)
+        e2e_crc(icd.rig_feedback_data_id, feedback)
+
+    runs = {
+        "encode_us": lambda _k: icd.make_bench_cmd(7, Mode.RUN, 1.234, 12.5),
+        "encode_struct_us": lambda _k: enc_floor(7, Mode.RUN, 1.234, 12.5),
+        "encode_cantools_us": cantools_encode,
+        "decode_us": lambda _k: icd.parse_rig_feedback(feedback),
+        "decode_struct_us": lambda _k: dec_floor(feedback),
+        "decode_cantools_us": cantools_decode,
+    }
+    out: dict[str, float] = {}
+    for name, fn in runs.items():
+        fn(0)
+        out[name] = percentiles(time_calls_ns(fn, count) / 1e3, (50,))[0]
+    out["frames"] = count
+    return out

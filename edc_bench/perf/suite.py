@@ -1,0 +1,145 @@
+"""The five benchmark groups, each figure beside its reference and its target (issue #6)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from edc_bench.perf.figures import Figure
+
+
+@dataclass(frozen=True)
+class Sizes:
+    """How much each group measures."""
+
+    ticks: int
+    frames: int
+    simulated_repeats: int
+    realtime_s: float
+    valves: int
+    startup_repeats: int
+
+
+FULL = Sizes(ticks=30_000, frames=50_000, simulated_repeats=3, realtime_s=60.0, valves=1000, startup_repeats=5)
+QUICK = Sizes(ticks=30_000, frames=3_000, simulated_repeats=1, realtime_s=3.0, valves=40, startup_repeats=1)
+
+GROUPS = ("tick", "codec", "simulated", "realtime", "throughput")
+
+
+def _tick(variant_name: str | None, sizes: Sizes) -> list[Figure]:
+    from edc_bench.config import load_variant
+    from edc_bench.perf.compute import tick_compute
+
+    base = load_variant(variant_name)
+    out = []
+    for kind in ("rls", "gradient"):
+        variant = base.model_copy(update={"estimator": base.estimator.model_copy(update={"kind": kind})})
+        m = tick_compute(variant, sizes.ticks)
+        met = m["p50_us"] <= 15.0 and m["p50_us"] <= 2.0 * m["floor_p50_us"]
+        note = (f"p99 {m['p99_us']:.1f} us (floor {m['floor_p99_us']:.1f}); {m['ticks']} ticks; "
+                f"drive differs from the floor's by at most {m['max_drive_difference_v']:.1e} V")
+        out.append(Figure("tick", f"controller tick, PID + feedforward + {kind}, p50", m["p50_us"], "us",
+                          m["floor_p50_us"], "the same arithmetic inlined", "<= 15 us and <= 2x floor", met, note))
+    return out
+
+
+def _codec(sizes: Sizes) -> list[Figure]:
+    from edc_bench.perf.compute import codec
+    from edc_bench.protocol import default_icd
+
+    m = codec(default_icd(), sizes.frames)
+    out = []
+    for op, what in (("encode", "BENCH_CMD encode"), ("decode", "RIG_FEEDBACK decode")):
+        ours, floor = m[f"{op}_us"], m[f"{op}_struct_us"]
+        out.append(Figure("codec", f"{what} + CRC, p50", ours, "us", floor, "struct, same layout + CRC",
+                          "<= 3x struct", ours <= 3.0 * floor,
+                          f"cantools {m[f'{op}_cantools_us']:.2f} us; {m['frames']} frames"))
+    return out
+
+
+def _simulated(variant_name: str | None, sizes: Sizes) -> list[Figure]:
+    from edc_bench.config import load_variant
+    from edc_bench.perf.loops import simulated_test
+
+    variant = load_variant(variant_name)
+    m = simulated_test(variant, sizes.simulated_repeats)
+    return [Figure("simulated", f"simulated {m['simulated_s']:g} s test, wall (best)", m["best_s"], "s",
+                   m["simulated_s"] / 50.0, "50x faster than real time", ">= 50x real time",
+                   m["speed_x_real_time"] >= 50.0,
+                   f"{m['speed_x_real_time']:.0f}x real time; median {m['median_s']:.2f} s of {m['repeats']}; "
+                   f"codec, lockstep bus, rig firmware, plant, controller, recording, analysis")]
+
+
+def _realtime(variant_name: str | None, sizes: Sizes) -> list[Figure]:
+    from edc_bench.perf.loops import realtime
+
+    out = []
+    for rate_hz in (1000, 2000):
+        period_s = 1.0 / rate_hz
+        m = realtime(variant_name, period_s, sizes.realtime_s)
+        bare, bench = m["bare"], m["bench"]
+        ratio_ok = bench.lateness_us[1] <= 1.5 * bare.lateness_us[1]
+        outside = bench.overruns_outside_steal / max(bench.ticks_outside_steal, 1)
+        completed = bench.abort_reason is None
+        tag = f"{rate_hz / 1000:g} kHz"
+        out.append(Figure(
+            "realtime", f"{tag} bench loop lateness p99", bench.lateness_us[1], "us", bare.lateness_us[1],
+            "bare loop p99, same run", "<= 1.5x bare", ratio_ok and completed,
+            f"p50 {bench.lateness_us[0]:.0f}, p99.9 {bench.lateness_us[2]:.0f}, max {bench.lateness_us[3]:.0f} us "
+            f"(bare {bare.lateness_us[0]:.0f}/{bare.lateness_us[2]:.0f}/{bare.lateness_us[3]:.0f}); "
+            f"{bench.ticks} ticks" + ("" if completed else f"; ABORTED: {bench.abort_reason}")))
+        out.append(Figure(
+            "realtime", f"{tag} overruns outside CPU steal", 100.0 * outside, "%",
+            100.0 * bare.overruns_outside_steal / max(bare.ticks_outside_steal, 1), "bare loop, same run",
+            "< 0.1 %", outside < 0.001 and completed,
+            f"{bench.overruns} overruns in all ({bare.overruns} bare); steal {bench.steal_s:.2f} s "
+            f"(bare {bare.steal_s:.2f} s); reply latency p50 {bench.reply_latency_us[0]:.0f} us, "
+            f"p99 {bench.reply_latency_us[1]:.0f} us; missed replies {bench.missed_replies}"))
+    return out
+
+
+def _throughput(variant_name: str | None, sizes: Sizes) -> list[Figure]:
+    from edc_bench.perf.throughput import bare_python_time, batch, help_time, time_to_first_tick
+
+    workers = os.cpu_count() or 1
+    b = batch(variant_name, sizes.valves, workers)
+    python_s = bare_python_time(sizes.startup_repeats)
+    h = help_time(sizes.startup_repeats)
+    first = time_to_first_tick(sizes.startup_repeats)
+    return [
+        Figure("throughput", f"batch path, {workers} processes", b["per_minute_pool"], "tests/min", None, "",
+               ">= 10,000 / min", b["per_minute_pool"] >= 10_000,
+               f"one process: {b['per_minute_one_process']:.0f} / min; {b['valves']} valves per process"),
+        Figure("throughput", "edc-bench --help (best)", h["best_s"], "s", python_s, "python -c pass", "< 0.3 s",
+               h["best_s"] < 0.3, f"median {h['median_s']:.2f} s of {h['repeats']}"),
+        Figure("throughput", "edc-bench test to its first tick (best)", first["best_s"], "s", python_s,
+               "python -c pass", "< 1.5 s", first["best_s"] < 1.5,
+               f"median {first['median_s']:.2f} s of {first['repeats']}; simulated rig; the gain check's margins "
+               f"cached (first run on a station, computing them: {first['cold_s']:.2f} s)"),
+    ]
+
+
+def run(groups: tuple[str, ...] = GROUPS, *, quick: bool = False, variant_name: str | None = None,
+        on_figure: Callable[[Figure], None] | None = None) -> list[Figure]:
+    """Run the chosen groups; ``on_figure`` sees each figure as soon as it is measured."""
+    sizes = QUICK if quick else FULL
+    steps: dict[str, Callable[[], list[Figure]]] = {
+        "tick": lambda: _tick(variant_name, sizes),
+        "codec": lambda: _codec(sizes),
+        "simulated": lambda: _simulated(variant_name, sizes),
+        "realtime": lambda: _realtime(variant_name, sizes),
+        "throughput": lambda: _throughput(variant_name, sizes),
+    }
+    figures: list[Figure] = []
+    for group in groups:
+        try:
+            measured = steps[group]()
+        except Exception as exc:  # noqa: BLE001 - one broken group must not cost the others' figures
+            measured = [Figure(group, "group failed", float("nan"), "", target="runs", met=False,
+                               note=f"{type(exc).__name__}: {exc}")]
+        for figure in measured:
+            figures.append(figure)
+            if on_figure is not None:
+                on_figure(figure)
+    return figures

@@ -1,0 +1,81 @@
+"""Population throughput of the batch path, and start-up times of the command line."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, float]:
+    """Valve tests per minute in the batch path: one process, and ``workers`` processes as ``train`` runs it."""
+    from edc_bench.config import load_variant
+    from edc_bench.diagnosis.batch import run_batch
+    from edc_bench.diagnosis.dataset import run_population
+    from edc_bench.diagnosis.population import draw_population
+
+    variant = load_variant(variant_name)
+    population = draw_population(variant, valves, 7)
+    seeds = list(range(valves))
+    t0 = time.perf_counter()
+    run_batch(variant, population, seeds)
+    one = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    run_population(variant, population + population, seeds + [s + valves for s in seeds], workers)
+    many = time.perf_counter() - t0
+    return {"valves": valves, "per_minute_one_process": valves / one * 60.0,
+            "per_minute_pool": 2 * valves / many * 60.0, "workers": workers}
+
+
+def _command(*args: str) -> list[str]:
+    return [sys.executable, "-m", "edc_bench", *args]
+
+
+def help_time(repeats: int) -> dict[str, float]:
+    """Wall time of ``edc-bench --help`` (process start to exit), best and median."""
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        subprocess.run(_command("--help"), capture_output=True, check=True)
+        walls.append(time.perf_counter() - t0)
+    return {"best_s": min(walls), "median_s": float(np.median(walls)), "repeats": repeats}
+
+
+def bare_python_time(repeats: int) -> float:
+    """Best wall time of ``python -c pass``: the interpreter's own start-up, for reference."""
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-c", "pass"], check=True)
+        walls.append(time.perf_counter() - t0)
+    return min(walls)
+
+
+def time_to_first_tick(repeats: int) -> dict[str, float]:
+    """Time from launching ``edc-bench test`` (simulated rig) to its first tick: cold, then best and median warm.
+
+    The test reports the wall-clock time of its first tick in its JSON
+    summary (``timing.first_tick_unix_s``); the rest of the run is not timed.
+    The first run has an empty cache, as on a new station (the gain check
+    imports python-control); the others find the gain check's result cached.
+    """
+    walls = []
+    with tempfile.TemporaryDirectory() as out:
+        env = {**os.environ, "EDC_BENCH_CACHE_DIR": str(Path(out) / "cache")}
+        for _ in range(repeats + 1):
+            t0 = time.time()
+            proc = subprocess.run(_command("test", "--json", "--no-figure", "--duration-s", "8", "--out", out),
+                                  capture_output=True, text=True, env=env)
+            try:
+                first = json.loads(proc.stdout)["timing"]["first_tick_unix_s"]
+            except (ValueError, KeyError, TypeError):
+                raise RuntimeError(f"edc-bench test gave no first-tick time: {proc.stderr.strip()[-500:]}") from None
+            walls.append(first - t0)
+    warm = walls[1:]
+    return {"cold_s": walls[0], "best_s": min(warm), "median_s": float(np.median(warm)), "repeats": repeats}

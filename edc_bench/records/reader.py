@@ -1,0 +1,73 @@
+"""Read a record folder back: record.json, the variant it ran, its trace and its CAN log."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edc_bench.config.models import Variant
+from edc_bench.errors import ConfigError
+from edc_bench.records.writer import CAN_LOG_FILE, RECORD_FILE, TRACE_FILE
+
+Frame = tuple[float, int, bytes]  # time (s), CAN id, payload
+
+
+def load_record(folder: Path) -> dict[str, Any]:
+    """The parsed record.json of ``folder``.
+
+    Raises
+    ------
+    ConfigError
+        If the folder or its record.json is missing or unreadable, saying what to do.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ConfigError(f"{folder}: no such record folder (give a folder written by 'edc-bench test')")
+    path = folder / RECORD_FILE
+    if not path.exists():
+        raise ConfigError(f"{folder}: no {RECORD_FILE}; the test did not finish writing its record "
+                          f"(its {CAN_LOG_FILE} may still be replayed with --can-log and --variant)")
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{path}: not a readable record ({exc})") from None
+    if not isinstance(record, dict) or "verdict" not in record:
+        raise ConfigError(f"{path}: not an edc-bench record (no verdict)")
+    return record
+
+
+def record_variant(record: dict[str, Any], source: str) -> Variant:
+    """The variant exactly as the recorded test ran it (with its command-line overrides)."""
+    from edc_bench.config import parse_variant
+
+    config = record.get("config")
+    if not isinstance(config, dict):
+        raise ConfigError(f"{source}: the record holds no variant configuration")
+    return parse_variant(config, f"{source} (recorded variant)")
+
+
+def load_trace(folder: Path) -> dict[str, np.ndarray]:
+    """The per-tick trace of a record folder."""
+    path = Path(folder) / TRACE_FILE
+    try:
+        with np.load(path) as data:
+            return {name: data[name] for name in data.files}
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{path}: not a readable trace ({exc})") from None
+
+
+def read_can_log(path: Path) -> list[Frame]:
+    """Frames of a candump-style log written by edc-bench (or candump -L), in file order."""
+    import can
+
+    path = Path(path)
+    if not path.exists():
+        raise ConfigError(f"{path}: no such CAN log")
+    try:
+        return [(float(m.timestamp), int(m.arbitration_id), bytes(m.data))
+                for m in can.CanutilsLogReader(str(path)) if not m.is_error_frame]
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{path}: not a readable candump log ({exc})") from None

@@ -1,0 +1,242 @@
+"""Replay a test from its CAN log: the identification and the verdict again, from the frames alone.
+
+The log holds every command the bench sent and every reply it read, in the
+order it read them. The bench loop used, at tick k, the rack position of
+the reply to command k-1 (the last one accepted if it was missing). Replay
+feeds the same positions, tick by tick, to a controller built from the same
+variant, so the estimator walks the same path bit for bit; each drive it
+computes is checked against the command that was logged (to the codec's
+1 mV). The trace it rebuilds is judged by the same code as the live test
+(:func:`edc_bench.bench.judge_run`).
+
+What a CAN log cannot hold is taken from the record when there is one: the
+tick timing (lateness, overruns) and why the loop stopped. A raw log alone
+is judged without them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from edc_bench.config.models import Variant
+from edc_bench.control.build import build_controller
+from edc_bench.control.fel import FelController
+from edc_bench.control.loop import FLAG_AMP, FLAG_LVDT, FLAG_OVER_CURRENT, FLAG_TRAVEL, FLAG_WATCHDOG, LoopOutcome
+from edc_bench.errors import ConfigError, ProtocolError
+from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
+from edc_bench.records.reader import Frame
+from edc_bench.records.trace import Trace
+
+#: The command carries the drive in mV; a replayed drive further off than this is a different run.
+DRIVE_TOLERANCE_V = 0.0005 + 1e-9
+
+
+@dataclass
+class ReplayedRun:
+    """The rebuilt run: its trace, its controller and what the frames say about the loop."""
+
+    trace: dict[str, np.ndarray]
+    controller: FelController
+    ticks: int
+    missed_replies: int
+    max_drive_deviation_v: float
+    notes: list[str] = field(default_factory=list)
+
+
+def _split_ticks(frames: list[Frame], icd: Icd) -> tuple[Any, list[tuple[Any, Any]]]:
+    """The synchronising SAFE reply, and per RUN command (command, accepted reply or None)."""
+    sync_reply = None
+    pending_safe = None
+    ticks: list[tuple[Any, Any]] = []
+    waiting = None  # index in ticks of the command awaiting its reply
+    for _, can_id, data in frames:
+        if can_id == BENCH_CMD_ID:
+            try:
+                cmd = icd.parse_bench_cmd(data)
+            except ProtocolError:
+                continue
+            waiting = None
+            if cmd.mode == Mode.RUN:
+                ticks.append((cmd, None))
+                waiting = len(ticks) - 1
+            elif not ticks:
+                pending_safe = cmd  # the last SAFE before the first RUN synchronises
+            else:
+                break  # the safe stop: the ticks are over
+        elif can_id == RIG_FEEDBACK_ID:
+            try:
+                reply = icd.parse_rig_feedback(data)
+            except ProtocolError:
+                continue  # the loop skips a reply with a bad CRC too
+            if waiting is not None and reply.counter == ticks[waiting][0].counter:
+                ticks[waiting] = (ticks[waiting][0], reply)
+                waiting = None
+            elif not ticks and pending_safe is not None and reply.counter == pending_safe.counter:
+                sync_reply = reply
+    return sync_reply, ticks
+
+
+def replay_frames(frames: list[Frame], variant: Variant, *, ticks_start_s: float = 0.0,
+                  icd: Icd | None = None) -> ReplayedRun:
+    """Rebuild a test's trace and controller from its frames.
+
+    Parameters
+    ----------
+    frames : list of (time, CAN id, payload)
+        The CAN log, in the order the bench logged it.
+    variant : Variant
+        The variant as the test ran it.
+    ticks_start_s : float, optional
+        Clock time of tick 0 (the record's ``loop.ticks_start_s``), so the
+        trace's times are computed as the loop computed them.
+
+    Raises
+    ------
+    ConfigError
+        If the log has no test in it, or the drives it computes are not the
+        ones logged (another variant, another software version).
+    """
+    icd = icd or default_icd()
+    sync, ticks = _split_ticks(frames, icd)
+    if sync is None or not ticks:
+        raise ConfigError("the CAN log holds no bench test (no synchronising SAFE reply followed by RUN commands)")
+    T = variant.controller.period_s
+    capacity = int(round(variant.excitation.duration_s / T))
+    if len(ticks) > capacity:
+        raise ConfigError(f"the CAN log has {len(ticks)} ticks but the variant's test has {capacity}: "
+                          "give the variant the test ran with")
+    ctl = build_controller(variant, sync.position_mm)
+    trace = Trace(capacity)
+    cols = trace.columns
+    params = [cols[f"{n}_hat"] for n in ("a3", "a2", "a1", "a0", "b", "af")]
+    position_mm, current_a = sync.position_mm, sync.current_a
+    missed = 0
+    worst = 0.0
+    for k, (cmd, reply) in enumerate(ticks):
+        u = ctl.step(k, position_mm)
+        worst = max(worst, abs(u - cmd.drive_v))
+        if reply is None:
+            missed += 1
+            flags = 0
+        else:
+            position_mm, current_a = reply.position_mm, reply.current_a
+            flags = (reply.amp_enabled * FLAG_AMP | reply.watchdog_tripped * FLAG_WATCHDOG
+                     | reply.over_current * FLAG_OVER_CURRENT | reply.lvdt_fault * FLAG_LVDT
+                     | reply.travel_limit * FLAG_TRAVEL)
+        t_k = ticks_start_s + k * T
+        cols["t_s"][k] = t_k - ticks_start_s
+        cols["lateness_s"][k] = math.nan
+        cols["reply_latency_s"][k] = math.nan
+        cols["reference_mm"][k] = ctl.r_prev_mm
+        cols["reference_velocity_mm_s"][k] = ctl.r1_mm_s
+        cols["position_mm"][k] = position_mm
+        cols["current_a"][k] = current_a
+        cols["drive_v"][k] = u
+        cols["feedforward_v"][k] = ctl.u1_v
+        cols["feedback_v"][k] = ctl.u2_v
+        cols["adapting"][k] = ctl.adapting
+        cols["reply_ok"][k] = reply is not None
+        cols["rig_flags"][k] = flags
+        ctl.write_parameters(params, k)
+        trace.rows = k + 1
+    if worst > DRIVE_TOLERANCE_V:
+        raise ConfigError(f"replayed drives differ from the logged commands by up to {worst * 1e3:.1f} mV: the log "
+                          "was not made with this variant (or this edc-bench version's controller)")
+    return ReplayedRun(trace.view(), ctl, len(ticks), missed, worst)
+
+
+def _is_run(data: bytes) -> bool:
+    try:
+        return default_icd().parse_bench_cmd(data).mode == Mode.RUN
+    except ProtocolError:
+        return False
+
+
+@dataclass
+class ReplayReport:
+    """A replay's judgement, and how it compares with the record's."""
+
+    judged: dict[str, Any]
+    run: ReplayedRun
+    differences: list[str]
+    compared: bool
+
+    @property
+    def reproduced(self) -> bool:
+        """True if compared with a record and nothing differs."""
+        return self.compared and not self.differences
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return a == b
+
+
+def compare_with_record(judged: dict[str, Any], record: dict[str, Any]) -> list[str]:
+    """Every recorded figure the replay did not reproduce exactly, as readable lines."""
+    diffs = []
+    if judged["verdict"] != record.get("verdict"):
+        diffs.append(f"verdict: recorded {record.get('verdict')}, replayed {judged['verdict']}")
+    for name, entry in judged["parameters"].items():
+        rec = (record.get("parameters") or {}).get(name, {})
+        for key in ("value", "std"):
+            got, want = entry[key], rec.get(key)
+            want = math.nan if want is None else want
+            if not _same(float(got), float(want)):
+                diffs.append(f"{name} {key}: recorded {want!r}, replayed {got!r}")
+    rec_cls, cls = record.get("classification"), judged["classification"]
+    if (rec_cls is None) != (cls is None):
+        diffs.append("classification: present in one, absent in the other")
+    elif cls is not None:
+        for key in ("probability_faulty", "distance"):
+            if not _same(cls[key], rec_cls.get(key)):
+                diffs.append(f"{key}: recorded {rec_cls.get(key)!r}, replayed {cls[key]!r}")
+    return diffs
+
+
+def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
+    """Replay a record folder from its CAN log and compare with what it recorded."""
+    from pathlib import Path
+
+    from edc_bench.bench import judge_run
+    from edc_bench.records.reader import load_record, read_can_log, record_variant
+    from edc_bench.records.writer import CAN_LOG_FILE
+
+    folder = Path(folder)
+    record = load_record(folder)
+    variant = record_variant(record, str(folder))
+    loop = record.get("loop") or {}
+    run = replay_frames(read_can_log(folder / CAN_LOG_FILE), variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
+    outcome = LoopOutcome(ticks_planned=loop.get("ticks_planned", run.ticks), ticks_run=run.ticks,
+                          missed_replies=run.missed_replies, abort_reason=loop.get("abort_reason"))
+    if loop.get("missed_replies", run.missed_replies) != run.missed_replies:
+        run.notes.append(f"missed replies: recorded {loop.get('missed_replies')}, found {run.missed_replies} in the log")
+    timing = dict(record.get("timing") or {})
+    classify = record.get("verdict") != "UNCLASSIFIED"
+    judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
+                       classifier_path=classifier_path)
+    return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes, compared=True)
+
+
+def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None) -> ReplayReport:
+    """Replay a raw CAN log with a variant (no record: timing is not judged)."""
+    from edc_bench.bench import judge_run
+    from edc_bench.records.reader import read_can_log
+
+    frames = read_can_log(path)
+    # tick 0's time, as logged (to the log's microsecond): the first RUN command's
+    first_run = next((t for t, can_id, data in frames if can_id == BENCH_CMD_ID and _is_run(data)), 0.0)
+    run = replay_frames(frames, variant, ticks_start_s=first_run)
+    planned = int(round(variant.excitation.duration_s / variant.controller.period_s))
+    abort = None if run.ticks == planned else f"the log ends after {run.ticks} of {planned} ticks"
+    outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
+                          abort_reason=abort)
+    timing = {"ticks": run.ticks, "overruns": 0}
+    run.notes.append("raw CAN log: tick timing is not in it and was not judged")
+    judged = judge_run(variant, run.trace, run.controller, outcome, timing, classifier_path=classifier_path)
+    return ReplayReport(judged, run, [], compared=False)

@@ -1,0 +1,93 @@
+"""The benchmark runs and its floors do the same work; no test asserts a timing."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from edc_bench.config import Variant
+from edc_bench.control.build import build_controller, nominal_plant
+from edc_bench.control.stability import cached_loop_margins, loop_margins
+from edc_bench.perf.compute import lean_tick, struct_floor
+from edc_bench.perf.loops import stolen_mask, with_timing
+from edc_bench.perf.suite import GROUPS
+from edc_bench.protocol import Icd, Mode
+
+
+def test_perf_quick_prints_all_five_groups() -> None:
+    proc = subprocess.run([sys.executable, "-m", "edc_bench", "perf", "--quick", "--json"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)
+    figures = report["figures"]
+    assert {f["group"] for f in figures} == set(GROUPS)
+    names = " | ".join(f["name"] for f in figures)
+    for expected in ("rls", "gradient", "BENCH_CMD encode", "RIG_FEEDBACK decode", "simulated 30 s test",
+                     "1 kHz", "2 kHz", "batch path", "--help", "first tick"):
+        assert expected in names
+    for f in figures:
+        assert f["value"] is not None and math.isfinite(f["value"]) and f["value"] >= 0, f
+        assert f["met"] in (True, False), f  # every figure has a target here
+    assert report["environment"]["quick"] is True
+
+
+@pytest.mark.parametrize("kind", ["rls", "gradient"])
+def test_tick_floor_does_the_controllers_arithmetic(variant: Variant, kind: str) -> None:
+    variant = variant.model_copy(update={"estimator": variant.estimator.model_copy(update={"kind": kind})})
+    ctl, floor = build_controller(variant, 1.0), lean_tick(build_controller(variant, 1.0))
+    rng = np.random.default_rng(0)
+    x = 1.0
+    for k in range(6000):  # past the move, so the estimator adapts
+        u, u_floor = ctl.step(k, x), floor(k, x)
+        assert u_floor == pytest.approx(u, abs=1e-9), k
+        x = ctl.r_prev_mm + rng.normal(0.0, 0.005)
+    assert ctl.estimator.updates > 1000
+
+
+def test_struct_floor_encodes_and_decodes_like_the_codec(icd: Icd) -> None:
+    encode, decode = struct_floor(icd)
+    for counter, mode, drive, ref in ((0, Mode.SAFE, 0.0, 0.0), (255, Mode.RUN, -32.768, 65.535), (9, 1, 1.2345, 7.5)):
+        assert encode(counter, mode, drive, ref) == icd.make_bench_cmd(counter, mode, drive, ref)
+    payload = icd.make_rig_feedback(3, amp_enabled=True, watchdog_tripped=False, over_current=True, lvdt_fault=False,
+                                    travel_limit=True, position_mm=12.345, current_a=-0.5)
+    assert [float(v) for v in decode(payload)] == pytest.approx([float(v) for v in icd.parse_rig_feedback(payload)])
+
+
+def test_gain_check_margins_are_cached_and_a_bad_cache_is_ignored(variant: Variant, tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("EDC_BENCH_CACHE_DIR", str(tmp_path))
+    c = variant.controller
+    args = (nominal_plant(variant), c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm, c.derivative_filter_hz,
+            c.period_s)
+    computed = loop_margins(*args)
+    assert cached_loop_margins(*args) == computed
+    files = list((tmp_path / "loop-margins").glob("*.json"))
+    assert len(files) == 1
+    assert cached_loop_margins(*args) == computed  # read back
+    files[0].write_text("{not json", encoding="utf-8")
+    assert cached_loop_margins(*args) == computed  # recomputed, not trusted
+    other = cached_loop_margins(*args[:1], c.kp_v_per_mm * 2, *args[2:])
+    assert other != computed  # different gains, different entry
+
+
+def test_steal_windows_mark_neighbouring_ticks() -> None:
+    # samples every 20 ms; 5 ms of steal between the samples at 40 and 60 ms
+    steal = np.array([(0.0, 1.0), (20e6, 1.0), (40e6, 1.0), (60e6, 1.005), (80e6, 1.005), (100e6, 1.005),
+                      (120e6, 1.005)])
+    times = np.array([5e6, 30e6, 50e6, 70e6, 110e6])
+    assert stolen_mask(times, steal).tolist() == [False, True, True, True, False]
+    assert not stolen_mask(times, steal[:1]).any()
+
+
+def test_short_benchmark_variant_shrinks_the_convergence_window(variant: Variant) -> None:
+    short = with_timing(variant, period_s=0.0005, duration_s=3.0)
+    assert short.controller.period_s == 0.0005
+    assert short.excitation.duration_s == 3.0
+    assert short.acceptance.convergence_window_s < 1.0
+    assert with_timing(variant).acceptance.convergence_window_s == variant.acceptance.convergence_window_s

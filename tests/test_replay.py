@@ -1,0 +1,110 @@
+"""Replay rebuilds a test from its CAN log and reproduces what it recorded, exactly."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+import pytest
+
+from edc_bench.bench import run_bench_test, run_simulated_test
+from edc_bench.config import load_variant
+from edc_bench.control.clock import SimulatedClock
+from edc_bench.errors import ConfigError
+from edc_bench.records.record import write_record
+from edc_bench.replay import replay_record
+from edc_bench.sim.inprocess import InProcessRig
+from edc_bench.sim.lockstep_bus import lockstep_pair
+from edc_bench.sim.rig import SimulatedRig
+from edc_bench.sim.valve import parse_valve_spec
+from edc_bench.testing.faults import FaultyBus, Rule
+
+
+@pytest.mark.parametrize(("valve", "seed", "verdict"), [("new", 4, "PASS"), ("worn", 5, "FAIL")])
+def test_replay_reproduces_a_simulated_test_exactly(tmp_path: Path, valve: str, seed: int, verdict: str) -> None:
+    result = run_simulated_test(load_variant(), valve, seed)
+    assert result.verdict == verdict
+    folder = write_record(result, tmp_path, figure=False)
+    report = replay_record(folder)
+    assert report.reproduced, report.differences
+    assert report.judged["verdict"] == verdict
+    for name, entry in result.parameters.items():
+        assert report.judged["parameters"][name]["value"] == entry["value"]
+        assert report.judged["parameters"][name]["std"] == entry["std"]
+    assert report.judged["classification"]["probability_faulty"] == result.classification["probability_faulty"]
+    assert report.judged["classification"]["distance"] == result.classification["distance"]
+    assert report.run.max_drive_deviation_v <= 0.0005 + 1e-9
+
+
+def _run_with_lost_replies(rule: Rule):
+    variant = load_variant()
+    rig = SimulatedRig(variant, parse_valve_spec("worn", variant), 2)
+    bench, rig_bus = lockstep_pair()
+    with bench, rig_bus:
+        clock = SimulatedClock(InProcessRig(rig_bus, rig))
+        return run_bench_test(FaultyBus(bench, clock.now_s, [rule]), clock, variant, check_gains=False)
+
+
+def test_replay_follows_missing_replies_and_aborts(tmp_path: Path) -> None:
+    # two replies lost: the test goes on with the last position, as the loop did
+    brief = _run_with_lost_replies(Rule("drop", 5.0, 5.0025, direction="rx", can_id=0x121))
+    assert brief.outcome.missed_replies >= 2 and brief.outcome.abort_reason is None
+    # replies lost for good: the test aborts (INVALID); the partial run replays too
+    lost = _run_with_lost_replies(Rule("drop", 6.0, direction="rx", can_id=0x121))
+    assert lost.verdict == "INVALID"
+    for result, name in ((brief, "brief"), (lost, "lost")):
+        report = replay_record(write_record(result, tmp_path / name, figure=False))
+        assert report.reproduced, report.differences
+        assert report.run.missed_replies == result.outcome.missed_replies
+
+
+def test_replay_command_and_raw_log(tmp_path: Path) -> None:
+    result = run_simulated_test(load_variant(), "worn", 6)
+    folder = write_record(result, tmp_path, figure=False)
+    cmd = [sys.executable, "-m", "edc_bench", "replay"]
+    proc = subprocess.run([*cmd, str(folder), "--json"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["reproduced"] is True and out["verdict"] == "FAIL"
+    # a raw log with its variant: same verdict and parameters (timing is not in a log)
+    proc = subprocess.run([*cmd, "--can-log", str(folder / "can.log"), "--variant", "p-edc-default", "--json"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 11, proc.stderr
+    raw = json.loads(proc.stdout)
+    assert raw["verdict"] == "FAIL" and raw["features"] == out["features"]
+    # a record altered after the fact is caught
+    record = json.loads((folder / "record.json").read_text())
+    record["parameters"]["af"]["value"] *= 1.01
+    altered = tmp_path / "altered"
+    shutil.copytree(folder, altered)
+    (altered / "record.json").write_text(json.dumps(record))
+    proc = subprocess.run([*cmd, str(altered)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 13
+    assert "NOT reproduced" in proc.stdout and "af value" in proc.stdout
+
+
+def test_replay_refuses_logs_it_cannot_explain(tmp_path: Path) -> None:
+    result = run_simulated_test(load_variant(), "new", 7)
+    folder = write_record(result, tmp_path, figure=False)
+    cmd = [sys.executable, "-m", "edc_bench", "replay"]
+    # another variant drives differently: refused, not misjudged
+    proc = subprocess.run([*cmd, "--can-log", str(folder / "can.log"), "--variant", "p-edc-long"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2
+    assert "error:" in proc.stderr and "Traceback" not in proc.stderr
+    for args, message in (([str(tmp_path / "nope")], "no such record folder"),
+                          (["--can-log", str(folder / "can.log")], "--can-log needs --variant"),
+                          ([], "give a record folder")):
+        proc = subprocess.run([*cmd, *args], capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    empty = tmp_path / "empty.log"
+    with can.CanutilsLogWriter(str(empty)) as writer:
+        writer.on_message_received(can.Message(arbitration_id=0x720, data=bytes(8), is_extended_id=False))
+    with pytest.raises(ConfigError, match="no bench test"):
+        from edc_bench.replay import replay_can_log
+
+        replay_can_log(empty, load_variant())
