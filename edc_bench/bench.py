@@ -41,7 +41,7 @@ from edc_bench.control.analysis import Identification, analyse, timing_summary
 from edc_bench.control.build import nominal_plant
 from edc_bench.control.clock import Clock, SimulatedClock
 from edc_bench.control.fel import FelController
-from edc_bench.control.loop import BenchLoop, LoopOutcome, ProgressFn
+from edc_bench.control.loop import BenchLoop, LoopObserver, LoopOutcome
 from edc_bench.control.signals import interrupt_guard, stop_requested
 from edc_bench.control.stability import LoopMargins, check_variant_gains
 from edc_bench.protocol import Icd, default_icd
@@ -99,6 +99,8 @@ class BenchResult:
     simulation: dict[str, Any] | None = None
     software_version: str = __version__
     extra: dict[str, Any] = field(default_factory=dict)
+    #: who and where: ``pump_serial``, ``station``, ``operator`` (set by the caller)
+    identity: dict[str, str] = field(default_factory=dict)
 
 
 def _judge(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
@@ -128,7 +130,7 @@ def _judge(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
 
 
 def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id: str = "",
-                   icd: Icd | None = None, progress: ProgressFn | None = None,
+                   icd: Icd | None = None, observer: LoopObserver | None = None,
                    truth: FeedforwardParameters | None = None, check_gains: bool = True,
                    classify: bool = True, classifier_path: Path | None = None,
                    stream_can_log: Callable[[], Path] | None = None) -> BenchResult:
@@ -147,8 +149,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         Identity of the valve under test, for the record.
     icd : Icd, optional
         Compiled ICD (the packaged one by default).
-    progress : callable, optional
-        ``progress(tick, ticks, controller, rack_mm)`` every 250 ticks.
+    observer : LoopObserver, optional
+        Told the phases and shown the loop as it runs (live view, log lines).
     truth : FeedforwardParameters, optional
         True parameters, when the rig is simulated.
     check_gains : bool, optional
@@ -176,7 +178,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     """
     margins = check_variant_gains(variant, nominal_plant(variant)) if check_gains else None
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    loop = BenchLoop(bus, clock, variant, icd or default_icd(), progress, stop_requested=stop_requested)
+    loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested)
     with interrupt_guard():
         if stream_can_log is not None:
             with StreamingCanLog(loop.frames, stream_can_log()):
@@ -188,6 +190,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     timing["missed_replies"] = outcome.missed_replies
     timing["cpu_steal_s"] = outcome.cpu_steal_s
     timing["first_tick_unix_s"] = outcome.first_tick_unix_s
+    if observer is not None:
+        observer.phase("classify")
     judged = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,
                        classifier_path=classifier_path)
     return BenchResult(
@@ -285,7 +289,7 @@ _channels = itertools.count()
 
 def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
                        valve_id: str = "", stiction: bool = True, sensor_noise: bool = True,
-                       progress: ProgressFn | None = None, check_gains: bool = True,
+                       observer: LoopObserver | None = None, check_gains: bool = True,
                        classify: bool = True, stream_can_log: Callable[[], Path] | None = None) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
@@ -317,7 +321,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     bench_bus, rig_bus = lockstep_pair(f"edc-bench-sim-{next(_channels)}")
     with bench_bus, rig_bus:
         clock = SimulatedClock(InProcessRig(rig_bus, rig))
-        result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, progress=progress,
+        result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, observer=observer,
                                 truth=rig.truth, check_gains=check_gains, classify=classify,
                                 stream_can_log=stream_can_log)
     result.simulation = {

@@ -42,6 +42,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="simulated rig: Coulomb friction only (the plant the identification model assumes)")
     p.add_argument("--no-sensor-noise", action="store_true", help="simulated rig: exact sensor readings")
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
+    p.add_argument("--pump-serial", default="", metavar="SERIAL", help="serial number of the pump, for the record")
+    p.add_argument("--operator", default=None, help="who ran the test (default: the login name)")
+    p.add_argument("--station", default=None, help="name of this bench station (default: the host name)")
+    p.add_argument("--plain", action="store_true", help="log lines instead of the live panel, even on a terminal")
+    p.add_argument("--history-db", default=None, metavar="URL",
+                   help="history database (default: EDC_BENCH_HISTORY_URL, else SQLite in the data folder)")
+    p.add_argument("--no-history", action="store_true", help="do not add the test to the station's history")
     p.set_defaults(run=run)
 
 
@@ -72,33 +79,6 @@ def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
         if "bitrate" in given:
             given["bitrate"] = int(given["bitrate"])
     return given
-
-
-class _Progress:
-    """Live progress: one updating line on a terminal, a line per 5 s otherwise."""
-
-    def __init__(self, stream: Any, period_s: float) -> None:
-        self.stream = stream
-        self.tty = stream.isatty()
-        self.period_s = period_s
-        self._last_logged = -1
-
-    def __call__(self, k: int, ticks: int, ctl: Any, rack_mm: float) -> None:
-        left_s = (ticks - k) * self.period_s
-        params = ctl.parameters()
-        line = (f"{left_s:5.1f} s left | rack {rack_mm:6.2f} mm, reference {ctl.r_prev_mm:6.2f} mm "
-                f"| af {params[5]:8.5f} V | a1 {params[2]:9.6f} V s/mm")
-        if self.tty:
-            self.stream.write("\r" + line)
-            self.stream.flush()
-        elif int(k * self.period_s) // 5 != self._last_logged:
-            self._last_logged = int(k * self.period_s) // 5
-            self.stream.write(line + "\n")
-
-    def done(self) -> None:
-        if self.tty:
-            self.stream.write("\r" + " " * 100 + "\r")
-            self.stream.flush()
 
 
 def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
@@ -133,6 +113,32 @@ def run(args: argparse.Namespace) -> int:
         return _run_guarded(args)
 
 
+def _identity(args: argparse.Namespace) -> dict[str, str]:
+    import getpass
+    import socket
+
+    try:
+        operator = args.operator or getpass.getuser()
+    except (KeyError, OSError):  # no user name in this environment
+        operator = ""
+    return {"pump_serial": args.pump_serial, "station": args.station or socket.gethostname(), "operator": operator}
+
+
+def _observer(args: argparse.Namespace, title: str) -> Any:
+    """The live panel on a terminal, log lines on stderr otherwise, nothing with --json."""
+    import contextlib
+
+    if args.json:
+        return contextlib.nullcontext(None)
+    if sys.stdout.isatty() and not args.plain:
+        from edc_bench.ui.live import LiveView
+
+        return LiveView(title)
+    from edc_bench.ui.plain import PlainLog
+
+    return contextlib.nullcontext(PlainLog(sys.stderr))
+
+
 def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.bench import INVALID, run_bench_test, run_simulated_test
     from edc_bench.bus import open_bus
@@ -144,6 +150,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
 
     variant = _variant(args)
     bus_config = _bus_config(args)
+    identity = _identity(args)
     folder: list[Path] = []
 
     def stream_target() -> Path:
@@ -154,47 +161,75 @@ def _run_guarded(args: argparse.Namespace) -> int:
         folder.append(new_record_dir(args.out, args.valve_id or args.valve, variant.name, started))
         return folder[0] / CAN_LOG_FILE
 
-    quiet = args.json
-    progress = None if quiet else _Progress(sys.stderr, variant.controller.period_s)
-    log = (lambda line: None) if quiet else (lambda line: print(line, file=sys.stderr, flush=True))
-
-    if bus_config is None and not args.realtime:
-        valve = parse_valve_spec(args.valve, variant)
-        log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
-            f"simulated time, {variant.excitation.duration_s:g} s")
-        result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
-                                    stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
-                                    progress=progress, stream_can_log=stream_target)
-    else:
-        icd = default_icd()
-        if bus_config is None:
-            from edc_bench.sim.process import rig_process
-
-            parse_valve_spec(args.valve, variant)  # refuse a bad spec before starting anything
-            with rig_process(args.variant, args.valve, args.seed) as channel:
-                log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
-                with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
-                    result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress,
-                                            stream_can_log=stream_target)
+    simulated = bus_config is None and not args.realtime
+    where = ("simulated rig, simulated time" if simulated else
+             "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
+    title = (f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve "
+             f"{args.valve_id or args.valve}, {where}")
+    log = (lambda line: None) if args.json else (lambda line: print(line, file=sys.stderr, flush=True))
+    with _observer(args, title) as observer:
+        if observer is not None:
+            observer.phase("connect")
+        if simulated:
+            valve = parse_valve_spec(args.valve, variant)
+            log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
+                f"simulated time, {variant.excitation.duration_s:g} s")
+            result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
+                                        stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
+                                        observer=observer, stream_can_log=stream_target)
         else:
-            log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
-            with open_bus(bus_config, icd.bitrate) as bus:
-                result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id, progress=progress,
-                                        stream_can_log=stream_target)
-    if progress is not None:
-        progress.done()
+            icd = default_icd()
+            if bus_config is None:
+                from edc_bench.sim.process import rig_process
+
+                parse_valve_spec(args.valve, variant)  # refuse a bad spec before starting anything
+                with rig_process(args.variant, args.valve, args.seed) as channel:
+                    log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
+                    with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
+                        result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
+                                                observer=observer, stream_can_log=stream_target)
+            else:
+                log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
+                with open_bus(bus_config, icd.bitrate) as bus:
+                    result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
+                                            observer=observer, stream_can_log=stream_target)
+    result.identity = identity
 
     record_dir = write_record(result, args.out, figure=not args.no_figure, folder=folder[0] if folder else None)
+    history_error = None if args.no_history else _index(record_dir, args.history_db)
     if (result.outcome.abort_reason or "").startswith("internal error"):
         print(f"edc-bench test: {result.outcome.abort_reason}\nThis is a bug in edc-bench; the rig was sent SAFE and "
               f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
         return ExitCode.INTERNAL_ERROR
+    if history_error:
+        print(f"edc-bench test: warning: the history was not updated ({history_error}); the record is complete. "
+              f"Add it later with: edc-bench history --add {record_dir}", file=sys.stderr)
     if args.json:
         print_quietly_if_closed(lambda: print(json.dumps(summary(result, record_dir), indent=2)))
+    elif sys.stdout.isatty() and not args.plain:
+        from rich.console import Console
+
+        from edc_bench.ui.live import verdict_panel
+
+        Console().print(verdict_panel(result, record_dir))
     else:
         print_quietly_if_closed(lambda: _print_report(result, record_dir))
     return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
             INVALID: ExitCode.INVALID}.get(result.verdict, ExitCode.OK)
+
+
+def _index(record_dir: Path, url: str | None) -> str | None:
+    """Add the record to the station's history; the reason if that failed (the record is safe either way)."""
+    from edc_bench.errors import EdcBenchError
+    from edc_bench.history import index_record_dir
+
+    try:
+        index_record_dir(record_dir, url)
+    except EdcBenchError as exc:
+        return str(exc)
+    except Exception as exc:  # noqa: BLE001 - a database problem must not cost the verdict's report
+        return f"{type(exc).__name__}: {exc}"
+    return None
 
 
 def _print_report(result: Any, record_dir: Path) -> None:

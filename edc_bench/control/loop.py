@@ -16,6 +16,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import can
 
@@ -30,7 +31,19 @@ from edc_bench.records.trace import CanFrameLog, Trace
 # flag bits of trace column rig_flags
 FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
 
-ProgressFn = Callable[[int, int, FelController, float], None]
+#: Ticks between two :meth:`LoopObserver.tick` calls.
+OBSERVE_EVERY = 100
+
+
+class LoopObserver(Protocol):
+    """Watches a test as it runs (the live view, log lines). Must return quickly: it runs inside the loop."""
+
+    def phase(self, name: str) -> None:
+        """The test entered phase ``name``: ``wait READY``, ``soft start``, ``identify``, ``safe stop`` (and,
+        from :func:`~edc_bench.bench.run_bench_test`, ``classify``)."""
+
+    def tick(self, k: int, loop: BenchLoop) -> None:
+        """Tick ``k`` has been recorded (every :data:`OBSERVE_EVERY` ticks); read ``loop.trace``, ``loop.outcome``."""
 
 
 @dataclass
@@ -68,20 +81,20 @@ class BenchLoop:
         Pump variant.
     icd : Icd
         The compiled ICD.
-    progress : callable, optional
-        ``progress(tick, ticks, controller, rack_mm)``, called every 250 ticks.
+    observer : LoopObserver, optional
+        Told the phases, and shown the loop every :data:`OBSERVE_EVERY` ticks.
     stop_requested : callable, optional
         Polled every tick and while waiting for the rig; True ends the test
         as an abort (the operator's Ctrl-C or SIGTERM).
     """
 
     def __init__(self, bus: can.BusABC, clock: Clock, variant: Variant, icd: Icd,
-                 progress: ProgressFn | None = None, stop_requested: Callable[[], bool] | None = None) -> None:
+                 observer: LoopObserver | None = None, stop_requested: Callable[[], bool] | None = None) -> None:
         self.bus = bus
         self.clock = clock
         self.variant = variant
         self.icd = icd
-        self.progress = progress
+        self.observer = observer
         self.stop_requested = stop_requested or (lambda: False)
         self.period_s = variant.controller.period_s
         self.ticks = int(round(variant.excitation.duration_s / self.period_s))
@@ -171,6 +184,10 @@ class BenchLoop:
                 self.outcome.safe_confirmed = True
                 return
 
+    def _phase(self, name: str) -> None:
+        if self.observer is not None:
+            self.observer.phase(name)
+
     def run(self) -> LoopOutcome:
         """Run the test; always ends with SAFE. Returns what happened."""
         gc_was_enabled = gc.isenabled()
@@ -180,6 +197,7 @@ class BenchLoop:
         self.clock.start()
         steal_at_start = cpu_steal_s()
         try:
+            self._phase("wait READY")
             if not self._wait_ready():
                 state = self._rig_state.name if self._rig_state else "no heartbeat"
                 self.outcome.abort_reason = (
@@ -198,6 +216,7 @@ class BenchLoop:
             self.outcome.events.append(traceback.format_exc())
         finally:
             try:
+                self._phase("safe stop")
                 self._safe_stop()  # run_bench_test's interrupt guard keeps a second Ctrl-C from skipping it
             except can.CanError as exc:
                 self.outcome.events.append(f"SAFE could not be sent: {exc}")
@@ -246,8 +265,10 @@ class BenchLoop:
         outcome = self.outcome
         outcome.ticks_start_s = t_start
         missed_in_row = 0
-        progress = self.progress
+        observer = self.observer
+        identify_from_k = int(round((self.variant.excitation.move_s + self.variant.excitation.fade_s) / T))
         clock = self.clock
+        self._phase("soft start")
 
         stop_requested = self.stop_requested
         for k in range(self.ticks):
@@ -332,5 +353,8 @@ class BenchLoop:
             if outcome.abort_reason is not None:
                 outcome.abort_time_s = t_k - t_start
                 return
-            if progress is not None and k % 250 == 0:
-                progress(k, self.ticks, ctl, position_mm)
+            if observer is not None:
+                if k == identify_from_k:
+                    observer.phase("identify")
+                if k % OBSERVE_EVERY == 0:
+                    observer.tick(k, self)

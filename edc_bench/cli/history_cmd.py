@@ -1,0 +1,167 @@
+"""``edc-bench history``: list and filter the station's tests, one valve's trend, CSV export."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from edc_bench.cli.common import print_quietly_if_closed
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "history", help="list past tests, a valve's trend, CSV export",
+        description="The station's history: every test 'edc-bench test' ran is indexed (SQLite in the data "
+                    "folder, or the PostgreSQL database EDC_BENCH_HISTORY_URL or --db names). Filters combine. "
+                    "--trend shows one valve's af and a1 over its visits against the new-valve baseline.",
+    )
+    p.add_argument("--db", default=None, metavar="URL",
+                   help="database URL: sqlite:///FILE or postgresql+psycopg://USER@HOST/DB "
+                        "(default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+    p.add_argument("--valve", default=None, metavar="ID", help="only this valve")
+    p.add_argument("--pump-serial", default=None, metavar="SERIAL", help="only this pump")
+    p.add_argument("--variant", default=None, help="only this variant (name or part number)")
+    p.add_argument("--verdict", default=None, type=str.upper,
+                   choices=("PASS", "MARGINAL", "FAIL", "INVALID", "UNCLASSIFIED"), help="only this verdict")
+    p.add_argument("--since", default=None, metavar="DATE", help="from this day (YYYY-MM-DD) on")
+    p.add_argument("--until", default=None, metavar="DATE", help="up to this day (YYYY-MM-DD), inclusive")
+    p.add_argument("--limit", type=int, default=None, metavar="N", help="only the newest N")
+    p.add_argument("--trend", default=None, metavar="VALVE_ID", help="one valve's af and a1 over its visits")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG", help="with --trend: also draw it")
+    p.add_argument("--csv", default=None, metavar="FILE", help="write the listed tests as CSV ('-': stdout)")
+    p.add_argument("--add", nargs="+", type=Path, default=None, metavar="RECORD_DIR",
+                   help="index record folders (after a test ran with --no-history, or to rebuild the history)")
+    p.add_argument("--json", action="store_true", help="print only JSON")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """List, trend, export or add."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.store import Filters, HistoryStore, parse_day
+
+    if args.limit is not None and args.limit < 1:
+        raise ConfigError(f"--limit must be at least 1, got {args.limit}")
+    if args.plot is not None and args.trend is None:
+        raise ConfigError("--plot draws a valve's trend: give --trend VALVE_ID too")
+    with HistoryStore(args.db) as store:
+        if args.add:
+            from edc_bench.records.reader import load_record
+
+            for folder in args.add:
+                store.add(load_record(folder), folder)
+            print(f"indexed {len(args.add)} record folder(s) in {store.url}", file=sys.stderr)
+            return 0
+        if args.trend is not None:
+            return _trend(store, args)
+        filters = Filters(valve_id=args.valve, pump_serial=args.pump_serial, variant=args.variant,
+                          verdict=args.verdict, since=parse_day(args.since, "--since"),
+                          until=parse_day(args.until, "--until"))
+        rows = store.list(filters, args.limit)
+    if args.csv is not None:
+        _export(rows, args.csv)
+        return 0
+    if args.json:
+        print_quietly_if_closed(lambda: print(json.dumps(rows, indent=2)))
+    else:
+        print_quietly_if_closed(lambda: _table(rows, store.url))
+    return 0
+
+
+def _export(rows: list[dict[str, Any]], target: str) -> None:
+    from edc_bench.history.store import write_csv
+
+    if target == "-":
+        print_quietly_if_closed(lambda: write_csv(rows, sys.stdout))
+        return
+    from edc_bench.records.writer import atomic_write
+
+    path = Path(target)
+    if not path.parent.exists():
+        from edc_bench.errors import ConfigError
+
+        raise ConfigError(f"--csv {target}: folder {path.parent} does not exist")
+    atomic_write(path, lambda f: write_csv(rows, f), mode="w")
+    print(f"wrote {len(rows)} test(s) to {path}", file=sys.stderr)
+
+
+def _fmt(value: Any, spec: str) -> str:
+    return "" if value is None else format(value, spec)
+
+
+def _table(rows: list[dict[str, Any]], url: str) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from edc_bench.ui.live import VERDICT_STYLES
+
+    table = Table(title=f"{len(rows)} test(s) in {url}")
+    for col in ("started", "valve", "pump serial", "variant", "verdict", "af V", "a1 V s/mm", "P(faulty)",
+                "station", "operator"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(r["started_at"].replace("+00:00", "Z"), r["valve_id"], r["pump_serial"], r["variant"],
+                      f"[{VERDICT_STYLES.get(r['verdict'], '')}]{r['verdict']}[/]", _fmt(r["af_v"], ".5f"),
+                      _fmt(r["a1_v_s_per_mm"], ".6f"), _fmt(r["probability_faulty"], ".3f"), r["station"],
+                      r["operator"])
+    Console(width=None if sys.stdout.isatty() else 160).print(table)
+
+
+def _trend(store: Any, args: argparse.Namespace) -> int:
+    rows = store.trend(args.trend)
+    if not rows:
+        from edc_bench.errors import ConfigError
+
+        raise ConfigError(f"no trustworthy test of valve {args.trend!r} in the history (see 'edc-bench history')")
+    if args.plot is not None:
+        _plot(rows, args.trend, args.plot)
+    if args.json:
+        print_quietly_if_closed(lambda: print(json.dumps(rows, indent=2)))
+        return 0
+
+    def show() -> None:
+        from rich.console import Console
+        from rich.table import Table
+
+        table = Table(title=f"valve {args.trend}: {len(rows)} visit(s); change against the new-valve baseline")
+        for col in ("started", "variant", "verdict", "af V", "af change", "a1 V s/mm", "a1 change", "distance"):
+            table.add_column(col)
+        for r in rows:
+            table.add_row(r["started_at"].replace("+00:00", "Z"), r["variant"], r["verdict"], _fmt(r["af_v"], ".5f"),
+                          _pct(r["af_rel"]), _fmt(r["a1_v_s_per_mm"], ".6f"), _pct(r["a1_rel"]),
+                          _fmt(r["distance"], "+.3f"))
+        Console(width=None if sys.stdout.isatty() else 160).print(table)
+
+    print_quietly_if_closed(show)
+    return 0
+
+
+def _pct(rel: float | None) -> str:
+    return "" if rel is None else f"{rel - 1:+.1%}"
+
+
+def _plot(rows: list[dict[str, Any]], valve: str, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from edc_bench.records.writer import atomic_write
+
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    visits = range(1, len(rows) + 1)
+    for key, label in (("af_rel", "af"), ("a1_rel", "a1")):
+        ax.plot(visits, [100 * ((r[key] or float("nan")) - 1) for r in rows], "o-", label=label)
+    ax.axhline(0.0, color="grey", lw=0.8)
+    ax.set_xlabel("visit")
+    ax.set_ylabel("change against a new valve (%)")
+    ax.set_title(f"valve {valve}")
+    ax.set_xticks(list(visits), [r["started_at"][:10] for r in rows], rotation=30, fontsize=7)
+    ax.legend()
+    fig.tight_layout()
+    atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120))
+    plt.close(fig)

@@ -1,0 +1,241 @@
+"""The station's test history: one row per record folder, in SQLite or PostgreSQL.
+
+SQLAlchemy Core speaks to both. SQLite (the default, in the station's data
+folder) runs in WAL mode with a busy timeout, so two tests finishing at
+once both land and readers never block writers; a shop shares one history
+by giving every station the same PostgreSQL URL. Each record is added in
+one transaction keyed by its folder, so adding it twice changes nothing and
+a writer killed half-way leaves no partial row.
+
+The records stay the source of truth: the history is an index, and
+``edc-bench history --add FOLDER...`` rebuilds it from them.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+import sqlalchemy as sa
+
+from edc_bench.errors import ConfigError
+
+metadata = sa.MetaData()
+
+tests = sa.Table(
+    "tests", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("record_dir", sa.String(1024), nullable=False, unique=True),
+    sa.Column("started_at", sa.String(40), nullable=False, index=True),
+    sa.Column("valve_id", sa.String(200), nullable=False, index=True),
+    sa.Column("pump_serial", sa.String(200), nullable=False, index=True),
+    sa.Column("variant", sa.String(200), nullable=False),
+    sa.Column("part_number", sa.String(100), nullable=False),
+    sa.Column("verdict", sa.String(20), nullable=False),
+    sa.Column("af_v", sa.Float),
+    sa.Column("a1_v_s_per_mm", sa.Float),
+    sa.Column("af_rel", sa.Float),
+    sa.Column("a1_rel", sa.Float),
+    sa.Column("probability_faulty", sa.Float),
+    sa.Column("distance", sa.Float),
+    sa.Column("station", sa.String(200), nullable=False),
+    sa.Column("operator", sa.String(200), nullable=False),
+    sa.Column("clock", sa.String(20), nullable=False),
+    sa.Column("software_version", sa.String(40), nullable=False),
+    sa.Column("reason", sa.Text, nullable=False),
+)
+
+#: Columns in listings and CSV exports, in order.
+COLUMNS = tuple(c.name for c in tests.columns if c.name != "id")
+VERDICTS = ("PASS", "MARGINAL", "FAIL", "INVALID", "UNCLASSIFIED")
+
+
+def default_url() -> str:
+    """``EDC_BENCH_HISTORY_URL`` if set, else SQLite in the station's data folder."""
+    configured = os.environ.get("EDC_BENCH_HISTORY_URL")
+    if configured:
+        return configured
+    from edc_bench.paths import data_dir
+
+    return f"sqlite:///{data_dir() / 'history.sqlite'}"
+
+
+def _finite(value: Any) -> float | None:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    return number if number == number and abs(number) != float("inf") else None
+
+
+def row_from_record(record: dict[str, Any], record_dir: Path) -> dict[str, Any]:
+    """The history row of a record (record.json's content)."""
+    features = record.get("features") or {}
+    cls = record.get("classification") or {}
+    rel = cls.get("features_rel") or {}
+    identity = record.get("identity") or {}
+    loop = record.get("loop") or {}
+    reasons = record.get("reasons") or []
+    return {
+        "record_dir": str(Path(record_dir).resolve()),
+        "started_at": str(record.get("started_at", "")),
+        "valve_id": str(record.get("valve_id", "")),
+        "pump_serial": str(identity.get("pump_serial", "")),
+        "variant": str(record.get("variant", "")),
+        "part_number": str(record.get("part_number", "")),
+        "verdict": str(record.get("verdict", "")),
+        "af_v": _finite(features.get("af")),
+        "a1_v_s_per_mm": _finite(features.get("a1")),
+        "af_rel": _finite(rel.get("af")),
+        "a1_rel": _finite(rel.get("a1")),
+        "probability_faulty": _finite(cls.get("probability_faulty")),
+        "distance": _finite(cls.get("distance")),
+        "station": str(identity.get("station", "")),
+        "operator": str(identity.get("operator", "")),
+        "clock": str(record.get("clock", "")),
+        "software_version": str(record.get("software_version", "")),
+        "reason": str(loop.get("abort_reason") or (reasons[0] if reasons else "")),
+    }
+
+
+@dataclass(frozen=True)
+class Filters:
+    """What to list: every given field must match (valve and serial exactly, dates as ISO prefixes)."""
+
+    valve_id: str | None = None
+    pump_serial: str | None = None
+    variant: str | None = None
+    verdict: str | None = None
+    since: str | None = None
+    until: str | None = None
+
+
+def parse_day(text: str | None, name: str) -> str | None:
+    """An ISO date (``2026-11-22``) or date-time, checked; None stays None."""
+    if text is None:
+        return None
+    try:
+        return dt.datetime.fromisoformat(text).isoformat() if "T" in text else dt.date.fromisoformat(text).isoformat()
+    except ValueError:
+        raise ConfigError(f"{name} {text!r} is not a date: write it as YYYY-MM-DD (or YYYY-MM-DDTHH:MM)") from None
+
+
+class HistoryStore:
+    """The history database.
+
+    Parameters
+    ----------
+    url : str, optional
+        SQLAlchemy URL: ``sqlite:///path`` or ``postgresql+psycopg://user@host/db``
+        (default: :func:`default_url`).
+    """
+
+    def __init__(self, url: str | None = None) -> None:
+        self.url = url or default_url()
+        try:
+            parsed = sa.engine.make_url(self.url)
+        except sa.exc.ArgumentError:
+            raise ConfigError(f"history database {self.url!r} is not a database URL: use sqlite:///FILE or "
+                              "postgresql+psycopg://USER@HOST/DB") from None
+        self.is_sqlite = parsed.get_backend_name() == "sqlite"
+        kwargs: dict[str, Any] = {}
+        if self.is_sqlite:
+            if parsed.database:
+                Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
+            kwargs["connect_args"] = {"timeout": 30.0}
+        try:
+            self.engine = sa.create_engine(parsed, **kwargs)
+        except (sa.exc.ArgumentError, ImportError, sa.exc.NoSuchModuleError) as exc:
+            raise ConfigError(f"history database {self.url!r}: {exc} (PostgreSQL needs edc-bench[postgres])") from None
+        if self.is_sqlite:
+            sa.event.listen(self.engine, "connect", _sqlite_pragmas)
+        self._create_tables()
+
+    def _create_tables(self) -> None:
+        # Two stations (or two tests) opening a new database at once may both try to create
+        # the table; the loser sees "already exists" and simply finds it on the next look.
+        for attempt in range(3):
+            try:
+                metadata.create_all(self.engine)
+                return
+            except (sa.exc.OperationalError, sa.exc.ProgrammingError, sa.exc.IntegrityError) as exc:
+                if "already exists" in str(exc.orig) and attempt < 2:
+                    continue
+                raise ConfigError(f"history database {self.url!r} cannot be opened: {exc.orig}") from None
+
+    def close(self) -> None:
+        """Release connections."""
+        self.engine.dispose()
+
+    def __enter__(self) -> HistoryStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def add(self, record: dict[str, Any], record_dir: Path) -> None:
+        """Index one record folder (again: its row is replaced)."""
+        row = row_from_record(record, record_dir)
+        with self.engine.begin() as conn:  # one transaction: all of the row or nothing
+            conn.execute(tests.delete().where(tests.c.record_dir == row["record_dir"]))
+            conn.execute(tests.insert().values(**row))
+
+    def list(self, filters: Filters = Filters(), limit: int | None = None) -> list[dict[str, Any]]:
+        """Rows matching ``filters``, oldest first (the newest ``limit`` if given)."""
+        query = sa.select(*(tests.c[name] for name in COLUMNS))
+        f = filters
+        for column, value in ((tests.c.valve_id, f.valve_id), (tests.c.pump_serial, f.pump_serial),
+                              (tests.c.verdict, f.verdict)):
+            if value is not None:
+                query = query.where(column == value)
+        if f.variant is not None:
+            query = query.where(sa.or_(tests.c.variant == f.variant, tests.c.part_number == f.variant))
+        if f.since is not None:
+            query = query.where(tests.c.started_at >= f.since)
+        if f.until is not None:
+            # a day given alone includes the whole day
+            bound = f.until if "T" in f.until else f.until + "T99"
+            query = query.where(tests.c.started_at <= bound)
+        query = query.order_by(tests.c.started_at.desc(), tests.c.id.desc())
+        if limit is not None:
+            query = query.limit(limit)
+        with self.engine.connect() as conn:
+            rows = [dict(r._mapping) for r in conn.execute(query)]
+        return rows[::-1]
+
+    def trend(self, valve_id: str) -> list[dict[str, Any]]:
+        """Every trustworthy visit of one valve, oldest first."""
+        return [r for r in self.list(Filters(valve_id=valve_id)) if r["verdict"] != "INVALID"]
+
+
+def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
+    cursor = dbapi_connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")  # readers and one writer at once; a crash leaves no torn write
+    cursor.execute("PRAGMA busy_timeout=30000")  # a second writer waits instead of failing
+    cursor.execute("PRAGMA synchronous=NORMAL")
+    cursor.close()
+
+
+def write_csv(rows: Iterable[dict[str, Any]], handle: IO[str], columns: Sequence[str] = COLUMNS) -> int:
+    """Rows as CSV with a header; returns the number of rows written."""
+    writer = csv.DictWriter(handle, fieldnames=list(columns), extrasaction="ignore")
+    writer.writeheader()
+    count = 0
+    for row in rows:
+        writer.writerow(row)
+        count += 1
+    return count
+
+
+def index_record_dir(folder: Path, url: str | None = None) -> None:
+    """Add one record folder to the history (used after each test)."""
+    from edc_bench.records.reader import load_record
+
+    record = load_record(folder)
+    with HistoryStore(url) as store:
+        store.add(record, folder)

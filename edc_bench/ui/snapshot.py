@@ -1,0 +1,84 @@
+"""The state of a running test, copied out of the loop in a few microseconds for whoever shows it."""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+PHASES = ("connect", "wait READY", "soft start", "identify", "safe stop", "classify")
+
+
+@dataclass
+class Snapshot:
+    """Latest figures of the running test (written by the loop's thread, read by the view's)."""
+
+    phase: str = "connect"
+    phases_done: list[str] = field(default_factory=list)
+    phase_started: float = field(default_factory=time.monotonic)
+    tick: int = 0
+    ticks: int = 0
+    period_s: float = 0.001
+    t_s: float = 0.0
+    reference_mm: float = float("nan")
+    position_mm: float = float("nan")
+    current_a: float = float("nan")
+    drive_v: float = float("nan")
+    feedforward_v: float = float("nan")
+    feedback_v: float = float("nan")
+    af: float = float("nan")
+    a1: float = float("nan")
+    worst_lateness_recent_us: float = 0.0
+    worst_lateness_us: float = 0.0
+    overruns: int = 0
+    missed_replies: int = 0
+    bad_replies: int = 0
+    heartbeats: int = 0
+    rack_history: deque = field(default_factory=lambda: deque(maxlen=100))
+    reference_history: deque = field(default_factory=lambda: deque(maxlen=100))
+    af_history: list = field(default_factory=list)
+    a1_history: list = field(default_factory=list)
+
+    def enter(self, name: str) -> None:
+        """A new phase began."""
+        if self.phase != name and self.phase not in self.phases_done:
+            self.phases_done.append(self.phase)
+        self.phase = name
+        self.phase_started = time.monotonic()
+
+    def update(self, k: int, loop: Any) -> None:
+        """Copy tick ``k``'s figures out of a :class:`~edc_bench.control.loop.BenchLoop`."""
+        cols = loop.trace.columns
+        self.tick, self.ticks, self.period_s = k, loop.ticks, loop.period_s
+        self.t_s = float(cols["t_s"][k])
+        self.reference_mm = float(cols["reference_mm"][k])
+        self.position_mm = float(cols["position_mm"][k])
+        self.current_a = float(cols["current_a"][k])
+        self.drive_v = float(cols["drive_v"][k])
+        self.feedforward_v = float(cols["feedforward_v"][k])
+        self.feedback_v = float(cols["feedback_v"][k])
+        self.af = float(cols["af_hat"][k])
+        self.a1 = float(cols["a1_hat"][k])
+        recent = cols["lateness_s"][max(0, k - 99): k + 1]
+        self.worst_lateness_recent_us = float(np.max(recent)) * 1e6 if len(recent) else 0.0
+        self.worst_lateness_us = max(self.worst_lateness_us, self.worst_lateness_recent_us)
+        outcome = loop.outcome
+        self.overruns, self.missed_replies = outcome.overruns, outcome.missed_replies
+        self.bad_replies, self.heartbeats = outcome.bad_replies, outcome.heartbeats
+        self.rack_history.append(self.position_mm)
+        self.reference_history.append(self.reference_mm)
+        self.af_history.append(self.af)
+        self.a1_history.append(self.a1)
+
+    @property
+    def time_left_s(self) -> float:
+        """Seconds of test left."""
+        return max(self.ticks - self.tick, 0) * self.period_s
+
+    @property
+    def duration_s(self) -> float:
+        """Length of the test."""
+        return self.ticks * self.period_s

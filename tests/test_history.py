@@ -1,0 +1,222 @@
+"""The station's history: filters, trend, CSV, concurrent writers and aborts, on SQLite and PostgreSQL."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import multiprocessing
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from edc_bench.history.store import Filters, HistoryStore, write_csv
+
+# --- a PostgreSQL server of the tests' own, where the machine has one ------------------------------------------
+
+
+def _pg_bin(name: str) -> str | None:
+    found = shutil.which(name)
+    if found:
+        return found
+    for base in sorted(Path("/usr/lib/postgresql").glob("*/bin"), reverse=True):
+        if (base / name).exists():
+            return str(base / name)
+    return None
+
+
+def _as_postgres_user(cmd: list[str]) -> list[str]:
+    # the server refuses to run as root; CI and this machine run tests as root
+    if os.geteuid() == 0:
+        return ["runuser", "-u", "postgres", "--", *cmd]
+    return cmd
+
+
+@pytest.fixture(scope="session")
+def postgres_url() -> Iterator[str]:
+    initdb, pg_ctl = _pg_bin("initdb"), _pg_bin("pg_ctl")
+    if not (initdb and pg_ctl):
+        pytest.skip("PostgreSQL server programs (initdb, pg_ctl) are not installed on this machine")
+    if os.geteuid() == 0 and subprocess.run(["id", "postgres"], capture_output=True).returncode != 0:
+        pytest.skip("running as root and there is no 'postgres' user to run the server as")
+    # not under pytest's temp folder: its parents are private to this user, and the server runs as another
+    base = Path(tempfile.mkdtemp(prefix="edc-bench-pg-"))
+    data = base / "data"
+    if os.geteuid() == 0:
+        shutil.chown(base, "postgres")
+    init = subprocess.run(_as_postgres_user([initdb, "-D", str(data), "-A", "trust", "-U", "postgres"]),
+                          capture_output=True, text=True)
+    if init.returncode != 0:
+        pytest.skip(f"initdb failed here: {init.stderr.strip()[-300:]}")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    opts = f"-p {port} -k {base} -c listen_addresses=127.0.0.1"
+    start = subprocess.run(_as_postgres_user([pg_ctl, "-D", str(data), "-o", opts, "-l", str(base / "log"), "-w",
+                                              "start"]), capture_output=True, text=True)
+    if start.returncode != 0:
+        pytest.skip(f"the PostgreSQL server did not start here: {start.stderr.strip()[-300:]}")
+    try:
+        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/postgres"
+    finally:
+        subprocess.run(_as_postgres_user([pg_ctl, "-D", str(data), "-m", "immediate", "stop"]), capture_output=True)
+        shutil.rmtree(base, ignore_errors=True)
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path / 'history.sqlite'}"
+        return
+    url = request.getfixturevalue("postgres_url")
+    with HistoryStore(url) as store, store.engine.begin() as conn:
+        conn.exec_driver_sql("DELETE FROM tests")  # one server for the session: start each test empty
+    yield url
+
+
+def _record(valve: str, started: str, verdict: str = "PASS", af: float = 0.07, a1: float = 0.0038,
+            serial: str = "S-1", variant: str = "p-edc-default") -> dict:
+    return {
+        "verdict": verdict, "reasons": ["why"], "valve_id": valve, "variant": variant, "part_number": "PE-EDC-0001",
+        "started_at": started, "clock": "simulated", "software_version": "0.1.0",
+        "identity": {"pump_serial": serial, "station": "bench-3", "operator": "ana"},
+        "features": {"af": af, "a1": a1},
+        "classification": None if verdict == "INVALID" else {
+            "features_rel": {"af": af / 0.07, "a1": a1 / 0.0038}, "probability_faulty": 0.2, "distance": -0.3},
+        "loop": {"abort_reason": "interrupted by the operator" if verdict == "INVALID" else None},
+    }
+
+
+def test_filters_trend_and_csv(db_url: str, tmp_path: Path) -> None:
+    with HistoryStore(db_url) as store:
+        store.add(_record("V1", "2026-11-01T08:00:00+00:00"), tmp_path / "a")
+        store.add(_record("V1", "2026-11-15T08:00:00+00:00", "FAIL", af=0.11, a1=0.007), tmp_path / "b")
+        store.add(_record("V1", "2026-11-16T08:00:00+00:00", "INVALID"), tmp_path / "c")
+        store.add(_record("V2", "2026-11-20T09:30:00+00:00", serial="S-2", variant="p-edc-long"), tmp_path / "d")
+        # indexing a folder again replaces its row
+        store.add(_record("V2", "2026-11-20T09:30:00+00:00", serial="S-2", variant="p-edc-long"), tmp_path / "d")
+        assert len(store.list()) == 4
+        assert [r["verdict"] for r in store.list(Filters(valve_id="V1"))] == ["PASS", "FAIL", "INVALID"]
+        assert [r["valve_id"] for r in store.list(Filters(pump_serial="S-2"))] == ["V2"]
+        assert [r["valve_id"] for r in store.list(Filters(variant="p-edc-long"))] == ["V2"]
+        assert len(store.list(Filters(variant="PE-EDC-0001"))) == 4  # by part number too
+        assert [r["verdict"] for r in store.list(Filters(verdict="FAIL"))] == ["FAIL"]
+        assert len(store.list(Filters(since="2026-11-15", until="2026-11-16"))) == 2  # the until day is included
+        assert [r["started_at"][:10] for r in store.list(limit=1)] == ["2026-11-20"]
+        trend = store.trend("V1")  # trustworthy visits only, oldest first
+        assert [r["verdict"] for r in trend] == ["PASS", "FAIL"]
+        assert trend[1]["af_rel"] == pytest.approx(0.11 / 0.07)
+        invalid = store.list(Filters(verdict="INVALID"))[0]
+        assert invalid["reason"] == "interrupted by the operator" and invalid["probability_faulty"] is None
+        out = io.StringIO()
+        assert write_csv(store.list(), out) == 4
+    rows = list(csv.DictReader(io.StringIO(out.getvalue())))
+    assert rows[0]["valve_id"] == "V1" and rows[0]["station"] == "bench-3" and rows[0]["operator"] == "ana"
+
+
+def _writer(url: str, name: str, count: int, barrier: multiprocessing.synchronize.Barrier, folder: str) -> None:
+    store = HistoryStore(url)
+    barrier.wait()  # both start writing at the same moment
+    for n in range(count):
+        store.add(_record(f"{name}-{n}", f"2026-11-22T10:{n // 60:02d}:{n % 60:02d}+00:00"), Path(folder) / f"{name}{n}")
+    store.close()
+
+
+def test_concurrent_writers_all_land(db_url: str, tmp_path: Path) -> None:
+    HistoryStore(db_url).close()
+    ctx = multiprocessing.get_context("spawn")
+    barrier = ctx.Barrier(2)
+    procs = [ctx.Process(target=_writer, args=(db_url, name, 40, barrier, str(tmp_path))) for name in ("a", "b")]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(120)
+        assert p.exitcode == 0
+    with HistoryStore(db_url) as store:
+        rows = store.list()
+    assert len(rows) == 80
+    assert len({r["record_dir"] for r in rows}) == 80
+
+
+def _dies_in_transaction(url: str, folder: str) -> None:
+    store = HistoryStore(url)
+    conn = store.engine.connect()
+    trans = conn.begin()
+    from edc_bench.history.store import row_from_record, tests
+
+    conn.execute(tests.insert().values(**row_from_record(_record("ghost", "2026-11-22T11:00:00+00:00"),
+                                                         Path(folder) / "ghost")))
+    os._exit(1)  # killed before the commit (power cut, kill -9)
+    trans.commit()
+
+
+def test_a_writer_killed_mid_transaction_leaves_no_trace(db_url: str, tmp_path: Path) -> None:
+    with HistoryStore(db_url) as store:
+        store.add(_record("V1", "2026-11-22T09:00:00+00:00"), tmp_path / "kept")
+    proc = multiprocessing.get_context("spawn").Process(target=_dies_in_transaction, args=(db_url, str(tmp_path)))
+    proc.start()
+    proc.join(60)
+    assert proc.exitcode == 1
+    with HistoryStore(db_url) as store:
+        assert [r["valve_id"] for r in store.list()] == ["V1"]
+        store.add(_record("V3", "2026-11-22T12:00:00+00:00"), tmp_path / "after")  # still writable
+        assert len(store.list()) == 2
+
+
+def test_two_bench_tests_finishing_at_once_and_an_aborted_one_are_all_indexed(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'station.sqlite'}"
+    env = {**os.environ, "EDC_BENCH_HISTORY_URL": url}
+    base = [sys.executable, "-m", "edc_bench", "test", "--no-figure", "--json", "--out", str(tmp_path / "records")]
+    procs = [subprocess.Popen([*base, "--valve", valve, "--valve-id", f"V-{valve}", "--pump-serial", "P-77"],
+                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for valve in ("new", "worn")]
+    # and one stopped by the operator (SIGINT) half-way: INVALID, indexed all the same
+    interrupted = subprocess.Popen([*base, "--valve", "new", "--valve-id", "V-stopped", "--duration-s", "600"],
+                                   env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 11], [o[1] for o in outs]
+    time.sleep(0.5)  # let the long test get into its ticks
+    interrupted.send_signal(2)
+    out, err = interrupted.communicate(timeout=120)
+    assert interrupted.returncode == 12, err
+    assert json.loads(out)["verdict"] == "INVALID"
+    with HistoryStore(url) as store:
+        rows = {r["valve_id"]: r for r in store.list()}
+    assert set(rows) == {"V-new", "V-worn", "V-stopped"}
+    assert rows["V-new"]["verdict"] == "PASS" and rows["V-worn"]["verdict"] == "FAIL"
+    assert rows["V-worn"]["pump_serial"] == "P-77"
+    assert rows["V-stopped"]["verdict"] == "INVALID" and "interrupted" in rows["V-stopped"]["reason"]
+    assert (tmp_path / "station.sqlite-wal").exists() or (tmp_path / "station.sqlite").exists()
+
+
+def test_history_command(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    with HistoryStore(url) as store:
+        store.add(_record("V1", "2026-11-01T08:00:00+00:00"), tmp_path / "a")
+        store.add(_record("V1", "2026-11-15T08:00:00+00:00", "FAIL", af=0.11, a1=0.007), tmp_path / "b")
+    cmd = [sys.executable, "-m", "edc_bench", "history", "--db", url]
+    listing = subprocess.run([*cmd, "--valve", "V1"], capture_output=True, text=True, timeout=120)
+    assert listing.returncode == 0 and "2 test(s)" in listing.stdout and "FAIL" in listing.stdout
+    trend = subprocess.run([*cmd, "--trend", "V1", "--plot", str(tmp_path / "t.png")], capture_output=True, text=True,
+                           timeout=120)
+    assert trend.returncode == 0 and "+57.1%" in trend.stdout  # 0.11 / 0.07
+    assert (tmp_path / "t.png").read_bytes()[:4] == b"\x89PNG"
+    export = subprocess.run([*cmd, "--csv", str(tmp_path / "out.csv"), "--verdict", "fail"], capture_output=True,
+                            text=True, timeout=120)
+    assert export.returncode == 0
+    assert len(list(csv.DictReader((tmp_path / "out.csv").open()))) == 1
+    for args, message in ((["--since", "22/11/2026"], "is not a date"), (["--trend", "nobody"], "no trustworthy test"),
+                          (["--plot", "x.png"], "--trend"), (["--csv", str(tmp_path / "no" / "x.csv")], "does not exist")):
+        proc = subprocess.run([*cmd, *args], capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    bad = subprocess.run([sys.executable, "-m", "edc_bench", "history", "--db", "nonsense"], capture_output=True,
+                         text=True, timeout=120)
+    assert bad.returncode == 2 and "not a database URL" in bad.stderr
