@@ -18,6 +18,7 @@ class ExitCode(enum.IntEnum):
     FAIL = 11
     INVALID = 12
     NOT_REPRODUCED = 13  # edc-bench replay: the log does not give the recorded result
+    STATION_NOT_READY = 14  # edc-bench check-station: NO-GO
     BAD_INPUT = 2
     RIG_ERROR = 3
     INTERRUPTED = 130

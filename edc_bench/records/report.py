@@ -1,0 +1,237 @@
+"""The one-page customer report of a test: PDF for printing, PNG for screens and mail.
+
+Drawn with matplotlib on an A4 page from the record folder alone: identity
+and versions, the verdict with its probability and distance to the
+boundary, the parameter table with uncertainties and the change against
+the reference (the new-valve baseline for af and a1, the data-sheet
+nominal for the others, as the paper's Table 1 compares valves), the
+tracking and convergence plots (paper Figs. 3-5) and the valve's point on
+the decision plane (Fig. 7).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edc_bench.records.reader import load_record, load_trace, record_variant
+from edc_bench.records.writer import atomic_write
+
+REPORT_PDF = "report.pdf"
+REPORT_PNG = "report-page.png"
+_VERDICT_COLOURS = {"PASS": "#2e7d32", "MARGINAL": "#f9a825", "FAIL": "#c62828", "INVALID": "#6a1b9a"}
+_UNITS = {"a3": "V s^3/mm", "a2": "V s^2/mm", "a1": "V s/mm", "a0": "V/mm", "b": "V", "af": "V"}
+
+
+def _reference_values(record: dict[str, Any], variant: Any) -> dict[str, tuple[float, str]]:
+    """Per parameter: the value it is compared with, and where that comes from."""
+    from edc_bench.control.build import nominal_parameters
+
+    nominal = nominal_parameters(variant)._asdict()
+    out = {name: (float(value), "nominal") for name, value in nominal.items()}
+    baseline = record.get("baseline") or {}
+    if baseline.get("af_v"):
+        out["af"] = (float(baseline["af_v"]), "baseline")
+        out["a1"] = (float(baseline["a1_v_s_per_mm"]), "baseline")
+    return out
+
+
+def _identity_lines(record: dict[str, Any], folder: Path) -> list[tuple[str, str]]:
+    identity = record.get("identity") or {}
+    cls = record.get("classification") or {}
+    config = record.get("config") or {}
+    pump = config.get("pump") or {}
+    model = cls.get("model")
+    sha = (cls.get("training_data_sha256") or "")[:12]
+    return [
+        ("Pump", f"{record.get('variant', '?')}, part number {record.get('part_number', '?')}"),
+        ("", str(pump.get("description", ""))[:60]),
+        ("Pump serial", identity.get("pump_serial") or "-"),
+        ("Valve", record.get("valve_id") or "-"),
+        ("Date", str(record.get("started_at", "?")).replace("T", " ").replace("+00:00", " UTC")),
+        ("Station / operator", f"{identity.get('station') or '-'} / {identity.get('operator') or '-'}"),
+        ("Software", f"edc-bench {record.get('software_version', '?')}, ICD {record.get('icd_version', '?')}, "
+                     f"rig firmware {record.get('firmware_version') or '?'}"),
+        ("Model", f"{model} classifier, training data {sha}" if model else "not classified"),
+        ("Rig / clock", f"{'simulated rig' if record.get('simulation') else 'bench rig'}, {record.get('clock', '?')}"),
+        ("Record", folder.name),
+    ]
+
+
+def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
+    """Draw the report of the record in ``folder``.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        A record folder written by ``edc-bench test``.
+    out_dir : pathlib.Path, optional
+        Where to write (default: the record folder).
+
+    Returns
+    -------
+    (pathlib.Path, pathlib.Path)
+        The PDF and the PNG.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder = Path(folder)
+    record = load_record(folder)
+    variant = record_variant(record, str(folder))
+    trace = load_trace(folder)
+    out_dir = Path(out_dir) if out_dir is not None else folder
+    out_dir.mkdir(parents=True, exist_ok=True)
+
+    fig = plt.figure(figsize=(8.27, 11.69))  # A4 portrait
+    grid = fig.add_gridspec(24, 2, left=0.09, right=0.95, top=0.95, bottom=0.05, hspace=1.4, wspace=0.3)
+    verdict = record.get("verdict", "?")
+    fig.text(0.08, 0.965, "Solenoid valve diagnosis (edc-bench)", fontsize=15, weight="bold")
+    fig.text(0.95, 0.965, f" {verdict} ", fontsize=15, weight="bold", color="white", ha="right",
+             bbox={"facecolor": _VERDICT_COLOURS.get(verdict, "grey"), "edgecolor": "none", "pad": 4})
+
+    ax_id = fig.add_subplot(grid[0:6, 0])
+    ax_id.axis("off")
+    for n, (key, value) in enumerate(_identity_lines(record, folder)):
+        y = 1.0 - n * 0.1
+        ax_id.text(0.0, y, key, fontsize=7.5, weight="bold", va="top", transform=ax_id.transAxes)
+        ax_id.text(0.34, y, value, fontsize=7.5, va="top", transform=ax_id.transAxes, wrap=True)
+
+    ax_v = fig.add_subplot(grid[0:6, 1])
+    ax_v.axis("off")
+    _verdict_block(ax_v, record)
+
+    ax_t = fig.add_subplot(grid[6:10, :])
+    ax_t.axis("off")
+    _parameter_table(ax_t, record, variant)
+
+    t = trace["t_s"]
+    ax_track = fig.add_subplot(grid[11:14, 0])
+    ax_error = fig.add_subplot(grid[14:16, 0])
+    ax_conv = fig.add_subplot(grid[11:16, 1])
+    ax_plane = fig.add_subplot(grid[17:24, :])
+    if len(t):
+        _tracking(ax_track, ax_error, trace)
+        _convergence(ax_conv, trace, record, variant)
+    _decision_plane(ax_plane, record)
+
+    pdf, png = out_dir / REPORT_PDF, out_dir / REPORT_PNG
+    atomic_write(pdf, lambda f: fig.savefig(f, format="pdf"))
+    atomic_write(png, lambda f: fig.savefig(f, format="png", dpi=110))
+    plt.close(fig)
+    return pdf, png
+
+
+def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
+    cls = record.get("classification")
+    lines = []
+    if cls:
+        rel = cls["features_rel"]
+        lines += [
+            f"P(faulty) = {cls['probability_faulty']:.3f}",
+            f"distance to the boundary {cls['distance']:+.3f}",
+            f"(marginal band +/- {cls['marginal_band']:g}; positive: worn side)",
+            f"af {rel['af'] - 1:+.1%}, a1 {rel['a1'] - 1:+.1%} against a new valve",
+        ]
+    meaning = {"PASS": "The valve can be reused.", "MARGINAL": "Near the limit: test again.",
+               "FAIL": "Worn: replace the valve.", "INVALID": "The test is not to be trusted; nothing was judged."}
+    lines.insert(0, meaning.get(record.get("verdict", ""), ""))
+    if not cls:  # with a classification the reasons only repeat the figures above
+        for reason in record.get("reasons") or []:
+            lines.append(reason if len(reason) < 60 else reason[:57] + "...")
+    for n, line in enumerate(lines):
+        ax.text(0.0, 1.0 - n * 0.12, line, fontsize=8, va="top", transform=ax.transAxes,
+                weight="bold" if n == 0 else "normal")
+
+
+def _parameter_table(ax: Any, record: dict[str, Any], variant: Any) -> None:
+    params = record.get("parameters") or {}
+    refs = _reference_values(record, variant)
+    rows = []
+    for name in ("af", "a1", "a0", "a2", "b", "a3"):
+        p = params.get(name)
+        if p is None:
+            continue
+        value, std = p.get("value"), p.get("std")
+        ref, source = refs.get(name, (math.nan, ""))
+        change = f"{value / ref - 1:+.1%}" if value is not None and ref else ""
+        rows.append([f"{name} ({_UNITS[name]})", f"{value:.5g}" if value is not None else "-",
+                     f"{std:.2g}" if std is not None and p.get("estimated") else "fixed",
+                     f"{ref:.5g}", source, change])
+    if not rows:
+        ax.text(0.0, 0.5, "No parameters: the test stopped before identifying any.", fontsize=9)
+        return
+    table = ax.table(cellText=rows, colLabels=["parameter", "identified", "+/- (1 sd)", "reference", "source",
+                                               "change"], loc="center", cellLoc="center")
+    table.auto_set_font_size(False)
+    table.set_fontsize(8)
+    table.scale(1.0, 1.3)
+    ax.set_title("Identified parameters (af, a1: the diagnosis features)", fontsize=9, loc="left")
+
+
+def _tracking(ax: Any, ax_error: Any, trace: dict[str, np.ndarray]) -> None:
+    t = trace["t_s"]
+    window = t >= max(t[-1] - 2.0, 0.0)
+    ax.plot(t[window], trace["reference_mm"][window], "k--", lw=0.8, label="reference")
+    ax.plot(t[window], trace["position_mm"][window], "C0", lw=0.8, label="rack")
+    ax.set_title("Tracking, last 2 s (Fig. 3)", fontsize=9)
+    ax.set_ylabel("rack (mm)", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper right")
+    ax_error.plot(t, (trace["reference_mm"] - trace["position_mm"]) * 1e3, lw=0.4, color="C3")
+    ax_error.set_ylabel("error (um)", fontsize=8)
+    ax_error.set_xlabel("time (s), whole test", fontsize=8)
+    ax_error.tick_params(labelsize=7)
+
+
+def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any], variant: Any) -> None:
+    t = trace["t_s"]
+    refs = _reference_values(record, variant)
+    for name, colour in (("af", "C1"), ("a1", "C2")):
+        ref = refs[name][0]
+        ax.plot(t, trace[f"{name}_hat"] / ref, colour, lw=0.9, label=f"{name} / {refs[name][1]}")
+    ax.axhline(1.0, color="grey", lw=0.6)
+    ax.axvline(variant.excitation.move_s, color="grey", lw=0.5, ls=":")
+    ax.set_ylim(0.0, max(2.5, float(np.nanmax(trace["af_hat"] / refs["af"][0])) * 1.1))
+    ax.set_title("Convergence of af and a1 (Figs. 4-5)", fontsize=9)
+    ax.set_xlabel("time (s)", fontsize=8)
+    ax.set_ylabel("estimate / reference", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper right")
+
+
+def _decision_plane(ax: Any, record: dict[str, Any]) -> None:
+    cls = record.get("classification")
+    ax.set_title("Decision plane (Fig. 7): the valve against the boundary", fontsize=9)
+    if not cls:
+        ax.text(0.5, 0.5, "not classified", ha="center", va="center", fontsize=10, transform=ax.transAxes)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        return
+    from edc_bench.diagnosis.classifier import default_classifier
+
+    classifier = default_classifier(None)
+    point = np.array([cls["features_rel"]["af"], cls["features_rel"]["a1"]])
+    hi = np.maximum(point * 1.25, 2.6)
+    A, B, _ = classifier.boundary_grid((0.5, float(hi[0])), (0.5, float(hi[1])), n=80)
+    dist = classifier.distances(np.column_stack([A.ravel(), B.ravel()])).reshape(A.shape)
+    band = classifier.marginal_band
+    ax.contourf(A, B, dist, levels=[-10, -band], colors=["#e8f5e9"])
+    ax.contourf(A, B, dist, levels=[band, 10], colors=["#ffebee"])
+    ax.contourf(A, B, dist, levels=[-band, band], colors=["0.85"])
+    ax.contour(A, B, dist, levels=[0.0], colors="k", linewidths=1.2)
+    ax.scatter([1.0], [1.0], marker="s", color="C0", s=40, label="new-valve baseline")
+    ax.scatter([point[0]], [point[1]], marker="*", s=220, color=_VERDICT_COLOURS.get(cls["verdict"], "k"),
+               edgecolor="k", zorder=5, label=f"this valve: {cls['verdict']}")
+    ax.plot([], [], "k-", label="decision boundary")
+    ax.fill([], [], color="0.85", label=f"marginal band +/- {band:g}")
+    ax.set_xlabel("af / baseline", fontsize=8)
+    ax.set_ylabel("a1 / baseline", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper left")
+    ax.grid(alpha=0.3)
