@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import tomllib
 from pathlib import Path
 
@@ -108,3 +109,27 @@ def test_several_errors_are_all_reported() -> None:
     with pytest.raises(ConfigError) as info:
         parse_variant(data, "mem.toml")
     assert len(str(info.value).splitlines()) == 2
+
+
+def test_a_station_adds_a_variant_by_dropping_a_file(tmp_path, monkeypatch) -> None:
+    import subprocess
+    import sys
+
+    from edc_bench.config.loader import available_variants
+
+    shipped = available_variants()["p-edc-default"].read_text(encoding="utf-8")
+    station = tmp_path / "variants"
+    station.mkdir()
+    (station / "shop-pump.toml").write_text(
+        shipped.replace('name = "p-edc-default"', 'name = "shop-pump"').replace("PE-EDC-0001", "SHOP-42"),
+        encoding="utf-8")
+    (station / "broken.toml").write_text("[pump]\nname = 3\n", encoding="utf-8")
+    env = {**os.environ, "EDC_BENCH_VARIANTS_DIR": str(station)}
+    listing = subprocess.run([sys.executable, "-m", "edc_bench", "variants"], capture_output=True, text=True,
+                             env=env, timeout=120)
+    assert listing.returncode == 0, listing.stderr
+    assert "shop-pump" in listing.stdout and "SHOP-42" in listing.stdout
+    assert "broken" in listing.stdout and "cannot be used" in listing.stdout
+    assert str(station) in listing.stdout
+    monkeypatch.setenv("EDC_BENCH_VARIANTS_DIR", str(station))
+    assert load_variant("SHOP-42").name == "shop-pump"  # by part number

@@ -23,7 +23,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--channel", default=None, help="python-can channel of a real rig")
     p.add_argument("--bitrate", type=int, default=None, help="CAN bit rate")
     p.add_argument("--write", action="store_true",
-                   help="write configs/baselines/<variant>.toml (default: print it)")
+                   help="write baselines/<variant>.toml beside the variant's file in the library "
+                        "(configs/ for shipped variants, the station's variant folder otherwise; default: print it)")
     p.add_argument("--out", type=Path, default=None, help="write the baseline to this file instead")
     p.set_defaults(run=run)
 
@@ -31,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Calibrate and print or write the baseline."""
     from edc_bench.config import load_variant
-    from edc_bench.config.loader import variant_dirs
+    from edc_bench.config.loader import available_variants, station_variant_dir
     from edc_bench.diagnosis.baseline import BASELINE_DIR
     from edc_bench.diagnosis.calibrate import baseline_from_features, calibrate_simulated
     from edc_bench.errors import ConfigError
@@ -64,10 +65,10 @@ def run(args: argparse.Namespace) -> int:
                                           f"--seed {args.seed}")
     target = args.out
     if args.write and target is None:
-        folders = variant_dirs()
-        if not folders:
-            raise ConfigError("no variant library folder found to write the baseline into; use --out FILE")
-        target = folders[-1] / BASELINE_DIR / f"{variant.name}.toml"
+        # beside the variant's file in the library: shipped variants in configs/, a station's in its folder
+        library_file = available_variants().get(variant.name)
+        folder = library_file.parent if library_file is not None else station_variant_dir()
+        target = folder / BASELINE_DIR / f"{variant.name}.toml"
     if target is not None:
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(text, encoding="utf-8")

@@ -57,7 +57,7 @@ def _report(result: Any, as_json: bool) -> None:
     body.add_column(style="bold", justify="right")
     body.add_column()
     style = "bold white on green" if result.verdict == "GO" else "bold white on red"
-    body.add_row("verdict", Text(f" {result.verdict} ", style=style))
+    body.add_row("verdict", Text.assemble((f" {result.verdict} ", style)))
     late = result.lateness_us
     body.add_row("lateness", f"p50 {late['p50']:.0f} us, p99 {late['p99']:.0f} us, p99.9 {late['p99.9']:.0f} us, "
                              f"max {late['max']:.0f} us (tick {result.period_s * 1e6:.0f} us)")

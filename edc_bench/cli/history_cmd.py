@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_quietly_if_closed(lambda: print(json.dumps(rows, indent=2)))
     else:
-        print_quietly_if_closed(lambda: _table(rows, store.url))
+        print_quietly_if_closed(lambda: history_table(rows, store.url))
     return 0
 
 
@@ -93,22 +93,23 @@ def _fmt(value: Any, spec: str) -> str:
     return "" if value is None else format(value, spec)
 
 
-def _table(rows: list[dict[str, Any]], url: str) -> None:
+def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> None:
+    """Print the listed tests."""
     from rich.console import Console
     from rich.table import Table
 
     from edc_bench.ui.live import VERDICT_STYLES
 
-    table = Table(title=f"{len(rows)} test(s) in {url}")
+    table = Table(title=f"{len(rows)} test(s) in {url} (times in UTC)")
     for col in ("started", "valve", "pump serial", "variant", "verdict", "af V", "a1 V s/mm", "P(faulty)",
                 "station", "operator"):
-        table.add_column(col)
+        table.add_column(col, no_wrap=col not in ("station", "operator"))
     for r in rows:
-        table.add_row(r["started_at"].replace("+00:00", "Z"), r["valve_id"], r["pump_serial"], r["variant"],
+        table.add_row(_when(r["started_at"]), r["valve_id"], r["pump_serial"], r["variant"],
                       f"[{VERDICT_STYLES.get(r['verdict'], '')}]{r['verdict']}[/]", _fmt(r["af_v"], ".5f"),
                       _fmt(r["a1_v_s_per_mm"], ".6f"), _fmt(r["probability_faulty"], ".3f"), r["station"],
                       r["operator"])
-    Console(width=None if sys.stdout.isatty() else 160).print(table)
+    (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
 
 
 def _trend(store: Any, args: argparse.Namespace) -> int:
@@ -123,21 +124,28 @@ def _trend(store: Any, args: argparse.Namespace) -> int:
         print_quietly_if_closed(lambda: print(json.dumps(rows, indent=2)))
         return 0
 
-    def show() -> None:
-        from rich.console import Console
-        from rich.table import Table
-
-        table = Table(title=f"valve {args.trend}: {len(rows)} visit(s); change against the new-valve baseline")
-        for col in ("started", "variant", "verdict", "af V", "af change", "a1 V s/mm", "a1 change", "distance"):
-            table.add_column(col)
-        for r in rows:
-            table.add_row(r["started_at"].replace("+00:00", "Z"), r["variant"], r["verdict"], _fmt(r["af_v"], ".5f"),
-                          _pct(r["af_rel"]), _fmt(r["a1_v_s_per_mm"], ".6f"), _pct(r["a1_rel"]),
-                          _fmt(r["distance"], "+.3f"))
-        Console(width=None if sys.stdout.isatty() else 160).print(table)
-
-    print_quietly_if_closed(show)
+    print_quietly_if_closed(lambda: trend_table(rows, args.trend))
     return 0
+
+
+def trend_table(rows: list[dict[str, Any]], valve: str, console: Any = None) -> None:
+    """Print one valve's visits with the change against the baseline."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"valve {valve}: {len(rows)} visit(s); change against the new-valve baseline")
+    for col in ("started", "variant", "verdict", "af V", "af change", "a1 V s/mm", "a1 change", "distance"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(_when(r["started_at"]), r["variant"], r["verdict"], _fmt(r["af_v"], ".5f"),
+                      _pct(r["af_rel"]), _fmt(r["a1_v_s_per_mm"], ".6f"), _pct(r["a1_rel"]),
+                      _fmt(r["distance"], "+.3f"))
+    (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
+
+
+def _when(started_at: str) -> str:
+    """``2026-11-22 05:43`` from an ISO time (UTC)."""
+    return started_at[:16].replace("T", " ")
 
 
 def _pct(rel: float | None) -> str:

@@ -256,3 +256,4 @@ def _print_report(result: Any, record_dir: Path) -> None:
         print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, overruns {t['overruns']}, "
               f"missed replies {result.outcome.missed_replies}, CPU steal meanwhile {t['cpu_steal_s']:.2f} s")
     print(f"record: {record_dir}")
+    print(f"report: edc-bench report {record_dir}")

@@ -14,9 +14,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """List variant names, part numbers and files."""
     from edc_bench.config import DEFAULT_VARIANT, available_variants, load_variant
+    from edc_bench.errors import ConfigError
 
     for name, path in available_variants().items():
-        variant = load_variant(path)
+        try:
+            variant = load_variant(path)
+        except ConfigError as exc:  # one broken file must not hide the others
+            print(f"{name:<20} {'?':<14} cannot be used: {exc}")
+            continue
         mark = " (default)" if name == DEFAULT_VARIANT else ""
         print(f"{name:<20} {variant.pump.part_number:<14} {variant.pump.description}{mark}")
+    from edc_bench.config.loader import station_variant_dir
+
+    print(f"\nthis station's own variants go in {station_variant_dir()} (see docs/variants.md)")
     return 0

@@ -19,11 +19,25 @@ def variant_dirs() -> list[Path]:
 
     A non-editable install carries the library inside the package
     (``edc_bench/_variants``); a source checkout reads ``configs/`` beside the
-    package.
+    package. Last comes the station's own folder (:func:`station_variant_dir`),
+    where a technician adds the variants of the pumps the shop sees; the
+    shipped names cannot be shadowed from there.
     """
     package_dir = Path(__file__).resolve().parent.parent
-    dirs = [package_dir / "_variants", package_dir.parent / "configs"]
+    dirs = [package_dir / "_variants", package_dir.parent / "configs", station_variant_dir()]
     return [d for d in dirs if d.is_dir()]
+
+
+def station_variant_dir() -> Path:
+    """The station's variant folder: ``EDC_BENCH_VARIANTS_DIR``, else ``variants`` in the data folder."""
+    import os
+
+    configured = os.environ.get("EDC_BENCH_VARIANTS_DIR")
+    if configured:
+        return Path(configured)
+    from edc_bench.paths import data_dir
+
+    return data_dir() / "variants"
 
 
 def available_variants() -> dict[str, Path]:

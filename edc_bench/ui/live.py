@@ -91,7 +91,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     body = Table.grid(padding=(0, 2))
     body.add_column(style="bold", justify="right")
     body.add_column()
-    body.add_row("verdict", Text(f" {result.verdict} ", style=VERDICT_STYLES.get(result.verdict, "bold")))
+    body.add_row("verdict", Text.assemble((f" {result.verdict} ", VERDICT_STYLES.get(result.verdict, "bold"))))
     for n, reason in enumerate(result.reasons):
         body.add_row("why" if n == 0 else "", reason)
     f = result.features

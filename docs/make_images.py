@@ -1,0 +1,116 @@
+"""Make the screens and report images of docs/station.md: ``python docs/make_images.py``.
+
+Runs simulated tests (a new valve, and the same worn valve over three
+visits) into a scratch station, then renders what the technician sees: the
+live panel in the middle of a test, the verdict panels, the report page, the
+history and a valve's trend, a replay and check-station. Terminal screens
+are rich's own SVG export of exactly what the commands print.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+IMAGES = Path(__file__).resolve().parent / "images"
+WIDTH = 124
+
+
+def _console():
+    from rich.console import Console
+
+    return Console(record=True, width=WIDTH, force_terminal=True, color_system="truecolor")
+
+
+def _save(console, name: str, title: str) -> None:
+    console.save_svg(str(IMAGES / name), title=title)
+    print(f"wrote docs/images/{name}")
+
+
+def main() -> None:
+    scratch = Path(tempfile.mkdtemp(prefix="edc-bench-docs-"))
+    os.environ["EDC_BENCH_DATA_DIR"] = str(scratch / "station")
+    os.environ["EDC_BENCH_CACHE_DIR"] = str(scratch / "cache")
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.cli.history_cmd import history_table, trend_table
+    from edc_bench.config import load_variant
+    from edc_bench.history import HistoryStore, index_record_dir
+    from edc_bench.history.store import Filters
+    from edc_bench.records.record import write_record
+    from edc_bench.records.report import draw_report
+    from edc_bench.replay import replay_record
+    from edc_bench.ui.live import render_snapshot, verdict_panel
+    from edc_bench.ui.snapshot import Snapshot
+
+    IMAGES.mkdir(exist_ok=True)
+    variant = load_variant()
+    identity = {"pump_serial": "PS-20231", "station": "bench-2", "operator": "m.keller"}
+
+    class Capture:  # an observer that keeps the snapshot at 12 s, as the live panel showed it
+        def __init__(self) -> None:
+            self.snapshot = Snapshot()
+            self.frozen = None
+
+        def phase(self, name: str) -> None:
+            self.snapshot.enter(name)
+
+        def tick(self, k: int, loop) -> None:
+            self.snapshot.update(k, loop)
+            if k == 12_000:
+                import copy
+
+                self.frozen = copy.deepcopy(self.snapshot)
+
+    title = f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve V-1187, simulated rig, simulated time"
+    capture = Capture()
+    new = run_simulated_test(variant, "new", 3, valve_id="V-1187", observer=capture)
+    new.identity = identity
+    new_dir = write_record(new, scratch / "records")
+    index_record_dir(new_dir)
+    console = _console()
+    console.print(render_snapshot(capture.frozen, title))
+    _save(console, "live-view.svg", "edc-bench test (live panel, 12 s into the test)")
+    console = _console()
+    console.print(verdict_panel(new, Path("records") / new_dir.name))
+    _save(console, "verdict-pass.svg", "edc-bench test: PASS")
+
+    # the same valve wearing out over three visits: the last one fails
+    worn_dir = None
+    for n, clearance in enumerate((0.12, 0.17, 0.25)):
+        result = run_simulated_test(variant, f"clearance={clearance}", 10 + n, valve_id="V-2040")
+        result.identity = identity
+        worn_dir = write_record(result, scratch / "records")
+        index_record_dir(worn_dir)
+    console = _console()
+    console.print(verdict_panel(result, Path("records") / worn_dir.name))
+    _save(console, "verdict-fail.svg", "edc-bench test --valve worn: FAIL")
+
+    _, png = draw_report(worn_dir, scratch / "report")
+    shutil.copyfile(png, IMAGES / "report-page.png")
+    print("wrote docs/images/report-page.png")
+
+    with HistoryStore() as store:
+        console = _console()
+        history_table(store.list(Filters()), "the station's history", console)
+        _save(console, "history.svg", "edc-bench history")
+        console = _console()
+        trend_table(store.trend("V-2040"), "V-2040", console)
+        _save(console, "history-trend.svg", "edc-bench history --trend V-2040")
+
+    report = replay_record(worn_dir)
+    console = _console()
+    console.print(f"$ edc-bench replay records/{worn_dir.name}", highlight=False)
+    console.print(f"replayed {report.run.ticks} ticks ({report.run.missed_replies} replies missing); drives match the "
+                  f"logged commands to {report.run.max_drive_deviation_v * 1e3:.2f} mV", highlight=False)
+    console.print(f"verdict: {report.judged['verdict']}", highlight=False)
+    console.print("reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are exactly the "
+                  "recorded ones" if report.reproduced else f"NOT reproduced: {report.differences}", highlight=False)
+    _save(console, "replay.svg", "edc-bench replay")
+    shutil.rmtree(scratch, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
