@@ -224,14 +224,15 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     scales = np.array(regressor_scales(variant))
     est_idx = [PARAMETER_NAMES.index(p) for p in variant.estimator.estimate]
     fixed_idx = [i for i in range(6) if i not in est_idx]
-    theta = np.tile([(0.0 if PARAMETER_NAMES[i] in ("a1", "af") else nominal[i]) * scales[i] for i in est_idx],
-                    (n, 1))
+    # valves along the last axis: every update is a contiguous pass over n values
+    theta = np.tile(np.array([(0.0 if PARAMETER_NAMES[i] in ("a1", "af") else nominal[i]) * scales[i]
+                              for i in est_idx])[:, None], (1, n))
     prior = np.array([max(abs(nominal[i] * scales[i]), 1e-9) * 3.0 * variant.estimator.initial_std_rel
                       for i in est_idx])
     est = variant.estimator
     rls = est.kind == "rls"
     lam = est.forgetting_factor
-    P = np.tile(np.diag(prior**2), (n, 1, 1))
+    P = np.tile(np.diag(prior**2)[:, :, None], (1, 1, n))
     if not rls:
         gains = est.gradient_gains_per_s
         gain_vec = np.array([gains[p] for p in est.estimate] if isinstance(gains, dict)
@@ -261,7 +262,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         err = r_prev - x_meas
         prop = c.kp_v_per_mm * err
         step = c.ki_v_per_mm_s * err * T
-        blocked = ((sat > 0) & (step > 0)) | ((sat < 0) & (step < 0))
+        blocked = sat * step > 0.0  # the drive saturated the way the integrator pushes
         integral = _clip(np.where(blocked, integral, integral + step), limit)
         deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
         last_err = err
@@ -273,43 +274,43 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         w_all = (r3, r2, r1, r, ones, sgn)
         for j, i in enumerate(est_idx):
             np.multiply(w_all[i], inv_w_est_scale[j], out=w_est_t[j])
-        w_est = w_est_t.T
+        w_est = w_est_t
         fixed_part = sum(nominal[i] * w_all[i] for i in fixed_idx) if fixed_idx else np.zeros(n)
-        u1 = np.einsum("nj,nj->n", theta, w_est) + fixed_part
+        u1 = np.einsum("jn,jn->n", theta, w_est) + fixed_part
         u = u1 + u2
-        sat = np.where(u >= limit, 1.0, np.where(u <= -limit, -1.0, 0.0))
+        sat = (u >= limit) * 1.0 - (u <= -limit)
         u = _clip(u, limit)
         adapting = (sat == 0) & (t >= adapt_from) & (np.abs(r1) >= reversal)
         if adapting.any():
             y = u - fixed_part
-            e = y - np.einsum("nj,nj->n", theta, w_est)
+            e = y - np.einsum("jn,jn->n", theta, w_est)
             if rls:
-                pw = np.einsum("nij,nj->ni", P, w_est)
-                denom = lam + np.einsum("nj,nj->n", w_est, pw)
-                gain = pw / denom[:, None]
+                pw = np.einsum("ijn,jn->in", P, w_est)
+                denom = lam + np.einsum("jn,jn->n", w_est, pw)
+                gain = pw / denom
                 if adapting.all():  # the common case: update in place, no copies
-                    theta += gain * e[:, None]
-                    P -= gain[:, :, None] * pw[:, None, :]
+                    theta += gain * e
+                    P -= gain[:, None, :] * pw[None, :, :]
                     P *= 1.0 / lam
                 else:
-                    theta = np.where(adapting[:, None], theta + gain * e[:, None], theta)
-                    P_new = (P - gain[:, :, None] * pw[:, None, :]) / lam
-                    P = np.where(adapting[:, None, None], P_new, P)
+                    theta = np.where(adapting, theta + gain * e, theta)
+                    P_new = (P - gain[:, None, :] * pw[None, :, :]) / lam
+                    P = np.where(adapting, P_new, P)
             else:
-                norm = 1.0 + np.einsum("nj,nj->n", w_est, w_est)
-                theta = np.where(adapting[:, None], theta + gain_vec * w_est * (e / norm)[:, None], theta)
+                norm = 1.0 + np.einsum("jn,jn->n", w_est, w_est)
+                theta = np.where(adapting, theta + gain_vec[:, None] * w_est * (e / norm), theta)
         # the rig: sample, then apply the drive, then one period passes
         x_meas = sample()
         plant.advance_period(u)
         r_prev = now0[k] + start * now_slope[k]
         if k % HISTORY_EVERY == 0:
-            history[hist_rows, 0] = theta[:, h_af]
-            history[hist_rows, 1] = theta[:, h_a1]
+            history[hist_rows, 0] = theta[h_af]
+            history[hist_rows, 1] = theta[h_a1]
             hist_rows += 1
 
     final = np.tile(nominal, (n, 1))
     for j, i in enumerate(est_idx):
-        final[:, i] = theta[:, j] / scales[i]
+        final[:, i] = theta[j] / scales[i]
     history = history[:hist_rows]
     t_hist = np.arange(hist_rows) * HISTORY_EVERY * T
     acc = variant.acceptance
