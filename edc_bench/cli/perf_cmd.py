@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
 
         load_variant(args.variant)  # a bad name is refused before anything runs
     env = _environment(args.quick)
+    env["command"] += "".join(f" --only {g}" for g in (args.only or ())) + (" --json" if args.json else "")
 
     def announce(figure: Any) -> None:
         if not args.json:
