@@ -115,3 +115,28 @@ def test_live_panel_renders_every_phase() -> None:
     for phase in PHASES:
         assert f"{phase} ✓" in text or phase in text
     assert "PASS" in text and "edc-bench report records/x" in text and "replies missing" in text
+
+
+def test_live_view_draws_in_a_child_process_and_never_blocks_the_loop(capfd: pytest.CaptureFixture[str]) -> None:
+    from edc_bench.ui.live import LiveView
+
+    class FakeLoop:
+        def __init__(self) -> None:
+            names = ("t_s", "reference_mm", "position_mm", "current_a", "drive_v", "feedforward_v", "feedback_v",
+                     "af_hat", "a1_hat", "lateness_s")
+            self.trace = type("T", (), {"columns": {n: np.linspace(0.0, 1.0, 3000) for n in names}})()
+            self.ticks, self.period_s = 3000, 0.001
+            self.outcome = type("O", (), {"overruns": 2, "missed_replies": 3, "bad_replies": 0, "heartbeats": 9})()
+
+    loop = FakeLoop()
+    with LiveView("live view test") as view:
+        view.phase("soft start")
+        for k in range(0, 3000, 100):
+            view.tick(k, loop)
+        view.phase("identify")
+        # a flood of updates while the panel is slow to read: dropped, never waited for
+        for _ in range(5000):
+            view.tick(2900, loop)
+    assert view._proc.returncode == 0
+    out = capfd.readouterr().out
+    assert "live view test" in out and "identify" in out and "3 replies missing" in out

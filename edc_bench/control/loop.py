@@ -354,7 +354,7 @@ class BenchLoop:
                 outcome.abort_time_s = t_k - t_start
                 return
             if observer is not None:
-                if k == identify_from_k:
-                    observer.phase("identify")
                 if k % OBSERVE_EVERY == 0:
                     observer.tick(k, self)
+                if k == identify_from_k:
+                    observer.phase("identify")

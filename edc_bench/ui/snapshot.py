@@ -51,23 +51,13 @@ class Snapshot:
 
     def update(self, k: int, loop: Any) -> None:
         """Copy tick ``k``'s figures out of a :class:`~edc_bench.control.loop.BenchLoop`."""
-        cols = loop.trace.columns
-        self.tick, self.ticks, self.period_s = k, loop.ticks, loop.period_s
-        self.t_s = float(cols["t_s"][k])
-        self.reference_mm = float(cols["reference_mm"][k])
-        self.position_mm = float(cols["position_mm"][k])
-        self.current_a = float(cols["current_a"][k])
-        self.drive_v = float(cols["drive_v"][k])
-        self.feedforward_v = float(cols["feedforward_v"][k])
-        self.feedback_v = float(cols["feedback_v"][k])
-        self.af = float(cols["af_hat"][k])
-        self.a1 = float(cols["a1_hat"][k])
-        recent = cols["lateness_s"][max(0, k - 99): k + 1]
-        self.worst_lateness_recent_us = float(np.max(recent)) * 1e6 if len(recent) else 0.0
+        self.apply(read_tick(k, loop))
+
+    def apply(self, figures: dict[str, Any]) -> None:
+        """Take the figures of one tick (from :func:`read_tick`) and extend the histories."""
+        for name, value in figures.items():
+            setattr(self, name, value)
         self.worst_lateness_us = max(self.worst_lateness_us, self.worst_lateness_recent_us)
-        outcome = loop.outcome
-        self.overruns, self.missed_replies = outcome.overruns, outcome.missed_replies
-        self.bad_replies, self.heartbeats = outcome.bad_replies, outcome.heartbeats
         self.rack_history.append(self.position_mm)
         self.reference_history.append(self.reference_mm)
         self.af_history.append(self.af)
@@ -82,3 +72,20 @@ class Snapshot:
     def duration_s(self) -> float:
         """Length of the test."""
         return self.ticks * self.period_s
+
+
+def read_tick(k: int, loop: Any) -> dict[str, Any]:
+    """The figures of tick ``k`` of a running loop, as plain numbers (a few microseconds; picklable)."""
+    cols = loop.trace.columns
+    recent = cols["lateness_s"][max(0, k - 99): k + 1]
+    outcome = loop.outcome
+    return {
+        "tick": k, "ticks": loop.ticks, "period_s": loop.period_s, "t_s": float(cols["t_s"][k]),
+        "reference_mm": float(cols["reference_mm"][k]), "position_mm": float(cols["position_mm"][k]),
+        "current_a": float(cols["current_a"][k]), "drive_v": float(cols["drive_v"][k]),
+        "feedforward_v": float(cols["feedforward_v"][k]), "feedback_v": float(cols["feedback_v"][k]),
+        "af": float(cols["af_hat"][k]), "a1": float(cols["a1_hat"][k]),
+        "worst_lateness_recent_us": float(np.max(recent)) * 1e6 if len(recent) else 0.0,
+        "overruns": outcome.overruns, "missed_replies": outcome.missed_replies,
+        "bad_replies": outcome.bad_replies, "heartbeats": outcome.heartbeats,
+    }
