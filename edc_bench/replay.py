@@ -25,7 +25,7 @@ import numpy as np
 from edc_bench.config.models import Variant
 from edc_bench.control.build import build_controller
 from edc_bench.control.fel import FelController
-from edc_bench.control.loop import FLAG_AMP, FLAG_LVDT, FLAG_OVER_CURRENT, FLAG_TRAVEL, FLAG_WATCHDOG, LoopOutcome
+from edc_bench.control.loop import LoopOutcome, reply_flags
 from edc_bench.errors import ConfigError, ProtocolError
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
 from edc_bench.records.reader import Frame
@@ -124,9 +124,7 @@ def replay_frames(frames: list[Frame], variant: Variant, *, ticks_start_s: float
             flags = 0
         else:
             position_mm, current_a = reply.position_mm, reply.current_a
-            flags = (reply.amp_enabled * FLAG_AMP | reply.watchdog_tripped * FLAG_WATCHDOG
-                     | reply.over_current * FLAG_OVER_CURRENT | reply.lvdt_fault * FLAG_LVDT
-                     | reply.travel_limit * FLAG_TRAVEL)
+            flags = reply_flags(reply)
         t_k = ticks_start_s + k * T
         cols["t_s"][k] = t_k - ticks_start_s
         cols["lateness_s"][k] = math.nan

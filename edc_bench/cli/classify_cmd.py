@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from edc_bench.cli.common import print_quietly_if_closed
-from edc_bench.cli.exit_codes import ExitCode
+from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
            "baseline": {"af_v": baseline.af_v, "a1_v_s_per_mm": baseline.a1_v_s_per_mm,
                         "calibrated": baseline.calibrated, "source": baseline.source}}
     print_quietly_if_closed(lambda: _report(out, args.json))
-    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL}[judged.verdict]
+    return exit_code_for(judged.verdict)
 
 
 def _report(out: dict, as_json: bool) -> None:

@@ -23,3 +23,9 @@ class ExitCode(enum.IntEnum):
     RIG_ERROR = 3
     INTERRUPTED = 130
     INTERNAL_ERROR = 70
+
+
+def exit_code_for(verdict: str) -> ExitCode:
+    """The exit code of a verdict (OK for a test judged without classification)."""
+    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
+            "INVALID": ExitCode.INVALID}.get(verdict, ExitCode.OK)

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from edc_bench.cli.common import print_quietly_if_closed
-from edc_bench.cli.exit_codes import ExitCode
+from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -49,8 +49,7 @@ def run(args: argparse.Namespace) -> int:
     print_quietly_if_closed(lambda: _print(out, args.json))
     if report.compared:
         return ExitCode.OK if report.reproduced else ExitCode.NOT_REPRODUCED
-    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
-            "INVALID": ExitCode.INVALID}.get(report.judged["verdict"], ExitCode.OK)
+    return exit_code_for(report.judged["verdict"])
 
 
 def _summary(report: Any) -> dict[str, Any]:

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from edc_bench.cli.common import add_variant_arguments, print_quietly_if_closed
-from edc_bench.cli.exit_codes import ExitCode
+from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -140,7 +140,7 @@ def _observer(args: argparse.Namespace, title: str) -> Any:
 
 
 def _run_guarded(args: argparse.Namespace) -> int:
-    from edc_bench.bench import INVALID, run_bench_test, run_simulated_test
+    from edc_bench.bench import run_bench_test, run_simulated_test
     from edc_bench.bus import open_bus
     from edc_bench.control.clock import RealTimeClock
     from edc_bench.protocol import default_icd
@@ -214,8 +214,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
         Console().print(verdict_panel(result, record_dir))
     else:
         print_quietly_if_closed(lambda: _print_report(result, record_dir))
-    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
-            INVALID: ExitCode.INVALID}.get(result.verdict, ExitCode.OK)
+    return exit_code_for(result.verdict)
 
 
 def _index(record_dir: Path, url: str | None) -> str | None:

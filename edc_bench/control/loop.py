@@ -25,11 +25,28 @@ from edc_bench.control.build import build_controller
 from edc_bench.control.clock import Clock, cpu_steal_s
 from edc_bench.control.fel import FelController
 from edc_bench.errors import ProtocolError
-from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState
+from edc_bench.protocol import (
+    BENCH_CMD_ID,
+    RIG_FEEDBACK_ID,
+    RIG_HEARTBEAT_ID,
+    FaultCode,
+    Icd,
+    Mode,
+    RigFeedback,
+    RigState,
+)
 from edc_bench.records.trace import CanFrameLog, Trace
 
 # flag bits of trace column rig_flags
 FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
+
+
+def reply_flags(reply: RigFeedback) -> int:
+    """The reply's status bits as the trace's ``rig_flags`` column stores them."""
+    return (reply.amp_enabled * FLAG_AMP | reply.watchdog_tripped * FLAG_WATCHDOG
+            | reply.over_current * FLAG_OVER_CURRENT | reply.lvdt_fault * FLAG_LVDT
+            | reply.travel_limit * FLAG_TRAVEL)
+
 
 #: Ticks between two :meth:`LoopObserver.tick` calls.
 OBSERVE_EVERY = 100
@@ -296,11 +313,7 @@ class BenchLoop:
             else:
                 missed_in_row = 0
                 position_mm, current_a = reply.position_mm, reply.current_a
-                flags = (
-                    reply.amp_enabled * FLAG_AMP | reply.watchdog_tripped * FLAG_WATCHDOG
-                    | reply.over_current * FLAG_OVER_CURRENT | reply.lvdt_fault * FLAG_LVDT
-                    | reply.travel_limit * FLAG_TRAVEL
-                )
+                flags = reply_flags(reply)
             t_col[k] = t_k - t_start
             late_col[k] = lateness
             r_col[k] = ctl.r_prev_mm

@@ -52,10 +52,11 @@ def lean_tick(ctl: FelController) -> Callable[[int, float], float]:
     the estimator's parameters and covariance), with no attribute lookups
     or method calls left in the tick.
     """
-    table = ctl._table  # noqa: SLF001 - the floor reuses the controller's own precomputed reference
+    # the floor starts from the controller's own precomputed reference and PID coefficients
+    table = ctl._table
     pid = ctl.pid
     kp, ki_t = pid.gains.kp_v_per_mm, pid.gains.ki_v_per_mm_s * pid.period_s
-    d_a, d_b, limit_pid = pid._a, pid._b, pid.output_limit_v  # noqa: SLF001
+    d_a, d_b, limit_pid = pid._a, pid._b, pid.output_limit_v
     est = ctl.estimator
     rls = isinstance(est, RecursiveLeastSquares)
     theta = list(est.theta)

@@ -100,7 +100,12 @@ def _realtime(variant_name: str | None, sizes: Sizes) -> list[Figure]:
 
 
 def _throughput(variant_name: str | None, sizes: Sizes) -> list[Figure]:
-    from edc_bench.perf.throughput import bare_python_time, batch, help_time, time_to_first_tick
+    from edc_bench.perf.throughput import (
+        bare_python_time,
+        batch,
+        help_time,
+        time_to_first_tick,
+    )
 
     workers = os.cpu_count() or 1
     b = batch(variant_name, sizes.valves, workers)
@@ -135,7 +140,7 @@ def run(groups: tuple[str, ...] = GROUPS, *, quick: bool = False, variant_name: 
     for group in groups:
         try:
             measured = steps[group]()
-        except Exception as exc:  # noqa: BLE001 - one broken group must not cost the others' figures
+        except Exception as exc:
             measured = [Figure(group, "group failed", float("nan"), "", target="runs", met=False,
                                note=f"{type(exc).__name__}: {exc}")]
         for figure in measured:
