@@ -211,3 +211,11 @@ def test_icd_messages_use_struct_and_other_layouts_fall_back_to_shifts() -> None
             assert value == pytest.approx(reference[key], abs=1e-9), key
 
     check()
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.integers(0, 255), st.binary(min_size=0, max_size=8))
+def test_e2e_crc_equals_the_crc_over_data_id_and_bytes_1_to_7(data_id: int, payload: bytes) -> None:
+    from edc_bench.protocol.crc import e2e_crc
+
+    assert e2e_crc(data_id, payload) == crc8_sae_j1850(bytes([data_id]) + payload[1:8])

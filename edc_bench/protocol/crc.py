@@ -16,6 +16,9 @@ def _make_table() -> tuple[int, ...]:
 
 
 _TABLE = _make_table()
+# Two bytes per lookup: _PAIRS[(a << 8) | b] = _TABLE[_TABLE[a] ^ b]. An ICD frame's CRC then takes
+# four lookups and no loop (a quarter of a codec call's time, four times per tick in simulation).
+_PAIRS = [_TABLE[_TABLE[a] ^ b] for a in range(256) for b in range(256)]
 
 
 def crc8_sae_j1850(data: bytes | bytearray | memoryview, initial: int = 0xFF) -> int:
@@ -55,6 +58,13 @@ def e2e_crc(data_id: int, payload: bytes | bytearray | memoryview) -> int:
     int
         The CRC to place in byte 0.
     """
+    if len(payload) == 8:
+        pairs = _PAIRS
+        crc = pairs[((0xFF ^ data_id) << 8) | payload[1]]
+        crc = pairs[((crc ^ payload[2]) << 8) | payload[3]]
+        crc = pairs[((crc ^ payload[4]) << 8) | payload[5]]
+        crc = pairs[((crc ^ payload[6]) << 8) | payload[7]]
+        return crc ^ 0xFF
     table = _TABLE
     crc = table[0xFF ^ data_id]
     for byte in payload[1:8]:
