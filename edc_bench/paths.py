@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 
-def data_dir() -> Path:
-    """The station's data folder (history database), created if missing."""
+def data_dir(create: bool = True) -> Path:
+    """The station's data folder (history database, the station's variants); created if missing unless told not to."""
     configured = os.environ.get("EDC_BENCH_DATA_DIR")
     if configured:
         path = Path(configured)
@@ -22,7 +22,8 @@ def data_dir() -> Path:
         from platformdirs import user_data_dir
 
         path = Path(user_data_dir("edc-bench", appauthor=False))
-    path.mkdir(parents=True, exist_ok=True)
+    if create:
+        path.mkdir(parents=True, exist_ok=True)
     return path
 
 

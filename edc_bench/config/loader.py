@@ -37,7 +37,7 @@ def station_variant_dir() -> Path:
         return Path(configured)
     from edc_bench.paths import data_dir
 
-    return data_dir() / "variants"
+    return data_dir(create=False) / "variants"  # looking for variants creates nothing
 
 
 def available_variants() -> dict[str, Path]:
