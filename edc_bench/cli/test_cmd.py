@@ -124,13 +124,18 @@ def _identity(args: argparse.Namespace) -> dict[str, str]:
     return {"pump_serial": args.pump_serial, "station": args.station or socket.gethostname(), "operator": operator}
 
 
+def _live(args: argparse.Namespace) -> bool:
+    """True when the live panel shows the test (a terminal, neither --json nor --plain)."""
+    return not args.json and not args.plain and sys.stdout.isatty()
+
+
 def _observer(args: argparse.Namespace, title: str) -> Any:
     """The live panel on a terminal, log lines on stderr otherwise, nothing with --json."""
     import contextlib
 
     if args.json:
         return contextlib.nullcontext(None)
-    if sys.stdout.isatty() and not args.plain:
+    if _live(args):
         from edc_bench.ui.live import LiveView
 
         return LiveView(title)
@@ -164,9 +169,11 @@ def _run_guarded(args: argparse.Namespace) -> int:
     simulated = bus_config is None and not args.realtime
     where = ("simulated rig, simulated time" if simulated else
              "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
-    title = (f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve "
-             f"{args.valve_id or args.valve}, {where}")
-    log = (lambda line: None) if args.json else (lambda line: print(line, file=sys.stderr, flush=True))
+    valve_name = args.valve_id or (args.valve if bus_config is None else "?")
+    title = f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve {valve_name}, {where}"
+    # the panel's title says it all; a line on stderr would only tear the panel
+    quiet = args.json or _live(args)
+    log = (lambda line: None) if quiet else (lambda line: print(line, file=sys.stderr, flush=True))
     with _observer(args, title) as observer:
         if observer is not None:
             observer.phase("connect")
@@ -206,7 +213,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
               f"Add it later with: edc-bench history --add {record_dir}", file=sys.stderr)
     if args.json:
         print_quietly_if_closed(lambda: print(json.dumps(summary(result, record_dir), indent=2)))
-    elif sys.stdout.isatty() and not args.plain:
+    elif _live(args):
         from rich.console import Console
 
         from edc_bench.ui.live import verdict_panel
