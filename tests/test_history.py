@@ -183,7 +183,11 @@ def test_two_bench_tests_finishing_at_once_and_an_aborted_one_are_all_indexed(tm
                                    env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 11], [o[1] for o in outs]
-    time.sleep(0.5)  # let the long test get into its ticks
+    # its CAN log is streamed from the moment its loop starts: then Ctrl-C is the operator's stop
+    deadline = time.monotonic() + 120
+    while not list((tmp_path / "records").glob("*V-stopped*/can.log")):
+        assert time.monotonic() < deadline and interrupted.poll() is None, "the long test never started"
+        time.sleep(0.05)
     interrupted.send_signal(2)
     out, err = interrupted.communicate(timeout=120)
     assert interrupted.returncode == 12, err
