@@ -53,15 +53,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _variant(args: argparse.Namespace) -> Any:
-    from edc_bench.config import load_variant, parse_variant
+    from edc_bench.config import load_variant, with_changes
 
     variant = load_variant(args.variant)
-    data = variant.model_dump(mode="python")
+    changes: dict[str, dict[str, Any]] = {"excitation": {}, "estimator": {}}
     if args.duration_s is not None:
-        data["excitation"]["duration_s"] = args.duration_s
+        changes["excitation"]["duration_s"] = args.duration_s
     if args.estimator is not None:
-        data["estimator"]["kind"] = args.estimator
-    return parse_variant(data, f"variant {variant.name} with command-line overrides")
+        changes["estimator"]["kind"] = args.estimator
+    return with_changes(variant, changes, "command-line overrides")
 
 
 def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:

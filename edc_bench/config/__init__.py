@@ -6,7 +6,9 @@ from edc_bench.config.loader import (
     load_variant,
     parse_variant,
     variant_dirs,
+    with_changes,
 )
 from edc_bench.config.models import Variant
 
-__all__ = ["DEFAULT_VARIANT", "Variant", "available_variants", "load_variant", "parse_variant", "variant_dirs"]
+__all__ = ["DEFAULT_VARIANT", "Variant", "available_variants", "load_variant", "parse_variant", "variant_dirs",
+           "with_changes"]

@@ -103,6 +103,17 @@ def _allowed_keys(loc: tuple[Any, ...]) -> list[str]:
     return sorted(model.model_fields) if hasattr(model, "model_fields") else []
 
 
+def with_changes(variant: Variant, changes: dict[str, dict[str, Any]], source: str) -> Variant:
+    """``variant`` with some keys replaced (``{section: {key: value}}``), validated again as a whole.
+
+    ``source`` names the changed variant in error messages (e.g. "command-line overrides").
+    """
+    data = variant.model_dump(mode="python")
+    for section, values in changes.items():
+        data[section].update(values)
+    return parse_variant(data, f"variant {variant.name} with {source}")
+
+
 def parse_variant(data: dict[str, Any], source: str = "<variant>") -> Variant:
     """Validate a variant given as a dict (the parsed TOML).
 

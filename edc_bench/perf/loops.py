@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edc_bench.config import Variant, parse_variant
+from edc_bench.config import Variant, with_changes
 from edc_bench.control.clock import RealTimeClock, cpu_steal_s
 from edc_bench.perf.figures import percentiles
 
@@ -32,15 +32,15 @@ def with_timing(variant: Variant, period_s: float | None = None, duration_s: flo
     A duration too short for the convergence window shrinks the window: a
     timing benchmark does not judge the identification.
     """
-    data = variant.model_dump(mode="python")
+    changes: dict[str, dict[str, float]] = {"controller": {}, "excitation": {}, "acceptance": {}}
     if period_s is not None:
-        data["controller"]["period_s"] = period_s
+        changes["controller"]["period_s"] = period_s
     if duration_s is not None:
-        data["excitation"]["duration_s"] = duration_s
-        room_s = duration_s - data["excitation"]["move_s"] - data["excitation"]["fade_s"]
-        if room_s <= data["acceptance"]["convergence_window_s"]:
-            data["acceptance"]["convergence_window_s"] = max(room_s / 2.0, 1e-3)
-    return parse_variant(data, f"variant {variant.name} for a benchmark")
+        changes["excitation"]["duration_s"] = duration_s
+        room_s = duration_s - variant.excitation.move_s - variant.excitation.fade_s
+        if room_s <= variant.acceptance.convergence_window_s:
+            changes["acceptance"]["convergence_window_s"] = max(room_s / 2.0, 1e-3)
+    return with_changes(variant, changes, "a benchmark's timing")
 
 
 def simulated_test(variant: Variant, repeats: int) -> dict[str, float]:
@@ -105,10 +105,8 @@ def _keep_going(variant: Variant) -> Variant:
     machine that stalls now and then would then measure only up to the first
     stall. The rig's own watchdog and the heartbeat check still apply.
     """
-    data = variant.model_dump(mode="python")
-    data["acceptance"]["max_missed_replies_in_row"] = 100
-    data["acceptance"]["max_missed_reply_fraction"] = 1.0
-    return parse_variant(data, f"variant {variant.name} for a benchmark")
+    return with_changes(variant, {"acceptance": {"max_missed_replies_in_row": 100, "max_missed_reply_fraction": 1.0}},
+                        "a benchmark's loose aborts")
 
 
 def bare_loop(period_s: float, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -141,10 +139,6 @@ class LoopFigures:
     reply_latency_us: tuple[float, float] | None = None  # p50, p99
     missed_replies: int = 0
     abort_reason: str | None = None
-
-    def as_dict(self) -> dict[str, object]:
-        """Plain data for JSON."""
-        return dict(self.__dict__)
 
 
 def _loop_figures(late_s: np.ndarray, times_ns: np.ndarray, steal: np.ndarray, period_s: float,

@@ -117,8 +117,8 @@ class LiveView:
     The panel is drawn by a child process. Drawing in the loop's process,
     even from another thread, cost a real-time test its timing: the drawing
     thread takes the interpreter lock while the loop spins towards its
-    deadline or waits for its reply (measured: p99 lateness 1.5 ms and an
-    abort after 1,000 ticks at 1 kHz, against 53 us without the panel). The
+    deadline or waits for its reply (in one-off runs at 1 kHz against the rig
+    process: p99 lateness 1.3-1.6 ms and an abort after 1,000 ticks). The
     loop writes a few hundred bytes every 100 ticks into a non-blocking
     pipe; if the drawing process falls behind or dies, updates are dropped,
     never waited for.
@@ -213,8 +213,8 @@ def _step_aside() -> None:
 
     Woken four times a second, a normal process would preempt the loop (or,
     in simulation, the rig process) for the few milliseconds a redraw takes:
-    measured at 1 kHz, 4 % of ticks overran with the panel at normal
-    priority, against 0.1-0.3 % without it.
+    in one-off runs at 1 kHz, 3.6-4.9 % of ticks overran with the panel at
+    normal priority.
     """
     try:
         os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
@@ -18,7 +17,6 @@ class Snapshot:
 
     phase: str = "connect"
     phases_done: list[str] = field(default_factory=list)
-    phase_started: float = field(default_factory=time.monotonic)
     tick: int = 0
     ticks: int = 0
     period_s: float = 0.001
@@ -47,7 +45,6 @@ class Snapshot:
         if self.phase != name and self.phase not in self.phases_done:
             self.phases_done.append(self.phase)
         self.phase = name
-        self.phase_started = time.monotonic()
 
     def update(self, k: int, loop: Any) -> None:
         """Copy tick ``k``'s figures out of a :class:`~edc_bench.control.loop.BenchLoop`."""
