@@ -14,7 +14,7 @@ On any python-can bus (a real rig, or ``edc-bench rig`` over slcan)::
 
     import can
     from edc_bench.bench import run_bench_test
-    from edc_bench.control.clock import RealTimeClock
+    from edc_bench.runtime.clock import RealTimeClock
 
     with can.Bus(interface="slcan", channel="socket://127.0.0.1:5000", bitrate=500000,
                  sleep_after_open=0) as bus:
@@ -37,17 +37,19 @@ import numpy as np
 
 from edc_bench import __version__
 from edc_bench.config.models import PARAMETER_NAMES, Variant
-from edc_bench.control.analysis import Identification, analyse, timing_summary
-from edc_bench.control.build import nominal_plant
-from edc_bench.control.clock import Clock, SimulatedClock
 from edc_bench.control.fel import FelController
-from edc_bench.control.loop import BenchLoop, LoopObserver, LoopOutcome
-from edc_bench.control.signals import interrupt_guard, stop_requested
-from edc_bench.control.stability import LoopMargins, check_variant_gains
+from edc_bench.control.stability import LoopMargins
+from edc_bench.diagnosis.identification import Identification, analyse
+from edc_bench.physics.feedforward import FeedforwardParameters
+from edc_bench.physics.valve import ValveSpec, parse_valve_spec
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.stream import StreamingCanLog
-from edc_bench.records.trace import CanFrameLog
-from edc_bench.sim.valve import FeedforwardParameters, ValveSpec, parse_valve_spec
+from edc_bench.runtime.clock import Clock, SimulatedClock
+from edc_bench.runtime.gain_check import check_variant_gains
+from edc_bench.runtime.loop import BenchLoop, LoopObserver, LoopOutcome
+from edc_bench.runtime.signals import interrupt_guard, stop_requested
+from edc_bench.runtime.timing import timing_summary
+from edc_bench.runtime.trace import CanFrameLog
 
 #: Verdict of a trustworthy test that was not classified (``classify=False``,
 #: as in baseline calibration). Never reported as PASS.
@@ -141,8 +143,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     bus : can.BusABC
         Bus to the rig (any python-can interface).
     clock : Clock
-        :class:`~edc_bench.control.clock.SimulatedClock` (lockstep with an
-        in-process rig) or :class:`~edc_bench.control.clock.RealTimeClock`.
+        :class:`~edc_bench.runtime.clock.SimulatedClock` (lockstep with an
+        in-process rig) or :class:`~edc_bench.runtime.clock.RealTimeClock`.
     variant : Variant
         Pump variant.
     valve_id : str, optional
@@ -176,7 +178,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     ConfigError
         If the variant's gains are unstable or marginal on its nominal plant.
     """
-    margins = check_variant_gains(variant, nominal_plant(variant)) if check_gains else None
+    margins = check_variant_gains(variant) if check_gains else None
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested)
     with interrupt_guard():
@@ -299,7 +301,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         Pump variant.
     valve : str or ValveSpec
         ``new``, ``worn``, ``faulty``, physical values (see
-        :func:`~edc_bench.sim.valve.parse_valve_spec`) or a spec.
+        :func:`~edc_bench.physics.valve.parse_valve_spec`) or a spec.
     seed : int
         Seed of the rig's sensor noise.
     stiction, sensor_noise : bool
@@ -311,7 +313,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     BenchResult
         With ``truth`` set to the simulated plant's parameters.
     """
-    from edc_bench.diagnosis.population import is_faulty, resisting_force_n
+    from edc_bench.physics.wear import is_faulty, resisting_force_n
     from edc_bench.sim.inprocess import InProcessRig
     from edc_bench.sim.lockstep_bus import lockstep_pair
     from edc_bench.sim.rig import RigOptions, SimulatedRig

@@ -23,13 +23,13 @@ from typing import Any
 import numpy as np
 
 from edc_bench.config.models import Variant
-from edc_bench.control.build import build_controller
+from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
-from edc_bench.control.loop import LoopOutcome, reply_flags
 from edc_bench.errors import ConfigError, ProtocolError
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
-from edc_bench.records.reader import Frame
-from edc_bench.records.trace import Trace
+from edc_bench.records.reader import LoggedFrame
+from edc_bench.runtime.loop import LoopOutcome, reply_flags
+from edc_bench.runtime.trace import Trace
 
 #: The command carries the drive in mV; a replayed drive further off than this is a different run.
 DRIVE_TOLERANCE_V = 0.0005 + 1e-9
@@ -47,7 +47,7 @@ class ReplayedRun:
     notes: list[str] = field(default_factory=list)
 
 
-def _split_ticks(frames: list[Frame], icd: Icd) -> tuple[Any, list[tuple[Any, Any]]]:
+def _split_ticks(frames: list[LoggedFrame], icd: Icd) -> tuple[Any, list[tuple[Any, Any]]]:
     """The synchronising SAFE reply, and per RUN command (command, accepted reply or None)."""
     sync_reply = None
     pending_safe = None
@@ -80,7 +80,7 @@ def _split_ticks(frames: list[Frame], icd: Icd) -> tuple[Any, list[tuple[Any, An
     return sync_reply, ticks
 
 
-def replay_frames(frames: list[Frame], variant: Variant, *, ticks_start_s: float = 0.0,
+def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s: float = 0.0,
                   icd: Icd | None = None) -> ReplayedRun:
     """Rebuild a test's trace and controller from its frames.
 
@@ -129,13 +129,13 @@ def replay_frames(frames: list[Frame], variant: Variant, *, ticks_start_s: float
         cols["t_s"][k] = t_k - ticks_start_s
         cols["lateness_s"][k] = math.nan
         cols["reply_latency_s"][k] = math.nan
-        cols["reference_mm"][k] = ctl.r_prev_mm
-        cols["reference_velocity_mm_s"][k] = ctl.r1_mm_s
+        cols["reference_mm"][k] = ctl.reference_mm
+        cols["reference_velocity_mm_s"][k] = ctl.reference_velocity_mm_s
         cols["position_mm"][k] = position_mm
         cols["current_a"][k] = current_a
         cols["drive_v"][k] = u
-        cols["feedforward_v"][k] = ctl.u1_v
-        cols["feedback_v"][k] = ctl.u2_v
+        cols["feedforward_v"][k] = ctl.feedforward_v
+        cols["feedback_v"][k] = ctl.feedback_v
         cols["adapting"][k] = ctl.adapting
         cols["reply_ok"][k] = reply is not None
         cols["rig_flags"][k] = flags

@@ -131,8 +131,8 @@ def judge(period_s: float, late_s: np.ndarray, steal_s: float, overrun_limit: fl
 
 def check_station(period_s: float, duration_s: float, overrun_limit: float) -> StationCheck:
     """Measure for ``duration_s`` at ``period_s`` and judge."""
-    from edc_bench.control.clock import cpu_steal_s
     from edc_bench.perf.loops import bare_loop
+    from edc_bench.runtime.clock import cpu_steal_s
 
     busy = _busy_programs()
     steal0 = cpu_steal_s()

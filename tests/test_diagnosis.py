@@ -28,9 +28,10 @@ from edc_bench.diagnosis.classifier import (
 )
 from edc_bench.diagnosis.dataset import Dataset, make_dataset
 from edc_bench.diagnosis.experiments import boundary_tradeoff, evaluate, paper_experiment
-from edc_bench.diagnosis.population import draw_population, is_faulty, new_valves, resisting_force_n
+from edc_bench.diagnosis.population import draw_population, new_valves
 from edc_bench.errors import ConfigError
-from edc_bench.sim.valve import parse_valve_spec
+from edc_bench.physics.valve import parse_valve_spec
+from edc_bench.physics.wear import is_faulty, resisting_force_n
 
 REPO = Path(__file__).parent.parent
 NAMES = ("a3", "a2", "a1", "a0", "b", "af")

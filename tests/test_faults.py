@@ -26,12 +26,12 @@ import pytest
 
 from edc_bench.bench import INVALID, BenchResult, run_bench_test
 from edc_bench.config import load_variant
-from edc_bench.control.clock import SimulatedClock
+from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
 from edc_bench.records.record import write_record
+from edc_bench.runtime.clock import SimulatedClock
 from edc_bench.sim.inprocess import InProcessRig
 from edc_bench.sim.rig import SimulatedRig
-from edc_bench.sim.valve import parse_valve_spec
 from edc_bench.testing.faults import RIG_FAULTS, FaultyBus, Rule, schedule_rig_fault
 
 FAULT_AT_S = 2.5  # clock time of the fault (the rig boots in 0.2 s, the ticks start just after)

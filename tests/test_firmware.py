@@ -6,15 +6,7 @@ import math
 
 import pytest
 
-from edc_bench.protocol import (
-    BENCH_CMD_ID,
-    RIG_FEEDBACK_ID,
-    RIG_HEARTBEAT_ID,
-    FaultCode,
-    Icd,
-    Mode,
-    RigState,
-)
+from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState
 from firmware_proto.firmware import FirmwareLimits, RigFirmware
 
 

@@ -12,12 +12,14 @@ import numpy as np
 import pytest
 
 from edc_bench.config import Variant
-from edc_bench.control.build import build_controller, nominal_plant
-from edc_bench.control.stability import cached_loop_margins, loop_margins
+from edc_bench.control.design import ControllerDesign
+from edc_bench.control.stability import loop_margins
 from edc_bench.perf.compute import lean_tick, struct_floor
 from edc_bench.perf.loops import stolen_mask, with_timing
 from edc_bench.perf.suite import GROUPS
+from edc_bench.physics.valve import nominal_plant
 from edc_bench.protocol import Icd, Mode
+from edc_bench.runtime.gain_check import cached_loop_margins
 
 
 def test_perf_quick_prints_all_five_groups() -> None:
@@ -40,13 +42,14 @@ def test_perf_quick_prints_all_five_groups() -> None:
 @pytest.mark.parametrize("kind", ["rls", "gradient"])
 def test_tick_floor_does_the_controllers_arithmetic(variant: Variant, kind: str) -> None:
     variant = variant.model_copy(update={"estimator": variant.estimator.model_copy(update={"kind": kind})})
-    ctl, floor = build_controller(variant, 1.0), lean_tick(build_controller(variant, 1.0))
+    design = ControllerDesign.from_variant(variant)
+    ctl, floor = design.controller(1.0), lean_tick(design, 1.0)
     rng = np.random.default_rng(0)
     x = 1.0
     for k in range(6000):  # past the move, so the estimator adapts
         u, u_floor = ctl.step(k, x), floor(k, x)
         assert u_floor == pytest.approx(u, abs=1e-9), k
-        x = ctl.r_prev_mm + rng.normal(0.0, 0.005)
+        x = ctl.reference_mm + rng.normal(0.0, 0.005)
     assert ctl.estimator.updates > 1000
 
 

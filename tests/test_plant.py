@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from edc_bench.config import Variant
-from edc_bench.sim.plant import Plant, PlantParameters
-from edc_bench.sim.valve import parse_valve_spec, plant_parameters, with_friction
+from edc_bench.physics.parameters import PlantParameters
+from edc_bench.physics.valve import parse_valve_spec, plant_parameters, with_friction
+from edc_bench.sim.plant import Plant
 
 
 @pytest.fixture()

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from edc_bench.config import load_variant
-from edc_bench.control.build import build_controller
+from edc_bench.control.design import build_controller
 
 VARIANT = load_variant()
 LIMIT = VARIANT.rig.drive_limit_v

@@ -13,10 +13,11 @@ import pytest
 
 from edc_bench.bench import run_simulated_test
 from edc_bench.config import load_variant, parse_variant
+from edc_bench.physics.feedforward import feedforward_truth
+from edc_bench.physics.valve import parse_valve_spec, plant_parameters
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID
 from edc_bench.records.record import write_record
-from edc_bench.records.trace import TRACE_COLUMNS
-from edc_bench.sim.valve import feedforward_truth, parse_valve_spec, plant_parameters
+from edc_bench.runtime.trace import TRACE_COLUMNS
 
 
 def edc_bench(*args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -199,7 +200,7 @@ class FailingBus(can.BusABC):
 
 def test_bus_error_mid_test_ends_invalid_with_the_data_so_far(tmp_path: Path) -> None:
     from edc_bench.bench import run_bench_test
-    from edc_bench.control.clock import SimulatedClock
+    from edc_bench.runtime.clock import SimulatedClock
     from edc_bench.sim.inprocess import InProcessRig
     from edc_bench.sim.rig import SimulatedRig
 

@@ -13,14 +13,14 @@ import pytest
 
 from edc_bench.bench import run_bench_test, run_simulated_test
 from edc_bench.config import load_variant
-from edc_bench.control.clock import SimulatedClock
 from edc_bench.errors import ConfigError
+from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.records.record import write_record
 from edc_bench.replay import replay_record
+from edc_bench.runtime.clock import SimulatedClock
 from edc_bench.sim.inprocess import InProcessRig
 from edc_bench.sim.lockstep_bus import lockstep_pair
 from edc_bench.sim.rig import SimulatedRig
-from edc_bench.sim.valve import parse_valve_spec
 from edc_bench.testing.faults import FaultyBus, Rule
 
 

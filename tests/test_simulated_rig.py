@@ -8,10 +8,10 @@ import can
 import pytest
 
 from edc_bench.config import Variant
+from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, Icd, Mode, RigState
 from edc_bench.sim.inprocess import InProcessRig
 from edc_bench.sim.rig import RigOptions, SimulatedRig
-from edc_bench.sim.valve import parse_valve_spec
 
 _channels = itertools.count()
 

@@ -7,13 +7,8 @@ import pytest
 
 from edc_bench.config import Variant
 from edc_bench.errors import ConfigError
-from edc_bench.sim.valve import (
-    ValveSpec,
-    feedforward_truth,
-    parse_valve_spec,
-    plant_parameters,
-    sample_valve,
-)
+from edc_bench.physics.feedforward import feedforward_truth
+from edc_bench.physics.valve import ValveSpec, parse_valve_spec, plant_parameters, sample_valve
 
 
 def test_presets_and_physical_specs(variant: Variant) -> None:

@@ -42,9 +42,9 @@ def run(args: argparse.Namespace) -> int:
     variant = load_variant(args.variant)
     if args.interface or args.channel:
         from edc_bench.bench import INVALID, run_bench_test
-        from edc_bench.bus import open_bus
-        from edc_bench.control.clock import RealTimeClock
         from edc_bench.protocol import default_icd
+        from edc_bench.runtime.bus import open_bus
+        from edc_bench.runtime.clock import RealTimeClock
 
         config = {k: v for k, v in (("interface", args.interface), ("channel", args.channel),
                                     ("bitrate", args.bitrate)) if v is not None}

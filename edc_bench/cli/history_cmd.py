@@ -78,7 +78,7 @@ def _export(rows: list[dict[str, Any]], target: str) -> None:
     if target == "-":
         print_quietly_if_closed(lambda: write_csv(rows, sys.stdout))
         return
-    from edc_bench.records.writer import atomic_write
+    from edc_bench.paths import atomic_write
 
     path = Path(target)
     if not path.parent.exists():
@@ -158,7 +158,7 @@ def _plot(rows: list[dict[str, Any]], valve: str, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from edc_bench.records.writer import atomic_write
+    from edc_bench.paths import atomic_write
 
     fig, ax = plt.subplots(figsize=(7, 3.5))
     visits = range(1, len(rows) + 1)

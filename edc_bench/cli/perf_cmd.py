@@ -36,7 +36,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _environment(quick: bool) -> dict[str, Any]:
     from edc_bench import __version__
-    from edc_bench.control.clock import cpu_steal_s
+    from edc_bench.runtime.clock import cpu_steal_s
 
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
@@ -64,8 +64,8 @@ def _table(figures: list[Any], env: dict[str, Any]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the chosen groups and report."""
-    from edc_bench.control.clock import cpu_steal_s
     from edc_bench.perf import suite
+    from edc_bench.runtime.clock import cpu_steal_s
 
     groups = tuple(dict.fromkeys(args.only)) if args.only else suite.GROUPS
     if args.variant is not None:

@@ -30,9 +30,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build the rig and serve until SIGINT or SIGTERM."""
     from edc_bench.config import load_variant
+    from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.sim.rig import SimulatedRig
     from edc_bench.sim.server import SlcanRigServer
-    from edc_bench.sim.valve import parse_valve_spec
 
     variant = load_variant(args.variant)
     valve = parse_valve_spec(args.valve, variant)

@@ -107,7 +107,7 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the test, write the record, report."""
-    from edc_bench.control.signals import interrupt_guard
+    from edc_bench.runtime.signals import interrupt_guard
 
     with interrupt_guard():  # the first Ctrl-C aborts the test; later ones cannot cost the record
         return _run_guarded(args)
@@ -146,12 +146,12 @@ def _observer(args: argparse.Namespace, title: str) -> Any:
 
 def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.bench import run_bench_test, run_simulated_test
-    from edc_bench.bus import open_bus
-    from edc_bench.control.clock import RealTimeClock
+    from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.protocol import default_icd
     from edc_bench.records.record import write_record
     from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
-    from edc_bench.sim.valve import parse_valve_spec
+    from edc_bench.runtime.bus import open_bus
+    from edc_bench.runtime.clock import RealTimeClock
 
     variant = _variant(args)
     bus_config = _bus_config(args)

@@ -41,8 +41,9 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.errors import ConfigError
 
     try:
-        from edc_bench.diagnosis.train import train
         import sklearn  # noqa: F401
+
+        from edc_bench.diagnosis.train import train
     except ImportError:
         raise ConfigError("training needs the 'train' extra: pip install '.[train]'") from None
     if args.count < 20:

@@ -1,7 +1,7 @@
 """Feedback-error learning: one controller tick, pure.
 
-Per tick k (period T, time t_k = k T), given the rack position sampled at
-t_{k-1} (the rig's reply to the previous command, DESIGN 3.1):
+Per tick k (period T, time t_k = k T), given the newest rack position the
+rig has reported (sampled at t_{k-1} when its reply came within the tick):
 
 1. error e = r(t_{k-1}) - x(t_{k-1}); PID output u2.
 2. regressor W = [r''', r'', r', r, 1, sgn(r')] at t_k + T/2, the middle of
@@ -18,6 +18,7 @@ nominal value and their share of u1 is taken off the target.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,72 +26,90 @@ from edc_bench.control.estimators import Estimator
 from edc_bench.control.pid import Pid
 from edc_bench.control.reference import Reference
 
-N_PARAMETERS = 6
+if TYPE_CHECKING:
+    from edc_bench.control.design import ControllerDesign
+
+#: One row of :func:`reference_table`: r, r', r'', r''' at mid-tick, and r at the tick's start.
+ReferenceRow = tuple[float, float, float, float, float]
+
+
+def reference_table(reference: Reference, period_s: float, ticks: int) -> list[ReferenceRow]:
+    """Per tick k: the reference and its derivatives at t_k + T/2 (the regressor's time), and r(t_k).
+
+    Tabulated up front (vectorised), so a tick only looks its row up.
+    """
+    k = np.arange(ticks, dtype=float)
+    mid = reference.tabulate((k + 0.5) * period_s)
+    return list(zip(*mid.tolist(), reference.tabulate(k * period_s)[0].tolist(), strict=True))
+
+
+def regressor_matrix(reference: Reference, t_s: np.ndarray, period_s: float) -> np.ndarray:
+    """The six regressors ``[r''', r'', r', r, 1, sgn r']`` at mid-tick of each time in ``t_s`` (one row each)."""
+    r, r1, r2, r3 = reference.tabulate(np.asarray(t_s, dtype=float) + 0.5 * period_s)
+    return np.column_stack((r3, r2, r1, r, np.ones_like(r), np.sign(r1)))
+
+
+def condition_number(phi: np.ndarray) -> float:
+    """Condition number of the regression's information matrix, columns scaled to unit norm.
+
+    Scaling makes it measure collinearity of the regressors, not their units.
+    """
+    norms = np.linalg.norm(phi, axis=0)
+    norms[norms == 0] = 1.0
+    scaled = phi / norms
+    return float(np.linalg.cond(scaled.T @ scaled))
 
 
 class FelController:
     """PID feedback, friction-compensated feedforward and online estimation.
 
+    Build it with :meth:`edc_bench.control.design.ControllerDesign.controller`.
+
     Parameters
     ----------
+    design : ControllerDesign
+        Nominal parameters, parameter split, regressor scales, limits and timing.
     reference : Reference
-        The rack reference.
+        The rack reference of this test.
     pid : Pid
         The feedback controller.
     estimator : Estimator
         Fits the estimated parameters, in normalised form.
-    nominal : sequence of float
-        Nominal ``[a3, a2, a1, a0, b, af]``: start values, and the values of
-        the parameters that are not estimated.
-    estimated : sequence of int
-        Indices (into the six) of the parameters the estimator adapts, in the
-        estimator's order.
-    scales : sequence of float
-        Typical magnitude of each regressor; the estimator works on
-        ``W_i / scale_i``, so its parameters are ``a_i * scale_i``.
-    drive_limit_v : float
-        The drive saturates at +/- this.
-    period_s : float
-        Tick period T.
-    adapt_from_s : float
-        No adaptation before this time (the move to mid-stroke).
-    reversal_speed_mm_s : float
-        No adaptation while |r'| is below this.
-    ticks : int, optional
-        Number of ticks the test will run. The reference of those ticks is
-        tabulated up front (vectorised), so a tick only looks it up; ticks
-        beyond are computed as they come.
+
+    Attributes
+    ----------
+    reference_mm : float
+        The reference at the last tick's time t_k: what the command carries,
+        and what the next sample is compared with.
+    reference_velocity_mm_s, feedforward_v, feedback_v : float
+        The last tick's r' (at mid-tick), u1 and u2.
+    adapting : bool
+        Whether the last tick updated the estimator.
+    table : list of tuple
+        The reference per tick (:func:`reference_table`) for the design's ticks.
     """
 
-    def __init__(self, reference: Reference, pid: Pid, estimator: Estimator, *, nominal: Sequence[float],
-                 estimated: Sequence[int], scales: Sequence[float], drive_limit_v: float, period_s: float,
-                 adapt_from_s: float, reversal_speed_mm_s: float, ticks: int = 0) -> None:
-        if len(nominal) != N_PARAMETERS or len(scales) != N_PARAMETERS:
-            raise ValueError("nominal and scales need six entries: a3, a2, a1, a0, b, af")
+    def __init__(self, design: ControllerDesign, reference: Reference, pid: Pid, estimator: Estimator) -> None:
+        self.design = design
         self.reference = reference
         self.pid = pid
         self.estimator = estimator
-        self.estimated = tuple(estimated)
-        self.fixed = tuple(i for i in range(N_PARAMETERS) if i not in self.estimated)
-        self.nominal = tuple(float(v) for v in nominal)
-        self.scales = tuple(float(s) for s in scales)
-        self.drive_limit_v = drive_limit_v
-        self.period_s = period_s
-        self.adapt_from_s = adapt_from_s
-        self.reversal_speed_mm_s = reversal_speed_mm_s
-        self._w = [0.0] * N_PARAMETERS
+        self.estimated = design.estimated
+        self.fixed = design.fixed
+        self.nominal = design.nominal
+        self.scales = design.scales
+        self.drive_limit_v = design.drive_limit_v
+        self.period_s = design.period_s
+        self.adapt_from_s = design.adapt_from_s
+        self.reversal_speed_mm_s = design.reversal_exclusion * reference.peak_velocity_mm_s
+        self._w = [0.0] * len(design.nominal)
         self._w_est = [0.0] * len(self.estimated)
         self._saturated = 0
-        k = np.arange(ticks, dtype=float)
-        mid = reference.tabulate((k + 0.5) * period_s)  # the regressor's times
-        self._table = list(zip(*mid.tolist(), reference.tabulate(k * period_s)[0].tolist(), strict=True))
-        # last tick's values, for the recorder
-        self.r_mm = reference.at(0.0)[0]
-        self.r_prev_mm = self.r_mm
-        self.r1_mm_s = 0.0
-        self.u1_v = 0.0
-        self.u2_v = 0.0
-        self.u_v = 0.0
+        self.table = reference_table(reference, design.period_s, design.ticks)
+        self.reference_mm = reference.at(0.0)[0]
+        self.reference_velocity_mm_s = 0.0
+        self.feedforward_v = 0.0
+        self.feedback_v = 0.0
         self.adapting = False
 
     def parameters(self) -> list[float]:
@@ -117,7 +136,7 @@ class FelController:
         k : int
             Tick index (time k T).
         measured_mm : float
-            Rack position sampled at tick k-1.
+            The newest rack position the rig has reported.
 
         Returns
         -------
@@ -126,11 +145,11 @@ class FelController:
         """
         T = self.period_s
         t = k * T
-        error = self.r_prev_mm - measured_mm
+        error = self.reference_mm - measured_mm
         u2 = self.pid.update(error, self._saturated)
 
-        if k < len(self._table):
-            r, r1, r2, r3, r_now = self._table[k]
+        if k < len(self.table):
+            r, r1, r2, r3, r_now = self.table[k]
         else:
             r, r1, r2, r3 = self.reference.at(t + 0.5 * T)
             r_now = self.reference.at(t)[0]
@@ -166,7 +185,7 @@ class FelController:
                 w_est[j] = w[i] / scales[i]
             self.estimator.update(w_est, u - fixed_part)
 
-        # the reference at this tick is what the next sample will be compared to
-        self.r_prev_mm = r_now
-        self.r_mm, self.r1_mm_s, self.u1_v, self.u2_v, self.u_v = r, r1, u1, u2, u
+        # the reference at this tick is what the next sample is compared with
+        self.reference_mm = r_now
+        self.reference_velocity_mm_s, self.feedforward_v, self.feedback_v = r1, u1, u2
         return u

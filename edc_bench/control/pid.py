@@ -29,6 +29,16 @@ class PidGains:
     derivative_filter_hz: float
 
 
+def derivative_filter_coefficients(gains: PidGains, period_s: float) -> tuple[float, float]:
+    """Coefficients ``(a, b)`` of the backward-Euler filtered derivative ``d_k = a d_{k-1} + b (e_k - e_{k-1})``.
+
+    The one discretisation of the derivative: the PID, its vectorised twin in
+    the batch path and the gain check's loop model all take it from here.
+    """
+    tau = 1.0 / (2.0 * math.pi * gains.derivative_filter_hz)
+    return tau / (tau + period_s), gains.kd_v_s_per_mm / (tau + period_s)
+
+
 class Pid:
     """Parallel PID: ``u = kp e + ki int(e) + kd D(e)``, D a filtered derivative.
 
@@ -50,20 +60,11 @@ class Pid:
         self.gains = gains
         self.period_s = period_s
         self.output_limit_v = output_limit_v
-        # backward-Euler filtered derivative: d_k = a d_{k-1} + b (e_k - e_{k-1})
-        tau = 1.0 / (2.0 * math.pi * gains.derivative_filter_hz)
-        self._a = tau / (tau + period_s)
-        self._b = gains.kd_v_s_per_mm / (tau + period_s)
+        self._a, self._b = derivative_filter_coefficients(gains, period_s)
         self.integral_v = 0.0
         self.derivative_v = 0.0
         self._last_error: float | None = None
         self.proportional_v = 0.0
-
-    def reset(self) -> None:
-        """Forget the integrator and the derivative state."""
-        self.integral_v = 0.0
-        self.derivative_v = 0.0
-        self._last_error = None
 
     def update(self, error_mm: float, saturated_sign: int = 0) -> float:
         """One PID step.

@@ -9,19 +9,14 @@ computes it. Friction is left out (the nominal plant is the linear one).
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
-import hashlib
-import json
 import math
 import warnings
 from dataclasses import dataclass
 
-from edc_bench import __version__
 from edc_bench.config.models import Variant
+from edc_bench.control.pid import PidGains, derivative_filter_coefficients
 from edc_bench.errors import ConfigError
-from edc_bench.paths import cache_dir, write_json_atomic
-from edc_bench.sim.plant import PlantParameters
+from edc_bench.physics.parameters import PlantParameters
 
 
 @dataclass(frozen=True)
@@ -76,9 +71,7 @@ def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, deriv
     mech = control.tf([1.0], [p.mass_n_s2_per_mm, p.damping_n_s_per_mm, p.net_stiffness_n_per_mm])
     plant_d = control.c2d(coil * mech, period_s, method="zoh")
     z = control.tf([1.0, 0.0], [1.0], period_s)
-    tau = 1.0 / (2.0 * math.pi * derivative_filter_hz)
-    a = tau / (tau + period_s)
-    b = kd / (tau + period_s)
+    a, b = derivative_filter_coefficients(PidGains(kp, ki, kd, derivative_filter_hz), period_s)
     pid = kp + ki * period_s * z / (z - 1) + b * (z - 1) / (z - a)
     loop = pid * plant_d / z
     with warnings.catch_warnings():
@@ -96,34 +89,20 @@ def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, deriv
     )
 
 
-def cached_loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, derivative_filter_hz: float,
-                        period_s: float) -> LoopMargins:
-    """:func:`loop_margins`, remembered on disk for the same inputs.
-
-    Importing python-control costs more than a second; a technician runs the
-    same variant all day, so the margins of the same gains on the same plant
-    (and the same edc-bench and python-control versions) are computed once
-    and read back afterwards. An unreadable or unwritable cache only costs
-    the computation.
-    """
-    from importlib.metadata import version
-
-    key_data = [dataclasses.astuple(params), kp, ki, kd, derivative_filter_hz, period_s,
-                __version__, version("control")]
-    key = hashlib.sha256(json.dumps(key_data).encode()).hexdigest()
-    path = cache_dir() / "loop-margins" / f"{key}.json"
-    try:
-        return LoopMargins(**json.loads(path.read_text(encoding="utf-8")))
-    except (OSError, ValueError, TypeError):
-        pass
-    margins = loop_margins(params, kp, ki, kd, derivative_filter_hz, period_s)
-    with contextlib.suppress(OSError):
-        write_json_atomic(path, dataclasses.asdict(margins))
-    return margins
-
-
-def check_variant_gains(variant: Variant, nominal: PlantParameters) -> LoopMargins:
+def refuse_poor_margins(variant: Variant, m: LoopMargins) -> LoopMargins:
     """Refuse gains that are unstable or marginal on the variant's nominal plant.
+
+    Parameters
+    ----------
+    variant : Variant
+        Supplies the gains (for the message) and the minimum margins.
+    m : LoopMargins
+        The margins of the variant's loop on its nominal plant.
+
+    Returns
+    -------
+    LoopMargins
+        ``m``, when the margins are enough.
 
     Raises
     ------
@@ -131,7 +110,6 @@ def check_variant_gains(variant: Variant, nominal: PlantParameters) -> LoopMargi
         Naming the margins found and the minimums the variant asks for.
     """
     c = variant.controller
-    m = cached_loop_margins(nominal, c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm, c.derivative_filter_hz, c.period_s)
     if not m.closed_loop_stable:
         raise ConfigError(
             f"variant {variant.name}: PID gains kp={c.kp_v_per_mm}, ki={c.ki_v_per_mm_s}, kd={c.kd_v_s_per_mm} "

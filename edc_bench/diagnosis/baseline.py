@@ -15,8 +15,8 @@ from pathlib import Path
 
 from edc_bench.config.loader import variant_dirs
 from edc_bench.config.models import Variant
-from edc_bench.control.build import nominal_parameters
 from edc_bench.errors import ConfigError
+from edc_bench.physics.feedforward import nominal_parameters
 
 BASELINE_DIR = "baselines"
 

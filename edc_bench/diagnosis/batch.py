@@ -17,7 +17,6 @@ and evaluate a classifier on.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -25,9 +24,12 @@ import numpy as np
 from scipy.linalg import expm
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
-from edc_bench.control.build import nominal_parameters, reference_for, regressor_scales
+from edc_bench.control.design import ControllerDesign
+from edc_bench.control.fel import condition_number, regressor_matrix
+from edc_bench.diagnosis.identification import settle_times_s
+from edc_bench.physics.feedforward import feedforward_truth
+from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.sim.plant import STICK_SPEED_MM_S
-from edc_bench.sim.valve import ValveSpec, feedforward_truth, plant_parameters
 
 QUANTA_PER_PERIOD = 10
 HISTORY_EVERY = 10  # ticks between stored estimates (settle times at 10 ms resolution)
@@ -200,8 +202,8 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     n = len(valves)
     if n == 0 or len(seeds) != n:
         raise ValueError("one seed per valve, and at least one valve")
-    T = variant.controller.period_s
-    ticks = int(round(variant.excitation.duration_s / T))
+    design = ControllerDesign.from_variant(variant)
+    T, ticks = design.period_s, design.ticks
     plant = _VectorPlant(variant, valves, stiction, T)
     lvdt = variant.sensors.lvdt
     noise = _Noise(seeds, lvdt.noise_sd if sensor_noise else 0.0)
@@ -212,7 +214,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         return np.round((plant.x + offset + noise.next()) / resolution) * resolution
 
     # the reference is affine in its start position: tabulate it for start 0 and start 1
-    ref0, ref1 = reference_for(variant, 0.0), reference_for(variant, 1.0)
+    ref0, ref1 = design.reference(0.0), design.reference(1.0)
     t_ticks = np.arange(ticks) * T
     mid0 = ref0.tabulate(t_ticks + 0.5 * T)
     mid_slope = ref1.tabulate(t_ticks + 0.5 * T) - mid0
@@ -220,33 +222,24 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     now_slope = ref1.tabulate(t_ticks)[0] - now0
     mid0_rows, mid_slope_rows = mid0.T.tolist(), mid_slope.T.tolist()
     start = sample()  # the SAFE reply before the first tick
-    nominal = np.array(nominal_parameters(variant))
-    scales = np.array(regressor_scales(variant))
-    est_idx = [PARAMETER_NAMES.index(p) for p in variant.estimator.estimate]
-    fixed_idx = [i for i in range(6) if i not in est_idx]
+    nominal = np.array(design.nominal)
+    scales = np.array(design.scales)
+    est_idx, fixed_idx = list(design.estimated), list(design.fixed)
     # valves along the last axis: every update is a contiguous pass over n values
-    theta = np.tile(np.array([(0.0 if PARAMETER_NAMES[i] in ("a1", "af") else nominal[i]) * scales[i]
-                              for i in est_idx])[:, None], (1, n))
-    prior = np.array([max(abs(nominal[i] * scales[i]), 1e-9) * 3.0 * variant.estimator.initial_std_rel
-                      for i in est_idx])
-    est = variant.estimator
-    rls = est.kind == "rls"
-    lam = est.forgetting_factor
-    P = np.tile(np.diag(prior**2)[:, :, None], (1, 1, n))
-    if not rls:
-        gains = est.gradient_gains_per_s
-        gain_vec = np.array([gains[p] for p in est.estimate] if isinstance(gains, dict)
-                            else [gains] * len(est_idx)) * T
-    c = variant.controller
-    tau = 1.0 / (2.0 * math.pi * c.derivative_filter_hz)
-    d_a, d_b = tau / (tau + T), c.kd_v_s_per_mm / (tau + T)
-    limit = variant.rig.drive_limit_v
+    theta = np.tile(np.array(design.theta0)[:, None], (1, n))
+    rls = design.estimator_kind == "rls"
+    lam = design.forgetting_factor
+    P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
+    gain_vec = np.array(design.gradient_gains_per_s) * T
+    gains = design.pid_gains
+    d_a, d_b = design.derivative_filter
+    limit = design.drive_limit_v
     integral = np.zeros(n)
     deriv = np.zeros(n)
     last_err = np.full(n, np.nan)
     sat = np.zeros(n)
-    adapt_from = variant.excitation.move_s
-    reversal = est.reversal_exclusion * ref0.peak_velocity_mm_s
+    adapt_from = design.adapt_from_s
+    reversal = design.reversal_speed_mm_s
     r_prev = start.copy()  # reference at the previous tick (r(0) = start)
     x_meas = start
     history = np.zeros((ticks // HISTORY_EVERY + 1, 2, n))
@@ -260,16 +253,17 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         t = k * T
         # PID on the error at the sample's time
         err = r_prev - x_meas
-        prop = c.kp_v_per_mm * err
-        step = c.ki_v_per_mm_s * err * T
+        prop = gains.kp_v_per_mm * err
+        step = gains.ki_v_per_mm_s * err * T
         blocked = sat * step > 0.0  # the drive saturated the way the integrator pushes
         integral = _clip(np.where(blocked, integral, integral + step), limit)
         deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
         last_err = err
         u2 = _clip(prop + integral + deriv, limit)
         # regressor at mid-interval, per valve (only r and its derivatives depend on the start)
-        a0_, d = mid0_rows[k], mid_slope_rows[k]
-        r3, r2, r1, r = (a0_[3] + start * d[3], a0_[2] + start * d[2], a0_[1] + start * d[1], a0_[0] + start * d[0])
+        at_start0, slope = mid0_rows[k], mid_slope_rows[k]
+        r3, r2, r1, r = (at_start0[3] + start * slope[3], at_start0[2] + start * slope[2],
+                         at_start0[1] + start * slope[1], at_start0[0] + start * slope[0])
         sgn = np.sign(r1)
         w_all = (r3, r2, r1, r, ones, sgn)
         for j, i in enumerate(est_idx):
@@ -314,30 +308,19 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     history = history[:hist_rows]
     t_hist = np.arange(hist_rows) * HISTORY_EVERY * T
     acc = variant.acceptance
-    settle = {}
-    for name, row in (("af", 0), ("a1", 1)):
-        values = history[:, row, :]
-        fin = values[-1]
-        outside = np.abs(values - fin) > acc.settle_band_rel * np.maximum(np.abs(fin), 1e-12)
-        last_out = np.where(outside.any(axis=0), hist_rows - 1 - np.argmax(outside[::-1], axis=0), -1)
-        settle[name] = np.where(last_out < 0, 0.0, np.maximum(0.0, t_hist[np.minimum(last_out + 1, hist_rows - 1)]
-                                                              - adapt_from))
+    settle = {name: settle_times_s(t_hist, history[:, row, :], adapt_from, acc.settle_band_rel)
+              for name, row in (("af", 0), ("a1", 1))}
     remaining = (ticks - 1) * T - adapt_from - acc.convergence_window_s
     converged = (settle["af"] <= remaining) & (settle["a1"] <= remaining)
     truth = np.array([list(feedforward_truth(p)) for p in plant.params])
-    return BatchResult(final, truth, converged, settle, _condition_number(variant, ref0, est_idx),
+    return BatchResult(final, truth, converged, settle, _condition_number(design, ref0),
                        list(valves), list(seeds))
 
 
-def _condition_number(variant: Variant, ref, est_idx: list[int]) -> float:
-    """Condition number of the normalised regression over the steady excitation (as the full loop)."""
-    T = variant.controller.period_s
-    ex = variant.excitation
-    t = np.arange(int(round((ex.move_s + ex.fade_s) / T)), int(round(ex.duration_s / T))) * T
-    reversal = variant.estimator.reversal_exclusion * ref.peak_velocity_mm_s
-    r, r1, r2, r3 = ref.tabulate(t + 0.5 * T)
-    keep = np.abs(r1) >= reversal
-    phi = np.column_stack((r3, r2, r1, r, np.ones_like(r), np.sign(r1)))[keep][:, est_idx]
-    norms = np.linalg.norm(phi, axis=0)
-    norms[norms == 0] = 1.0
-    return float(np.linalg.cond((phi / norms).T @ (phi / norms)))
+def _condition_number(design: ControllerDesign, reference) -> float:
+    """Condition number of the normalised regression over the steady excitation, as the loop's analysis finds it."""
+    T = design.period_s
+    t = np.arange(int(round((design.move_s + design.fade_s) / T)), design.ticks) * T
+    phi = regressor_matrix(reference, t, T)
+    keep = np.abs(phi[:, 2]) >= design.reversal_speed_mm_s
+    return condition_number(phi[keep][:, list(design.estimated)])

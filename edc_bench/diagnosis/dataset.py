@@ -25,10 +25,11 @@ from edc_bench.config import load_variant
 from edc_bench.config.models import Variant
 from edc_bench.diagnosis.baseline import load_baseline
 from edc_bench.diagnosis.batch import run_batch
-from edc_bench.diagnosis.population import draw_population, is_faulty, resisting_force_n
+from edc_bench.diagnosis.population import draw_population
 from edc_bench.errors import ConfigError
-from edc_bench.records.writer import atomic_write
-from edc_bench.sim.valve import ValveSpec
+from edc_bench.paths import atomic_write
+from edc_bench.physics.valve import ValveSpec
+from edc_bench.physics.wear import is_faulty, resisting_force_n
 
 GENERATOR_VERSION = 1
 CHUNK = 500

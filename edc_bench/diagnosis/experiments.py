@@ -15,14 +15,9 @@ from edc_bench.diagnosis.baseline import Baseline, load_baseline
 from edc_bench.diagnosis.batch import run_batch
 from edc_bench.diagnosis.classifier import FAIL, MARGINAL, ValveClassifier
 from edc_bench.diagnosis.dataset import COLUMNS, Dataset
-from edc_bench.diagnosis.population import (
-    clearance_for_resisting_force,
-    draw_population,
-    is_faulty,
-    new_valves,
-    resisting_force_n,
-)
-from edc_bench.sim.valve import ValveSpec, sample_valve
+from edc_bench.diagnosis.population import draw_population, new_valves
+from edc_bench.physics.valve import ValveSpec, sample_valve
+from edc_bench.physics.wear import clearance_for_resisting_force, is_faulty, resisting_force_n
 
 # --------------------------------------------------------------------------- evaluation
 
@@ -158,7 +153,7 @@ def draw_figure7(exp: PaperExperiment, path: Path) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Ellipse
 
-    from edc_bench.records.writer import atomic_write
+    from edc_bench.paths import atomic_write
 
     b = exp.baseline
     scale = np.array([b.af_v, b.a1_v_s_per_mm])
@@ -224,7 +219,7 @@ def draw_tradeoff(curve: dict[str, np.ndarray], path: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from edc_bench.records.writer import atomic_write
+    from edc_bench.paths import atomic_write
 
     fig, ax = plt.subplots(figsize=(6.5, 5.0), constrained_layout=True)
     ax.plot(curve["needless_replacement"] * 100, curve["faulty_passed"] * 100, "-o", markersize=3)

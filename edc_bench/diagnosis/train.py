@@ -104,8 +104,8 @@ def train(dataset: Dataset, kind: str, seed: int, *, threshold: float = DEFAULT_
     only_converged : bool
         Train only on tests that converged (a model never learns from bad tests).
     """
-    import sklearn
     import skl2onnx
+    import sklearn
 
     keep = dataset.columns["converged"].astype(bool) if only_converged else np.ones(len(dataset), bool)
     X = dataset.features[keep].astype(np.float64)

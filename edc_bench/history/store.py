@@ -52,7 +52,6 @@ tests = sa.Table(
 
 #: Columns in listings and CSV exports, in order.
 COLUMNS = tuple(c.name for c in tests.columns if c.name != "id")
-VERDICTS = ("PASS", "MARGINAL", "FAIL", "INVALID", "UNCLASSIFIED")
 
 
 def default_url() -> str:

@@ -18,9 +18,8 @@ from collections.abc import Callable
 import numpy as np
 
 from edc_bench.config.models import Variant
-from edc_bench.control.build import build_controller
-from edc_bench.control.estimators import RecursiveLeastSquares
-from edc_bench.control.fel import FelController
+from edc_bench.control.design import ControllerDesign
+from edc_bench.control.fel import FelController, reference_table
 from edc_bench.perf.figures import percentiles
 from edc_bench.protocol import Icd, Mode
 from edc_bench.protocol.crc import e2e_crc
@@ -45,33 +44,32 @@ def _measured_positions(ctl: FelController, count: int, seed: int = 1) -> list[f
     return (r_now + rng.normal(0.0, 0.005, count)).tolist()
 
 
-def lean_tick(ctl: FelController) -> Callable[[int, float], float]:
+def lean_tick(design: ControllerDesign, start_mm: float) -> Callable[[int, float], float]:
     """The floor: :meth:`FelController.step` inlined into one closure.
 
-    The same arithmetic on the same starting state (reference table, PID,
-    the estimator's parameters and covariance), with no attribute lookups
-    or method calls left in the tick.
+    Built from the same :class:`ControllerDesign` as the loop's controller
+    (reference table, PID coefficients, starting estimates and prior), with
+    no attribute lookups or method calls left in the tick.
     """
-    # the floor starts from the controller's own precomputed reference and PID coefficients
-    table = ctl._table
-    pid = ctl.pid
-    kp, ki_t = pid.gains.kp_v_per_mm, pid.gains.ki_v_per_mm_s * pid.period_s
-    d_a, d_b, limit_pid = pid._a, pid._b, pid.output_limit_v
-    est = ctl.estimator
-    rls = isinstance(est, RecursiveLeastSquares)
-    theta = list(est.theta)
-    P = [list(row) for row in est.P] if rls else None
-    lam = est.lam if rls else 1.0
+    reference = design.reference(start_mm)
+    table = reference_table(reference, design.period_s, design.ticks)
+    gains = design.pid_gains
+    kp, ki_t = gains.kp_v_per_mm, gains.ki_v_per_mm_s * design.period_s
+    d_a, d_b = design.derivative_filter
+    limit_pid = limit = design.drive_limit_v
+    rls = design.estimator_kind == "rls"
+    theta = list(design.theta0)
+    P = [[s * s if i == j else 0.0 for j, s in enumerate(design.prior_std)] for i in range(len(theta))]
+    lam = design.forgetting_factor if rls else 1.0
     inv_lam = 1.0 / lam
-    gains = list(getattr(est, "gains", ()))
-    idx = ctl.estimated
+    gains_t = [g * design.period_s for g in design.gradient_gains_per_s]
+    idx = design.estimated
     n = len(idx)
-    inv_scale = [1.0 / ctl.scales[i] for i in idx]
-    fixed = [(i, ctl.nominal[i]) for i in ctl.fixed]
-    limit = ctl.drive_limit_v
-    adapt_from_k = int(math.ceil(ctl.adapt_from_s / ctl.period_s - 1e-9))
-    reversal = ctl.reversal_speed_mm_s
-    state = [0.0, 0.0, None, 0, ctl.r_prev_mm]  # integral, derivative, last error, saturated, r_prev
+    inv_scale = [1.0 / design.scales[i] for i in idx]
+    fixed = [(i, design.nominal[i]) for i in design.fixed]
+    adapt_from_k = int(math.ceil(design.adapt_from_s / design.period_s - 1e-9))
+    reversal = design.reversal_exclusion * reference.peak_velocity_mm_s
+    state = [0.0, 0.0, None, 0, reference.at(0.0)[0]]  # integral, derivative, last error, saturated, reference
     w = [0.0] * 6
     we = [0.0] * n
     pw = [0.0] * n
@@ -134,7 +132,7 @@ def lean_tick(ctl: FelController) -> Callable[[int, float], float]:
                     norm += we[j] * we[j]
                 s = err / norm
                 for j in rng_n:
-                    theta[j] += gains[j] * we[j] * s
+                    theta[j] += gains_t[j] * we[j] * s
         state[0], state[1], state[2], state[3], state[4] = integral, deriv, e, sat, r_now
         return u
 
@@ -149,8 +147,9 @@ def tick_compute(variant: Variant, count: int) -> dict[str, float]:
     from the end of the move on. Their drive outputs are compared: the floor
     must do the same arithmetic.
     """
-    ctl = build_controller(variant, 1.0)
-    floor = lean_tick(build_controller(variant, 1.0))
+    design = ControllerDesign.from_variant(variant)
+    ctl = design.controller(1.0)
+    floor = lean_tick(design, 1.0)
     positions = _measured_positions(ctl, count)
     drives = [0.0] * count
     floor_drives = [0.0] * count

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from edc_bench.config import Variant, with_changes
-from edc_bench.control.clock import RealTimeClock, cpu_steal_s
 from edc_bench.perf.figures import percentiles
+from edc_bench.runtime.clock import RealTimeClock, cpu_steal_s
 
 #: A window is "stolen" when the hypervisor took at least this much CPU in it.
 STEAL_WINDOW_MIN_S = 0.002
@@ -156,9 +156,9 @@ def _loop_figures(late_s: np.ndarray, times_ns: np.ndarray, steal: np.ndarray, p
 def realtime(variant_name: str | None, period_s: float, duration_s: float) -> dict[str, LoopFigures]:
     """The bench loop against the rig process, and a bare loop, at ``period_s`` for ``duration_s`` each."""
     from edc_bench.bench import run_bench_test
-    from edc_bench.bus import open_bus
     from edc_bench.config import load_variant
     from edc_bench.protocol import default_icd
+    from edc_bench.runtime.bus import open_bus
     from edc_bench.sim.process import rig_process
 
     variant = _keep_going(with_timing(load_variant(variant_name), period_s=period_s, duration_s=duration_s))

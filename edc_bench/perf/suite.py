@@ -100,12 +100,7 @@ def _realtime(variant_name: str | None, sizes: Sizes) -> list[Figure]:
 
 
 def _throughput(variant_name: str | None, sizes: Sizes) -> list[Figure]:
-    from edc_bench.perf.throughput import (
-        bare_python_time,
-        batch,
-        help_time,
-        time_to_first_tick,
-    )
+    from edc_bench.perf.throughput import bare_python_time, batch, help_time, time_to_first_tick
 
     workers = os.cpu_count() or 1
     b = batch(variant_name, sizes.valves, workers)

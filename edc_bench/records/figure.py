@@ -31,7 +31,7 @@ def draw_report_figure(path: Path, trace: dict[str, np.ndarray], title: str,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from edc_bench.records.writer import atomic_write
+    from edc_bench.paths import atomic_write
 
     t = trace["t_s"]
     fig, axes = plt.subplots(4, 1, figsize=(8.3, 10.5), sharex=True, constrained_layout=True)

@@ -12,7 +12,8 @@ from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
 from edc_bench.records.writer import CAN_LOG_FILE, RECORD_FILE, TRACE_FILE
 
-Frame = tuple[float, int, bytes]  # time (s), CAN id, payload
+#: A frame read back from a CAN log: time (s), CAN id, payload.
+LoggedFrame = tuple[float, int, bytes]
 
 
 def load_record(folder: Path) -> dict[str, Any]:
@@ -59,7 +60,7 @@ def load_trace(folder: Path) -> dict[str, np.ndarray]:
         raise ConfigError(f"{path}: not a readable trace ({exc})") from None
 
 
-def read_can_log(path: Path) -> list[Frame]:
+def read_can_log(path: Path) -> list[LoggedFrame]:
     """Frames of a candump-style log written by edc-bench (or candump -L), in file order."""
     import can
 

@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from edc_bench.paths import atomic_write
 from edc_bench.records.reader import load_record, load_trace, record_variant
-from edc_bench.records.writer import atomic_write
 
 REPORT_PDF = "report.pdf"
 REPORT_PNG = "report-page.png"
@@ -28,7 +28,7 @@ _UNITS = {"a3": "V s^3/mm", "a2": "V s^2/mm", "a1": "V s/mm", "a0": "V/mm", "b":
 
 def _reference_values(record: dict[str, Any], variant: Any) -> dict[str, tuple[float, str]]:
     """Per parameter: the value it is compared with, and where that comes from."""
-    from edc_bench.control.build import nominal_parameters
+    from edc_bench.physics.feedforward import nominal_parameters
 
     nominal = nominal_parameters(variant)._asdict()
     out = {name: (float(value), "nominal") for name, value in nominal.items()}

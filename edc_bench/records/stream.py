@@ -15,7 +15,7 @@ import threading
 import time
 from pathlib import Path
 
-from edc_bench.records.trace import CanFrameLog
+from edc_bench.runtime.trace import CanFrameLog
 
 _BATCH = 32
 

@@ -8,50 +8,19 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from edc_bench.paths import atomic_write
 
 RECORD_SCHEMA = 1
 TRACE_FILE = "trace.npz"
 CAN_LOG_FILE = "can.log"
 FIGURE_FILE = "report.png"
 RECORD_FILE = "record.json"
-
-
-def atomic_write(path: Path, write: Callable[[Any], None], mode: str = "wb") -> None:
-    """Write ``path`` through ``write(fileobj)`` atomically.
-
-    Parameters
-    ----------
-    path : pathlib.Path
-        Final file path.
-    write : callable
-        Receives the open temporary file and writes the content.
-    mode : str
-        ``"wb"`` or ``"w"``.
-    """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as handle:
-            write(handle)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    dir_fd = os.open(path.parent, os.O_RDONLY)
-    try:
-        os.fsync(dir_fd)  # the rename itself survives a power cut
-    finally:
-        os.close(dir_fd)
 
 
 def json_safe(value: Any) -> Any:

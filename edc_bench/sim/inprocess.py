@@ -29,13 +29,10 @@ class InProcessRig:
     def __init__(self, bus: can.BusABC, rig: SimulatedRig) -> None:
         self.bus = bus
         self.rig = rig
-        self.frames_received = 0
-        self.frames_sent = 0
 
     def _send(self, frames: list[Frame], t_s: float) -> None:
         for can_id, data in frames:
             self.bus.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False, timestamp=t_s))
-            self.frames_sent += 1
 
     def service(self, now_s: float) -> None:
         """Deliver every frame waiting on the bus at ``now_s`` and send the replies."""
@@ -43,7 +40,6 @@ class InProcessRig:
             msg = self.bus.recv(timeout=0.0)
             if msg is None:
                 return
-            self.frames_received += 1
             if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
                 continue
             self._send(self.rig.receive(msg.arbitration_id, msg.data, now_s), now_s)

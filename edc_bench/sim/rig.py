@@ -15,10 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from edc_bench.config.models import Variant
+from edc_bench.physics.feedforward import FeedforwardParameters, feedforward_truth
+from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.sim.plant import DEFAULT_QUANTUM_S, Plant
 from edc_bench.sim.sensors import NoisySensor
-from edc_bench.sim.valve import FeedforwardParameters, ValveSpec, feedforward_truth, plant_parameters
-from firmware_proto.firmware import Frame, FirmwareLimits, RigFirmware
+from firmware_proto.firmware import FirmwareLimits, Frame, RigFirmware
 
 
 class SimulatedRigHardware:

@@ -112,7 +112,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
 
 
 class LiveView:
-    """The live panel as a :class:`~edc_bench.control.loop.LoopObserver`; use as a context manager.
+    """The live panel as a :class:`~edc_bench.runtime.loop.LoopObserver`; use as a context manager.
 
     The panel is drawn by a child process. Drawing in the loop's process,
     even from another thread, cost a real-time test its timing: the drawing

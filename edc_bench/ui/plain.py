@@ -8,7 +8,7 @@ from edc_bench.ui.snapshot import Snapshot
 
 
 class PlainLog:
-    """A :class:`~edc_bench.control.loop.LoopObserver` writing a line per phase and one every 5 s of test.
+    """A :class:`~edc_bench.runtime.loop.LoopObserver` writing a line per phase and one every 5 s of test.
 
     Parameters
     ----------

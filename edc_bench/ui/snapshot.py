@@ -47,7 +47,7 @@ class Snapshot:
         self.phase = name
 
     def update(self, k: int, loop: Any) -> None:
-        """Copy tick ``k``'s figures out of a :class:`~edc_bench.control.loop.BenchLoop`."""
+        """Copy tick ``k``'s figures out of a :class:`~edc_bench.runtime.loop.BenchLoop`."""
         self.apply(read_tick(k, loop))
 
     def apply(self, figures: dict[str, Any]) -> None:

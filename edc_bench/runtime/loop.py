@@ -21,8 +21,7 @@ from typing import Protocol
 import can
 
 from edc_bench.config.models import Variant
-from edc_bench.control.build import build_controller
-from edc_bench.control.clock import Clock, cpu_steal_s
+from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
 from edc_bench.errors import ProtocolError
 from edc_bench.protocol import (
@@ -35,7 +34,8 @@ from edc_bench.protocol import (
     RigFeedback,
     RigState,
 )
-from edc_bench.records.trace import CanFrameLog, Trace
+from edc_bench.runtime.clock import Clock, cpu_steal_s
+from edc_bench.runtime.trace import CanFrameLog, Trace
 
 # flag bits of trace column rig_flags
 FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
@@ -302,7 +302,7 @@ class BenchLoop:
                 outcome.first_tick_unix_s = time.time()
             u = ctl.step(k, position_mm)
             sent_s = clock.now_s()
-            counter = self._send(Mode.RUN, u, ctl.r_prev_mm)
+            counter = self._send(Mode.RUN, u, ctl.reference_mm)
             reply = self._receive(counter, t_k + reply_window_s)
             reply_col[k] = clock.now_s() - sent_s if reply is not None else math.nan
             if reply is None:
@@ -316,13 +316,13 @@ class BenchLoop:
                 flags = reply_flags(reply)
             t_col[k] = t_k - t_start
             late_col[k] = lateness
-            r_col[k] = ctl.r_prev_mm
-            r1_col[k] = ctl.r1_mm_s
+            r_col[k] = ctl.reference_mm
+            r1_col[k] = ctl.reference_velocity_mm_s
             x_col[k] = position_mm
             i_col[k] = current_a
             u_col[k] = u
-            u1_col[k] = ctl.u1_v
-            u2_col[k] = ctl.u2_v
+            u1_col[k] = ctl.feedforward_v
+            u2_col[k] = ctl.feedback_v
             adapt_col[k] = ctl.adapting
             ok_col[k] = reply is not None
             flag_col[k] = flags

@@ -1,4 +1,4 @@
-"""After a test: how far to trust its numbers. Pure numpy on the trace.
+"""After a test: how far to trust its identification. Pure numpy on the trace.
 
 - settle time of each parameter: from the start of the excitation until it
   stays within ``settle_band_rel`` of its final value;
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
-from edc_bench.control.fel import FelController
+from edc_bench.control.fel import FelController, condition_number, regressor_matrix
 
 
 @dataclass(frozen=True)
@@ -36,24 +36,36 @@ class Identification:
     residual_rms_v: float
 
 
-def settle_time_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel: float) -> float:
-    """Time from ``start_s`` after which ``values`` stay within ``band_rel`` of the last value."""
+def settle_times_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel: float) -> np.ndarray:
+    """Time from ``start_s`` after which each column of ``values`` stays within ``band_rel`` of its last value.
+
+    Parameters
+    ----------
+    t_s : numpy.ndarray
+        (T,) sample times.
+    values : numpy.ndarray
+        (T,) or (T, n): one estimate's history per column (the batch path
+        passes one column per valve).
+    start_s : float
+        When the estimation started.
+    band_rel : float
+        The settle band, relative to the final value.
+
+    Returns
+    -------
+    numpy.ndarray
+        () or (n,) settle times; inf where the last sample is itself outside
+        (never settled), 0 where it never left the band.
+    """
+    values = np.asarray(values, dtype=float)
     if len(values) == 0:
-        return math.inf
+        return np.full(values.shape[1:], math.inf)
     final = values[-1]
-    outside = np.abs(values - final) > band_rel * max(abs(final), 1e-12)
-    idx = np.nonzero(outside)[0]
-    if len(idx) == 0:
-        return 0.0
-    if idx[-1] == len(values) - 1:
-        return math.inf
-    return max(0.0, float(t_s[idx[-1] + 1]) - start_s)
-
-
-def regressors(controller: FelController, t_s: np.ndarray, period_s: float) -> np.ndarray:
-    """The six regressors at the middle of each tick (as the controller used them)."""
-    r, r1, r2, r3 = controller.reference.tabulate(np.asarray(t_s, dtype=float) + 0.5 * period_s)
-    return np.column_stack((r3, r2, r1, r, np.ones_like(r), np.sign(r1)))
+    outside = np.abs(values - final) > band_rel * np.maximum(np.abs(final), 1e-12)
+    rows = len(values)
+    last_out = np.where(outside.any(axis=0), rows - 1 - np.argmax(outside[::-1], axis=0), -1)
+    after = np.asarray(t_s, dtype=float)[np.minimum(last_out + 1, rows - 1)]
+    return np.where(last_out < 0, 0.0, np.where(last_out == rows - 1, math.inf, np.maximum(0.0, after - start_s)))
 
 
 def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Variant) -> Identification:
@@ -72,7 +84,7 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
     t = trace["t_s"]
     final = {n: float(trace[f"{n}_hat"][-1]) if len(t) else math.nan for n in PARAMETER_NAMES}
     start = variant.excitation.move_s
-    settle = {n: settle_time_s(t, trace[f"{n}_hat"], start, acc.settle_band_rel)
+    settle = {n: float(settle_times_s(t, trace[f"{n}_hat"], start, acc.settle_band_rel))
               for n in (PARAMETER_NAMES[i] for i in controller.estimated)}
     # settled early enough to have stayed in the band for the whole last window
     remaining = (t[-1] if len(t) else 0.0) - start - acc.convergence_window_s
@@ -84,7 +96,7 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
     residual_rms = math.nan
     mask = trace["adapting"].astype(bool)
     if mask.sum() >= 2 * len(controller.estimated):
-        phi_all = regressors(controller, t[mask], variant.controller.period_s)
+        phi_all = regressor_matrix(controller.reference, t[mask], variant.controller.period_s)
         est = list(controller.estimated)
         fixed = list(controller.fixed)
         nominal = np.array(controller.nominal)
@@ -93,9 +105,7 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
         # conditioning over the steady excitation: the fade-in transient would mask collinearity
         steady = t[mask] >= start + variant.excitation.fade_s
         phi_s = phi[steady] if steady.sum() > len(est) else phi
-        norms = np.linalg.norm(phi_s, axis=0)
-        norms[norms == 0] = 1.0
-        cond = float(np.linalg.cond((phi_s / norms).T @ (phi_s / norms)))
+        cond = condition_number(phi_s)
         # uncertainty over the last window
         window = t[mask] >= (t[-1] - acc.convergence_window_s)
         phi_w, y_w = phi[window], y_all[window]
@@ -114,20 +124,3 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
     for i in controller.fixed:
         std[PARAMETER_NAMES[i]] = 0.0
     return Identification(final, std, settle, converged, cond, used, residual_rms)
-
-
-def timing_summary(trace: dict[str, np.ndarray], period_s: float) -> dict[str, float]:
-    """Lateness percentiles (us) and overrun count of the ticks."""
-    late = trace["lateness_s"]
-    if len(late) == 0:  # the same keys, so a record's timing always reads the same way
-        return {"ticks": 0, "lateness_p50_us": math.nan, "lateness_p99_us": math.nan, "lateness_p999_us": math.nan,
-                "lateness_max_us": math.nan, "overruns": 0}
-    q = np.percentile(late, [50, 99, 99.9]) * 1e6
-    return {
-        "ticks": int(len(late)),
-        "lateness_p50_us": float(q[0]),
-        "lateness_p99_us": float(q[1]),
-        "lateness_p999_us": float(q[2]),
-        "lateness_max_us": float(late.max() * 1e6),
-        "overruns": int((late > period_s).sum()),
-    }

@@ -1,22 +1,22 @@
-"""Valves described physically, and the truths that follow from them.
+"""Valves described physically, and the plant they make in a pump.
 
 A valve is its plunger clearance (wear) and surface roughness, plus the
 valve-to-valve spread of its friction and damping. With a pump variant this
-gives the plant's physical parameters and the true feedforward parameters of
-DESIGN.md section 2, against which identification is judged.
+gives the plant's physical parameters (:func:`plant_parameters`); the
+nominal new valve gives the plant the controller assumes
+(:func:`nominal_plant`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import NamedTuple
 
 import numpy as np
 
 from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
-from edc_bench.sim.plant import PlantParameters
+from edc_bench.physics.parameters import PlantParameters
 
 
 @dataclass(frozen=True)
@@ -172,49 +172,18 @@ def plant_parameters(variant: Variant, valve: ValveSpec, *, stiction: bool = Tru
     )
 
 
-class FeedforwardParameters(NamedTuple):
-    """The feedforward u1 = a3 r''' + a2 r'' + a1 r' + a0 r + b + af sgn(r').
-
-    Units: a3 V s^3/mm, a2 V s^2/mm, a1 V s/mm, a0 V/mm, b V, af V.
-    """
-
-    a3: float
-    a2: float
-    a1: float
-    a0: float
-    b: float
-    af: float
-
-
-def feedforward_truth(params: PlantParameters) -> FeedforwardParameters:
-    """True feedforward parameters from the physics (DESIGN.md section 2).
-
-    Parameters
-    ----------
-    params : PlantParameters
-        The plant.
-
-    Returns
-    -------
-    FeedforwardParameters
-        With K = k_A k_i and k' = k - k_x: a3 = L m/K, a2 = (m R + L c)/K,
-        a1 = (L k' + R c)/K, a0 = R k'/K, b = R F_pre/K, af = R F_c/K.
-    """
-    gain = params.amplifier_gain * params.force_constant_n_per_a
-    m = params.mass_n_s2_per_mm
-    r, l_h, c = params.resistance_ohm, params.inductance_h, params.damping_n_s_per_mm
-    k_net = params.net_stiffness_n_per_mm
-    return FeedforwardParameters(
-        a3=l_h * m / gain,
-        a2=(m * r + l_h * c) / gain,
-        a1=(l_h * k_net + r * c) / gain,
-        a0=r * k_net / gain,
-        b=r * params.preload_n / gain,
-        af=r * params.coulomb_friction_n / gain,
-    )
-
-
 def with_friction(params: PlantParameters, coulomb_n: float, stiction_n: float | None = None) -> PlantParameters:
     """Copy of ``params`` with other friction (for analysis and tests)."""
     return replace(params, coulomb_friction_n=coulomb_n,
                    stiction_friction_n=coulomb_n if stiction_n is None else stiction_n)
+
+
+def nominal_plant(variant: Variant) -> PlantParameters:
+    """The variant's plant with a nominal new valve (no spread between valves).
+
+    This is the plant the controller is designed for and its gains are
+    checked against: the pump variant's data-sheet physics, never a
+    simulator's.
+    """
+    preset = variant.valve.presets["new"]
+    return plant_parameters(variant, ValveSpec(preset.clearance_mm, preset.roughness, label="nominal new"))

@@ -1,0 +1,69 @@
+"""The feedforward parameters that follow from a plant's physics.
+
+Inverting the plant along the reference r (ideal tracking, x = r) gives the
+drive the feedforward must supply::
+
+    u1 = a3 r''' + a2 r'' + a1 r' + a0 r + b + af sgn(r')
+
+with K = k_A k_i and k' = k - k_x::
+
+    a3 = L m / K     a2 = (m R + L c) / K     a1 = (L k' + R c) / K
+    a0 = R k' / K    b  = R F_pre / K         af = R F_c / K
+
+(see docs/method.md for the derivation).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from edc_bench.config.models import Variant
+from edc_bench.physics.parameters import PlantParameters
+from edc_bench.physics.valve import nominal_plant
+
+
+class FeedforwardParameters(NamedTuple):
+    """The feedforward u1 = a3 r''' + a2 r'' + a1 r' + a0 r + b + af sgn(r').
+
+    Units: a3 V s^3/mm, a2 V s^2/mm, a1 V s/mm, a0 V/mm, b V, af V.
+    """
+
+    a3: float
+    a2: float
+    a1: float
+    a0: float
+    b: float
+    af: float
+
+
+def feedforward_truth(params: PlantParameters) -> FeedforwardParameters:
+    """True feedforward parameters from the physics.
+
+    Parameters
+    ----------
+    params : PlantParameters
+        The plant.
+
+    Returns
+    -------
+    FeedforwardParameters
+        With K = k_A k_i and k' = k - k_x: a3 = L m/K, a2 = (m R + L c)/K,
+        a1 = (L k' + R c)/K, a0 = R k'/K, b = R F_pre/K, af = R F_c/K.
+    """
+    gain = params.amplifier_gain * params.force_constant_n_per_a
+    m = params.mass_n_s2_per_mm
+    r, l_h, c = params.resistance_ohm, params.inductance_h, params.damping_n_s_per_mm
+    k_net = params.net_stiffness_n_per_mm
+    return FeedforwardParameters(
+        a3=l_h * m / gain,
+        a2=(m * r + l_h * c) / gain,
+        a1=(l_h * k_net + r * c) / gain,
+        a0=r * k_net / gain,
+        b=r * params.preload_n / gain,
+        af=r * params.coulomb_friction_n / gain,
+    )
+
+
+def nominal_parameters(variant: Variant) -> FeedforwardParameters:
+    """Feedforward parameters of the variant's nominal plant, from the data-sheet physics."""
+    return feedforward_truth(nominal_plant(variant))
