@@ -105,7 +105,7 @@ def main() -> None:
     console.print(f"$ edc-bench replay records/{worn_dir.name}", highlight=False)
     console.print(f"replayed {report.run.ticks} ticks ({report.run.missed_replies} replies missing); drives match the "
                   f"logged commands to {report.run.max_drive_deviation_v * 1e3:.2f} mV", highlight=False)
-    console.print(f"verdict: {report.judged['verdict']}", highlight=False)
+    console.print(f"verdict: {report.judged.verdict}", highlight=False)
     console.print("reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are exactly the "
                   "recorded ones" if report.reproduced else f"NOT reproduced: {report.differences}", highlight=False)
     _save(console, "replay.svg", "edc-bench replay")

@@ -5,9 +5,14 @@ so the CLI can turn it into one clear line instead of a traceback::
 
     EdcBenchError
      +-- ConfigError (ValueError)        a variant file or a valve spec is wrong
-     +-- ProtocolError (ValueError)      a frame cannot be encoded or decoded
-     |    +-- E2EError                   CRC of a received frame does not match
+     +-- ProtocolError (ValueError)      a frame cannot be encoded or decoded   [edc_bench.protocol]
+     |    +-- E2EError                   CRC of a received frame does not match [edc_bench.protocol]
      +-- RigError (RuntimeError)         the rig or its connection misbehaved
+
+``ProtocolError`` and ``E2EError`` belong to the rig protocol and are defined
+in :mod:`edc_bench.protocol.errors` (import them from :mod:`edc_bench.protocol`),
+so the protocol, and the firmware prototype built on it, need nothing from
+edc-bench but this root class.
 """
 
 from __future__ import annotations
@@ -19,14 +24,6 @@ class EdcBenchError(Exception):
 
 class ConfigError(EdcBenchError, ValueError):
     """A configuration (variant file, valve spec, CLI value) is invalid."""
-
-
-class ProtocolError(EdcBenchError, ValueError):
-    """A frame cannot be encoded or decoded according to the ICD."""
-
-
-class E2EError(ProtocolError):
-    """A received frame failed its end-to-end (CRC) check."""
 
 
 class RigError(EdcBenchError, RuntimeError):

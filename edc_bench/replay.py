@@ -7,7 +7,7 @@ feeds the same positions, tick by tick, to a controller built from the same
 variant, so the estimator walks the same path bit for bit; each drive it
 computes is checked against the command that was logged (to the codec's
 1 mV). The trace it rebuilds is judged by the same code as the live test
-(:func:`edc_bench.bench.judge_run`).
+(:func:`edc_bench.diagnosis.judgement.judge_run`).
 
 What a CAN log cannot hold is taken from the record when there is one: the
 tick timing (lateness, overruns) and why the loop stopped. A raw log alone
@@ -22,11 +22,15 @@ from typing import Any
 
 import numpy as np
 
+from edc_bench.config import parse_variant
 from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
-from edc_bench.errors import ConfigError, ProtocolError
+from edc_bench.diagnosis.judgement import Judgement, judge_run
+from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.errors import ConfigError
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
+from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
 from edc_bench.runtime.loop import LoopOutcome, reply_flags
 from edc_bench.runtime.trace import Trace
@@ -111,8 +115,6 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
                           "give the variant the test ran with")
     ctl = build_controller(variant, sync.position_mm)
     trace = Trace(capacity)
-    cols = trace.columns
-    params = [cols[f"{n}_hat"] for n in ("a3", "a2", "a1", "a0", "b", "af")]
     position_mm, current_a = sync.position_mm, sync.current_a
     missed = 0
     worst = 0.0
@@ -125,40 +127,20 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
         else:
             position_mm, current_a = reply.position_mm, reply.current_a
             flags = reply_flags(reply)
-        t_k = ticks_start_s + k * T
-        cols["t_s"][k] = t_k - ticks_start_s
-        cols["lateness_s"][k] = math.nan
-        cols["reply_latency_s"][k] = math.nan
-        cols["reference_mm"][k] = ctl.reference_mm
-        cols["reference_velocity_mm_s"][k] = ctl.reference_velocity_mm_s
-        cols["position_mm"][k] = position_mm
-        cols["current_a"][k] = current_a
-        cols["drive_v"][k] = u
-        cols["feedforward_v"][k] = ctl.feedforward_v
-        cols["feedback_v"][k] = ctl.feedback_v
-        cols["adapting"][k] = ctl.adapting
-        cols["reply_ok"][k] = reply is not None
-        cols["rig_flags"][k] = flags
-        ctl.write_parameters(params, k)
-        trace.rows = k + 1
+        t_k = ticks_start_s + k * T  # as the loop computed it, to the last bit
+        trace.write_tick(k, t_k - ticks_start_s, math.nan, math.nan, ctl, position_mm, current_a, u,
+                         reply is not None, flags)
     if worst > DRIVE_TOLERANCE_V:
         raise ConfigError(f"replayed drives differ from the logged commands by up to {worst * 1e3:.1f} mV: the log "
                           "was not made with this variant (or this edc-bench version's controller)")
     return ReplayedRun(trace.view(), ctl, len(ticks), missed, worst)
 
 
-def _is_run(data: bytes) -> bool:
-    try:
-        return default_icd().parse_bench_cmd(data).mode == Mode.RUN
-    except ProtocolError:
-        return False
-
-
 @dataclass
 class ReplayReport:
     """A replay's judgement, and how it compares with the record's."""
 
-    judged: dict[str, Any]
+    judged: Judgement
     run: ReplayedRun
     differences: list[str]
     compared: bool
@@ -175,19 +157,19 @@ def _same(a: Any, b: Any) -> bool:
     return a == b
 
 
-def compare_with_record(judged: dict[str, Any], record: dict[str, Any]) -> list[str]:
+def compare_with_record(judged: Judgement, record: dict[str, Any]) -> list[str]:
     """Every recorded figure the replay did not reproduce exactly, as readable lines."""
     diffs = []
-    if judged["verdict"] != record.get("verdict"):
-        diffs.append(f"verdict: recorded {record.get('verdict')}, replayed {judged['verdict']}")
-    for name, entry in judged["parameters"].items():
+    if judged.verdict != record.get("verdict"):
+        diffs.append(f"verdict: recorded {record.get('verdict')}, replayed {judged.verdict}")
+    for name, entry in judged.parameters.items():
         rec = (record.get("parameters") or {}).get(name, {})
         for key in ("value", "std"):
             got, want = entry[key], rec.get(key)
             want = math.nan if want is None else want
             if not _same(float(got), float(want)):
                 diffs.append(f"{name} {key}: recorded {want!r}, replayed {got!r}")
-    rec_cls, cls = record.get("classification"), judged["classification"]
+    rec_cls, cls = record.get("classification"), judged.classification
     if (rec_cls is None) != (cls is None):
         diffs.append("classification: present in one, absent in the other")
     elif cls is not None:
@@ -197,12 +179,19 @@ def compare_with_record(judged: dict[str, Any], record: dict[str, Any]) -> list[
     return diffs
 
 
+def record_variant(record: dict[str, Any], source: str) -> Variant:
+    """The variant exactly as the recorded test ran it (with its command-line overrides)."""
+    config = record.get("config")
+    if not isinstance(config, dict):
+        raise ConfigError(f"{source}: the record holds no variant configuration")
+    return parse_variant(config, f"{source} (recorded variant)")
+
+
 def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
     """Replay a record folder from its CAN log and compare with what it recorded."""
     from pathlib import Path
 
-    from edc_bench.bench import judge_run
-    from edc_bench.records.reader import load_record, read_can_log, record_variant
+    from edc_bench.records.reader import load_record, read_can_log
     from edc_bench.records.writer import CAN_LOG_FILE
 
     folder = Path(folder)
@@ -215,7 +204,7 @@ def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
     if loop.get("missed_replies", run.missed_replies) != run.missed_replies:
         run.notes.append(f"missed replies: recorded {loop.get('missed_replies')}, found {run.missed_replies} in the log")
     timing = dict(record.get("timing") or {})
-    classify = record.get("verdict") != "UNCLASSIFIED"
+    classify = record.get("verdict") != Verdict.UNCLASSIFIED
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
                        classifier_path=classifier_path)
     return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes, compared=True)
@@ -223,13 +212,11 @@ def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
 
 def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None) -> ReplayReport:
     """Replay a raw CAN log with a variant (no record: timing is not judged)."""
-    from edc_bench.bench import judge_run
     from edc_bench.records.reader import read_can_log
 
     frames = read_can_log(path)
-    # tick 0's time, as logged (to the log's microsecond): the first RUN command's
-    first_run = next((t for t, can_id, data in frames if can_id == BENCH_CMD_ID and _is_run(data)), 0.0)
-    run = replay_frames(frames, variant, ticks_start_s=first_run)
+    # a raw log does not say when the loop's clock started; its ticks are taken at k T exactly
+    run = replay_frames(frames, variant)
     planned = int(round(variant.excitation.duration_s / variant.controller.period_s))
     abort = None if run.ticks == planned else f"the log ends after {run.ticks} of {planned} ticks"
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,

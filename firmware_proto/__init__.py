@@ -1,24 +1,13 @@
-"""The rig side of the edc-bench ICD: the DBC (single source of truth) and the
-rig firmware prototype.
+"""The rig side of the edc-bench ICD: the rig firmware prototype.
 
-The DBC ships inside this package so that it is found the same way from a
-source checkout and from a non-editable install.
+The ICD itself (the DBC, single source of truth) belongs to the protocol,
+:mod:`edc_bench.protocol`; ``icd_v1.dbc`` beside this file in a source checkout
+is a symlink to ``edc_bench/protocol/icd_v1.dbc``, for firmware authors.
+:func:`dbc_path` is the protocol's, re-exported here.
 """
 
 from __future__ import annotations
 
-from importlib import resources
-from pathlib import Path
+from edc_bench.protocol import DBC_FILENAME, dbc_path
 
-DBC_FILENAME = "icd_v1.dbc"
-
-
-def dbc_path() -> Path:
-    """Return the path of the ICD v1 DBC file.
-
-    Returns
-    -------
-    pathlib.Path
-        Path of ``icd_v1.dbc`` inside the installed ``firmware_proto`` package.
-    """
-    return Path(str(resources.files(__name__).joinpath(DBC_FILENAME)))
+__all__ = ["DBC_FILENAME", "dbc_path"]

@@ -3,7 +3,9 @@
 Pure logic: frames in, frames out, time passed in explicitly. The hardware
 (LVDT, current sensor, drive amplifier) sits behind :class:`RigHardware`, so
 the same logic runs over the simulated plant and could run over real I/O.
-See ``PROTOCOL.md`` beside this file for the rules it implements.
+See ``PROTOCOL.md`` beside this file for the rules it implements. It builds
+on :mod:`edc_bench.protocol` alone (the ICD, its codec and its errors), nothing
+else from edc-bench.
 
 States: BOOT -> READY after ``boot_s``; READY -> RUNNING on a valid RUN
 command; RUNNING -> READY on a valid SAFE command; any -> FAULT on a trip
@@ -17,14 +19,15 @@ import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from edc_bench.errors import E2EError, ProtocolError
-from edc_bench.protocol.icd import (
+from edc_bench.protocol import (
     BENCH_CMD_ID,
     RIG_FEEDBACK_ID,
     RIG_HEARTBEAT_ID,
+    E2EError,
     FaultCode,
     Icd,
     Mode,
+    ProtocolError,
     RigState,
     default_icd,
 )

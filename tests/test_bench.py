@@ -20,8 +20,9 @@ from functools import cache
 import numpy as np
 import pytest
 
-from edc_bench.bench import INVALID, BenchResult, run_simulated_test
+from edc_bench.bench import BenchResult, run_simulated_test
 from edc_bench.config import Variant, load_variant, parse_variant
+from edc_bench.diagnosis.verdict import Verdict
 
 VARIANTS = ("p-edc-default", "p-edc-long")
 VALVES = ("new", "worn", "faulty")
@@ -125,10 +126,10 @@ def test_gradient_law_with_its_own_tolerances(valve: str) -> None:
 @pytest.mark.parametrize("estimate", [["a3", "a2", "a1", "a0", "b", "af"], ["a2", "a1", "a0", "b", "af"]],
                          ids=["all-six", "default-five"])
 def test_single_sine_is_refused_as_poorly_conditioned(estimate: list[str]) -> None:
-    # DESIGN.md point 4: with one sine r''' = -w^2 r' and r'' = -w^2 (r - r_mid)
+    # docs/method.md section 10 d: with one sine r''' = -w^2 r' and r'' = -w^2 (r - r_mid)
     variant = _with(load_variant(), excitation={"shape": "sine"}, estimator={"estimate": estimate})
     result = run_simulated_test(variant, "new", 1, check_gains=False)
-    assert result.verdict == INVALID
+    assert result.verdict == Verdict.INVALID
     assert any("poorly conditioned" in r for r in result.reasons), result.reasons
     assert result.identification.condition_number > 1e6
 

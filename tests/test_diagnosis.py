@@ -19,16 +19,14 @@ from edc_bench.diagnosis.baseline import load_baseline, read_baseline
 from edc_bench.diagnosis.batch import run_batch
 from edc_bench.diagnosis.classifier import (
     DEFAULT_MODEL,
-    FAIL,
     LINEAR_MODEL,
-    MARGINAL,
-    PASS,
     ValveClassifier,
     packaged_model_path,
 )
 from edc_bench.diagnosis.dataset import Dataset, make_dataset
 from edc_bench.diagnosis.experiments import boundary_tradeoff, evaluate, paper_experiment
 from edc_bench.diagnosis.population import draw_population, new_valves
+from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
 from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.physics.wear import is_faulty, resisting_force_n
@@ -148,14 +146,14 @@ def test_packaged_models_carry_their_metadata(name: str) -> None:
     assert json.loads(meta["edc_bench.training_data"])["variants"] == ["p-edc-default", "p-edc-long"]
 
 
-@pytest.mark.parametrize(("af", "a1", "verdict"), [(0.0469, 0.0118, PASS), (0.0715, 0.0239, FAIL),
-                                                   (0.1284, 0.0471, FAIL)], ids=["V1", "V2", "V3"])
+@pytest.mark.parametrize(("af", "a1", "verdict"), [(0.0469, 0.0118, Verdict.PASS), (0.0715, 0.0239, Verdict.FAIL),
+                                                   (0.1284, 0.0471, Verdict.FAIL)], ids=["V1", "V2", "V3"])
 def test_paper_vectors_judged_like_the_paper(tmp_path: Path, af: float, a1: float, verdict: str) -> None:
     proc = edc_bench("classify", "--variant", "paper", "--af", str(af), "--a1", str(a1), "--json", cwd=tmp_path)
-    assert proc.returncode == {PASS: 0, FAIL: 11}[verdict], proc.stderr
+    assert proc.returncode == {Verdict.PASS: 0, Verdict.FAIL: 11}[verdict], proc.stderr
     out = json.loads(proc.stdout)
     assert out["verdict"] == verdict
-    assert (out["distance"] > 0) == (verdict == FAIL)
+    assert (out["distance"] > 0) == (verdict == Verdict.FAIL)
 
 
 def test_distance_is_the_distance_to_the_boundary() -> None:
@@ -183,7 +181,7 @@ def test_marginal_band_around_the_boundary() -> None:
     step = clf.marginal_band * 2.0  # along the diagonal, at least the band's width from the boundary
     verdicts, _, d = clf.classify_many(np.array([[on, on], [on - step, on - step], [on + step, on + step],
                                                  [1.0, 1.0], [2.0, 2.0]]))
-    assert list(verdicts) == [MARGINAL, PASS, FAIL, PASS, FAIL]
+    assert list(verdicts) == [Verdict.MARGINAL, Verdict.PASS, Verdict.FAIL, Verdict.PASS, Verdict.FAIL]
     assert abs(d[0]) < 0.005
 
 
@@ -204,7 +202,7 @@ def test_classify_a_record_folder(tmp_path: Path) -> None:
     again = edc_bench("classify", summary["record_dir"], "--json", cwd=tmp_path)
     assert again.returncode == 11, again.stderr
     out = json.loads(again.stdout)
-    assert out["verdict"] == summary["verdict"] == FAIL
+    assert out["verdict"] == summary["verdict"] == Verdict.FAIL
     assert out["probability_faulty"] == pytest.approx(summary["classification"]["probability_faulty"])
 
 

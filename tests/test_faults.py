@@ -24,8 +24,9 @@ from pathlib import Path
 import can
 import pytest
 
-from edc_bench.bench import INVALID, BenchResult, run_bench_test
+from edc_bench.bench import BenchResult, run_bench_test
 from edc_bench.config import load_variant
+from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
 from edc_bench.records.record import write_record
@@ -80,7 +81,7 @@ def run_with(rule: Rule | None = None, rig_fault: str | None = None) -> tuple[Be
 
 def check_safe_and_complete(result: BenchResult, rig: SimulatedRig, tmp_path: Path) -> None:
     outcome = result.outcome
-    assert result.verdict == INVALID
+    assert result.verdict == Verdict.INVALID
     assert result.classification is None
     assert outcome.abort_time_s is not None or outcome.abort_reason.startswith("bus error")
     # the rig's amplifier is off: by SAFE or by its own watchdog
@@ -98,7 +99,7 @@ def check_safe_and_complete(result: BenchResult, rig: SimulatedRig, tmp_path: Pa
     # everything measured so far is on disk
     folder = write_record(result, tmp_path, figure=False)
     doc = json.loads((folder / "record.json").read_text())
-    assert doc["verdict"] == INVALID and doc["loop"]["abort_reason"] == outcome.abort_reason
+    assert doc["verdict"] == Verdict.INVALID and doc["loop"]["abort_reason"] == outcome.abort_reason
     assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
     import numpy as np
 
@@ -139,7 +140,7 @@ def test_rig_never_ready_is_one_clear_line(tmp_path: Path) -> None:
     with can.Bus(interface="virtual", channel="never-ready", preserve_timestamps=True) as bench, \
          can.Bus(interface="virtual", channel="never-ready", preserve_timestamps=True) as rig_bus:
         result = run_bench_test(bench, SimulatedClock(InProcessRig(rig_bus, rig)), variant, check_gains=False)
-    assert result.verdict == INVALID
+    assert result.verdict == Verdict.INVALID
     assert result.reasons == ["aborted: rig not READY within 3 s (no heartbeat)"]
 
 
@@ -173,7 +174,7 @@ def test_interrupts_abort_safely_and_keep_the_record(tmp_path: Path, signals: li
     assert proc.returncode == 12, err
     assert "aborted: interrupted by the operator" in out
     doc = json.loads((folder / "record.json").read_text())
-    assert doc["verdict"] == INVALID and doc["loop"]["safe_confirmed"] is True
+    assert doc["verdict"] == Verdict.INVALID and doc["loop"]["safe_confirmed"] is True
     # the CAN log holds every tick that ran: one RUN command each
     icd = default_icd()
     runs = sum(1 for f in can.LogReader(str(folder / "can.log"))
@@ -246,4 +247,4 @@ def test_a_bug_in_the_tick_still_ends_safe_with_the_data(tmp_path: Path, monkeyp
     assert result.outcome.ticks_run == 1500 and result.outcome.safe_confirmed
     assert rig.plant.drive_v == 0.0
     folder = write_record(result, tmp_path, figure=False)
-    assert json.loads((folder / "record.json").read_text())["verdict"] == INVALID
+    assert json.loads((folder / "record.json").read_text())["verdict"] == Verdict.INVALID

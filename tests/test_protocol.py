@@ -9,11 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from edc_bench.errors import E2EError, EdcBenchError, ProtocolError
+from edc_bench.errors import EdcBenchError
 from edc_bench.protocol import FaultCode, Icd, Mode, RigState, crc8_sae_j1850, default_icd
+from edc_bench.protocol.errors import E2EError, ProtocolError
 from firmware_proto import dbc_path
 
-# DESIGN.md 3.1, written out independently of the DBC
+# firmware_proto/PROTOCOL.md "Frames", written out independently of the DBC
 ICD_TABLE = {
     "BENCH_CMD": (0x120, {
         "CRC": (8, False, 1, ""), "Counter": (8, False, 1, ""), "Mode": (8, False, 1, ""),
@@ -40,7 +41,7 @@ def db() -> cantools.database.can.Database:
 def test_dbc_is_packaged_and_found() -> None:
     path = dbc_path()
     assert path.is_file()
-    assert path.parent.name == "firmware_proto"
+    assert path.parent.name == "protocol"
 
 
 @pytest.mark.parametrize("name", sorted(ICD_TABLE))

@@ -37,7 +37,7 @@ def test_move_reaches_mid_stroke(ref: Reference) -> None:
 
 
 def test_single_sine_makes_a3_and_a1_collinear() -> None:
-    # DESIGN.md 2, point 4: r''' = -w^2 r' once the excitation is steady
+    # docs/method.md section 10 d: r''' = -w^2 r' once the excitation is steady
     w = 2 * math.pi * 0.5
     single = Reference(10.0, 10.0, (Tone(0.5, 4.0),), move_s=1.0, fade_s=1.0)
     for t in np.linspace(2.1, 9.0, 25):

@@ -31,12 +31,12 @@ def test_replay_reproduces_a_simulated_test_exactly(tmp_path: Path, valve: str, 
     folder = write_record(result, tmp_path, figure=False)
     report = replay_record(folder)
     assert report.reproduced, report.differences
-    assert report.judged["verdict"] == verdict
+    assert report.judged.verdict == verdict
     for name, entry in result.parameters.items():
-        assert report.judged["parameters"][name]["value"] == entry["value"]
-        assert report.judged["parameters"][name]["std"] == entry["std"]
-    assert report.judged["classification"]["probability_faulty"] == result.classification["probability_faulty"]
-    assert report.judged["classification"]["distance"] == result.classification["distance"]
+        assert report.judged.parameters[name]["value"] == entry["value"]
+        assert report.judged.parameters[name]["std"] == entry["std"]
+    assert report.judged.classification["probability_faulty"] == result.classification["probability_faulty"]
+    assert report.judged.classification["distance"] == result.classification["distance"]
     assert report.run.max_drive_deviation_v <= 0.0005 + 1e-9
 
 

@@ -1,7 +1,7 @@
 """The rig as its own process, in real time, over slcan on loopback TCP.
 
 The client in the first test is written against nothing but the DBC (read
-with cantools) and DESIGN.md 3.1: its CRC is computed here, not imported.
+with cantools) and firmware_proto/PROTOCOL.md: its CRC is computed here, not imported.
 Real-time tests assert behaviour, not speed: time limits are generous
 bounds on what must happen, and measured delays are printed.
 """

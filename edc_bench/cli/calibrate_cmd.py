@@ -41,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--tests {args.tests}: a baseline needs at least 2 tests")
     variant = load_variant(args.variant)
     if args.interface or args.channel:
-        from edc_bench.bench import INVALID, run_bench_test
+        from edc_bench.bench import run_bench_test
+        from edc_bench.diagnosis.verdict import Verdict
         from edc_bench.protocol import default_icd
         from edc_bench.runtime.bus import open_bus
         from edc_bench.runtime.clock import RealTimeClock
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
                                         classify=False)
                 print(f"test {n + 1}/{args.tests}: {result.verdict} af={result.features['af']:.5f} "
                       f"a1={result.features['a1']:.6f}", file=sys.stderr)
-                if result.verdict != INVALID:
+                if result.verdict != Verdict.INVALID:
                     af.append(result.features["af"])
                     a1.append(result.features["a1"])
         baseline = baseline_from_features(af, a1, f"rig {config}: {len(af)} of {args.tests} tests")

@@ -29,8 +29,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Classify and report."""
-    from edc_bench.bench import classification_dict, classify_features
     from edc_bench.config import load_variant
+    from edc_bench.diagnosis.judgement import classification_dict, classify_features
+    from edc_bench.diagnosis.verdict import Verdict
     from edc_bench.errors import ConfigError
 
     if args.record_dir is not None:
@@ -41,8 +42,8 @@ def run(args: argparse.Namespace) -> int:
             record = json.loads(record_file.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:
             raise ConfigError(f"{record_file}: not a readable record ({exc})") from None
-        if record.get("verdict") == "INVALID":
-            out = {"verdict": "INVALID", "reasons": record.get("reasons", []), "record_dir": str(args.record_dir)}
+        if record.get("verdict") == Verdict.INVALID:
+            out = {"verdict": Verdict.INVALID, "reasons": record.get("reasons", []), "record_dir": str(args.record_dir)}
             print_quietly_if_closed(lambda: _report(out, args.json))
             return ExitCode.INVALID
         variant = load_variant(args.variant or record["variant"])

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import enum
 
+from edc_bench.diagnosis.verdict import Verdict
+
 
 class ExitCode(enum.IntEnum):
     """Process exit codes.
@@ -27,5 +29,5 @@ class ExitCode(enum.IntEnum):
 
 def exit_code_for(verdict: str) -> ExitCode:
     """The exit code of a verdict (OK for a test judged without classification)."""
-    return {"PASS": ExitCode.PASS, "MARGINAL": ExitCode.MARGINAL, "FAIL": ExitCode.FAIL,
-            "INVALID": ExitCode.INVALID}.get(verdict, ExitCode.OK)
+    return {Verdict.PASS: ExitCode.PASS, Verdict.MARGINAL: ExitCode.MARGINAL, Verdict.FAIL: ExitCode.FAIL,
+            Verdict.INVALID: ExitCode.INVALID}.get(verdict, ExitCode.OK)

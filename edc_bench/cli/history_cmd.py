@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from edc_bench.cli.common import print_quietly_if_closed
+from edc_bench.diagnosis.verdict import Verdict
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -26,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--pump-serial", default=None, metavar="SERIAL", help="only this pump")
     p.add_argument("--variant", default=None, help="only this variant (name or part number)")
     p.add_argument("--verdict", default=None, type=str.upper,
-                   choices=("PASS", "MARGINAL", "FAIL", "INVALID", "UNCLASSIFIED"), help="only this verdict")
+                   choices=[v.value for v in Verdict], help="only this verdict")
     p.add_argument("--since", default=None, metavar="DATE", help="from this day (YYYY-MM-DD) on")
     p.add_argument("--until", default=None, metavar="DATE", help="up to this day (YYYY-MM-DD), inclusive")
     p.add_argument("--limit", type=int, default=None, metavar="N", help="only the newest N")

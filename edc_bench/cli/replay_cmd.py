@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     print_quietly_if_closed(lambda: _print(out, args.json))
     if report.compared:
         return ExitCode.OK if report.reproduced else ExitCode.NOT_REPRODUCED
-    return exit_code_for(report.judged["verdict"])
+    return exit_code_for(report.judged.verdict)
 
 
 def _summary(report: Any) -> dict[str, Any]:
@@ -57,9 +57,9 @@ def _summary(report: Any) -> dict[str, Any]:
 
     j = report.judged
     return json_safe({
-        "verdict": j["verdict"], "reasons": j["reasons"], "features": j["features"],
-        "parameters": {n: {"value": p["value"], "std": p["std"]} for n, p in j["parameters"].items()},
-        "classification": j["classification"], "ticks": report.run.ticks,
+        "verdict": j.verdict, "reasons": j.reasons, "features": j.features,
+        "parameters": {n: {"value": p["value"], "std": p["std"]} for n, p in j.parameters.items()},
+        "classification": j.classification, "ticks": report.run.ticks,
         "missed_replies": report.run.missed_replies,
         "max_drive_deviation_v": report.run.max_drive_deviation_v,
         "compared_with_record": report.compared, "reproduced": report.reproduced if report.compared else None,

@@ -135,7 +135,7 @@ class ExcitationSection(_Section):
     """The reference the rack follows during a test (about mid-stroke).
 
     ``shape = "sine"`` uses only the first tone (the paper's 0.5 Hz sine; it
-    cannot separate a3 from a1, see DESIGN.md). ``"multisine"`` sums all tones.
+    cannot separate a3 from a1, see docs/method.md section 10 d). ``"multisine"`` sums all tones.
     """
 
     shape: Literal["sine", "multisine"] = "multisine"

@@ -10,7 +10,7 @@ tick does not jump and the feedforward's r''' term never spikes. Derivatives
 of the product E * sines come from Leibniz' rule.
 
 With one tone, r''' = -w^2 r' exactly and r'' = -w^2 (r - r_mid): a3 and a1
-cannot be told apart (DESIGN.md section 2, point 4). Use two tones or more.
+cannot be told apart (docs/method.md section 10 d). Use two tones or more.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 The loop analysed is the one the bench runs: the plant discretised with a
 zero-order hold at the tick period, one period of delay (the rack sample
-used at tick k was taken at tick k-1, DESIGN 3.1), and the discrete PID with
+used at tick k was taken at tick k-1, docs/method.md section 4), and the discrete PID with
 its filtered derivative exactly as :class:`~edc_bench.control.pid.Pid`
 computes it. Friction is left out (the nominal plant is the linear one).
 """

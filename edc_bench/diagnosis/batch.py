@@ -1,6 +1,6 @@
 """Many bench tests at once: the simulated test vectorised across valves.
 
-The same physics and the same controller as the full loop (DESIGN 3.2) run
+The same physics and the same controller as the full loop (docs/bench-test.md) run
 on numpy arrays, one element per valve, without the CAN round trip, the
 codec or the rig firmware: at tick k the controller uses the rack sampled at
 tick k-1, the sample at tick k is taken before the new drive is applied, the
@@ -9,7 +9,7 @@ valve); valves whose velocity reverses or that are stuck are replayed in
 0.1 ms quanta with the same Karnopp rule as :class:`~edc_bench.sim.plant.Plant`.
 Sensor noise is drawn from the same model but not the same stream, so a
 valve's identified parameters agree with the full loop's within the noise;
-``tests/test_batch.py`` checks the agreement.
+``tests/diagnosis/test_batch.py`` checks the agreement.
 
 This is what makes populations of thousands of valves cheap enough to train
 and evaluate a classifier on.

@@ -12,6 +12,7 @@ PASS.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -21,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
 
-PASS, MARGINAL, FAIL = "PASS", "MARGINAL", "FAIL"
 DEFAULT_MODEL = "valve_mlp.onnx"
 LINEAR_MODEL = "valve_linear.onnx"
 _DIRECTIONS = 24
@@ -42,7 +43,7 @@ class Classification:
 
     Attributes
     ----------
-    verdict : str
+    verdict : Verdict
         PASS, MARGINAL or FAIL.
     probability_faulty : float
         P(faulty) from the model.
@@ -53,7 +54,7 @@ class Classification:
         (af/af0, a1/a1_0) as given to the model.
     """
 
-    verdict: str
+    verdict: Verdict
     probability_faulty: float
     distance: float
     features_rel: tuple[float, float]
@@ -75,6 +76,8 @@ class ValveClassifier:
         self.path = Path(path) if path is not None else packaged_model_path()
         if not self.path.is_file():
             raise ConfigError(f"classifier model {self.path} not found; build it with 'edc-bench train'")
+        #: identity of the exact model file, recorded with every verdict it gives
+        self.sha256 = hashlib.sha256(self.path.read_bytes()).hexdigest()
         options = ort.SessionOptions()
         options.intra_op_num_threads = 1
         try:
@@ -141,7 +144,8 @@ class ValveClassifier:
         p = self.probabilities(features_rel)
         faulty = p >= self.threshold
         d = self.distances(features_rel, faulty)
-        verdicts = np.where(np.abs(d) < self.marginal_band, MARGINAL, np.where(faulty, FAIL, PASS))
+        verdicts = np.where(np.abs(d) < self.marginal_band, Verdict.MARGINAL.value,
+                            np.where(faulty, Verdict.FAIL.value, Verdict.PASS.value))
         return verdicts, p, d
 
     def classify(self, af_rel: float, a1_rel: float) -> Classification:
@@ -149,7 +153,7 @@ class ValveClassifier:
         if not (math.isfinite(af_rel) and math.isfinite(a1_rel)):
             raise ConfigError(f"features must be finite numbers, got af_rel={af_rel}, a1_rel={a1_rel}")
         verdicts, p, d = self.classify_many(np.array([[af_rel, a1_rel]]))
-        return Classification(str(verdicts[0]), float(p[0]), float(d[0]), (float(af_rel), float(a1_rel)), self.kind)
+        return Classification(Verdict(verdicts[0]), float(p[0]), float(d[0]), (float(af_rel), float(a1_rel)), self.kind)
 
     def boundary_grid(self, af_range: tuple[float, float], a1_range: tuple[float, float],
                       n: int = 200) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

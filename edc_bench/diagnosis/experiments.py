@@ -13,9 +13,10 @@ import numpy as np
 from edc_bench.config import load_variant
 from edc_bench.diagnosis.baseline import Baseline, load_baseline
 from edc_bench.diagnosis.batch import run_batch
-from edc_bench.diagnosis.classifier import FAIL, MARGINAL, ValveClassifier
+from edc_bench.diagnosis.classifier import ValveClassifier
 from edc_bench.diagnosis.dataset import COLUMNS, Dataset
 from edc_bench.diagnosis.population import draw_population, new_valves
+from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.valve import ValveSpec, sample_valve
 from edc_bench.physics.wear import clearance_for_resisting_force, is_faulty, resisting_force_n
 
@@ -30,8 +31,8 @@ def evaluate(classifier: ValveClassifier, dataset: Dataset) -> dict[str, Any]:
     ok = dataset.columns["converged"].astype(bool)
     verdicts, _, _ = classifier.classify_many(dataset.features[ok])
     truth = dataset.labels[ok] == 1
-    decided = verdicts != MARGINAL
-    fail = verdicts == FAIL
+    decided = verdicts != Verdict.MARGINAL
+    fail = verdicts == Verdict.FAIL
     correct = (fail == truth) & decided
     return {
         "tests": len(dataset),

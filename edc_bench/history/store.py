@@ -23,6 +23,7 @@ from typing import IO, Any
 
 import sqlalchemy as sa
 
+from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
 
 metadata = sa.MetaData()
@@ -209,7 +210,7 @@ class HistoryStore:
 
     def trend(self, valve_id: str) -> list[dict[str, Any]]:
         """Every trustworthy visit of one valve, oldest first."""
-        return [r for r in self.list(Filters(valve_id=valve_id)) if r["verdict"] != "INVALID"]
+        return [r for r in self.list(Filters(valve_id=valve_id)) if r["verdict"] != Verdict.INVALID]
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:

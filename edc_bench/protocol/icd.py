@@ -1,25 +1,43 @@
 """ICD v1 frames as typed values: make bytes, parse bytes, no I/O.
 
-All layouts, ids and E2E data ids come from the DBC in ``firmware_proto``;
-nothing about the wire format is written here twice. ``make_*`` functions
-return payload bytes (with the CRC filled in where the ICD asks for one);
-``parse_*`` functions check length and CRC and return a named tuple.
+All layouts, ids and E2E data ids come from the DBC beside this module
+(``icd_v1.dbc``, see :func:`dbc_path`); nothing about the wire format is
+written here twice. ``make_*`` functions return payload bytes (with the CRC
+filled in where the ICD asks for one); ``parse_*`` functions check length and
+CRC and return a named tuple.
 """
 
 from __future__ import annotations
 
 import enum
 from functools import lru_cache
+from importlib import resources
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from edc_bench.errors import E2EError, ProtocolError
 from edc_bench.protocol.crc import e2e_crc
+from edc_bench.protocol.errors import E2EError, ProtocolError
 from edc_bench.protocol.layout import MessageLayout, compile_message
+
+DBC_FILENAME = "icd_v1.dbc"
 
 BENCH_CMD_ID = 0x120
 RIG_FEEDBACK_ID = 0x121
 RIG_HEARTBEAT_ID = 0x720
+
+
+def dbc_path() -> Path:
+    """Return the path of the ICD v1 DBC file, the single source of truth.
+
+    The DBC ships inside this package, so it is found the same way from a
+    source checkout and from a non-editable install.
+
+    Returns
+    -------
+    pathlib.Path
+        Path of ``icd_v1.dbc`` inside the installed ``edc_bench.protocol`` package.
+    """
+    return Path(str(resources.files(__package__).joinpath(DBC_FILENAME)))
 
 
 class Mode(enum.IntEnum):
@@ -97,8 +115,6 @@ class Icd:
 
     def __init__(self, dbc_file: Path | None = None) -> None:
         import cantools  # deferred: only needed once, at start-up
-
-        from firmware_proto import dbc_path
 
         self.dbc_file = Path(dbc_file) if dbc_file is not None else dbc_path()
         self.database = cantools.database.load_file(str(self.dbc_file))

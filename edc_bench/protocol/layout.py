@@ -20,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from edc_bench.errors import ProtocolError
+from edc_bench.protocol.errors import ProtocolError
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ class MessageLayout:
     ----------
     encode : callable
         ``encode(*physical_values) -> bytes``, values in signal order.
-        Raises :class:`~edc_bench.errors.ProtocolError` for a value outside the
+        Raises :class:`~edc_bench.protocol.errors.ProtocolError` for a value outside the
         signal's range.
     decode : callable
         ``decode(payload) -> tuple`` of physical values in signal order.

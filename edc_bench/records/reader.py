@@ -1,4 +1,4 @@
-"""Read a record folder back: record.json, the variant it ran, its trace and its CAN log."""
+"""Read a record folder back: record.json, its trace and its CAN log (the folder alone, nothing else)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ from typing import Any
 
 import numpy as np
 
-from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
 from edc_bench.records.writer import CAN_LOG_FILE, RECORD_FILE, TRACE_FILE
 
@@ -38,16 +37,6 @@ def load_record(folder: Path) -> dict[str, Any]:
     if not isinstance(record, dict) or "verdict" not in record:
         raise ConfigError(f"{path}: not an edc-bench record (no verdict)")
     return record
-
-
-def record_variant(record: dict[str, Any], source: str) -> Variant:
-    """The variant exactly as the recorded test ran it (with its command-line overrides)."""
-    from edc_bench.config import parse_variant
-
-    config = record.get("config")
-    if not isinstance(config, dict):
-        raise ConfigError(f"{source}: the record holds no variant configuration")
-    return parse_variant(config, f"{source} (recorded variant)")
 
 
 def load_trace(folder: Path) -> dict[str, np.ndarray]:

@@ -1,16 +1,31 @@
-"""A bench test's record folder, assembled from a :class:`BenchResult`.
+"""The record of a bench test: everything it produced, and its folder.
 
-Files are written data first (trace, CAN log), then the figure, then
-``record.json`` which lists them: a folder whose record.json exists is
-complete. A failure while drawing the figure never loses the data.
+:class:`BenchResult` is the record in memory (like OpenHTF's test record):
+what the loop measured, the judgement and who ran it. Its folder is written
+data first (trace, CAN log), then the figure, then ``record.json`` which
+lists them: a folder whose record.json exists is complete. A failure while
+drawing the figure never loses the data. record.json holds everything the
+report shows (reference values, the model that judged and its decision
+plane), so the report reads the folder alone.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+import numpy as np
+
+from edc_bench import __version__
+from edc_bench.config.models import Variant
+from edc_bench.control.stability import LoopMargins
+from edc_bench.diagnosis.identification import Identification
+from edc_bench.diagnosis.judgement import Judgement
+from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.physics.feedforward import FeedforwardParameters
+from edc_bench.protocol import default_icd
 from edc_bench.records.writer import (
     CAN_LOG_FILE,
     FIGURE_FILE,
@@ -22,15 +37,102 @@ from edc_bench.records.writer import (
     write_json,
     write_trace,
 )
+from edc_bench.runtime.loop import LoopOutcome
+from edc_bench.runtime.trace import CanFrameLog
 
-if TYPE_CHECKING:
-    from edc_bench.bench import BenchResult
+
+@dataclass
+class BenchResult:
+    """Everything one bench test produced.
+
+    Attributes
+    ----------
+    judgement : Judgement
+        The verdict, its reasons, the identified parameters and features,
+        and what they were compared with (see also the shortcuts below).
+    timing : dict
+        Tick lateness percentiles, overruns, missed replies, CPU steal.
+    outcome : LoopOutcome
+        What happened in the loop (aborts, replies, heartbeats).
+    margins : LoopMargins or None
+        The gain check's margins (None if it was skipped).
+    variant : Variant
+        The variant as the test ran it.
+    valve_id, started_at, clock : str
+        The valve's id, the UTC start time, ``simulated`` or ``real-time``.
+    trace : dict of numpy.ndarray
+        Per-tick columns.
+    frames : CanFrameLog
+        Every frame sent and received.
+    truth : FeedforwardParameters or None
+        The simulated plant's true parameters (simulated rig only).
+    simulation : dict or None
+        The simulated valve and rig, when the rig was simulated.
+    can_log_path : pathlib.Path or None
+        Where the CAN log was streamed while the test ran, if it was.
+    identity : dict
+        Who and where: ``pump_serial``, ``station``, ``operator`` (set by the caller).
+    """
+
+    judgement: Judgement
+    timing: dict[str, float]
+    outcome: LoopOutcome
+    margins: LoopMargins | None
+    variant: Variant
+    valve_id: str
+    started_at: str
+    clock: str
+    trace: dict[str, np.ndarray]
+    frames: CanFrameLog
+    truth: FeedforwardParameters | None = None
+    simulation: dict[str, Any] | None = None
+    can_log_path: Path | None = None
+    software_version: str = __version__
+    identity: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def verdict(self) -> Verdict:
+        """PASS, MARGINAL, FAIL, INVALID (see ``reasons``) or UNCLASSIFIED."""
+        return self.judgement.verdict
+
+    @property
+    def reasons(self) -> list[str]:
+        """Why the verdict is what it is."""
+        return self.judgement.reasons
+
+    @property
+    def parameters(self) -> dict[str, dict[str, Any]]:
+        """``name -> {"value", "std", "estimated"}`` for a3, a2, a1, a0, b, af."""
+        return self.judgement.parameters
+
+    @property
+    def features(self) -> dict[str, float]:
+        """``{"af": ..., "a1": ...}``, the diagnosis inputs."""
+        return self.judgement.features
+
+    @property
+    def converged(self) -> bool:
+        """af and a1 settled and stayed settled."""
+        return self.judgement.converged
+
+    @property
+    def identification(self) -> Identification | None:
+        """Settle times, conditioning and uncertainty of the identification."""
+        return self.judgement.identification
+
+    @property
+    def classification(self) -> dict[str, Any] | None:
+        """The classifier's judgement as plain data (None if it was not asked)."""
+        return self.judgement.classification
+
+    @property
+    def baseline(self) -> dict[str, Any] | None:
+        """The baseline the features were compared with (None if not classified)."""
+        return self.judgement.baseline
 
 
 def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, Any]:
     """The content of record.json."""
-    from edc_bench.protocol import default_icd
-
     ident = result.identification
     outcome = dataclasses.asdict(result.outcome)
     return {
@@ -49,10 +151,13 @@ def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, 
         "features": result.features,
         "classification": result.classification,
         "baseline": result.baseline,
+        "reference_values": result.judgement.reference_values,
+        "decision_plane": result.judgement.decision_plane,
         "parameters": result.parameters,
         "converged": result.converged,
         "identification": None if ident is None else {
             "estimator": result.variant.estimator.kind,
+            "excitation_start_s": result.variant.excitation.move_s,
             "settle_s": ident.settle_s,
             "condition_number": ident.condition_number,
             "samples_in_last_window": ident.samples_used,
@@ -93,7 +198,8 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     files: dict[str, str | None] = {"trace": None, "can_log": None, "figure": None}
     write_trace(folder / TRACE_FILE, result.trace)
     files["trace"] = TRACE_FILE
-    write_can_log(folder / CAN_LOG_FILE, result.frames)
+    if result.can_log_path != folder / CAN_LOG_FILE:  # streamed there while the test ran: complete already
+        write_can_log(folder / CAN_LOG_FILE, result.frames)
     files["can_log"] = CAN_LOG_FILE
     if figure and len(result.trace["t_s"]):
         from edc_bench.records.figure import draw_report_figure

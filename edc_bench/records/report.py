@@ -1,6 +1,7 @@
 """The one-page customer report of a test: PDF for printing, PNG for screens and mail.
 
-Drawn with matplotlib on an A4 page from the record folder alone: identity
+Drawn with matplotlib on an A4 page from the record folder alone (record.json
+and the trace; no variant file, no model, no recomputation): identity
 and versions, the verdict with its probability and distance to the
 boundary, the parameter table with uncertainties and the change against
 the reference (the new-valve baseline for af and a1, the data-sheet
@@ -17,26 +18,24 @@ from typing import Any
 
 import numpy as np
 
+from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.paths import atomic_write
-from edc_bench.records.reader import load_record, load_trace, record_variant
+from edc_bench.records.reader import load_record, load_trace
 
 REPORT_PDF = "report.pdf"
 REPORT_PNG = "report-page.png"
-_VERDICT_COLOURS = {"PASS": "#2e7d32", "MARGINAL": "#f9a825", "FAIL": "#c62828", "INVALID": "#6a1b9a"}
+_VERDICT_COLOURS = {Verdict.PASS: "#2e7d32", Verdict.MARGINAL: "#f9a825", Verdict.FAIL: "#c62828",
+                    Verdict.INVALID: "#6a1b9a"}
+_VERDICT_MEANINGS = {Verdict.PASS: "The valve can be reused.", Verdict.MARGINAL: "Near the limit: test again.",
+                     Verdict.FAIL: "Worn: replace the valve.",
+                     Verdict.INVALID: "The test is not to be trusted; nothing was judged."}
 _UNITS = {"a3": "V s^3/mm", "a2": "V s^2/mm", "a1": "V s/mm", "a0": "V/mm", "b": "V", "af": "V"}
 
 
-def _reference_values(record: dict[str, Any], variant: Any) -> dict[str, tuple[float, str]]:
-    """Per parameter: the value it is compared with, and where that comes from."""
-    from edc_bench.physics.feedforward import nominal_parameters
-
-    nominal = nominal_parameters(variant)._asdict()
-    out = {name: (float(value), "nominal") for name, value in nominal.items()}
-    baseline = record.get("baseline") or {}
-    if baseline.get("af_v"):
-        out["af"] = (float(baseline["af_v"]), "baseline")
-        out["a1"] = (float(baseline["a1_v_s_per_mm"]), "baseline")
-    return out
+def _reference_values(record: dict[str, Any]) -> dict[str, tuple[float, str]]:
+    """Per parameter: the value it is compared with, and where that comes from, as the test recorded them."""
+    return {name: (float(entry["value"]), str(entry.get("source", "")))
+            for name, entry in (record.get("reference_values") or {}).items() if entry.get("value") is not None}
 
 
 def _identity_lines(record: dict[str, Any], folder: Path) -> list[tuple[str, str]]:
@@ -45,7 +44,8 @@ def _identity_lines(record: dict[str, Any], folder: Path) -> list[tuple[str, str
     config = record.get("config") or {}
     pump = config.get("pump") or {}
     model = cls.get("model")
-    sha = (cls.get("training_data_sha256") or "")[:12]
+    model_file = cls.get("model_file") or "?"
+    sha = (cls.get("model_sha256") or "")[:12] or "not recorded"
     return [
         ("Pump", f"{record.get('variant', '?')}, part number {record.get('part_number', '?')}"),
         ("", str(pump.get("description", ""))[:60]),
@@ -55,7 +55,7 @@ def _identity_lines(record: dict[str, Any], folder: Path) -> list[tuple[str, str
         ("Station / operator", f"{identity.get('station') or '-'} / {identity.get('operator') or '-'}"),
         ("Software", f"edc-bench {record.get('software_version', '?')}, ICD {record.get('icd_version', '?')}, "
                      f"rig firmware {record.get('firmware_version') or '?'}"),
-        ("Model", f"{model} classifier, training data {sha}" if model else "not classified"),
+        ("Model", f"{model} classifier {model_file}, sha256 {sha}" if model else "not classified"),
         ("Rig / clock", f"{'simulated rig' if record.get('simulation') else 'bench rig'}, {record.get('clock', '?')}"),
         ("Record", folder.name),
     ]
@@ -83,7 +83,6 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
 
     folder = Path(folder)
     record = load_record(folder)
-    variant = record_variant(record, str(folder))
     trace = load_trace(folder)
     out_dir = Path(out_dir) if out_dir is not None else folder
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -108,7 +107,7 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
 
     ax_t = fig.add_subplot(grid[6:10, :])
     ax_t.axis("off")
-    _parameter_table(ax_t, record, variant)
+    _parameter_table(ax_t, record)
 
     t = trace["t_s"]
     ax_track = fig.add_subplot(grid[11:14, 0])
@@ -117,7 +116,7 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
     ax_plane = fig.add_subplot(grid[17:24, :])
     if len(t):
         _tracking(ax_track, ax_error, trace)
-        _convergence(ax_conv, trace, record, variant)
+        _convergence(ax_conv, trace, record)
     _decision_plane(ax_plane, record)
 
     pdf, png = out_dir / REPORT_PDF, out_dir / REPORT_PNG
@@ -138,9 +137,7 @@ def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
             f"(marginal band +/- {cls['marginal_band']:g}; positive: worn side)",
             f"af {rel['af'] - 1:+.1%}, a1 {rel['a1'] - 1:+.1%} against a new valve",
         ]
-    meaning = {"PASS": "The valve can be reused.", "MARGINAL": "Near the limit: test again.",
-               "FAIL": "Worn: replace the valve.", "INVALID": "The test is not to be trusted; nothing was judged."}
-    lines.insert(0, meaning.get(record.get("verdict", ""), ""))
+    lines.insert(0, _VERDICT_MEANINGS.get(record.get("verdict", ""), ""))
     if not cls:  # with a classification the reasons only repeat the figures above
         for reason in record.get("reasons") or []:
             lines.append(reason if len(reason) < 60 else reason[:57] + "...")
@@ -149,9 +146,9 @@ def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
                 weight="bold" if n == 0 else "normal")
 
 
-def _parameter_table(ax: Any, record: dict[str, Any], variant: Any) -> None:
+def _parameter_table(ax: Any, record: dict[str, Any]) -> None:
     params = record.get("parameters") or {}
-    refs = _reference_values(record, variant)
+    refs = _reference_values(record)
     rows = []
     for name in ("af", "a1", "a0", "a2", "b", "a3"):
         p = params.get(name)
@@ -162,7 +159,7 @@ def _parameter_table(ax: Any, record: dict[str, Any], variant: Any) -> None:
         change = f"{value / ref - 1:+.1%}" if value is not None and ref else ""
         rows.append([f"{name} ({_UNITS[name]})", f"{value:.5g}" if value is not None else "-",
                      f"{std:.2g}" if std is not None and p.get("estimated") else "fixed",
-                     f"{ref:.5g}", source, change])
+                     f"{ref:.5g}" if math.isfinite(ref) else "-", source or "not recorded", change])
     if not rows:
         ax.text(0.0, 0.5, "No parameters: the test stopped before identifying any.", fontsize=9)
         return
@@ -189,15 +186,22 @@ def _tracking(ax: Any, ax_error: Any, trace: dict[str, np.ndarray]) -> None:
     ax_error.tick_params(labelsize=7)
 
 
-def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any], variant: Any) -> None:
+def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any]) -> None:
     t = trace["t_s"]
-    refs = _reference_values(record, variant)
+    refs = _reference_values(record)
+    ceiling = 2.5
     for name, colour in (("af", "C1"), ("a1", "C2")):
-        ref = refs[name][0]
-        ax.plot(t, trace[f"{name}_hat"] / ref, colour, lw=0.9, label=f"{name} / {refs[name][1]}")
+        ref, source = refs.get(name, (math.nan, ""))
+        if not (math.isfinite(ref) and ref):
+            continue
+        ratio = trace[f"{name}_hat"] / ref
+        ceiling = max(ceiling, float(np.nanmax(ratio)) * 1.1)
+        ax.plot(t, ratio, colour, lw=0.9, label=f"{name} / {source}")
     ax.axhline(1.0, color="grey", lw=0.6)
-    ax.axvline(variant.excitation.move_s, color="grey", lw=0.5, ls=":")
-    ax.set_ylim(0.0, max(2.5, float(np.nanmax(trace["af_hat"] / refs["af"][0])) * 1.1))
+    start_s = (record.get("identification") or {}).get("excitation_start_s")
+    if start_s is not None:
+        ax.axvline(start_s, color="grey", lw=0.5, ls=":")
+    ax.set_ylim(0.0, ceiling)
     ax.set_title("Convergence of af and a1 (Figs. 4-5)", fontsize=9)
     ax.set_xlabel("time (s)", fontsize=8)
     ax.set_ylabel("estimate / reference", fontsize=8)
@@ -205,26 +209,43 @@ def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any], 
     ax.legend(fontsize=7, loc="upper right")
 
 
+def boundary_distance(af_rel: np.ndarray, a1_rel: np.ndarray, p_faulty: np.ndarray, threshold: float) -> np.ndarray:
+    """Signed distance of each grid point to the boundary (P = threshold), positive on the faulty side.
+
+    The boundary is the threshold contour of the recorded P(faulty) grid;
+    each point's distance is to the nearest point of that contour, as the
+    classifier measures it (in relative-feature units).
+    """
+    import contourpy
+
+    lines = contourpy.contour_generator(af_rel, a1_rel, p_faulty).lines(threshold)
+    if not lines:
+        return np.where(p_faulty >= threshold, np.inf, -np.inf)
+    boundary = np.concatenate(lines)
+    points = np.column_stack([af_rel.ravel(), a1_rel.ravel()])
+    nearest = np.sqrt(((points[:, None, :] - boundary[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+    return np.where(p_faulty.ravel() >= threshold, nearest, -nearest).reshape(p_faulty.shape)
+
+
 def _decision_plane(ax: Any, record: dict[str, Any]) -> None:
     cls = record.get("classification")
+    plane = record.get("decision_plane")
     ax.set_title("Decision plane (Fig. 7): the valve against the boundary", fontsize=9)
-    if not cls:
-        ax.text(0.5, 0.5, "not classified", ha="center", va="center", fontsize=10, transform=ax.transAxes)
+    if not cls or not plane:
+        ax.text(0.5, 0.5, "not classified" if not cls else "decision plane not in this record",
+                ha="center", va="center", fontsize=10, transform=ax.transAxes)
         ax.set_xticks([])
         ax.set_yticks([])
         return
-    from edc_bench.diagnosis.classifier import default_classifier
-
-    classifier = default_classifier(None)
+    p = np.asarray(plane["p_faulty"], dtype=float)
+    A, B = np.meshgrid(np.linspace(*plane["af_rel_range"], p.shape[1]), np.linspace(*plane["a1_rel_range"], p.shape[0]))
+    dist = boundary_distance(A, B, p, plane["threshold"])
+    band = plane["marginal_band"]
     point = np.array([cls["features_rel"]["af"], cls["features_rel"]["a1"]])
-    hi = np.maximum(point * 1.25, 2.6)
-    A, B, _ = classifier.boundary_grid((0.5, float(hi[0])), (0.5, float(hi[1])), n=80)
-    dist = classifier.distances(np.column_stack([A.ravel(), B.ravel()])).reshape(A.shape)
-    band = classifier.marginal_band
-    ax.contourf(A, B, dist, levels=[-10, -band], colors=["#e8f5e9"])
-    ax.contourf(A, B, dist, levels=[band, 10], colors=["#ffebee"])
+    ax.contourf(A, B, dist, levels=[-np.inf, -band], colors=["#e8f5e9"])
+    ax.contourf(A, B, dist, levels=[band, np.inf], colors=["#ffebee"])
     ax.contourf(A, B, dist, levels=[-band, band], colors=["0.85"])
-    ax.contour(A, B, dist, levels=[0.0], colors="k", linewidths=1.2)
+    ax.contour(A, B, p, levels=[plane["threshold"]], colors="k", linewidths=1.2)
     ax.scatter([1.0], [1.0], marker="s", color="C0", s=40, label="new-valve baseline")
     ax.scatter([point[0]], [point[1]], marker="*", s=220, color=_VERDICT_COLOURS.get(cls["verdict"], "k"),
                edgecolor="k", zorder=5, label=f"this valve: {cls['verdict']}")

@@ -1,11 +1,15 @@
-"""The raw CAN log, streamed to disk while a test runs.
+"""The raw CAN log, written with python-can's candump writer, streamed while a test runs.
 
 The tick only stores frames in the preallocated :class:`CanFrameLog`; a
-background thread appends what is new to ``can.log`` (candump format, one line
-per frame) every 0.1 s, flushed and fsynced, so a test process that is killed
-leaves a log that python-can reads back up to the last 0.1 s. The thread
-writes in small batches and yields between them, so it never holds the
-interpreter long enough to delay a tick noticeably.
+background thread appends what is new to ``can.log`` every 0.1 s, flushed
+and fsynced, so a test process that is killed leaves a log that python-can
+reads back up to the last 0.1 s. The thread writes in small batches and
+yields between them, so it never holds the interpreter long enough to delay
+a tick noticeably.
+
+Lines are python-can's ``CanutilsLogWriter`` format (``candump -L``, with
+``R``/``T`` direction marks), with absolute (Unix) timestamps: the frame
+log's clock times plus the clock's origin.
 """
 
 from __future__ import annotations
@@ -14,15 +18,31 @@ import os
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
 
-from edc_bench.runtime.trace import CanFrameLog
+import can
+
+if TYPE_CHECKING:  # only a type: the CAN log writer needs nothing of the runtime
+    from edc_bench.runtime.trace import CanFrameLog
 
 _BATCH = 32
+CHANNEL = "can0"
 
 
-def format_frame(t_s: float, can_id: int, data: bytes, channel: str) -> str:
-    """One candump line, as python-can's CanutilsLogWriter writes it."""
-    return f"({t_s:f}) {channel} {can_id:03X}#{data.hex().upper()}\n"
+def log_frames(writer: can.CanutilsLogWriter, frames: CanFrameLog, start: int, stop: int) -> None:
+    """Write frames ``start..stop-1`` of ``frames`` through python-can's writer, with absolute timestamps."""
+    origin = frames.origin_unix_s
+    for k in range(start, stop):
+        dlc = int(frames.dlc[k])
+        writer.on_message_received(can.Message(
+            timestamp=origin + float(frames.t_s[k]), arbitration_id=int(frames.can_id[k]), is_extended_id=False,
+            dlc=dlc, data=bytes(frames.data[k, :dlc]), is_rx=bool(frames.rx[k]), channel=writer.channel,
+        ))
+
+
+def open_log_writer(handle: TextIO) -> can.CanutilsLogWriter:
+    """python-can's candump writer on an open text file."""
+    return can.CanutilsLogWriter(handle, channel=CHANNEL)
 
 
 class StreamingCanLog:
@@ -36,15 +56,21 @@ class StreamingCanLog:
         The file (created now).
     period_s : float
         How often new frames are written.
+
+    Attributes
+    ----------
+    complete : bool
+        True once :meth:`stop` has written every frame and closed the file.
     """
 
-    def __init__(self, frames: CanFrameLog, path: Path, channel: str = "can0", period_s: float = 0.1) -> None:
+    def __init__(self, frames: CanFrameLog, path: Path, period_s: float = 0.1) -> None:
         self.frames = frames
         self.path = Path(path)
-        self.channel = channel
         self.period_s = period_s
         self.written = 0
+        self.complete = False
         self._file = open(self.path, "w", encoding="ascii")  # noqa: SIM115 - closed in stop()
+        self._writer = open_log_writer(self._file)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="can-log-writer", daemon=True)
 
@@ -56,18 +82,14 @@ class StreamingCanLog:
         self.stop()
 
     def _flush_new(self) -> None:
-        frames, handle = self.frames, self._file
-        end = frames.count
+        end = self.frames.count
         while self.written < end:
             stop = min(end, self.written + _BATCH)
-            lines = [format_frame(float(frames.t_s[k]), int(frames.can_id[k]),
-                                  bytes(frames.data[k, : int(frames.dlc[k])]), self.channel)
-                     for k in range(self.written, stop)]
-            handle.write("".join(lines))
+            log_frames(self._writer, self.frames, self.written, stop)
             self.written = stop
             time.sleep(0)  # let the loop run between batches
-        handle.flush()
-        os.fsync(handle.fileno())
+        self._file.flush()
+        os.fsync(self._file.fileno())
 
     def _run(self) -> None:
         while not self._stop.wait(self.period_s):
@@ -81,3 +103,4 @@ class StreamingCanLog:
         if not self._file.closed:
             self._flush_new()
             self._file.close()
+            self.complete = True

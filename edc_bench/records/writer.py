@@ -16,7 +16,8 @@ import numpy as np
 
 from edc_bench.paths import atomic_write
 
-RECORD_SCHEMA = 1
+# 2: reference values, the judging model's file and SHA-256, the decision plane; absolute CAN-log times
+RECORD_SCHEMA = 2
 TRACE_FILE = "trace.npz"
 CAN_LOG_FILE = "can.log"
 FIGURE_FILE = "report.png"
@@ -57,20 +58,11 @@ def write_trace(path: Path, trace: dict[str, np.ndarray]) -> None:
     atomic_write(path, lambda f: np.savez_compressed(f, **trace))
 
 
-def write_can_log(path: Path, frames: Any, channel: str = "can0") -> None:
-    """Raw CAN traffic as a candump-style .log that python-can reads back (``can.LogReader``)."""
-    import can
+def write_can_log(path: Path, frames: Any) -> None:
+    """Raw CAN traffic as a candump-style .log that python-can reads back (``can.LogReader``), atomically."""
+    from edc_bench.records.stream import log_frames, open_log_writer
 
-    def write(handle: Any) -> None:
-        writer = can.CanutilsLogWriter(handle, channel=channel)
-        for k in range(frames.count):
-            dlc = int(frames.dlc[k])
-            writer.on_message_received(can.Message(
-                timestamp=float(frames.t_s[k]), arbitration_id=int(frames.can_id[k]), is_extended_id=False,
-                dlc=dlc, data=bytes(frames.data[k, :dlc]), is_rx=bool(frames.rx[k]), channel=channel,
-            ))
-
-    atomic_write(path, write, mode="w")
+    atomic_write(path, lambda handle: log_frames(open_log_writer(handle), frames, 0, frames.count), mode="w")
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:

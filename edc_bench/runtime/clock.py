@@ -1,4 +1,4 @@
-"""One loop, two clocks (DESIGN 3.2).
+"""One loop, two clocks (docs/bench-test.md, "The loop").
 
 :class:`SimulatedClock` never waits: it steps an in-process rig in lockstep,
 one period per command, so a test is deterministic and runs as fast as the

@@ -11,6 +11,7 @@ the trace and the frame log are preallocated arrays.
 
 from __future__ import annotations
 
+import enum
 import gc
 import math
 import time
@@ -23,7 +24,6 @@ import can
 from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
-from edc_bench.errors import ProtocolError
 from edc_bench.protocol import (
     BENCH_CMD_ID,
     RIG_FEEDBACK_ID,
@@ -34,6 +34,7 @@ from edc_bench.protocol import (
     RigFeedback,
     RigState,
 )
+from edc_bench.protocol.errors import ProtocolError
 from edc_bench.runtime.clock import Clock, cpu_steal_s
 from edc_bench.runtime.trace import CanFrameLog, Trace
 
@@ -48,6 +49,17 @@ def reply_flags(reply: RigFeedback) -> int:
             | reply.travel_limit * FLAG_TRAVEL)
 
 
+class Phase(enum.StrEnum):
+    """The phases of a bench test, in order, as observers are told them."""
+
+    CONNECT = "connect"
+    WAIT_READY = "wait READY"
+    SOFT_START = "soft start"
+    IDENTIFY = "identify"
+    SAFE_STOP = "safe stop"
+    CLASSIFY = "classify"
+
+
 #: Ticks between two :meth:`LoopObserver.tick` calls.
 OBSERVE_EVERY = 100
 
@@ -55,9 +67,9 @@ OBSERVE_EVERY = 100
 class LoopObserver(Protocol):
     """Watches a test as it runs (the live view, log lines). Must return quickly: it runs inside the loop."""
 
-    def phase(self, name: str) -> None:
-        """The test entered phase ``name``: ``wait READY``, ``soft start``, ``identify``, ``safe stop`` (and,
-        from :func:`~edc_bench.bench.run_bench_test`, ``classify``)."""
+    def phase(self, name: Phase) -> None:
+        """The test entered phase ``name`` (:class:`Phase`; ``classify`` comes from
+        :func:`~edc_bench.bench.run_bench_test`)."""
 
     def tick(self, k: int, loop: BenchLoop) -> None:
         """Tick ``k`` has been recorded (every :data:`OBSERVE_EVERY` ticks); read ``loop.trace``, ``loop.outcome``."""
@@ -82,6 +94,7 @@ class LoopOutcome:
     abort_time_s: float | None = None  # trace time at which the abort was decided
     ticks_start_s: float = 0.0  # clock time of trace time 0 (the frame log's time base)
     first_tick_unix_s: float | None = None  # wall-clock time the first tick began (start-up measurements)
+    clock_origin_unix_s: float = 0.0  # Unix time of clock time 0 (the CAN log's timestamps are absolute)
     events: list[str] = field(default_factory=list)
 
 
@@ -201,7 +214,7 @@ class BenchLoop:
                 self.outcome.safe_confirmed = True
                 return
 
-    def _phase(self, name: str) -> None:
+    def _phase(self, name: Phase) -> None:
         if self.observer is not None:
             self.observer.phase(name)
 
@@ -212,9 +225,10 @@ class BenchLoop:
         gc.freeze()  # objects alive now are never scanned again
         gc.disable()  # and no collection interrupts a tick
         self.clock.start()
+        self.frames.origin_unix_s = self.outcome.clock_origin_unix_s = time.time() - self.clock.now_s()
         steal_at_start = cpu_steal_s()
         try:
-            self._phase("wait READY")
+            self._phase(Phase.WAIT_READY)
             if not self._wait_ready():
                 state = self._rig_state.name if self._rig_state else "no heartbeat"
                 self.outcome.abort_reason = (
@@ -233,7 +247,7 @@ class BenchLoop:
             self.outcome.events.append(traceback.format_exc())
         finally:
             try:
-                self._phase("safe stop")
+                self._phase(Phase.SAFE_STOP)
                 self._safe_stop()  # run_bench_test's interrupt guard keeps a second Ctrl-C from skipping it
             except can.CanError as exc:
                 self.outcome.events.append(f"SAFE could not be sent: {exc}")
@@ -259,13 +273,8 @@ class BenchLoop:
         current_a = first.current_a
         self.controller = ctl = build_controller(self.variant, position_mm)
 
-        cols = self.trace.columns
-        t_col, late_col, reply_col = cols["t_s"], cols["lateness_s"], cols["reply_latency_s"]
-        r_col, r1_col = cols["reference_mm"], cols["reference_velocity_mm_s"]
-        x_col, i_col = cols["position_mm"], cols["current_a"]
-        u_col, u1_col, u2_col = cols["drive_v"], cols["feedforward_v"], cols["feedback_v"]
-        adapt_col, ok_col, flag_col = cols["adapting"], cols["reply_ok"], cols["rig_flags"]
-        param_cols = [cols[f"{n}_hat"] for n in ("a3", "a2", "a1", "a0", "b", "af")]
+        trace = self.trace
+        write_tick = trace.write_tick
         acceptance = self.variant.acceptance
         reply_window_s = T * acceptance.reply_timeout_fraction
         max_in_row = acceptance.max_missed_replies_in_row
@@ -285,7 +294,7 @@ class BenchLoop:
         observer = self.observer
         identify_from_k = int(round((self.variant.excitation.move_s + self.variant.excitation.fade_s) / T))
         clock = self.clock
-        self._phase("soft start")
+        self._phase(Phase.SOFT_START)
 
         stop_requested = self.stop_requested
         for k in range(self.ticks):
@@ -304,7 +313,7 @@ class BenchLoop:
             sent_s = clock.now_s()
             counter = self._send(Mode.RUN, u, ctl.reference_mm)
             reply = self._receive(counter, t_k + reply_window_s)
-            reply_col[k] = clock.now_s() - sent_s if reply is not None else math.nan
+            reply_latency_s = clock.now_s() - sent_s if reply is not None else math.nan
             if reply is None:
                 outcome.missed_replies += 1
                 missed_in_row += 1
@@ -314,20 +323,8 @@ class BenchLoop:
                 missed_in_row = 0
                 position_mm, current_a = reply.position_mm, reply.current_a
                 flags = reply_flags(reply)
-            t_col[k] = t_k - t_start
-            late_col[k] = lateness
-            r_col[k] = ctl.reference_mm
-            r1_col[k] = ctl.reference_velocity_mm_s
-            x_col[k] = position_mm
-            i_col[k] = current_a
-            u_col[k] = u
-            u1_col[k] = ctl.feedforward_v
-            u2_col[k] = ctl.feedback_v
-            adapt_col[k] = ctl.adapting
-            ok_col[k] = reply is not None
-            flag_col[k] = flags
-            ctl.write_parameters(param_cols, k)
-            self.trace.rows = k + 1
+            write_tick(k, t_k - t_start, lateness, reply_latency_s, ctl, position_mm, current_a, u, reply is not None,
+                       flags)
             outcome.ticks_run = k + 1
             if reply is not None and reply.any_fault:
                 outcome.abort_time_s = t_k - t_start
@@ -359,7 +356,7 @@ class BenchLoop:
                                         f"(plausible {position_range[0]:g}..{position_range[1]:g} mm, "
                                         f"|i| <= {rig.over_current_a:g} A)")
             else:
-                error_ticks = error_ticks + 1 if k > follow_from_k and abs(r_col[k] - position_mm) > max_error_mm else 0
+                error_ticks = error_ticks + 1 if k > follow_from_k and abs(ctl.reference_mm - position_mm) > max_error_mm else 0
                 if error_ticks >= error_ticks_limit:
                     outcome.abort_reason = (f"rack does not follow its reference: more than {max_error_mm:g} mm off "
                                             f"for {error_ticks} ticks (stuck rack or sensor)")
@@ -370,4 +367,4 @@ class BenchLoop:
                 if k % OBSERVE_EVERY == 0:
                     observer.tick(k, self)
                 if k == identify_from_k:
-                    observer.phase("identify")
+                    observer.phase(Phase.IDENTIFY)

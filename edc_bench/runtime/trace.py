@@ -6,9 +6,11 @@ nothing per tick; what was measured up to an abort is all there.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-PARAMETER_NAMES = ("a3", "a2", "a1", "a0", "b", "af")
+from edc_bench.config.models import PARAMETER_NAMES
 
 # column name -> dtype; units in the names
 TRACE_COLUMNS: dict[str, str] = {
@@ -28,6 +30,10 @@ TRACE_COLUMNS: dict[str, str] = {
     **{f"{name}_hat": "f8" for name in PARAMETER_NAMES},
 }
 
+# the order :meth:`Trace.write_tick` fills them in
+_TICK_COLUMNS = ("t_s", "lateness_s", "reply_latency_s", "reference_mm", "reference_velocity_mm_s", "position_mm",
+                 "current_a", "drive_v", "feedforward_v", "feedback_v", "adapting", "reply_ok", "rig_flags")
+
 
 class Trace:
     """Columns of one test, one row per tick.
@@ -42,6 +48,31 @@ class Trace:
         self.capacity = capacity
         self.columns = {name: np.zeros(capacity, dtype=dtype) for name, dtype in TRACE_COLUMNS.items()}
         self.rows = 0
+        self._cols = [self.columns[name] for name in _TICK_COLUMNS]
+        self._parameter_columns = [self.columns[f"{name}_hat"] for name in PARAMETER_NAMES]
+
+    def write_tick(self, k: int, t_s: float, lateness_s: float, reply_latency_s: float, controller: Any,
+                   position_mm: float, current_a: float, drive_v: float, reply_ok: bool, rig_flags: int) -> None:
+        """Store tick ``k``: its timing, the controller's last step and what the rig reported.
+
+        The one place a tick becomes a trace row, for the live loop and for replay.
+        """
+        c = self._cols
+        c[0][k] = t_s
+        c[1][k] = lateness_s
+        c[2][k] = reply_latency_s
+        c[3][k] = controller.reference_mm
+        c[4][k] = controller.reference_velocity_mm_s
+        c[5][k] = position_mm
+        c[6][k] = current_a
+        c[7][k] = drive_v
+        c[8][k] = controller.feedforward_v
+        c[9][k] = controller.feedback_v
+        c[10][k] = controller.adapting
+        c[11][k] = reply_ok
+        c[12][k] = rig_flags
+        controller.write_parameters(self._parameter_columns, k)
+        self.rows = k + 1
 
     def view(self) -> dict[str, np.ndarray]:
         """The filled part of every column."""
@@ -67,6 +98,8 @@ class CanFrameLog:
         self.rx = np.zeros(capacity, dtype=bool)
         self.count = 0
         self.dropped = 0
+        #: Unix time of clock time 0, so logs carry absolute timestamps (set by the loop when its clock starts)
+        self.origin_unix_s = 0.0
 
     def add(self, t_s: float, can_id: int, data: bytes | bytearray, rx: bool) -> None:
         """Store one frame."""

@@ -20,11 +20,13 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
+from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
 
 _BARS = "▁▂▃▄▅▆▇█"
-VERDICT_STYLES = {"PASS": "bold white on green", "MARGINAL": "bold black on yellow", "FAIL": "bold white on red",
-                  "INVALID": "bold white on magenta", "UNCLASSIFIED": "bold"}
+VERDICT_STYLES = {Verdict.PASS: "bold white on green", Verdict.MARGINAL: "bold black on yellow",
+                  Verdict.FAIL: "bold white on red", Verdict.INVALID: "bold white on magenta",
+                  Verdict.UNCLASSIFIED: "bold"}
 
 
 def sparkline(values: Sequence[float], lo: float | None = None, hi: float | None = None, width: int = 50) -> str:
@@ -107,7 +109,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     if record_dir is not None:
         body.add_row("record", str(record_dir))
         body.add_row("next", f"edc-bench report {record_dir}")
-    style = {"PASS": "green", "MARGINAL": "yellow", "FAIL": "red"}.get(result.verdict, "magenta")
+    style = {Verdict.PASS: "green", Verdict.MARGINAL: "yellow", Verdict.FAIL: "red"}.get(result.verdict, "magenta")
     return Panel(body, title=f"valve {result.valve_id or '?'} on {result.variant.name}", border_style=style)
 
 

@@ -8,14 +8,16 @@ from typing import Any
 
 import numpy as np
 
-PHASES = ("connect", "wait READY", "soft start", "identify", "safe stop", "classify")
+from edc_bench.runtime.loop import Phase
+
+PHASES = tuple(Phase)
 
 
 @dataclass
 class Snapshot:
     """Latest figures of the running test (written by the loop's thread, read by the view's)."""
 
-    phase: str = "connect"
+    phase: str = Phase.CONNECT
     phases_done: list[str] = field(default_factory=list)
     tick: int = 0
     ticks: int = 0

@@ -1,0 +1,209 @@
+"""From a finished run to its verdict: how far to trust it, then what the classifier says.
+
+:func:`judge_run` is shared by the live test and replay, so a replay judges
+exactly as the test did. Its :class:`Judgement` carries everything a record
+and its report need to stand alone: the reference values the parameters are
+compared with, the identity (file name and SHA-256) of the model that
+judged, and the decision plane around the valve.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.fel import FelController
+from edc_bench.diagnosis.baseline import Baseline, load_baseline
+from edc_bench.diagnosis.classifier import Classification, ValveClassifier, default_classifier
+from edc_bench.diagnosis.identification import Identification, analyse
+from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
+from edc_bench.runtime.loop import LoopOutcome
+
+#: The decision plane stored with a judged test: a square grid of P(faulty) over the relative features.
+DECISION_PLANE_POINTS = 60
+#: Its lower corner, and its upper corner at least (it grows to hold the valve).
+DECISION_PLANE_MIN, DECISION_PLANE_MAX = 0.5, 2.6
+
+
+@dataclass
+class Judgement:
+    """The verdict of one run and everything behind it.
+
+    Attributes
+    ----------
+    verdict : Verdict
+        PASS, MARGINAL, FAIL, INVALID or UNCLASSIFIED.
+    reasons : list of str
+        Why the verdict is what it is.
+    parameters : dict
+        ``name -> {"value", "std", "estimated"}`` for a3, a2, a1, a0, b, af
+        (with ``truth`` and ``error_rel`` on a simulated rig).
+    features : dict
+        ``{"af": ..., "a1": ...}``, the diagnosis inputs (V and V s/mm).
+    converged : bool
+        af and a1 settled and stayed settled, and the run was not aborted.
+    identification : Identification or None
+        Settle times, conditioning, uncertainty; None if nothing ran.
+    reference_values : dict
+        ``name -> {"value", "source"}``: what each parameter is compared
+        with: the variant's new-valve baseline for af and a1 when one was
+        used, the data-sheet nominal value otherwise.
+    classification : dict or None
+        The classifier's judgement as plain data, with the model's identity.
+    baseline : dict or None
+        The baseline the features were divided by.
+    decision_plane : dict or None
+        P(faulty) on a grid around the valve (for the report), with the
+        threshold and marginal band.
+    """
+
+    verdict: Verdict
+    reasons: list[str]
+    parameters: dict[str, dict[str, Any]]
+    features: dict[str, float]
+    converged: bool
+    identification: Identification | None
+    reference_values: dict[str, dict[str, Any]] = field(default_factory=dict)
+    classification: dict[str, Any] | None = None
+    baseline: dict[str, Any] | None = None
+    decision_plane: dict[str, Any] | None = None
+
+
+def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
+                  timing: dict[str, float]) -> list[str]:
+    """Reasons the run is not to be trusted (empty if it is)."""
+    reasons = []
+    acc = variant.acceptance
+    if outcome.abort_reason:
+        reasons.append(f"aborted: {outcome.abort_reason}")
+    if ident is None:
+        return reasons or ["no identification"]
+    if not outcome.abort_reason and not ident.converged:
+        settle = ", ".join(f"{n} {ident.settle_s[n]:.1f} s" for n in ("af", "a1"))
+        reasons.append(f"not converged: af and a1 must settle within {acc.settle_band_rel:.0%} for the last "
+                       f"{acc.convergence_window_s:g} s (settle times {settle})")
+    if not outcome.abort_reason and ident.condition_number > acc.max_condition_number:
+        reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
+                       f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
+    ticks = max(int(timing.get("ticks", 0)), 1)
+    if timing.get("overruns", 0) / ticks > acc.max_overrun_fraction:
+        reasons.append(f"timing: {timing['overruns']} of {ticks} ticks overran "
+                       f"(limit {acc.max_overrun_fraction:.1%})")
+    if outcome.missed_replies / ticks > acc.max_missed_reply_fraction:
+        reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing "
+                       f"(limit {acc.max_missed_reply_fraction:.1%})")
+    return reasons
+
+
+def reference_values(variant: Variant, baseline: Baseline | None) -> dict[str, dict[str, Any]]:
+    """What each parameter is compared with: the baseline for af and a1 if one judged, else the nominal value."""
+    out = {name: {"value": float(value), "source": "nominal"}
+           for name, value in nominal_parameters(variant)._asdict().items()}
+    if baseline is not None:
+        source = "baseline" if baseline.calibrated else "nominal baseline (uncalibrated)"
+        out["af"] = {"value": baseline.af_v, "source": source}
+        out["a1"] = {"value": baseline.a1_v_s_per_mm, "source": source}
+    return out
+
+
+def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelController | None,
+              outcome: LoopOutcome, timing: dict[str, float], *, truth: FeedforwardParameters | None = None,
+              classify: bool = True, classifier_path: Path | None = None) -> Judgement:
+    """Identification, trust and verdict of a run, from its trace and its controller.
+
+    Parameters
+    ----------
+    variant : Variant
+        The variant as the run used it.
+    trace : dict of numpy.ndarray
+        The filled trace columns.
+    controller : FelController or None
+        The controller that ran (None if the run ended before the first tick).
+    outcome : LoopOutcome
+        What happened in the loop.
+    timing : dict
+        Tick timing (``ticks``, ``overruns``).
+    truth : FeedforwardParameters, optional
+        The simulated plant's true parameters.
+    classify : bool, optional
+        Ask the classifier about a trustworthy run (default); off for baseline calibration.
+    classifier_path : pathlib.Path, optional
+        ONNX model to judge with; the packaged one by default.
+    """
+    ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
+    reasons = trust_reasons(variant, outcome, ident, timing)
+    parameters: dict[str, dict[str, Any]] = {}
+    if ident is not None and controller is not None:
+        estimated = {PARAMETER_NAMES[i] for i in controller.estimated}
+        for name in PARAMETER_NAMES:
+            entry: dict[str, Any] = {"value": ident.final[name], "std": ident.std[name],
+                                     "estimated": name in estimated}
+            if truth is not None:
+                entry["truth"] = getattr(truth, name)
+                entry["error_rel"] = ident.final[name] / getattr(truth, name) - 1.0
+            parameters[name] = entry
+    features = {n: (ident.final[n] if ident else math.nan) for n in ("af", "a1")}
+    judgement = Judgement(
+        verdict=Verdict.INVALID if reasons else Verdict.UNCLASSIFIED,
+        reasons=reasons or ["test trustworthy; classification switched off"],
+        parameters=parameters, features=features,
+        converged=bool(ident and ident.converged and not outcome.abort_reason),
+        identification=ident, reference_values=reference_values(variant, None),
+    )
+    if not reasons and classify:
+        judged, baseline, classifier = classify_features(variant, features["af"], features["a1"], classifier_path)
+        judgement.verdict = Verdict(judged.verdict)
+        judgement.classification = classification_dict(judged, classifier)
+        judgement.baseline = dataclasses.asdict(baseline)
+        judgement.reference_values = reference_values(variant, baseline)
+        judgement.decision_plane = decision_plane(classifier, judged.features_rel)
+        judgement.reasons = [
+            f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
+            f"{judged.distance:+.3f} (marginal band {classifier.marginal_band:g})"]
+    return judgement
+
+
+def classify_features(variant: Variant, af: float, a1: float,
+                      classifier_path: Path | None = None) -> tuple[Classification, Baseline, ValveClassifier]:
+    """Judge features with the classifier against the variant's baseline.
+
+    Returns
+    -------
+    (Classification, Baseline, ValveClassifier)
+        The judgement, the baseline and the classifier that judged.
+    """
+    baseline = load_baseline(variant)
+    classifier = default_classifier(str(classifier_path) if classifier_path else None)
+    return classifier.classify(*baseline.relative(af, a1)), baseline, classifier
+
+
+def classification_dict(judged: Classification, model: ValveClassifier) -> dict[str, Any]:
+    """A classification by ``model`` as plain data for records and JSON, naming the model exactly."""
+    return {
+        "verdict": judged.verdict, "probability_faulty": judged.probability_faulty, "distance": judged.distance,
+        "features_rel": {"af": judged.features_rel[0], "a1": judged.features_rel[1]}, "model": judged.model,
+        "model_file": model.path.name, "model_sha256": model.sha256,
+        "threshold": model.threshold, "marginal_band": model.marginal_band,
+        "training_data_sha256": model.metadata.get("edc_bench.training_data_sha256"),
+    }
+
+
+def decision_plane(classifier: ValveClassifier, features_rel: tuple[float, float],
+                   points: int = DECISION_PLANE_POINTS) -> dict[str, Any]:
+    """P(faulty) on a square grid of relative features that holds the baseline and the valve.
+
+    The report draws the boundary (P at the threshold) and the marginal band
+    from it, without the model.
+    """
+    hi = max(DECISION_PLANE_MAX, float(np.nanmax(np.asarray(features_rel) * 1.25)))
+    _, _, p = classifier.boundary_grid((DECISION_PLANE_MIN, hi), (DECISION_PLANE_MIN, hi), n=points)
+    return {"af_rel_range": [DECISION_PLANE_MIN, hi], "a1_rel_range": [DECISION_PLANE_MIN, hi],
+            "p_faulty": np.round(p, 5).tolist(), "threshold": classifier.threshold,
+            "marginal_band": classifier.marginal_band}
