@@ -90,17 +90,12 @@ class FelController:
     """
 
     def __init__(self, design: ControllerDesign, reference: Reference, pid: Pid, estimator: Estimator) -> None:
-        self.design = design
-        self.reference = reference
-        self.pid = pid
-        self.estimator = estimator
-        self.estimated = design.estimated
-        self.fixed = design.fixed
-        self.nominal = design.nominal
-        self.scales = design.scales
-        self.drive_limit_v = design.drive_limit_v
-        self.period_s = design.period_s
-        self.adapt_from_s = design.adapt_from_s
+        self.design, self.reference, self.pid, self.estimator = design, reference, pid, estimator
+        # the design's numbers the tick reads, bound once (an attribute of self is faster than two lookups)
+        self.estimated, self.fixed, self.nominal, self.scales = design.estimated, design.fixed, design.nominal, \
+            design.scales
+        self.drive_limit_v, self.period_s, self.adapt_from_s = design.drive_limit_v, design.period_s, \
+            design.adapt_from_s
         self.reversal_speed_mm_s = design.reversal_exclusion * reference.peak_velocity_mm_s
         self._w = [0.0] * len(design.nominal)
         self._w_est = [0.0] * len(self.estimated)

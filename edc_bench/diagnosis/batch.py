@@ -72,15 +72,9 @@ class _VectorPlant:
     def __init__(self, variant: Variant, valves: Sequence[ValveSpec], stiction: bool, period_s: float) -> None:
         params = [plant_parameters(variant, v, stiction=stiction) for v in valves]
         self.params = params
-        p0 = params[0]
+        # the pump's own parameters are the same for every valve: read them from the first
+        self.pump = params[0]
         n = len(params)
-        self.m = p0.mass_n_s2_per_mm
-        self.k = p0.net_stiffness_n_per_mm
-        self.ki = p0.force_constant_n_per_a
-        self.fpre = p0.preload_n
-        self.ka = p0.amplifier_gain
-        self.amp_limit = p0.amplifier_limit_v
-        self.stroke = p0.stroke_mm
         self.fc = np.array([p.coulomb_friction_n for p in params])
         self.fs = np.array([p.stiction_friction_n for p in params])
         aug = np.zeros((n, 5, 5))
@@ -100,17 +94,17 @@ class _VectorPlant:
 
     def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
                    coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        f = -(self.fpre + fc * sign)
+        f = -(self.pump.preload_n + fc * sign)
         xn = phi[0] * x + phi[1] * v + phi[2] * i + gam[0] * coil_v + gam[1] * f
         vn = phi[3] * x + phi[4] * v + phi[5] * i + gam[2] * coil_v + gam[3] * f
         i_n = phi[8] * i + gam[4] * coil_v
         return xn, vn, i_n
 
     def advance_period(self, drive_v: np.ndarray) -> None:
-        coil_v = self.ka * _clip(drive_v, self.amp_limit)
+        coil_v = self.pump.amplifier_gain * _clip(drive_v, self.pump.amplifier_limit_v)
         sign = np.where(self.v > 0.0, 1.0, -1.0)
         xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc)
-        ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.stroke)
+        ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
         self.x = np.where(ok, xn, self.x)
         self.v = np.where(ok, vn, self.v)
         self.i = np.where(ok, i_n, self.i)
@@ -122,7 +116,8 @@ class _VectorPlant:
         phi, gam = self.phi_q[:, idx], self.gam_q[:, idx]
         fc, fs = self.fc[idx], self.fs[idx]
         x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
-        k, ki, fpre, stroke = self.k, self.ki, self.fpre, self.stroke
+        pump = self.pump
+        k, ki, fpre, stroke = pump.net_stiffness_n_per_mm, pump.force_constant_n_per_a, pump.preload_n, pump.stroke_mm
         for _ in range(QUANTA_PER_PERIOD):
             net = ki * i - k * x - fpre
             hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))

@@ -10,8 +10,10 @@ CRC and return a named tuple.
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from functools import lru_cache
 from importlib import resources
+from operator import itemgetter
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -104,6 +106,28 @@ class RigHeartbeat(NamedTuple):
     supply_v: float
 
 
+# Each typed frame's fields and the DBC signal each carries (the names are fixed: firmware_proto/PROTOCOL.md).
+BENCH_CMD_SIGNALS = {"counter": "Counter", "mode": "Mode", "drive_v": "DriveVoltage", "reference_mm": "RackReference"}
+RIG_FEEDBACK_SIGNALS = {
+    "counter": "Counter", "amp_enabled": "AmpEnabled", "watchdog_tripped": "WatchdogTripped",
+    "over_current": "OverCurrent", "lvdt_fault": "LvdtFault", "travel_limit": "TravelLimit",
+    "position_mm": "RackPosition", "current_a": "CoilCurrent",
+}
+RIG_HEARTBEAT_SIGNALS = {"state": "State", "fault_code": "FaultCode", "fw_major": "FwMajor", "fw_minor": "FwMinor",
+                         "supply_v": "SupplyVoltage"}
+
+
+def _by_name(layout: MessageLayout, signals: dict[str, str], fields: tuple[str, ...]) -> Callable[[tuple], tuple]:
+    """A picker from the layout's decoded values (DBC order) to the typed frame's fields, chosen by signal name."""
+    if tuple(signals) != fields:
+        raise ProtocolError(f"{layout.name}: the field map does not match {fields}")
+    names = layout.signal_names
+    missing = [s for s in signals.values() if s not in names]
+    if missing:
+        raise ProtocolError(f"{layout.name}: the DBC lacks signal(s) {', '.join(missing)} (have {', '.join(names)})")
+    return itemgetter(*(names.index(s) for s in signals.values()))
+
+
 class Icd:
     """The compiled ICD: one layout per message, read from the DBC once.
 
@@ -121,6 +145,16 @@ class Icd:
         self.bench_cmd = self._layout("BENCH_CMD", BENCH_CMD_ID)
         self.rig_feedback = self._layout("RIG_FEEDBACK", RIG_FEEDBACK_ID)
         self.rig_heartbeat = self._layout("RIG_HEARTBEAT", RIG_HEARTBEAT_ID)
+        self._bench_cmd_fields = _by_name(self.bench_cmd, BENCH_CMD_SIGNALS, BenchCmd._fields)
+        self._rig_feedback_fields = _by_name(self.rig_feedback, RIG_FEEDBACK_SIGNALS, RigFeedback._fields)
+        self._heartbeat_fields = _by_name(self.rig_heartbeat, RIG_HEARTBEAT_SIGNALS, RigHeartbeat._fields)
+        # encoding takes the typed values in the DBC's order: hold the DBC to the typed frames' order by name
+        for layout, signals in ((self.bench_cmd, BENCH_CMD_SIGNALS), (self.rig_feedback, RIG_FEEDBACK_SIGNALS),
+                                (self.rig_heartbeat, RIG_HEARTBEAT_SIGNALS)):
+            expected = tuple(signals.values())
+            if tuple(n for n in layout.signal_names if n != "CRC") != expected:
+                raise ProtocolError(f"{self.dbc_file}: {layout.name} signals {layout.signal_names} are not in the "
+                                    f"ICD v1 order {expected}")
         self.bench_cmd_data_id = self._data_id("BENCH_CMD")
         self.rig_feedback_data_id = self._data_id("RIG_FEEDBACK")
         attributes = self.database.dbc.attributes
@@ -190,8 +224,8 @@ class Icd:
         ProtocolError
             If the payload has the wrong length.
         """
-        v = self._e2e_decode(self.bench_cmd, self.bench_cmd_data_id, payload)
-        return BenchCmd(v[1], v[2], v[3], v[4])
+        return BenchCmd._make(self._bench_cmd_fields(self._e2e_decode(self.bench_cmd, self.bench_cmd_data_id,
+                                                                        payload)))
 
     # -- RIG_FEEDBACK --------------------------------------------------------
     def make_rig_feedback(
@@ -222,8 +256,10 @@ class Icd:
         ProtocolError
             If the payload has the wrong length.
         """
-        v = self._e2e_decode(self.rig_feedback, self.rig_feedback_data_id, payload)
-        return RigFeedback(v[1], bool(v[2]), bool(v[3]), bool(v[4]), bool(v[5]), bool(v[6]), v[7], v[8])
+        counter, amp, watchdog, over_current, lvdt, travel, position_mm, current_a = self._rig_feedback_fields(
+            self._e2e_decode(self.rig_feedback, self.rig_feedback_data_id, payload))
+        return RigFeedback(counter, bool(amp), bool(watchdog), bool(over_current), bool(lvdt), bool(travel),
+                           position_mm, current_a)
 
     # -- RIG_HEARTBEAT -------------------------------------------------------
     def make_heartbeat(self, state: RigState, fault_code: FaultCode, fw_major: int, fw_minor: int,
@@ -239,9 +275,9 @@ class Icd:
         ProtocolError
             If the payload has the wrong length or an unknown state or fault code.
         """
-        v = self.rig_heartbeat.decode(payload)
+        state, fault_code, fw_major, fw_minor, supply_v = self._heartbeat_fields(self.rig_heartbeat.decode(payload))
         try:
-            return RigHeartbeat(RigState(v[0]), FaultCode(v[1]), v[2], v[3], v[4])
+            return RigHeartbeat(RigState(state), FaultCode(fault_code), fw_major, fw_minor, supply_v)
         except ValueError as exc:
             raise ProtocolError(f"RIG_HEARTBEAT: {exc}") from None
 
