@@ -9,7 +9,7 @@ mid-stroke reachable without tripping over-current) are checked in
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -170,7 +170,9 @@ class ControllerSection(_Section):
     min_phase_margin_deg: Annotated[float, Field(ge=0, le=90, allow_inf_nan=False)] = 30.0
 
 
-PARAMETER_NAMES = ("a3", "a2", "a1", "a0", "b", "af")
+#: The feedforward's parameters, in the order of its regressor [r''', r'', r', r, 1, sgn r'].
+ParameterName = Literal["a3", "a2", "a1", "a0", "b", "af"]
+PARAMETER_NAMES: tuple[str, ...] = get_args(ParameterName)
 
 
 class EstimatorSection(_Section):
@@ -181,12 +183,12 @@ class EstimatorSection(_Section):
     """
 
     kind: Literal["rls", "gradient"] = "rls"
-    estimate: Annotated[list[Literal["a3", "a2", "a1", "a0", "b", "af"]], Field(min_length=1)] = [
+    estimate: Annotated[list[ParameterName], Field(min_length=1)] = [
         "a2", "a1", "a0", "b", "af",
     ]
     forgetting_factor: Annotated[float, Field(gt=0.99, le=1.0, allow_inf_nan=False)] = 0.9995
     initial_std_rel: PositiveFloat = 1.0
-    gradient_gains_per_s: dict[Literal["a3", "a2", "a1", "a0", "b", "af"], PositiveFloat] | PositiveFloat = Field(
+    gradient_gains_per_s: dict[ParameterName, PositiveFloat] | PositiveFloat = Field(
         default=40.0, description="gradient law: one gain for all normalised parameters, or one per parameter",
     )
     reversal_exclusion: Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)] = Field(
