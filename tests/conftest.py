@@ -1,11 +1,29 @@
-"""Shared fixtures."""
+"""Shared fixtures.
+
+The suite mirrors the package: one folder per layer (tests/protocol, ...,
+tests/cli) and tests/bench for the top-level bench.py, replay.py and
+station.py. Tests marked ``slow`` are skipped by default (``-m "not slow"``
+in pyproject.toml's addopts); run them with ``pytest -m slow``, everything
+with ``pytest -m ""``.
+"""
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack
+from typing import NamedTuple
+
+import can
 import pytest
 
 from edc_bench.config import Variant, load_variant
+from edc_bench.physics.valve import ValveSpec, parse_valve_spec
 from edc_bench.protocol import Icd, default_icd
+from edc_bench.runtime.clock import SimulatedClock
+from edc_bench.sim.inprocess import InProcessRig
+from edc_bench.sim.lockstep_bus import lockstep_pair
+from edc_bench.sim.rig import RigOptions, SimulatedRig
 
 
 @pytest.fixture(scope="session")
@@ -31,3 +49,47 @@ def _station_dirs(tmp_path_factory: pytest.TempPathFactory) -> None:
     base = tmp_path_factory.mktemp("station")
     os.environ.setdefault("EDC_BENCH_DATA_DIR", str(base / "data"))
     os.environ.setdefault("EDC_BENCH_CACHE_DIR", str(base / "cache"))
+
+
+# -- the simulated bench: the rig in process, in simulated time ---------------------------------------------------
+
+
+class SimBench(NamedTuple):
+    """What :func:`edc_bench.bench.run_bench_test` needs to run against the simulated rig."""
+
+    bench: can.BusABC  # the bench's end of the bus
+    clock: SimulatedClock  # simulated time; ``clock.rig`` is the InProcessRig serving the rig's end
+    rig: SimulatedRig  # the rig itself: its firmware, plant and truth
+
+
+_channels = itertools.count()
+
+
+@pytest.fixture()
+def simulated_bench() -> Iterator[Callable[..., SimBench]]:
+    """A factory for the simulated rig on a bus pair, as ``run_simulated_test`` builds it.
+
+    ``simulated_bench(variant, valve="new", seed=0, *, options=None, interface="lockstep")``
+    returns ``(bench_bus, clock, rig)``: ``interface="lockstep"`` joins the two ends back to back
+    (``lockstep_pair``, what ``run_simulated_test`` uses), ``"virtual"`` puts them on a fresh
+    python-can ``virtual`` channel (timestamps preserved). Every bus made is shut down at teardown.
+    """
+    with ExitStack() as stack:
+
+        def make(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
+                 options: RigOptions | None = None, interface: str = "lockstep") -> SimBench:
+            spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
+            rig = SimulatedRig(variant, spec, seed, options)
+            channel = f"tests-sim-{next(_channels)}"
+            if interface == "lockstep":
+                bench, rig_bus = lockstep_pair(channel)
+            elif interface == "virtual":
+                bench = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+                rig_bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+            else:
+                raise ValueError(f"interface must be 'lockstep' or 'virtual', not {interface!r}")
+            stack.callback(bench.shutdown)
+            stack.callback(rig_bus.shutdown)
+            return SimBench(bench, SimulatedClock(InProcessRig(rig_bus, rig)), rig)
+
+        yield make

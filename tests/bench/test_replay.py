@@ -14,13 +14,8 @@ import pytest
 from edc_bench.bench import run_bench_test, run_simulated_test
 from edc_bench.config import load_variant
 from edc_bench.errors import ConfigError
-from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.records.record import write_record
 from edc_bench.replay import replay_record
-from edc_bench.runtime.clock import SimulatedClock
-from edc_bench.sim.inprocess import InProcessRig
-from edc_bench.sim.lockstep_bus import lockstep_pair
-from edc_bench.sim.rig import SimulatedRig
 from edc_bench.testing.faults import FaultyBus, Rule
 
 
@@ -40,21 +35,18 @@ def test_replay_reproduces_a_simulated_test_exactly(tmp_path: Path, valve: str, 
     assert report.run.max_drive_deviation_v <= 0.0005 + 1e-9
 
 
-def _run_with_lost_replies(rule: Rule):
+def _run_with_lost_replies(simulated_bench, rule: Rule):
     variant = load_variant()
-    rig = SimulatedRig(variant, parse_valve_spec("worn", variant), 2)
-    bench, rig_bus = lockstep_pair()
-    with bench, rig_bus:
-        clock = SimulatedClock(InProcessRig(rig_bus, rig))
-        return run_bench_test(FaultyBus(bench, clock.now_s, [rule]), clock, variant, check_gains=False)
+    bench, clock, _ = simulated_bench(variant, "worn", 2)
+    return run_bench_test(FaultyBus(bench, clock.now_s, [rule]), clock, variant, check_gains=False)
 
 
-def test_replay_follows_missing_replies_and_aborts(tmp_path: Path) -> None:
+def test_replay_follows_missing_replies_and_aborts(tmp_path: Path, simulated_bench) -> None:
     # two replies lost: the test goes on with the last position, as the loop did
-    brief = _run_with_lost_replies(Rule("drop", 5.0, 5.0025, direction="rx", can_id=0x121))
+    brief = _run_with_lost_replies(simulated_bench, Rule("drop", 5.0, 5.0025, direction="rx", can_id=0x121))
     assert brief.outcome.missed_replies >= 2 and brief.outcome.abort_reason is None
     # replies lost for good: the test aborts (INVALID); the partial run replays too
-    lost = _run_with_lost_replies(Rule("drop", 6.0, direction="rx", can_id=0x121))
+    lost = _run_with_lost_replies(simulated_bench, Rule("drop", 6.0, direction="rx", can_id=0x121))
     assert lost.verdict == "INVALID"
     for result, name in ((brief, "brief"), (lost, "lost")):
         report = replay_record(write_record(result, tmp_path / name, figure=False))

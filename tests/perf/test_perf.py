@@ -6,22 +6,19 @@ import json
 import math
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from edc_bench.config import Variant
 from edc_bench.control.design import ControllerDesign
-from edc_bench.control.stability import loop_margins
 from edc_bench.perf.compute import lean_tick, struct_floor
 from edc_bench.perf.loops import stolen_mask, with_timing
 from edc_bench.perf.suite import GROUPS
-from edc_bench.physics.valve import nominal_plant
 from edc_bench.protocol import Icd, Mode
-from edc_bench.runtime.gain_check import cached_loop_margins
 
 
+@pytest.mark.slow  # the benchmark itself, about 30 s
 def test_perf_quick_prints_all_five_groups() -> None:
     proc = subprocess.run([sys.executable, "-m", "edc_bench", "perf", "--quick", "--json"],
                           capture_output=True, text=True, timeout=600)
@@ -60,23 +57,6 @@ def test_struct_floor_encodes_and_decodes_like_the_codec(icd: Icd) -> None:
     payload = icd.make_rig_feedback(3, amp_enabled=True, watchdog_tripped=False, over_current=True, lvdt_fault=False,
                                     travel_limit=True, position_mm=12.345, current_a=-0.5)
     assert [float(v) for v in decode(payload)] == pytest.approx([float(v) for v in icd.parse_rig_feedback(payload)])
-
-
-def test_gain_check_margins_are_cached_and_a_bad_cache_is_ignored(variant: Variant, tmp_path: Path,
-                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("EDC_BENCH_CACHE_DIR", str(tmp_path))
-    c = variant.controller
-    args = (nominal_plant(variant), c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm, c.derivative_filter_hz,
-            c.period_s)
-    computed = loop_margins(*args)
-    assert cached_loop_margins(*args) == computed
-    files = list((tmp_path / "loop-margins").glob("*.json"))
-    assert len(files) == 1
-    assert cached_loop_margins(*args) == computed  # read back
-    files[0].write_text("{not json", encoding="utf-8")
-    assert cached_loop_margins(*args) == computed  # recomputed, not trusted
-    other = cached_loop_margins(*args[:1], c.kp_v_per_mm * 2, *args[2:])
-    assert other != computed  # different gains, different entry
 
 
 def test_steal_windows_mark_neighbouring_ticks() -> None:

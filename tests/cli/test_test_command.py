@@ -1,0 +1,60 @@
+"""`edc-bench test`: the JSON summary, the human output, bad input in one clear line, unstable gains refused."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from helpers import REPO, edc_bench
+
+
+def test_cli_test_json_summary(tmp_path: Path) -> None:
+    proc = edc_bench("test", "--valve", "faulty", "--seed", "3", "--duration-s", "10", "--json", "--out", "rec",
+                     "--no-figure", cwd=tmp_path)
+    assert proc.returncode == 11, proc.stderr  # FAIL
+    summary = json.loads(proc.stdout)  # stdout is only JSON
+    assert summary["verdict"] == "FAIL"
+    assert summary["classification"]["probability_faulty"] > 0.5
+    assert summary["classification"]["distance"] > 0.03
+    assert {"af", "a1"} <= set(summary["features"])
+    assert set(summary["parameters"]) == {"a3", "a2", "a1", "a0", "b", "af"}
+    assert summary["converged"] is True
+    assert set(summary["truth"]) == {"a3", "a2", "a1", "a0", "b", "af"}
+    assert abs(summary["features"]["af"] / summary["truth"]["af"] - 1) < 0.08
+    assert Path(tmp_path / summary["record_dir"], "record.json").is_file()
+
+
+def test_cli_human_output_shows_the_numbers(tmp_path: Path) -> None:
+    proc = edc_bench("test", "--duration-s", "15", "--no-figure", "--out", "rec", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr  # PASS
+    assert "verdict: PASS" in proc.stdout
+    assert "P(faulty)" in proc.stdout
+    assert "af = " in proc.stdout and "truth" in proc.stdout
+    assert "s left" in proc.stderr  # progress (plain lines when not on a terminal)
+
+
+@pytest.mark.parametrize(
+    ("args", "message", "code"),
+    [
+        (["--variant", "nope"], "unknown variant 'nope'", 2),
+        (["--valve", "cracked"], "unknown valve 'cracked'", 2),
+        (["--duration-s", "3"], "excitation.duration_s (3 s) is too short", 2),
+        (["--interface", "nosuchbus"], "cannot open the CAN bus (interface=nosuchbus)", 3),
+    ],
+)
+def test_cli_bad_input_is_one_clear_line(tmp_path: Path, args: list[str], message: str, code: int) -> None:
+    proc = edc_bench("test", *args, cwd=tmp_path)
+    assert proc.returncode == code
+    assert message in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_cli_refuses_unstable_gains(tmp_path: Path) -> None:
+    source = (REPO / "configs" / "p-edc-default.toml").read_text()
+    bad = tmp_path / "hot.toml"
+    bad.write_text(source.replace("kp_v_per_mm = 0.6", "kp_v_per_mm = 3.0").replace('name = "p-edc-default"',
+                                                                                      'name = "hot"'))
+    proc = edc_bench("test", "--variant", str(bad), cwd=tmp_path)
+    assert proc.returncode == 2
+    assert "unstable" in proc.stderr and "Traceback" not in proc.stderr

@@ -1,0 +1,46 @@
+"""The one-page report (`edc-bench report`): one PDF page and a PNG, for a judged and for an aborted test."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from edc_bench.bench import run_bench_test, run_simulated_test
+from edc_bench.config import load_variant
+from edc_bench.records.record import write_record
+from edc_bench.testing.faults import FaultyBus, Rule
+
+
+def _aborted_record(tmp_path: Path, simulated_bench) -> Path:
+    variant = load_variant()
+    bench, clock, _ = simulated_bench(variant, "new", 3)
+    result = run_bench_test(FaultyBus(bench, clock.now_s, [Rule("cut", 4.0)]), clock, variant, check_gains=False)
+    assert result.verdict == "INVALID"
+    return write_record(result, tmp_path / "aborted", figure=False)
+
+
+@pytest.mark.parametrize("kind", ["fail", "invalid"])
+def test_report_is_one_pdf_page_and_a_png(tmp_path: Path, kind: str, simulated_bench) -> None:
+    if kind == "fail":
+        result = run_simulated_test(load_variant(), "worn", 2)
+        result.identity = {"pump_serial": "P-9", "station": "bench-1", "operator": "jo"}
+        folder = write_record(result, tmp_path, figure=False)
+    else:
+        folder = _aborted_record(tmp_path, simulated_bench)
+    proc = subprocess.run([sys.executable, "-m", "edc_bench", "report", str(folder), "--out", str(tmp_path / "r")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    pdf = (tmp_path / "r" / "report.pdf").read_bytes()
+    assert pdf.startswith(b"%PDF") and pdf.count(b"/Type /Page\n") + pdf.count(b"/Type /Page ") <= 1
+    assert b"/Type /Pages" in pdf and b"/Count 1" in pdf
+    png = (tmp_path / "r" / "report-page.png").read_bytes()
+    assert png[:4] == b"\x89PNG"
+
+
+def test_report_bad_input(tmp_path: Path) -> None:
+    proc = subprocess.run([sys.executable, "-m", "edc_bench", "report", str(tmp_path)], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and "no record.json" in proc.stderr and "Traceback" not in proc.stderr

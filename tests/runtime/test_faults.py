@@ -1,0 +1,182 @@
+"""Every way a test can go wrong ends the same way: rig safe, a clear reason,
+INVALID, and everything measured so far on disk (simulated time; operator
+interrupts and a killed test process are in test_interrupts.py).
+
+For each fault: the abort is decided at a known time; the first SAFE command
+follows within 20 ms when the bus still carries frames, and in every case the
+rig's amplifier is off within 25 ms of the bench's last command (its own
+watchdog where the bus is gone); the record and the CAN log hold every tick
+and frame up to the fault.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import can
+import pytest
+
+from edc_bench.bench import BenchResult, run_bench_test
+from edc_bench.config import load_variant
+from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
+from edc_bench.records.record import write_record
+from edc_bench.runtime.clock import SimulatedClock
+from edc_bench.sim.rig import SimulatedRig
+from edc_bench.testing.faults import RIG_FAULTS, FaultyBus, Rule, schedule_rig_fault
+
+FAULT_AT_S = 2.5  # clock time of the fault (the rig boots in 0.2 s, the ticks start just after)
+
+RIG_FAULT_REASONS = {
+    "heartbeat_stops": "rig heartbeat lost",
+    "rig_fault": "rig amplifier off while running (rig state FAULT, fault code SUPPLY_LOW)",
+    "over_current": "rig fault: over-current",
+    "lvdt_disconnected": "rig fault: LVDT fault",
+    "lvdt_stuck": "rack does not follow its reference",
+    "travel_limit": "rig fault: travel limit",
+    "lvdt_out_of_range": "rig fault: LVDT fault",
+    "current_nan": "rig fault: over-current",
+}
+
+BUS_FAULTS = {
+    "drop-replies": (Rule("drop", FAULT_AT_S, direction="rx", can_id=0x121), "replies missing in a row"),
+    "corrupt-replies": (Rule("corrupt", FAULT_AT_S, can_id=0x121), "replies missing in a row"),
+    "stale-counter": (Rule("repeat", FAULT_AT_S, FAULT_AT_S + 0.05, direction="tx"), "replies missing in a row"),
+    "delayed-replies": (Rule("delay", FAULT_AT_S, delay_s=0.0015), "replies missing in a row"),
+    "reordered-frames": (Rule("reorder", FAULT_AT_S), "replies missing"),
+    "send-error": (Rule("error", FAULT_AT_S, direction="tx"), "bus error: CanOperationError"),
+    "receive-error": (Rule("error", FAULT_AT_S, direction="rx"), "bus error: CanOperationError"),
+    "bus-off": (Rule("bus_off", FAULT_AT_S), "bus error: CanOperationError: injected: bus off"),
+    "rig-cut-off": (Rule("cut", FAULT_AT_S), "replies missing in a row"),
+}
+
+
+def run_with(simulated_bench, rule: Rule | None = None,
+             rig_fault: str | None = None) -> tuple[BenchResult, SimulatedRig, SimulatedClock]:
+    variant = load_variant()
+    bench, clock, rig = simulated_bench(variant, "worn", 1, interface="virtual")
+    if rig_fault:
+        schedule_rig_fault(rig, rig_fault, FAULT_AT_S)
+    bus = FaultyBus(bench, clock.now_s, [rule] if rule else [])
+    try:
+        result = run_bench_test(bus, clock, variant, check_gains=False)
+    finally:
+        bus.shutdown()
+    clock.wait_until(clock.now_s() + 0.025)  # 25 ms after the bench's last word
+    return result, rig, clock
+
+
+def check_safe_and_complete(result: BenchResult, rig: SimulatedRig, tmp_path: Path) -> None:
+    outcome = result.outcome
+    assert result.verdict == Verdict.INVALID
+    assert result.classification is None
+    assert outcome.abort_time_s is not None or outcome.abort_reason.startswith("bus error")
+    # the rig's amplifier is off: by SAFE or by its own watchdog
+    assert rig.plant.drive_v == 0.0
+    assert rig.firmware.state.name in ("READY", "FAULT")
+    # SAFE commanded within 20 ms of detection, when the bus still sends
+    if outcome.abort_time_s is not None:
+        detected = outcome.ticks_start_s + outcome.abort_time_s
+        icd, frames = default_icd(), result.frames
+        safe_times = [frames.t_s[k] for k in range(frames.count)
+                      if not frames.rx[k] and frames.can_id[k] == BENCH_CMD_ID and frames.t_s[k] >= detected
+                      and icd.bench_cmd.decode(bytes(frames.data[k]))[2] == Mode.SAFE]
+        if safe_times:
+            assert safe_times[0] - detected <= 0.020
+    # everything measured so far is on disk
+    folder = write_record(result, tmp_path, figure=False)
+    doc = json.loads((folder / "record.json").read_text())
+    assert doc["verdict"] == Verdict.INVALID and doc["loop"]["abort_reason"] == outcome.abort_reason
+    assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
+    import numpy as np
+
+    with np.load(folder / "trace.npz") as trace:
+        assert len(trace["t_s"]) == outcome.ticks_run > 1000
+        if outcome.abort_time_s is not None:
+            assert trace["t_s"][-1] == pytest.approx(outcome.abort_time_s)
+
+
+@pytest.mark.parametrize("fault", RIG_FAULTS)
+def test_rig_side_fault(fault: str, tmp_path: Path, simulated_bench) -> None:
+    result, rig, _ = run_with(simulated_bench, rig_fault=fault)
+    assert any(RIG_FAULT_REASONS[fault] in r for r in result.reasons), result.reasons
+    check_safe_and_complete(result, rig, tmp_path)
+
+
+@pytest.mark.parametrize("name", list(BUS_FAULTS))
+def test_bus_fault(name: str, tmp_path: Path, simulated_bench) -> None:
+    rule, reason = BUS_FAULTS[name]
+    result, rig, _ = run_with(simulated_bench, rule=rule)
+    assert any(reason in r for r in result.reasons), result.reasons
+    check_safe_and_complete(result, rig, tmp_path)
+
+
+def test_isolated_missing_replies_are_tolerated(simulated_bench) -> None:
+    """A few lost or corrupt replies are counted, the last sample reused, and the test goes on."""
+    result, _, _ = run_with(simulated_bench, rule=Rule("corrupt", FAULT_AT_S, FAULT_AT_S + 0.003, can_id=0x121))
+    assert result.outcome.abort_reason is None
+    assert 1 <= result.outcome.missed_replies <= 4
+    assert result.outcome.bad_replies == result.outcome.missed_replies
+    assert result.verdict == "FAIL"  # a worn valve, judged as usual
+
+
+def test_rig_never_ready_is_one_clear_line(tmp_path: Path, simulated_bench) -> None:
+    variant = load_variant()
+    bench, clock, rig = simulated_bench(variant, "new", 1, interface="virtual")
+    rig.firmware.heartbeat_enabled = False
+    result = run_bench_test(bench, clock, variant, check_gains=False)
+    assert result.verdict == Verdict.INVALID
+    assert result.reasons == ["aborted: rig not READY within 3 s (no heartbeat)"]
+
+
+def test_a_bug_in_the_tick_still_ends_safe_with_the_data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                         simulated_bench) -> None:
+    from edc_bench.control.fel import FelController
+
+    original = FelController.step
+
+    def failing_step(self, k: int, measured_mm: float) -> float:
+        if k == 1500:
+            raise ZeroDivisionError("injected bug")
+        return original(self, k, measured_mm)
+
+    monkeypatch.setattr(FelController, "step", failing_step)
+    result, rig, _ = run_with(simulated_bench)
+    assert result.outcome.abort_reason == "internal error: ZeroDivisionError: injected bug"
+    assert "Traceback" in result.outcome.events[-1]
+    assert result.outcome.ticks_run == 1500 and result.outcome.safe_confirmed
+    assert rig.plant.drive_v == 0.0
+    folder = write_record(result, tmp_path, figure=False)
+    assert json.loads((folder / "record.json").read_text())["verdict"] == Verdict.INVALID
+
+
+class FailingBus(can.BusABC):
+    """A bus whose sends start failing after a number of frames (a cable pulled)."""
+
+    def __init__(self, inner: can.BusABC, fail_after: int) -> None:
+        self.inner = inner
+        self.sent = 0
+        self.fail_after = fail_after
+        super().__init__(channel="failing")
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.sent += 1
+        if self.sent > self.fail_after:
+            raise can.CanOperationError("transmit buffer full")
+        self.inner.send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None):
+        return self.inner.recv(timeout), False
+
+
+def test_bus_error_mid_test_ends_invalid_with_the_data_so_far(tmp_path: Path, simulated_bench) -> None:
+    variant = load_variant()
+    bench, clock, _ = simulated_bench(variant, "worn", 1, interface="virtual")
+    result = run_bench_test(FailingBus(bench, 3000), clock, variant, check_gains=False)
+    assert result.verdict == "INVALID"
+    assert any("bus error: CanOperationError" in r for r in result.reasons)
+    assert 2900 < result.timing["ticks"] < 3000  # what was measured before the fault is kept
+    folder = write_record(result, tmp_path)
+    assert json.loads((folder / "record.json").read_text())["verdict"] == "INVALID"
+    assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count

@@ -1,0 +1,65 @@
+"""The live panel's rendering, and the live view drawing in a child process."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from edc_bench.bench import run_simulated_test
+from edc_bench.config import load_variant
+
+
+def test_live_panel_renders_every_phase() -> None:
+    from rich.console import Console
+
+    from edc_bench.ui.live import render_snapshot, verdict_panel
+    from edc_bench.ui.snapshot import PHASES, Snapshot
+
+    class FakeLoop:  # what the snapshot reads of a BenchLoop
+        def __init__(self, result) -> None:
+            self.trace = type("T", (), {"columns": result.trace})()
+            self.ticks, self.period_s, self.outcome = len(result.trace["t_s"]), 0.001, result.outcome
+
+    result = run_simulated_test(load_variant(), "new", 1)
+    snapshot = Snapshot()
+    loop = FakeLoop(result)
+    console = Console(record=True, width=120, color_system=None)
+    for k, phase in zip(range(0, 30_000, 5000), PHASES, strict=True):
+        snapshot.enter(phase)
+        snapshot.update(k, loop)
+        console.print(render_snapshot(snapshot, "title"))
+    last_panel = console.export_text()
+    # in the last panel every earlier phase is ticked off and the current one is not
+    for phase in PHASES[:-1]:
+        assert f"{phase} ✓" in last_panel.split("title")[-1]
+    assert f"{PHASES[-1]} ✓" not in last_panel
+    console.print(verdict_panel(result, Path("records/x")))
+    text = console.export_text()
+    assert "PASS" in text and "edc-bench report records/x" in text and "replies missing" in text
+
+
+def test_live_view_draws_in_a_child_process_and_never_blocks_the_loop(capfd: pytest.CaptureFixture[str]) -> None:
+    from edc_bench.ui.live import LiveView
+
+    class FakeLoop:
+        def __init__(self) -> None:
+            names = ("t_s", "reference_mm", "position_mm", "current_a", "drive_v", "feedforward_v", "feedback_v",
+                     "af_hat", "a1_hat", "lateness_s")
+            self.trace = type("T", (), {"columns": {n: np.linspace(0.0, 1.0, 3000) for n in names}})()
+            self.ticks, self.period_s = 3000, 0.001
+            self.outcome = type("O", (), {"overruns": 2, "missed_replies": 3, "bad_replies": 0, "heartbeats": 9})()
+
+    loop = FakeLoop()
+    with LiveView("live view test") as view:
+        view.phase("soft start")
+        for k in range(0, 3000, 100):
+            view.tick(k, loop)
+        view.phase("identify")
+        # a flood of updates while the panel is slow to read: dropped, never waited for
+        for _ in range(5000):
+            view.tick(2900, loop)
+    assert view._proc.returncode == 0
+    out = capfd.readouterr().out
+    assert "live view test" in out and "identify" in out and "3 replies missing" in out
