@@ -27,6 +27,7 @@ import datetime as _dt
 import itertools
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import can
 
@@ -34,6 +35,9 @@ from edc_bench.config.models import Variant
 from edc_bench.diagnosis.judgement import judge_run
 from edc_bench.physics.feedforward import FeedforwardParameters
 from edc_bench.physics.valve import ValveSpec, parse_valve_spec
+
+if TYPE_CHECKING:
+    from edc_bench.sim.adapter import AdapterModel
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
 from edc_bench.records.stream import StreamingCanLog
@@ -135,7 +139,9 @@ _channels = itertools.count()
 def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
                        valve_id: str = "", stiction: bool = True, sensor_noise: bool = True,
                        observer: LoopObserver | None = None, check_gains: bool = True,
-                       classify: bool = True, stream_can_log: Callable[[], Path] | None = None) -> BenchResult:
+                       classify: bool = True, stream_can_log: Callable[[], Path] | None = None,
+                       adapter: AdapterModel | str | None = None, clock_wrapper: Callable[[Clock], Clock] | None = None,
+                       ) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -150,6 +156,11 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     stiction, sensor_noise : bool
         Switch the plant's stiction and the sensors' noise off to get the
         plant the identification model assumes.
+    adapter : AdapterModel or str, optional
+        The CAN adapter's timing between bench and rig (a preset name such as
+        ``usb-fs``, see :func:`~edc_bench.sim.adapter.parse_adapter`); instant by default.
+    clock_wrapper : callable, optional
+        Wraps the simulated clock (e.g. :class:`~edc_bench.testing.stalls.StallingClock` to inject host stalls).
 
     Returns
     -------
@@ -157,15 +168,19 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         With ``truth`` set to the simulated plant's parameters.
     """
     from edc_bench.physics.wear import is_faulty, resisting_force_n
+    from edc_bench.sim.adapter import AdapterModel, parse_adapter
     from edc_bench.sim.inprocess import InProcessRig
     from edc_bench.sim.lockstep_bus import lockstep_pair
     from edc_bench.sim.rig import RigOptions, SimulatedRig
 
     spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
+    link = parse_adapter(adapter) if isinstance(adapter, str) else (adapter or AdapterModel())
     rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise))
     bench_bus, rig_bus = lockstep_pair(f"edc-bench-sim-{next(_channels)}")
     with bench_bus, rig_bus:
-        clock = SimulatedClock(InProcessRig(rig_bus, rig))
+        clock: Clock = SimulatedClock(InProcessRig(rig_bus, rig, link, seed))
+        if clock_wrapper is not None:
+            clock = clock_wrapper(clock)
         result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, observer=observer,
                                 truth=rig.truth, check_gains=check_gains, classify=classify,
                                 stream_can_log=stream_can_log)
@@ -173,6 +188,8 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},
         "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise,
+        "adapter": {"name": link.name, "latency_s": link.latency_s, "jitter_s": link.jitter_s,
+                    "usb_frame_s": link.usb_frame_s},
         "faulty_by_physics": is_faulty(variant, spec),
         "resisting_force_n": resisting_force_n(variant, spec),
         "coulomb_friction_n": rig.plant_params.coulomb_friction_n,

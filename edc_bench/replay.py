@@ -33,6 +33,7 @@ from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
 from edc_bench.runtime.loop import LoopOutcome, reply_flags
+from edc_bench.runtime.replies import ReplyMatcher, max_reply_age_ticks
 from edc_bench.runtime.trace import Trace
 
 #: The command carries the drive in mV; a replayed drive further off than this is a different run.
@@ -48,45 +49,42 @@ class ReplayedRun:
     ticks: int
     missed_replies: int
     max_drive_deviation_v: float
+    gaps: int = 0
+    ticks_lost: int = 0
     notes: list[str] = field(default_factory=list)
 
 
-def _split_ticks(frames: list[LoggedFrame], icd: Icd) -> tuple[Any, list[tuple[Any, Any]]]:
-    """The synchronising SAFE reply, and per RUN command (command, accepted reply or None)."""
-    sync_reply = None
-    pending_safe = None
-    ticks: list[tuple[Any, Any]] = []
-    waiting = None  # index in ticks of the command awaiting its reply
-    for _, can_id, data in frames:
+def _find_sync(frames: list[LoggedFrame], icd: Icd) -> tuple[Any, int]:
+    """The synchronising SAFE command's reply, and the index of the first RUN command (-1 if none)."""
+    sync_reply = pending_safe = None
+    for n, (_, can_id, data) in enumerate(frames):
         if can_id == BENCH_CMD_ID:
             try:
                 cmd = icd.parse_bench_cmd(data)
             except ProtocolError:
                 continue
-            waiting = None
             if cmd.mode == Mode.RUN:
-                ticks.append((cmd, None))
-                waiting = len(ticks) - 1
-            elif not ticks:
-                pending_safe = cmd  # the last SAFE before the first RUN synchronises
-            else:
-                break  # the safe stop: the ticks are over
-        elif can_id == RIG_FEEDBACK_ID:
+                return sync_reply, n
+            pending_safe = cmd  # the last SAFE before the first RUN synchronises
+        elif can_id == RIG_FEEDBACK_ID and pending_safe is not None:
             try:
                 reply = icd.parse_rig_feedback(data)
             except ProtocolError:
-                continue  # the loop skips a reply with a bad CRC too
-            if waiting is not None and reply.counter == ticks[waiting][0].counter:
-                ticks[waiting] = (ticks[waiting][0], reply)
-                waiting = None
-            elif not ticks and pending_safe is not None and reply.counter == pending_safe.counter:
+                continue
+            if reply.counter == pending_safe.counter:
                 sync_reply = reply
-    return sync_reply, ticks
+    return sync_reply, -1
 
 
 def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s: float = 0.0,
                   icd: Icd | None = None) -> ReplayedRun:
     """Rebuild a test's trace and controller from its frames.
+
+    The frames are taken in the order the loop logged them: a RUN command is
+    a tick (its counter says which, so ticks lost to a host stall show as a
+    jump), and each reply logged after it is matched as the loop matched it
+    between that tick and the next (:class:`~edc_bench.runtime.replies.ReplyMatcher`),
+    so the controller is fed exactly the samples the loop used.
 
     Parameters
     ----------
@@ -105,35 +103,59 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
         ones logged (another variant, another software version).
     """
     icd = icd or default_icd()
-    sync, ticks = _split_ticks(frames, icd)
-    if sync is None or not ticks:
+    sync, first_run = _find_sync(frames, icd)
+    if sync is None or first_run < 0:
         raise ConfigError("the CAN log holds no bench test (no synchronising SAFE reply followed by RUN commands)")
     T = variant.controller.period_s
     capacity = int(round(variant.excitation.duration_s / T))
-    if len(ticks) > capacity:
-        raise ConfigError(f"the CAN log has {len(ticks)} ticks but the variant's test has {capacity}: "
-                          "give the variant the test ran with")
     ctl = build_controller(variant, sync.position_mm)
     trace = Trace(capacity)
-    position_mm, current_a = sync.position_mm, sync.current_a
-    missed = 0
+    matcher = ReplyMatcher(max_reply_age_ticks(variant))
+    position_mm, current_a, newest = sync.position_mm, sync.current_a, None
     worst = 0.0
-    for k, (cmd, reply) in enumerate(ticks):
-        u = ctl.step(k, position_mm)
-        worst = max(worst, abs(u - cmd.drive_v))
-        if reply is None:
-            missed += 1
-            flags = 0
-        else:
-            position_mm, current_a = reply.position_mm, reply.current_a
-            flags = reply_flags(reply)
-        t_k = ticks_start_s + k * T  # as the loop computed it, to the last bit
-        trace.write_tick(k, t_k - ticks_start_s, math.nan, math.nan, ctl, position_mm, current_a, u,
-                         reply is not None, flags)
+    k, first_counter = -1, None
+    gaps = ticks_lost = 0
+    for _, can_id, data in frames[first_run:]:
+        if can_id == BENCH_CMD_ID:
+            try:
+                cmd = icd.parse_bench_cmd(data)
+            except ProtocolError:
+                continue
+            if cmd.mode != Mode.RUN:
+                break  # the safe stop: the ticks are over
+            if first_counter is None:
+                first_counter = cmd.counter
+            tick = k + 1 + (cmd.counter - (first_counter + k + 1)) % 256  # a jump: ticks lost to a stall
+            if tick >= capacity:
+                raise ConfigError(f"the CAN log has more than the variant's {capacity} ticks: "
+                                  "give the variant the test ran with")
+            for gap in range(k + 1, tick):
+                trace.write_gap(gap, (ticks_start_s + gap * T) - ticks_start_s, ctl)
+            if tick > k + 1:
+                ctl.resync()
+                gaps, ticks_lost = gaps + 1, ticks_lost + tick - k - 1
+            k = tick
+            u = ctl.step(k, position_mm if matcher.usable(k) else None, matcher.newest_tick)
+            worst = max(worst, abs(u - cmd.drive_v))
+            matcher.sent(k, cmd.counter)
+            t_k = ticks_start_s + k * T  # as the loop computed it, to the last bit
+            trace.write_tick(k, t_k - ticks_start_s, math.nan, math.nan, ctl, position_mm, current_a, u, False,
+                             reply_flags(newest) if newest is not None else 0, k - matcher.newest_tick)
+        elif can_id == RIG_FEEDBACK_ID and k >= 0:
+            try:
+                reply = icd.parse_rig_feedback(data)
+            except ProtocolError:
+                continue  # the loop skips a reply with a bad CRC too
+            tick = matcher.match(reply.counter, k + 1)
+            if tick is None:
+                continue
+            trace.reply_arrived(tick, math.nan, reply.position_mm, reply.current_a, reply_flags(reply))
+            if tick == matcher.newest_tick:
+                position_mm, current_a, newest = reply.position_mm, reply.current_a, reply
     if worst > DRIVE_TOLERANCE_V:
         raise ConfigError(f"replayed drives differ from the logged commands by up to {worst * 1e3:.1f} mV: the log "
                           "was not made with this variant (or this edc-bench version's controller)")
-    return ReplayedRun(trace.view(), ctl, len(ticks), missed, worst)
+    return ReplayedRun(trace.view(), ctl, k + 1, matcher.counts.missed, worst, gaps=gaps, ticks_lost=ticks_lost)
 
 
 @dataclass
@@ -200,7 +222,8 @@ def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
     loop = record.get("loop") or {}
     run = replay_frames(read_can_log(folder / CAN_LOG_FILE), variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
     outcome = LoopOutcome(ticks_planned=loop.get("ticks_planned", run.ticks), ticks_run=run.ticks,
-                          missed_replies=run.missed_replies, abort_reason=loop.get("abort_reason"))
+                          missed_replies=run.missed_replies, abort_reason=loop.get("abort_reason"),
+                          gaps=run.gaps, ticks_lost=run.ticks_lost)
     if loop.get("missed_replies", run.missed_replies) != run.missed_replies:
         run.notes.append(f"missed replies: recorded {loop.get('missed_replies')}, found {run.missed_replies} in the log")
     timing = dict(record.get("timing") or {})
@@ -220,6 +243,7 @@ def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None) -> 
     planned = int(round(variant.excitation.duration_s / variant.controller.period_s))
     abort = None if run.ticks == planned else f"the log ends after {run.ticks} of {planned} ticks"
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
+                          gaps=run.gaps, ticks_lost=run.ticks_lost,
                           abort_reason=abort)
     timing = {"ticks": run.ticks, "overruns": 0}
     run.notes.append("raw CAN log: tick timing is not in it and was not judged")

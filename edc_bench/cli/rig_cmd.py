@@ -24,6 +24,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     where.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal and print its path")
     add_variant_arguments(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default: 0)")
+    p.add_argument("--adapter", default="none", metavar="SPEC",
+                   help="hold frames back as a CAN adapter would: usb-fs (a USB full-speed adapter, 1.5-3.5 ms "
+                        "round trip), or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way (default: none)")
     p.set_defaults(run=run)
 
 
@@ -31,13 +34,15 @@ def run(args: argparse.Namespace) -> int:
     """Build the rig and serve until SIGINT or SIGTERM."""
     from edc_bench.config import load_variant
     from edc_bench.physics.valve import parse_valve_spec
+    from edc_bench.sim.adapter import parse_adapter
     from edc_bench.sim.rig import SimulatedRig
     from edc_bench.sim.server import SlcanRigServer
 
     variant = load_variant(args.variant)
     valve = parse_valve_spec(args.valve, variant)
+    adapter = parse_adapter(args.adapter)
     rig = SimulatedRig(variant, valve, seed=args.seed)
-    server = SlcanRigServer(rig, log=lambda line: print(f"rig: {line}", flush=True))
+    server = SlcanRigServer(rig, log=lambda line: print(f"rig: {line}", flush=True), adapter=adapter)
     if args.pty:
         where = server.open_pty()
     else:
@@ -47,7 +52,9 @@ def run(args: argparse.Namespace) -> int:
         where = f"socket://{host}:{port}"
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())
-    print(f"rig: variant {variant.name}, valve {args.valve}, serving slcan at {where}", flush=True)
+    print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}, serving slcan at {where}",
+          flush=True)
     server.serve_forever()
-    print("rig: stopped", flush=True)
+    # the longest the rig went without serving while a host was connected: a test can tell a disturbed rig
+    print(f"rig: stopped; worst serve gap {server.worst_gap_s * 1e3:.2f} ms", flush=True)
     return 0

@@ -41,6 +41,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-stiction", action="store_true",
                    help="simulated rig: Coulomb friction only (the plant the identification model assumes)")
     p.add_argument("--no-sensor-noise", action="store_true", help="simulated rig: exact sensor readings")
+    p.add_argument("--adapter", default="none", metavar="SPEC",
+                   help="simulated rig: the CAN adapter's timing between bench and rig: usb-fs (USB full-speed, "
+                        "1.5-3.5 ms round trip) or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way (default: none)")
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
     p.add_argument("--pump-serial", default="", metavar="SERIAL", help="serial number of the pump, for the record")
     p.add_argument("--operator", default=None, help="who ran the test (default: the login name)")
@@ -157,6 +160,12 @@ def _run_guarded(args: argparse.Namespace) -> int:
     bus_config = _bus_config(args)
     identity = _identity(args)
     folder: list[Path] = []
+    from edc_bench.sim.adapter import parse_adapter
+
+    parse_adapter(args.adapter)  # refuse a bad --adapter before any work
+    if args.adapter != "none" and bus_config is not None:
+        print("edc-bench test: warning: --adapter simulates an adapter for the simulated rig; a real bus has its "
+              "own timing", file=sys.stderr)
 
     def stream_target() -> Path:
         # the record folder exists from the first frame on: a killed test leaves its CAN log
@@ -183,18 +192,22 @@ def _run_guarded(args: argparse.Namespace) -> int:
                 f"simulated time, {variant.excitation.duration_s:g} s")
             result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
                                         stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
-                                        observer=observer, stream_can_log=stream_target)
+                                        observer=observer, stream_can_log=stream_target, adapter=args.adapter)
         else:
             icd = default_icd()
             if bus_config is None:
                 from edc_bench.sim.process import rig_process
 
                 parse_valve_spec(args.valve, variant)  # refuse a bad spec before starting anything
-                with rig_process(args.variant, args.valve, args.seed) as channel:
+                rig_status: dict[str, float] = {}
+                with rig_process(args.variant, args.valve, args.seed, args.adapter, rig_status) as channel:
                     log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
                     with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
                         result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
                                                 observer=observer, stream_can_log=stream_target)
+                # the rig process's side of the timing: how long it once went without serving (a disturbed rig)
+                result.simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter,
+                                                     **rig_status}}
             else:
                 log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
                 with open_bus(bus_config, icd.bitrate) as bus:

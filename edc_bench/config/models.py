@@ -216,9 +216,18 @@ class AcceptanceSection(_Section):
     convergence_window_s: PositiveFloat = 5.0
     max_condition_number: Annotated[float, Field(gt=1, allow_inf_nan=False)] = 1e4
     max_missed_replies_in_row: Annotated[int, Field(ge=1, le=100)] = 5
-    max_overrun_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
+    max_overrun_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = Field(
+        default=0.01, description="share of ticks that may overrun or be lost to host stalls before a test is INVALID",
+    )
     max_missed_reply_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
-    reply_timeout_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.8
+    max_reply_age_ms: Annotated[float, Field(gt=0, le=50, allow_inf_nan=False)] = Field(
+        default=2.0, description="a reply older than this (from its command's tick) is never used; the gain check "
+        "takes it as the loop's worst transport delay. 2 ms: replies within two ticks (PCI/socketcan adapters, a busy "
+        "host); a USB full-speed adapter (1.5-3.5 ms round trip) needs 4 ms and gains tuned for that delay",
+    )
+    max_frames_per_tick: Annotated[int, Field(ge=4, le=10000)] = Field(
+        default=64, description="frames read in one tick before the bus counts as flooded and the test ends",
+    )
     heartbeat_timeout_periods: Annotated[float, Field(gt=1, le=20, allow_inf_nan=False)] = 3.0
     max_tracking_error_mm: PositiveFloat = Field(
         default=2.0, description="abort if the rack stays this far from its reference (a stuck sensor or rack)"

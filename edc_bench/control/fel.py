@@ -1,9 +1,11 @@
 """Feedback-error learning: one controller tick, pure.
 
 Per tick k (period T, time t_k = k T), given the newest rack position the
-rig has reported (sampled at t_{k-1} when its reply came within the tick):
+rig has reported, sampled at tick j (j = k-1 when every reply comes within
+its tick; earlier through a USB adapter):
 
-1. error e = r(t_{k-1}) - x(t_{k-1}); PID output u2.
+1. error e = r(t_j) - x(t_j); PID output u2 (held, not updated, when no
+   sample is young enough to use).
 2. regressor W = [r''', r'', r', r, 1, sgn(r')] at t_k + T/2, the middle of
    the interval over which the drive is held (zero-order hold).
 3. feedforward u1 = W . a_hat; drive u = sat(u1 + u2).
@@ -107,6 +109,10 @@ class FelController:
         self.feedback_v = 0.0
         self.adapting = False
 
+    def resync(self) -> None:
+        """Ticks were lost to a host stall: take no derivative across the gap (the estimator skips it anyway)."""
+        self.pid.restart_derivative()
+
     def parameters(self) -> list[float]:
         """Current ``[a3, a2, a1, a0, b, af]`` in physical units."""
         out = list(self.nominal)
@@ -123,15 +129,19 @@ class FelController:
         for i in self.fixed:
             columns[i][row] = self.nominal[i]
 
-    def step(self, k: int, measured_mm: float) -> float:
+    def step(self, k: int, measured_mm: float | None, sample_tick: int | None = None) -> float:
         """Compute the drive for tick ``k``.
 
         Parameters
         ----------
         k : int
             Tick index (time k T).
-        measured_mm : float
-            The newest rack position the rig has reported.
+        measured_mm : float or None
+            The newest rack position the rig has reported; None when no
+            sample is young enough to use (the feedback is then held).
+        sample_tick : int, optional
+            The tick whose command that sample answered (-1 for the sample
+            before the first tick); ``k - 1`` by default.
 
         Returns
         -------
@@ -140,8 +150,14 @@ class FelController:
         """
         T = self.period_s
         t = k * T
-        error = self.reference_mm - measured_mm
-        u2 = self.pid.update(error, self._saturated)
+        if measured_mm is None:
+            u2 = self.pid.output_v
+        else:
+            j = k - 1 if sample_tick is None else sample_tick
+            # the reference at the sample's tick (the first tick's reference before tick 0)
+            reference_then = self.table[j][4] if 0 <= j < len(self.table) else (
+                self.reference.at(max(j, 0) * T)[0])
+            u2 = self.pid.update(reference_then - measured_mm, self._saturated)
 
         if k < len(self.table):
             r, r1, r2, r3, r_now = self.table[k]

@@ -65,6 +65,11 @@ class Pid:
         self.derivative_v = 0.0
         self._last_error: float | None = None
         self.proportional_v = 0.0
+        self.output_v = 0.0
+
+    def restart_derivative(self) -> None:
+        """Forget the last error, so the next update takes no derivative across a gap in the samples."""
+        self._last_error = None
 
     def update(self, error_mm: float, saturated_sign: int = 0) -> float:
         """One PID step.
@@ -98,4 +103,5 @@ class Pid:
         elif self.integral_v < -limit:
             self.integral_v = -limit
         u = self.proportional_v + self.integral_v + self.derivative_v
-        return limit if u > limit else (-limit if u < -limit else u)
+        self.output_v = limit if u > limit else (-limit if u < -limit else u)
+        return self.output_v

@@ -30,7 +30,7 @@ class LoopMargins:
     phase_margin_deg : float
         Phase margin (inf if the gain never crosses 1).
     crossover_hz : float
-        Gain crossover frequency (nan if none).
+        Gain crossover frequency (nan if none): the loop's bandwidth.
     closed_loop_stable : bool
         All closed-loop poles strictly inside the unit circle.
     max_pole_radius : float
@@ -42,11 +42,12 @@ class LoopMargins:
     crossover_hz: float
     closed_loop_stable: bool
     max_pole_radius: float
+    delay_ticks: int = 1
 
 
 def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, derivative_filter_hz: float,
-                 period_s: float) -> LoopMargins:
-    """Margins of PID + one-period delay + ZOH plant.
+                 period_s: float, delay_ticks: int = 1) -> LoopMargins:
+    """Margins of PID + transport delay + ZOH plant.
 
     Parameters
     ----------
@@ -58,6 +59,10 @@ def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, deriv
         Derivative filter corner.
     period_s : float
         Tick period.
+    delay_ticks : int, optional
+        Ticks between a sample and the drive computed from it taking effect:
+        1 when every reply comes within its tick; the oldest reply age the
+        loop may use, in ticks, with a USB adapter's latency.
 
     Returns
     -------
@@ -73,19 +78,20 @@ def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, deriv
     z = control.tf([1.0, 0.0], [1.0], period_s)
     a, b = derivative_filter_coefficients(PidGains(kp, ki, kd, derivative_filter_hz), period_s)
     pid = kp + ki * period_s * z / (z - 1) + b * (z - 1) / (z - a)
-    loop = pid * plant_d / z
+    loop = pid * plant_d * control.tf([1.0], [1.0] + [0.0] * max(1, delay_ticks), period_s)  # z^-delay
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        gm, pm, _, wpc = control.stability_margins(loop, method="poly")[:4]
+        gm, pm, _, _, wgc = control.stability_margins(loop, method="poly")[:5]
     closed = control.feedback(loop, 1)
     radius = max(abs(complex(pole)) for pole in closed.poles())
     gm_db = 20.0 * math.log10(gm) if gm and math.isfinite(gm) and gm > 0 else math.inf
     return LoopMargins(
         gain_margin_db=gm_db,
         phase_margin_deg=float(pm) if pm is not None and math.isfinite(pm) else math.inf,
-        crossover_hz=float(wpc) / (2 * math.pi) if wpc is not None and math.isfinite(wpc) else math.nan,
+        crossover_hz=float(wgc) / (2 * math.pi) if wgc is not None and math.isfinite(wgc) else math.nan,
         closed_loop_stable=radius < 1.0,
         max_pole_radius=radius,
+        delay_ticks=max(1, delay_ticks),
     )
 
 
@@ -113,12 +119,14 @@ def refuse_poor_margins(variant: Variant, m: LoopMargins) -> LoopMargins:
     if not m.closed_loop_stable:
         raise ConfigError(
             f"variant {variant.name}: PID gains kp={c.kp_v_per_mm}, ki={c.ki_v_per_mm_s}, kd={c.kd_v_s_per_mm} "
-            f"make the loop unstable on the nominal plant (closed-loop pole at radius {m.max_pole_radius:.3f}); "
+            f"make the loop unstable on the nominal plant with {m.delay_ticks} ticks of transport delay (closed-loop "
+            f"pole at radius {m.max_pole_radius:.3f}); "
             "lower the gains in [controller]"
         )
     if m.gain_margin_db < c.min_gain_margin_db or m.phase_margin_deg < c.min_phase_margin_deg:
         raise ConfigError(
-            f"variant {variant.name}: PID gains leave too little margin on the nominal plant: gain margin "
+            f"variant {variant.name}: PID gains leave too little margin on the nominal plant with {m.delay_ticks} "
+            f"ticks of transport delay (acceptance.max_reply_age_ms): gain margin "
             f"{m.gain_margin_db:.1f} dB (need {c.min_gain_margin_db:g}), phase margin {m.phase_margin_deg:.1f} deg "
             f"(need {c.min_phase_margin_deg:g}); retune [controller]"
         )

@@ -93,9 +93,11 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
         reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
                        f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
     ticks = max(int(timing.get("ticks", 0)), 1)
-    if timing.get("overruns", 0) / ticks > acc.max_overrun_fraction:
-        reasons.append(f"timing: {timing['overruns']} of {ticks} ticks overran "
-                       f"(limit {acc.max_overrun_fraction:.1%})")
+    late = timing.get("overruns", 0) + outcome.ticks_lost
+    if late / ticks > acc.max_overrun_fraction:
+        lost = f", {outcome.ticks_lost} lost in {outcome.gaps} host stalls" if outcome.ticks_lost else ""
+        reasons.append(f"timing: {late} of {ticks} ticks overran or were lost ({timing.get('overruns', 0)} overran"
+                       f"{lost}; limit {acc.max_overrun_fraction:.1%})")
     if outcome.missed_replies / ticks > acc.max_missed_reply_fraction:
         reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing "
                        f"(limit {acc.max_missed_reply_fraction:.1%})")

@@ -54,12 +54,18 @@ class BufferedSlcanBus(slcanBus):
             if line is not None:
                 return line
             waiting = port.in_waiting
-            chunk = port.read(waiting if waiting > 0 else 1)
-            if chunk:
-                self._buffer.extend(chunk)
+            if waiting > 0:
+                self._buffer.extend(port.read(waiting))
                 continue
             if deadline.expired():
                 return None
+            # nothing waiting: block for one byte, but only for the time left (pyserial's own timeout is fixed)
+            left = deadline.time_left()
+            if port.timeout != left:
+                port.timeout = left
+            chunk = port.read(1)
+            if chunk:
+                self._buffer.extend(chunk)
 
 
 def open_bus(config: dict[str, Any], default_bitrate: int) -> can.BusABC:

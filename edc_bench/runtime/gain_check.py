@@ -21,14 +21,15 @@ from edc_bench.control.stability import LoopMargins, loop_margins, refuse_poor_m
 from edc_bench.paths import cache_dir, write_json_atomic
 from edc_bench.physics.parameters import PlantParameters
 from edc_bench.physics.valve import nominal_plant
+from edc_bench.runtime.replies import max_reply_age_ticks
 
 
 def cached_loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, derivative_filter_hz: float,
-                        period_s: float) -> LoopMargins:
+                        period_s: float, delay_ticks: int = 1) -> LoopMargins:
     """:func:`~edc_bench.control.stability.loop_margins`, remembered on disk for the same inputs."""
     from importlib.metadata import version
 
-    key_data = [dataclasses.astuple(params), kp, ki, kd, derivative_filter_hz, period_s,
+    key_data = [dataclasses.astuple(params), kp, ki, kd, derivative_filter_hz, period_s, delay_ticks,
                 __version__, version("control")]
     key = hashlib.sha256(json.dumps(key_data).encode()).hexdigest()
     path = cache_dir() / "loop-margins" / f"{key}.json"
@@ -36,7 +37,7 @@ def cached_loop_margins(params: PlantParameters, kp: float, ki: float, kd: float
         return LoopMargins(**json.loads(path.read_text(encoding="utf-8")))
     except (OSError, ValueError, TypeError):
         pass
-    margins = loop_margins(params, kp, ki, kd, derivative_filter_hz, period_s)
+    margins = loop_margins(params, kp, ki, kd, derivative_filter_hz, period_s, delay_ticks)
     with contextlib.suppress(OSError):
         write_json_atomic(path, dataclasses.asdict(margins))
     return margins
@@ -52,5 +53,5 @@ def check_variant_gains(variant: Variant) -> LoopMargins:
     """
     c = variant.controller
     margins = cached_loop_margins(nominal_plant(variant), c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm,
-                                  c.derivative_filter_hz, c.period_s)
+                                  c.derivative_filter_hz, c.period_s, max_reply_age_ticks(variant))
     return refuse_poor_margins(variant, margins)

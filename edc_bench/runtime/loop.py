@@ -2,8 +2,17 @@
 
 Phases: wait for the rig's READY heartbeat (re-arming a latched FAULT with
 SAFE), a SAFE command to synchronise the counter and read the rack's start
-position, then one RUN command per tick, each answered by a RIG_FEEDBACK
-within the tick. Every way out, normal or not, ends with SAFE commands.
+position, then one RUN command per tick. Every way out, normal or not, ends
+with SAFE commands.
+
+The ticks are pipelined (firmware_proto/PROTOCOL.md, "Timing"): a command
+goes out on its tick whatever the replies do; between ticks the loop reads
+what the bus brings, for the time left until the next deadline and at most
+``max_frames_per_tick`` frames, and :class:`~edc_bench.runtime.replies.ReplyMatcher`
+matches each reply to its command by counter, up to ``max_reply_age_ms``.
+The controller uses the newest sample and knows its tick. A host stall that
+costs whole periods is a gap: the lost ticks are marked in the trace and
+skipped, never sent late in a burst.
 
 Per tick nothing is allocated beyond what python-can and the codec must:
 the trace and the frame log are preallocated arrays.
@@ -36,6 +45,7 @@ from edc_bench.protocol import (
 )
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.runtime.clock import Clock, cpu_steal_s
+from edc_bench.runtime.replies import ReplyMatcher, max_reply_age_ticks
 from edc_bench.runtime.trace import CanFrameLog, Trace
 
 # flag bits of trace column rig_flags
@@ -94,8 +104,16 @@ class LoopOutcome:
     abort_time_s: float | None = None  # trace time at which the abort was decided
     ticks_start_s: float = 0.0  # clock time of trace time 0 (the frame log's time base)
     first_tick_unix_s: float | None = None  # wall-clock time the first tick began (start-up measurements)
+    replies_too_old: int = 0  # replies that came after max_reply_age_ms: never used
+    gaps: int = 0  # host stalls that cost whole periods
+    ticks_lost: int = 0  # ticks skipped in those gaps
+    reply_age_ticks: dict[int, int] = field(default_factory=dict)  # age at arrival (ticks) -> replies
     clock_origin_unix_s: float = 0.0  # Unix time of clock time 0 (the CAN log's timestamps are absolute)
     events: list[str] = field(default_factory=list)
+
+
+class _BusFlooded(Exception):
+    """More frames arrived in one tick than the loop will read."""
 
 
 class BenchLoop:
@@ -138,47 +156,104 @@ class BenchLoop:
         self._rig_fault_code = 0
         self._last_heartbeat_s = 0.0
         self._t_s = 0.0
+        self.max_frames_per_tick = variant.acceptance.max_frames_per_tick
+        self.matcher = ReplyMatcher(max_reply_age_ticks(variant))
+        self._sent_s = [0.0] * self.ticks
+        self.position_mm = math.nan
+        self.current_a = math.nan
+        self.newest_reply: RigFeedback | None = None
 
     # -- frames ----------------------------------------------------------------
-    def _send(self, mode: int, drive_v: float, reference_mm: float) -> int:
-        self._counter = (self._counter + 1) & 0xFF
+    def _send(self, mode: int, drive_v: float, reference_mm: float, counter: int | None = None) -> int:
+        self._counter = (self._counter + 1) & 0xFF if counter is None else counter
         data = self.icd.make_bench_cmd(self._counter, mode, drive_v, min(max(reference_mm, 0.0), 65.535))
         self.bus.send(can.Message(arbitration_id=BENCH_CMD_ID, data=data, is_extended_id=False))
-        self.frames.add(self._t_s, BENCH_CMD_ID, data, False)
+        self.frames.add(self.clock.now_s() if self.clock.waits_for_replies else self._t_s, BENCH_CMD_ID, data, False)
         self.clock.after_send(self._t_s)
         return self._counter
 
-    def _receive(self, counter: int | None, deadline_s: float):
-        """Read frames until the reply to ``counter`` or the deadline; log every frame."""
-        bus, icd, clock = self.bus, self.icd, self.clock
-        waits = clock.waits_for_replies
-        while True:
-            timeout = max(0.0, deadline_s - clock.now_s()) if waits else 0.0
-            msg = bus.recv(timeout)
-            if msg is None:
-                return None
-            now = clock.now_s() if waits else self._t_s
+    def _read(self, until_s: float) -> tuple[can.Message | None, float]:
+        """The next frame, waiting at most until ``until_s`` (never, in lockstep); logged. (None, now) at the end."""
+        clock = self.clock
+        if clock.waits_for_replies:
+            timeout = until_s - clock.now_s()
+            msg = self.bus.recv(timeout) if timeout > 0.0 else self.bus.recv(0.0)
+            now = clock.now_s()
+        else:
+            msg, now = self.bus.recv(0.0), self._t_s
+        if msg is not None:
             self.frames.add(now, msg.arbitration_id, msg.data, True)
-            can_id = msg.arbitration_id
-            if can_id == RIG_FEEDBACK_ID and counter is not None:
+        return msg, now
+
+    def _heartbeat(self, data: bytes | bytearray, now: float) -> None:
+        try:
+            beat = self.icd.parse_heartbeat(data)
+        except ProtocolError:
+            return
+        self.outcome.heartbeats += 1
+        self._rig_state = beat.state
+        self._rig_fault_code = beat.fault_code
+        self._last_heartbeat_s = now
+        if self.outcome.fw_version is None:
+            self.outcome.fw_version = f"{beat.fw_major}.{beat.fw_minor}"
+
+    def _receive(self, counter: int | None, deadline_s: float) -> RigFeedback | None:
+        """Outside the ticks: read until the reply to ``counter`` or the deadline, at most a tick's frame budget."""
+        frames = 0
+        while frames < self.max_frames_per_tick:
+            msg, now = self._read(deadline_s)
+            if msg is None:
+                if counter is None or self.clock.waits_for_replies or self._t_s >= deadline_s:
+                    return None
+                # simulated time: let it pass in small steps, so a reply on its way through an adapter arrives
+                self._t_s = min(deadline_s, self._t_s + 0.25 * self.period_s)
+                self.clock.wait_until(self._t_s)
+                continue
+            frames += 1
+            if msg.arbitration_id == RIG_FEEDBACK_ID and counter is not None:
                 try:
-                    reply = icd.parse_rig_feedback(msg.data)
+                    reply = self.icd.parse_rig_feedback(msg.data)
                 except ProtocolError:
                     self.outcome.bad_replies += 1
                     continue
                 if reply.counter == counter:
                     return reply
-            elif can_id == RIG_HEARTBEAT_ID:
+            elif msg.arbitration_id == RIG_HEARTBEAT_ID:
+                self._heartbeat(msg.data, now)
+        self.outcome.events.append(f"more than {self.max_frames_per_tick} frames while waiting for a reply")
+        return None
+
+    def _drain(self, next_tick: int, until_s: float) -> None:
+        """Between ticks: read what comes until ``until_s``, match replies, keep the newest sample.
+
+        Raises
+        ------
+        _BusFlooded
+            More than the frame budget arrived within one tick.
+        """
+        matcher, icd, outcome, trace = self.matcher, self.icd, self.outcome, self.trace
+        for _ in range(self.max_frames_per_tick):
+            msg, now = self._read(until_s)
+            if msg is None:
+                return
+            can_id = msg.arbitration_id
+            if can_id == RIG_FEEDBACK_ID:
                 try:
-                    beat = icd.parse_heartbeat(msg.data)
+                    reply = icd.parse_rig_feedback(msg.data)
                 except ProtocolError:
+                    outcome.bad_replies += 1
                     continue
-                self.outcome.heartbeats += 1
-                self._rig_state = beat.state
-                self._rig_fault_code = beat.fault_code
-                self._last_heartbeat_s = now
-                if self.outcome.fw_version is None:
-                    self.outcome.fw_version = f"{beat.fw_major}.{beat.fw_minor}"
+                tick = matcher.match(reply.counter, next_tick)
+                if tick is None:
+                    continue
+                flags = reply_flags(reply)
+                trace.reply_arrived(tick, now - self._sent_s[tick], reply.position_mm, reply.current_a, flags)
+                if tick == matcher.newest_tick:
+                    self.position_mm, self.current_a, self.newest_reply = reply.position_mm, reply.current_a, reply
+            elif can_id == RIG_HEARTBEAT_ID:
+                self._heartbeat(msg.data, now)
+        raise _BusFlooded(f"bus flooded: more than {self.max_frames_per_tick} frames within one tick "
+                          f"(acceptance.max_frames_per_tick)")
 
     # -- phases ----------------------------------------------------------------
     def _wait_ready(self) -> bool:
@@ -253,6 +328,8 @@ class BenchLoop:
                 self.outcome.events.append(f"SAFE could not be sent: {exc}")
             finally:
                 self.outcome.cpu_steal_s = cpu_steal_s() - steal_at_start
+                self.outcome.reply_age_ticks = dict(sorted(self.matcher.counts.ages.items()))
+                self.outcome.replies_too_old = self.matcher.counts.too_old
                 if gc_was_enabled:
                     gc.enable()
                 gc.unfreeze()
@@ -269,14 +346,12 @@ class BenchLoop:
         if first is None:
             self.outcome.abort_reason = "no reply to the first SAFE command"
             return
-        position_mm = first.position_mm
-        current_a = first.current_a
-        self.controller = ctl = build_controller(self.variant, position_mm)
+        self.position_mm, self.current_a = first.position_mm, first.current_a
+        run_base = (counter + 1) & 0xFF  # tick k's command carries counter run_base + k
+        self.controller = ctl = build_controller(self.variant, self.position_mm)
 
-        trace = self.trace
-        write_tick = trace.write_tick
+        trace, matcher, sent_s = self.trace, self.matcher, self._sent_s
         acceptance = self.variant.acceptance
-        reply_window_s = T * acceptance.reply_timeout_fraction
         max_in_row = acceptance.max_missed_replies_in_row
         max_missed_fraction = acceptance.max_missed_reply_fraction
         heartbeat_timeout_s = self.variant.rig.heartbeat_period_ms * 1e-3 * acceptance.heartbeat_timeout_periods
@@ -290,14 +365,17 @@ class BenchLoop:
         t_start = max(self._t_s, self.clock.now_s()) + T
         outcome = self.outcome
         outcome.ticks_start_s = t_start
-        missed_in_row = 0
         observer = self.observer
         identify_from_k = int(round((self.variant.excitation.move_s + self.variant.excitation.fade_s) / T))
         clock = self.clock
+        # real time: read replies until half a period before the next deadline (a wake-up from the read can be
+        # late on a busy host), then the clock spins to it; what arrives meanwhile is read before the next step
+        read_margin_s = 0.5 * T
         self._phase(Phase.SOFT_START)
 
         stop_requested = self.stop_requested
-        for k in range(self.ticks):
+        k, last_run = 0, -1
+        while k < self.ticks:
             if stop_requested():
                 outcome.abort_time_s = k * T
                 outcome.abort_reason = "interrupted by the operator"
@@ -305,46 +383,71 @@ class BenchLoop:
             t_k = t_start + k * T
             self._t_s = t_k
             lateness = clock.wait_until(t_k)
-            if lateness > T:
-                outcome.overruns += 1
+            if lateness >= T:
+                # a host stall cost whole periods: skip them (a gap), never send them late in a burst
+                lost = min(int(lateness // T), self.ticks - k)
+                for g in range(k, k + lost):
+                    trace.write_gap(g, (t_start + g * T) - t_start, ctl)
+                outcome.gaps += 1
+                outcome.ticks_lost += lost
+                k += lost
+                if k >= self.ticks:
+                    outcome.ticks_run = k
+                    return
+                ctl.resync()
+                t_k = t_start + k * T
+                self._t_s = t_k
+                lateness = max(0.0, clock.now_s() - t_k) if clock.waits_for_replies else 0.0
             if k == 0:
                 outcome.first_tick_unix_s = time.time()
-            u = ctl.step(k, position_mm)
-            sent_s = clock.now_s()
-            counter = self._send(Mode.RUN, u, ctl.reference_mm)
-            reply = self._receive(counter, t_k + reply_window_s)
-            reply_latency_s = clock.now_s() - sent_s if reply is not None else math.nan
-            if reply is None:
-                outcome.missed_replies += 1
-                missed_in_row += 1
-                outcome.max_missed_in_row = max(outcome.max_missed_in_row, missed_in_row)
-                flags = 0
-            else:
-                missed_in_row = 0
-                position_mm, current_a = reply.position_mm, reply.current_a
-                flags = reply_flags(reply)
-            write_tick(k, t_k - t_start, lateness, reply_latency_s, ctl, position_mm, current_a, u, reply is not None,
-                       flags)
-            outcome.ticks_run = k + 1
-            if reply is not None and reply.any_fault:
+            try:
+                # what came while waiting for this deadline (matched as the last drain did: replay sees the
+                # same frames between the same two commands); the sample is used only if young enough at tick k
+                self._drain(last_run + 1, clock.now_s())
+            except _BusFlooded as flood:
                 outcome.abort_time_s = t_k - t_start
+                outcome.abort_reason = str(flood)
+                return
+            usable = matcher.usable(k)
+            u = ctl.step(k, self.position_mm if usable else None, matcher.newest_tick)
+            sent_s[k] = clock.now_s()
+            self._send(Mode.RUN, u, ctl.reference_mm, (run_base + k) & 0xFF)
+            matcher.sent(k, (run_base + k) & 0xFF)
+            newest = self.newest_reply
+            trace.write_tick(k, t_k - t_start, lateness, math.nan, ctl, self.position_mm, self.current_a, u, False,
+                             reply_flags(newest) if newest is not None else 0, k - matcher.newest_tick)
+            outcome.ticks_run = k + 1
+            last_run = k
+            try:
+                self._drain(k + 1, t_k + T - read_margin_s)
+            except _BusFlooded as flood:
+                outcome.abort_time_s = t_k - t_start
+                outcome.abort_reason = str(flood)
+                return
+            counts = matcher.counts
+            outcome.missed_replies = counts.missed
+            outcome.max_missed_in_row = counts.max_missed_in_row
+            reply, position_mm, current_a = self.newest_reply, self.position_mm, self.current_a
+            if reply is not None and reply.any_fault:
                 outcome.abort_reason = "rig fault: " + ", ".join(
                     name for name, bit in (("watchdog tripped", reply.watchdog_tripped),
                                            ("over-current", reply.over_current),
                                            ("LVDT fault", reply.lvdt_fault),
                                            ("travel limit", reply.travel_limit)) if bit
                 )
-                return
-            if reply is not None and not reply.amp_enabled:
-                outcome.abort_time_s = t_k - t_start
+            elif reply is not None and not reply.amp_enabled:
                 state = self._rig_state.name if self._rig_state is not None else "unknown"
                 outcome.abort_reason = (f"rig amplifier off while running (rig state {state}, "
                                         f"fault code {FaultCode(self._rig_fault_code).name})")
-                return
-            if missed_in_row > max_in_row:
-                outcome.abort_reason = f"{missed_in_row} replies missing in a row (limit {max_in_row})"
-            elif k >= 1000 and outcome.missed_replies > max_missed_fraction * (k + 1):
-                outcome.abort_reason = (f"{outcome.missed_replies} of {k + 1} replies missing "
+            elif counts.missed_in_row > max_in_row:
+                outcome.abort_reason = f"{counts.missed_in_row} replies missing in a row (limit {max_in_row})"
+                if counts.too_old:
+                    outcome.abort_reason += (
+                        f"; {counts.too_old} replies came, but older than acceptance.max_reply_age_ms "
+                        f"({acceptance.max_reply_age_ms:g} ms): the link is slower than the variant's gains are "
+                        "checked for (raise max_reply_age_ms and retune the gains for that delay)")
+            elif k >= 1000 and counts.missed > max_missed_fraction * (k + 1):
+                outcome.abort_reason = (f"{counts.missed} of {k + 1} replies missing "
                                         f"(limit {max_missed_fraction:.1%})")
             elif t_k - self._last_heartbeat_s > heartbeat_timeout_s:
                 outcome.abort_reason = (f"rig heartbeat lost: none for {(t_k - self._last_heartbeat_s) * 1e3:.0f} ms "
@@ -356,7 +459,8 @@ class BenchLoop:
                                         f"(plausible {position_range[0]:g}..{position_range[1]:g} mm, "
                                         f"|i| <= {rig.over_current_a:g} A)")
             else:
-                error_ticks = error_ticks + 1 if k > follow_from_k and abs(ctl.reference_mm - position_mm) > max_error_mm else 0
+                error_ticks = error_ticks + 1 if k > follow_from_k and abs(ctl.reference_mm - position_mm) > \
+                    max_error_mm else 0
                 if error_ticks >= error_ticks_limit:
                     outcome.abort_reason = (f"rack does not follow its reference: more than {max_error_mm:g} mm off "
                                             f"for {error_ticks} ticks (stuck rack or sensor)")
@@ -368,3 +472,4 @@ class BenchLoop:
                     observer.tick(k, self)
                 if k == identify_from_k:
                     observer.phase(Phase.IDENTIFY)
+            k += 1

@@ -8,8 +8,9 @@ import numpy as np
 
 
 def timing_summary(trace: dict[str, np.ndarray], period_s: float) -> dict[str, float]:
-    """Lateness percentiles (us) and overrun count of the ticks."""
+    """Lateness percentiles (us) and overrun count of the ticks that ran (ticks lost to a host stall have none)."""
     late = trace["lateness_s"]
+    late = late[~np.isnan(late)]
     if len(late) == 0:  # the same keys, so a record's timing always reads the same way
         return {"ticks": 0, "lateness_p50_us": math.nan, "lateness_p99_us": math.nan, "lateness_p999_us": math.nan,
                 "lateness_max_us": math.nan, "overruns": 0}

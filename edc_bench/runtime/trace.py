@@ -27,12 +27,15 @@ TRACE_COLUMNS: dict[str, str] = {
     "adapting": "?",
     "reply_ok": "?",
     "rig_flags": "u1",
+    "sample_age_ticks": "u1",  # age of the sample the tick's feedback used (1: its reply came within the tick)
+    "gap": "?",  # the tick was lost to a host stall: nothing was sent, nothing learnt
     **{f"{name}_hat": "f8" for name in PARAMETER_NAMES},
 }
 
 # the order :meth:`Trace.write_tick` fills them in
 _TICK_COLUMNS = ("t_s", "lateness_s", "reply_latency_s", "reference_mm", "reference_velocity_mm_s", "position_mm",
-                 "current_a", "drive_v", "feedforward_v", "feedback_v", "adapting", "reply_ok", "rig_flags")
+                 "current_a", "drive_v", "feedforward_v", "feedback_v", "adapting", "reply_ok", "rig_flags",
+                 "sample_age_ticks")
 
 
 class Trace:
@@ -52,10 +55,13 @@ class Trace:
         self._parameter_columns = [self.columns[f"{name}_hat"] for name in PARAMETER_NAMES]
 
     def write_tick(self, k: int, t_s: float, lateness_s: float, reply_latency_s: float, controller: Any,
-                   position_mm: float, current_a: float, drive_v: float, reply_ok: bool, rig_flags: int) -> None:
+                   position_mm: float, current_a: float, drive_v: float, reply_ok: bool, rig_flags: int,
+                   sample_age_ticks: int = 1) -> None:
         """Store tick ``k``: its timing, the controller's last step and what the rig reported.
 
-        The one place a tick becomes a trace row, for the live loop and for replay.
+        The one place a tick becomes a trace row, for the live loop and for replay. The rig's
+        figures are the newest known when the tick ran; :meth:`reply_arrived` puts the tick's
+        own sample in its row once the reply to its command comes.
         """
         c = self._cols
         c[0][k] = t_s
@@ -71,6 +77,32 @@ class Trace:
         c[10][k] = controller.adapting
         c[11][k] = reply_ok
         c[12][k] = rig_flags
+        c[13][k] = min(sample_age_ticks, 255)
+        controller.write_parameters(self._parameter_columns, k)
+        self.rows = k + 1
+
+    def reply_arrived(self, k: int, reply_latency_s: float, position_mm: float, current_a: float,
+                      rig_flags: int) -> None:
+        """The reply to tick ``k``'s command came: its sample belongs in row ``k``."""
+        c = self._cols
+        c[2][k] = reply_latency_s
+        c[5][k] = position_mm
+        c[6][k] = current_a
+        c[11][k] = True
+        c[12][k] = rig_flags
+
+    def write_gap(self, k: int, t_s: float, controller: Any) -> None:
+        """Tick ``k`` was lost to a host stall: a row that says so, holding the last figures."""
+        c = self._cols
+        last = k - 1
+        for col in c:
+            col[k] = col[last] if last >= 0 else 0
+        c[0][k] = t_s
+        c[1][k] = float("nan")  # never ran: no lateness
+        c[2][k] = float("nan")
+        c[10][k] = False
+        c[11][k] = False
+        self.columns["gap"][k] = True
         controller.write_parameters(self._parameter_columns, k)
         self.rows = k + 1
 

@@ -12,8 +12,19 @@ from edc_bench.errors import RigError
 
 
 @contextmanager
-def rig_process(variant: str | None, valve: str, seed: int) -> Iterator[str]:
+def rig_process(variant: str | None, valve: str, seed: int, adapter: str = "none",
+                status: dict[str, float] | None = None) -> Iterator[str]:
     """Run the simulated rig in its own process for the duration of a ``with``.
+
+    Parameters
+    ----------
+    variant, valve, seed :
+        As ``edc-bench rig`` takes them.
+    adapter : str, optional
+        ``edc-bench rig --adapter``: the CAN adapter's timing to simulate.
+    status : dict, optional
+        Filled when the process has stopped: ``worst_gap_ms``, the longest the
+        rig went without serving while a host was connected (a disturbed rig).
 
     Yields
     ------
@@ -22,7 +33,7 @@ def rig_process(variant: str | None, valve: str, seed: int) -> Iterator[str]:
         (``socket://127.0.0.1:PORT``).
     """
     cmd = [sys.executable, "-m", "edc_bench", "rig", "--listen", "127.0.0.1:0", "--valve", valve,
-           "--seed", str(seed)]
+           "--seed", str(seed), "--adapter", adapter]
     if variant:
         cmd += ["--variant", variant]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -37,6 +48,10 @@ def rig_process(variant: str | None, valve: str, seed: int) -> Iterator[str]:
     finally:
         proc.terminate()
         try:
-            proc.wait(timeout=5)
+            out, _ = proc.communicate(timeout=5)
         except subprocess.TimeoutExpired:
             proc.kill()
+            out, _ = proc.communicate()
+        gap = re.search(r"worst serve gap ([0-9.]+) ms", out or "")
+        if status is not None and gap:
+            status["worst_gap_ms"] = float(gap.group(1))

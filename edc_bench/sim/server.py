@@ -8,19 +8,29 @@ frames of the rig and of the other hosts.
 
 The plant advances lazily to the wall-clock time of each event (a frame, a
 firmware deadline), so simulated physics stays in step with real time.
+
+With an :class:`~edc_bench.sim.adapter.AdapterModel` (``edc-bench rig
+--adapter usb-fs``) frames are held back as a USB CAN adapter holds them: a
+host's command reaches the rig, and the rig's frames reach the hosts, only
+when the adapter would deliver them.
 """
 
 from __future__ import annotations
 
 import ctypes
 import gc
+import math
 import os
 import selectors
 import socket
 import time
 import tty
+from collections import deque
 from collections.abc import Callable
 
+import numpy as np
+
+from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.sim.slcan import SlcanDevice
 
@@ -62,8 +72,15 @@ class SlcanRigServer:
     """
 
     def __init__(self, rig: SimulatedRig, clock_s: Callable[[], float] = time.perf_counter,
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None, adapter: AdapterModel | None = None) -> None:
         self.rig = rig
+        self.adapter = adapter or AdapterModel()
+        self._rng = np.random.default_rng([rig.seed, 0xADA])
+        self._to_rig: deque[tuple[float, int, bytes]] = deque()
+        self._to_hosts: deque[tuple[float, bytes]] = deque()
+        self._last_to_rig = self._last_to_hosts = -math.inf
+        #: the longest the serve loop went without looking at its sources (s): a measure of how disturbed it was
+        self.worst_gap_s = 0.0
         self._clock = clock_s
         self._log = log or (lambda line: None)
         self._selector = selectors.DefaultSelector()
@@ -138,8 +155,30 @@ class SlcanRigServer:
             self._broadcast(SlcanDevice.format_frame(frame.can_id, frame.data, frame.extended), exclude=host)
             if frame.extended or frame.remote:
                 continue
-            for can_id, data_out in self.rig.receive(frame.can_id, frame.data, now):
-                self._broadcast(SlcanDevice.format_frame(can_id, data_out))
+            if self.adapter.is_instant:
+                for can_id, data_out in self.rig.receive(frame.can_id, frame.data, now):
+                    self._broadcast(SlcanDevice.format_frame(can_id, data_out))
+            else:
+                self._last_to_rig = self.adapter.delivery_s(now, self._rng, self._last_to_rig)
+                self._to_rig.append((self._last_to_rig, frame.can_id, bytes(frame.data)))
+
+    def _from_rig(self, frames: list[tuple[int, bytes]], at_s: float) -> None:
+        """Frames the rig sent at ``at_s``: to the hosts now, or when the adapter delivers them."""
+        for can_id, data in frames:
+            line = SlcanDevice.format_frame(can_id, data)
+            if self.adapter.is_instant:
+                self._broadcast(line)
+            else:
+                self._last_to_hosts = self.adapter.delivery_s(at_s, self._rng, self._last_to_hosts)
+                self._to_hosts.append((self._last_to_hosts, line))
+
+    def _deliver_due(self, now: float) -> None:
+        """Adapter model: commands that have reached the rig, and the rig's frames that have reached the hosts."""
+        while self._to_rig and self._to_rig[0][0] <= now:
+            at_s, can_id, data = self._to_rig.popleft()
+            self._from_rig(self.rig.receive(can_id, data, at_s), at_s)
+        while self._to_hosts and self._to_hosts[0][0] <= now:
+            self._broadcast(self._to_hosts.popleft()[1])
 
     def _safe_write(self, host: _Host, data: bytes) -> None:
         try:
@@ -162,10 +201,14 @@ class SlcanRigServer:
         gc.freeze()  # what exists now is never scanned again: shorter collections
         self._t0 = self._clock()
         rig = self.rig
+        last_s = self._now()
         while not self._stop:
             now = self._now()
-            for can_id, data in rig.advance_to(now):
-                self._broadcast(SlcanDevice.format_frame(can_id, data))
+            if self._hosts:
+                self.worst_gap_s = max(self.worst_gap_s, now - last_s)
+            last_s = now
+            self._deliver_due(now)
+            self._from_rig(rig.advance_to(now), now)
             if self._hosts and self.poll_while_connected:
                 wait_s = 0.0  # poll: a sleeping process on a VM can wake milliseconds late
             else:

@@ -32,7 +32,8 @@ def _wait_for_record_folder(tmp_path: Path, proc: subprocess.Popen) -> Path:
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and proc.poll() is None:
         found = glob.glob(str(tmp_path / "rec" / "*" / "can.log"))
-        if found and os.path.getsize(found[0]) > 0:
+        # mid-test: the ticks' commands are in the log, not only wait-READY's heartbeats (2 lines a tick)
+        if found and os.path.getsize(found[0]) > 100 * 40:
             return Path(found[0]).parent
         time.sleep(0.02)
     raise AssertionError("the test never started streaming its CAN log")

@@ -1,0 +1,121 @@
+"""Pipelined replies: which command a RIG_FEEDBACK answers, and whether it is still young enough to use.
+
+The bench sends one BENCH_CMD per tick whatever the replies do; a USB CAN
+adapter brings each reply 1.5-3.5 ms later, so replies arrive ticks after
+their command, in order. :class:`ReplyMatcher` remembers the tick of each
+counter value it sent and matches a reply by its echoed counter whenever it
+comes. A reply whose sample would be older than ``max_age_ticks`` at the
+tick that could use it is never used; a command that stays unanswered that
+long counts as missed.
+
+Pure bookkeeping, no bus and no clock: the loop and replay run the same
+matching on the same frames, so a replay sees exactly the samples the loop
+used.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+from edc_bench.config.models import Variant
+
+#: Ticks of the synchronising SAFE command's reply: the sample the first tick uses.
+SYNC_TICK = -1
+
+
+def max_reply_age_ticks(variant: Variant) -> int:
+    """The oldest sample the loop may use, in ticks (``acceptance.max_reply_age_ms``; at least one tick).
+
+    The gain check takes the same figure as the loop's worst transport delay.
+    """
+    return max(1, math.ceil(variant.acceptance.max_reply_age_ms * 1e-3 / variant.controller.period_s - 1e-9))
+
+
+@dataclass
+class ReplyCounts:
+    """What the matcher has seen of the replies."""
+
+    matched: int = 0
+    too_old: int = 0  # answered, but too late to be used
+    unmatched: int = 0  # a counter no command in flight carries (stale, repeated, or from another host)
+    missed: int = 0  # commands never answered within the age limit
+    missed_in_row: int = 0
+    max_missed_in_row: int = 0
+    ages: dict[int, int] = field(default_factory=dict)  # age in ticks at arrival -> replies
+
+
+class ReplyMatcher:
+    """Matches replies to commands by counter, up to a maximum age.
+
+    Parameters
+    ----------
+    max_age_ticks : int
+        A sample is usable up to this many ticks after its command's tick.
+    """
+
+    def __init__(self, max_age_ticks: int) -> None:
+        self.max_age_ticks = max_age_ticks
+        self._tick_of = [None] * 256  # counter -> tick of the command in flight with it
+        self._in_flight: deque[tuple[int, int]] = deque()  # (tick, counter), oldest first
+        self._answered: set[int] = set()
+        self._expired: set[int] = set()  # ticks whose commands expired unanswered
+        self.newest_tick = SYNC_TICK
+        self.counts = ReplyCounts()
+
+    def sent(self, tick: int, counter: int) -> list[int]:
+        """A command for ``tick`` went out with ``counter``.
+
+        Returns
+        -------
+        list of int
+            Ticks whose commands have just become too old to be answered in time, unanswered (missed).
+        """
+        missed = []
+        in_flight, counts = self._in_flight, self.counts
+        while in_flight and tick - in_flight[0][0] > self.max_age_ticks:
+            old_tick, _ = in_flight.popleft()
+            if old_tick in self._answered:
+                self._answered.discard(old_tick)
+                counts.missed_in_row = 0
+            else:
+                # its reply may still come, too late: remembered until the counter comes round again
+                self._expired.add(old_tick)
+                missed.append(old_tick)
+                counts.missed += 1
+                counts.missed_in_row += 1
+                counts.max_missed_in_row = max(counts.max_missed_in_row, counts.missed_in_row)
+        previous = self._tick_of[counter]
+        if previous is not None:
+            self._expired.discard(previous)
+        self._tick_of[counter] = tick
+        in_flight.append((tick, counter))
+        return missed
+
+    def match(self, counter: int, next_tick: int) -> int | None:
+        """The tick a reply with ``counter`` answers, if it may be used at ``next_tick``; else None."""
+        tick = self._tick_of[counter]
+        counts = self.counts
+        if tick is None or tick in self._answered:
+            counts.unmatched += 1
+            return None
+        age = next_tick - tick
+        if tick in self._expired:  # already counted missed; note that it came, too late
+            self._expired.discard(tick)
+            counts.ages[age] = counts.ages.get(age, 0) + 1
+            counts.too_old += 1
+            return None
+        counts.ages[age] = counts.ages.get(age, 0) + 1
+        if age > self.max_age_ticks:
+            counts.too_old += 1  # left unanswered: it counts as missed when it expires
+            return None
+        self._answered.add(tick)
+        counts.matched += 1
+        if tick > self.newest_tick:
+            self.newest_tick = tick
+        return tick
+
+    def usable(self, tick: int) -> bool:
+        """Whether the newest sample may still be used at ``tick``."""
+        return tick - self.newest_tick <= self.max_age_ticks

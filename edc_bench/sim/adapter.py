@@ -1,0 +1,106 @@
+"""What a CAN adapter does to frame timing: latency, jitter and USB frame release.
+
+A USB CAN adapter (slcan/CANable, gs_usb, USB PCAN and Kvaser) moves frames
+in USB transfers: a full-speed device is polled once per 1 ms USB frame, so a
+frame waits for the next frame boundary in each direction, on top of the
+driver's and the bus's own latency. Bench to rig and back then takes 1.5-3.5
+ms, where the loop's period is 1 ms.
+
+:class:`AdapterModel` is pure: it maps a send time to a delivery time, one
+direction at a time, from a seeded random stream, keeping frames in order (an
+adapter is a FIFO). The in-process rig (:mod:`edc_bench.sim.inprocess`),
+``edc-bench rig --adapter`` and the batch path use the same model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from edc_bench.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class AdapterModel:
+    """Timing of one adapter, the same in both directions.
+
+    Attributes
+    ----------
+    latency_s : float
+        Fixed one-way delay (driver, bus transmission).
+    jitter_s : float
+        Extra one-way delay drawn uniformly from [0, jitter_s) per frame.
+    usb_frame_s : float
+        If above 0, a frame is delivered only at the next USB frame boundary,
+        ``n * usb_frame_s + usb_phase_s`` (a USB full-speed device: 1 ms).
+    usb_phase_s : float
+        Where the USB frames fall against the bench's ticks (the host controller's clock is its own).
+    name : str
+        How it was chosen (a preset name or the spec text), for records.
+    """
+
+    latency_s: float = 0.0
+    jitter_s: float = 0.0
+    usb_frame_s: float = 0.0
+    usb_phase_s: float = 0.0
+    name: str = "none"
+
+    @property
+    def is_instant(self) -> bool:
+        """True if frames arrive when they are sent (the lockstep default)."""
+        return self.latency_s == 0.0 and self.jitter_s == 0.0 and self.usb_frame_s == 0.0
+
+    @property
+    def worst_round_trip_s(self) -> float:
+        """The longest command-to-reply time this adapter can give (the rig answers at once)."""
+        one_way = self.latency_s + self.jitter_s + self.usb_frame_s
+        return 2.0 * one_way
+
+    def delivery_s(self, sent_s: float, rng: np.random.Generator, previous_s: float = -math.inf) -> float:
+        """When a frame sent at ``sent_s`` comes out at the far end (never before ``previous_s``: in order)."""
+        t = sent_s + self.latency_s + (rng.random() * self.jitter_s if self.jitter_s > 0.0 else 0.0)
+        if self.usb_frame_s > 0.0:
+            frame, phase = self.usb_frame_s, self.usb_phase_s
+            t = math.ceil((t - phase) / frame - 1e-9) * frame + phase
+        return max(t, previous_s)
+
+
+#: Named adapters for ``--adapter``.
+PRESETS: dict[str, AdapterModel] = {
+    "none": AdapterModel(),
+    # USB full-speed: 1 ms frames each way, 0.25-0.5 ms of driver and bus latency: 1.4-2.4 ms round trip on top of
+    # the bench's own reading, 1.5-3.5 ms as a host measures it
+    "usb-fs": AdapterModel(latency_s=0.25e-3, jitter_s=0.25e-3, usb_frame_s=1e-3, usb_phase_s=0.37e-3, name="usb-fs"),
+}
+
+
+def parse_adapter(text: str) -> AdapterModel:
+    """``--adapter``: a preset name (``none``, ``usb-fs``) or ``latency_ms=L[,jitter_ms=J][,usb_frame_ms=F]``.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown preset or key, or a value that is not a non-negative number.
+    """
+    text = text.strip()
+    if text in PRESETS:
+        return PRESETS[text]
+    keys = {"latency_ms": "latency_s", "jitter_ms": "jitter_s", "usb_frame_ms": "usb_frame_s"}
+    values: dict[str, float] = {}
+    for part in (p.strip() for p in text.split(",") if p.strip()):
+        key, sep, raw = (s.strip() for s in part.partition("="))
+        if not sep or key not in keys:
+            raise ConfigError(f"--adapter {text!r}: use a preset ({', '.join(PRESETS)}) or "
+                              f"latency_ms=L,jitter_ms=J,usb_frame_ms=F (one-way, in ms)")
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ConfigError(f"--adapter {text!r}: {key} = {raw!r} is not a number") from None
+        if not (math.isfinite(value) and 0.0 <= value <= 100.0):
+            raise ConfigError(f"--adapter {text!r}: {key} must lie in 0..100 ms")
+        values[keys[key]] = value * 1e-3
+    if not values:
+        raise ConfigError(f"--adapter {text!r}: give a preset ({', '.join(PRESETS)}) or latency_ms=...")
+    return AdapterModel(**values, name=text)

@@ -1,0 +1,209 @@
+"""Pipelined replies, adapter latency, host stalls and a flooding bus (simulated time)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from edc_bench.bench import run_bench_test, run_simulated_test
+from edc_bench.config import Variant, load_variant, with_changes
+from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.errors import ConfigError
+from edc_bench.protocol import BENCH_CMD_ID, RIG_HEARTBEAT_ID, Mode, default_icd
+from edc_bench.records.record import write_record
+from edc_bench.replay import replay_record
+from edc_bench.runtime.gain_check import check_variant_gains
+from edc_bench.runtime.replies import ReplyMatcher
+from edc_bench.sim.adapter import PRESETS, AdapterModel, parse_adapter
+from edc_bench.testing.faults import FaultyBus, Rule
+from edc_bench.testing.stalls import StallingClock
+
+
+@pytest.fixture(scope="module")
+def usb_variant() -> Variant:
+    """The default variant with 4 ms of reply age and gains that hold their margins at 4 ticks of delay."""
+    return with_changes(load_variant(), {
+        "acceptance": {"max_reply_age_ms": 4.0},
+        "controller": {"kp_v_per_mm": 0.3, "ki_v_per_mm_s": 4.0, "kd_v_s_per_mm": 0.002},
+    }, "usb")
+
+
+# -- the matcher --------------------------------------------------------------------------------------------------
+
+def test_matcher_pairs_late_replies_by_counter_and_drops_too_old_ones() -> None:
+    m = ReplyMatcher(max_age_ticks=3)
+    for k in range(3):
+        m.sent(k, (10 + k) & 0xFF)
+    assert m.match(11, next_tick=3) == 1  # tick 1's reply, 2 ticks late: usable
+    assert m.newest_tick == 1
+    assert m.match(10, next_tick=3) == 0  # an older one still matches, but the newest stays
+    assert m.newest_tick == 1
+    assert m.match(11, next_tick=3) is None and m.counts.unmatched == 1  # a repeat
+    assert m.match(99, next_tick=3) is None and m.counts.unmatched == 2  # nothing in flight carries it
+    m.sent(3, 13)
+    m.sent(4, 14)
+    assert m.match(12, next_tick=6) is None and m.counts.too_old == 1  # tick 2's: 4 ticks old at tick 6
+    missed = m.sent(6, 16)  # tick 2 expires unanswered in time: missed
+    assert missed == [2] and m.counts.missed == 1
+    assert not m.usable(5) and m.usable(4)
+
+
+def test_matcher_counts_missed_in_row_only_when_they_expire() -> None:
+    m = ReplyMatcher(max_age_ticks=2)
+    for k in range(10):
+        m.sent(k, k)
+    assert m.counts.missed == 7 and m.counts.max_missed_in_row == 7
+    m.match(8, next_tick=10)  # answered in time: the run of misses ends when it expires
+    m.sent(10, 10)
+    m.sent(11, 11)
+    assert m.counts.missed_in_row == 0 and m.counts.missed == 8  # tick 7 missed, tick 8 answered
+
+
+# -- the adapter model -------------------------------------------------------------------------------------------
+
+def test_usb_fs_round_trips_fall_in_the_measured_range() -> None:
+    usb = PRESETS["usb-fs"]
+    rng = np.random.default_rng(0)
+    trips = []
+    for k in range(2000):
+        sent = k * 1e-3 + rng.random() * 1e-3  # hosts do not send on the USB frame grid
+        at_rig = usb.delivery_s(sent, rng)
+        trips.append(usb.delivery_s(at_rig, rng) - sent)
+    assert 1.0e-3 <= min(trips) and max(trips) <= 3.5e-3
+    assert max(trips) - min(trips) > 1e-3  # the frame grid makes them vary
+
+
+def test_adapter_keeps_frames_in_order_and_parses_specs() -> None:
+    model = parse_adapter("latency_ms=1,jitter_ms=5")
+    rng = np.random.default_rng(1)
+    last = -1.0
+    for k in range(200):
+        last_new = model.delivery_s(k * 1e-3, rng, last)
+        assert last_new >= last
+        last = last_new
+    with pytest.raises(ConfigError, match="preset"):
+        parse_adapter("usb-hs")
+    with pytest.raises(ConfigError, match="0..100 ms"):
+        parse_adapter("latency_ms=-1")
+    assert parse_adapter("none").is_instant and AdapterModel().worst_round_trip_s == 0.0
+
+
+# -- the loop ------------------------------------------------------------------------------------------------------
+
+def test_gain_check_includes_the_transport_delay(variant: Variant) -> None:
+    assert check_variant_gains(variant).delay_ticks == 2
+    slow_link = with_changes(variant, {"acceptance": {"max_reply_age_ms": 4.0}}, "slow-link")
+    with pytest.raises(ConfigError, match="4 ticks of transport delay"):
+        check_variant_gains(slow_link)
+
+
+@pytest.mark.parametrize("valve", ["new", "worn"])
+def test_usb_adapter_identifies_as_without_latency(usb_variant: Variant, valve: str) -> None:
+    """Same valve, same seed: through a USB full-speed adapter af and a1 stay within 1 %, the verdict agrees."""
+    instant = run_simulated_test(usb_variant, valve, seed=3)
+    usb = run_simulated_test(usb_variant, valve, seed=3, adapter="usb-fs")
+    assert usb.verdict == instant.verdict and usb.verdict in (Verdict.PASS, Verdict.FAIL)
+    for name in ("af", "a1"):
+        assert usb.features[name] == pytest.approx(instant.features[name], rel=0.01), name
+    assert usb.outcome.missed_replies == 0
+    ages = usb.outcome.reply_age_ticks
+    assert min(ages) >= 2 and max(ages) <= 4  # replies 1.4-2.4 ms after their command, used 2-4 ticks on
+    assert set(np.unique(usb.trace["sample_age_ticks"][100:])) <= {2, 3, 4}
+
+
+def test_replies_older_than_the_age_limit_are_never_used_and_say_why(variant: Variant) -> None:
+    """The shipped variant allows 2 ms; a link with 3-4 ms round trips is refused, and the reason says what to do."""
+    result = run_simulated_test(variant, "new", seed=1, adapter="latency_ms=1.5,jitter_ms=0.5")
+    assert result.verdict == Verdict.INVALID
+    assert "older than acceptance.max_reply_age_ms (2 ms)" in result.reasons[0]
+    assert result.outcome.replies_too_old > 0
+    assert (result.trace["sample_age_ticks"] <= 2).all() or not result.trace["adapting"].any()
+
+
+def test_replies_late_but_within_the_age_limit_are_used_with_their_age(simulated_bench) -> None:
+    variant = load_variant()
+    bench, clock, _ = simulated_bench(variant, "worn", 1, interface="virtual")
+    bus = FaultyBus(bench, clock.now_s, [Rule("delay", 2.5, delay_s=0.0015, direction="rx")])
+    result = run_bench_test(bus, clock, variant, check_gains=False)
+    assert result.verdict == Verdict.FAIL and result.outcome.missed_replies == 0
+    late = result.trace["t_s"] > 2.6
+    assert set(np.unique(result.trace["sample_age_ticks"][late])) == {2}
+
+
+def test_reordered_replies_are_matched_by_counter(simulated_bench) -> None:
+    variant = load_variant()
+    bench, clock, _ = simulated_bench(variant, "worn", 1, interface="virtual")
+    bus = FaultyBus(bench, clock.now_s, [Rule("reorder", 2.5, direction="rx", can_id=0x121)])
+    result = run_bench_test(bus, clock, variant, check_gains=False)
+    assert result.verdict == Verdict.FAIL and result.outcome.missed_replies == 0
+
+
+@pytest.mark.parametrize("adapter", [None, "usb-fs"])
+def test_host_stalls_shorter_than_the_watchdog_are_gaps(usb_variant: Variant, adapter: str | None,
+                                                        tmp_path: Path) -> None:
+    clocks: list[StallingClock] = []
+    result = run_simulated_test(usb_variant, "new", seed=2, adapter=adapter,
+                                clock_wrapper=lambda c: clocks.append(StallingClock(c, 0.005, 1.0)) or clocks[0])
+    o = result.outcome
+    assert result.verdict == Verdict.PASS, result.reasons
+    assert o.gaps == clocks[0].stalls >= 29 and o.ticks_lost == 5 * o.gaps
+    gap = result.trace["gap"]
+    assert gap.sum() == o.ticks_lost and not result.trace["adapting"][gap].any()
+    # no burst: exactly one command per tick that ran, none for the lost ones
+    icd = default_icd()
+    runs = [f for f in range(result.frames.count) if result.frames.can_id[f] == BENCH_CMD_ID
+            and icd.parse_bench_cmd(bytes(result.frames.data[f])).mode == Mode.RUN]
+    assert len(runs) == o.ticks_run - o.ticks_lost
+    # the record replays to the same result, gaps and late replies included
+    folder = write_record(result, tmp_path, figure=False)
+    report = replay_record(folder)
+    assert report.reproduced, report.differences
+
+
+def test_a_stall_longer_than_the_watchdog_ends_invalid(variant: Variant) -> None:
+    result = run_simulated_test(variant, "new", seed=2, clock_wrapper=lambda c: StallingClock(c, 0.025, 5.0, 3.0))
+    assert result.verdict == Verdict.INVALID
+    assert "watchdog" in result.reasons[0].lower()
+    assert result.outcome.safe_confirmed
+
+
+class FloodingBus(can.BusABC):
+    """Passes frames through, and from ``at_s`` on hands out a heartbeat on every read: a rig gone mad."""
+
+    def __init__(self, inner: can.BusABC, now_s, at_s: float) -> None:
+        self.inner, self.now_s, self.at_s = inner, now_s, at_s
+        self.flooded = 0
+        super().__init__(channel="flood")
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.inner.send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None):
+        if self.now_s() >= self.at_s:
+            self.flooded += 1
+            return can.Message(arbitration_id=RIG_HEARTBEAT_ID, data=bytes(8), is_extended_id=False), False
+        return self.inner.recv(timeout), False
+
+
+def test_a_flooding_bus_ends_the_test_with_safe_at_once(simulated_bench) -> None:
+    variant = load_variant()
+    bench, clock, rig = simulated_bench(variant, "new", 1)
+    bus = FloodingBus(bench, clock.now_s, 3.0)
+    result = run_bench_test(bus, clock, variant, check_gains=False)
+    o = result.outcome
+    assert "bus flooded" in o.abort_reason and result.verdict == Verdict.INVALID
+    frames = result.frames
+    t = frames.t_s[: frames.count]
+    icd = default_icd()
+    safe_times = [t[f] for f in range(frames.count) if frames.can_id[f] == BENCH_CMD_ID and not frames.rx[f]
+                  and icd.parse_bench_cmd(bytes(frames.data[f])).mode == Mode.SAFE]
+    detected_s = o.ticks_start_s + o.abort_time_s
+    first_safe = min(s for s in safe_times if s >= detected_s)
+    assert first_safe - detected_s <= 0.020  # SAFE within 20 ms of detecting the flood
+    assert max(safe_times) - detected_s <= 1.0  # and the bench is done within 1 s
+    assert rig.plant.drive_v == 0.0  # the rig got SAFE through the flood
+    # every read was bounded: no tick read more than the budget
+    assert bus.flooded <= variant.acceptance.max_frames_per_tick * 7
