@@ -111,7 +111,7 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
     ctl = build_controller(variant, sync.position_mm)
     trace = Trace(capacity)
     matcher = ReplyMatcher(max_reply_age_ticks(variant))
-    position_mm, current_a, newest = sync.position_mm, sync.current_a, None
+    position_mm, current_a, newest_flags = sync.position_mm, sync.current_a, 0
     worst = 0.0
     k, first_counter = -1, None
     gaps = ticks_lost = 0
@@ -140,7 +140,7 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
             matcher.sent(k, cmd.counter)
             t_k = ticks_start_s + k * T  # as the loop computed it, to the last bit
             trace.write_tick(k, t_k - ticks_start_s, math.nan, math.nan, ctl, position_mm, current_a, u, False,
-                             reply_flags(newest) if newest is not None else 0, k - matcher.newest_tick)
+                             newest_flags, k - matcher.newest_tick)
         elif can_id == RIG_FEEDBACK_ID and k >= 0:
             try:
                 reply = icd.parse_rig_feedback(data)
@@ -149,9 +149,10 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
             tick = matcher.match(reply.counter, k + 1)
             if tick is None:
                 continue
-            trace.reply_arrived(tick, math.nan, reply.position_mm, reply.current_a, reply_flags(reply))
+            flags = reply_flags(reply)
+            trace.reply_arrived(tick, math.nan, reply.position_mm, reply.current_a, flags)
             if tick == matcher.newest_tick:
-                position_mm, current_a, newest = reply.position_mm, reply.current_a, reply
+                position_mm, current_a, newest_flags = reply.position_mm, reply.current_a, flags
     if worst > DRIVE_TOLERANCE_V:
         raise ConfigError(f"replayed drives differ from the logged commands by up to {worst * 1e3:.1f} mV: the log "
                           "was not made with this variant (or this edc-bench version's controller)")

@@ -98,7 +98,7 @@ class FelController:
             design.scales
         self.drive_limit_v, self.period_s, self.adapt_from_s = design.drive_limit_v, design.period_s, \
             design.adapt_from_s
-        self.reversal_speed_mm_s = design.reversal_exclusion * reference.peak_velocity_mm_s
+        self.reversal_speed_mm_s = design.reversal_speed_mm_s
         self._w = [0.0] * len(design.nominal)
         self._w_est = [0.0] * len(self.estimated)
         self._saturated = 0

@@ -68,7 +68,7 @@ def lean_tick(design: ControllerDesign, start_mm: float) -> Callable[[int, float
     inv_scale = [1.0 / design.scales[i] for i in idx]
     fixed = [(i, design.nominal[i]) for i in design.fixed]
     adapt_from_k = int(math.ceil(design.adapt_from_s / design.period_s - 1e-9))
-    reversal = design.reversal_exclusion * reference.peak_velocity_mm_s
+    reversal = design.reversal_speed_mm_s
     state = [0.0, 0.0, None, 0, reference.at(0.0)[0]]  # integral, derivative, last error, saturated, reference
     w = [0.0] * 6
     we = [0.0] * n

@@ -94,7 +94,7 @@ class LoopOutcome:
     missed_replies: int = 0
     max_missed_in_row: int = 0
     bad_replies: int = 0
-    overruns: int = 0
+    overruns: int = 0  # ticks that started a period or more late (each a host stall, ending in a gap)
     abort_reason: str | None = None
     rig_state_at_start: str | None = None
     fw_version: str | None = None
@@ -162,6 +162,7 @@ class BenchLoop:
         self.position_mm = math.nan
         self.current_a = math.nan
         self.newest_reply: RigFeedback | None = None
+        self.newest_flags = 0  # its status bits as the trace stores them
 
     # -- frames ----------------------------------------------------------------
     def _send(self, mode: int, drive_v: float, reference_mm: float, counter: int | None = None) -> int:
@@ -250,6 +251,7 @@ class BenchLoop:
                 trace.reply_arrived(tick, now - self._sent_s[tick], reply.position_mm, reply.current_a, flags)
                 if tick == matcher.newest_tick:
                     self.position_mm, self.current_a, self.newest_reply = reply.position_mm, reply.current_a, reply
+                    self.newest_flags = flags
             elif can_id == RIG_HEARTBEAT_ID:
                 self._heartbeat(msg.data, now)
         raise _BusFlooded(f"bus flooded: more than {self.max_frames_per_tick} frames within one tick "
@@ -388,6 +390,7 @@ class BenchLoop:
                 lost = min(int(lateness // T), self.ticks - k)
                 for g in range(k, k + lost):
                     trace.write_gap(g, (t_start + g * T) - t_start, ctl)
+                outcome.overruns += 1  # shown live; the judgement counts the lost ticks (ticks_lost)
                 outcome.gaps += 1
                 outcome.ticks_lost += lost
                 k += lost
@@ -413,9 +416,8 @@ class BenchLoop:
             sent_s[k] = clock.now_s()
             self._send(Mode.RUN, u, ctl.reference_mm, (run_base + k) & 0xFF)
             matcher.sent(k, (run_base + k) & 0xFF)
-            newest = self.newest_reply
             trace.write_tick(k, t_k - t_start, lateness, math.nan, ctl, self.position_mm, self.current_a, u, False,
-                             reply_flags(newest) if newest is not None else 0, k - matcher.newest_tick)
+                             self.newest_flags, k - matcher.newest_tick)
             outcome.ticks_run = k + 1
             last_run = k
             try:

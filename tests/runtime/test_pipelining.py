@@ -120,7 +120,11 @@ def test_replies_older_than_the_age_limit_are_never_used_and_say_why(variant: Va
     assert result.verdict == Verdict.INVALID
     assert "older than acceptance.max_reply_age_ms (2 ms)" in result.reasons[0]
     assert result.outcome.replies_too_old > 0
-    assert (result.trace["sample_age_ticks"] <= 2).all() or not result.trace["adapting"].any()
+    # never used: on every tick whose newest sample was too old, the feedback held its last value
+    trace = result.trace
+    stale = np.nonzero(trace["sample_age_ticks"][1:] > 2)[0] + 1
+    assert len(stale) > 0
+    assert (trace["feedback_v"][stale] == trace["feedback_v"][stale - 1]).all()
 
 
 def test_replies_late_but_within_the_age_limit_are_used_with_their_age(simulated_bench) -> None:
