@@ -23,6 +23,7 @@ On any python-can bus (a real rig, or ``edc-bench rig`` over slcan)::
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import itertools
 from collections.abc import Callable
@@ -188,8 +189,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},
         "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise,
-        "adapter": {"name": link.name, "latency_s": link.latency_s, "jitter_s": link.jitter_s,
-                    "usb_frame_s": link.usb_frame_s},
+        "adapter": dataclasses.asdict(link),
         "faulty_by_physics": is_faulty(variant, spec),
         "resisting_force_n": resisting_force_n(variant, spec),
         "coulomb_friction_n": rig.plant_params.coulomb_friction_n,

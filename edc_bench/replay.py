@@ -33,7 +33,7 @@ from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
 from edc_bench.runtime.loop import LoopOutcome, reply_flags
-from edc_bench.runtime.replies import ReplyMatcher, max_reply_age_ticks
+from edc_bench.runtime.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks
 from edc_bench.runtime.trace import Trace
 
 #: The command carries the drive in mV; a replayed drive further off than this is a different run.
@@ -109,6 +109,7 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
     T = variant.controller.period_s
     capacity = int(round(variant.excitation.duration_s / T))
     ctl = build_controller(variant, sync.position_mm)
+    ctl.add_sample(SYNC_TICK, sync.position_mm)
     trace = Trace(capacity)
     matcher = ReplyMatcher(max_reply_age_ticks(variant))
     position_mm, current_a, newest_flags = sync.position_mm, sync.current_a, 0
@@ -135,7 +136,7 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
                 ctl.resync()
                 gaps, ticks_lost = gaps + 1, ticks_lost + tick - k - 1
             k = tick
-            u = ctl.step(k, position_mm if matcher.usable(k) else None, matcher.newest_tick)
+            u = ctl.step(k, newest_usable=matcher.usable(k))
             worst = max(worst, abs(u - cmd.drive_v))
             matcher.sent(k, cmd.counter)
             t_k = ticks_start_s + k * T  # as the loop computed it, to the last bit
@@ -151,6 +152,7 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
                 continue
             flags = reply_flags(reply)
             trace.reply_arrived(tick, math.nan, reply.position_mm, reply.current_a, flags)
+            ctl.add_sample(tick, reply.position_mm)
             if tick == matcher.newest_tick:
                 position_mm, current_a, newest_flags = reply.position_mm, reply.current_a, flags
     if worst > DRIVE_TOLERANCE_V:

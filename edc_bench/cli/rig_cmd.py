@@ -26,7 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default: 0)")
     p.add_argument("--adapter", default="none", metavar="SPEC",
                    help="hold frames back as a CAN adapter would: usb-fs (a USB full-speed adapter, 1.5-3.5 ms "
-                        "round trip), or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way (default: none)")
+                        "round trip), or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] (default: none)")
     p.set_defaults(run=run)
 
 

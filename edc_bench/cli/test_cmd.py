@@ -43,7 +43,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-sensor-noise", action="store_true", help="simulated rig: exact sensor readings")
     p.add_argument("--adapter", default="none", metavar="SPEC",
                    help="simulated rig: the CAN adapter's timing between bench and rig: usb-fs (USB full-speed, "
-                        "1.5-3.5 ms round trip) or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way (default: none)")
+                        "1.5-3.5 ms round trip) or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] "
+                        "(default: none)")
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
     p.add_argument("--pump-serial", default="", metavar="SERIAL", help="serial number of the pump, for the record")
     p.add_argument("--operator", default=None, help="who ran the test (default: the login name)")

@@ -221,9 +221,9 @@ class AcceptanceSection(_Section):
     )
     max_missed_reply_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
     max_reply_age_ms: Annotated[float, Field(gt=0, le=50, allow_inf_nan=False)] = Field(
-        default=2.0, description="a reply older than this (from its command's tick) is never used; the gain check "
-        "takes it as the loop's worst transport delay. 2 ms: replies within two ticks (PCI/socketcan adapters, a busy "
-        "host); a USB full-speed adapter (1.5-3.5 ms round trip) needs 4 ms and gains tuned for that delay",
+        default=4.0, description="a reply older than this (from its command's tick) is never used; the gain check "
+        "takes it as the loop's worst transport delay. 4 ms: a USB full-speed adapter (1.5-3.5 ms round trip); "
+        "2 ms suffices for PCI and socketcan adapters and allows faster gains",
     )
     max_frames_per_tick: Annotated[int, Field(ge=4, le=10000)] = Field(
         default=64, description="frames read in one tick before the bus counts as flooded and the test ends",

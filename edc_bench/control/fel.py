@@ -1,11 +1,19 @@
 """Feedback-error learning: one controller tick, pure.
 
-Per tick k (period T, time t_k = k T), given the newest rack position the
-rig has reported, sampled at tick j (j = k-1 when every reply comes within
-its tick; earlier through a USB adapter):
+Per tick k (period T, time t_k = k T), given the rack positions the rig has
+reported since the last tick, each answering the command of a tick j (j =
+k-1 when every reply comes within its tick; earlier through a USB adapter):
 
-1. error e = r(t_j) - x(t_j); PID output u2 (held, not updated, when no
-   sample is young enough to use).
+1. error e = mean over those samples of r(t_j) - x_j (one sample, the usual
+   case: e = r(t_j) - x_j); PID output u2. With no new sample the last error
+   is used again while the newest sample is young enough; after that the
+   PID output is held, not updated. Averaging rather than taking the newest
+   matters through a USB adapter: when two commands reach the rig in the
+   same USB frame, the first was late, and using only the second would hide
+   the late samples from the PID while the rack feels the late drives; the
+   PID then sees a lag the rack does not have, and its velocity-proportional
+   output shows up in a1 (+0.6 % at the worst frame phase, noise-free;
+   docs/method.md).
 2. regressor W = [r''', r'', r', r, 1, sgn(r')] at t_k + T/2, the middle of
    the interval over which the drive is held (zero-order hold).
 3. feedforward u1 = W . a_hat; drive u = sat(u1 + u2).
@@ -108,6 +116,9 @@ class FelController:
         self.feedforward_v = 0.0
         self.feedback_v = 0.0
         self.adapting = False
+        self._error_sum_mm = 0.0
+        self._errors = 0
+        self._last_error_mm: float | None = None
 
     def resync(self) -> None:
         """Ticks were lost to a host stall: take no derivative across the gap (the estimator skips it anyway)."""
@@ -129,19 +140,35 @@ class FelController:
         for i in self.fixed:
             columns[i][row] = self.nominal[i]
 
-    def step(self, k: int, measured_mm: float | None, sample_tick: int | None = None) -> float:
+    def add_sample(self, sample_tick: int, measured_mm: float) -> None:
+        """A sample answering tick ``sample_tick``'s command has come (-1: the sample before the first tick).
+
+        The next :meth:`step` compares it with the reference at that tick, averaged with any other sample
+        that came since the last step.
+        """
+        j = sample_tick
+        if 0 <= j < len(self.table):
+            reference_then = self.table[j][4]
+        else:  # before the first tick (the start), or beyond the table
+            reference_then = self.reference.at(max(j, 0) * self.period_s)[0]
+        self._error_sum_mm += reference_then - measured_mm
+        self._errors += 1
+
+    def step(self, k: int, measured_mm: float | None = None, sample_tick: int | None = None, *,
+             newest_usable: bool = False) -> float:
         """Compute the drive for tick ``k``.
 
         Parameters
         ----------
         k : int
             Tick index (time k T).
-        measured_mm : float or None
-            The newest rack position the rig has reported; None when no
-            sample is young enough to use (the feedback is then held).
+        measured_mm : float, optional
+            A rack position that came since the last step (or give samples with :meth:`add_sample`).
         sample_tick : int, optional
-            The tick whose command that sample answered (-1 for the sample
-            before the first tick); ``k - 1`` by default.
+            The tick whose command ``measured_mm`` answered; ``k - 1`` by default.
+        newest_usable : bool, optional
+            With no new sample: whether the newest sample is still young enough for its error to be used again;
+            if not (the default), the PID output is held.
 
         Returns
         -------
@@ -150,14 +177,16 @@ class FelController:
         """
         T = self.period_s
         t = k * T
-        if measured_mm is None:
-            u2 = self.pid.output_v
+        if measured_mm is not None:
+            self.add_sample(k - 1 if sample_tick is None else sample_tick, measured_mm)
+        if self._errors:
+            error = self._error_sum_mm if self._errors == 1 else self._error_sum_mm / self._errors
+            self._error_sum_mm, self._errors, self._last_error_mm = 0.0, 0, error
+            u2 = self.pid.update(error, self._saturated)
+        elif newest_usable and self._last_error_mm is not None:
+            u2 = self.pid.update(self._last_error_mm, self._saturated)
         else:
-            j = k - 1 if sample_tick is None else sample_tick
-            # the reference at the sample's tick (the first tick's reference before tick 0)
-            reference_then = self.table[j][4] if 0 <= j < len(self.table) else (
-                self.reference.at(max(j, 0) * T)[0])
-            u2 = self.pid.update(reference_then - measured_mm, self._saturated)
+            u2 = self.pid.output_v
 
         if k < len(self.table):
             r, r1, r2, r3, r_now = self.table[k]

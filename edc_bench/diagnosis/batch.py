@@ -18,7 +18,7 @@ and evaluate a classifier on.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import expm
@@ -26,9 +26,12 @@ from scipy.linalg import expm
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
 from edc_bench.control.fel import condition_number, regressor_matrix
+from edc_bench.diagnosis.batch_link import BatchLink
 from edc_bench.diagnosis.identification import settle_times_s
 from edc_bench.physics.feedforward import feedforward_truth
 from edc_bench.physics.valve import ValveSpec, plant_parameters
+from edc_bench.runtime.replies import max_reply_age_ticks
+from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import STICK_SPEED_MM_S
 
 QUANTA_PER_PERIOD = 10
@@ -51,6 +54,8 @@ class BatchResult:
         Settle times of af and a1 (s after the excitation starts).
     condition_number : float
         Of the (common) regression over the steady excitation.
+    reply_age_ticks : dict of int to int
+        With an adapter: replies per age (ticks from command to first use), over all valves.
     """
 
     parameters: np.ndarray
@@ -60,6 +65,7 @@ class BatchResult:
     condition_number: float
     valves: list[ValveSpec]
     seeds: list[int]
+    reply_age_ticks: dict[int, int] = field(default_factory=dict)
 
     def feature(self, name: str) -> np.ndarray:
         """Column of one parameter, e.g. ``feature("af")``."""
@@ -87,6 +93,9 @@ class _VectorPlant:
         # coefficients as contiguous rows, so a step indexes no views
         self.phi, self.gam = _coefficients(period)
         self.phi_q, self.gam_q = _coefficients(quantum)
+        self._aug = aug
+        self._period_s = period_s
+        self._tables: tuple[np.ndarray, np.ndarray] | None = None
         self.x = np.zeros(n)
         self.v = np.zeros(n)
         self.i = np.zeros(n)
@@ -112,13 +121,39 @@ class _VectorPlant:
         if len(fine):
             self._advance_fine(fine, coil_v[fine])
 
-    def _advance_fine(self, idx: np.ndarray, coil_v: np.ndarray) -> None:
+    def advance_quanta(self, quanta: np.ndarray, drive_v: np.ndarray) -> None:
+        """Advance each valve by its own number of quanta (0..QUANTA_PER_PERIOD) under a constant drive.
+
+        Used when a CAN adapter makes the drive change mid-period (:mod:`edc_bench.diagnosis.batch_link`).
+        """
+        if self._tables is None:
+            # Phi and Gamma of m quanta, m = 0..QUANTA_PER_PERIOD, indexed [m, coefficient, valve]
+            q_s = self._period_s / QUANTA_PER_PERIOD
+            pairs = [_coefficients(expm(self._aug * (m * q_s))) for m in range(QUANTA_PER_PERIOD + 1)]
+            self._tables = np.stack([p for p, _ in pairs]), np.stack([g for _, g in pairs])
+        moving = np.nonzero(quanta > 0)[0]
+        m = quanta[moving]
+        phi_t, gam_t = self._tables
+        phi, gam = phi_t[m, :, moving].T, gam_t[m, :, moving].T
+        coil_v = self.pump.amplifier_gain * _clip(drive_v[moving], self.pump.amplifier_limit_v)
+        x, v, i = self.x[moving], self.v[moving], self.i[moving]
+        sign = np.where(v > 0.0, 1.0, -1.0)
+        xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, self.fc[moving])
+        ok = ~self.stuck[moving] & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
+        smooth = moving[ok]
+        self.x[smooth], self.v[smooth], self.i[smooth] = xn[ok], vn[ok], i_n[ok]
+        if not ok.all():
+            self._advance_fine(moving[~ok], coil_v[~ok], m[~ok])
+
+    def _advance_fine(self, idx: np.ndarray, coil_v: np.ndarray, quanta: np.ndarray | None = None) -> None:
+        """Karnopp stepping in quanta: the whole period, or ``quanta[j]`` quanta for valve ``idx[j]``."""
         phi, gam = self.phi_q[:, idx], self.gam_q[:, idx]
         fc, fs = self.fc[idx], self.fs[idx]
         x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
         pump = self.pump
         k, ki, fpre, stroke = pump.net_stiffness_n_per_mm, pump.force_constant_n_per_a, pump.preload_n, pump.stroke_mm
-        for _ in range(QUANTA_PER_PERIOD):
+        steps = QUANTA_PER_PERIOD if quanta is None else int(quanta.max())
+        for step in range(steps):
             net = ki * i - k * x - fpre
             hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
             sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
@@ -136,6 +171,11 @@ class _VectorPlant:
             xn = np.where(low, 0.0, np.where(high, stroke, xn))
             vn = np.where(low | high, 0.0, vn)
             new_stuck = new_stuck | low | high
+            if quanta is not None:  # valves whose quanta are done keep their state
+                done = step >= quanta
+                xn, vn, i_n, new_stuck = (np.where(done, x, xn), np.where(done, v, vn), np.where(done, i, i_n),
+                                          np.where(done, stuck, new_stuck))
+                hold = hold & ~done
             x = np.where(hold, x, xn)
             v = np.where(hold, 0.0, vn)
             i = np.where(hold, i_hold, i_n)
@@ -176,7 +216,7 @@ class _Noise:
 
 
 def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
-              sensor_noise: bool = True) -> BatchResult:
+              sensor_noise: bool = True, adapter: AdapterModel | None = None) -> BatchResult:
     """Run one simulated bench test per valve, vectorised.
 
     Parameters
@@ -189,6 +229,10 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         Sensor-noise seed per test.
     stiction, sensor_noise : bool
         As in :func:`edc_bench.bench.run_simulated_test`.
+    adapter : AdapterModel, optional
+        A CAN adapter between bench and rig (:mod:`edc_bench.diagnosis.batch_link`): commands take effect and
+        samples are taken when it delivers them, and the PID uses the newest sample young enough
+        (``acceptance.max_reply_age_ms``), holding its output otherwise. Instant by default.
 
     Returns
     -------
@@ -205,8 +249,11 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     resolution = lvdt.resolution if sensor_noise else 1e-9
     offset = lvdt.offset if sensor_noise else 0.0
 
+    def read(true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
+        return np.round((true_mm + offset + noise_mm) / resolution) * resolution
+
     def sample() -> np.ndarray:
-        return np.round((plant.x + offset + noise.next()) / resolution) * resolution
+        return read(plant.x, noise.next())
 
     # the reference is affine in its start position: tabulate it for start 0 and start 1
     ref0, ref1 = design.reference(0.0), design.reference(1.0)
@@ -244,17 +291,36 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     w_est_t = np.empty((len(est_idx), n))  # the estimator's regressors, one row per parameter
     ones = np.ones(n)
 
+    def reference_mm(ticks: np.ndarray, valves: np.ndarray) -> np.ndarray:
+        at = np.maximum(ticks, 0)  # tick -1's reference is r(0), the start
+        return np.where(ticks >= 0, now0[at] + start[valves] * now_slope[at], start[valves])
+
+    link = None if adapter is None or adapter.is_instant else BatchLink(
+        adapter, seeds, T, QUANTA_PER_PERIOD, max_reply_age_ticks(variant), reference_mm)
+    usable = None
+    u2 = np.zeros(n)
+
     for k in range(ticks):
         t = k * T
-        # PID on the error at the sample's time
-        err = r_prev - x_meas
+        if link is None:
+            err = r_prev - x_meas  # PID on the error at the sample's time
+        else:
+            # the samples that came back, each against the reference at its command's tick; none: the last error
+            # again while the newest is young enough, else the PID holds
+            fresh_err, fresh, newest_usable = link.fresh_error(k)
+            err = np.where(fresh, fresh_err, last_err)
+            usable = fresh | newest_usable
         prop = gains.kp_v_per_mm * err
         step = gains.ki_v_per_mm_s * err * T
         blocked = sat * step > 0.0  # the drive saturated the way the integrator pushes
-        integral = _clip(np.where(blocked, integral, integral + step), limit)
-        deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
-        last_err = err
-        u2 = _clip(prop + integral + deriv, limit)
+        new_integral = _clip(np.where(blocked, integral, integral + step), limit)
+        new_deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
+        new_u2 = _clip(prop + new_integral + new_deriv, limit)
+        if usable is None:
+            integral, deriv, last_err, u2 = new_integral, new_deriv, err, new_u2
+        else:  # no sample young enough: the PID holds its output and its state
+            integral, deriv = np.where(usable, new_integral, integral), np.where(usable, new_deriv, deriv)
+            last_err, u2 = np.where(usable, err, last_err), np.where(usable, new_u2, u2)
         # regressor at mid-interval, per valve (only r and its derivatives depend on the start)
         at_start0, slope = mid0_rows[k], mid_slope_rows[k]
         r3, r2, r1, r = (at_start0[3] + start * slope[3], at_start0[2] + start * slope[2],
@@ -288,10 +354,14 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
             else:
                 norm = 1.0 + np.einsum("jn,jn->n", w_est, w_est)
                 theta = np.where(adapting, theta + gain_vec[:, None] * w_est * (e / norm), theta)
-        # the rig: sample, then apply the drive, then one period passes
-        x_meas = sample()
-        plant.advance_period(u)
-        r_prev = now0[k] + start * now_slope[k]
+        if link is None:
+            # the rig: sample, then apply the drive, then one period passes
+            x_meas = sample()
+            plant.advance_period(u)
+            r_prev = now0[k] + start * now_slope[k]
+        else:
+            link.send(k, u, noise.next())
+            link.advance_period(k, plant.advance_quanta, lambda: plant.x, read)
         if k % HISTORY_EVERY == 0:
             history[hist_rows, 0] = theta[h_af]
             history[hist_rows, 1] = theta[h_a1]
@@ -309,7 +379,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     converged = (settle["af"] <= remaining) & (settle["a1"] <= remaining)
     truth = np.array([list(feedforward_truth(p)) for p in plant.params])
     return BatchResult(final, truth, converged, settle, _condition_number(design, ref0),
-                       list(valves), list(seeds))
+                       list(valves), list(seeds), dict(sorted(link.ages.items())) if link is not None else {})
 
 
 def _condition_number(design: ControllerDesign, reference) -> float:

@@ -120,22 +120,23 @@ class ValveClassifier:
         flipped = side != faulty[:, None, None]
         any_flip = flipped.any(axis=2)
         first = np.where(any_flip, flipped.argmax(axis=2), len(_RADII))  # (n, dirs)
-        best_dir = first.argmin(axis=1)
-        best = first[np.arange(n), best_dir]
+        best = first.min(axis=1)
         found = best < len(_RADII)
-        # stage 2: refine inside the bracket [r_{k-1}, r_k] of the best direction
+        # stage 2: refine inside the bracket [r_{k-1}, r_k] along every direction that first flips in it (several
+        # directions often share the bracket, and the nearest boundary may lie along any of them)
         idx = np.minimum(best, len(_RADII) - 1)
         lo = np.where(idx > 0, _RADII[np.maximum(idx - 1, 0)], 0.0)
         hi = _RADII[idx]
         steps = np.linspace(0.0, 1.0, _REFINE + 1)[1:]
-        radii = lo[:, None] + (hi - lo)[:, None] * steps[None, :]
-        u = dirs[best_dir]
-        pts2 = x[:, None, :] + radii[:, :, None] * u[:, None, :]
-        side2 = (self.probabilities(pts2.reshape(-1, 2)) >= self.threshold).reshape(n, _REFINE)
-        flip2 = side2 != faulty[:, None]
-        k2 = np.where(flip2.any(axis=1), flip2.argmax(axis=1), _REFINE - 1)
-        inner = np.where(k2 > 0, radii[np.arange(n), np.maximum(k2 - 1, 0)], lo)
-        dist = 0.5 * (inner + radii[np.arange(n), k2])
+        radii = lo[:, None] + (hi - lo)[:, None] * steps[None, :]  # (n, refine)
+        pts2 = x[:, None, None, :] + radii[:, None, :, None] * dirs[None, :, None, :]  # (n, dirs, refine, 2)
+        side2 = (self.probabilities(pts2.reshape(-1, 2)) >= self.threshold).reshape(n, _DIRECTIONS, _REFINE)
+        flip2 = (side2 != faulty[:, None, None]) & (first == best[:, None])[:, :, None]
+        k2 = np.where(flip2.any(axis=2), flip2.argmax(axis=2), _REFINE)  # (n, dirs); _REFINE: no flip
+        k2 = np.where(k2.min(axis=1) < _REFINE, k2.min(axis=1), _REFINE - 1)
+        rows = np.arange(n)
+        inner = np.where(k2 > 0, radii[rows, np.maximum(k2 - 1, 0)], lo)
+        dist = 0.5 * (inner + radii[rows, k2])
         dist = np.where(found, dist, np.inf)
         return np.where(faulty, dist, -dist)
 

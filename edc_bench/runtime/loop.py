@@ -45,7 +45,7 @@ from edc_bench.protocol import (
 )
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.runtime.clock import Clock, cpu_steal_s
-from edc_bench.runtime.replies import ReplyMatcher, max_reply_age_ticks
+from edc_bench.runtime.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks
 from edc_bench.runtime.trace import CanFrameLog, Trace
 
 # flag bits of trace column rig_flags
@@ -249,6 +249,7 @@ class BenchLoop:
                     continue
                 flags = reply_flags(reply)
                 trace.reply_arrived(tick, now - self._sent_s[tick], reply.position_mm, reply.current_a, flags)
+                self.controller.add_sample(tick, reply.position_mm)
                 if tick == matcher.newest_tick:
                     self.position_mm, self.current_a, self.newest_reply = reply.position_mm, reply.current_a, reply
                     self.newest_flags = flags
@@ -351,6 +352,7 @@ class BenchLoop:
         self.position_mm, self.current_a = first.position_mm, first.current_a
         run_base = (counter + 1) & 0xFF  # tick k's command carries counter run_base + k
         self.controller = ctl = build_controller(self.variant, self.position_mm)
+        ctl.add_sample(SYNC_TICK, self.position_mm)
 
         trace, matcher, sent_s = self.trace, self.matcher, self._sent_s
         acceptance = self.variant.acceptance
@@ -411,8 +413,7 @@ class BenchLoop:
                 outcome.abort_time_s = t_k - t_start
                 outcome.abort_reason = str(flood)
                 return
-            usable = matcher.usable(k)
-            u = ctl.step(k, self.position_mm if usable else None, matcher.newest_tick)
+            u = ctl.step(k, newest_usable=matcher.usable(k))
             sent_s[k] = clock.now_s()
             self._send(Mode.RUN, u, ctl.reference_mm, (run_base + k) & 0xFF)
             matcher.sent(k, (run_base + k) & 0xFF)

@@ -36,7 +36,13 @@ class AdapterModel:
         If above 0, a frame is delivered only at the next USB frame boundary,
         ``n * usb_frame_s + usb_phase_s`` (a USB full-speed device: 1 ms).
     usb_phase_s : float
-        Where the USB frames fall against the bench's ticks (the host controller's clock is its own).
+        Where the USB frames fall against the bench's ticks at time 0.
+    usb_drift_ppm : float
+        How much longer a USB frame is than ``usb_frame_s`` (parts per
+        million): the host controller's clock is its own, so the frames'
+        phase against the bench's ticks walks through a whole frame every
+        ``1e6 / usb_drift_ppm`` frames (10 s at 100 ppm), and a test meets
+        every phase, as a bench PC's does.
     name : str
         How it was chosen (a preset name or the spec text), for records.
     """
@@ -45,6 +51,7 @@ class AdapterModel:
     jitter_s: float = 0.0
     usb_frame_s: float = 0.0
     usb_phase_s: float = 0.0
+    usb_drift_ppm: float = 0.0
     name: str = "none"
 
     @property
@@ -62,7 +69,7 @@ class AdapterModel:
         """When a frame sent at ``sent_s`` comes out at the far end (never before ``previous_s``: in order)."""
         t = sent_s + self.latency_s + (rng.random() * self.jitter_s if self.jitter_s > 0.0 else 0.0)
         if self.usb_frame_s > 0.0:
-            frame, phase = self.usb_frame_s, self.usb_phase_s
+            frame, phase = self.usb_frame_s * (1.0 + 1e-6 * self.usb_drift_ppm), self.usb_phase_s
             t = math.ceil((t - phase) / frame - 1e-9) * frame + phase
         return max(t, previous_s)
 
@@ -70,14 +77,15 @@ class AdapterModel:
 #: Named adapters for ``--adapter``.
 PRESETS: dict[str, AdapterModel] = {
     "none": AdapterModel(),
-    # USB full-speed: 1 ms frames each way, 0.25-0.5 ms of driver and bus latency: 1.4-2.4 ms round trip on top of
-    # the bench's own reading, 1.5-3.5 ms as a host measures it
-    "usb-fs": AdapterModel(latency_s=0.25e-3, jitter_s=0.25e-3, usb_frame_s=1e-3, usb_phase_s=0.37e-3, name="usb-fs"),
+    # USB full-speed: 1 ms frames each way, 0.25-0.75 ms of driver, scheduling and bus latency, frames drifting
+    # against the ticks at 100 ppm: 1.3-2.9 ms round trip (replies 2-3 ticks old), 1.5-3.5 ms as a host measures it
+    "usb-fs": AdapterModel(latency_s=0.25e-3, jitter_s=0.5e-3, usb_frame_s=1e-3, usb_phase_s=0.37e-3,
+                           usb_drift_ppm=100.0, name="usb-fs"),
 }
 
 
 def parse_adapter(text: str) -> AdapterModel:
-    """``--adapter``: a preset name (``none``, ``usb-fs``) or ``latency_ms=L[,jitter_ms=J][,usb_frame_ms=F]``.
+    """``--adapter``: a preset (``none``, ``usb-fs``) or ``latency_ms=L[,jitter_ms=J][,usb_frame_ms=F][,drift_ppm=D]``.
 
     Raises
     ------
@@ -87,20 +95,22 @@ def parse_adapter(text: str) -> AdapterModel:
     text = text.strip()
     if text in PRESETS:
         return PRESETS[text]
-    keys = {"latency_ms": "latency_s", "jitter_ms": "jitter_s", "usb_frame_ms": "usb_frame_s"}
+    keys = {"latency_ms": "latency_s", "jitter_ms": "jitter_s", "usb_frame_ms": "usb_frame_s",
+            "drift_ppm": "usb_drift_ppm"}
     values: dict[str, float] = {}
     for part in (p.strip() for p in text.split(",") if p.strip()):
         key, sep, raw = (s.strip() for s in part.partition("="))
         if not sep or key not in keys:
             raise ConfigError(f"--adapter {text!r}: use a preset ({', '.join(PRESETS)}) or "
-                              f"latency_ms=L,jitter_ms=J,usb_frame_ms=F (one-way, in ms)")
+                              f"latency_ms=L,jitter_ms=J,usb_frame_ms=F (one-way, in ms),drift_ppm=D")
         try:
             value = float(raw)
         except ValueError:
             raise ConfigError(f"--adapter {text!r}: {key} = {raw!r} is not a number") from None
-        if not (math.isfinite(value) and 0.0 <= value <= 100.0):
-            raise ConfigError(f"--adapter {text!r}: {key} must lie in 0..100 ms")
-        values[keys[key]] = value * 1e-3
+        limit, unit, scale = (1000.0, "ppm", 1.0) if key == "drift_ppm" else (100.0, "ms", 1e-3)
+        if not (math.isfinite(value) and 0.0 <= value <= limit):
+            raise ConfigError(f"--adapter {text!r}: {key} must lie in 0..{limit:g} {unit}")
+        values[keys[key]] = value * scale
     if not values:
         raise ConfigError(f"--adapter {text!r}: give a preset ({', '.join(PRESETS)}) or latency_ms=...")
     return AdapterModel(**values, name=text)

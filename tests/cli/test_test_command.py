@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -10,7 +11,7 @@ from helpers import REPO, edc_bench
 
 
 def test_cli_test_json_summary(tmp_path: Path) -> None:
-    proc = edc_bench("test", "--valve", "faulty", "--seed", "3", "--duration-s", "10", "--json", "--out", "rec",
+    proc = edc_bench("test", "--valve", "faulty", "--seed", "3", "--duration-s", "15", "--json", "--out", "rec",
                      "--no-figure", cwd=tmp_path)
     assert proc.returncode == 11, proc.stderr  # FAIL
     summary = json.loads(proc.stdout)  # stdout is only JSON
@@ -53,8 +54,8 @@ def test_cli_bad_input_is_one_clear_line(tmp_path: Path, args: list[str], messag
 def test_cli_refuses_unstable_gains(tmp_path: Path) -> None:
     source = (REPO / "configs" / "p-edc-default.toml").read_text()
     bad = tmp_path / "hot.toml"
-    bad.write_text(source.replace("kp_v_per_mm = 0.6", "kp_v_per_mm = 3.0").replace('name = "p-edc-default"',
-                                                                                      'name = "hot"'))
+    hot = re.sub(r"kp_v_per_mm = [0-9.]+", "kp_v_per_mm = 3.0", source)
+    bad.write_text(hot.replace('name = "p-edc-default"', 'name = "hot"'))
     proc = edc_bench("test", "--variant", str(bad), cwd=tmp_path)
     assert proc.returncode == 2
     assert "unstable" in proc.stderr and "Traceback" not in proc.stderr

@@ -78,3 +78,79 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
     truth = feedforward_truth(plant_parameters(variant, parse_valve_spec("worn", variant)))
     assert abs(summary["features"]["af"] / truth.af - 1) < 0.08
     assert abs(summary["features"]["a1"] / truth.a1 - 1) < 0.20
+
+
+def _attempts(run, what: str, tries: int = 3):
+    """Run ``run()`` until it is undisturbed; returns its (result, timing, rig) or skips with every attempt's figures.
+
+    ``run`` returns (completed, valid, timing, rig, description). An undisturbed attempt is the verdict of the code:
+    returned, pass or fail. Only when every attempt was disturbed is the test skipped.
+    """
+    seen = []
+    for attempt in range(tries):
+        completed, timing, rig, description = run()
+        print(f"{what}, attempt {attempt + 1}: {description}; timing {timing}; rig {rig}")
+        seen.append(f"{description}: steal {timing['cpu_steal_s']:.2f} s, worst tick "
+                    f"{(timing['lateness_max_us'] or 0) / 1e3:.1f} ms late, rig's worst serve gap "
+                    f"{(rig or {}).get('worst_gap_ms')} ms")
+        if not disturbed(timing, rig):
+            return completed
+    pytest.skip(f"{what}: every attempt was disturbed by this machine: " + "; ".join(seen))
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_realtime_full_test_through_a_usb_adapter_passes_a_new_valve(tmp_path: Path) -> None:
+    """`edc-bench test --realtime --adapter usb-fs`: the rig process holds frames back as a USB full-speed adapter
+    does (1.5-3.5 ms round trip); the shipped variant, as shipped, runs its full 30 s test and passes a new valve."""
+    def run():
+        proc = edc_bench("test", "--realtime", "--adapter", "usb-fs", "--valve", "new", "--json", "--no-figure",
+                         "--no-history", "--out", "rec", cwd=tmp_path, timeout=180)
+        assert proc.returncode in (0, 12), proc.stderr  # PASS, or INVALID when the machine got in the way
+        summary = json.loads(proc.stdout)
+        doc = json.loads(Path(tmp_path / summary["record_dir"], "record.json").read_text())
+        loop = doc["loop"]
+        completed = summary["verdict"] == "PASS"
+        description = (f"{summary['verdict']} {summary['reasons']}, reply ages {loop['reply_age_ticks']}, "
+                       f"{loop['replies_too_old']} too old, {loop['gaps']} gaps")
+        if completed:
+            assert loop["ticks_run"] == 30_000 and loop["safe_confirmed"]
+            assert set(loop["reply_age_ticks"]) <= {1, 2, 3, 4} and max(map(int, loop["reply_age_ticks"])) >= 2
+        return completed, summary["timing"], doc["simulation"]["rig_process"], description
+
+    assert _attempts(run, "USB adapter, real time"), "an undisturbed real-time run through usb-fs did not PASS"
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_realtime_host_stall_of_5_ms_every_second_leaves_the_test_valid() -> None:
+    """A bench PC that stalls 5 ms once a second (really: the process sleeps): each stall is a gap of about five
+    ticks, the loop resynchronises, and the test completes valid (PASS on a new valve)."""
+    from edc_bench.bench import run_bench_test
+    from edc_bench.protocol import default_icd
+    from edc_bench.runtime.bus import open_bus
+    from edc_bench.runtime.clock import RealTimeClock
+    from edc_bench.sim.process import rig_process
+    from edc_bench.testing.stalls import StallingClock
+
+    variant = load_variant()
+    variant = variant.model_copy(update={"excitation": variant.excitation.model_copy(update={"duration_s": 15.0})})
+
+    def run():
+        status: dict[str, float] = {}
+        with rig_process(None, "new", 0, "none", status) as channel, \
+                open_bus({"interface": "slcan", "channel": channel}, default_icd().bitrate) as bus:
+            clock = StallingClock(RealTimeClock(), stall_s=0.005, every_s=1.0, first_s=2.5)
+            result = run_bench_test(bus, clock, variant)
+        outcome = result.outcome
+        description = (f"{result.verdict} {result.reasons}, {clock.stalls} stalls injected, {outcome.gaps} gaps, "
+                       f"{outcome.ticks_lost} ticks lost, reply ages {outcome.reply_age_ticks}")
+        completed = result.verdict == "PASS"
+        if completed:
+            assert outcome.ticks_run == 15_000 and clock.stalls >= 12
+            assert outcome.gaps >= clock.stalls  # every injected stall shows as a gap (the machine may add some)
+            assert 4 * clock.stalls <= outcome.ticks_lost
+        # the record's own statistics: lateness beyond what was injected is the machine's
+        return completed, result.timing, status, description
+
+    assert _attempts(run, "5 ms host stalls"), "an undisturbed real-time run with 5 ms stalls was not a valid PASS"
