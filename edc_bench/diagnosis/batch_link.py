@@ -94,12 +94,11 @@ class BatchLink:
         self._jitter_row += 1
         return row
 
-    def _deliver(self, sent_s: np.ndarray, previous_s: np.ndarray) -> np.ndarray:
-        """As :meth:`AdapterModel.delivery_s`, per valve: latency, jitter, USB frame boundary, in order."""
-        t = sent_s + self.adapter.latency_s + self._jitter_s()
-        if self.adapter.usb_frame_s > 0.0:
-            t = np.ceil((t - self._phase_s) / self._frame_s - 1e-9) * self._frame_s + self._phase_s
-        return np.maximum(t, previous_s)
+    def _deliver(self, idx: np.ndarray, sent_s: np.ndarray, previous_s: np.ndarray) -> np.ndarray:
+        """Frames of valves ``idx`` sent at ``sent_s``: when they come out, by :meth:`AdapterModel.release_s`."""
+        jitter = self._jitter_s()
+        return self.adapter.release_s(sent_s, jitter if np.isscalar(jitter) else jitter[idx], previous_s,
+                                      self._phase_s[idx])
 
     def fresh_error(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Before tick ``k``, per valve: the mean error of the samples that came since the last tick, whether
@@ -131,7 +130,7 @@ class BatchLink:
     def send(self, k: int, drive_v: np.ndarray, noise_mm: np.ndarray) -> None:
         """Tick ``k``'s command leaves the bench; ``noise_mm`` is the LVDT noise of the sample it will bring back."""
         slot = k % RING
-        down = self._deliver(np.full(len(self._cols), k * self.period_s), self._last_down)
+        down = self._deliver(self._cols, np.full(len(self._cols), k * self.period_s), self._last_down)
         self._last_down = down
         self._down_s[slot] = down
         self._down_q[slot] = np.rint(down / self.quantum_s).astype(np.int64)
@@ -173,18 +172,7 @@ class BatchLink:
             # the rig samples the rack, then applies the new drive; its reply starts back at once
             self._sample[ss, idx] = read(position_mm()[idx], self._noise[ss, idx])
             self.applied_v[idx] = self._drive[ss, idx]
-            up = self._deliver_some(idx, self._down_s[ss, idx])
+            up = self._deliver(idx, self._down_s[ss, idx], self._last_up[idx])
+            self._last_up[idx] = up
             self._use_tick[ss, idx] = np.ceil(up / self.period_s - 1e-9).astype(np.int64)
             self._next_delivery[idx] += 1
-
-    def _deliver_some(self, idx: np.ndarray, sent_s: np.ndarray) -> np.ndarray:
-        """Replies of valves ``idx`` sent at ``sent_s``: their arrival at the bench, in order per valve."""
-        t = sent_s + self.adapter.latency_s
-        if self.adapter.jitter_s > 0.0:
-            t = t + self._jitter_s()[idx]
-        if self.adapter.usb_frame_s > 0.0:
-            phase = self._phase_s[idx]
-            t = np.ceil((t - phase) / self._frame_s - 1e-9) * self._frame_s + phase
-        up = np.maximum(t, self._last_up[idx])
-        self._last_up[idx] = up
-        return up

@@ -21,6 +21,8 @@ import numpy as np
 
 from edc_bench.errors import ConfigError
 
+ArrayOrFloat = float | np.ndarray
+
 
 @dataclass(frozen=True)
 class AdapterModel:
@@ -65,13 +67,21 @@ class AdapterModel:
         one_way = self.latency_s + self.jitter_s + self.usb_frame_s
         return 2.0 * one_way
 
+    def release_s(self, sent_s: ArrayOrFloat, jitter_s: ArrayOrFloat, previous_s: ArrayOrFloat,
+                  usb_phase_s: ArrayOrFloat | None = None) -> ArrayOrFloat:
+        """The delivery rule, for floats or numpy arrays alike: latency, the jitter drawn for the frame, the next
+        USB frame boundary (at ``usb_phase_s``, the model's own by default), never before ``previous_s``."""
+        t = sent_s + self.latency_s + jitter_s
+        if self.usb_frame_s > 0.0:
+            frame = self.usb_frame_s * (1.0 + 1e-6 * self.usb_drift_ppm)
+            phase = self.usb_phase_s if usb_phase_s is None else usb_phase_s
+            t = np.ceil((t - phase) / frame - 1e-9) * frame + phase
+        return np.maximum(t, previous_s)
+
     def delivery_s(self, sent_s: float, rng: np.random.Generator, previous_s: float = -math.inf) -> float:
         """When a frame sent at ``sent_s`` comes out at the far end (never before ``previous_s``: in order)."""
-        t = sent_s + self.latency_s + (rng.random() * self.jitter_s if self.jitter_s > 0.0 else 0.0)
-        if self.usb_frame_s > 0.0:
-            frame, phase = self.usb_frame_s * (1.0 + 1e-6 * self.usb_drift_ppm), self.usb_phase_s
-            t = math.ceil((t - phase) / frame - 1e-9) * frame + phase
-        return max(t, previous_s)
+        jitter = rng.random() * self.jitter_s if self.jitter_s > 0.0 else 0.0
+        return float(self.release_s(sent_s, jitter, previous_s))
 
 
 #: Named adapters for ``--adapter``.

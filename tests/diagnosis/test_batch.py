@@ -10,6 +10,7 @@ from edc_bench.config import load_variant
 from edc_bench.diagnosis.batch import run_batch
 from edc_bench.diagnosis.population import draw_population
 from edc_bench.physics.valve import parse_valve_spec
+from edc_bench.sim.adapter import parse_adapter
 
 NAMES = ("a3", "a2", "a1", "a0", "b", "af")
 
@@ -17,16 +18,20 @@ BATCH_TOLERANCE = {"af": 0.01, "a1": 0.01, "a2": 0.03, "a0": 0.01, "b": 0.01, "a
 
 
 # one case runs by default; tests/control/test_design.py checks the same agreement on the noise-free plant
-@pytest.mark.parametrize(("variant_name", "valve"), [pytest.param("p-edc-default", "new", marks=pytest.mark.slow),
-                                                      ("p-edc-default", "worn"),
-                                                      pytest.param("p-edc-default", "faulty", marks=pytest.mark.slow),
-                                                      pytest.param("p-edc-long", "worn", marks=pytest.mark.slow)])
-def test_batch_path_gives_the_full_loops_parameters(variant_name: str, valve: str) -> None:
-    """Documented tolerance: af, a1, a0, b within 1 %, a2 within 3 % of the full loop (same valve)."""
+@pytest.mark.parametrize(("variant_name", "valve", "adapter"), [
+    pytest.param("p-edc-default", "new", None, marks=pytest.mark.slow),
+    ("p-edc-default", "worn", None),
+    pytest.param("p-edc-default", "faulty", None, marks=pytest.mark.slow),
+    pytest.param("p-edc-long", "worn", None, marks=pytest.mark.slow),
+    ("p-edc-default", "worn", "usb-fs"),  # the batch path's adapter model against the in-process rig's
+    pytest.param("p-edc-default", "new", "usb-fs", marks=pytest.mark.slow),
+])
+def test_batch_path_gives_the_full_loops_parameters(variant_name: str, valve: str, adapter: str | None) -> None:
+    """Documented tolerance: af, a1, a0, b within 1 %, a2 within 3 % of the full loop (same valve, same link)."""
     variant = load_variant(variant_name)
     spec = parse_valve_spec(valve, variant)
-    full = run_simulated_test(variant, spec, 1, check_gains=False, classify=False)
-    batch = run_batch(variant, [spec], [1])
+    full = run_simulated_test(variant, spec, 1, check_gains=False, classify=False, adapter=adapter)
+    batch = run_batch(variant, [spec], [1], adapter=parse_adapter(adapter) if adapter else None)
     for j, name in enumerate(NAMES):
         rel = abs(batch.parameters[0, j] / full.parameters[name]["value"] - 1)
         assert rel <= BATCH_TOLERANCE[name], (name, rel)

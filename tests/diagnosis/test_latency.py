@@ -1,6 +1,6 @@
 """Identification through a CAN adapter's latency: the same af, a1 and verdicts as with none (issue #12).
 
-Measured (2026-11, 200 valves): usb-fs a1 +0.13 % on average, 95 % of valves within 0.6 %, at most 1.5 % (2 valves
+Measured (2026-11, 200 valves): usb-fs a1 +0.13 % on average, 95 % of valves within 0.6 %, at most 1.5 % (3 valves
 beyond 1 %); af within 1 % on every valve; no verdict changed. 5 ms round trip with 1 ms jitter: af and a1 within
 0.85 % on every valve, no verdict changed. The bounds below leave room for those figures, not more.
 
