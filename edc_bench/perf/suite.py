@@ -96,7 +96,34 @@ def _realtime(variant_name: str | None, sizes: Sizes) -> list[Figure]:
             f"{bench.overruns} overruns in all ({bare.overruns} bare); steal {bench.steal_s:.2f} s "
             f"(bare {bare.steal_s:.2f} s); reply latency p50 {bench.reply_latency_us[0]:.0f} us, "
             f"p99 {bench.reply_latency_us[1]:.0f} us; missed replies {bench.missed_replies}"))
+    out += _links(variant_name, sizes)
     return out
+
+
+def _links(variant_name: str | None, sizes: Sizes) -> list[Figure]:
+    """Whole tests as a technician runs them: through a USB adapter, and with 5 ms host stalls."""
+    from edc_bench.perf.loops import age_percentile, link_test
+
+    duration_s = max(sizes.realtime_s / 2.0, 3.0)
+    usb = link_test(variant_name, duration_s, adapter="usb-fs")
+    stalls = link_test(variant_name, duration_s, stall_s=0.005)
+    machine = (f"steal {usb.steal_s:.2f} s, rig's worst serve gap {usb.rig_worst_gap_ms} ms, "
+               f"{usb.gaps} host stalls lost {usb.ticks_lost} ticks")
+    recovered = stalls.late_after_gap_us < 1e3
+    return [
+        Figure("realtime", f"usb-fs adapter, {duration_s:g} s test: reply age p99", age_percentile(usb.reply_age_ticks, 99),
+               "ticks", age_percentile(usb.reply_age_ticks, 50), "reply age p50", "test valid (PASS on a new valve)",
+               usb.verdict == "PASS",
+               f"{usb.verdict} {'; '.join(usb.reasons)}; ages {usb.reply_age_ticks}; {usb.replies_too_old} too old "
+               f"(never used); {machine}"),
+        Figure("realtime", f"5 ms host stall every second, {duration_s:g} s test: ticks lost per stall",
+               stalls.ticks_lost / max(stalls.gaps, 1), "ticks", 5.0, "ticks in 5 ms",
+               "test valid, back on time after each gap", stalls.verdict == "PASS" and recovered,
+               f"{stalls.verdict} {'; '.join(stalls.reasons)}; {stalls.stalls_injected} stalls injected, "
+               f"{stalls.gaps} gaps (the machine's own included), {stalls.ticks_lost} ticks lost; worst lateness "
+               f"of the tick after a gap {stalls.late_after_gap_us:.0f} us; steal {stalls.steal_s:.2f} s, rig's "
+               f"worst serve gap {stalls.rig_worst_gap_ms} ms"),
+    ]
 
 
 def _throughput(variant_name: str | None, sizes: Sizes) -> list[Figure]:

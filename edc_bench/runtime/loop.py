@@ -388,7 +388,10 @@ class BenchLoop:
             self._t_s = t_k
             lateness = clock.wait_until(t_k)
             if lateness >= T:
-                # a host stall cost whole periods: skip them (a gap), never send them late in a burst
+                # a host stall cost whole periods: skip them (a gap), never send them late in a burst; counted
+                # from now, not from the wake-up, so the tick after the gap is on time even if the stall went on
+                if clock.waits_for_replies:
+                    lateness = max(lateness, clock.now_s() - t_k)
                 lost = min(int(lateness // T), self.ticks - k)
                 for g in range(k, k + lost):
                     trace.write_gap(g, (t_start + g * T) - t_start, ctl)

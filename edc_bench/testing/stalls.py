@@ -57,6 +57,6 @@ class StallingClock(Clock):
         late = self.inner.wait_until(t_s)
         if self.inner.waits_for_replies:
             time.sleep(self.stall_s)  # a real stall: the process does nothing meanwhile
-            return late + self.stall_s
+            return max(late + self.stall_s, self.inner.now_s() - t_s)  # a sleep overshoots on a busy host
         self.inner.wait_until(t_s + self.stall_s)
         return late + self.stall_s
