@@ -55,7 +55,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
                    icd: Icd | None = None, observer: LoopObserver | None = None,
                    truth: FeedforwardParameters | None = None, check_gains: bool = True,
                    classify: bool = True, classifier_path: Path | None = None,
-                   stream_can_log: Callable[[], Path] | None = None) -> BenchResult:
+                   stream_can_log: Callable[[], Path] | None = None,
+                   coil_temp_c: float | None = None) -> BenchResult:
     """Run one bench test on ``bus``.
 
     Parameters
@@ -82,6 +83,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         baseline calibration.
     classifier_path : pathlib.Path, optional
         ONNX model to judge with; the packaged one by default.
+    coil_temp_c : float, optional
+        The coil's temperature at the start, to refer its measured resistance to 20 degC (20 degC if not given).
     stream_can_log : callable, optional
         Returns the file to stream the raw CAN log to while the test runs
         (called once the test is about to start), so that a killed process
@@ -117,7 +120,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     if observer is not None:
         observer.phase(Phase.CLASSIFY)
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,
-                          classifier_path=classifier_path)
+                          classifier_path=classifier_path, coil_temp_c=coil_temp_c)
     return BenchResult(
         judgement=judgement,
         timing=timing,
@@ -142,7 +145,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
                        observer: LoopObserver | None = None, check_gains: bool = True,
                        classify: bool = True, stream_can_log: Callable[[], Path] | None = None,
                        adapter: AdapterModel | str | None = None, clock_wrapper: Callable[[Clock], Clock] | None = None,
-                       ) -> BenchResult:
+                       coil_temp_c: float | None = None) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -160,6 +163,9 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     adapter : AdapterModel or str, optional
         The CAN adapter's timing between bench and rig (a preset name such as
         ``usb-fs``, see :func:`~edc_bench.sim.adapter.parse_adapter`); instant by default.
+    coil_temp_c : float, optional
+        What the technician states as the coil's temperature at the start (``--coil-temp-c``); not taken
+        from the simulated valve, which the bench does not know.
     clock_wrapper : callable, optional
         Wraps the simulated clock (e.g. :class:`~edc_bench.testing.stalls.StallingClock` to inject host stalls).
 
@@ -184,10 +190,14 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
             clock = clock_wrapper(clock)
         result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, observer=observer,
                                 truth=rig.truth, check_gains=check_gains, classify=classify,
-                                stream_can_log=stream_can_log)
+                                stream_can_log=stream_can_log, coil_temp_c=coil_temp_c)
     result.simulation = {
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},
+        "coil": {"resistance_20c_ohm": rig.plant_params.resistance_20c_ohm,
+                 "temp_start_c": rig.plant_params.coil_temp_c, "temp_end_c": rig.plant.coil_temp_c,
+                 "resistance_start_ohm": rig.plant_params.resistance_ohm,
+                 "resistance_end_ohm": rig.plant.resistance_ohm},
         "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise,
         "adapter": dataclasses.asdict(link),
         "faulty_by_physics": is_faulty(variant, spec),

@@ -152,7 +152,7 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
                 continue
             flags = reply_flags(reply)
             trace.reply_arrived(tick, math.nan, reply.position_mm, reply.current_a, flags)
-            ctl.add_sample(tick, reply.position_mm)
+            ctl.add_sample(tick, reply.position_mm, reply.current_a)
             if tick == matcher.newest_tick:
                 position_mm, current_a, newest_flags = reply.position_mm, reply.current_a, flags
     if worst > DRIVE_TOLERANCE_V:
@@ -231,8 +231,10 @@ def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
         run.notes.append(f"missed replies: recorded {loop.get('missed_replies')}, found {run.missed_replies} in the log")
     timing = dict(record.get("timing") or {})
     classify = record.get("verdict") != Verdict.UNCLASSIFIED
+    coil = record.get("coil") or {}
+    given = coil.get("temp_start_c") if str(coil.get("temp_source", "")).startswith("given") else None
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
-                       classifier_path=classifier_path)
+                       classifier_path=classifier_path, coil_temp_c=given)
     return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes, compared=True)
 
 

@@ -35,6 +35,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
     p.add_argument("--bitrate", type=int, default=None, help="CAN bit rate (default: the ICD's 500000)")
     p.add_argument("--valve-id", default="", metavar="ID", help="identity of the valve under test, for the record")
+    p.add_argument("--coil-temp-c", type=_coil_temp, default=None, metavar="C",
+                   help="the coil's temperature at the start of the test, to refer its measured resistance to "
+                        "20 degC (default: 20, a coil that has rested in the workshop; give it for a coil still "
+                        "warm from earlier tests)")
     p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
                    help="folder for record folders (default: ./records)")
     p.add_argument("--json", action="store_true", help="print only a JSON summary on stdout")
@@ -85,6 +89,20 @@ def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
     return given
 
 
+def _coil_temp(text: str) -> float:
+    """``--coil-temp-c``: a plausible coil temperature in degC."""
+    import argparse
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number (degC, e.g. 20 or 45)") from None
+    if not math.isfinite(value) or not -40.0 <= value <= 150.0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a plausible coil temperature (-40 to 150 degC)")
+    return value
+
+
 def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
     """The JSON summary of a test."""
     from edc_bench.records.writer import json_safe
@@ -95,6 +113,8 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
         "valve_id": result.valve_id,
         "variant": result.variant.name,
         "features": result.features,
+        "features_volt": result.judgement.features_volt,
+        "coil": result.judgement.coil,
         "parameters": result.parameters,
         "converged": result.converged,
         "classification": result.classification,
@@ -193,7 +213,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
                 f"simulated time, {variant.excitation.duration_s:g} s")
             result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
                                         stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
-                                        observer=observer, stream_can_log=stream_target, adapter=args.adapter)
+                                        observer=observer, stream_can_log=stream_target, adapter=args.adapter,
+                                        coil_temp_c=args.coil_temp_c)
         else:
             icd = default_icd()
             if bus_config is None:
@@ -205,7 +226,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
                     log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
                     with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
                         result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
-                                                observer=observer, stream_can_log=stream_target)
+                                                observer=observer, stream_can_log=stream_target,
+                                                coil_temp_c=args.coil_temp_c)
                 # the rig process's side of the timing: how long it once went without serving (a disturbed rig)
                 result.simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter,
                                                      **rig_status}}
@@ -213,7 +235,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
                 log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
                 with open_bus(bus_config, icd.bitrate) as bus:
                     result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
-                                            observer=observer, stream_can_log=stream_target)
+                                            observer=observer, stream_can_log=stream_target,
+                                            coil_temp_c=args.coil_temp_c)
     result.identity = identity
 
     record_dir = write_record(result, args.out, figure=not args.no_figure, folder=folder[0] if folder else None)
@@ -253,10 +276,15 @@ def _index(record_dir: Path, url: str | None) -> str | None:
 
 
 def _print_report(result: Any, record_dir: Path) -> None:
+    from edc_bench.diagnosis.coil_check import coil_line
+
     print(f"verdict: {result.verdict}")
     for reason in result.reasons:
         print(f"  - {reason}")
-    print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm")
+    print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm "
+          f"(referred to the reference coil, {result.variant.coil.resistance_ohm:g} ohm at 20 degC; with this "
+          f"coil: af {result.judgement.features_volt['af']:.5f} V, a1 {result.judgement.features_volt['a1']:.6f})")
+    print(f"coil: {coil_line(result.judgement.coil)}")
     if result.classification is not None:
         c = result.classification
         print(f"relative to the new-valve baseline: af x{c['features_rel']['af']:.2f}, a1 x{c['features_rel']['a1']:.2f}")

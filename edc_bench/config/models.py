@@ -45,12 +45,32 @@ class RackSection(_Section):
 class CoilSection(_Section):
     """Solenoid coil, magnetic force and drive amplifier (paper eqs. 2-3)."""
 
-    resistance_ohm: PositiveFloat
+    resistance_ohm: PositiveFloat = Field(description="nominal coil resistance at 20 degC (the reference coil)")
     inductance_mh: PositiveFloat
     force_constant_n_per_a: PositiveFloat
     magnetic_stiffness_n_per_mm: NonNegativeFloat
     amplifier_gain: PositiveFloat = 1.0
     amplifier_limit_v: PositiveFloat
+    resistance_min_ohm: PositiveFloat | None = Field(
+        default=None, description="lowest coil resistance at 20 degC the manufacturer accepts (none: not judged)")
+    resistance_max_ohm: PositiveFloat | None = Field(
+        default=None, description="highest coil resistance at 20 degC the manufacturer accepts (none: not judged)")
+    temperature_coefficient_per_k: Annotated[float, Field(ge=0, le=0.01, allow_inf_nan=False)] = Field(
+        default=0.00393, description="relative change of the coil's resistance per kelvin (copper: 0.00393)")
+    thermal_capacity_j_per_k: Annotated[float, Field(gt=0, le=1e5, allow_inf_nan=False)] = Field(
+        default=40.0, description="heat that warms the coil by 1 K (simulated rig)")
+    thermal_resistance_k_per_w: Annotated[float, Field(gt=0, le=1e3, allow_inf_nan=False)] = Field(
+        default=3.0, description="coil temperature rise per watt dissipated, in steady state (simulated rig)")
+
+    @model_validator(mode="after")
+    def _spec(self) -> CoilSection:
+        low = self.resistance_min_ohm if self.resistance_min_ohm is not None else 0.0
+        high = self.resistance_max_ohm if self.resistance_max_ohm is not None else float("inf")
+        if not low <= self.resistance_ohm <= high:
+            raise ValueError(f"coil.resistance_ohm ({self.resistance_ohm}) must lie within the coil spec "
+                             f"[resistance_min_ohm, resistance_max_ohm] = [{self.resistance_min_ohm}, "
+                             f"{self.resistance_max_ohm}]")
+        return self
 
 
 class ValvePreset(_Section):
@@ -243,11 +263,17 @@ class PopulationSection(_Section):
     clearance_max_mm: PositiveFloat
     rough_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.2
     roughness_max: Annotated[float, Field(ge=1, le=5, allow_inf_nan=False)] = 2.2
+    coil_temp_min_c: Annotated[float, Field(ge=-40, le=150, allow_inf_nan=False)] = Field(
+        default=20.0, description="coldest coil at the start of a simulated test")
+    coil_temp_max_c: Annotated[float, Field(ge=-40, le=150, allow_inf_nan=False)] = Field(
+        default=60.0, description="warmest coil at the start of a simulated test (a coil warm from earlier tests)")
 
     @model_validator(mode="after")
     def _range(self) -> PopulationSection:
         if self.clearance_max_mm <= self.clearance_min_mm:
             raise ValueError("clearance_max_mm must exceed clearance_min_mm")
+        if self.coil_temp_max_c < self.coil_temp_min_c:
+            raise ValueError("coil_temp_max_c must not be below coil_temp_min_c")
         return self
 
 

@@ -66,6 +66,10 @@ class ControllerDesign:
         The reference: move to ``mid_mm`` in ``move_s``, then the tones faded in over ``fade_s``.
     reversal_exclusion : float
         No adaptation while |r'| is below this fraction of its peak (stick windows).
+    amplifier_gain : float
+        k_A, coil volts per volt of drive (the coil estimator's).
+    reference_resistance_ohm : float
+        The reference coil's resistance (the variant's nominal, 20 degC): the parameters are referred to it.
     """
 
     period_s: float
@@ -85,6 +89,8 @@ class ControllerDesign:
     move_s: float
     fade_s: float
     reversal_exclusion: float
+    amplifier_gain: float = 1.0
+    reference_resistance_ohm: float = 1.0
 
     @classmethod
     def from_variant(cls, variant: Variant) -> ControllerDesign:
@@ -106,13 +112,20 @@ class ControllerDesign:
             nominal=nominal, scales=scales, estimated=estimated, theta0=theta0, prior_std=prior_std,
             estimator_kind=est.kind, forgetting_factor=est.forgetting_factor, gradient_gains_per_s=per_param,
             mid_mm=variant.rack.mid_stroke_mm, tones=tones, move_s=ex.move_s, fade_s=ex.fade_s,
-            reversal_exclusion=est.reversal_exclusion,
+            reversal_exclusion=est.reversal_exclusion, amplifier_gain=variant.coil.amplifier_gain,
+            reference_resistance_ohm=variant.coil.resistance_ohm,
         )
 
     @property
     def fixed(self) -> tuple[int, ...]:
         """Indices of the parameters held at their nominal value."""
         return tuple(i for i in range(len(PARAMETER_NAMES)) if i not in self.estimated)
+
+    @property
+    def coil_window_ticks(self) -> int:
+        """Ticks the coil's resistance is averaged over before use: the excitation's longest period."""
+        slowest_hz = min(t.frequency_hz for t in self.tones)
+        return max(1, round(1.0 / (slowest_hz * self.period_s)))
 
     @property
     def adapt_from_s(self) -> float:

@@ -21,8 +21,10 @@ from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.fel import FelController
 from edc_bench.diagnosis.baseline import Baseline, load_baseline
 from edc_bench.diagnosis.classifier import Classification, ValveClassifier, default_classifier
+from edc_bench.diagnosis.coil_check import coil_finding, coil_reason
 from edc_bench.diagnosis.identification import Identification, analyse
 from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
 from edc_bench.runtime.loop import LoopOutcome
 
@@ -46,7 +48,10 @@ class Judgement:
         ``name -> {"value", "std", "estimated"}`` for a3, a2, a1, a0, b, af
         (with ``truth`` and ``error_rel`` on a simulated rig).
     features : dict
-        ``{"af": ..., "a1": ...}``, the diagnosis inputs (V and V s/mm).
+        ``{"af": ..., "a1": ...}``, the diagnosis inputs (V and V s/mm), referred to the reference coil
+        (the variant's nominal coil at 20 degC): they do not depend on this coil's resistance.
+    features_volt : dict
+        af and a1 in volts as identified with this test's coil (the paper's features), for comparison.
     converged : bool
         af and a1 settled and stayed settled, and the run was not aborted.
     identification : Identification or None
@@ -62,6 +67,8 @@ class Judgement:
     decision_plane : dict or None
         P(faulty) on a grid around the valve (for the report), with the
         threshold and marginal band.
+    coil : dict or None
+        The coil's resistance measured in the test and its spec (:func:`~edc_bench.diagnosis.coil_check.coil_finding`).
     """
 
     verdict: Verdict
@@ -74,6 +81,8 @@ class Judgement:
     classification: dict[str, Any] | None = None
     baseline: dict[str, Any] | None = None
     decision_plane: dict[str, Any] | None = None
+    features_volt: dict[str, float] = field(default_factory=dict)
+    coil: dict[str, Any] | None = None
 
 
 def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
@@ -115,9 +124,17 @@ def reference_values(variant: Variant, baseline: Baseline | None) -> dict[str, d
     return out
 
 
+def measured_resistance_ohm(trace: dict[str, np.ndarray], variant: Variant) -> float:
+    """The coil resistance the loop used last (the reference coil's if none was measured)."""
+    r = np.asarray(trace.get("coil_resistance_ohm", []), dtype=float)
+    r = r[np.isfinite(r)]
+    return float(r[-1]) if len(r) else variant.coil.resistance_ohm
+
+
 def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelController | None,
               outcome: LoopOutcome, timing: dict[str, float], *, truth: FeedforwardParameters | None = None,
-              classify: bool = True, classifier_path: Path | None = None) -> Judgement:
+              classify: bool = True, classifier_path: Path | None = None,
+              coil_temp_c: float | None = None) -> Judgement:
     """Identification, trust and verdict of a run, from its trace and its controller.
 
     Parameters
@@ -138,27 +155,44 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         Ask the classifier about a trustworthy run (default); off for baseline calibration.
     classifier_path : pathlib.Path, optional
         ONNX model to judge with; the packaged one by default.
+    coil_temp_c : float, optional
+        The coil's temperature at the start of the test, to refer its resistance to 20 degC; 20 degC if
+        not given.
     """
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
     reasons = trust_reasons(variant, outcome, ident, timing)
     parameters: dict[str, dict[str, Any]] = {}
+    inductive = inductive_shares(variant)._asdict()
+    r_ref, r_hat = variant.coil.resistance_ohm, measured_resistance_ohm(trace, variant)
+    final: dict[str, float] = {}
     if ident is not None and controller is not None:
         estimated = {PARAMETER_NAMES[i] for i in controller.estimated}
         for name in PARAMETER_NAMES:
-            entry: dict[str, Any] = {"value": ident.final[name], "std": ident.std[name],
-                                     "estimated": name in estimated}
+            # estimated values as the reference coil gives them (the inductive shares put right)
+            value = referred_from_estimate(inductive[name], ident.final[name], r_ref, r_hat) \
+                if name in estimated else ident.final[name]
+            final[name] = value
+            entry: dict[str, Any] = {"value": value, "std": ident.std[name], "estimated": name in estimated}
             if truth is not None:
                 entry["truth"] = getattr(truth, name)
-                entry["error_rel"] = ident.final[name] / getattr(truth, name) - 1.0
+                entry["error_rel"] = value / getattr(truth, name) - 1.0
             parameters[name] = entry
-    features = {n: (ident.final[n] if ident else math.nan) for n in ("af", "a1")}
+    features = {n: final.get(n, math.nan) for n in ("af", "a1")}
+    coil = coil_finding(variant, trace, coil_temp_c)
+    bad_coil = coil_reason(coil) if coil is not None else None
     judgement = Judgement(
         verdict=Verdict.INVALID if reasons else Verdict.UNCLASSIFIED,
-        reasons=reasons or ["test trustworthy; classification switched off"],
+        reasons=(reasons or ["test trustworthy; classification switched off"]) + ([bad_coil] if bad_coil else []),
         parameters=parameters, features=features,
         converged=bool(ident and ident.converged and not outcome.abort_reason),
         identification=ident, reference_values=reference_values(variant, None),
+        features_volt={n: volts_at_coil(inductive[n], features[n], r_ref, r_hat) for n in ("af", "a1")},
+        coil=coil,
     )
+    if not reasons and bad_coil:
+        # a coil out of spec fails the valve, whatever its wear: it is replaced or repaired first
+        judgement.verdict = Verdict.FAIL
+        judgement.reasons = [bad_coil]
     if not reasons and classify:
         judged, baseline, classifier = classify_features(variant, features["af"], features["a1"], classifier_path)
         judgement.verdict = Verdict(judged.verdict)
@@ -169,6 +203,9 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         judgement.reasons = [
             f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
             f"{judged.distance:+.3f} (marginal band {classifier.marginal_band:g})"]
+        if bad_coil:
+            judgement.verdict = Verdict.FAIL
+            judgement.reasons = [bad_coil, f"the valve itself: {judged.verdict}; " + judgement.reasons[0]]
     return judgement
 
 

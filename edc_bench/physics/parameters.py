@@ -40,6 +40,13 @@ class PlantParameters:
         k_A and the amplifier's output limit on u.
     stroke_mm : float
         Hard stops at 0 and ``stroke_mm``.
+    coil_temp_c : float
+        Coil temperature at the start (``resistance_ohm`` is at this temperature).
+    ambient_c : float
+        Temperature the coil cools towards.
+    temperature_coefficient_per_k, thermal_capacity_j_per_k, thermal_resistance_k_per_w : float
+        The coil's resistance per kelvin (relative) and its first-order thermal model
+        (:mod:`edc_bench.physics.coil`).
     """
 
     mass_kg: float
@@ -55,6 +62,16 @@ class PlantParameters:
     amplifier_gain: float
     amplifier_limit_v: float
     stroke_mm: float
+    coil_temp_c: float = 20.0
+    ambient_c: float = 20.0
+    temperature_coefficient_per_k: float = 0.0
+    thermal_capacity_j_per_k: float = 40.0
+    thermal_resistance_k_per_w: float = 3.0
+
+    @property
+    def resistance_20c_ohm(self) -> float:
+        """The coil's resistance referred to 20 degC."""
+        return self.resistance_ohm / (1.0 + self.temperature_coefficient_per_k * (self.coil_temp_c - 20.0))
 
     @property
     def net_stiffness_n_per_mm(self) -> float:

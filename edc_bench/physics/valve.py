@@ -16,6 +16,7 @@ import numpy as np
 
 from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
+from edc_bench.physics.coil import resistance_at_ohm
 from edc_bench.physics.parameters import PlantParameters
 
 
@@ -34,6 +35,10 @@ class ValveSpec:
         valves); 1 for a nominal valve.
     label : str
         How the valve was named (preset name or spec text), for records.
+    coil_ohm : float or None
+        The coil's resistance at 20 degC; None: the variant's nominal.
+    coil_temp_c : float or None
+        The coil's temperature when the test starts; None: the station's ambient (20 degC).
     """
 
     clearance_mm: float
@@ -41,6 +46,8 @@ class ValveSpec:
     friction_scale: float = 1.0
     damping_scale: float = 1.0
     label: str = ""
+    coil_ohm: float | None = None
+    coil_temp_c: float | None = None
 
 
 _SPEC_KEYS = {
@@ -49,7 +56,11 @@ _SPEC_KEYS = {
     "roughness": "roughness",
     "friction_scale": "friction_scale",
     "damping_scale": "damping_scale",
+    "coil_ohm": "coil_ohm",
+    "coil_temp_c": "coil_temp_c",
 }
+#: The simulated station's ambient: a coil that has rested starts a test at this temperature.
+AMBIENT_C = 20.0
 
 
 def parse_valve_spec(text: str, variant: Variant) -> ValveSpec:
@@ -60,8 +71,9 @@ def parse_valve_spec(text: str, variant: Variant) -> ValveSpec:
     text : str
         ``new``, ``worn``, ``faulty`` (or another preset of the variant), or
         comma-separated physical values, e.g. ``clearance=0.22,roughness=1.5``
-        (keys: clearance[_mm], roughness, friction_scale, damping_scale). A
-        preset may be refined: ``worn,roughness=1.2``.
+        (keys: clearance[_mm], roughness, friction_scale, damping_scale,
+        coil_ohm (at 20 degC), coil_temp_c (at the start)). A preset may be
+        refined: ``worn,roughness=1.2`` or ``new,coil_ohm=0.9,coil_temp_c=60``.
     variant : Variant
         Supplies the presets.
 
@@ -94,8 +106,15 @@ def parse_valve_spec(text: str, variant: Variant) -> ValveSpec:
             value = float(raw)
         except ValueError:
             raise ConfigError(f"--valve {text!r}: {key} = {raw!r} is not a number") from None
-        if not math.isfinite(value) or value <= 0:
+        if key == "coil_temp_c":
+            if not -40.0 <= value <= 150.0:
+                raise ConfigError(f"--valve {text!r}: coil_temp_c = {raw!r} is not a plausible coil temperature "
+                                  "(-40 to 150 degC)")
+        elif not math.isfinite(value) or value <= 0:
             raise ConfigError(f"--valve {text!r}: {key} = {raw!r} must be a positive number")
+        elif key == "coil_ohm" and value > 100.0:
+            raise ConfigError(f"--valve {text!r}: coil_ohm = {raw!r} is not a plausible solenoid coil (ohm at "
+                              "20 degC, below 100)")
         fields[_SPEC_KEYS[key]] = value
     if "clearance_mm" not in fields:
         raise ConfigError(f"--valve {text!r}: give a preset ({', '.join(sorted(presets))}) or clearance=MM")
@@ -155,6 +174,9 @@ def plant_parameters(variant: Variant, valve: ValveSpec, *, stiction: bool = Tru
         matches the identification model exactly).
     """
     friction_n = valve_friction_n(variant, valve)
+    coil = variant.coil
+    temp_c = AMBIENT_C if valve.coil_temp_c is None else valve.coil_temp_c
+    r20 = coil.resistance_ohm if valve.coil_ohm is None else valve.coil_ohm
     return PlantParameters(
         mass_kg=variant.rack.mass_kg,
         spring_n_per_mm=variant.rack.spring_n_per_mm,
@@ -163,12 +185,17 @@ def plant_parameters(variant: Variant, valve: ValveSpec, *, stiction: bool = Tru
         damping_n_s_per_mm=valve_damping_n_s_per_mm(variant, valve),
         coulomb_friction_n=friction_n,
         stiction_friction_n=friction_n * (variant.valve.stiction_ratio if stiction else 1.0),
-        resistance_ohm=variant.coil.resistance_ohm,
+        resistance_ohm=resistance_at_ohm(r20, temp_c, coil.temperature_coefficient_per_k),
         inductance_h=variant.coil.inductance_mh * 1e-3,
         force_constant_n_per_a=variant.coil.force_constant_n_per_a,
         amplifier_gain=variant.coil.amplifier_gain,
         amplifier_limit_v=variant.coil.amplifier_limit_v,
         stroke_mm=variant.rack.stroke_mm,
+        coil_temp_c=temp_c,
+        ambient_c=AMBIENT_C,
+        temperature_coefficient_per_k=coil.temperature_coefficient_per_k,
+        thermal_capacity_j_per_k=coil.thermal_capacity_j_per_k,
+        thermal_resistance_k_per_w=coil.thermal_resistance_k_per_w,
     )
 
 

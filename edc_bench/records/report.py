@@ -138,7 +138,13 @@ def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
             f"af {rel['af'] - 1:+.1%}, a1 {rel['a1'] - 1:+.1%} against a new valve",
         ]
     lines.insert(0, _VERDICT_MEANINGS.get(record.get("verdict", ""), ""))
-    if not cls:  # with a classification the reasons only repeat the figures above
+    coil = record.get("coil")
+    if coil:
+        lines.append(f"coil {coil['resistance_20c_ohm']:.3f} ohm at 20 degC "
+                     + ("(no spec)" if coil.get("in_spec") is None else
+                        f"(spec {coil['spec_ohm'][0]:g}-{coil['spec_ohm'][1]:g}: "
+                        f"{'in spec' if coil['in_spec'] else 'OUT OF SPEC'})"))
+    if not cls or (coil and coil.get("in_spec") is False):  # with a classification the reasons repeat the above
         for reason in record.get("reasons") or []:
             lines.append(reason if len(reason) < 60 else reason[:57] + "...")
     for n, line in enumerate(lines):
@@ -168,7 +174,8 @@ def _parameter_table(ax: Any, record: dict[str, Any]) -> None:
     table.auto_set_font_size(False)
     table.set_fontsize(8)
     table.scale(1.0, 1.3)
-    ax.set_title("Identified parameters (af, a1: the diagnosis features)", fontsize=9, loc="left")
+    ax.set_title("Identified parameters, referred to the reference coil (af, a1: the diagnosis features)",
+                 fontsize=9, loc="left")
 
 
 def _tracking(ax: Any, ax_error: Any, trace: dict[str, np.ndarray]) -> None:

@@ -249,7 +249,7 @@ class BenchLoop:
                     continue
                 flags = reply_flags(reply)
                 trace.reply_arrived(tick, now - self._sent_s[tick], reply.position_mm, reply.current_a, flags)
-                self.controller.add_sample(tick, reply.position_mm)
+                self.controller.add_sample(tick, reply.position_mm, reply.current_a)
                 if tick == matcher.newest_tick:
                     self.position_mm, self.current_a, self.newest_reply = reply.position_mm, reply.current_a, reply
                     self.newest_flags = flags

@@ -29,13 +29,14 @@ TRACE_COLUMNS: dict[str, str] = {
     "rig_flags": "u1",
     "sample_age_ticks": "u1",  # age of the sample the tick's feedback used (1: its reply came within the tick)
     "gap": "?",  # the tick was lost to a host stall: nothing was sent, nothing learnt
+    "coil_resistance_ohm": "f8",  # the coil's resistance measured so far (from drive and current)
     **{f"{name}_hat": "f8" for name in PARAMETER_NAMES},
 }
 
 # the order :meth:`Trace.write_tick` fills them in
 _TICK_COLUMNS = ("t_s", "lateness_s", "reply_latency_s", "reference_mm", "reference_velocity_mm_s", "position_mm",
                  "current_a", "drive_v", "feedforward_v", "feedback_v", "adapting", "reply_ok", "rig_flags",
-                 "sample_age_ticks")
+                 "sample_age_ticks", "coil_resistance_ohm")
 
 
 class Trace:
@@ -78,6 +79,7 @@ class Trace:
         c[11][k] = reply_ok
         c[12][k] = rig_flags
         c[13][k] = min(sample_age_ticks, 255)
+        c[14][k] = controller.coil_resistance_ohm
         controller.write_parameters(self._parameter_columns, k)
         self.rows = k + 1
 

@@ -17,6 +17,11 @@ needs no small steps). A whole command period is taken in one step unless the
 velocity changes sign or the rack sits stuck; then the period is replayed in
 quanta of ``quantum_s`` (0.1 ms) with a Karnopp stick/slip rule, so that
 stick-slip at reversals ("chattering", paper Figs. 4c and 5c) is resolved.
+
+The coil warms with the heat ``R i^2`` it dissipates: every
+``THERMAL_STEP_S`` of plant time its temperature is stepped (first order,
+:func:`~edc_bench.physics.coil.temperature_after_c`) with the mean power since
+the last step, and its resistance, hence the coil's row of ``A``, follows.
 The plant knows nothing of buses, files or wall-clock time.
 """
 
@@ -27,12 +32,15 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
+from edc_bench.physics.coil import resistance_at_ohm, temperature_after_c
 from edc_bench.physics.parameters import PlantParameters
 
 DEFAULT_QUANTUM_S = 1e-4
 # Karnopp dead band: below this speed a rack whose forces are within stiction
 # sticks. Without it an overdamped approach would slide forever, ever slower.
 STICK_SPEED_MM_S = 1e-3
+#: Plant time between steps of the coil's temperature (its thermal time constant is minutes).
+THERMAL_STEP_S = 0.1
 
 
 class _Step:
@@ -86,6 +94,12 @@ class Plant:
         self._fc = p.coulomb_friction_n
         self._fs = p.stiction_friction_n
         self._stroke = p.stroke_mm
+        self.coil_temp_c = p.coil_temp_c
+        self.resistance_ohm = p.resistance_ohm
+        self._r20 = p.resistance_20c_ohm
+        self._heat_j = 0.0
+        self._thermal_quanta = max(1, round(THERMAL_STEP_S / quantum_s))
+        self._next_thermal = self._thermal_quanta
 
     @property
     def time_s(self) -> float:
@@ -127,15 +141,36 @@ class Plant:
             return
         self.elapsed_quanta += n_quanta
         coil_v = self.params.amplifier_gain * self.drive_v
+        fine = True
         if not self.stuck:
             sign = 1.0 if self.v_mm_s > 0.0 else -1.0
             x, v, i = self._propagate(self._step(n_quanta), coil_v, sign)
             if v * sign > STICK_SPEED_MM_S and 0.0 < x < self._stroke:
                 self.x_mm, self.v_mm_s, self.i_a = x, v, i
-                return
-        # A reversal, a stop, or a stuck rack inside this period: replay finely.
-        for _ in range(n_quanta):
-            self._advance_quantum(coil_v)
+                fine = False
+        if fine:
+            # A reversal, a stop, or a stuck rack inside this period: replay finely.
+            for _ in range(n_quanta):
+                self._advance_quantum(coil_v)
+        self._heat_j += self.resistance_ohm * self.i_a * self.i_a * n_quanta * self.quantum_s
+        if self.elapsed_quanta >= self._next_thermal:
+            self._step_temperature()
+
+    def _step_temperature(self) -> None:
+        """The coil's temperature after the heat since the last step; its resistance and the matrices follow."""
+        p = self.params
+        span_quanta = self.elapsed_quanta - (self._next_thermal - self._thermal_quanta)
+        span_s = span_quanta * self.quantum_s
+        self.coil_temp_c = temperature_after_c(self.coil_temp_c, self._heat_j / span_s, span_s, p.ambient_c,
+                                               p.thermal_capacity_j_per_k, p.thermal_resistance_k_per_w)
+        self._heat_j = 0.0
+        self._next_thermal = (self.elapsed_quanta // self._thermal_quanta + 1) * self._thermal_quanta
+        if p.temperature_coefficient_per_k == 0.0:
+            return
+        self.resistance_ohm = resistance_at_ohm(self._r20, self.coil_temp_c, p.temperature_coefficient_per_k)
+        self._a[2, 2] = -self.resistance_ohm / p.inductance_h
+        self._steps.clear()
+        self._quantum = self._step(1)
 
     def _propagate(self, step: _Step, coil_v: float, sign: float) -> tuple[float, float, float]:
         p, g = step.p, step.g

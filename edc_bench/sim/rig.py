@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -143,8 +143,14 @@ class SimulatedRig:
 
     @property
     def truth(self) -> FeedforwardParameters:
-        """True feedforward parameters of this rig's plant."""
-        return feedforward_truth(self.plant_params)
+        """True feedforward parameters of this rig's valve with the reference coil (the variant's nominal at
+        20 degC), as the bench reports them."""
+        return feedforward_truth(replace(self.plant_params, resistance_ohm=self.variant.coil.resistance_ohm))
+
+    @property
+    def truth_volt(self) -> FeedforwardParameters:
+        """True feedforward parameters in volts with this rig's coil as it is now (warmed by the test)."""
+        return feedforward_truth(replace(self.plant_params, resistance_ohm=self.plant.resistance_ohm))
 
     @property
     def time_s(self) -> float:

@@ -20,6 +20,7 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
+from edc_bench.diagnosis.coil_check import coil_line
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
 
@@ -102,6 +103,10 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
             rel = result.classification["features_rel"]
             line += f"   ({rel['af'] - 1:+.0%} and {rel['a1'] - 1:+.0%} against a new valve)"
         body.add_row("valve", line)
+        body.add_row("", "af and a1 referred to the reference coil "
+                         f"({result.variant.coil.resistance_ohm:g} ohm at 20 degC): the coil's own resistance is out")
+    if result.judgement.coil is not None:
+        body.add_row("coil", coil_line(result.judgement.coil))
     t = result.timing
     if t.get("ticks"):
         body.add_row("timing", f"{t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, "

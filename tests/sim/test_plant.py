@@ -31,7 +31,9 @@ def _run(plant: Plant, seconds: float, drive_v: float | None = None) -> np.ndarr
 
 
 def test_static_equilibrium_without_friction(any_variant: Variant) -> None:
-    params = with_friction(plant_parameters(any_variant, parse_valve_spec("new", any_variant)), 0.0)
+    # a coil that does not warm: the warming moves the equilibrium (tested in test_coil_warms_*)
+    params = replace(with_friction(plant_parameters(any_variant, parse_valve_spec("new", any_variant)), 0.0),
+                     temperature_coefficient_per_k=0.0)
     target_mm = any_variant.rack.mid_stroke_mm
     drive_v = params.drive_for_position_v(target_mm)
     # from first principles: k_i k_A u / R = k' x + F_pre
@@ -75,7 +77,7 @@ def test_coil_time_constant(worn: PlantParameters) -> None:
 def test_natural_frequency_and_damping_of_linearised_plant(worn: PlantParameters, damping_ratio: float) -> None:
     k, m = worn.net_stiffness_n_per_mm, worn.mass_n_s2_per_mm
     c = damping_ratio * 2.0 * math.sqrt(k * m)
-    params = with_friction(replace(worn, damping_n_s_per_mm=c), 0.0)
+    params = with_friction(replace(worn, damping_n_s_per_mm=c, temperature_coefficient_per_k=0.0), 0.0)
     plant = Plant(params, position_mm=5.0)
     x_eq = params.equilibrium_mm(params.drive_for_position_v(10.0))
     plant.i_a = params.amplifier_gain * params.drive_for_position_v(10.0) / params.resistance_ohm
@@ -152,3 +154,28 @@ def test_hard_stops(worn: PlantParameters) -> None:
     plant = Plant(worn)
     _run(plant, 0.5, worn.amplifier_limit_v)
     assert plant.x_mm == worn.stroke_mm
+
+
+def test_coil_warms_with_its_losses_and_its_resistance_follows(worn: PlantParameters) -> None:
+    """A held rack at 4 A: the coil's temperature follows the first-order model, step by step, and R with it."""
+    from edc_bench.physics.coil import resistance_at_ohm, temperature_after_c
+    from edc_bench.sim.plant import THERMAL_STEP_S
+
+    plant = Plant(replace(worn, coulomb_friction_n=50.0, stiction_friction_n=50.0))  # rack held
+    drive_v = 4.0 * worn.resistance_ohm / worn.amplifier_gain
+    plant.set_drive_v(drive_v)
+    steps = 100  # 10 s
+    for _ in range(steps * 100):  # in command periods of 1 ms, as the rig advances it
+        plant.advance(round(THERMAL_STEP_S / plant.quantum_s / 100))
+    temp, r20 = worn.coil_temp_c, worn.resistance_20c_ohm
+    for _ in range(steps):  # the same model by hand, with the steady current of each step
+        r = resistance_at_ohm(r20, temp, worn.temperature_coefficient_per_k)
+        current = worn.amplifier_gain * drive_v / r
+        temp = temperature_after_c(temp, r * current**2, THERMAL_STEP_S, worn.ambient_c,
+                                   worn.thermal_capacity_j_per_k, worn.thermal_resistance_k_per_w)
+    assert plant.coil_temp_c == pytest.approx(temp, abs=0.05)
+    assert plant.coil_temp_c - worn.coil_temp_c > 2.0  # about 11 W into 40 J/K: ~2.7 K in 10 s
+    assert plant.resistance_ohm == pytest.approx(resistance_at_ohm(r20, plant.coil_temp_c,
+                                                                   worn.temperature_coefficient_per_k), rel=1e-12)
+    # and the current follows the warmer coil
+    assert plant.i_a == pytest.approx(worn.amplifier_gain * drive_v / plant.resistance_ohm, rel=1e-3)
