@@ -23,6 +23,7 @@ variant's nominal inductance is used.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from typing import Generic, TypeVar
 
 import numpy as np
@@ -33,6 +34,16 @@ Number = TypeVar("Number", float, np.ndarray)
 COIL_MEMORY_S = 0.5
 #: The prior (the nominal resistance) weighs as much as this many samples at 1 A.
 PRIOR_SAMPLES = 10.0
+
+
+def averaging_window_s(frequencies_hz: Iterable[float]) -> float:
+    """What the loop averages the estimate over before use: the excitation's longest period."""
+    return 1.0 / min(frequencies_hz)
+
+
+def measurement_lag_s(frequencies_hz: Iterable[float]) -> float:
+    """How far the averaged estimate lags the coil: its memory plus half the averaging window."""
+    return COIL_MEMORY_S + 0.5 * averaging_window_s(frequencies_hz)
 
 
 class CoilEstimator(Generic[Number]):
@@ -56,14 +67,12 @@ class CoilEstimator(Generic[Number]):
         self.forgetting = math.exp(-period_s / memory_s)
         self.sum_ii: Number = nominal_ohm * 0.0 + PRIOR_SAMPLES
         self.sum_ui: Number = self.sum_ii * nominal_ohm / amplifier_gain
-        self.samples = 0
 
     def update(self, drive_v: Number, current_a: Number) -> None:
         """One current sample and the drive that was in effect while it came about."""
         lam = self.forgetting
         self.sum_ui = lam * self.sum_ui + drive_v * current_a
         self.sum_ii = lam * self.sum_ii + current_a * current_a
-        self.samples += 1
 
     @property
     def resistance_ohm(self) -> Number:

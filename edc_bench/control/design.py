@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.coil import averaging_window_s
 from edc_bench.control.estimators import Estimator, NormalisedGradient, RecursiveLeastSquares
 from edc_bench.control.fel import FelController
 from edc_bench.control.pid import Pid, PidGains, derivative_filter_coefficients
@@ -124,8 +125,7 @@ class ControllerDesign:
     @property
     def coil_window_ticks(self) -> int:
         """Ticks the coil's resistance is averaged over before use: the excitation's longest period."""
-        slowest_hz = min(t.frequency_hz for t in self.tones)
-        return max(1, round(1.0 / (slowest_hz * self.period_s)))
+        return max(1, round(averaging_window_s(t.frequency_hz for t in self.tones) / self.period_s))
 
     @property
     def adapt_from_s(self) -> float:

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.config.models import Variant
-from edc_bench.control.coil import COIL_MEMORY_S
+from edc_bench.control.coil import measurement_lag_s
 from edc_bench.physics.coil import REFERENCE_TEMP_C, resistance_20c_ohm
 
 #: Below this much excitation time the coil's figure is not given.
@@ -67,8 +67,8 @@ def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: fl
     if not keep.any() or t[keep][-1] - start_s < MIN_MEASURED_S:
         return None
     slope, intercept = np.polyfit(t[keep], r[keep], 1)
-    # the loop's figure at time t is the coil's of about COIL_MEMORY_S plus half the averaging window earlier
-    lag_s = COIL_MEMORY_S + 0.5 / min(tone.frequency_hz for tone in variant.excitation.active_tones)
+    # the loop's figure at time t is the coil's of a little earlier
+    lag_s = measurement_lag_s(tone.frequency_hz for tone in variant.excitation.active_tones)
     r_start, r_end = float(intercept + slope * lag_s), float(r[keep][-1] + slope * lag_s)
     alpha = coil.temperature_coefficient_per_k
     temp_c = REFERENCE_TEMP_C if coil_temp_c is None else float(coil_temp_c)

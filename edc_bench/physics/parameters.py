@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from edc_bench.physics.coil import resistance_20c_ohm
+
 
 @dataclass(frozen=True)
 class PlantParameters:
@@ -71,7 +73,7 @@ class PlantParameters:
     @property
     def resistance_20c_ohm(self) -> float:
         """The coil's resistance referred to 20 degC."""
-        return self.resistance_ohm / (1.0 + self.temperature_coefficient_per_k * (self.coil_temp_c - 20.0))
+        return resistance_20c_ohm(self.resistance_ohm, self.coil_temp_c, self.temperature_coefficient_per_k)
 
     @property
     def net_stiffness_n_per_mm(self) -> float:
