@@ -355,7 +355,7 @@ class Variant(_Section):
             )
         excitation = self.excitation
         swing_mm = sum(t.amplitude_mm for t in excitation.active_tones)
-        if not rig.travel_min_mm < rack.mid_stroke_mm - swing_mm and rack.mid_stroke_mm + swing_mm < rig.travel_max_mm:
+        if not rig.travel_min_mm < rack.mid_stroke_mm - swing_mm < rack.mid_stroke_mm + swing_mm < rig.travel_max_mm:
             raise ValueError(
                 f"the excitation swings {swing_mm:g} mm about mid-stroke ({rack.mid_stroke_mm} mm), beyond the "
                 f"travel limits [{rig.travel_min_mm}, {rig.travel_max_mm}]: lower the tone amplitudes"

@@ -75,9 +75,26 @@ def test_written_copy_round_trips(tmp_path: Path) -> None:
         (lambda d: d["valve"].update(stiction_ratio=0.5), r"\[valve\]\.stiction_ratio = 0.5: Input should be greater than or equal to 1"),
         (lambda d: d["pump"].update(name="Bad Name"), r"\[pump\]\.name = 'Bad Name': String should match pattern"),
         (lambda d: d["sensors"]["lvdt"].update(resolution=0.0), r"\[sensors\]\.lvdt\.resolution = 0.0"),
+        # the swing above mid-stroke beyond travel_max_mm (once accepted: `not a < b and c < d`)
+        (lambda d: d["rig"].update(travel_max_mm=13.0), r"swings 4.5 mm about mid-stroke \(10.0 mm\), beyond the travel"),
+        (lambda d: d["rig"].update(travel_min_mm=-0.5) or d["excitation"]["tones"][0].update(amplitude_mm=10.0),
+         r"swings 10.5 mm about mid-stroke"),
+        (lambda d: d["excitation"].update(duration_s=7.0), r"excitation.duration_s \(7 s\) is too short"),
+        (lambda d: d["controller"].update(period_s=0.01) or d["excitation"]["tones"][1].update(frequency_hz=8.0),
+         r"tone at 8.0 Hz is too fast for a 10 ms period"),
+        (lambda d: d["coil"].update(resistance_ohm=0.85, resistance_min_ohm=0.6, resistance_max_ohm=0.8),
+         r"resistance_ohm \(0.85\) must lie within the coil spec"),
+        (lambda d: d["rig"].update(supply_min_v=30.0), r"supply_min_v \(30.0\) must not exceed"),
+        (lambda d: d["rig"].update(drive_limit_v=2.0, over_current_a=15.0) or d["coil"].update(amplifier_limit_v=24.0),
+         r"needs .* V, at or above rig.drive_limit_v \(2.0 V\)"),
+        (lambda d: d["valve"].update(clearance_spec_mm=0.05), r"clearance_spec_mm \(0.05\) must not be below"),
+        (lambda d: d["diagnosis"]["population"].update(clearance_max_mm=0.05), r"clearance_max_mm must exceed"),
+        (lambda d: d["excitation"].update(move_s=5.0, fade_s=5.0, duration_s=9.0), r"must exceed move_s \+ fade_s"),
     ],
     ids=["negative", "unknown-key", "missing", "wrong-type", "unknown-section", "travel", "mid-stroke",
-         "unstable", "drive-limit", "over-current", "preset", "stiction", "name", "nested"],
+         "unstable", "drive-limit", "over-current", "preset", "stiction", "name", "nested",
+         "swing-above", "swing-below", "too-short", "tone-too-fast", "coil-spec", "supply", "hold-voltage",
+         "clearance-spec", "population", "move-fade"],
 )
 def test_bad_variant_is_refused_naming_file_field_and_value(tmp_path: Path, mutate, expected: str) -> None:
     data = _raw()
