@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from edc_bench.cli.exit_codes import ExitCode
 
-COMMANDS = ("test", "rig", "variants", "calibrate", "train", "classify", "evaluate", "paper", "study-boundary",
+COMMANDS = ("test", "rig", "variants", "tune", "calibrate", "train", "classify", "evaluate", "paper", "study-boundary",
             "perf", "replay", "history", "report", "check-station")
 
 

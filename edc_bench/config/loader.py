@@ -111,7 +111,9 @@ def with_changes(variant: Variant, changes: dict[str, dict[str, Any]], source: s
     data = variant.model_dump(mode="python")
     for section, values in changes.items():
         data[section].update(values)
-    return parse_variant(data, f"variant {variant.name} with {source}")
+    changed = parse_variant(data, f"variant {variant.name} with {source}")
+    changed._source_file = variant.source_file
+    return changed
 
 
 def parse_variant(data: dict[str, Any], source: str = "<variant>") -> Variant:
@@ -148,8 +150,7 @@ def load_variant(name_or_path: str | Path | None = None) -> Variant:
         If no such variant exists, the file cannot be read or parsed, or a
         value is invalid.
     """
-    key = str(name_or_path) if name_or_path is not None else DEFAULT_VARIANT
-    path = _resolve(key)
+    path = variant_file(name_or_path)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
@@ -158,10 +159,29 @@ def load_variant(name_or_path: str | Path | None = None) -> Variant:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
-    return parse_variant(data, str(path))
+    variant = parse_variant(data, str(path))
+    variant._source_file = str(path)
+    return variant
 
 
-def _resolve(key: str) -> Path:
+def variant_argument(variant: Variant) -> str:
+    """How to name ``variant`` on the command line: its name if the library finds it by name, else its file."""
+    library_file = available_variants().get(variant.name)
+    if variant.source_file is None or (library_file is not None
+                                       and library_file.resolve() == Path(variant.source_file).resolve()):
+        return variant.name
+    return variant.source_file
+
+
+def variant_file(name_or_path: str | Path | None = None) -> Path:
+    """The file :func:`load_variant` reads for ``name_or_path`` (the default variant's if None).
+
+    Raises
+    ------
+    ConfigError
+        If there is no such variant.
+    """
+    key = str(name_or_path) if name_or_path is not None else DEFAULT_VARIANT
     candidate = Path(key)
     if candidate.suffix == ".toml" or "/" in key or candidate.is_file():
         if not candidate.is_file():

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -308,6 +308,12 @@ class Variant(_Section):
     estimator: EstimatorSection = EstimatorSection()
     acceptance: AcceptanceSection = AcceptanceSection()
     diagnosis: DiagnosisSection
+    _source_file: str | None = PrivateAttr(default=None)
+
+    @property
+    def source_file(self) -> str | None:
+        """The file the variant was loaded from (None if it was built in memory)."""
+        return self._source_file
 
     @property
     def name(self) -> str:

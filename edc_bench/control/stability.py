@@ -12,11 +12,15 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from edc_bench.config.models import Variant
 from edc_bench.control.pid import PidGains, derivative_filter_coefficients
 from edc_bench.errors import ConfigError
 from edc_bench.physics.parameters import PlantParameters
+
+if TYPE_CHECKING:
+    import control
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,31 @@ class LoopMargins:
     delay_ticks: int = 1
 
 
+def delayed_plant(params: PlantParameters, period_s: float, delay_ticks: int = 1) -> control.TransferFunction:
+    """Drive (V) to rack position (mm) as the loop sees it: coil and rack, zero-order hold, ``delay_ticks`` of delay.
+
+    Friction is left out (the nominal plant is the linear one).
+    """
+    import control
+
+    p = params
+    gain = p.amplifier_gain * p.force_constant_n_per_a
+    coil = control.tf([gain], [p.inductance_h, p.resistance_ohm])
+    mech = control.tf([1.0], [p.mass_n_s2_per_mm, p.damping_n_s_per_mm, p.net_stiffness_n_per_mm])
+    plant_d = control.c2d(coil * mech, period_s, method="zoh")
+    return plant_d * control.tf([1.0], [1.0] + [0.0] * max(1, delay_ticks), period_s)  # z^-delay
+
+
+def discrete_pid(kp: float, ki: float, kd: float, derivative_filter_hz: float,
+                 period_s: float) -> control.TransferFunction:
+    """The PID exactly as :class:`~edc_bench.control.pid.Pid` computes it, error (mm) to drive (V)."""
+    import control
+
+    z = control.tf([1.0, 0.0], [1.0], period_s)
+    a, b = derivative_filter_coefficients(PidGains(kp, ki, kd, derivative_filter_hz), period_s)
+    return kp + ki * period_s * z / (z - 1) + b * (z - 1) / (z - a)
+
+
 def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, derivative_filter_hz: float,
                  period_s: float, delay_ticks: int = 1) -> LoopMargins:
     """Margins of PID + transport delay + ZOH plant.
@@ -70,15 +99,7 @@ def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, deriv
     """
     import control  # heavy (about 1.5 s): imported only when a check runs
 
-    p = params
-    gain = p.amplifier_gain * p.force_constant_n_per_a
-    coil = control.tf([gain], [p.inductance_h, p.resistance_ohm])
-    mech = control.tf([1.0], [p.mass_n_s2_per_mm, p.damping_n_s_per_mm, p.net_stiffness_n_per_mm])
-    plant_d = control.c2d(coil * mech, period_s, method="zoh")
-    z = control.tf([1.0, 0.0], [1.0], period_s)
-    a, b = derivative_filter_coefficients(PidGains(kp, ki, kd, derivative_filter_hz), period_s)
-    pid = kp + ki * period_s * z / (z - 1) + b * (z - 1) / (z - a)
-    loop = pid * plant_d * control.tf([1.0], [1.0] + [0.0] * max(1, delay_ticks), period_s)  # z^-delay
+    loop = discrete_pid(kp, ki, kd, derivative_filter_hz, period_s) * delayed_plant(params, period_s, delay_ticks)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         gm, pm, _, _, wgc = control.stability_margins(loop, method="poly")[:5]
@@ -120,14 +141,20 @@ def refuse_poor_margins(variant: Variant, m: LoopMargins) -> LoopMargins:
         raise ConfigError(
             f"variant {variant.name}: PID gains kp={c.kp_v_per_mm}, ki={c.ki_v_per_mm_s}, kd={c.kd_v_s_per_mm} "
             f"make the loop unstable on the nominal plant with {m.delay_ticks} ticks of transport delay (closed-loop "
-            f"pole at radius {m.max_pole_radius:.3f}); "
-            "lower the gains in [controller]"
+            f"pole at radius {m.max_pole_radius:.3f}); {_retune_hint(variant)}"
         )
     if m.gain_margin_db < c.min_gain_margin_db or m.phase_margin_deg < c.min_phase_margin_deg:
         raise ConfigError(
             f"variant {variant.name}: PID gains leave too little margin on the nominal plant with {m.delay_ticks} "
             f"ticks of transport delay (acceptance.max_reply_age_ms): gain margin "
             f"{m.gain_margin_db:.1f} dB (need {c.min_gain_margin_db:g}), phase margin {m.phase_margin_deg:.1f} deg "
-            f"(need {c.min_phase_margin_deg:g}); retune [controller]"
+            f"(need {c.min_phase_margin_deg:g}); {_retune_hint(variant)}"
         )
     return m
+
+
+def _retune_hint(variant: Variant) -> str:
+    from edc_bench.config.loader import variant_argument
+
+    return (f"'edc-bench tune --variant {variant_argument(variant)}' proposes gains that keep the margins "
+            "(add --write to put them into the variant file)")
