@@ -116,7 +116,7 @@ def loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, deriv
     )
 
 
-def refuse_poor_margins(variant: Variant, m: LoopMargins) -> LoopMargins:
+def refuse_poor_margins(variant: Variant, m: LoopMargins, variant_argument: str | None = None) -> LoopMargins:
     """Refuse gains that are unstable or marginal on the variant's nominal plant.
 
     Parameters
@@ -125,6 +125,8 @@ def refuse_poor_margins(variant: Variant, m: LoopMargins) -> LoopMargins:
         Supplies the gains (for the message) and the minimum margins.
     m : LoopMargins
         The margins of the variant's loop on its nominal plant.
+    variant_argument : str, optional
+        How the command line names the variant (its name, or its file), for the ``edc-bench tune`` hint.
 
     Returns
     -------
@@ -141,20 +143,18 @@ def refuse_poor_margins(variant: Variant, m: LoopMargins) -> LoopMargins:
         raise ConfigError(
             f"variant {variant.name}: PID gains kp={c.kp_v_per_mm}, ki={c.ki_v_per_mm_s}, kd={c.kd_v_s_per_mm} "
             f"make the loop unstable on the nominal plant with {m.delay_ticks} ticks of transport delay (closed-loop "
-            f"pole at radius {m.max_pole_radius:.3f}); {_retune_hint(variant)}"
+            f"pole at radius {m.max_pole_radius:.3f}); {_retune_hint(variant_argument or variant.name)}"
         )
     if m.gain_margin_db < c.min_gain_margin_db or m.phase_margin_deg < c.min_phase_margin_deg:
         raise ConfigError(
             f"variant {variant.name}: PID gains leave too little margin on the nominal plant with {m.delay_ticks} "
             f"ticks of transport delay (acceptance.max_reply_age_ms): gain margin "
             f"{m.gain_margin_db:.1f} dB (need {c.min_gain_margin_db:g}), phase margin {m.phase_margin_deg:.1f} deg "
-            f"(need {c.min_phase_margin_deg:g}); {_retune_hint(variant)}"
+            f"(need {c.min_phase_margin_deg:g}); {_retune_hint(variant_argument or variant.name)}"
         )
     return m
 
 
-def _retune_hint(variant: Variant) -> str:
-    from edc_bench.config.loader import variant_argument
-
-    return (f"'edc-bench tune --variant {variant_argument(variant)}' proposes gains that keep the margins "
+def _retune_hint(variant_argument: str) -> str:
+    return (f"'edc-bench tune --variant {variant_argument}' proposes gains that keep the margins "
             "(add --write to put them into the variant file)")

@@ -16,6 +16,7 @@ import hashlib
 import json
 
 from edc_bench import __version__
+from edc_bench.config.loader import variant_argument
 from edc_bench.config.models import Variant
 from edc_bench.control.stability import LoopMargins, loop_margins, refuse_poor_margins
 from edc_bench.paths import cache_dir, write_json_atomic
@@ -54,4 +55,4 @@ def check_variant_gains(variant: Variant) -> LoopMargins:
     c = variant.controller
     margins = cached_loop_margins(nominal_plant(variant), c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm,
                                   c.derivative_filter_hz, c.period_s, max_reply_age_ticks(variant))
-    return refuse_poor_margins(variant, margins)
+    return refuse_poor_margins(variant, margins, variant_argument(variant))
