@@ -56,7 +56,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
                    truth: FeedforwardParameters | None = None, check_gains: bool = True,
                    classify: bool = True, classifier_path: Path | None = None,
                    stream_can_log: Callable[[], Path] | None = None,
-                   coil_temp_c: float | None = None) -> BenchResult:
+                   coil_temp_c: float | None = None, nominal_baseline: bool = False,
+                   calibrate_command: str | None = None) -> BenchResult:
     """Run one bench test on ``bus``.
 
     Parameters
@@ -89,6 +90,11 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         Returns the file to stream the raw CAN log to while the test runs
         (called once the test is about to start), so that a killed process
         leaves a readable log.
+    nominal_baseline : bool, optional
+        Judge a variant that has no measured baseline against the nominal one (``--nominal-baseline``);
+        by default such a test ends INVALID, "variant not calibrated".
+    calibrate_command : str, optional
+        The command that calibrates the variant on this rig, quoted in that reason.
 
     Returns
     -------
@@ -120,7 +126,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     if observer is not None:
         observer.phase(Phase.CLASSIFY)
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,
-                          classifier_path=classifier_path, coil_temp_c=coil_temp_c)
+                          classifier_path=classifier_path, coil_temp_c=coil_temp_c,
+                          nominal_baseline=nominal_baseline, calibrate_command=calibrate_command)
     return BenchResult(
         judgement=judgement,
         timing=timing,
@@ -145,7 +152,8 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
                        observer: LoopObserver | None = None, check_gains: bool = True,
                        classify: bool = True, stream_can_log: Callable[[], Path] | None = None,
                        adapter: AdapterModel | str | None = None, clock_wrapper: Callable[[Clock], Clock] | None = None,
-                       coil_temp_c: float | None = None) -> BenchResult:
+                       coil_temp_c: float | None = None, nominal_baseline: bool = False,
+                       calibrate_command: str | None = None) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -168,6 +176,8 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         from the simulated valve, which the bench does not know.
     clock_wrapper : callable, optional
         Wraps the simulated clock (e.g. :class:`~edc_bench.testing.stalls.StallingClock` to inject host stalls).
+    nominal_baseline, calibrate_command
+        As :func:`run_bench_test`.
 
     Returns
     -------
@@ -190,7 +200,8 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
             clock = clock_wrapper(clock)
         result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, observer=observer,
                                 truth=rig.truth, check_gains=check_gains, classify=classify,
-                                stream_can_log=stream_can_log, coil_temp_c=coil_temp_c)
+                                stream_can_log=stream_can_log, coil_temp_c=coil_temp_c,
+                                nominal_baseline=nominal_baseline, calibrate_command=calibrate_command)
     result.simulation = {
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},

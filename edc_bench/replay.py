@@ -233,13 +233,19 @@ def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
     classify = record.get("verdict") != Verdict.UNCLASSIFIED
     coil = record.get("coil") or {}
     given = coil.get("temp_start_c") if str(coil.get("temp_source", "")).startswith("given") else None
+    # a record judged against the nominal baseline (--nominal-baseline) is replayed the same way
+    nominal = (record.get("baseline") or {}).get("calibrated") is False
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
-                       classifier_path=classifier_path, coil_temp_c=given)
+                       classifier_path=classifier_path, coil_temp_c=given, nominal_baseline=nominal)
     return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes, compared=True)
 
 
-def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None) -> ReplayReport:
-    """Replay a raw CAN log with a variant (no record: timing is not judged)."""
+def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,
+                   nominal_baseline: bool = False) -> ReplayReport:
+    """Replay a raw CAN log with a variant (no record: timing is not judged).
+
+    ``nominal_baseline`` judges a variant without a measured baseline against the nominal one.
+    """
     from edc_bench.records.reader import read_can_log
 
     frames = read_can_log(path)
@@ -252,5 +258,6 @@ def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None) -> 
                           abort_reason=abort)
     timing = {"ticks": run.ticks, "overruns": 0}
     run.notes.append("raw CAN log: tick timing is not in it and was not judged")
-    judged = judge_run(variant, run.trace, run.controller, outcome, timing, classifier_path=classifier_path)
+    judged = judge_run(variant, run.trace, run.controller, outcome, timing, classifier_path=classifier_path,
+                       nominal_baseline=nominal_baseline)
     return ReplayReport(judged, run, [], compared=False)

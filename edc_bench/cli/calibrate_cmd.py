@@ -1,78 +1,190 @@
-"""``edc-bench calibrate``: measure a variant's new-valve baseline (af0, a1_0)."""
+"""``edc-bench calibrate``: measure a variant's new-valve baseline (af0, a1_0), valve by valve on a rig."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
+
+from edc_bench.cli.exit_codes import ExitCode
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
     p = sub.add_parser(
         "calibrate", help="measure a variant's new-valve baseline",
-        description="Run N bench tests of new valves and write the variant's baseline (mean af and a1 with "
-                    "their spread), against which features are expressed. Without bus arguments the valves are "
-                    "simulated (each new valve with the variant's spread); with --interface/--channel the N tests "
-                    "run on that rig in real time, on the valve mounted (calibrate valve by valve with --append).",
+        description="Run bench tests of new valves and compute the variant's baseline: the mean af and a1, their "
+                    "spread and the uncertainty of the mean, against which every test's features are judged. "
+                    "Where the tests run: with --interface/--channel on that rig in real time, on the valve "
+                    "mounted; with --valve SPEC on the simulated rig (the full loop, simulated time); with "
+                    "neither, on a simulated population of new valves (the shipped baselines). On a rig, "
+                    "calibrate valve by valve: mount a known-new valve, run with --append, repeat; each run adds "
+                    "its converged tests to the station's baseline. Exit codes: 0 done, 2 bad input, 3 rig or "
+                    "bus error, 12 no converged test (the reasons are printed), 130 interrupted.",
     )
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (default: p-edc-default)")
-    p.add_argument("--tests", type=int, default=20, help="number of tests (default: 20)")
-    p.add_argument("--seed", type=int, default=100, help="seed of the simulated valves (default: 100)")
+    p.add_argument("--tests", type=int, default=None,
+                   help="tests to run (default: 1 on a rig or with --valve, where each run is one valve; "
+                        "20 for a simulated population)")
+    p.add_argument("--append", action="store_true",
+                   help="add the converged tests to the station's baseline of this variant (made if it has none) "
+                        "and write it; the earlier file is kept in baselines/earlier/")
+    p.add_argument("--write", action="store_true",
+                   help="write a new station baseline from these tests alone (the earlier one is kept in "
+                        "baselines/earlier/); default: print the baseline only")
+    p.add_argument("--baseline-file", type=Path, default=None, metavar="FILE",
+                   help="write the baseline to this file instead of the station's (e.g. configs/baselines/"
+                        "<variant>.toml for a shipped variant)")
+    p.add_argument("--valve", default=None, metavar="SPEC",
+                   help="calibrate on the simulated rig with this simulated valve (new, or physical values such as "
+                        "clearance=0.09), through the full loop as 'edc-bench test' runs it")
+    p.add_argument("--valve-id", default="", metavar="ID", help="identity of the valve mounted, for the records")
+    p.add_argument("--seed", type=int, default=None,
+                   help="seed of the simulated rig's noise or the simulated population (default: 100 plus the "
+                        "tests already in the baseline; each test adds its number)")
     p.add_argument("--interface", default=None, help="python-can interface of a real rig")
     p.add_argument("--channel", default=None, help="python-can channel of a real rig")
     p.add_argument("--bitrate", type=int, default=None, help="CAN bit rate")
-    p.add_argument("--write", action="store_true",
-                   help="write baselines/<variant>.toml beside the variant's file in the library "
-                        "(configs/ for shipped variants, the station's variant folder otherwise; default: print it)")
-    p.add_argument("--out", type=Path, default=None, help="write the baseline to this file instead")
+    p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
+                   help="folder for the calibration tests' records (default: ./records), as in 'edc-bench test'")
+    p.add_argument("--station", default=None, help="name of this bench station (default: the host name)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Calibrate and print or write the baseline."""
+    """Run the tests, pool them, print and write the baseline."""
+    from edc_bench.runtime.signals import interrupt_guard
+
+    with interrupt_guard():
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    import datetime
+    import shlex
+    import socket
+
+    from edc_bench import __version__
     from edc_bench.config import load_variant
-    from edc_bench.config.loader import available_variants, station_variant_dir
-    from edc_bench.diagnosis.baseline import BASELINE_DIR
-    from edc_bench.diagnosis.calibrate import baseline_from_features, calibrate_simulated
+    from edc_bench.diagnosis.baseline import (
+        RECOMMENDED_TESTS,
+        baseline_from_tests,
+        read_baseline,
+        station_baseline_path,
+        write_baseline,
+    )
     from edc_bench.errors import ConfigError
 
-    if args.tests < 2:
-        raise ConfigError(f"--tests {args.tests}: a baseline needs at least 2 tests")
+    rig = bool(args.interface or args.channel)
+    if rig and args.valve is not None:
+        raise ConfigError("--valve simulates a valve on the simulated rig; with --interface/--channel the valve is "
+                          "the one mounted on the rig: give one or the other")
+    tests = args.tests if args.tests is not None else (1 if rig or args.valve is not None else 20)
+    if tests < 1:
+        raise ConfigError(f"--tests {tests}: give 1 or more")
+    if args.out.suffix == ".toml":
+        raise ConfigError(f"--out {args.out}: --out is the folder for the tests' records, as in 'edc-bench test'; "
+                          "write the baseline to a file with --baseline-file FILE")
     variant = load_variant(args.variant)
-    if args.interface or args.channel:
-        from edc_bench.bench import run_bench_test
-        from edc_bench.diagnosis.verdict import Verdict
-        from edc_bench.protocol import default_icd
-        from edc_bench.runtime.bus import open_bus
-        from edc_bench.runtime.clock import RealTimeClock
+    station = args.station or socket.gethostname()
+    target = args.baseline_file or (station_baseline_path(variant.name) if args.write or args.append else None)
+    earlier: list[Any] = []
+    if args.append and target is not None and target.is_file():
+        pool = read_baseline(target, variant.name)
+        if pool.tests and not pool.test_list:
+            raise ConfigError(f"{target}: this baseline does not list its tests (an older edc-bench wrote it), so "
+                              "tests cannot be added to it: calibrate anew with --write")
+        earlier = list(pool.test_list)
+    # each appended run of a simulated valve gets fresh noise unless a seed is given
+    seed = args.seed if args.seed is not None else 100 + len(earlier)
 
-        config = {k: v for k, v in (("interface", args.interface), ("channel", args.channel),
-                                    ("bitrate", args.bitrate)) if v is not None}
-        af, a1 = [], []
-        with open_bus(config, default_icd().bitrate) as bus:
-            for n in range(args.tests):
-                result = run_bench_test(bus, RealTimeClock(), variant, valve_id=f"calibration-{n}",
-                                        classify=False)
-                print(f"test {n + 1}/{args.tests}: {result.verdict} af={result.features['af']:.5f} "
-                      f"a1={result.features['a1']:.6f}", file=sys.stderr)
-                if result.verdict != Verdict.INVALID:
-                    af.append(result.features["af"])
-                    a1.append(result.features["a1"])
-        baseline = baseline_from_features(af, a1, f"rig {config}: {len(af)} of {args.tests} tests")
+    if rig:
+        measured = _rig_tests(args, variant, tests)
+    elif args.valve is not None:
+        measured = _simulated_rig_tests(args, variant, tests, seed)
     else:
-        baseline = calibrate_simulated(variant, args.tests, args.seed)
-    text = baseline.to_toml(variant.name, f"edc-bench calibrate --variant {variant.name} --tests {args.tests} "
-                                          f"--seed {args.seed}")
-    target = args.out
-    if args.write and target is None:
-        # beside the variant's file in the library: shipped variants in configs/, a station's in its folder
-        library_file = available_variants().get(variant.name)
-        folder = library_file.parent if library_file is not None else station_variant_dir()
-        target = folder / BASELINE_DIR / f"{variant.name}.toml"
-    if target is not None:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(text, encoding="utf-8")
-        print(f"baseline of {variant.name} written to {target}", file=sys.stderr)
+        from edc_bench.diagnosis.calibrate import population_tests
+
+        print(f"calibrating {variant.name} on {tests} simulated new valves (seed {seed})", file=sys.stderr)
+        measured = population_tests(variant, tests, seed)
+        print(f"{len(measured)} of {tests} tests converged", file=sys.stderr)
+    if not measured and not earlier:
+        print(f"edc-bench calibrate: no converged new-valve test, so no baseline (the reasons are above); check the "
+              f"valve is new and mounted, then run again", file=sys.stderr)
+        return ExitCode.INVALID
+    sources = {t.source for t in earlier} | {t.source for t in measured}
+    if len(sources) > 1:
+        print(f"edc-bench calibrate: warning: the baseline mixes tests from {' and '.join(sorted(sources))}",
+              file=sys.stderr)
+    baseline = baseline_from_tests(
+        earlier + measured, written_at=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        station=station, software=f"edc-bench {__version__}", command=shlex.join(["edc-bench", *sys.argv[1:]]))
+    text = baseline.to_toml(variant.name, f"{len(earlier)} earlier and {len(measured)} new tests"
+                            if args.append else "")
     print(text, end="")
-    return 0
+    print(f"baseline of {variant.name}: {baseline.describe()}", file=sys.stderr)
+    records = [t.record for t in baseline.test_list if t.record]
+    if records:
+        print("records behind it:\n" + "\n".join(f"  {r}" for r in records), file=sys.stderr)
+    if baseline.tests < RECOMMENDED_TESTS:
+        again = baseline.command if "--append" in sys.argv[1:] else f"{baseline.command} --append"
+        print(f"edc-bench calibrate: note: {baseline.tests} test(s) so far; new valves differ by several per cent, "
+              f"so calibrate at least {RECOMMENDED_TESTS} valves: mount the next new valve and run '{again}'",
+              file=sys.stderr)
+    if target is not None:
+        kept = write_baseline(target, text)
+        print(f"baseline of {variant.name} written to {target}" + (f" (the earlier one kept as {kept})" if kept
+                                                                    else ""), file=sys.stderr)
+    return ExitCode.OK
+
+
+def _rig_tests(args: argparse.Namespace, variant: Any, tests: int) -> list[Any]:
+    """Real-time tests on the rig's mounted valve."""
+    from edc_bench.bench import run_bench_test
+    from edc_bench.protocol import default_icd
+    from edc_bench.runtime.bus import open_bus
+    from edc_bench.runtime.clock import RealTimeClock
+
+    config = {k: v for k, v in (("interface", args.interface), ("channel", args.channel),
+                                ("bitrate", args.bitrate)) if v is not None}
+    out = []
+    with open_bus(config, default_icd().bitrate) as bus:
+        for n in range(tests):
+            result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id or "calibration",
+                                    classify=False)
+            out.extend(_keep(args, result, n, tests, "rig"))
+    return out
+
+
+def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, seed: int) -> list[Any]:
+    """Full-loop tests of one simulated valve on the simulated rig, in simulated time."""
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.physics.valve import parse_valve_spec
+
+    valve = parse_valve_spec(args.valve, variant)
+    out = []
+    for n in range(tests):
+        result = run_simulated_test(variant, valve, seed + n, valve_id=args.valve_id or f"{args.valve} (simulated)",
+                                    classify=False)
+        out.extend(_keep(args, result, n, tests, "simulated rig"))
+    return out
+
+
+def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str) -> list[Any]:
+    """Write the test's record and print its line; the test as a baseline entry if it converged."""
+    from edc_bench.diagnosis.baseline import BaselineTest
+    from edc_bench.diagnosis.verdict import Verdict
+    from edc_bench.records.record import write_record
+
+    import socket
+
+    result.identity = {"station": args.station or socket.gethostname(), "purpose": "calibration"}
+    record = write_record(result, args.out, figure=False)
+    head = f"test {n + 1}/{tests}"
+    if result.verdict != Verdict.UNCLASSIFIED:  # INVALID, or a coil out of spec (FAIL): not a new valve's figures
+        print(f"{head}: {result.verdict}, not used: {'; '.join(result.reasons)} (record {record})", file=sys.stderr)
+        return []
+    af, a1 = result.features["af"], result.features["a1"]
+    print(f"{head}: af {af:.5f} V, a1 {a1:.6f} V s/mm (record {record})", file=sys.stderr)
+    return [BaselineTest(af, a1, result.valve_id, source, result.started_at, str(record.resolve()))]

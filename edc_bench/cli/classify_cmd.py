@@ -23,6 +23,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--af", type=float, default=None, help="identified af in V")
     p.add_argument("--a1", type=float, default=None, help="identified a1 in V s/mm")
     p.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+    p.add_argument("--nominal-baseline", action="store_true",
+                   help="judge a variant that has no measured baseline against its nominal figures (as "
+                        "'edc-bench test --nominal-baseline'); without it such a variant is not judged")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
@@ -55,10 +58,18 @@ def run(args: argparse.Namespace) -> int:
         af, a1 = args.af, args.a1
     if not (af > 0 and a1 > 0):
         raise ConfigError(f"af and a1 must be positive, got af={af}, a1={a1}")
+    from edc_bench.diagnosis.baseline import load_baseline
+    from edc_bench.diagnosis.judgement import nominal_baseline_warning, not_calibrated_reason
+
+    if not load_baseline(variant).calibrated and not args.nominal_baseline:
+        out = {"verdict": Verdict.INVALID, "variant": variant.name, "reasons": [not_calibrated_reason(variant)]}
+        print_quietly_if_closed(lambda: _report(out, args.json))
+        return ExitCode.INVALID
     judged, baseline, classifier = classify_features(variant, af, a1, args.model)
     out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged, classifier),
-           "baseline": {"af_v": baseline.af_v, "a1_v_s_per_mm": baseline.a1_v_s_per_mm,
-                        "calibrated": baseline.calibrated, "source": baseline.source}}
+           "baseline": baseline.summary()}
+    if not baseline.calibrated:
+        out["reasons"] = [nominal_baseline_warning(variant)]
     print_quietly_if_closed(lambda: _report(out, args.json))
     return exit_code_for(judged.verdict)
 
@@ -72,7 +83,8 @@ def _report(out: dict, as_json: bool) -> None:
     print(f"verdict: {out['verdict']}")
     if "probability_faulty" in out:
         rel = out["features_rel"]
-        print(f"af x{rel['af']:.3f}, a1 x{rel['a1']:.3f} of the new-valve baseline ({out['baseline']['source']})")
+        print(f"af x{rel['af']:.3f}, a1 x{rel['a1']:.3f} of the new-valve baseline "
+              f"({out['baseline']['source'] or 'no source given'})")
         print(f"P(faulty) = {out['probability_faulty']:.3f}, distance to the boundary {out['distance']:+.3f} "
               f"(marginal band {out['marginal_band']:g}, {out['model']} model)")
     for reason in out.get("reasons", []):

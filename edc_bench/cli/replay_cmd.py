@@ -24,6 +24,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--can-log", type=Path, default=None, metavar="FILE", help="a raw candump-style CAN log")
     p.add_argument("--variant", default=None, help="with --can-log: the variant the test ran (name, part number, file)")
     p.add_argument("--model", type=Path, default=None, metavar="ONNX", help="classifier model (default: packaged)")
+    p.add_argument("--nominal-baseline", action="store_true",
+                   help="with --can-log: judge a variant that has no measured baseline against the nominal one "
+                        "(a record replays the way it was judged)")
     p.add_argument("--json", action="store_true", help="print only JSON")
     p.set_defaults(run=run)
 
@@ -44,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
 
         if args.variant is None:
             raise ConfigError("--can-log needs --variant: the variant the test ran with")
-        report = replay_can_log(args.can_log, load_variant(args.variant), args.model)
+        report = replay_can_log(args.can_log, load_variant(args.variant), args.model, args.nominal_baseline)
     out = _summary(report)
     print_quietly_if_closed(lambda: _print(out, args.json))
     if report.compared:

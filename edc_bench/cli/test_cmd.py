@@ -57,6 +57,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--history-db", default=None, metavar="URL",
                    help="history database (default: EDC_BENCH_HISTORY_URL, else SQLite in the data folder)")
     p.add_argument("--no-history", action="store_true", help="do not add the test to the station's history")
+    p.add_argument("--nominal-baseline", action="store_true",
+                   help="judge a variant that has no measured new-valve baseline against the nominal one from its "
+                        "physics (bring-up only: the verdict may be wrong, and the record, panel and report say "
+                        "so); without it such a test is INVALID, 'variant not calibrated'")
     p.set_defaults(run=run)
 
 
@@ -87,6 +91,22 @@ def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
         if "bitrate" in given:
             given["bitrate"] = int(given["bitrate"])
     return given
+
+
+def _calibrate_command(variant: Any, bus_config: dict[str, Any] | None) -> str:
+    """The exact calibrate command for this variant on this rig (the simulated rig: a simulated new valve)."""
+    import shlex
+
+    from edc_bench.config.loader import variant_argument
+
+    words = ["edc-bench", "calibrate", "--variant", variant_argument(variant)]
+    if bus_config is None:
+        words += ["--valve", "new"]
+    else:
+        for key in ("interface", "channel", "bitrate"):
+            if bus_config.get(key) is not None:
+                words += [f"--{key}", str(bus_config[key])]
+    return shlex.join([*words, "--append"])
 
 
 def _coil_temp(text: str) -> float:
@@ -197,6 +217,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
         return folder[0] / CAN_LOG_FILE
 
     simulated = bus_config is None and not args.realtime
+    baseline_options = {"nominal_baseline": args.nominal_baseline,
+                        "calibrate_command": _calibrate_command(variant, bus_config)}
     where = ("simulated rig, simulated time" if simulated else
              "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
     valve_name = args.valve_id or (args.valve if bus_config is None else "?")
@@ -214,7 +236,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
             result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
                                         stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
                                         observer=observer, stream_can_log=stream_target, adapter=args.adapter,
-                                        coil_temp_c=args.coil_temp_c)
+                                        coil_temp_c=args.coil_temp_c, **baseline_options)
         else:
             icd = default_icd()
             if bus_config is None:
@@ -227,7 +249,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
                     with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
                         result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
                                                 observer=observer, stream_can_log=stream_target,
-                                                coil_temp_c=args.coil_temp_c)
+                                                coil_temp_c=args.coil_temp_c, **baseline_options)
                 # the rig process's side of the timing: how long it once went without serving (a disturbed rig)
                 result.simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter,
                                                      **rig_status}}
@@ -236,7 +258,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
                 with open_bus(bus_config, icd.bitrate) as bus:
                     result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
                                             observer=observer, stream_can_log=stream_target,
-                                            coil_temp_c=args.coil_temp_c)
+                                            coil_temp_c=args.coil_temp_c, **baseline_options)
     result.identity = identity
 
     record_dir = write_record(result, args.out, figure=not args.no_figure, folder=folder[0] if folder else None)
@@ -277,6 +299,7 @@ def _index(record_dir: Path, url: str | None) -> str | None:
 
 def _print_report(result: Any, record_dir: Path) -> None:
     from edc_bench.diagnosis.coil_check import coil_line
+    from edc_bench.records.baseline_text import baseline_line
 
     print(f"verdict: {result.verdict}")
     for reason in result.reasons:
@@ -285,6 +308,8 @@ def _print_report(result: Any, record_dir: Path) -> None:
           f"(referred to the reference coil, {result.variant.coil.resistance_ohm:g} ohm at 20 degC; with this "
           f"coil: af {result.judgement.features_volt['af']:.5f} V, a1 {result.judgement.features_volt['a1']:.6f})")
     print(f"coil: {coil_line(result.judgement.coil)}")
+    if result.judgement.baseline is not None:
+        print(f"baseline: {baseline_line(result.judgement.baseline)}")
     if result.classification is not None:
         c = result.classification
         print(f"relative to the new-valve baseline: af x{c['features_rel']['af']:.2f}, a1 x{c['features_rel']['a1']:.2f}")

@@ -1,24 +1,66 @@
-"""A variant's new-valve baseline (af0, a1_0), from calibration.
+"""A variant's new-valve baseline (af0, a1_0): the tests behind it, its uncertainty, where it lives.
 
 Features are the ratios af/af0 and a1/a1_0 (the paper's Table 1 style), so
-one model serves several variants. A baseline lives in
-``configs/baselines/<variant>.toml``, written by ``edc-bench calibrate``.
-Without one, the nominal new-valve values from the variant's physics are used
-and the record says the baseline is uncalibrated.
+one model serves several variants. ``edc-bench calibrate`` writes a
+baseline: the mean af and a1 of converged new-valve tests, their spread
+between valves, the uncertainty of the mean, where the tests ran (rig,
+simulated rig or simulated population), when, on which station, with which
+software, and each test with its record.
+
+Two places hold baselines. A station's own (``baselines/`` in its variant
+folder, written by ``calibrate --write`` or ``--append``) comes first: it
+was measured on this station's rig. Then the library's (``configs/baselines``
+for the shipped variants). A variant with neither has only the nominal
+figures from its physics: :attr:`Baseline.calibrated` is False and a test
+is not judged against it unless the engineer says so.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
+import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from edc_bench.config.loader import variant_dirs
+from edc_bench.config.loader import station_variant_dir, variant_dirs
 from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
 from edc_bench.physics.feedforward import nominal_parameters
 
 BASELINE_DIR = "baselines"
+#: Earlier baselines of a folder are kept here when a new one replaces them.
+EARLIER_DIR = "earlier"
+#: Fewer tests than this and calibrate says the baseline is thin (the spread between new valves is about 8 %).
+RECOMMENDED_TESTS = 5
+NOMINAL_SOURCE = "nominal physics (uncalibrated)"
+
+
+@dataclass(frozen=True)
+class BaselineTest:
+    """One converged new-valve test behind a baseline.
+
+    Attributes
+    ----------
+    af_v, a1_v_s_per_mm : float
+        Its identified af and a1 (referred to the reference coil).
+    valve_id : str
+        The valve tested.
+    source : str
+        ``rig``, ``simulated rig`` or ``simulated population``.
+    started_at : str
+        When the test started (ISO 8601), empty if not known.
+    record : str
+        Its record folder, empty when none was written (simulated population).
+    """
+
+    af_v: float
+    a1_v_s_per_mm: float
+    valve_id: str = ""
+    source: str = ""
+    started_at: str = ""
+    record: str = ""
 
 
 @dataclass(frozen=True)
@@ -30,11 +72,17 @@ class Baseline:
     af_v, a1_v_s_per_mm : float
         Mean identified af and a1 of new valves.
     af_sd_v, a1_sd_v_s_per_mm : float
-        Their spread between new valves.
+        Their spread between new valves (standard deviation).
     tests : int
         Number of tests behind the figures (0: nominal physics, uncalibrated).
     source : str
         Where the figures come from.
+    written_at, station, software, command : str
+        When, where, by which edc-bench and with which command the baseline was written.
+    path : str
+        The file it was read from (empty if computed).
+    test_list : tuple of BaselineTest
+        The tests behind it, each with its record (empty in files that do not list them).
     """
 
     af_v: float
@@ -42,33 +90,143 @@ class Baseline:
     af_sd_v: float = 0.0
     a1_sd_v_s_per_mm: float = 0.0
     tests: int = 0
-    source: str = "nominal physics (uncalibrated)"
+    source: str = NOMINAL_SOURCE
+    written_at: str = ""
+    station: str = ""
+    software: str = ""
+    command: str = ""
+    path: str = ""
+    test_list: tuple[BaselineTest, ...] = field(default=(), repr=False)
 
     @property
     def calibrated(self) -> bool:
-        """True if the values were measured (calibration), not computed."""
+        """True if the values were measured (calibration), not computed from the nominal physics."""
         return self.tests > 0
+
+    @property
+    def af_uncertainty_v(self) -> float:
+        """Standard uncertainty of the mean af (spread / sqrt(tests)); nan with fewer than two tests."""
+        return self.af_sd_v / math.sqrt(self.tests) if self.tests >= 2 else math.nan
+
+    @property
+    def a1_uncertainty_v_s_per_mm(self) -> float:
+        """Standard uncertainty of the mean a1; nan with fewer than two tests."""
+        return self.a1_sd_v_s_per_mm / math.sqrt(self.tests) if self.tests >= 2 else math.nan
 
     def relative(self, af: float, a1: float) -> tuple[float, float]:
         """``(af / af0, a1 / a1_0)``."""
         return af / self.af_v, a1 / self.a1_v_s_per_mm
 
+    def summary(self) -> dict[str, Any]:
+        """The baseline as a record keeps it: figures, uncertainty and provenance, not the test list."""
+        return {"af_v": self.af_v, "a1_v_s_per_mm": self.a1_v_s_per_mm, "af_sd_v": self.af_sd_v,
+                "a1_sd_v_s_per_mm": self.a1_sd_v_s_per_mm, "af_uncertainty_v": self.af_uncertainty_v,
+                "a1_uncertainty_v_s_per_mm": self.a1_uncertainty_v_s_per_mm, "tests": self.tests,
+                "source": self.source, "calibrated": self.calibrated, "written_at": self.written_at,
+                "station": self.station, "software": self.software, "path": self.path}
+
+    def describe(self) -> str:
+        """One line for a technician: the figures, their uncertainty and where they come from."""
+        if not self.calibrated:
+            return f"nominal baseline from the variant's physics (NOT calibrated): af0 {self.af_v:.5f} V, " \
+                   f"a1_0 {self.a1_v_s_per_mm:.6f} V s/mm"
+        if self.tests >= 2:
+            spread = (f"af0 {self.af_v:.5f} +/- {self.af_uncertainty_v:.5f} V "
+                      f"({self.af_uncertainty_v / self.af_v:.1%}), a1_0 {self.a1_v_s_per_mm:.6f} +/- "
+                      f"{self.a1_uncertainty_v_s_per_mm:.6f} V s/mm ({self.a1_uncertainty_v_s_per_mm / self.a1_v_s_per_mm:.1%})")
+        else:
+            spread = f"af0 {self.af_v:.5f} V, a1_0 {self.a1_v_s_per_mm:.6f} V s/mm (uncertainty unknown: one test)"
+        when = f", {self.written_at[:10]}" if self.written_at else ""
+        where = f", station {self.station}" if self.station else ""
+        return f"{spread}; {self.tests} tests, {self.source}{when}{where}"
+
     def to_toml(self, variant: str, note: str = "") -> str:
-        """The baseline file's text."""
-        lines = [f"# {note}" if note else "# written by edc-bench calibrate",
-                 f'variant = "{variant}"', f"af_v = {self.af_v!r}", f"a1_v_s_per_mm = {self.a1_v_s_per_mm!r}",
-                 f"af_sd_v = {self.af_sd_v!r}", f"a1_sd_v_s_per_mm = {self.a1_sd_v_s_per_mm!r}",
-                 f"tests = {self.tests}", f'source = "{self.source}"']
-        return "\n".join(lines) + "\n"
+        """The baseline file's text (TOML), the tests behind it listed as ``[[test]]`` tables."""
+        import tomlkit
+
+        document = tomlkit.document()
+        document.add(tomlkit.comment(f"New-valve baseline of {variant}: {note}" if note
+                                     else f"New-valve baseline of {variant}, written by edc-bench calibrate"))
+        document.add(tomlkit.comment("af and a1 are the mean of the [[test]] entries below, referred to the "
+                                     "variant's reference coil; *_uncertainty_* is the standard uncertainty "
+                                     "of the mean (spread / sqrt(tests))"))
+        values: dict[str, Any] = {
+            "variant": variant, "af_v": self.af_v, "a1_v_s_per_mm": self.a1_v_s_per_mm, "af_sd_v": self.af_sd_v,
+            "a1_sd_v_s_per_mm": self.a1_sd_v_s_per_mm, "af_uncertainty_v": self.af_uncertainty_v,
+            "a1_uncertainty_v_s_per_mm": self.a1_uncertainty_v_s_per_mm, "tests": self.tests, "source": self.source,
+            "written_at": self.written_at, "station": self.station, "software": self.software,
+            "command": self.command,
+        }
+        for key, value in values.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                continue  # an unknown uncertainty is left out (TOML's nan would read as a number)
+            document.add(key, value)
+        if self.test_list:
+            tests = tomlkit.aot()
+            for test in self.test_list:
+                tests.append(tomlkit.table().add("af_v", test.af_v).add("a1_v_s_per_mm", test.a1_v_s_per_mm)
+                             .add("valve_id", test.valve_id).add("source", test.source)
+                             .add("started_at", test.started_at).add("record", test.record))
+            document.add("test", tests)
+        return tomlkit.dumps(document)
 
 
-def baseline_path(variant_name: str) -> Path | None:
-    """The baseline file of a variant, if one exists in the library."""
+def baseline_from_tests(tests: list[BaselineTest], *, written_at: str = "", station: str = "", software: str = "",
+                        command: str = "") -> Baseline:
+    """The baseline of a list of converged new-valve tests (at least one).
+
+    Raises
+    ------
+    ConfigError
+        Without a test.
+    """
+    if not tests:
+        raise ConfigError("a baseline needs at least one converged new-valve test")
+    n = len(tests)
+    af = [t.af_v for t in tests]
+    a1 = [t.a1_v_s_per_mm for t in tests]
+
+    def mean_sd(values: list[float]) -> tuple[float, float]:
+        mean = math.fsum(values) / n
+        sd = math.sqrt(math.fsum((v - mean) ** 2 for v in values) / (n - 1)) if n > 1 else 0.0
+        return mean, sd
+
+    (af_mean, af_sd), (a1_mean, a1_sd) = mean_sd(af), mean_sd(a1)
+    sources = sorted({t.source for t in tests if t.source})
+    source = " and ".join(sources) if sources else "unknown"
+    return Baseline(af_mean, a1_mean, af_sd, a1_sd, n, source, written_at, station,
+                    software, command, "", tuple(tests))
+
+
+def station_baseline_path(variant_name: str) -> Path:
+    """Where the station's own baseline of a variant lives (it may not exist yet)."""
+    return station_variant_dir() / BASELINE_DIR / f"{variant_name}.toml"
+
+
+def baseline_path(variant_name: str, *, station: bool = True) -> Path | None:
+    """The baseline file a variant is judged against: the station's own first, then the library's.
+
+    Parameters
+    ----------
+    variant_name : str
+        The variant.
+    station : bool, optional
+        Look at the station's own baselines (default). Training on the simulated population passes
+        False: simulated features are compared with the simulated baseline shipped with the variant.
+    """
+    own = station_baseline_path(variant_name)
+    if station and own.is_file():
+        return own
     for folder in variant_dirs():
         path = folder / BASELINE_DIR / f"{variant_name}.toml"
-        if path.is_file():
+        if path.is_file() and path != own:
             return path
     return None
+
+
+def _text(data: dict[str, Any], key: str) -> str:
+    value = data.get(key, "")
+    return value if isinstance(value, str) else str(value)
 
 
 def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
@@ -81,25 +239,66 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
     """
     try:
         data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read the baseline: {exc}") from None
     if variant_name is not None and data.get("variant") != variant_name:
         raise ConfigError(f"{path}: baseline is for variant {data.get('variant')!r}, not {variant_name!r}")
     try:
+        tests = tuple(BaselineTest(float(t["af_v"]), float(t["a1_v_s_per_mm"]), _text(t, "valve_id"),
+                                   _text(t, "source"), _text(t, "started_at"), _text(t, "record"))
+                      for t in data.get("test", []))
         baseline = Baseline(float(data["af_v"]), float(data["a1_v_s_per_mm"]), float(data.get("af_sd_v", 0.0)),
                             float(data.get("a1_sd_v_s_per_mm", 0.0)), int(data.get("tests", 0)),
-                            str(data.get("source", "")))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ConfigError(f"{path}: baseline needs af_v and a1_v_s_per_mm as numbers ({exc})") from None
-    if baseline.af_v <= 0 or baseline.a1_v_s_per_mm <= 0:
+                            _text(data, "source"), _text(data, "written_at"), _text(data, "station"),
+                            _text(data, "software"), _text(data, "command"), str(path), tests)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError(f"{path}: baseline needs af_v and a1_v_s_per_mm as numbers, and numbers in each "
+                          f"[[test]] ({exc})") from None
+    if not (baseline.af_v > 0 and baseline.a1_v_s_per_mm > 0):
         raise ConfigError(f"{path}: baseline af_v and a1_v_s_per_mm must be positive")
     return baseline
 
 
-def load_baseline(variant: Variant) -> Baseline:
-    """The variant's calibrated baseline, or the nominal one from its physics."""
-    path = baseline_path(variant.name)
+def load_baseline(variant: Variant, *, station: bool = True) -> Baseline:
+    """The variant's baseline (see :func:`baseline_path`), or the nominal one from its physics (uncalibrated)."""
+    path = baseline_path(variant.name, station=station)
     if path is not None:
         return read_baseline(path, variant.name)
     nominal = nominal_parameters(variant)
     return Baseline(nominal.af, nominal.a1)
+
+
+def write_baseline(path: Path, text: str) -> Path | None:
+    """Write a baseline file; a baseline already there is moved to ``earlier/`` first, never overwritten.
+
+    Returns
+    -------
+    pathlib.Path or None
+        Where the earlier baseline went, if there was one.
+
+    Raises
+    ------
+    ConfigError
+        If the folder cannot be written.
+    """
+    from edc_bench.paths import atomic_write
+
+    path = Path(path)
+    kept = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.exists():
+            stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+            earlier = path.parent / EARLIER_DIR
+            earlier.mkdir(exist_ok=True)
+            kept = earlier / f"{path.stem}-{stamp}.toml"
+            n = 1
+            while kept.exists():
+                n += 1
+                kept = earlier / f"{path.stem}-{stamp}-{n}.toml"
+            kept.write_bytes(path.read_bytes())
+        atomic_write(path, lambda handle: handle.write(text), mode="w")
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot write the baseline ({exc.strerror or exc}); the measured tests are "
+                          "listed above: write it elsewhere with --baseline-file FILE") from None
+    return kept

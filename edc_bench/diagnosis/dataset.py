@@ -129,7 +129,7 @@ def make_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int
     cols: dict[str, list[Any]] = {name: [] for name in COLUMNS}
     for v_index, name in enumerate(variant_names):
         variant = load_variant(name)
-        baseline = load_baseline(variant)
+        baseline = load_baseline(variant, station=False)  # simulated features: the shipped simulated baseline
         population_seed = seed * 1000 + v_index
         valves = draw_population(variant, count_per_variant, population_seed)
         seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]

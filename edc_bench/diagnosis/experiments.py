@@ -109,7 +109,7 @@ def paper_experiment(variant_name: str = "p-edc-default", seed: int = 2010, repe
     from edc_bench.diagnosis.train import train
 
     variant = load_variant(variant_name)
-    baseline = load_baseline(variant)
+    baseline = load_baseline(variant, station=False)  # simulated features: the shipped simulated baseline
     rng = np.random.default_rng(seed)
     severe_clearance = severely_worn_clearance_mm(variant)
     train_valves = new_valves(variant, 4, seed) + [

@@ -9,7 +9,6 @@ judged, and the decision plane around the valve.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -118,7 +117,7 @@ def reference_values(variant: Variant, baseline: Baseline | None) -> dict[str, d
     out = {name: {"value": float(value), "source": "nominal"}
            for name, value in nominal_parameters(variant)._asdict().items()}
     if baseline is not None:
-        source = "baseline" if baseline.calibrated else "nominal baseline (uncalibrated)"
+        source = "baseline" if baseline.calibrated else "NOMINAL baseline (not calibrated)"
         out["af"] = {"value": baseline.af_v, "source": source}
         out["a1"] = {"value": baseline.a1_v_s_per_mm, "source": source}
     return out
@@ -134,7 +133,8 @@ def measured_resistance_ohm(trace: dict[str, np.ndarray], variant: Variant) -> f
 def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelController | None,
               outcome: LoopOutcome, timing: dict[str, float], *, truth: FeedforwardParameters | None = None,
               classify: bool = True, classifier_path: Path | None = None,
-              coil_temp_c: float | None = None) -> Judgement:
+              coil_temp_c: float | None = None, nominal_baseline: bool = False,
+              calibrate_command: str | None = None) -> Judgement:
     """Identification, trust and verdict of a run, from its trace and its controller.
 
     Parameters
@@ -158,6 +158,11 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     coil_temp_c : float, optional
         The coil's temperature at the start of the test, to refer its resistance to 20 degC; 20 degC if
         not given.
+    nominal_baseline : bool, optional
+        Judge a variant without a measured baseline against the nominal one from its physics (the
+        engineer's explicit override); by default such a test is INVALID, "variant not calibrated".
+    calibrate_command : str, optional
+        The command that calibrates this variant on this rig, for that reason (a generic one by default).
     """
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
     reasons = trust_reasons(variant, outcome, ident, timing)
@@ -194,10 +199,17 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         judgement.verdict = Verdict.FAIL
         judgement.reasons = [bad_coil]
     if not reasons and classify:
-        judged, baseline, classifier = classify_features(variant, features["af"], features["a1"], classifier_path)
+        baseline = load_baseline(variant)
+        judgement.baseline = baseline.summary()
+        if not baseline.calibrated and not nominal_baseline:
+            # the coil's spec needs no baseline: a coil out of spec still fails the valve
+            judgement.verdict = Verdict.FAIL if bad_coil else Verdict.INVALID
+            judgement.baseline = None  # nothing was compared with it
+            judgement.reasons = ([bad_coil] if bad_coil else []) + [not_calibrated_reason(variant, calibrate_command)]
+            return judgement
+        judged, classifier = classify_against(baseline, features["af"], features["a1"], classifier_path)
         judgement.verdict = Verdict(judged.verdict)
         judgement.classification = classification_dict(judged, classifier)
-        judgement.baseline = dataclasses.asdict(baseline)
         judgement.reference_values = reference_values(variant, baseline)
         judgement.decision_plane = decision_plane(classifier, judged.features_rel)
         judgement.reasons = [
@@ -206,7 +218,33 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         if bad_coil:
             judgement.verdict = Verdict.FAIL
             judgement.reasons = [bad_coil, f"the valve itself: {judged.verdict}; " + judgement.reasons[0]]
+        if not baseline.calibrated:
+            judgement.reasons.insert(0, nominal_baseline_warning(variant, calibrate_command))
     return judgement
+
+
+def default_calibrate_command(variant: Variant) -> str:
+    """The calibrate command for a variant, without the rig's flags."""
+    from edc_bench.config.loader import variant_argument
+
+    return f"edc-bench calibrate --variant {variant_argument(variant)} --append"
+
+
+def not_calibrated_reason(variant: Variant, calibrate_command: str | None = None) -> str:
+    """Why a test on a variant without a measured baseline is INVALID, and the command that fixes it."""
+    command = calibrate_command or default_calibrate_command(variant)
+    return (f"variant not calibrated: {variant.name} has no measured new-valve baseline, and af and a1 judged "
+            f"against figures computed from its data sheet can turn a reusable valve into FAIL. Mount a known-new "
+            f"valve and run '{command}' once per valve (at least 5 valves); or judge against the nominal baseline "
+            f"anyway with --nominal-baseline")
+
+
+def nominal_baseline_warning(variant: Variant, calibrate_command: str | None = None) -> str:
+    """What a verdict judged against the nominal baseline says first."""
+    command = calibrate_command or default_calibrate_command(variant)
+    return (f"judged against the NOMINAL baseline (--nominal-baseline): {variant.name} is not calibrated, so af "
+            f"and a1 were compared with figures computed from its data sheet, not measured on new valves; this "
+            f"verdict may be wrong. Calibrate with '{command}'")
 
 
 def classify_features(variant: Variant, af: float, a1: float,
@@ -219,8 +257,15 @@ def classify_features(variant: Variant, af: float, a1: float,
         The judgement, the baseline and the classifier that judged.
     """
     baseline = load_baseline(variant)
+    judged, classifier = classify_against(baseline, af, a1, classifier_path)
+    return judged, baseline, classifier
+
+
+def classify_against(baseline: Baseline, af: float, a1: float,
+                     classifier_path: Path | None = None) -> tuple[Classification, ValveClassifier]:
+    """Judge features with the classifier against ``baseline``; the judgement and the classifier that judged."""
     classifier = default_classifier(str(classifier_path) if classifier_path else None)
-    return classifier.classify(*baseline.relative(af, a1)), baseline, classifier
+    return classifier.classify(*baseline.relative(af, a1)), classifier
 
 
 def classification_dict(judged: Classification, model: ValveClassifier) -> dict[str, Any]:

@@ -20,6 +20,7 @@ import numpy as np
 
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.paths import atomic_write
+from edc_bench.records.baseline_text import baseline_line
 from edc_bench.records.reader import load_record, load_trace
 
 REPORT_PDF = "report.pdf"
@@ -144,6 +145,13 @@ def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
                      + ("(no spec)" if coil.get("in_spec") is None else
                         f"(spec {coil['spec_ohm'][0]:g}-{coil['spec_ohm'][1]:g}: "
                         f"{'in spec' if coil['in_spec'] else 'OUT OF SPEC'})"))
+    baseline = record.get("baseline")
+    if baseline and baseline.get("calibrated") is False:
+        lines += ["baseline NOMINAL: the variant is not calibrated; af and a1",
+                  "were compared with data-sheet figures, not new valves:",
+                  "this verdict may be wrong (edc-bench calibrate --append)"]
+    elif baseline:
+        lines.append("baseline " + baseline_line(baseline).split(", station")[0])
     if not cls or (coil and coil.get("in_spec") is False):  # with a classification the reasons repeat the above
         for reason in record.get("reasons") or []:
             lines.append(reason if len(reason) < 60 else reason[:57] + "...")

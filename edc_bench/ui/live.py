@@ -22,6 +22,7 @@ from rich.text import Text
 
 from edc_bench.diagnosis.coil_check import coil_line
 from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.records.baseline_text import baseline_line
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
 
 _BARS = "▁▂▃▄▅▆▇█"
@@ -107,6 +108,9 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
                          f"({result.variant.coil.resistance_ohm:g} ohm at 20 degC): the coil's own resistance is out")
     if result.judgement.coil is not None:
         body.add_row("coil", coil_line(result.judgement.coil))
+    if result.judgement.baseline is not None:
+        nominal = result.judgement.baseline.get("calibrated") is False
+        body.add_row("baseline", Text(baseline_line(result.judgement.baseline), style="bold magenta" if nominal else ""))
     t = result.timing
     if t.get("ticks"):
         body.add_row("timing", f"{t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, "

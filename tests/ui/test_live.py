@@ -38,6 +38,10 @@ def test_live_panel_renders_every_phase() -> None:
     console.print(verdict_panel(result, Path("records/x")))
     text = console.export_text()
     assert "PASS" in text and "edc-bench report records/x" in text and "replies missing" in text
+    assert "measured on 20 new-valve tests" in text  # the shipped baseline, with its uncertainty
+    result.judgement.baseline = {**result.judgement.baseline, "calibrated": False}  # as --nominal-baseline leaves it
+    console.print(verdict_panel(result, Path("records/x")))
+    assert "NOMINAL baseline: the variant is not calibrated" in console.export_text()
 
 
 def test_live_view_draws_in_a_child_process_and_never_blocks_the_loop(capfd: pytest.CaptureFixture[str]) -> None:

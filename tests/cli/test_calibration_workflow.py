@@ -1,0 +1,126 @@
+"""Calibration as a workflow: no verdict on an uncalibrated variant, --append valve by valve, reasons for INVALID."""
+
+from __future__ import annotations
+
+import json
+import os
+import tomllib
+from pathlib import Path
+
+from helpers import REPO, edc_bench
+
+from edc_bench.cli.exit_codes import ExitCode
+
+
+def _station(tmp_path: Path, name: str = "p-edc-uncal", extra: str = "") -> dict[str, str]:
+    """A station whose variant folder holds a copy of the default variant under a name with no baseline."""
+    folder = tmp_path / "variants"
+    folder.mkdir(exist_ok=True)
+    text = (REPO / "configs" / "p-edc-default.toml").read_text(encoding="utf-8")
+    text = text.replace('name = "p-edc-default"', f'name = "{name}"').replace("PE-EDC-0001", f"PE-{name}")
+    (folder / f"{name}.toml").write_text(text + extra, encoding="utf-8")
+    return {**os.environ, "EDC_BENCH_VARIANTS_DIR": str(folder)}
+
+
+def test_a_test_on_an_uncalibrated_variant_is_invalid_with_the_calibrate_command(tmp_path) -> None:
+    env = _station(tmp_path)
+    common = ("test", "--variant", "p-edc-uncal", "--duration-s", "15", "--no-history", "--no-figure",
+              "--out", str(tmp_path / "records"))
+    refused = edc_bench(*common, "--json", cwd=tmp_path, env=env)
+    assert refused.returncode == ExitCode.INVALID, refused.stderr
+    out = json.loads(refused.stdout)
+    assert out["verdict"] == "INVALID" and out["converged"] is True  # the test itself was good
+    assert out["reasons"][0].startswith("variant not calibrated: p-edc-uncal has no measured new-valve baseline")
+    assert "'edc-bench calibrate --variant p-edc-uncal --valve new --append'" in out["reasons"][0]
+    assert out["classification"] is None
+
+    judged = edc_bench(*common, "--plain", "--nominal-baseline", cwd=tmp_path, env=env)
+    assert judged.returncode == ExitCode.OK, judged.stderr  # a new valve, judged against its nominal figures
+    assert "judged against the NOMINAL baseline (--nominal-baseline)" in judged.stdout
+    assert "baseline: NOMINAL baseline: the variant is not calibrated" in judged.stdout
+    record_dir = Path(judged.stdout.split("record: ")[1].splitlines()[0])
+    if not record_dir.is_absolute():
+        record_dir = tmp_path / record_dir
+    record = json.loads((record_dir / "record.json").read_text(encoding="utf-8"))
+    assert record["baseline"]["calibrated"] is False
+    assert record["reference_values"]["af"]["source"] == "NOMINAL baseline (not calibrated)"
+    replayed = edc_bench("replay", str(record_dir), cwd=tmp_path, env=env)  # judged again the same way
+    assert replayed.returncode == ExitCode.OK, replayed.stdout + replayed.stderr
+    from edc_bench.records.report import _verdict_block
+
+    class Axes:  # what the report page's verdict block writes
+        lines: list[str] = []
+        transAxes = None
+
+        def text(self, x, y, line, **kwargs) -> None:
+            self.lines.append(line)
+
+    axes = Axes()
+    _verdict_block(axes, record)
+    assert "baseline NOMINAL: the variant is not calibrated; af and a1" in axes.lines
+
+
+def test_calibrate_append_valve_by_valve_keeps_every_test_and_its_record(tmp_path) -> None:
+    env = _station(tmp_path)
+    base = ("calibrate", "--variant", "p-edc-uncal", "--valve", "new", "--append", "--station", "bench 7",
+            "--out", str(tmp_path / "records"))
+    first = edc_bench(*base, "--valve-id", "N-1", cwd=tmp_path, env=env)
+    assert first.returncode == 0, first.stderr
+    assert "1 test(s) so far" in first.stderr and "--append" in first.stderr
+    second = edc_bench(*base, "--valve-id", "N-2", cwd=tmp_path, env=env)
+    assert second.returncode == 0, second.stderr
+    path = tmp_path / "variants" / "baselines" / "p-edc-uncal.toml"
+    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    assert data["tests"] == 2 and [t["valve_id"] for t in data["test"]] == ["N-1", "N-2"]
+    assert data["source"] == "simulated rig" and data["station"] == "bench 7"
+    assert data["software"].startswith("edc-bench ") and data["written_at"].startswith("20")
+    assert "af_uncertainty_v" in data and "a1_uncertainty_v_s_per_mm" in data
+    assert data["test"][0]["af_v"] != data["test"][1]["af_v"]  # fresh noise for the second run
+    for test in data["test"]:
+        assert (Path(test["record"]) / "record.json").is_file()
+        assert test["record"] in second.stderr  # listed as the records behind it
+    assert len(list((path.parent / "earlier").glob("p-edc-uncal-*.toml"))) == 1  # the one-test file, kept
+
+    after = edc_bench("test", "--variant", "p-edc-uncal", "--duration-s", "15", "--no-history", "--no-figure",
+                      "--json", "--out", str(tmp_path / "records"), cwd=tmp_path, env=env)
+    assert after.returncode == ExitCode.OK, after.stderr  # calibrated now: judged
+    assert json.loads(after.stdout)["verdict"] == "PASS"
+
+
+def test_every_invalid_calibration_test_shows_its_reason(tmp_path) -> None:
+    # a limit no test can meet: every test is INVALID, poorly conditioned
+    env = _station(tmp_path, "p-edc-strict", "\n[acceptance]\nmax_condition_number = 2.0\n")
+    result = edc_bench("calibrate", "--variant", "p-edc-strict", "--valve", "new", "--append", "--tests", "2",
+                       "--out", str(tmp_path / "records"), cwd=tmp_path, env=env)
+    assert result.returncode == ExitCode.INVALID, result.stderr
+    assert result.stderr.count("INVALID, not used: poorly conditioned regression: condition number") == 2
+    assert "no converged new-valve test, so no baseline" in result.stderr
+    assert not (tmp_path / "variants" / "baselines").exists()
+    assert "Traceback" not in result.stderr
+
+
+def test_bad_calibrate_arguments_are_refused_before_any_test(tmp_path) -> None:
+    env = _station(tmp_path)
+    for args, message in (
+        (("--out", "b.toml"), "--out is the folder for the tests' records"),
+        (("--tests", "0"), "--tests 0: give 1 or more"),
+        (("--valve", "new", "--interface", "virtual"), "--valve simulates a valve on the simulated rig"),
+    ):
+        result = edc_bench("calibrate", "--variant", "p-edc-uncal", *args, cwd=tmp_path, env=env)
+        assert result.returncode == ExitCode.BAD_INPUT and message in result.stderr, (args, result.stderr)
+    shipped = tmp_path / "variants" / "baselines"
+    shipped.mkdir()
+    (shipped / "p-edc-uncal.toml").write_text('variant = "p-edc-uncal"\naf_v = 0.07\na1_v_s_per_mm = 0.004\ntests = 3\n')
+    old = edc_bench("calibrate", "--variant", "p-edc-uncal", "--valve", "new", "--append", cwd=tmp_path, env=env)
+    assert old.returncode == ExitCode.BAD_INPUT and "does not list its tests" in old.stderr
+
+
+def test_classify_does_not_judge_an_uncalibrated_variant_silently(tmp_path) -> None:
+    env = _station(tmp_path)
+    values = ("classify", "--variant", "p-edc-uncal", "--af", "0.071", "--a1", "0.0038")
+    refused = edc_bench(*values, cwd=tmp_path, env=env)
+    assert refused.returncode == ExitCode.INVALID and "variant not calibrated" in refused.stdout
+    judged = edc_bench(*values, "--nominal-baseline", "--json", cwd=tmp_path, env=env)
+    out = json.loads(judged.stdout)
+    assert out["baseline"]["calibrated"] is False and out["reasons"][0].startswith("judged against the NOMINAL")
+    assert judged.returncode in (ExitCode.OK, ExitCode.MARGINAL, ExitCode.FAIL)
