@@ -109,8 +109,9 @@ def _run(args: argparse.Namespace) -> int:
         print(f"calibrating {variant.name} on {tests} simulated new valves (seed {seed})", file=sys.stderr)
         measured = population_tests(variant, tests, seed)
         print(f"{len(measured)} of {tests} tests converged", file=sys.stderr)
-    if not measured and not earlier:
-        print(f"edc-bench calibrate: no converged new-valve test, so no baseline (the reasons are above); check the "
+    if not measured:
+        unchanged = f"; the baseline {target} is unchanged" if earlier else ", so no baseline"
+        print(f"edc-bench calibrate: no converged new-valve test{unchanged} (the reasons are above); check the "
               f"valve is new and mounted, then run again", file=sys.stderr)
         return ExitCode.INVALID
     sources = {t.source for t in earlier} | {t.source for t in measured}
@@ -128,9 +129,9 @@ def _run(args: argparse.Namespace) -> int:
     if records:
         print("records behind it:\n" + "\n".join(f"  {r}" for r in records), file=sys.stderr)
     if baseline.tests < RECOMMENDED_TESTS:
-        again = baseline.command if "--append" in sys.argv[1:] else f"{baseline.command} --append"
+        again = _next_valve_command(sys.argv[1:])
         print(f"edc-bench calibrate: note: {baseline.tests} test(s) so far; new valves differ by several per cent, "
-              f"so calibrate at least {RECOMMENDED_TESTS} valves: mount the next new valve and run '{again}'",
+              f"so calibrate at least {RECOMMENDED_TESTS} valves: mount the next new valve and run: {again}",
               file=sys.stderr)
     if target is not None:
         kept = write_baseline(target, text)
@@ -139,12 +140,30 @@ def _run(args: argparse.Namespace) -> int:
     return ExitCode.OK
 
 
+def _next_valve_command(argv: list[str]) -> str:
+    """This run's command for the next valve: with --append, without this valve's --valve-id or --seed."""
+    import shlex
+
+    words, skip = [], False
+    for word in argv:
+        if skip:
+            skip = False
+            continue
+        if word in ("--valve-id", "--seed"):
+            skip = True
+            continue
+        if not word.startswith(("--valve-id=", "--seed=")):
+            words.append(word)
+    return shlex.join(["edc-bench", *words, *([] if "--append" in words else ["--append"])])
+
+
 def _rig_tests(args: argparse.Namespace, variant: Any, tests: int) -> list[Any]:
     """Real-time tests on the rig's mounted valve."""
     from edc_bench.bench import run_bench_test
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import open_bus
     from edc_bench.runtime.clock import RealTimeClock
+    from edc_bench.runtime.signals import stop_requested
 
     config = {k: v for k, v in (("interface", args.interface), ("channel", args.channel),
                                 ("bitrate", args.bitrate)) if v is not None}
@@ -154,6 +173,8 @@ def _rig_tests(args: argparse.Namespace, variant: Any, tests: int) -> list[Any]:
             result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id or "calibration",
                                     classify=False)
             out.extend(_keep(args, result, n, tests, "rig"))
+            if stop_requested():  # Ctrl-C ended this test (INVALID, recorded): run no more
+                raise KeyboardInterrupt
     return out
 
 
@@ -161,6 +182,7 @@ def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, see
     """Full-loop tests of one simulated valve on the simulated rig, in simulated time."""
     from edc_bench.bench import run_simulated_test
     from edc_bench.physics.valve import parse_valve_spec
+    from edc_bench.runtime.signals import stop_requested
 
     valve = parse_valve_spec(args.valve, variant)
     out = []
@@ -168,6 +190,8 @@ def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, see
         result = run_simulated_test(variant, valve, seed + n, valve_id=args.valve_id or f"{args.valve} (simulated)",
                                     classify=False)
         out.extend(_keep(args, result, n, tests, "simulated rig"))
+        if stop_requested():
+            raise KeyboardInterrupt
     return out
 
 

@@ -12,11 +12,12 @@ from helpers import REPO, edc_bench
 from edc_bench.cli.exit_codes import ExitCode
 
 
-def _station(tmp_path: Path, name: str = "p-edc-uncal", extra: str = "") -> dict[str, str]:
+def _station(tmp_path: Path, name: str = "p-edc-uncal", extra: str = "", duration_s: float = 30.0) -> dict[str, str]:
     """A station whose variant folder holds a copy of the default variant under a name with no baseline."""
     folder = tmp_path / "variants"
     folder.mkdir(exist_ok=True)
     text = (REPO / "configs" / "p-edc-default.toml").read_text(encoding="utf-8")
+    text = text.replace("duration_s = 30.0", f"duration_s = {duration_s!r}")
     text = text.replace('name = "p-edc-default"', f'name = "{name}"').replace("PE-EDC-0001", f"PE-{name}")
     (folder / f"{name}.toml").write_text(text + extra, encoding="utf-8")
     return {**os.environ, "EDC_BENCH_VARIANTS_DIR": str(folder)}
@@ -61,12 +62,14 @@ def test_a_test_on_an_uncalibrated_variant_is_invalid_with_the_calibrate_command
 
 
 def test_calibrate_append_valve_by_valve_keeps_every_test_and_its_record(tmp_path) -> None:
-    env = _station(tmp_path)
+    env = _station(tmp_path, duration_s=15.0)
     base = ("calibrate", "--variant", "p-edc-uncal", "--valve", "new", "--append", "--station", "bench 7",
             "--out", str(tmp_path / "records"))
     first = edc_bench(*base, "--valve-id", "N-1", cwd=tmp_path, env=env)
     assert first.returncode == 0, first.stderr
-    assert "1 test(s) so far" in first.stderr and "--append" in first.stderr
+    assert "1 test(s) so far" in first.stderr
+    assert "run: edc-bench calibrate --variant p-edc-uncal --valve new --append --station 'bench 7'" in first.stderr
+    assert "--valve-id" not in first.stderr.split("run: ")[1]  # the next valve has its own id
     second = edc_bench(*base, "--valve-id", "N-2", cwd=tmp_path, env=env)
     assert second.returncode == 0, second.stderr
     path = tmp_path / "variants" / "baselines" / "p-edc-uncal.toml"
@@ -81,7 +84,7 @@ def test_calibrate_append_valve_by_valve_keeps_every_test_and_its_record(tmp_pat
         assert test["record"] in second.stderr  # listed as the records behind it
     assert len(list((path.parent / "earlier").glob("p-edc-uncal-*.toml"))) == 1  # the one-test file, kept
 
-    after = edc_bench("test", "--variant", "p-edc-uncal", "--duration-s", "15", "--no-history", "--no-figure",
+    after = edc_bench("test", "--variant", "p-edc-uncal", "--no-history", "--no-figure",
                       "--json", "--out", str(tmp_path / "records"), cwd=tmp_path, env=env)
     assert after.returncode == ExitCode.OK, after.stderr  # calibrated now: judged
     assert json.loads(after.stdout)["verdict"] == "PASS"
@@ -89,14 +92,25 @@ def test_calibrate_append_valve_by_valve_keeps_every_test_and_its_record(tmp_pat
 
 def test_every_invalid_calibration_test_shows_its_reason(tmp_path) -> None:
     # a limit no test can meet: every test is INVALID, poorly conditioned
-    env = _station(tmp_path, "p-edc-strict", "\n[acceptance]\nmax_condition_number = 2.0\n")
+    env = _station(tmp_path, "p-edc-strict", "\n[acceptance]\nmax_condition_number = 2.0\n", duration_s=12.0)
     result = edc_bench("calibrate", "--variant", "p-edc-strict", "--valve", "new", "--append", "--tests", "2",
                        "--out", str(tmp_path / "records"), cwd=tmp_path, env=env)
     assert result.returncode == ExitCode.INVALID, result.stderr
-    assert result.stderr.count("INVALID, not used: poorly conditioned regression: condition number") == 2
+    assert result.stderr.count("INVALID, not used: ") == 2
+    assert result.stderr.count("poorly conditioned regression: condition number") == 2
     assert "no converged new-valve test, so no baseline" in result.stderr
     assert not (tmp_path / "variants" / "baselines").exists()
     assert "Traceback" not in result.stderr
+    # a baseline already there stays as it was when a run adds nothing
+    folder = tmp_path / "variants" / "baselines"
+    folder.mkdir()
+    kept = 'variant = "p-edc-strict"\naf_v = 0.07\na1_v_s_per_mm = 0.004\ntests = 1\n' \
+           '[[test]]\naf_v = 0.07\na1_v_s_per_mm = 0.004\n'
+    (folder / "p-edc-strict.toml").write_text(kept)
+    again = edc_bench("calibrate", "--variant", "p-edc-strict", "--valve", "new", "--append",
+                      "--out", str(tmp_path / "records"), cwd=tmp_path, env=env)
+    assert again.returncode == ExitCode.INVALID and "is unchanged" in again.stderr
+    assert (folder / "p-edc-strict.toml").read_text() == kept and not (folder / "earlier").exists()
 
 
 def test_bad_calibrate_arguments_are_refused_before_any_test(tmp_path) -> None:
