@@ -89,6 +89,8 @@ def _run(args: argparse.Namespace) -> int:
     variant = load_variant(args.variant)
     station = args.station or socket.gethostname()
     target = args.baseline_file or (station_baseline_path(variant.name) if args.write or args.append else None)
+    if target is not None:
+        _check_writable(target)  # before minutes of tests, not after
     earlier: list[Any] = []
     if args.append and target is not None and target.is_file():
         pool = read_baseline(target, variant.name)
@@ -138,6 +140,25 @@ def _run(args: argparse.Namespace) -> int:
         print(f"baseline of {variant.name} written to {target}" + (f" (the earlier one kept as {kept})" if kept
                                                                     else ""), file=sys.stderr)
     return ExitCode.OK
+
+
+def _check_writable(target: Path) -> None:
+    """Refuse a baseline target that cannot be written: a folder, or a folder that cannot be made or written."""
+    import os
+
+    from edc_bench.errors import ConfigError
+
+    if target.is_dir():
+        raise ConfigError(f"--baseline-file {target}: is a folder; give a file such as {target / 'baseline.toml'}")
+    folder = target.parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"{target}: cannot make its folder ({exc.strerror or exc}); give a writable place "
+                          "with --baseline-file FILE") from None
+    if not os.access(folder, os.W_OK):
+        raise ConfigError(f"{target}: its folder {folder} is not writable; give a writable place with "
+                          "--baseline-file FILE")
 
 
 def _next_valve_command(argv: list[str]) -> str:

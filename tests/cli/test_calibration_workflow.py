@@ -119,6 +119,8 @@ def test_bad_calibrate_arguments_are_refused_before_any_test(tmp_path) -> None:
         (("--out", "b.toml"), "--out is the folder for the tests' records"),
         (("--tests", "0"), "--tests 0: give 1 or more"),
         (("--valve", "new", "--interface", "virtual"), "--valve simulates a valve on the simulated rig"),
+        (("--baseline-file", str(tmp_path)), "is a folder; give a file such as"),
+        (("--baseline-file", "/proc/no/such/b.toml"), "cannot make its folder"),
     ):
         result = edc_bench("calibrate", "--variant", "p-edc-uncal", *args, cwd=tmp_path, env=env)
         assert result.returncode == ExitCode.BAD_INPUT and message in result.stderr, (args, result.stderr)
