@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 import can
 
 from edc_bench.config.models import Variant
+from edc_bench.diagnosis.baseline import load_baseline
 from edc_bench.diagnosis.judgement import judge_run
 from edc_bench.physics.feedforward import FeedforwardParameters
 from edc_bench.physics.valve import ValveSpec, parse_valve_spec
@@ -108,6 +109,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         If the variant's gains are unstable or marginal on its nominal plant.
     """
     margins = check_variant_gains(variant) if check_gains else None
+    if classify:
+        load_baseline(variant)  # a damaged baseline file is refused now, not after the test
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested)
     can_log_path = None
@@ -127,7 +130,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         observer.phase(Phase.CLASSIFY)
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,
                           classifier_path=classifier_path, coil_temp_c=coil_temp_c,
-                          nominal_baseline=nominal_baseline, calibrate_command=calibrate_command)
+                          nominal_baseline=nominal_baseline, calibrate_command=calibrate_command,
+                          real_rig=not isinstance(clock, SimulatedClock))
     return BenchResult(
         judgement=judgement,
         timing=timing,

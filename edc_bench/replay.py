@@ -26,6 +26,8 @@ from edc_bench.config import parse_variant
 from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
+from edc_bench.diagnosis.baseline import Baseline
+from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.diagnosis.judgement import Judgement, judge_run
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
@@ -235,8 +237,15 @@ def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
     given = coil.get("temp_start_c") if str(coil.get("temp_source", "")).startswith("given") else None
     # a record judged against the nominal baseline (--nominal-baseline) is replayed the same way
     nominal = (record.get("baseline") or {}).get("calibrated") is False
+    # judged against the baseline the record was judged against, whatever the station holds now
+    recorded = record.get("baseline")
+    baseline = Baseline.from_summary(recorded) if recorded and recorded.get("af_v") else None
+    if any(str(r).startswith("variant not calibrated") for r in record.get("reasons") or []):
+        nominal_figures = nominal_parameters(variant)  # refused then: refused again, even if calibrated since
+        baseline = Baseline(nominal_figures.af, nominal_figures.a1)
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
-                       classifier_path=classifier_path, coil_temp_c=given, nominal_baseline=nominal)
+                       classifier_path=classifier_path, coil_temp_c=given, nominal_baseline=nominal,
+                       baseline=baseline, real_rig=record.get("clock") == "real-time")
     return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes, compared=True)
 
 

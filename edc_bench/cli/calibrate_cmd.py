@@ -27,10 +27,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tests", type=int, default=None,
                    help="tests to run (default: 1 on a rig or with --valve, where each run is one valve; "
                         "20 for a simulated population)")
-    p.add_argument("--append", action="store_true",
+    how = p.add_mutually_exclusive_group()
+    how.add_argument("--append", action="store_true",
                    help="add the converged tests to the station's baseline of this variant (made if it has none) "
                         "and write it; the earlier file is kept in baselines/earlier/")
-    p.add_argument("--write", action="store_true",
+    how.add_argument("--write", action="store_true",
                    help="write a new station baseline from these tests alone (the earlier one is kept in "
                         "baselines/earlier/); default: print the baseline only")
     p.add_argument("--baseline-file", type=Path, default=None, metavar="FILE",
@@ -66,6 +67,7 @@ def _run(args: argparse.Namespace) -> int:
     import socket
 
     from edc_bench import __version__
+    from edc_bench.cli.common import check_output_folder
     from edc_bench.config import load_variant
     from edc_bench.diagnosis.baseline import (
         RECOMMENDED_TESTS,
@@ -89,8 +91,17 @@ def _run(args: argparse.Namespace) -> int:
     variant = load_variant(args.variant)
     station = args.station or socket.gethostname()
     target = args.baseline_file or (station_baseline_path(variant.name) if args.write or args.append else None)
+    check_output_folder(args.out, "--out")
     if target is not None:
         _check_writable(target)  # before minutes of tests, not after
+        if target.is_file():
+            try:
+                read_baseline(target)
+            except ConfigError:
+                raise ConfigError(f"--baseline-file {target}: the file there is not a baseline (is it the variant "
+                                  "file?); refusing to replace it: give another file") from None
+    if args.valve is not None:
+        _refuse_worn_valve(args.valve, variant)
     earlier: list[Any] = []
     if args.append and target is not None and target.is_file():
         pool = read_baseline(target, variant.name)
@@ -142,6 +153,18 @@ def _run(args: argparse.Namespace) -> int:
     return ExitCode.OK
 
 
+def _refuse_worn_valve(spec: str, variant: Any) -> None:
+    """A baseline is of new valves: refuse a simulated valve worn beyond the variant's clearance spec."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.physics.valve import parse_valve_spec
+
+    valve = parse_valve_spec(spec, variant)
+    if valve.clearance_mm > variant.valve.clearance_spec_mm or valve.roughness != 1.0:
+        raise ConfigError(f"--valve {spec}: not a new valve (clearance {valve.clearance_mm:g} mm, spec "
+                          f"{variant.valve.clearance_spec_mm:g} mm, roughness {valve.roughness:g}); a baseline is "
+                          "measured on new valves: use --valve new")
+
+
 def _check_writable(target: Path) -> None:
     """Refuse a baseline target that cannot be written: a folder, or a folder that cannot be made or written."""
     import os
@@ -173,7 +196,7 @@ def _next_valve_command(argv: list[str]) -> str:
         if word in ("--valve-id", "--seed"):
             skip = True
             continue
-        if not word.startswith(("--valve-id=", "--seed=")):
+        if word != "--write" and not word.startswith(("--valve-id=", "--seed=")):
             words.append(word)
     return shlex.join(["edc-bench", *words, *([] if "--append" in words else ["--append"])])
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from pathlib import Path
 
 
 def add_variant_arguments(parser: argparse.ArgumentParser) -> None:
@@ -55,3 +56,26 @@ def parse_host_port(text: str) -> tuple[str, int]:
     if not 0 <= number <= 65535:
         raise argparse.ArgumentTypeError(f"port {number} is outside 0..65535")
     return host, number
+
+
+def check_output_folder(folder: Path, flag: str) -> None:
+    """Refuse an output folder that is a file or cannot be made or written, before any work starts.
+
+    Raises
+    ------
+    ConfigError
+        Naming the flag, the folder and what to do.
+    """
+    import os
+
+    from edc_bench.errors import ConfigError
+
+    if folder.exists() and not folder.is_dir():
+        raise ConfigError(f"{flag} {folder}: is a file, not a folder; give a folder for the records")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"{flag} {folder}: cannot make the folder ({exc.strerror or exc}); give a writable "
+                          "folder") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ConfigError(f"{flag} {folder}: the folder is not writable; give a writable folder")

@@ -197,6 +197,9 @@ def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.runtime.bus import open_bus
     from edc_bench.runtime.clock import RealTimeClock
 
+    from edc_bench.cli.common import check_output_folder
+
+    check_output_folder(args.out, "--out")  # before the test, not after it
     variant = _variant(args)
     bus_config = _bus_config(args)
     identity = _identity(args)

@@ -113,6 +113,21 @@ class Baseline:
         """Standard uncertainty of the mean a1; nan with fewer than two tests."""
         return self.a1_sd_v_s_per_mm / math.sqrt(self.tests) if self.tests >= 2 else math.nan
 
+    @property
+    def measured_on_rig(self) -> bool:
+        """True if any test behind it ran on a real rig (not the simulated rig or a simulated population)."""
+        sources = {t.source for t in self.test_list} or {part.strip() for part in self.source.split(" and ")}
+        return "rig" in sources
+
+    @classmethod
+    def from_summary(cls, summary: dict[str, Any]) -> Baseline:
+        """The baseline a record was judged against, from its :meth:`summary` (without the test list)."""
+        return cls(float(summary["af_v"]), float(summary["a1_v_s_per_mm"]), float(summary.get("af_sd_v", 0.0)),
+                   float(summary.get("a1_sd_v_s_per_mm", 0.0)), int(summary.get("tests", 0)),
+                   str(summary.get("source", "")), str(summary.get("written_at", "")),
+                   str(summary.get("station", "")), str(summary.get("software", "")), "",
+                   str(summary.get("path", "")))
+
     def relative(self, af: float, a1: float) -> tuple[float, float]:
         """``(af / af0, a1 / a1_0)``."""
         return af / self.af_v, a1 / self.a1_v_s_per_mm
@@ -254,8 +269,10 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise ConfigError(f"{path}: baseline needs af_v and a1_v_s_per_mm as numbers, and numbers in each "
                           f"[[test]] ({exc})") from None
-    if not (baseline.af_v > 0 and baseline.a1_v_s_per_mm > 0):
-        raise ConfigError(f"{path}: baseline af_v and a1_v_s_per_mm must be positive")
+    values = [baseline.af_v, baseline.a1_v_s_per_mm] + [v for t in tests for v in (t.af_v, t.a1_v_s_per_mm)]
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        raise ConfigError(f"{path}: baseline af_v and a1_v_s_per_mm, and those of every [[test]], must be positive "
+                          "numbers; restore the file from baselines/earlier/ or calibrate anew with --write")
     return baseline
 
 

@@ -134,7 +134,8 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
               outcome: LoopOutcome, timing: dict[str, float], *, truth: FeedforwardParameters | None = None,
               classify: bool = True, classifier_path: Path | None = None,
               coil_temp_c: float | None = None, nominal_baseline: bool = False,
-              calibrate_command: str | None = None) -> Judgement:
+              calibrate_command: str | None = None, baseline: Baseline | None = None,
+              real_rig: bool = False) -> Judgement:
     """Identification, trust and verdict of a run, from its trace and its controller.
 
     Parameters
@@ -163,6 +164,11 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         engineer's explicit override); by default such a test is INVALID, "variant not calibrated".
     calibrate_command : str, optional
         The command that calibrates this variant on this rig, for that reason (a generic one by default).
+    baseline : Baseline, optional
+        Judge against this baseline (replay: the one the record was judged against); the variant's by default.
+    real_rig : bool, optional
+        The test ran on a bus, not the in-process simulated rig: a baseline measured only in simulation, or
+        on fewer valves than recommended, is named in the reasons.
     """
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
     reasons = trust_reasons(variant, outcome, ident, timing)
@@ -199,7 +205,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         judgement.verdict = Verdict.FAIL
         judgement.reasons = [bad_coil]
     if not reasons and classify:
-        baseline = load_baseline(variant)
+        baseline = baseline if baseline is not None else load_baseline(variant)
         judgement.baseline = baseline.summary()
         if not baseline.calibrated and not nominal_baseline:
             # the coil's spec needs no baseline: a coil out of spec still fails the valve
@@ -220,7 +226,25 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             judgement.reasons = [bad_coil, f"the valve itself: {judged.verdict}; " + judgement.reasons[0]]
         if not baseline.calibrated:
             judgement.reasons.insert(0, nominal_baseline_warning(variant, calibrate_command))
+        else:
+            judgement.reasons += baseline_cautions(baseline, variant, calibrate_command, real_rig)
     return judgement
+
+
+def baseline_cautions(baseline: Baseline, variant: Variant, calibrate_command: str | None,
+                      real_rig: bool) -> list[str]:
+    """What a technician should know about a measured baseline: too few valves, or never measured on a rig."""
+    from edc_bench.diagnosis.baseline import RECOMMENDED_TESTS
+
+    command = calibrate_command or default_calibrate_command(variant)
+    out = []
+    if baseline.tests < RECOMMENDED_TESTS:
+        out.append(f"caution: the baseline rests on {baseline.tests} new-valve test(s) (at least "
+                   f"{RECOMMENDED_TESTS} recommended; new valves differ by several per cent): '{command}'")
+    if real_rig and not baseline.measured_on_rig:
+        out.append(f"caution: the baseline was measured in simulation ({baseline.source}), not on a rig: "
+                   f"calibrate this rig with '{command}'")
+    return out
 
 
 def default_calibrate_command(variant: Variant) -> str:

@@ -87,7 +87,13 @@ def test_calibrate_append_valve_by_valve_keeps_every_test_and_its_record(tmp_pat
     after = edc_bench("test", "--variant", "p-edc-uncal", "--no-history", "--no-figure",
                       "--json", "--out", str(tmp_path / "records"), cwd=tmp_path, env=env)
     assert after.returncode == ExitCode.OK, after.stderr  # calibrated now: judged
-    assert json.loads(after.stdout)["verdict"] == "PASS"
+    judged = json.loads(after.stdout)
+    assert judged["verdict"] == "PASS"
+    assert any(r.startswith("caution: the baseline rests on 2 new-valve test(s)") for r in judged["reasons"])
+    more = edc_bench(*base, "--valve-id", "N-3", cwd=tmp_path, env=env)  # the baseline changes again
+    assert more.returncode == 0, more.stderr
+    replayed = edc_bench("replay", judged["record_dir"], cwd=tmp_path, env=env)  # against the record's baseline
+    assert replayed.returncode == ExitCode.OK, replayed.stdout + replayed.stderr
 
 
 def test_every_invalid_calibration_test_shows_its_reason(tmp_path) -> None:
@@ -99,11 +105,11 @@ def test_every_invalid_calibration_test_shows_its_reason(tmp_path) -> None:
     assert result.stderr.count("INVALID, not used: ") == 2
     assert result.stderr.count("poorly conditioned regression: condition number") == 2
     assert "no converged new-valve test, so no baseline" in result.stderr
-    assert not (tmp_path / "variants" / "baselines").exists()
+    assert not (tmp_path / "variants" / "baselines" / "p-edc-strict.toml").exists()
     assert "Traceback" not in result.stderr
     # a baseline already there stays as it was when a run adds nothing
     folder = tmp_path / "variants" / "baselines"
-    folder.mkdir()
+    folder.mkdir(exist_ok=True)
     kept = 'variant = "p-edc-strict"\naf_v = 0.07\na1_v_s_per_mm = 0.004\ntests = 1\n' \
            '[[test]]\naf_v = 0.07\na1_v_s_per_mm = 0.004\n'
     (folder / "p-edc-strict.toml").write_text(kept)
@@ -120,12 +126,17 @@ def test_bad_calibrate_arguments_are_refused_before_any_test(tmp_path) -> None:
         (("--tests", "0"), "--tests 0: give 1 or more"),
         (("--valve", "new", "--interface", "virtual"), "--valve simulates a valve on the simulated rig"),
         (("--baseline-file", str(tmp_path)), "is a folder; give a file such as"),
+        (("--write", "--append"), "not allowed with argument"),
+        (("--valve", "worn", "--write"), "--valve worn: not a new valve"),
+        (("--valve", "new", "--out", str(REPO / "README.md")), "is a file, not a folder"),
+        (("--valve", "new", "--baseline-file", str(tmp_path / "variants" / "p-edc-uncal.toml")),
+         "the file there is not a baseline (is it the variant file?)"),
         (("--baseline-file", "/proc/no/such/b.toml"), "cannot make its folder"),
     ):
         result = edc_bench("calibrate", "--variant", "p-edc-uncal", *args, cwd=tmp_path, env=env)
         assert result.returncode == ExitCode.BAD_INPUT and message in result.stderr, (args, result.stderr)
     shipped = tmp_path / "variants" / "baselines"
-    shipped.mkdir()
+    shipped.mkdir(exist_ok=True)
     (shipped / "p-edc-uncal.toml").write_text('variant = "p-edc-uncal"\naf_v = 0.07\na1_v_s_per_mm = 0.004\ntests = 3\n')
     old = edc_bench("calibrate", "--variant", "p-edc-uncal", "--valve", "new", "--append", cwd=tmp_path, env=env)
     assert old.returncode == ExitCode.BAD_INPUT and "does not list its tests" in old.stderr

@@ -48,3 +48,13 @@ def test_margins_no_pid_can_keep_are_refused_with_what_to_change() -> None:
     variant = load_variant("p-edc-default")
     with pytest.raises(ConfigError, match=r"no PID gains keep 60 dB and 30 deg .* 4 ticks of transport delay"):
         tune_pid(nominal_plant(variant), 0.001, 4, 60.0, 30.0)
+
+
+def test_a_slow_adapter_gets_integral_dominated_gains() -> None:
+    # 15 ms of reply age: only a PI whose integral corner lies above the crossover keeps the margins
+    from edc_bench.config import with_changes
+
+    variant = with_changes(load_variant("p-edc-default"), {"acceptance": {"max_reply_age_ms": 15.0}}, "a test")
+    tuned = tune_pid(nominal_plant(variant), 0.001, max_reply_age_ticks(variant), 6.0, 30.0)
+    assert tuned.margins.closed_loop_stable and tuned.margins.delay_ticks == 15
+    assert tuned.margins.gain_margin_db >= 6.0 and tuned.margins.phase_margin_deg >= 30.0

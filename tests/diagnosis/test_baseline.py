@@ -80,3 +80,10 @@ def test_baseline_file_with_a_broken_test_entry(tmp_path: Path) -> None:
     path.write_text('variant = "x"\naf_v = 0.1\na1_v_s_per_mm = 0.01\n[[test]]\naf_v = "?"\n')
     with pytest.raises(ConfigError, match="numbers in each \\[\\[test\\]\\]"):
         read_baseline(path)
+
+
+def test_a_test_entry_that_is_not_a_positive_number_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "b.toml"
+    path.write_text('variant = "x"\naf_v = 0.1\na1_v_s_per_mm = 0.01\n[[test]]\naf_v = nan\na1_v_s_per_mm = 0.01\n')
+    with pytest.raises(ConfigError, match="and those of every \\[\\[test\\]\\], must be positive numbers"):
+        read_baseline(path)
