@@ -109,8 +109,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         If the variant's gains are unstable or marginal on its nominal plant.
     """
     margins = check_variant_gains(variant) if check_gains else None
-    if classify:
-        load_baseline(variant)  # a damaged baseline file is refused now, not after the test
+    # loaded before the test: a damaged baseline file is refused now, not after it
+    baseline = load_baseline(variant) if classify else None
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested)
     can_log_path = None
@@ -131,7 +131,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,
                           classifier_path=classifier_path, coil_temp_c=coil_temp_c,
                           nominal_baseline=nominal_baseline, calibrate_command=calibrate_command,
-                          real_rig=not isinstance(clock, SimulatedClock))
+                          baseline=baseline, real_rig=not isinstance(clock, SimulatedClock))
     return BenchResult(
         judgement=judgement,
         timing=timing,

@@ -77,6 +77,7 @@ def _run(args: argparse.Namespace) -> int:
         write_baseline,
     )
     from edc_bench.errors import ConfigError
+    from edc_bench.records.baseline_text import baseline_line
 
     rig = bool(args.interface or args.channel)
     if rig and args.valve is not None:
@@ -137,7 +138,8 @@ def _run(args: argparse.Namespace) -> int:
     text = baseline.to_toml(variant.name, f"{len(earlier)} earlier and {len(measured)} new tests"
                             if args.append else "")
     print(text, end="")
-    print(f"baseline of {variant.name}: {baseline.describe()}", file=sys.stderr)
+    print(f"baseline of {variant.name}: af0 {baseline.af_v:.5f} V, a1_0 {baseline.a1_v_s_per_mm:.6f} V s/mm, "
+          f"{baseline_line(baseline.summary())}", file=sys.stderr)
     records = [t.record for t in baseline.test_list if t.record]
     if records:
         print("records behind it:\n" + "\n".join(f"  {r}" for r in records), file=sys.stderr)

@@ -95,18 +95,12 @@ def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
 
 def _calibrate_command(variant: Any, bus_config: dict[str, Any] | None) -> str:
     """The exact calibrate command for this variant on this rig (the simulated rig: a simulated new valve)."""
-    import shlex
+    from edc_bench.diagnosis.judgement import default_calibrate_command
 
-    from edc_bench.config.loader import variant_argument
-
-    words = ["edc-bench", "calibrate", "--variant", variant_argument(variant)]
-    if bus_config is None:
-        words += ["--valve", "new"]
-    else:
-        for key in ("interface", "channel", "bitrate"):
-            if bus_config.get(key) is not None:
-                words += [f"--{key}", str(bus_config[key])]
-    return shlex.join([*words, "--append"])
+    words = ["--valve", "new"] if bus_config is None else [
+        word for key in ("interface", "channel", "bitrate") if bus_config.get(key) is not None
+        for word in (f"--{key}", str(bus_config[key]))]
+    return default_calibrate_command(variant, words)
 
 
 def _coil_temp(text: str) -> float:

@@ -17,6 +17,7 @@ is not judged against it unless the engineer says so.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import math
 import tomllib
@@ -121,12 +122,11 @@ class Baseline:
 
     @classmethod
     def from_summary(cls, summary: dict[str, Any]) -> Baseline:
-        """The baseline a record was judged against, from its :meth:`summary` (without the test list)."""
+        """A baseline from its figures and provenance (a record's :meth:`summary`, or a baseline file's keys)."""
         return cls(float(summary["af_v"]), float(summary["a1_v_s_per_mm"]), float(summary.get("af_sd_v", 0.0)),
                    float(summary.get("a1_sd_v_s_per_mm", 0.0)), int(summary.get("tests", 0)),
-                   str(summary.get("source", "")), str(summary.get("written_at", "")),
-                   str(summary.get("station", "")), str(summary.get("software", "")), "",
-                   str(summary.get("path", "")))
+                   *(_text(summary, key) for key in ("source", "written_at", "station", "software", "command",
+                                                      "path")))
 
     def relative(self, af: float, a1: float) -> tuple[float, float]:
         """``(af / af0, a1 / a1_0)``."""
@@ -139,21 +139,6 @@ class Baseline:
                 "a1_uncertainty_v_s_per_mm": self.a1_uncertainty_v_s_per_mm, "tests": self.tests,
                 "source": self.source, "calibrated": self.calibrated, "written_at": self.written_at,
                 "station": self.station, "software": self.software, "path": self.path}
-
-    def describe(self) -> str:
-        """One line for a technician: the figures, their uncertainty and where they come from."""
-        if not self.calibrated:
-            return f"nominal baseline from the variant's physics (NOT calibrated): af0 {self.af_v:.5f} V, " \
-                   f"a1_0 {self.a1_v_s_per_mm:.6f} V s/mm"
-        if self.tests >= 2:
-            spread = (f"af0 {self.af_v:.5f} +/- {self.af_uncertainty_v:.5f} V "
-                      f"({self.af_uncertainty_v / self.af_v:.1%}), a1_0 {self.a1_v_s_per_mm:.6f} +/- "
-                      f"{self.a1_uncertainty_v_s_per_mm:.6f} V s/mm ({self.a1_uncertainty_v_s_per_mm / self.a1_v_s_per_mm:.1%})")
-        else:
-            spread = f"af0 {self.af_v:.5f} V, a1_0 {self.a1_v_s_per_mm:.6f} V s/mm (uncertainty unknown: one test)"
-        when = f", {self.written_at[:10]}" if self.written_at else ""
-        where = f", station {self.station}" if self.station else ""
-        return f"{spread}; {self.tests} tests, {self.source}{when}{where}"
 
     def to_toml(self, variant: str, note: str = "") -> str:
         """The baseline file's text (TOML), the tests behind it listed as ``[[test]]`` tables."""
@@ -262,10 +247,7 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
         tests = tuple(BaselineTest(float(t["af_v"]), float(t["a1_v_s_per_mm"]), _text(t, "valve_id"),
                                    _text(t, "source"), _text(t, "started_at"), _text(t, "record"))
                       for t in data.get("test", []))
-        baseline = Baseline(float(data["af_v"]), float(data["a1_v_s_per_mm"]), float(data.get("af_sd_v", 0.0)),
-                            float(data.get("a1_sd_v_s_per_mm", 0.0)), int(data.get("tests", 0)),
-                            _text(data, "source"), _text(data, "written_at"), _text(data, "station"),
-                            _text(data, "software"), _text(data, "command"), str(path), tests)
+        baseline = dataclasses.replace(Baseline.from_summary(data), path=str(path), test_list=tests)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise ConfigError(f"{path}: baseline needs af_v and a1_v_s_per_mm as numbers, and numbers in each "
                           f"[[test]] ({exc})") from None

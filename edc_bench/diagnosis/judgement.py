@@ -10,6 +10,7 @@ judged, and the decision plane around the valve.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -247,11 +248,13 @@ def baseline_cautions(baseline: Baseline, variant: Variant, calibrate_command: s
     return out
 
 
-def default_calibrate_command(variant: Variant) -> str:
-    """The calibrate command for a variant, without the rig's flags."""
+def default_calibrate_command(variant: Variant, rig_arguments: Sequence[str] = ()) -> str:
+    """The calibrate command for a variant, with the rig's flags (``--valve new`` for the simulated rig)."""
+    import shlex
+
     from edc_bench.config.loader import variant_argument
 
-    return f"edc-bench calibrate --variant {variant_argument(variant)} --append"
+    return shlex.join(["edc-bench", "calibrate", "--variant", variant_argument(variant), *rig_arguments, "--append"])
 
 
 def not_calibrated_reason(variant: Variant, calibrate_command: str | None = None) -> str:
