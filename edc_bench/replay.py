@@ -214,8 +214,12 @@ def record_variant(record: dict[str, Any], source: str) -> Variant:
     return parse_variant(config, f"{source} (recorded variant)")
 
 
-def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
-    """Replay a record folder from its CAN log and compare with what it recorded."""
+def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None) -> ReplayReport:
+    """Replay a record folder from its CAN log and compare with what it recorded.
+
+    ``can_log`` replays another log of the same test instead of the folder's
+    ``can.log`` (the log converted to ASC or BLF, the frames in ``trace.mf4``).
+    """
     from pathlib import Path
 
     from edc_bench.records.reader import load_record, read_can_log
@@ -225,7 +229,8 @@ def replay_record(folder: Any, classifier_path: Any = None) -> ReplayReport:
     record = load_record(folder)
     variant = record_variant(record, str(folder))
     loop = record.get("loop") or {}
-    run = replay_frames(read_can_log(folder / CAN_LOG_FILE), variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
+    frames = read_can_log(Path(can_log) if can_log is not None else folder / CAN_LOG_FILE)
+    run = replay_frames(frames, variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
     outcome = LoopOutcome(ticks_planned=loop.get("ticks_planned", run.ticks), ticks_run=run.ticks,
                           missed_replies=run.missed_replies, abort_reason=loop.get("abort_reason"),
                           gaps=run.gaps, ticks_lost=run.ticks_lost)

@@ -17,11 +17,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "replay", help="re-run identification and classification from a test's CAN log",
         description="Feed the rack positions logged in a record folder's can.log to a fresh controller, tick by "
                     "tick, and judge the rebuilt trace as the test did. With a record folder the result is "
-                    "compared with the recorded one (exit 0 if reproduced exactly, 13 if not). With --can-log "
-                    "and --variant a raw log is replayed on its own (exit code of the verdict).",
+                    "compared with the recorded one (exit 0 if reproduced exactly, 13 if not); --can-log FILE replays "
+                    "another log of the same test instead (the can.log converted by 'python -m can.logconvert', the "
+                    "record's trace.mf4). With --can-log and --variant and no folder, a raw log is replayed on its "
+                    "own (exit code of the verdict). Logs: candump .log, .asc, .blf, .mf4, .trc (also gzipped).",
     )
     p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
-    p.add_argument("--can-log", type=Path, default=None, metavar="FILE", help="a raw candump-style CAN log")
+    p.add_argument("--can-log", type=Path, default=None, metavar="FILE", help="a CAN log in any format python-can reads (.log .asc .blf .mf4 .trc; the suffix names it)")
     p.add_argument("--variant", default=None, help="with --can-log: the variant the test ran (name, part number, file)")
     p.add_argument("--model", type=Path, default=None, metavar="ONNX", help="classifier model (default: packaged)")
     p.add_argument("--nominal-baseline", action="store_true",
@@ -36,12 +38,12 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.errors import ConfigError
     from edc_bench.replay import replay_can_log, replay_record
 
-    if (args.record_dir is None) == (args.can_log is None):
-        raise ConfigError("give a record folder, or --can-log FILE with --variant (not both)")
+    if args.record_dir is None and args.can_log is None:
+        raise ConfigError("give a record folder (optionally with --can-log FILE), or --can-log FILE with --variant")
     if args.record_dir is not None:
         if args.variant is not None:
-            raise ConfigError("a record folder carries its variant; --variant goes with --can-log")
-        report = replay_record(args.record_dir, args.model)
+            raise ConfigError("a record folder carries its variant; --variant goes with --can-log and no folder")
+        report = replay_record(args.record_dir, args.model, args.can_log)
     else:
         from edc_bench.config import load_variant
 

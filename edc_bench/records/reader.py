@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.errors import ConfigError
-from edc_bench.records.writer import CAN_LOG_FILE, RECORD_FILE, TRACE_FILE
+from edc_bench.records.writer import CAN_LOG_FILE, LEGACY_TRACE_FILE, RECORD_FILE, TRACE_FILE
 
 #: A frame read back from a CAN log: time (s), CAN id, payload.
 LoggedFrame = tuple[float, int, bytes]
@@ -40,8 +40,15 @@ def load_record(folder: Path) -> dict[str, Any]:
 
 
 def load_trace(folder: Path) -> dict[str, np.ndarray]:
-    """The per-tick trace of a record folder."""
+    """The per-tick trace of a record folder (``trace.mf4``; ``trace.npz`` in records before schema 3)."""
     path = Path(folder) / TRACE_FILE
+    if path.exists() or not (Path(folder) / LEGACY_TRACE_FILE).exists():
+        from edc_bench.records.mdf import read_trace_mf4
+
+        if not path.exists():
+            raise ConfigError(f"{path}: the record folder has no trace")
+        return read_trace_mf4(path)
+    path = Path(folder) / LEGACY_TRACE_FILE
     try:
         with np.load(path) as data:
             return {name: data[name] for name in data.files}
@@ -49,15 +56,51 @@ def load_trace(folder: Path) -> dict[str, np.ndarray]:
         raise ConfigError(f"{path}: not a readable trace ({exc})") from None
 
 
+#: CAN log formats replay reads, by file suffix (python-can's readers; each may also be gzipped, ``.asc.gz``).
+CAN_LOG_FORMATS = {".log": "candump -L (the record's can.log)", ".asc": "Vector ASC", ".blf": "Vector BLF",
+                   ".mf4": "ASAM MDF 4 bus logging (also a record's trace.mf4)", ".trc": "PEAK TRC",
+                   ".csv": "python-can CSV", ".db": "python-can SQLite"}
+
+
+def _log_suffix(path: Path) -> str:
+    suffixes = [s.lower() for s in path.suffixes]
+    return suffixes[-2] if len(suffixes) >= 2 and suffixes[-1] == ".gz" else (suffixes[-1] if suffixes else "")
+
+
 def read_can_log(path: Path) -> list[LoggedFrame]:
-    """Frames of a candump-style log written by edc-bench (or candump -L), in file order."""
+    """Frames of a CAN log in any format python-can reads, in file order; error frames left out.
+
+    The format follows the suffix (:data:`CAN_LOG_FORMATS`): the record's own
+    candump ``can.log``, or the same log converted by ``python -m can.logconvert``
+    or written by another tool (ASC, BLF, MF4 bus logging, TRC).
+
+    Raises
+    ------
+    ConfigError
+        If the file is missing, its suffix is not a CAN log format, or it cannot be read as one.
+    """
     import can
 
     path = Path(path)
-    if not path.exists():
-        raise ConfigError(f"{path}: no such CAN log")
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such CAN log file")
+    suffix = _log_suffix(path)
+    if suffix not in CAN_LOG_FORMATS:
+        known = ", ".join(f"{s} ({name})" for s, name in CAN_LOG_FORMATS.items())
+        raise ConfigError(f"{path}: {suffix or 'no suffix'} is not a CAN log format edc-bench reads; "
+                          f"the suffix names the format: {known}")
+    if suffix == ".mf4" and path.suffix.lower() == ".mf4":
+        from edc_bench.records.mdf import looks_like_mdf4
+
+        if not looks_like_mdf4(path):
+            raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log (not an MDF 4 file)")
     try:
-        return [(float(m.timestamp), int(m.arbitration_id), bytes(m.data))
-                for m in can.CanutilsLogReader(str(path)) if not m.is_error_frame]
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"{path}: not a readable candump log ({exc})") from None
+        with can.LogReader(str(path)) as reader:
+            frames = [(float(m.timestamp), int(m.arbitration_id), bytes(m.data))
+                      for m in reader if not m.is_error_frame and not m.is_remote_frame]
+    except Exception as exc:  # noqa: BLE001 - each format's reader raises its own error types on a bad file
+        raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log "
+                          f"({type(exc).__name__}: {exc})") from None
+    if not frames and path.stat().st_size > 0:
+        raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log (no CAN data frame in it)")
+    return frames

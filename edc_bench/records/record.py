@@ -35,8 +35,8 @@ from edc_bench.records.writer import (
     new_record_dir,
     write_can_log,
     write_json,
-    write_trace,
 )
+from edc_bench.records.mdf import write_trace_mf4
 from edc_bench.runtime.loop import LoopOutcome
 from edc_bench.runtime.trace import CanFrameLog
 
@@ -198,7 +198,9 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     if folder is None:
         folder = new_record_dir(Path(out_dir), result.valve_id, result.variant.name, result.started_at)
     files: dict[str, str | None] = {"trace": None, "can_log": None, "figure": None}
-    write_trace(folder / TRACE_FILE, result.trace)
+    write_trace_mf4(folder / TRACE_FILE, result.trace, result.frames, ticks_start_s=result.outcome.ticks_start_s,
+                    origin_unix_s=result.frames.origin_unix_s,
+                    comment=f"edc-bench {result.variant.name}, valve {result.valve_id or '?'}: {result.verdict}")
     files["trace"] = TRACE_FILE
     if result.can_log_path != folder / CAN_LOG_FILE:  # streamed there while the test ran: complete already
         write_can_log(folder / CAN_LOG_FILE, result.frames)

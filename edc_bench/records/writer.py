@@ -1,4 +1,4 @@
-"""Write a test's record folder: record.json, trace.npz, can.log, report.png.
+"""Write a test's record folder: record.json, trace.mf4, can.log, report.png.
 
 Every file is written atomically (temporary file, flush, fsync, rename), so a
 record file is either complete or absent, never half-written.
@@ -17,8 +17,10 @@ import numpy as np
 from edc_bench.paths import atomic_write
 
 # 2: reference values, the judging model's file and SHA-256, the decision plane; absolute CAN-log times
-RECORD_SCHEMA = 2
-TRACE_FILE = "trace.npz"
+# 3: the trace as ASAM MDF 4 (trace.mf4, with the CAN frames); the judging model's name
+RECORD_SCHEMA = 3
+TRACE_FILE = "trace.mf4"  # ASAM MDF 4 (records.mdf); records before schema 3 hold trace.npz
+LEGACY_TRACE_FILE = "trace.npz"
 CAN_LOG_FILE = "can.log"
 FIGURE_FILE = "report.png"
 RECORD_FILE = "record.json"
@@ -51,11 +53,6 @@ def new_record_dir(out_dir: Path, valve_id: str, variant: str, started_at: str) 
         except FileExistsError:
             n += 1
             path = Path(f"{base}-{n}")
-
-
-def write_trace(path: Path, trace: dict[str, np.ndarray]) -> None:
-    """Per-tick trace as a compressed .npz (one array per column)."""
-    atomic_write(path, lambda f: np.savez_compressed(f, **trace))
 
 
 def write_can_log(path: Path, frames: Any) -> None:

@@ -100,3 +100,48 @@ def test_replay_refuses_logs_it_cannot_explain(tmp_path: Path) -> None:
         from edc_bench.replay import replay_can_log
 
         replay_can_log(empty, load_variant())
+
+
+def test_a_record_replays_from_its_log_converted_to_asc_and_blf_and_from_its_mf4(tmp_path: Path) -> None:
+    # the log a technician sends converted by python-can's own tool, or the frames in trace.mf4: same verdict,
+    # same parameters, bit for bit (these formats round timestamps; replay goes by the frames' order)
+    result = run_simulated_test(load_variant(), "worn", 6)
+    folder = write_record(result, tmp_path, figure=False)
+    logs = [folder / "trace.mf4"]
+    for suffix in (".asc", ".blf"):
+        converted = tmp_path / f"converted{suffix}"
+        proc = subprocess.run([sys.executable, "-m", "can.logconvert", str(folder / "can.log"), str(converted)],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        logs.append(converted)
+    for log in logs:
+        report = replay_record(folder, can_log=log)
+        assert report.reproduced, (log.name, report.differences)
+        assert report.judged.verdict == result.verdict == "FAIL"
+        assert report.judged.parameters["af"]["value"] == result.parameters["af"]["value"]
+    # the command: a record with another log of it; a raw converted log with its variant
+    cmd = [sys.executable, "-m", "edc_bench", "replay"]
+    proc = subprocess.run([*cmd, str(folder), "--can-log", str(logs[1]), "--json"], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["reproduced"] is True
+    proc = subprocess.run([*cmd, "--can-log", str(logs[2]), "--variant", "p-edc-default", "--json"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 11, proc.stderr
+    assert json.loads(proc.stdout)["features"] == result.features
+
+
+@pytest.mark.parametrize(("name", "content", "expected"), [
+    ("frames.txt", b"(0.0) can0 120#00\n", "not a CAN log format"),
+    ("broken.blf", b"LOGG\x00\x01garbage" * 10, "not a readable Vector BLF"),
+    ("broken.asc", b"\xff\xfe not ascii at all \x00\x01", "not a readable Vector ASC"),
+    ("broken.mf4", b"MDF     4.10    " + b"\x00" * 40, "not a readable ASAM MDF"),
+])
+def test_a_log_that_cannot_be_read_is_named_with_its_format(tmp_path: Path, name: str, content: bytes,
+                                                             expected: str) -> None:
+    from edc_bench.records.reader import read_can_log
+
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(ConfigError, match=expected):
+        read_can_log(path)

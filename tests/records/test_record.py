@@ -12,6 +12,7 @@ import pytest
 from edc_bench.bench import run_simulated_test
 from edc_bench.config import load_variant, parse_variant
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID
+from edc_bench.records.reader import load_trace
 from edc_bench.records.record import write_record
 from edc_bench.runtime.trace import TRACE_COLUMNS
 
@@ -26,7 +27,7 @@ def record(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
 
 def test_record_folder_is_complete(record) -> None:
     folder, result = record
-    assert sorted(p.name for p in folder.iterdir()) == ["can.log", "record.json", "report.png", "trace.npz"]
+    assert sorted(p.name for p in folder.iterdir()) == ["can.log", "record.json", "report.png", "trace.mf4"]
     doc = json.loads((folder / "record.json").read_text())
     for key in ("verdict", "reasons", "valve_id", "variant", "software_version", "firmware_version", "features",
                 "parameters", "converged", "identification", "timing", "loop", "config", "truth", "files"):
@@ -36,16 +37,46 @@ def test_record_folder_is_complete(record) -> None:
     assert doc["config"]["pump"]["name"] == "p-edc-default"
     assert doc["parameters"]["af"]["std"] > 0
     assert doc["timing"]["ticks"] == 12_000
-    assert doc["files"] == {"trace": "trace.npz", "can_log": "can.log", "figure": "report.png"}
+    assert doc["files"] == {"trace": "trace.mf4", "can_log": "can.log", "figure": "report.png"}
     assert (folder / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_trace_is_columnar_and_complete(record) -> None:
     folder, result = record
-    with np.load(folder / "trace.npz") as trace:
-        assert set(trace.files) == set(TRACE_COLUMNS)
-        assert len(trace["t_s"]) == 12_000
-        assert trace["af_hat"][-1] == pytest.approx(result.features["af"])
+    trace = load_trace(folder)
+    assert set(trace) == set(TRACE_COLUMNS)
+    assert len(trace["t_s"]) == 12_000
+    assert trace["af_hat"][-1] == pytest.approx(result.features["af"])
+    for name, column in result.trace.items():  # bit for bit, in the trace's own types
+        assert trace[name].dtype == column.dtype, name
+        assert np.array_equal(trace[name], column, equal_nan=column.dtype.kind == "f"), name
+
+
+def test_trace_mf4_opens_in_asammdf_with_units_and_the_can_frames(record) -> None:
+    from asammdf import MDF
+
+    folder, result = record
+    with MDF(str(folder / "trace.mf4")) as mdf:
+        rack = mdf.get("position_mm")
+        assert rack.unit == "mm" and "rack position" in rack.comment
+        assert np.array_equal(rack.samples, result.trace["position_mm"], equal_nan=True)
+        assert np.array_equal(rack.timestamps, result.trace["t_s"])
+        for name in TRACE_COLUMNS:
+            if name == "t_s":
+                continue
+            channel = mdf.get(name)
+            assert channel.comment, name
+            if name.endswith(("_mm", "_v", "_a", "_s", "_ohm", "_mm_s")) or name.endswith("_hat"):
+                assert channel.unit, f"{name} has no unit"
+        assert mdf.header.start_time.timestamp() == pytest.approx(
+            result.frames.origin_unix_s + result.outcome.ticks_start_s, abs=1e-6)
+    # the CAN frames are an ASAM bus-logging group: python-can reads them as it reads any MF4 log
+    frames = list(can.LogReader(str(folder / "trace.mf4")))
+    assert len(frames) == result.frames.count
+    logged = list(can.LogReader(str(folder / "can.log")))
+    assert [(f.arbitration_id, bytes(f.data), f.is_rx) for f in frames] == \
+        [(f.arbitration_id, bytes(f.data), f.is_rx) for f in logged]
+    assert frames[-1].timestamp == pytest.approx(logged[-1].timestamp, abs=1e-5)
 
 
 def test_can_log_is_read_back_by_python_can(record) -> None:

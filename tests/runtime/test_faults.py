@@ -89,12 +89,12 @@ def check_safe_and_complete(result: BenchResult, rig: SimulatedRig, tmp_path: Pa
     doc = json.loads((folder / "record.json").read_text())
     assert doc["verdict"] == Verdict.INVALID and doc["loop"]["abort_reason"] == outcome.abort_reason
     assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
-    import numpy as np
+    from edc_bench.records.reader import load_trace
 
-    with np.load(folder / "trace.npz") as trace:
-        assert len(trace["t_s"]) == outcome.ticks_run > 1000
-        if outcome.abort_time_s is not None:
-            assert trace["t_s"][-1] == pytest.approx(outcome.abort_time_s)
+    trace = load_trace(folder)
+    assert len(trace["t_s"]) == outcome.ticks_run > 1000
+    if outcome.abort_time_s is not None:
+        assert trace["t_s"][-1] == pytest.approx(outcome.abort_time_s)
 
 
 @pytest.mark.parametrize("fault", RIG_FAULTS)
