@@ -230,6 +230,15 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     variant = record_variant(record, str(folder))
     loop = record.get("loop") or {}
     frames = read_can_log(Path(can_log) if can_log is not None else folder / CAN_LOG_FILE)
+    notes = []
+    judged_by = (record.get("classification") or {}).get("model_sha256")
+    if classifier_path is None and judged_by:
+        from edc_bench.diagnosis.classifier import find_model
+
+        classifier_path = find_model(judged_by)  # judged by the model that judged it, whatever the station adopted since
+        if classifier_path is None:
+            notes.append(f"the model that judged this test ({(record.get('classification') or {}).get('model_name')}, "
+                         f"sha256 {judged_by[:16]}...) is not on this station: judged with the station's model")
     run = replay_frames(frames, variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
     outcome = LoopOutcome(ticks_planned=loop.get("ticks_planned", run.ticks), ticks_run=run.ticks,
                           missed_replies=run.missed_replies, abort_reason=loop.get("abort_reason"),
@@ -251,7 +260,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
                        classifier_path=classifier_path, coil_temp_c=given, nominal_baseline=nominal,
                        baseline=baseline, real_rig=record.get("clock") == "real-time")
-    return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes, compared=True)
+    return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes + notes, compared=True)
 
 
 def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,

@@ -79,3 +79,27 @@ def check_output_folder(folder: Path, flag: str) -> None:
                           "folder") from None
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ConfigError(f"{flag} {folder}: the folder is not writable; give a writable folder")
+
+
+def add_history_label_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--from-history`` and ``--db``: judge the shop's labelled tests instead of a simulated population."""
+    parser.add_argument("--from-history", action="store_true",
+                        help="use the history's labelled tests (teardown findings, 'edc-bench label') instead of "
+                             "simulating a population")
+    parser.add_argument("--db", default=None, metavar="URL",
+                        help="with --from-history: history database URL (default: EDC_BENCH_HISTORY_URL, else the "
+                             "station's SQLite file)")
+
+
+def history_label_dataset(url: str | None) -> tuple[object, str]:
+    """The history's labelled tests as a dataset, and a description of where they came from."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.labels import labelled_tests
+    from edc_bench.history.store import HistoryStore
+
+    with HistoryStore(url) as store:
+        labelled = labelled_tests(store)
+        where = store.engine.url.render_as_string(hide_password=True)
+    if len(labelled) == 0:
+        raise ConfigError(f"no labelled test in {where}: record teardown findings with 'edc-bench label' first")
+    return labelled.as_dataset({"history": where, "labels": len(labelled)}), f"{len(labelled)} labelled tests in {where}"

@@ -7,7 +7,7 @@ import json
 import sys
 import time
 
-from edc_bench.cli.common import add_population_arguments
+from edc_bench.cli.common import add_history_label_arguments, add_population_arguments
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -15,9 +15,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "evaluate", help="judge a held-out simulated population and report accuracy",
         description="Simulate a fresh population (a seed not used in training) through the batch path, judge "
-                    "every converged test with the classifier, and compare with the physical labels.",
+                    "every converged test with the classifier, and compare with the physical labels. "
+                    "--from-history judges the shop's labelled tests instead, against their teardown findings.",
     )
     add_population_arguments(p, count=300, seed=777)
+    add_history_label_arguments(p)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
@@ -28,10 +30,23 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.diagnosis.dataset import make_dataset
     from edc_bench.diagnosis.experiments import evaluate
 
+    classifier = ValveClassifier(args.model)
+    if args.from_history:
+        from edc_bench.cli.common import history_label_dataset
+
+        dataset, where = history_label_dataset(args.db)
+        report = evaluate(classifier, dataset)
+        report["model"] = classifier.name
+        if args.json:
+            print(json.dumps(report, indent=2))
+            return 0
+        print(f"{where}, judged by {classifier.name}", file=sys.stderr)
+        _print_report(report, "by teardown")
+        return 0
     start = time.perf_counter()
     dataset = make_dataset(args.variants, args.count, args.seed)
     elapsed = time.perf_counter() - start
-    report = evaluate(ValveClassifier(args.model), dataset)
+    report = evaluate(classifier, dataset)
     report["tests_per_minute"] = len(dataset) / elapsed * 60
     report["seed"] = args.seed
     if args.json:
@@ -40,8 +55,12 @@ def run(args: argparse.Namespace) -> int:
     print(f"held-out population: {report['tests']} valves ({', '.join(args.variants)}), seed {args.seed}; "
           f"{report['tests_per_minute']:.0f} bench tests per minute (batch path)", file=sys.stderr)
     print(f"INVALID (not converged): {report['invalid']}")
+    _print_report(report, "by physics")
+    return 0
+
+
+def _print_report(report: dict, truth: str) -> None:
     print(f"MARGINAL: {report['marginal']} of {report['judged']} ({report['marginal_fraction']:.1%})")
     print(f"accuracy outside the marginal band: {report['accuracy_outside_band']:.2%} "
           f"(faulty passed {report['faulty_passed']}, reusable failed {report['reusable_failed']}; "
-          f"{report['faulty']} faulty, {report['reusable']} reusable by physics)")
-    return 0
+          f"{report['faulty']} faulty, {report['reusable']} reusable {truth})")

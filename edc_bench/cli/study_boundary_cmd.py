@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from edc_bench.cli.common import add_population_arguments
+from edc_bench.cli.common import add_history_label_arguments, add_population_arguments
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -13,9 +13,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "study-boundary", help="trade-off of needless replacements against faulty valves passed",
         description="Simulate a large population, move the classifier's boundary in steps, and plot the share of "
-                    "reusable valves replaced needlessly against the share of faulty valves passed.",
+                    "reusable valves replaced needlessly against the share of faulty valves passed. "
+                    "--from-history does it on the shop's labelled tests (teardown findings) instead.",
     )
     add_population_arguments(p, count=1000, seed=31)
+    add_history_label_arguments(p)
     p.add_argument("--figure", type=Path, default=Path("boundary-tradeoff.png"), help="output PNG")
     p.set_defaults(run=run)
 
@@ -26,9 +28,15 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.diagnosis.dataset import make_dataset
     from edc_bench.diagnosis.experiments import boundary_tradeoff, draw_tradeoff
 
-    dataset = make_dataset(args.variants, args.count, args.seed)
+    if args.from_history:
+        from edc_bench.cli.common import history_label_dataset
+
+        dataset, title = history_label_dataset(args.db)
+    else:
+        dataset = make_dataset(args.variants, args.count, args.seed)
+        title = f"{len(dataset)} simulated valves ({', '.join(args.variants)})"
     curve = boundary_tradeoff(ValveClassifier(args.model), dataset)
-    draw_tradeoff(curve, args.figure, f"{len(dataset)} simulated valves ({', '.join(args.variants)})")
+    draw_tradeoff(curve, args.figure, title)
     print("boundary shift   needless replacements   faulty passed")
     for k in range(0, len(curve["shift"]), 5):
         print(f"{curve['shift'][k]:+14.2f}   {curve['needless_replacement'][k]:21.1%}   {curve['faulty_passed'][k]:13.1%}")

@@ -19,7 +19,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Simulate a population of used valves per variant through the batch path, label each valve "
                     "from its physics (the variant's resisting-force limit), and train the paper's network "
                     "(valve_mlp.onnx) and a linear model (valve_linear.onnx) on (af/af0, a1/a1_0). With the "
-                    "defaults this rebuilds the models shipped in the package byte for byte.",
+                    "defaults this rebuilds the models shipped in the package byte for byte. "
+                    "--from-history trains a candidate on the shop's labelled tests instead (teardown findings "
+                    "recorded with 'edc-bench label'), with that simulated population as a prior, and prints its "
+                    "cross-validated accuracy beside the current model's; --adopt makes a candidate the station's "
+                    "model. Exit codes: 0 done, 2 bad input or too few labels.",
     )
     p.add_argument("--variants", nargs="+", default=list(DEFAULT_VARIANTS), metavar="NAME",
                    help=f"variants to draw populations from (default: {' '.join(DEFAULT_VARIANTS)})")
@@ -31,6 +35,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--save-dataset", type=Path, default=None, help="also write the simulated dataset here")
     p.add_argument("--out-dir", type=Path, default=None,
                    help="where to write the models (default: the package's models folder)")
+    shop = p.add_argument_group("the shop's data")
+    shop.add_argument("--from-history", action="store_true",
+                      help="train a candidate on the history's labelled tests, the simulated population as prior")
+    shop.add_argument("--db", default=None, metavar="URL",
+                      help="history database URL (default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+    shop.add_argument("--prior-weight", type=float, default=None, metavar="TESTS",
+                      help="how many labelled tests the whole simulated population counts as (default: 50; 0: the "
+                           "labels alone)")
+    shop.add_argument("--name", default=None, help="the candidate's name (default: shop- and its labels' hash)")
+    shop.add_argument("--out", type=Path, default=None, metavar="ONNX",
+                      help="where to write the candidate (default: candidates/NAME.onnx in the station's models "
+                           "folder)")
+    shop.add_argument("--adopt", default=None, metavar="ONNX|shipped",
+                      help="make this model the station's (a candidate file), or go back to the shipped network")
+    shop.add_argument("--by", default=None, metavar="NAME", help="with --adopt: who adopts (default: login name)")
+    shop.add_argument("--json", action="store_true", help="with --from-history: print the figures as JSON")
     p.set_defaults(run=run)
 
 
@@ -40,6 +60,8 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.diagnosis.dataset import Dataset, make_dataset
     from edc_bench.errors import ConfigError
 
+    if args.adopt is not None:  # adopting needs no training extra
+        return _adopt(args)
     try:
         import sklearn  # noqa: F401
 
@@ -48,6 +70,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("training needs the 'train' extra: pip install '.[train]'") from None
     if args.count < 20:
         raise ConfigError(f"--count {args.count}: train on at least 20 valves per variant")
+    if args.from_history:
+        return _from_history(args)
+    for flag, value in (("--db", args.db), ("--prior-weight", args.prior_weight), ("--name", args.name),
+                        ("--out", args.out), ("--by", args.by)):
+        if value is not None:
+            raise ConfigError(f"{flag} goes with --from-history or --adopt")
     if args.dataset is not None:
         dataset = Dataset.load(args.dataset)
     else:
@@ -65,4 +93,78 @@ def run(args: argparse.Namespace) -> int:
         (out_dir / name).write_bytes(model.onnx_bytes)
         print(f"{kind}: training accuracy {model.train_accuracy:.4f} on {len(dataset)} tests -> {out_dir / name}")
     print(f"training data sha256 {dataset.content_hash()}")
+    return 0
+
+
+def _adopt(args: argparse.Namespace) -> int:
+    import getpass
+
+    from edc_bench.diagnosis.adoption import adopt, adopt_shipped
+    from edc_bench.errors import ConfigError
+
+    if args.from_history:
+        raise ConfigError("--adopt and --from-history are separate steps: train, read the figures, then adopt")
+    if args.adopt == "shipped":
+        path = adopt_shipped()
+        print(f"this station judges with the shipped model again ({path.name})")
+        return 0
+    adoption = adopt(Path(args.adopt), args.by or getpass.getuser())
+    print(f"this station now judges with {adoption['name']} (sha256 {adoption['sha256'][:16]}...), adopted by "
+          f"{adoption['adopted_by']}; every record names it. Go back with: edc-bench train --adopt shipped")
+    return 0
+
+
+def _from_history(args: argparse.Namespace) -> int:
+    import json
+
+    from edc_bench.diagnosis.classifier import ValveClassifier, station_models_dir
+    from edc_bench.diagnosis.dataset import Dataset, cached_dataset
+    from edc_bench.diagnosis.shop_training import DEFAULT_PRIOR_WEIGHT, check_enough, train_from_labels
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.labels import labelled_tests
+    from edc_bench.history.store import HistoryStore
+    from edc_bench.paths import atomic_write
+
+    if args.out is not None and (args.out.is_dir() or not args.out.parent.is_dir()):
+        raise ConfigError(f"--out {args.out}: give a file name in a folder that exists (the candidate's .onnx)")
+    with HistoryStore(args.db) as store:
+        labelled = labelled_tests(store)
+        url = store.engine.url.render_as_string(hide_password=True)
+    check_enough(labelled.labels)  # before minutes of simulation
+    prior_weight = DEFAULT_PRIOR_WEIGHT if args.prior_weight is None else args.prior_weight
+    prior = None
+    if prior_weight > 0:
+        if args.dataset is not None:
+            prior = Dataset.load(args.dataset)
+        else:
+            prior, cached = cached_dataset(args.variants, args.count, args.seed)
+            if not cached:
+                print(f"simulated the prior population ({len(prior)} tests; kept in the cache for next time)",
+                      file=sys.stderr)
+    current = ValveClassifier()  # the station's model: adopted, else shipped
+    result = train_from_labels(labelled, prior, current, prior_weight=prior_weight, seed=args.seed, name=args.name,
+                               source={"history": url})
+    out = args.out or station_models_dir() / "candidates" / f"{result.name}.onnx"
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(out, lambda handle: handle.write(result.candidate.onnx_bytes))
+    except OSError as exc:
+        raise ConfigError(f"cannot write the candidate {out}: {exc.strerror}") from None
+    figures = {"labels": result.labels, "worn_or_faulty": int(labelled.labels.sum()), "folds": result.folds,
+               "prior_rows": result.prior_rows, "prior_weight_in_real_tests": result.prior_weight,
+               "candidate": {"name": result.name, "file": str(out), **result.candidate_cv.as_dict()},
+               "current": {"sha256": current.sha256, **result.current.as_dict()}}
+    if args.json:
+        print(json.dumps(figures, indent=2))
+        return 0
+    cand, now = result.candidate_cv, result.current
+    print(f"{result.labels} labelled tests from {url} ({figures['worn_or_faulty']} worn or faulty); prior: "
+          f"{result.prior_rows} simulated tests counting as {result.prior_weight:g} real ones")
+    print(f"{result.folds}-fold cross-validation on the shop's labels (each test judged by a model that never saw it):")
+    print(f"{'':32} {'accuracy':>9} {'MARGINAL':>9} {'outside band':>13} {'worn passed':>12} {'reusable failed':>16}")
+    for label, s in ((f"candidate {result.name}", cand), (f"current {current.name}", now)):
+        print(f"{label:32} {s.accuracy:9.1%} {s.marginal:9d} {s.accuracy_outside_band:13.1%} {s.worn_passed:12d} "
+              f"{s.reusable_failed:16d}")
+    print(f"candidate written to {out}")
+    print(f"adopt it (this station then judges with it): edc-bench train --adopt {out}")
     return 0

@@ -37,6 +37,63 @@ def packaged_model_path(name: str = DEFAULT_MODEL) -> Path:
     return Path(str(resources.files("edc_bench.diagnosis").joinpath("models", name)))
 
 
+#: In the station's models folder: which model the station adopted (absent: the packaged network).
+ADOPTED_FILE = "adopted.json"
+
+
+def station_models_dir() -> Path:
+    """The station's own models (adopted candidates), in its data folder."""
+    from edc_bench.paths import data_dir
+
+    return data_dir(create=False) / "models"
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def adopted_model() -> dict[str, str] | None:
+    """The station's adoption (``file``, ``sha256``, ``name``, ``adopted_at``, ``adopted_by``), or None.
+
+    Raises
+    ------
+    ConfigError
+        If the adopted model is missing or was changed after it was adopted.
+    """
+    marker = station_models_dir() / ADOPTED_FILE
+    if not marker.exists():
+        return None
+    revert = "adopt it again with 'edc-bench train --adopt FILE', or go back with 'edc-bench train --adopt shipped'"
+    try:
+        adoption = json.loads(marker.read_text(encoding="utf-8"))
+        path = station_models_dir() / adoption["file"]
+        sha = adoption["sha256"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"{marker}: not a readable model adoption ({exc}); {revert}") from None
+    if not path.is_file():
+        raise ConfigError(f"the station's adopted model {path} is missing; {revert}")
+    if _sha256(path) != sha:
+        raise ConfigError(f"the station's adopted model {path} changed after it was adopted; {revert}")
+    return {**adoption, "path": str(path)}
+
+
+def station_model_path() -> Path:
+    """The model this station judges with: the adopted one, else the packaged network."""
+    adoption = adopted_model()
+    return Path(adoption["path"]) if adoption else packaged_model_path()
+
+
+def find_model(sha256: str) -> Path | None:
+    """A model file with this SHA-256 among the packaged models and the station's own, or None."""
+    folders = [packaged_model_path().parent, station_models_dir()]
+    for folder in folders:
+        if folder.is_dir():
+            for path in sorted(folder.glob("*.onnx")):
+                if _sha256(path) == sha256:
+                    return path
+    return None
+
+
 @dataclass(frozen=True)
 class Classification:
     """The model's judgement of one valve.
@@ -67,13 +124,14 @@ class ValveClassifier:
     Parameters
     ----------
     path : pathlib.Path, optional
-        ONNX model; the packaged MLP by default.
+        ONNX model; by default the station's (:func:`station_model_path`: the
+        adopted model, else the packaged network).
     """
 
     def __init__(self, path: Path | None = None) -> None:
         import onnxruntime as ort
 
-        self.path = Path(path) if path is not None else packaged_model_path()
+        self.path = Path(path) if path is not None else station_model_path()
         if not self.path.is_file():
             raise ConfigError(f"classifier model {self.path} not found; build it with 'edc-bench train'")
         #: identity of the exact model file, recorded with every verdict it gives
@@ -93,6 +151,8 @@ class ValveClassifier:
         except (KeyError, ValueError) as exc:
             raise ConfigError(f"classifier model {self.path} lacks edc-bench metadata ({exc})") from None
         self.kind = meta.get("edc_bench.model_kind", "?")
+        #: the model's name: given when it was trained (a shop's candidate), else its file's stem
+        self.name = meta.get("edc_bench.model_name") or self.path.stem
         self._input = self.session.get_inputs()[0].name
         outputs = [o.name for o in self.session.get_outputs()]
         self._output = "probabilities" if "probabilities" in outputs else outputs[-1]
@@ -166,7 +226,11 @@ class ValveClassifier:
         return A, B, p
 
 
-@lru_cache(maxsize=4)
 def default_classifier(path: str | None = None) -> ValveClassifier:
-    """One session per model per process (created on first use)."""
-    return ValveClassifier(Path(path) if path else None)
+    """One session per model per process (created on first use); None: the station's model."""
+    return _session(str(Path(path).resolve()) if path else str(station_model_path().resolve()))
+
+
+@lru_cache(maxsize=4)
+def _session(path: str) -> ValveClassifier:
+    return ValveClassifier(Path(path))

@@ -149,3 +149,30 @@ def make_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int
     provenance = {"variants": list(variant_names), "count_per_variant": count_per_variant, "seed": seed,
                   "generator_version": GENERATOR_VERSION, "edc_bench_version": __version__}
     return Dataset(columns, provenance)
+
+
+def cached_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int,
+                   workers: int | None = None) -> tuple[Dataset, bool]:
+    """:func:`make_dataset`, kept in the cache folder so the next call with the same arguments loads it.
+
+    Returns the dataset and whether it came from the cache. The cache key holds the arguments, the
+    generator and edc-bench versions and the variants' content, so a changed variant simulates again.
+    """
+    from edc_bench.paths import cache_dir
+
+    key = json.dumps({"variants": [load_variant(name).model_dump(mode="json") for name in variant_names],
+                      "count": count_per_variant, "seed": seed, "generator": GENERATOR_VERSION,
+                      "version": __version__}, sort_keys=True)
+    path = cache_dir() / "datasets" / f"population-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
+    if path.exists():
+        try:
+            return Dataset.load(path), True
+        except ConfigError:
+            pass  # a damaged cache entry is simulated again
+    dataset = make_dataset(variant_names, count_per_variant, seed, workers)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        dataset.save(path)
+    except OSError:
+        pass  # a cache that cannot be written costs time, not results
+    return dataset, False

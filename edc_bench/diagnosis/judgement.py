@@ -300,7 +300,7 @@ def classification_dict(judged: Classification, model: ValveClassifier) -> dict[
     return {
         "verdict": judged.verdict, "probability_faulty": judged.probability_faulty, "distance": judged.distance,
         "features_rel": {"af": judged.features_rel[0], "a1": judged.features_rel[1]}, "model": judged.model,
-        "model_file": model.path.name, "model_sha256": model.sha256,
+        "model_name": model.name, "model_file": model.path.name, "model_sha256": model.sha256,
         "threshold": model.threshold, "marginal_band": model.marginal_band,
         "training_data_sha256": model.metadata.get("edc_bench.training_data_sha256"),
     }

@@ -86,7 +86,7 @@ def export_onnx(pipeline: Any, metadata: dict[str, str]) -> bytes:
 
 def train(dataset: Dataset, kind: str, seed: int, *, threshold: float = DEFAULT_THRESHOLD,
           marginal_band: float = DEFAULT_MARGINAL_BAND, only_converged: bool = True) -> TrainedModel:
-    """Fit one model and export it.
+    """Fit one model on a simulated dataset and export it.
 
     Parameters
     ----------
@@ -104,16 +104,37 @@ def train(dataset: Dataset, kind: str, seed: int, *, threshold: float = DEFAULT_
     only_converged : bool
         Train only on tests that converged (a model never learns from bad tests).
     """
+    keep = dataset.columns["converged"].astype(bool) if only_converged else np.ones(len(dataset), bool)
+    provenance = {"edc_bench.training_data_sha256": dataset.content_hash(),
+                  "edc_bench.training_data": json.dumps(dataset.provenance, sort_keys=True)}
+    return fit_and_export(dataset.features[keep], dataset.labels[keep], kind, seed, threshold=threshold,
+                          marginal_band=marginal_band, metadata=provenance)
+
+
+def fit(features: np.ndarray, labels: np.ndarray, kind: str, seed: int,
+        sample_weight: np.ndarray | None = None) -> Any:
+    """A fitted scikit-learn pipeline on relative features (weights per row if given)."""
+    pipeline = _pipeline(kind, seed)
+    fit_params = {} if sample_weight is None else {"classify__sample_weight": np.asarray(sample_weight, float)}
+    pipeline.fit(np.asarray(features, dtype=np.float64), np.asarray(labels, dtype=int), **fit_params)
+    return pipeline
+
+
+def fit_and_export(features: np.ndarray, labels: np.ndarray, kind: str, seed: int, *,
+                   threshold: float = DEFAULT_THRESHOLD, marginal_band: float = DEFAULT_MARGINAL_BAND,
+                   sample_weight: np.ndarray | None = None, metadata: dict[str, str] | None = None) -> TrainedModel:
+    """Fit a model on relative features and labels and export it to ONNX with edc-bench's metadata.
+
+    ``metadata`` adds to (or overrides) the standard entries: where the data came from, the model's name.
+    """
     import skl2onnx
     import sklearn
 
-    keep = dataset.columns["converged"].astype(bool) if only_converged else np.ones(len(dataset), bool)
-    X = dataset.features[keep].astype(np.float64)
-    y = dataset.labels[keep]
-    pipeline = _pipeline(kind, seed)
-    pipeline.fit(X, y)
+    X = np.asarray(features, dtype=np.float64)
+    y = np.asarray(labels, dtype=int)
+    pipeline = fit(X, y, kind, seed, sample_weight)
     scaler = pipeline.steps[0][1]
-    metadata = {
+    entries = {
         "edc_bench.model_kind": kind,
         "edc_bench.feature_names": json.dumps(FEATURE_NAMES),
         "edc_bench.feature_definition": "ratio of identified af and a1 to the pump variant's new-valve baseline",
@@ -121,12 +142,11 @@ def train(dataset: Dataset, kind: str, seed: int, *, threshold: float = DEFAULT_
         "edc_bench.scaler_scale": json.dumps([float(v) for v in scaler.scale_]),
         "edc_bench.threshold": repr(float(threshold)),
         "edc_bench.marginal_band_rel": repr(float(marginal_band)),
-        "edc_bench.training_data_sha256": dataset.content_hash(),
-        "edc_bench.training_data": json.dumps(dataset.provenance, sort_keys=True),
-        "edc_bench.training_rows": str(int(keep.sum())),
+        "edc_bench.training_rows": str(len(y)),
         "edc_bench.seed": str(seed),
         "edc_bench.output": "probabilities[:, 1] = P(faulty)",
         "versions": json.dumps({"scikit-learn": sklearn.__version__, "skl2onnx": skl2onnx.__version__}),
+        **(metadata or {}),
     }
     accuracy = float((pipeline.predict(X) == y).mean())
-    return TrainedModel(kind, pipeline, export_onnx(pipeline, metadata), accuracy)
+    return TrainedModel(kind, pipeline, export_onnx(pipeline, entries), accuracy)

@@ -7,8 +7,11 @@ by giving every station the same PostgreSQL URL. Each record is added in
 one transaction keyed by its folder, so adding it twice changes nothing and
 a writer killed half-way leaves no partial row.
 
-The records stay the source of truth: the history is an index, and
-``edc-bench history --add FOLDER...`` rebuilds it from them.
+The records stay the source of truth for tests: the tests table is an
+index, and ``edc-bench history --add FOLDER...`` rebuilds it from them.
+Teardown findings (``edc-bench label``) live only here: what the shop found
+when it opened a valve, the label the classifier can learn from. A teardown
+labels the valve's last trustworthy test before it (:meth:`HistoryStore.labelled_tests`).
 """
 
 from __future__ import annotations
@@ -49,7 +52,27 @@ tests = sa.Table(
     sa.Column("clock", sa.String(20), nullable=False),
     sa.Column("software_version", sa.String(40), nullable=False),
     sa.Column("reason", sa.Text, nullable=False),
+    sa.Column("model_name", sa.String(200)),  # the classifier that judged (None: not classified)
+    sa.Column("model_sha256", sa.String(64)),
 )
+
+teardowns = sa.Table(
+    "teardowns", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("valve_id", sa.String(200), nullable=False, index=True),
+    sa.Column("finding", sa.String(20), nullable=False),
+    sa.Column("clearance_mm", sa.Float),
+    sa.Column("note", sa.Text, nullable=False),
+    sa.Column("labelled_by", sa.String(200), nullable=False),
+    sa.Column("labelled_at", sa.String(40), nullable=False),  # ISO date or date-time (UTC) of the teardown
+    sa.Column("recorded_at", sa.String(40), nullable=False),
+)
+
+#: Teardown findings and the class each teaches the classifier (1: the valve must be replaced).
+FINDINGS: dict[str, int] = {"reusable": 0, "worn": 1, "faulty": 1}
+
+#: Teardown columns in listings, in order.
+TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name != "id")
 
 #: Columns in listings and CSV exports, in order.
 COLUMNS = tuple(c.name for c in tests.columns if c.name != "id")
@@ -100,6 +123,8 @@ def row_from_record(record: dict[str, Any], record_dir: Path) -> dict[str, Any]:
         "clock": str(record.get("clock", "")),
         "software_version": str(record.get("software_version", "")),
         "reason": str(loop.get("abort_reason") or (reasons[0] if reasons else "")),
+        "model_name": cls.get("model_name") or (Path(cls["model_file"]).stem if cls.get("model_file") else None),
+        "model_sha256": cls.get("model_sha256"),
     }
 
 
@@ -162,11 +187,23 @@ class HistoryStore:
         for attempt in range(3):
             try:
                 metadata.create_all(self.engine)
+                self._add_missing_columns()
                 return
             except (sa.exc.OperationalError, sa.exc.ProgrammingError, sa.exc.IntegrityError) as exc:
                 if "already exists" in str(exc.orig) and attempt < 2:
                     continue
                 raise ConfigError(f"history database {self.url!r} cannot be opened: {exc.orig}") from None
+
+    def _add_missing_columns(self) -> None:
+        """Bring a history made by an older edc-bench up to date: columns added since are added (empty)."""
+        inspector = sa.inspect(self.engine)
+        for table in (tests, teardowns):
+            present = {c["name"] for c in inspector.get_columns(table.name)}
+            for column in table.columns:
+                if column.name not in present:
+                    kind = column.type.compile(dialect=self.engine.dialect)
+                    with self.engine.begin() as conn:
+                        conn.execute(sa.text(f'ALTER TABLE {table.name} ADD COLUMN "{column.name}" {kind}'))
 
     def close(self) -> None:
         """Release connections."""
@@ -180,7 +217,10 @@ class HistoryStore:
 
     def add(self, record: dict[str, Any], record_dir: Path) -> None:
         """Index one record folder (again: its row is replaced)."""
-        row = row_from_record(record, record_dir)
+        self.add_row(row_from_record(record, record_dir))
+
+    def add_row(self, row: dict[str, Any]) -> None:
+        """Store one test's row (:func:`row_from_record`), replacing a row of the same ``record_dir``."""
         with self.engine.begin() as conn:  # one transaction: all of the row or nothing
             conn.execute(tests.delete().where(tests.c.record_dir == row["record_dir"]))
             conn.execute(tests.insert().values(**row))
@@ -207,6 +247,80 @@ class HistoryStore:
         with self.engine.connect() as conn:
             rows = [dict(r._mapping) for r in conn.execute(query)]
         return rows[::-1]
+
+    def add_teardown(self, valve_id: str, finding: str, *, labelled_by: str, labelled_at: str,
+                     clearance_mm: float | None = None, note: str = "") -> dict[str, Any]:
+        """Record what a teardown of ``valve_id`` found; returns the stored row.
+
+        Parameters
+        ----------
+        valve_id : str
+            The valve, as its tests name it.
+        finding : str
+            ``reusable``, ``worn`` or ``faulty`` (:data:`FINDINGS`).
+        labelled_by : str
+            Who opened the valve.
+        labelled_at : str
+            When (ISO date or date-time, UTC).
+        clearance_mm : float, optional
+            The plunger clearance measured.
+        note : str
+            Anything else found.
+        """
+        if finding not in FINDINGS:
+            raise ConfigError(f"teardown finding {finding!r}: use one of {', '.join(FINDINGS)}")
+        row = {"valve_id": valve_id, "finding": finding, "clearance_mm": clearance_mm, "note": note,
+               "labelled_by": labelled_by, "labelled_at": labelled_at,
+               "recorded_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds")}
+        with self.engine.begin() as conn:
+            conn.execute(teardowns.insert().values(**row))
+        return row
+
+    def teardowns(self, valve_id: str | None = None) -> list[dict[str, Any]]:
+        """Teardown findings (of one valve if given), in the order of the teardowns."""
+        query = sa.select(*(teardowns.c[name] for name in TEARDOWN_COLUMNS))
+        if valve_id is not None:
+            query = query.where(teardowns.c.valve_id == valve_id)
+        query = query.order_by(teardowns.c.labelled_at, teardowns.c.id)
+        with self.engine.connect() as conn:
+            return [dict(r._mapping) for r in conn.execute(query)]
+
+    def labelled_tests(self) -> list[dict[str, Any]]:
+        """Every teardown with the test it labels, oldest first.
+
+        A teardown labels the valve's last test before it that was judged on
+        its features (not INVALID, relative features known): the valve as the
+        bench last saw it. Each row is the test's history row plus
+        ``finding``, ``label`` (1: replace), ``teardown_clearance_mm``,
+        ``labelled_by`` and ``labelled_at``; teardowns with no such test are
+        left out (:meth:`unmatched_teardowns` lists them).
+        """
+        return [row for row in self._match_teardowns() if row.get("record_dir")]
+
+    def unmatched_teardowns(self) -> list[dict[str, Any]]:
+        """Teardowns of valves with no test judged before them (nothing to learn from yet)."""
+        return [row for row in self._match_teardowns() if not row.get("record_dir")]
+
+    def _match_teardowns(self) -> list[dict[str, Any]]:
+        found = self.teardowns()
+        valves = sorted({t["valve_id"] for t in found})
+        query = sa.select(*(tests.c[name] for name in COLUMNS)).where(
+            tests.c.valve_id.in_(valves), tests.c.af_rel.is_not(None), tests.c.a1_rel.is_not(None),
+            tests.c.verdict != Verdict.INVALID).order_by(tests.c.started_at, tests.c.id)
+        by_valve: dict[str, list[dict[str, Any]]] = {}
+        if valves:
+            with self.engine.connect() as conn:
+                for r in conn.execute(query):
+                    by_valve.setdefault(r.valve_id, []).append(dict(r._mapping))
+        rows = []
+        for teardown in found:
+            bound = teardown["labelled_at"] if "T" in teardown["labelled_at"] else teardown["labelled_at"] + "T99"
+            before = [t for t in by_valve.get(teardown["valve_id"], []) if t["started_at"] <= bound]
+            test = before[-1] if before else {"valve_id": teardown["valve_id"]}
+            rows.append({**test, "finding": teardown["finding"], "label": FINDINGS[teardown["finding"]],
+                         "teardown_clearance_mm": teardown["clearance_mm"], "labelled_by": teardown["labelled_by"],
+                         "labelled_at": teardown["labelled_at"], "note": teardown["note"]})
+        return rows
 
     def trend(self, valve_id: str) -> list[dict[str, Any]]:
         """Every trustworthy visit of one valve, oldest first."""

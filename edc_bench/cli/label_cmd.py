@@ -1,0 +1,109 @@
+"""``edc-bench label``: record what a valve's teardown found, the label the classifier can learn from."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any
+
+from edc_bench.cli.common import print_quietly_if_closed
+
+#: A plunger clearance beyond this (mm) is a typing error, not a measurement.
+MAX_CLEARANCE_MM = 2.0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "label", help="record a valve's teardown finding (reusable, worn or faulty) in the history",
+        description="When a valve is opened, record what was found: reusable, worn or faulty, the clearance "
+                    "measured, a note, who and when. The finding labels the valve's last judged test before the "
+                    "teardown; 'edc-bench train --from-history' learns from the labelled tests (worn and faulty "
+                    "both mean: replace). --list shows the findings and the tests they label. "
+                    "Exit codes: 0 recorded or listed, 2 bad input.",
+    )
+    p.add_argument("valve_id", nargs="?", default=None, metavar="VALVE_ID", help="the valve, as its tests name it")
+    p.add_argument("--finding", choices=("reusable", "worn", "faulty"), default=None, help="what the teardown found")
+    p.add_argument("--clearance-mm", type=float, default=None, metavar="MM", help="plunger clearance measured (mm)")
+    p.add_argument("--note", default="", help="anything else found")
+    p.add_argument("--by", default=None, metavar="NAME", help="who opened the valve (default: the login name)")
+    p.add_argument("--date", default=None, metavar="DATE",
+                   help="when the valve was opened, YYYY-MM-DD or YYYY-MM-DDTHH:MM, UTC (default: now)")
+    p.add_argument("--db", default=None, metavar="URL",
+                   help="history database URL (default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+    p.add_argument("--list", action="store_true", help="list the findings (of VALVE_ID if given)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Record or list."""
+    import datetime as dt
+    import getpass
+
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.store import HistoryStore, parse_day
+
+    if args.list:
+        if args.finding is not None:
+            raise ConfigError("--list shows findings; record one without --list")
+        with HistoryStore(args.db) as store:
+            rows = _listing(store, args.valve_id)
+        print_quietly_if_closed(lambda: _print_list(rows, args.json))
+        return 0
+    if args.valve_id is None or args.finding is None:
+        raise ConfigError("give the valve and what its teardown found: edc-bench label VALVE_ID --finding "
+                          "reusable|worn|faulty [--clearance-mm MM] [--note TEXT] (or --list)")
+    valve_id = args.valve_id.strip()
+    if not valve_id or len(valve_id) > 200 or not valve_id.isprintable():
+        raise ConfigError(f"valve id {args.valve_id!r}: give the id the valve's tests were recorded with "
+                          "(printable, at most 200 characters)")
+    clearance = args.clearance_mm
+    if clearance is not None and not (math.isfinite(clearance) and 0 < clearance <= MAX_CLEARANCE_MM):
+        raise ConfigError(f"--clearance-mm {clearance}: a plunger clearance is above 0 and at most "
+                          f"{MAX_CLEARANCE_MM} mm (e.g. 0.19)")
+    when = parse_day(args.date, "--date") if args.date else dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+    by = args.by if args.by is not None else getpass.getuser()
+    with HistoryStore(args.db) as store:
+        store.add_teardown(valve_id, args.finding, labelled_by=by, labelled_at=when, clearance_mm=clearance,
+                           note=args.note)
+        row = next(r for r in reversed(_listing(store, valve_id)) if r["labelled_at"] == when)
+    if args.json:
+        print(json.dumps(row, indent=2))
+    elif row.get("record_dir"):
+        print(f"valve {valve_id}: {args.finding} recorded; it labels the test of {row['started_at'][:16]} "
+              f"({row['verdict']}, {row['record_dir']})")
+    else:
+        print(f"valve {valve_id}: {args.finding} recorded", file=sys.stderr)
+        print(f"note: no judged test of valve {valve_id!r} before {when} in {store.url}; the finding labels nothing "
+              "until one is there (a test added later with 'edc-bench history --add' counts if it ran before the "
+              "teardown)", file=sys.stderr)
+    return 0
+
+
+def _listing(store: Any, valve_id: str | None) -> list[dict[str, Any]]:
+    rows = store.labelled_tests() + store.unmatched_teardowns()
+    rows = [r for r in rows if valve_id is None or r["valve_id"] == valve_id]
+    return sorted(rows, key=lambda r: r["labelled_at"])
+
+
+def _print_list(rows: list[dict[str, Any]], as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(rows, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"{len(rows)} teardown finding(s)")
+    for col in ("opened", "valve", "finding", "clearance mm", "by", "labels the test of", "verdict then",
+                "af/af0", "a1/a1_0"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(r["labelled_at"][:16].replace("T", " "), r["valve_id"], r["finding"],
+                      "" if r["teardown_clearance_mm"] is None else f"{r['teardown_clearance_mm']:.3f}",
+                      r["labelled_by"], (r.get("started_at") or "(no judged test)")[:16].replace("T", " "),
+                      r.get("verdict") or "", "" if r.get("af_rel") is None else f"{r['af_rel']:.3f}",
+                      "" if r.get("a1_rel") is None else f"{r['a1_rel']:.3f}")
+    Console(width=None if sys.stdout.isatty() else 160).print(table)

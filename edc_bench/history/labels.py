@@ -1,0 +1,18 @@
+"""The history's teardown labels as training and evaluation data."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from edc_bench.diagnosis.shop_training import LabelledTests
+from edc_bench.history.store import HistoryStore
+
+
+def labelled_tests(store: HistoryStore) -> LabelledTests:
+    """Every teardown with a judged test before it: the test's relative features and the teardown's label."""
+    rows = store.labelled_tests()
+    return LabelledTests(
+        features_rel=np.array([[r["af_rel"], r["a1_rel"]] for r in rows], dtype=float).reshape(-1, 2),
+        labels=np.array([r["label"] for r in rows], dtype=int),
+        valves=np.array([r["valve_id"] for r in rows], dtype=object),
+    )
