@@ -1,0 +1,201 @@
+"""Teardown labels, training from them, adopting the candidate, and a simulated shop that shows what they teach."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from edc_bench.diagnosis.classifier import ValveClassifier, default_classifier, packaged_model_path
+from edc_bench.diagnosis.shop_training import LabelledTests, train_from_labels
+from edc_bench.errors import ConfigError
+from edc_bench.history.store import COLUMNS, HistoryStore
+from helpers import edc_bench
+
+
+def _row(valve: str, started: str, af_rel: float | None, a1_rel: float | None, verdict: str = "PASS",
+         n: int = 0) -> dict:
+    row = {name: "" for name in COLUMNS}
+    row.update(record_dir=f"/records/{valve}-{started}-{n}", started_at=started, valve_id=valve, verdict=verdict,
+               af_v=None, a1_v_s_per_mm=None, af_rel=af_rel, a1_rel=a1_rel, probability_faulty=None, distance=None,
+               model_name=None, model_sha256=None)
+    return row
+
+
+def _synthetic_shop(store: HistoryStore, count: int, seed: int = 3) -> None:
+    """Valves whose teardown calls worn what lies beyond 1.2 in both ratios (stricter than the shipped model)."""
+    rng = np.random.default_rng(seed)
+    for n in range(count):
+        af_rel, a1_rel = rng.uniform(0.8, 1.8, 2)
+        valve = f"S{n:03d}"
+        store.add_row(_row(valve, f"2026-03-{1 + n % 28:02d}T08:00:00+00:00", af_rel, a1_rel, n=n))
+        worn = af_rel + a1_rel > 2.4
+        store.add_teardown(valve, "worn" if worn else "reusable", labelled_by="test",
+                           labelled_at=f"2026-03-{1 + n % 28:02d}T12:00:00")
+
+
+def test_a_teardown_labels_the_valves_last_judged_test_before_it(tmp_path: Path) -> None:
+    with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
+        store.add_row(_row("V1", "2026-05-01T08:00:00+00:00", 1.1, 1.2))
+        store.add_row(_row("V1", "2026-05-02T08:00:00+00:00", 1.3, 1.4))  # the last judged one before
+        store.add_row(_row("V1", "2026-05-02T09:00:00+00:00", None, None, verdict="INVALID"))  # not judged
+        store.add_row(_row("V1", "2026-05-09T08:00:00+00:00", 1.0, 1.0))  # after the teardown: a rebuilt valve
+        store.add_teardown("V1", "worn", labelled_by="ana", labelled_at="2026-05-03", clearance_mm=0.21)
+        store.add_teardown("V9", "reusable", labelled_by="ana", labelled_at="2026-05-03")  # never tested
+        labelled = store.labelled_tests()
+        assert [(r["valve_id"], r["af_rel"], r["label"], r["teardown_clearance_mm"]) for r in labelled] == \
+            [("V1", 1.3, 1, 0.21)]
+        assert [r["valve_id"] for r in store.unmatched_teardowns()] == ["V9"]
+        with pytest.raises(ConfigError, match="reusable, worn, faulty"):
+            store.add_teardown("V1", "broken", labelled_by="ana", labelled_at="2026-05-03")
+
+
+def test_an_older_history_gets_the_new_columns_and_keeps_its_rows(tmp_path: Path) -> None:
+    path = tmp_path / "old.sqlite"
+    with HistoryStore(f"sqlite:///{path}") as store:
+        store.add_row(_row("V1", "2026-05-01T08:00:00+00:00", 1.1, 1.2))
+    with sqlite3.connect(path) as conn:  # as the previous version made it: no model columns, no teardowns
+        conn.execute("ALTER TABLE tests DROP COLUMN model_name")
+        conn.execute("ALTER TABLE tests DROP COLUMN model_sha256")
+        conn.execute("DROP TABLE teardowns")
+    with HistoryStore(f"sqlite:///{path}") as store:
+        rows = store.list()
+        assert len(rows) == 1 and rows[0]["model_name"] is None
+        store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-02")
+        assert store.labelled_tests()[0]["label"] == 0
+
+
+def test_label_command_records_lists_and_refuses_bad_input(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    with HistoryStore(url) as store:
+        store.add_row(_row("V/7", "2026-05-01T08:00:00+00:00", 1.4, 1.5, verdict="FAIL"))
+    done = edc_bench("label", "V/7", "--finding", "worn", "--clearance-mm", "0.21", "--note", "scored plunger",
+                     "--by", "ana", "--date", "2026-05-02", "--db", url)
+    assert done.returncode == 0, done.stderr
+    assert "labels the test of 2026-05-01 08:00 (FAIL" in done.stdout
+    listed = edc_bench("label", "--list", "--json", "--db", url)
+    rows = json.loads(listed.stdout)
+    assert [(r["valve_id"], r["finding"], r["labelled_by"], r["note"]) for r in rows] == \
+        [("V/7", "worn", "ana", "scored plunger")]
+    lonely = edc_bench("label", "V/8", "--finding", "reusable", "--db", url)
+    assert lonely.returncode == 0 and "labels nothing" in lonely.stderr
+    for args, message in ((("V/7", "--finding", "worn", "--clearance-mm", "-0.1"), "--clearance-mm -0.1"),
+                          (("V/7", "--finding", "worn", "--clearance-mm", "nan"), "--clearance-mm nan"),
+                          (("V/7",), "--finding"),
+                          (("V/7", "--finding", "worn", "--date", "yesterday"), "--date 'yesterday' is not a date")):
+        bad = edc_bench("label", *args, "--db", url)
+        assert bad.returncode == 2 and message in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
+
+
+def test_training_from_history_refuses_too_few_labels_saying_how_many(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    with HistoryStore(url) as store:
+        _synthetic_shop(store, 5)
+    proc = edc_bench("train", "--from-history", "--db", url)
+    assert proc.returncode == 2, proc.stderr
+    assert "5 labelled test(s)" in proc.stderr and "at least 30" in proc.stderr and "edc-bench label" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_a_candidate_learns_the_shops_limit_and_is_adopted_explicitly(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(tmp_path / "station"))
+    with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
+        _synthetic_shop(store, 120)
+        from edc_bench.history.labels import labelled_tests
+
+        labelled = labelled_tests(store)
+    assert len(labelled) == 120
+    shipped = ValveClassifier()
+    assert shipped.path == packaged_model_path()
+    result = train_from_labels(labelled, None, shipped, prior_weight=0.0, seed=1)
+    # the shipped model passes the valves between its limit and the shop's; the candidate, cross-validated, does not
+    assert result.current.worn_passed > 10
+    assert result.candidate_cv.accuracy > result.current.accuracy + 0.05
+    candidate = tmp_path / "candidate.onnx"
+    candidate.write_bytes(result.candidate.onnx_bytes)
+    assert ValveClassifier().path == packaged_model_path()  # written is not adopted
+    from edc_bench.diagnosis.adoption import adopt, adopt_shipped
+
+    adoption = adopt(candidate, "ana")
+    station = ValveClassifier()
+    assert station.name == result.name and station.sha256 == adoption["sha256"]
+    assert default_classifier().sha256 == adoption["sha256"]
+    # a changed adopted file is refused, not used
+    adopted_file = Path(adoption["path"] if "path" in adoption else tmp_path / "station" / "models" / adoption["file"])
+    original = adopted_file.read_bytes()
+    adopted_file.write_bytes(original[:-1] + bytes([original[-1] ^ 1]))
+    with pytest.raises(ConfigError, match="changed after it was adopted"):
+        ValveClassifier()
+    adopted_file.write_bytes(original)
+    adopt_shipped()
+    assert ValveClassifier().path == packaged_model_path()
+
+
+def test_the_labels_hash_names_the_data_a_candidate_learnt_from() -> None:
+    a = LabelledTests(np.array([[1.0, 1.0]]), np.array([0]), np.array(["V"], dtype=object))
+    b = LabelledTests(np.array([[1.0, 1.0]]), np.array([1]), np.array(["V"], dtype=object))
+    assert a.content_hash() != b.content_hash()
+
+
+def test_a_record_names_its_model_and_replays_with_it_after_the_station_changed_model(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant, parse_variant
+    from edc_bench.diagnosis.adoption import adopt, adopt_shipped
+    from edc_bench.records.record import write_record
+    from edc_bench.replay import replay_record
+
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(tmp_path / "station"))
+    with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
+        _synthetic_shop(store, 60)
+        from edc_bench.history.labels import labelled_tests
+
+        result = train_from_labels(labelled_tests(store), None, ValveClassifier(), prior_weight=0.0, seed=1)
+    candidate = tmp_path / "candidate.onnx"
+    candidate.write_bytes(result.candidate.onnx_bytes)
+    adoption = adopt(candidate, "ana")
+    data = load_variant().model_dump()
+    data["excitation"]["duration_s"] = 20.0  # long enough to converge, so the model judges
+    test = run_simulated_test(parse_variant(data), "worn", 2, check_gains=False)
+    assert test.classification["model_name"] == result.name
+    assert test.classification["model_sha256"] == adoption["sha256"]
+    folder = write_record(test, tmp_path / "records", figure=False)
+    with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
+        store.add(json.loads((folder / "record.json").read_text()), folder)
+        row = store.list()[-1]
+    assert (row["model_name"], row["model_sha256"]) == (result.name, adoption["sha256"])
+    adopt_shipped()  # the station goes back; the record still replays with the model that judged it
+    report = replay_record(folder)
+    assert report.reproduced, report.differences
+    assert report.judged.classification["model_sha256"] == adoption["sha256"]
+
+
+@pytest.mark.slow
+def test_a_simulated_shop_with_a_stricter_scrap_limit_teaches_a_better_candidate(tmp_path: Path) -> None:
+    # docs/diagnosis.md quotes these figures: 300 valves tested and torn down, the shipped simulated population
+    # as prior (weight 50), 5-fold cross-validation on the shop's labels
+    url = f"sqlite:///{tmp_path / 'shop.sqlite'}"
+    env = {**__import__("os").environ, "EDC_BENCH_DATA_DIR": str(tmp_path / "station")}
+    filled = __import__("subprocess").run(
+        [__import__("sys").executable, "-m", "edc_bench.history.simulated_shop", "--db", url, "--count", "300"],
+        capture_output=True, text=True, timeout=900, env=env)
+    assert filled.returncode == 0, filled.stderr
+    print(filled.stdout)
+    proc = edc_bench("train", "--from-history", "--db", url, "--json", env=env, timeout=1800)
+    assert proc.returncode == 0, proc.stderr
+    figures = json.loads(proc.stdout)
+    print(json.dumps(figures, indent=2))
+    assert figures["labels"] >= 290
+    candidate, current = figures["candidate"], figures["current"]
+    assert candidate["accuracy"] >= current["accuracy"] + 0.05
+    assert candidate["worn_passed"] < current["worn_passed"]
+    assert candidate["reusable_failed"] <= current["reusable_failed"] + 3
+    adopted = edc_bench("train", "--adopt", candidate["file"], env=env)
+    assert adopted.returncode == 0, adopted.stderr
+    judged = edc_bench("evaluate", "--from-history", "--db", url, "--json", env=env)
+    assert judged.returncode == 0, judged.stderr
+    assert json.loads(judged.stdout)["model"] == candidate["name"]
