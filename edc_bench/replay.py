@@ -235,10 +235,12 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     if classifier_path is None and judged_by:
         from edc_bench.diagnosis.classifier import find_model
 
-        classifier_path = find_model(judged_by)  # judged by the model that judged it, whatever the station adopted since
+        # judged by the model that judged it, whatever the station adopted since
+        classifier_path = find_model(judged_by)
         if classifier_path is None:
-            notes.append(f"the model that judged this test ({(record.get('classification') or {}).get('model_name')}, "
-                         f"sha256 {judged_by[:16]}...) is not on this station: judged with the station's model")
+            name = (record.get("classification") or {}).get("model_name")
+            notes.append(f"the model that judged this test ({name}, sha256 {judged_by[:16]}...) is not on this "
+                         "station: judged with the station's model")
     run = replay_frames(frames, variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
     outcome = LoopOutcome(ticks_planned=loop.get("ticks_planned", run.ticks), ticks_run=run.ticks,
                           missed_replies=run.missed_replies, abort_reason=loop.get("abort_reason"),

@@ -22,7 +22,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (for --af/--a1)")
     p.add_argument("--af", type=float, default=None, help="identified af in V")
     p.add_argument("--a1", type=float, default=None, help="identified a1 in V s/mm")
-    p.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+    p.add_argument("--model", type=Path, default=None,
+                   help="ONNX model (default: the station's: the adopted one, else the packaged network)")
     p.add_argument("--nominal-baseline", action="store_true",
                    help="judge a variant that has no measured baseline against its nominal figures (as "
                         "'edc-bench test --nominal-baseline'); without it such a variant is not judged")

@@ -26,7 +26,8 @@ def add_population_arguments(parser: argparse.ArgumentParser, count: int, seed: 
     parser.add_argument("--count", type=int, default=count, help=f"valves per variant (default: {count})")
     parser.add_argument("--seed", type=int, default=seed,
                         help=f"population seed (default: {seed}; the shipped models were trained with 2026)")
-    parser.add_argument("--model", type=Path, default=None, help="ONNX model (default: the packaged network)")
+    parser.add_argument("--model", type=Path, default=None,
+                        help="ONNX model (default: the station's: the adopted one, else the packaged network)")
 
 
 def print_quietly_if_closed(write: Callable[[], None]) -> None:
@@ -102,4 +103,5 @@ def history_label_dataset(url: str | None) -> tuple[object, str]:
         where = store.engine.url.render_as_string(hide_password=True)
     if len(labelled) == 0:
         raise ConfigError(f"no labelled test in {where}: record teardown findings with 'edc-bench label' first")
-    return labelled.as_dataset({"history": where, "labels": len(labelled)}), f"{len(labelled)} labelled tests in {where}"
+    dataset = labelled.as_dataset({"history": where, "labels": len(labelled)})
+    return dataset, f"{len(labelled)} labelled tests in {where}"

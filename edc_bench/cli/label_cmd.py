@@ -73,7 +73,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(row, indent=2))
     elif row.get("record_dir"):
-        print(f"valve {valve_id}: {args.finding} recorded; it labels the test of {row['started_at'][:16].replace('T', ' ')} "
+        tested = row["started_at"][:16].replace("T", " ")
+        print(f"valve {valve_id}: {args.finding} recorded; it labels the test of {tested} "
               f"({row['verdict']}, {row['record_dir']})")
     else:
         print(f"valve {valve_id}: {args.finding} recorded", file=sys.stderr)

@@ -23,9 +23,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "own (exit code of the verdict). Logs: candump .log, .asc, .blf, .mf4, .trc (also gzipped).",
     )
     p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
-    p.add_argument("--can-log", type=Path, default=None, metavar="FILE", help="a CAN log in any format python-can reads (.log .asc .blf .mf4 .trc; the suffix names it)")
+    p.add_argument("--can-log", type=Path, default=None, metavar="FILE",
+                   help="a CAN log in any format python-can reads (.log .asc .blf .mf4 .trc; the suffix names it)")
     p.add_argument("--variant", default=None, help="with --can-log: the variant the test ran (name, part number, file)")
-    p.add_argument("--model", type=Path, default=None, metavar="ONNX", help="classifier model (default: packaged)")
+    p.add_argument("--model", type=Path, default=None, metavar="ONNX",
+                   help="classifier model (default: the one that judged the record, found by its hash; else the "
+                        "station's)")
     p.add_argument("--nominal-baseline", action="store_true",
                    help="with --can-log: judge a variant that has no measured baseline against the nominal one "
                         "(a record replays the way it was judged)")

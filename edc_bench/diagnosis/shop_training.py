@@ -195,7 +195,8 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
     from sklearn.model_selection import StratifiedGroupKFold
 
     if not np.isfinite(prior_weight) or prior_weight < 0:
-        raise ConfigError(f"prior weight {prior_weight}: give a number of real tests the simulation counts as, 0 or more")
+        raise ConfigError(f"prior weight {prior_weight}: give the number of real tests the simulation counts as "
+                          "(0 or more)")
     check_enough(labelled.labels)
     prior_x, prior_y = _prior_rows(prior if prior_weight > 0 else None)
     x, y = labelled.features_rel.astype(float), labelled.labels.astype(int)

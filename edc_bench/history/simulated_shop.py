@@ -105,7 +105,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--count", type=int, default=300, help="valves tested and torn down (default: 300)")
     parser.add_argument("--seed", type=int, default=11, help="seed of the shop's valves (default: 11)")
     parser.add_argument("--scrap-factor", type=float, default=DEFAULT_SCRAP_FACTOR,
-                        help=f"the shop scraps above this share of the variant's limit (default: {DEFAULT_SCRAP_FACTOR})")
+                        help="the shop scraps above this share of the variant's limit "
+                             f"(default: {DEFAULT_SCRAP_FACTOR})")
     args = parser.parse_args(argv)
     from edc_bench.errors import EdcBenchError
 

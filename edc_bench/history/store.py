@@ -190,7 +190,8 @@ class HistoryStore:
                 self._add_missing_columns()
                 return
             except (sa.exc.OperationalError, sa.exc.ProgrammingError, sa.exc.IntegrityError) as exc:
-                if "already exists" in str(exc.orig) and attempt < 2:
+                # ... or both add a new column to an older history ("duplicate column" in SQLite's words)
+                if ("already exists" in str(exc.orig) or "duplicate column" in str(exc.orig)) and attempt < 2:
                     continue
                 raise ConfigError(f"history database {self.url!r} cannot be opened: {exc.orig}") from None
 

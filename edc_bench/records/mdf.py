@@ -6,8 +6,8 @@ holds two channel groups on one time base (time 0 is tick 0, the header's
 start time is its absolute UTC time):
 
 - ``trace``: one channel per trace column, named as in the trace
-  (``position_mm``, ``drive_v``...), each with its unit and a comment that
-  says what it is; booleans are stored as 0/1;
+  (``position_mm``, ``drive_v``...), each with its unit (``-`` for flags
+  and bit fields) and a comment that says what it is; booleans are stored as 0/1;
 - ``CAN bus``: every frame the bench sent and read, as an ASAM bus-logging
   group (``CAN_DataFrame``, direction Tx/Rx), the layout python-can's
   ``MF4Writer`` writes and its ``MF4Reader`` (and asammdf's bus-logging
@@ -49,15 +49,20 @@ CHANNELS: dict[str, tuple[str, str]] = {
     "drive_v": ("V", "drive command sent to the rig (feedforward + feedback, limited)"),
     "feedforward_v": ("V", "friction-compensated feedforward part of the drive"),
     "feedback_v": ("V", "PID feedback part of the drive"),
-    "adapting": ("", "1 when the estimator learnt on this tick"),
-    "reply_ok": ("", "1 when the tick's reply arrived in time"),
-    "rig_flags": ("", "rig status flags of the newest reply (bit field, see PROTOCOL.md)"),
-    "sample_age_ticks": ("", "age in ticks of the sample the feedback used (1: its reply came within the tick)"),
-    "gap": ("", "1 when the tick was lost to a host stall (nothing sent, nothing learnt)"),
+    "adapting": ("-", "1 when the estimator learnt on this tick"),
+    "reply_ok": ("-", "1 when the tick's reply arrived in time"),
+    "rig_flags": ("-", "rig status flags of the newest reply (bit field, see PROTOCOL.md)"),
+    "sample_age_ticks": ("tick", "age in ticks of the sample the feedback used (1: its reply came within the tick)"),
+    "gap": ("-", "1 when the tick was lost to a host stall (nothing sent, nothing learnt)"),
     "coil_resistance_ohm": ("Ohm", "coil resistance measured so far from drive and current"),
     **{f"{name}_hat": (unit, f"estimate of feedforward parameter {name}")
        for name, unit in _PARAMETER_UNITS.items()},
 }
+
+
+#: channels that are booleans in the trace (stored as 0/1: MDF has no boolean type). Kept here rather than read
+#: from the runtime's column list, so a record folder is read with this module alone (another machine's report).
+FLAG_CHANNELS = frozenset({"adapting", "reply_ok", "gap"})
 
 
 def _can_frames(frames: CanFrameLog, time_zero_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -139,8 +144,6 @@ def read_trace_mf4(path: Path) -> dict[str, np.ndarray]:
     """The trace columns of a ``trace.mf4`` (``t_s`` from the master channel), in the trace's dtypes."""
     from asammdf import MDF
 
-    from edc_bench.runtime.trace import TRACE_COLUMNS
-
     path = Path(path)
     if not looks_like_mdf4(path):
         raise ConfigError(f"{path}: not an MDF 4 file")
@@ -153,15 +156,16 @@ def read_trace_mf4(path: Path) -> dict[str, np.ndarray]:
             columns: dict[str, Any] = {}
             names = [ch.name for ch in mdf.groups[group].channels]
             for name in names:
-                if name not in TRACE_COLUMNS:
+                if name not in CHANNELS:
                     continue
                 signal = mdf.get(name, group=group, raw=True)
                 columns.setdefault("t_s", np.asarray(signal.timestamps, dtype=np.float64))
-                columns[name] = np.asarray(signal.samples).astype(TRACE_COLUMNS[name])
+                samples = np.asarray(signal.samples)
+                columns[name] = samples.astype(bool) if name in FLAG_CHANNELS else samples
     except ConfigError:
         raise
     except Exception as exc:  # noqa: BLE001 - asammdf raises many error types on a damaged file
         raise ConfigError(f"{path}: not a readable MDF trace ({type(exc).__name__}: {exc})") from None
     if "t_s" not in columns:
         raise ConfigError(f"{path}: the trace group has no channels")
-    return {name: columns[name] for name in TRACE_COLUMNS if name in columns}
+    return {"t_s": columns.pop("t_s"), **columns}

@@ -12,7 +12,7 @@ import can
 import pytest
 
 from edc_bench.bench import run_bench_test, run_simulated_test
-from edc_bench.config import load_variant
+from edc_bench.config import load_variant, parse_variant
 from edc_bench.errors import ConfigError
 from edc_bench.records.record import write_record
 from edc_bench.replay import replay_record
@@ -105,7 +105,9 @@ def test_replay_refuses_logs_it_cannot_explain(tmp_path: Path) -> None:
 def test_a_record_replays_from_its_log_converted_to_asc_and_blf_and_from_its_mf4(tmp_path: Path) -> None:
     # the log a technician sends converted by python-can's own tool, or the frames in trace.mf4: same verdict,
     # same parameters, bit for bit (these formats round timestamps; replay goes by the frames' order)
-    result = run_simulated_test(load_variant(), "worn", 6)
+    data = load_variant().model_dump()
+    data["excitation"]["duration_s"] = 20.0  # long enough to converge and be judged; the suite's time is short
+    result = run_simulated_test(parse_variant(data), "worn", 6, check_gains=False)
     folder = write_record(result, tmp_path, figure=False)
     logs = [folder / "trace.mf4"]
     for suffix in (".asc", ".blf"):
@@ -119,16 +121,11 @@ def test_a_record_replays_from_its_log_converted_to_asc_and_blf_and_from_its_mf4
         assert report.reproduced, (log.name, report.differences)
         assert report.judged.verdict == result.verdict == "FAIL"
         assert report.judged.parameters["af"]["value"] == result.parameters["af"]["value"]
-    # the command: a record with another log of it; a raw converted log with its variant
-    cmd = [sys.executable, "-m", "edc_bench", "replay"]
-    proc = subprocess.run([*cmd, str(folder), "--can-log", str(logs[1]), "--json"], capture_output=True, text=True,
-                          timeout=300)
+    # the command: a record with another log of it
+    proc = subprocess.run([sys.executable, "-m", "edc_bench", "replay", str(folder), "--can-log", str(logs[1]),
+                           "--json"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["reproduced"] is True
-    proc = subprocess.run([*cmd, "--can-log", str(logs[2]), "--variant", "p-edc-default", "--json"],
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 11, proc.stderr
-    assert json.loads(proc.stdout)["features"] == result.features
 
 
 @pytest.mark.parametrize(("name", "content", "expected"), [

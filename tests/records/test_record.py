@@ -65,9 +65,8 @@ def test_trace_mf4_opens_in_asammdf_with_units_and_the_can_frames(record) -> Non
             if name == "t_s":
                 continue
             channel = mdf.get(name)
-            assert channel.comment, name
-            if name.endswith(("_mm", "_v", "_a", "_s", "_ohm", "_mm_s")) or name.endswith("_hat"):
-                assert channel.unit, f"{name} has no unit"
+            assert channel.comment and channel.unit, f"{name}: unit {channel.unit!r}, comment {channel.comment!r}"
+        assert mdf.get("drive_v").unit == "V" and mdf.get("a1_hat").unit == "V s/mm"
         assert mdf.header.start_time.timestamp() == pytest.approx(
             result.frames.origin_unix_s + result.outcome.ticks_start_s, abs=1e-6)
     # the CAN frames are an ASAM bus-logging group: python-can reads them as it reads any MF4 log
@@ -87,3 +86,10 @@ def test_can_log_is_read_back_by_python_can(record) -> None:
     replies = [f for f in frames if f.arbitration_id == RIG_FEEDBACK_ID]
     assert len(commands) >= 12_000 and len(replies) >= 12_000
     assert all(len(f.data) == 8 for f in commands)
+
+
+def test_every_trace_column_has_an_mdf_channel_description() -> None:
+    from edc_bench.records.mdf import CHANNELS, FLAG_CHANNELS
+
+    assert set(CHANNELS) == set(TRACE_COLUMNS) - {"t_s"}
+    assert FLAG_CHANNELS == {name for name, kind in TRACE_COLUMNS.items() if kind == "?"}
