@@ -30,22 +30,31 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--note", default="", help="anything else found")
     p.add_argument("--by", default=None, metavar="NAME", help="who opened the valve (default: the login name)")
     p.add_argument("--date", default=None, metavar="DATE",
-                   help="when the valve was opened, YYYY-MM-DD or YYYY-MM-DDTHH:MM, UTC (default: now)")
+                   help="when the valve was opened: YYYY-MM-DD (the whole day: a test that day counts) or "
+                        "YYYY-MM-DDTHH:MM (UTC unless an offset is given) (default: now)")
     p.add_argument("--db", default=None, metavar="URL",
                    help="history database URL (default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
     p.add_argument("--list", action="store_true", help="list the findings (of VALVE_ID if given)")
+    p.add_argument("--delete", type=int, default=None, metavar="ID",
+                   help="remove a finding recorded by mistake (its id from --list), then record the right one")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Record or list."""
-    import datetime as dt
     import getpass
 
     from edc_bench.errors import ConfigError
-    from edc_bench.history.store import HistoryStore, parse_day
+    from edc_bench.history.store import HistoryStore
 
+    if args.delete is not None:
+        if args.finding is not None or args.list:
+            raise ConfigError("--delete removes one finding; record the right one in a second command")
+        with HistoryStore(args.db) as store:
+            gone = store.delete_teardown(args.delete)
+        print(f"removed finding {args.delete}: valve {gone['valve_id']}, {gone['finding']}, {gone['labelled_at']}")
+        return 0
     if args.list:
         if args.finding is not None:
             raise ConfigError("--list shows findings; record one without --list")
@@ -64,8 +73,10 @@ def run(args: argparse.Namespace) -> int:
     if clearance is not None and not (math.isfinite(clearance) and 0 < clearance <= MAX_CLEARANCE_MM):
         raise ConfigError(f"--clearance-mm {clearance}: a plunger clearance is above 0 and at most "
                           f"{MAX_CLEARANCE_MM} mm (e.g. 0.19)")
-    when = parse_day(args.date, "--date") if args.date else dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-    by = args.by if args.by is not None else getpass.getuser()
+    when = _teardown_time(args.date)
+    by = (args.by if args.by is not None else getpass.getuser()).strip()
+    if not by or len(by) > 200 or not by.isprintable():
+        raise ConfigError(f"--by {args.by!r}: give who opened the valve (printable, at most 200 characters)")
     with HistoryStore(args.db) as store:
         store.add_teardown(valve_id, args.finding, labelled_by=by, labelled_at=when, clearance_mm=clearance,
                            note=args.note)
@@ -84,6 +95,31 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _teardown_time(text: str | None) -> str:
+    """The teardown's time as stored: a date alone as given, a date-time in UTC; never in the future."""
+    import datetime as dt
+
+    from edc_bench.errors import ConfigError
+
+    now = dt.datetime.now(dt.UTC)
+    if text is None:
+        return now.isoformat(timespec="seconds")
+    hint = "write it as YYYY-MM-DD or YYYY-MM-DDTHH:MM (UTC, or with an offset such as +02:00)"
+    try:
+        if "T" in text:
+            moment = dt.datetime.fromisoformat(text)
+            moment = moment.replace(tzinfo=dt.UTC) if moment.tzinfo is None else moment.astimezone(dt.UTC)
+            value, later = moment.isoformat(timespec="seconds"), moment > now
+        else:
+            day = dt.date.fromisoformat(text)
+            value, later = day.isoformat(), day > now.date()
+    except ValueError:
+        raise ConfigError(f"--date {text!r} is not a date: {hint}") from None
+    if later:
+        raise ConfigError(f"--date {text}: that is in the future; give the day the valve was opened")
+    return value
+
+
 def _listing(store: Any, valve_id: str | None) -> list[dict[str, Any]]:
     rows = store.labelled_tests() + store.unmatched_teardowns()
     rows = [r for r in rows if valve_id is None or r["valve_id"] == valve_id]
@@ -98,11 +134,11 @@ def _print_list(rows: list[dict[str, Any]], as_json: bool) -> None:
     from rich.table import Table
 
     table = Table(title=f"{len(rows)} teardown finding(s)")
-    for col in ("opened", "valve", "finding", "clearance mm", "by", "labels the test of", "verdict then",
+    for col in ("id", "opened", "valve", "finding", "clearance mm", "by", "labels the test of", "verdict then",
                 "af/af0", "a1/a1_0"):
         table.add_column(col)
     for r in rows:
-        table.add_row(r["labelled_at"][:16].replace("T", " "), r["valve_id"], r["finding"],
+        table.add_row(str(r["teardown_id"]), r["labelled_at"][:16].replace("T", " "), r["valve_id"], r["finding"],
                       "" if r["teardown_clearance_mm"] is None else f"{r['teardown_clearance_mm']:.3f}",
                       r["labelled_by"], (r.get("started_at") or "(no judged test)")[:16].replace("T", " "),
                       r.get("verdict") or "", "" if r.get("af_rel") is None else f"{r['af_rel']:.3f}",

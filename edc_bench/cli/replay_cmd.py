@@ -24,7 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
     p.add_argument("--can-log", type=Path, default=None, metavar="FILE",
-                   help="a CAN log in any format python-can reads (.log .asc .blf .mf4 .trc; the suffix names it)")
+                   help="a CAN log in any format python-can reads (.log .asc .blf .mf4 .trc .csv .db, also "
+                        ".gz; the suffix names it)")
     p.add_argument("--variant", default=None, help="with --can-log: the variant the test ran (name, part number, file)")
     p.add_argument("--model", type=Path, default=None, metavar="ONNX",
                    help="classifier model (default: the one that judged the record, found by its hash; else the "

@@ -32,6 +32,11 @@ def run(args: argparse.Namespace) -> int:
         from edc_bench.cli.common import history_label_dataset
 
         dataset, title = history_label_dataset(args.db)
+        if len(set(dataset.labels.tolist())) < 2:
+            from edc_bench.errors import ConfigError
+
+            raise ConfigError(f"{title}, all {'worn or faulty' if dataset.labels[0] else 'reusable'}: the trade-off "
+                              "needs teardowns of both reusable and worn valves")
     else:
         dataset = make_dataset(args.variants, args.count, args.seed)
         title = f"{len(dataset)} simulated valves ({', '.join(args.variants)})"

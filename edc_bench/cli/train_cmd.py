@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     if args.from_history:
         return _from_history(args)
     for flag, value in (("--db", args.db), ("--prior-weight", args.prior_weight), ("--name", args.name),
-                        ("--out", args.out), ("--by", args.by)):
+                        ("--out", args.out), ("--by", args.by), ("--json", args.json or None)):
         if value is not None:
             raise ConfigError(f"{flag} goes with --from-history or --adopt")
     if args.dataset is not None:
@@ -104,6 +104,10 @@ def _adopt(args: argparse.Namespace) -> int:
 
     if args.from_history:
         raise ConfigError("--adopt and --from-history are separate steps: train, read the figures, then adopt")
+    for flag, value in (("--db", args.db), ("--prior-weight", args.prior_weight), ("--name", args.name),
+                        ("--out", args.out), ("--json", args.json or None), ("--dataset", args.dataset)):
+        if value is not None:
+            raise ConfigError(f"{flag} does not go with --adopt (it adopts a model file, or 'shipped')")
     if args.adopt == "shipped":
         path = adopt_shipped()
         print(f"this station judges with the shipped model again ({path.name})")
@@ -116,6 +120,8 @@ def _adopt(args: argparse.Namespace) -> int:
 
 def _from_history(args: argparse.Namespace) -> int:
     import json
+    import math
+    import re
 
     from edc_bench.diagnosis.classifier import ValveClassifier, station_models_dir
     from edc_bench.diagnosis.dataset import Dataset, cached_dataset
@@ -127,10 +133,15 @@ def _from_history(args: argparse.Namespace) -> int:
 
     if args.out is not None and (args.out.is_dir() or not args.out.parent.is_dir()):
         raise ConfigError(f"--out {args.out}: give a file name in a folder that exists (the candidate's .onnx)")
+    if args.name is not None and not re.fullmatch(r"[A-Za-z0-9._-]{1,100}", args.name):
+        raise ConfigError(f"--name {args.name!r}: use letters, digits, '.', '_' and '-' (at most 100), e.g. shop-2026-11")
+    if args.prior_weight is not None and not (math.isfinite(args.prior_weight) and args.prior_weight >= 0):
+        raise ConfigError(f"--prior-weight {args.prior_weight}: give how many labelled tests the simulated "
+                          "population counts as, 0 or more (default 50)")
     with HistoryStore(args.db) as store:
         labelled = labelled_tests(store)
         url = store.engine.url.render_as_string(hide_password=True)
-    check_enough(labelled.labels)  # before minutes of simulation
+    check_enough(labelled.labels, labelled.valves)  # before a simulation of the prior
     prior_weight = DEFAULT_PRIOR_WEIGHT if args.prior_weight is None else args.prior_weight
     prior = None
     if prior_weight > 0:
@@ -165,6 +176,9 @@ def _from_history(args: argparse.Namespace) -> int:
     for label, s in ((f"candidate {result.name}", cand), (f"current {current.name}", now)):
         print(f"{label:32} {s.accuracy:9.1%} {s.marginal:9d} {s.accuracy_outside_band:13.1%} {s.worn_passed:12d} "
               f"{s.reusable_failed:16d}")
+    if now.in_sample:
+        print(f"note: the current model {current.name} learnt from shop labels, likely these: its row is in-sample "
+              "(optimistic), the candidate's is cross-validated")
     print(f"candidate written to {out}")
     print(f"adopt it (this station then judges with it): edc-bench train --adopt {out}")
     return 0

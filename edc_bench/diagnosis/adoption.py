@@ -10,11 +10,12 @@ SHA-256), and replay finds it again by its hash.
 from __future__ import annotations
 
 import datetime as dt
+import re
 import shutil
 from pathlib import Path
 from typing import Any
 
-from edc_bench.diagnosis.classifier import ADOPTED_FILE, ValveClassifier, station_models_dir
+from edc_bench.diagnosis.classifier import ADOPTED_FILE, ValveClassifier, file_sha256, station_models_dir
 from edc_bench.errors import ConfigError
 from edc_bench.paths import atomic_write, write_json_atomic
 
@@ -34,8 +35,9 @@ def adopt(candidate: Path, adopted_by: str) -> dict[str, Any]:
     folder = station_models_dir()
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        target = folder / f"{model.name}-{model.sha256[:8]}.onnx"
-        if not target.exists():
+        safe_name = re.sub(r"[^A-Za-z0-9._-]+", "_", model.name).strip("._") or "model"
+        target = folder / f"{safe_name}-{model.sha256[:8]}.onnx"
+        if not target.exists() or file_sha256(target) != model.sha256:  # absent, or changed since: the candidate's bytes
             atomic_write(target, lambda handle: handle.write(candidate.read_bytes()))
         adoption = {"file": target.name, "sha256": model.sha256, "name": model.name,
                     "adopted_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), "adopted_by": adopted_by,

@@ -48,7 +48,8 @@ def station_models_dir() -> Path:
     return data_dir(create=False) / "models"
 
 
-def _sha256(path: Path) -> str:
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes (a model's identity)."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
@@ -72,7 +73,7 @@ def adopted_model() -> dict[str, str] | None:
         raise ConfigError(f"{marker}: not a readable model adoption ({exc}); {revert}") from None
     if not path.is_file():
         raise ConfigError(f"the station's adopted model {path} is missing; {revert}")
-    if _sha256(path) != sha:
+    if file_sha256(path) != sha:
         raise ConfigError(f"the station's adopted model {path} changed after it was adopted; {revert}")
     return {**adoption, "path": str(path)}
 
@@ -89,7 +90,7 @@ def find_model(sha256: str) -> Path | None:
     for folder in folders:
         if folder.is_dir():
             for path in sorted(folder.glob("*.onnx")):
-                if _sha256(path) == sha256:
+                if file_sha256(path) == sha256:
                     return path
     return None
 

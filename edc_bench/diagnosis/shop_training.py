@@ -84,16 +84,25 @@ class LabelledTests:
         return Dataset(columns, provenance)
 
 
-def check_enough(labels: np.ndarray) -> None:
-    """Refuse, with the counts, when there are too few labels to train and cross-validate on."""
-    n, worn = len(labels), int(np.sum(labels))
+def check_enough(labels: np.ndarray, valves: np.ndarray | None = None) -> None:
+    """Refuse, with the counts, when there are too few labels to train and cross-validate on.
+
+    Each class needs :data:`MIN_PER_CLASS` different valves: the folds keep a valve's tests together, and every
+    fold must train on both classes.
+    """
+    labels = np.asarray(labels, dtype=int)
+    valves = np.arange(len(labels)) if valves is None else np.asarray(valves)
+    n, worn = len(labels), int(labels.sum())
     reusable = n - worn
-    if n < MIN_LABELS or worn < MIN_PER_CLASS or reusable < MIN_PER_CLASS:
+    worn_valves, reusable_valves = len(set(valves[labels == 1])), len(set(valves[labels == 0]))
+    if n < MIN_LABELS or worn_valves < MIN_PER_CLASS or reusable_valves < MIN_PER_CLASS:
         raise ConfigError(
-            f"{n} labelled test(s) in the history ({reusable} reusable, {worn} worn or faulty): training needs at "
-            f"least {MIN_LABELS}, with at least {MIN_PER_CLASS} of each, to train and cross-validate "
-            f"({max(MIN_LABELS - n, 0)} more, of which at least {max(MIN_PER_CLASS - reusable, 0)} reusable and "
-            f"{max(MIN_PER_CLASS - worn, 0)} worn or faulty). Record teardown findings with 'edc-bench label'.")
+            f"{n} labelled test(s) in the history ({reusable} reusable from {reusable_valves} valve(s), {worn} worn or "
+            f"faulty from {worn_valves} valve(s)): training needs at least {MIN_LABELS} labelled tests, and each "
+            f"finding from at least {MIN_PER_CLASS} different valves, to train and cross-validate "
+            f"({max(MIN_LABELS - n, 0)} more tests; {max(MIN_PER_CLASS - reusable_valves, 0)} more reusable and "
+            f"{max(MIN_PER_CLASS - worn_valves, 0)} more worn or faulty valves). Record teardown findings with "
+            "'edc-bench label'.")
 
 
 @dataclass(frozen=True)
@@ -107,6 +116,7 @@ class Score:
     accuracy_outside_band: float
     worn_passed: int  # labelled worn or faulty, judged reusable (outside the band)
     reusable_failed: int  # labelled reusable, judged faulty (outside the band)
+    in_sample: bool = False  # the model learnt from shop labels: these figures may be optimistic
 
     def as_dict(self) -> dict[str, Any]:
         """Plain data for JSON."""
@@ -197,11 +207,12 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
     if not np.isfinite(prior_weight) or prior_weight < 0:
         raise ConfigError(f"prior weight {prior_weight}: give the number of real tests the simulation counts as "
                           "(0 or more)")
-    check_enough(labelled.labels)
+    check_enough(labelled.labels, labelled.valves)
     prior_x, prior_y = _prior_rows(prior if prior_weight > 0 else None)
     x, y = labelled.features_rel.astype(float), labelled.labels.astype(int)
     labels_sha = labelled.content_hash()
-    name = name or f"shop-{labels_sha[:8]}"
+    recipe = hashlib.sha256(f"{labels_sha} {prior_weight!r} {seed} {len(prior_x)}".encode()).hexdigest()
+    name = name or f"shop-{recipe[:8]}"  # another prior weight or seed: another name, no overwritten candidate
     folds = StratifiedGroupKFold(n_splits=FOLDS, shuffle=True, random_state=seed)
     cv_verdicts = np.empty(len(y), dtype=object)
     cv_decisions = np.zeros(len(y), bool)
@@ -227,7 +238,11 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
     }
     candidate = _export(np.vstack([prior_x, x]), np.concatenate([prior_y, y]),
                         _weights(len(prior_x), len(y), prior_weight), seed, metadata, current)
+    # a current model that learnt from shop labels (an adopted candidate) has likely seen these very tests
+    learnt_from_labels = "labels_sha256" in current.metadata.get("edc_bench.training_data", "")
+    current_score = score(current.name, now_verdicts, now_decisions, y)
+    current_score = Score(**{**current_score.as_dict(), "in_sample": learnt_from_labels})
     return ShopTraining(candidate=candidate, name=name,
                         candidate_cv=score(f"{name} (cross-validated)", cv_verdicts.astype(str), cv_decisions, y),
-                        current=score(current.name, now_verdicts, now_decisions, y), folds=FOLDS,
+                        current=current_score, folds=FOLDS,
                         prior_weight=prior_weight, prior_rows=len(prior_x), labels=len(y))

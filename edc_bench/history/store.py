@@ -71,8 +71,8 @@ teardowns = sa.Table(
 #: Teardown findings and the class each teaches the classifier (1: the valve must be replaced).
 FINDINGS: dict[str, int] = {"reusable": 0, "worn": 1, "faulty": 1}
 
-#: Teardown columns in listings, in order.
-TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name != "id")
+#: Teardown columns in listings, in order (the id: to delete a finding recorded by mistake).
+TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns)
 
 #: Columns in listings and CSV exports, in order.
 COLUMNS = tuple(c.name for c in tests.columns if c.name != "id")
@@ -277,6 +277,15 @@ class HistoryStore:
             conn.execute(teardowns.insert().values(**row))
         return row
 
+    def delete_teardown(self, teardown_id: int) -> dict[str, Any]:
+        """Remove a finding recorded by mistake; returns it."""
+        with self.engine.begin() as conn:
+            found = conn.execute(sa.select(teardowns).where(teardowns.c.id == teardown_id)).first()
+            if found is None:
+                raise ConfigError(f"no teardown finding with id {teardown_id} (see 'edc-bench label --list')")
+            conn.execute(teardowns.delete().where(teardowns.c.id == teardown_id))
+        return dict(found._mapping)
+
     def teardowns(self, valve_id: str | None = None) -> list[dict[str, Any]]:
         """Teardown findings (of one valve if given), in the order of the teardowns."""
         query = sa.select(*(teardowns.c[name] for name in TEARDOWN_COLUMNS))
@@ -291,7 +300,9 @@ class HistoryStore:
 
         A teardown labels the valve's last test before it that was judged on
         its features (not INVALID, relative features known): the valve as the
-        bench last saw it. Each row is the test's history row plus
+        bench last saw it; a teardown given as a date alone counts that whole
+        day. Each test is labelled once: a second teardown of the valve labels
+        only a test after the first. Each row is the test's history row plus
         ``finding``, ``label`` (1: replace), ``teardown_clearance_mm``,
         ``labelled_by`` and ``labelled_at``; teardowns with no such test are
         left out (:meth:`unmatched_teardowns` lists them).
@@ -314,13 +325,20 @@ class HistoryStore:
                 for r in conn.execute(query):
                     by_valve.setdefault(r.valve_id, []).append(dict(r._mapping))
         rows = []
+        previous: dict[str, str] = {}  # valve -> bound of its previous teardown
         for teardown in found:
+            valve = teardown["valve_id"]
+            # a date alone counts the whole day: the valve tested in the morning and opened in the afternoon
             bound = teardown["labelled_at"] if "T" in teardown["labelled_at"] else teardown["labelled_at"] + "T99"
-            before = [t for t in by_valve.get(teardown["valve_id"], []) if t["started_at"] <= bound]
-            test = before[-1] if before else {"valve_id": teardown["valve_id"]}
-            rows.append({**test, "finding": teardown["finding"], "label": FINDINGS[teardown["finding"]],
-                         "teardown_clearance_mm": teardown["clearance_mm"], "labelled_by": teardown["labelled_by"],
-                         "labelled_at": teardown["labelled_at"], "note": teardown["note"]})
+            # a test labels once: the test after the valve's previous teardown and before this one
+            after = previous.get(valve, "")
+            between = [t for t in by_valve.get(valve, []) if after < t["started_at"] <= bound]
+            previous[valve] = bound
+            test = between[-1] if between else {"valve_id": valve}
+            rows.append({**test, "teardown_id": teardown["id"], "finding": teardown["finding"],
+                         "label": FINDINGS[teardown["finding"]], "teardown_clearance_mm": teardown["clearance_mm"],
+                         "labelled_by": teardown["labelled_by"], "labelled_at": teardown["labelled_at"],
+                         "note": teardown["note"]})
         return rows
 
     def trend(self, valve_id: str) -> list[dict[str, Any]]:

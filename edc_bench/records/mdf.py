@@ -8,7 +8,7 @@ start time is its absolute UTC time):
 - ``trace``: one channel per trace column, named as in the trace
   (``position_mm``, ``drive_v``...), each with its unit (``-`` for flags
   and bit fields) and a comment that says what it is; booleans are stored as 0/1;
-- ``CAN bus``: every frame the bench sent and read, as an ASAM bus-logging
+- ``CAN``: every frame the bench sent and read, as an ASAM bus-logging
   group (``CAN_DataFrame``, direction Tx/Rx), the layout python-can's
   ``MF4Writer`` writes and its ``MF4Reader`` (and asammdf's bus-logging
   tools) read. Frames from before tick 0 (the synchronising SAFE) have
@@ -113,12 +113,12 @@ def write_trace_mf4(path: Path, trace: dict[str, np.ndarray], frames: CanFrameLo
             unit, description = CHANNELS.get(name, ("", name))
             samples = values.astype(np.uint8) if values.dtype == bool else values
             signals.append(Signal(samples, t, name=name, unit=unit, comment=description))
-        mdf.append(signals, comment=TRACE_GROUP_COMMENT)
+        mdf.append(signals, acq_name="trace", comment=TRACE_GROUP_COMMENT)
         if frames is not None:
             samples, times = _can_frames(frames, ticks_start_s)
             source = SourceInformation(source_type=SOURCE_BUS, bus_type=BUS_TYPE_CAN)
             mdf.append(Signal(samples, times, name="CAN_DataFrame", source=source, comment=CAN_GROUP_COMMENT),
-                       comment=CAN_GROUP_COMMENT)
+                       acq_name="CAN", comment=CAN_GROUP_COMMENT)
         buffer = io.BytesIO()  # asammdf saves to a path or an in-memory file; the bytes then go down atomically
         mdf.save(buffer, compression=2)
         atomic_write(Path(path), lambda handle: handle.write(buffer.getvalue()))

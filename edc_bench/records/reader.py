@@ -102,5 +102,6 @@ def read_can_log(path: Path) -> list[LoggedFrame]:
         raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log "
                           f"({type(exc).__name__}: {exc})") from None
     if not frames and path.stat().st_size > 0:
-        raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log (no CAN data frame in it)")
+        raise ConfigError(f"{path}: holds no CAN data frames ({CAN_LOG_FORMATS[suffix]}); a damaged file, or a "
+                          "log of no bench test")
     return frames

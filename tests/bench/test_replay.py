@@ -130,7 +130,7 @@ def test_a_record_replays_from_its_log_converted_to_asc_and_blf_and_from_its_mf4
 
 @pytest.mark.parametrize(("name", "content", "expected"), [
     ("frames.txt", b"(0.0) can0 120#00\n", "not a CAN log format"),
-    ("broken.blf", b"LOGG\x00\x01garbage" * 10, "not a readable Vector BLF"),
+    ("broken.blf", b"LOGG\x00\x01garbage" * 10, "holds no CAN data frames \\(Vector BLF\\)"),
     ("broken.asc", b"\xff\xfe not ascii at all \x00\x01", "not a readable Vector ASC"),
     ("broken.mf4", b"MDF     4.10    " + b"\x00" * 40, "not a readable ASAM MDF"),
 ])

@@ -51,6 +51,17 @@ def test_a_teardown_labels_the_valves_last_judged_test_before_it(tmp_path: Path)
         assert [r["valve_id"] for r in store.unmatched_teardowns()] == ["V9"]
         with pytest.raises(ConfigError, match="reusable, worn, faulty"):
             store.add_teardown("V1", "broken", labelled_by="ana", labelled_at="2026-05-03")
+        # opened again a week later with no test between: that teardown labels nothing (a test labels once)
+        store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-08")
+        assert [(r["af_rel"], r["finding"]) for r in store.labelled_tests()] == [(1.3, "worn")]
+        # the finding was a typing error: deleted, the right one labels the test
+        first = store.teardowns("V1")[0]
+        store.delete_teardown(first["id"])
+        store.delete_teardown(store.teardowns("V1")[0]["id"])
+        store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-03")
+        assert [(r["af_rel"], r["finding"]) for r in store.labelled_tests()] == [(1.3, "reusable")]
+        with pytest.raises(ConfigError, match="no teardown finding with id 999"):
+            store.delete_teardown(999)
 
 
 def test_an_older_history_gets_the_new_columns_and_keeps_its_rows(tmp_path: Path) -> None:
@@ -80,12 +91,20 @@ def test_label_command_records_lists_and_refuses_bad_input(tmp_path: Path) -> No
     rows = json.loads(listed.stdout)
     assert [(r["valve_id"], r["finding"], r["labelled_by"], r["note"]) for r in rows] == \
         [("V/7", "worn", "ana", "scored plunger")]
+    # a time with an offset is stored in UTC: 10:00+02:00 is 08:00 UTC, before the test of 09:00 UTC
+    with HistoryStore(url) as store:
+        store.add_row(_row("V/9", "2026-05-02T09:00:00+00:00", 1.1, 1.1))
+    early = edc_bench("label", "V/9", "--finding", "reusable", "--date", "2026-05-02T10:00+02:00", "--db", url)
+    assert early.returncode == 0 and "labels nothing" in early.stderr, early.stderr
     lonely = edc_bench("label", "V/8", "--finding", "reusable", "--db", url)
     assert lonely.returncode == 0 and "labels nothing" in lonely.stderr
     for args, message in ((("V/7", "--finding", "worn", "--clearance-mm", "-0.1"), "--clearance-mm -0.1"),
                           (("V/7", "--finding", "worn", "--clearance-mm", "nan"), "--clearance-mm nan"),
                           (("V/7",), "--finding"),
-                          (("V/7", "--finding", "worn", "--date", "yesterday"), "--date 'yesterday' is not a date")):
+                          (("V/7", "--finding", "worn", "--date", "yesterday"), "--date 'yesterday' is not a date"),
+                          (("V/7", "--finding", "worn", "--date", "2999-01-01"), "in the future"),
+                          (("V/7", "--finding", "worn", "--by", " "), "--by ' '"),
+                          (("--delete", "12345"), "no teardown finding with id 12345")):
         bad = edc_bench("label", *args, "--db", url)
         assert bad.returncode == 2 and message in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
 
@@ -98,6 +117,15 @@ def test_training_from_history_refuses_too_few_labels_saying_how_many(tmp_path: 
     assert proc.returncode == 2, proc.stderr
     assert "5 labelled test(s)" in proc.stderr and "at least 30" in proc.stderr and "edc-bench label" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_labels_from_too_few_valves_are_refused_before_training() -> None:
+    from edc_bench.diagnosis.shop_training import check_enough
+
+    labels = np.array([0, 1] * 20)
+    with pytest.raises(ConfigError, match="from at least 5 different valves"):
+        check_enough(labels, np.array([f"V{n % 4}" for n in range(40)]))  # 40 labels, 4 valves
+    check_enough(labels, np.array([f"V{n}" for n in range(40)]))
 
 
 def test_a_candidate_learns_the_shops_limit_and_is_adopted_explicitly(tmp_path: Path,
@@ -130,7 +158,16 @@ def test_a_candidate_learns_the_shops_limit_and_is_adopted_explicitly(tmp_path: 
     adopted_file.write_bytes(original[:-1] + bytes([original[-1] ^ 1]))
     with pytest.raises(ConfigError, match="changed after it was adopted"):
         ValveClassifier()
-    adopted_file.write_bytes(original)
+    adopt(candidate, "ana")  # as the message says: adopting again restores it
+    assert ValveClassifier().sha256 == adoption["sha256"]
+    # a model whose name is a path stays inside the station's models folder
+    from edc_bench.diagnosis.train import fit_and_export
+
+    odd = fit_and_export(labelled.features_rel, labelled.labels, "linear", 1,
+                         metadata={"edc_bench.model_name": "../../escaped"})
+    (tmp_path / "odd.onnx").write_bytes(odd.onnx_bytes)
+    odd_adoption = adopt(tmp_path / "odd.onnx", "ana")
+    assert (tmp_path / "station" / "models" / odd_adoption["file"]).is_file() and "/" not in odd_adoption["file"]
     adopt_shipped()
     assert ValveClassifier().path == packaged_model_path()
 

@@ -67,6 +67,7 @@ def test_trace_mf4_opens_in_asammdf_with_units_and_the_can_frames(record) -> Non
             channel = mdf.get(name)
             assert channel.comment and channel.unit, f"{name}: unit {channel.unit!r}, comment {channel.comment!r}"
         assert mdf.get("drive_v").unit == "V" and mdf.get("a1_hat").unit == "V s/mm"
+        assert [g.channel_group.acq_name for g in mdf.groups] == ["trace", "CAN"]
         assert mdf.header.start_time.timestamp() == pytest.approx(
             result.frames.origin_unix_s + result.outcome.ticks_start_s, abs=1e-6)
     # the CAN frames are an ASAM bus-logging group: python-can reads them as it reads any MF4 log
