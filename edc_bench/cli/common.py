@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 
 def add_variant_arguments(parser: argparse.ArgumentParser) -> None:
@@ -82,14 +83,19 @@ def check_output_folder(folder: Path, flag: str) -> None:
         raise ConfigError(f"{flag} {folder}: the folder is not writable; give a writable folder")
 
 
+def add_history_db_argument(parser: Any, when: str = "") -> None:
+    """``--db URL``: the history database, as every command that reads or writes the history takes it."""
+    parser.add_argument("--db", default=None, metavar="URL",
+                        help=f"{when}history database: sqlite:///FILE or postgresql+psycopg://USER@HOST/DB "
+                             "(default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+
+
 def add_history_label_arguments(parser: argparse.ArgumentParser) -> None:
     """``--from-history`` and ``--db``: judge the shop's labelled tests instead of a simulated population."""
     parser.add_argument("--from-history", action="store_true",
                         help="use the history's labelled tests (teardown findings, 'edc-bench label') instead of "
                              "simulating a population")
-    parser.add_argument("--db", default=None, metavar="URL",
-                        help="with --from-history: history database URL (default: EDC_BENCH_HISTORY_URL, else the "
-                             "station's SQLite file)")
+    add_history_db_argument(parser, "with --from-history: ")
 
 
 def history_label_dataset(url: str | None) -> tuple[object, str]:

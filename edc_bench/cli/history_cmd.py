@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from edc_bench.cli.common import print_quietly_if_closed
+from edc_bench.cli.common import add_history_db_argument, print_quietly_if_closed
 from edc_bench.diagnosis.verdict import Verdict
 
 
@@ -20,9 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "folder, or the PostgreSQL database EDC_BENCH_HISTORY_URL or --db names). Filters combine. "
                     "--trend shows one valve's af and a1 over its visits against the new-valve baseline.",
     )
-    p.add_argument("--db", default=None, metavar="URL",
-                   help="database URL: sqlite:///FILE or postgresql+psycopg://USER@HOST/DB "
-                        "(default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+    add_history_db_argument(p)
     p.add_argument("--valve", default=None, metavar="ID", help="only this valve")
     p.add_argument("--pump-serial", default=None, metavar="SERIAL", help="only this pump")
     p.add_argument("--variant", default=None, help="only this variant (name or part number)")

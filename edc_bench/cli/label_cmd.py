@@ -8,7 +8,7 @@ import math
 import sys
 from typing import Any
 
-from edc_bench.cli.common import print_quietly_if_closed
+from edc_bench.cli.common import add_history_db_argument, print_quietly_if_closed
 
 #: A plunger clearance beyond this (mm) is a typing error, not a measurement.
 MAX_CLEARANCE_MM = 2.0
@@ -32,8 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--date", default=None, metavar="DATE",
                    help="when the valve was opened: YYYY-MM-DD (the whole day: a test that day counts) or "
                         "YYYY-MM-DDTHH:MM (UTC unless an offset is given) (default: now)")
-    p.add_argument("--db", default=None, metavar="URL",
-                   help="history database URL (default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+    add_history_db_argument(p)
     p.add_argument("--list", action="store_true", help="list the findings (of VALVE_ID if given)")
     p.add_argument("--delete", type=int, default=None, metavar="ID",
                    help="remove a finding recorded by mistake (its id from --list), then record the right one")
@@ -121,9 +120,7 @@ def _teardown_time(text: str | None) -> str:
 
 
 def _listing(store: Any, valve_id: str | None) -> list[dict[str, Any]]:
-    rows = store.labelled_tests() + store.unmatched_teardowns()
-    rows = [r for r in rows if valve_id is None or r["valve_id"] == valve_id]
-    return sorted(rows, key=lambda r: r["labelled_at"])
+    return [r for r in store.teardown_matches() if valve_id is None or r["valve_id"] == valve_id]
 
 
 def _print_list(rows: list[dict[str, Any]], as_json: bool) -> None:

@@ -7,6 +7,8 @@ import sys
 import time
 from pathlib import Path
 
+from edc_bench.cli.common import add_history_db_argument
+
 DEFAULT_VARIANTS = ("p-edc-default", "p-edc-long")
 DEFAULT_COUNT = 1000
 DEFAULT_SEED = 2026
@@ -38,8 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     shop = p.add_argument_group("the shop's data")
     shop.add_argument("--from-history", action="store_true",
                       help="train a candidate on the history's labelled tests, the simulated population as prior")
-    shop.add_argument("--db", default=None, metavar="URL",
-                      help="history database URL (default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+    add_history_db_argument(shop, "with --from-history: ")
     shop.add_argument("--prior-weight", type=float, default=None, metavar="TESTS",
                       help="how many labelled tests the whole simulated population counts as (default: 50; 0: the "
                            "labels alone)")

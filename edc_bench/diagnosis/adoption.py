@@ -15,7 +15,13 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from edc_bench.diagnosis.classifier import ADOPTED_FILE, ValveClassifier, file_sha256, station_models_dir
+from edc_bench.diagnosis.classifier import (
+    ADOPTED_FILE,
+    ValveClassifier,
+    file_sha256,
+    packaged_model_path,
+    station_models_dir,
+)
 from edc_bench.errors import ConfigError
 from edc_bench.paths import atomic_write, write_json_atomic
 
@@ -56,6 +62,4 @@ def adopt_shipped() -> Path:
             shutil.move(str(marker), str(marker.with_suffix(".json.previous")))
         except OSError as exc:
             raise ConfigError(f"cannot change {marker}: {exc.strerror}") from None
-    from edc_bench.diagnosis.classifier import packaged_model_path
-
     return packaged_model_path()

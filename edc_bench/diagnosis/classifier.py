@@ -136,7 +136,7 @@ class ValveClassifier:
         if not self.path.is_file():
             raise ConfigError(f"classifier model {self.path} not found; build it with 'edc-bench train'")
         #: identity of the exact model file, recorded with every verdict it gives
-        self.sha256 = hashlib.sha256(self.path.read_bytes()).hexdigest()
+        self.sha256 = file_sha256(self.path)
         options = ort.SessionOptions()
         options.intra_op_num_threads = 1
         try:

@@ -30,17 +30,18 @@ def evaluate(classifier: ValveClassifier, dataset: Dataset) -> dict[str, Any]:
     """
     ok = dataset.columns["converged"].astype(bool)
     verdicts, _, _ = classifier.classify_many(dataset.features[ok])
-    truth = dataset.labels[ok] == 1
+    return {"tests": len(dataset), "invalid": int((~ok).sum()), "judged": int(ok.sum()),
+            **verdict_counts(verdicts, dataset.labels[ok] == 1)}
+
+
+def verdict_counts(verdicts: np.ndarray, truth: np.ndarray) -> dict[str, Any]:
+    """Verdicts against the truth (True: faulty): MARGINAL share, accuracy outside the band, and the errors."""
     decided = verdicts != Verdict.MARGINAL
     fail = verdicts == Verdict.FAIL
-    correct = (fail == truth) & decided
     return {
-        "tests": len(dataset),
-        "invalid": int((~ok).sum()),
-        "judged": int(ok.sum()),
         "marginal": int((~decided).sum()),
-        "marginal_fraction": float((~decided).mean()) if ok.any() else float("nan"),
-        "accuracy_outside_band": float(correct.sum() / max(decided.sum(), 1)),
+        "marginal_fraction": float((~decided).mean()) if len(truth) else float("nan"),
+        "accuracy_outside_band": float(((fail == truth) & decided).sum() / max(decided.sum(), 1)),
         "faulty_passed": int((~fail & truth & decided).sum()),
         "reusable_failed": int((fail & ~truth & decided).sum()),
         "faulty": int(truth.sum()),

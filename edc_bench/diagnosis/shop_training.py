@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 
 from edc_bench.diagnosis.classifier import ValveClassifier
-from edc_bench.diagnosis.dataset import Dataset
+from edc_bench.diagnosis.dataset import COLUMNS, Dataset
+from edc_bench.diagnosis.experiments import verdict_counts
 from edc_bench.diagnosis.train import TrainedModel, fit_and_export
-from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
 
 #: Fewest labelled tests to train on, and fewest of each class (each cross-validation fold needs both).
@@ -75,8 +75,6 @@ class LabelledTests:
 
     def as_dataset(self, provenance: dict[str, Any]) -> Dataset:
         """The labels as a :class:`Dataset` (for ``evaluate`` and ``study-boundary`` on real labels)."""
-        from edc_bench.diagnosis.dataset import COLUMNS
-
         n = len(self)
         columns = {name: np.zeros(n) for name in COLUMNS}
         columns.update(af_rel=self.features_rel[:, 0].astype(float), a1_rel=self.features_rel[:, 1].astype(float),
@@ -123,16 +121,14 @@ class Score:
         return dict(self.__dict__)
 
 
-def score(name: str, verdicts: np.ndarray, faulty_decision: np.ndarray, labels: np.ndarray) -> Score:
+def score(name: str, verdicts: np.ndarray, faulty_decision: np.ndarray, labels: np.ndarray,
+          in_sample: bool = False) -> Score:
     """Compare verdicts (and the decisions at the threshold) with teardown labels."""
     truth = labels.astype(bool)
-    decided = verdicts != Verdict.MARGINAL
-    fail = verdicts == Verdict.FAIL
-    return Score(
-        model=name, tests=len(labels), accuracy=float(np.mean(faulty_decision == truth)) if len(labels) else np.nan,
-        marginal=int((~decided).sum()),
-        accuracy_outside_band=float(((fail == truth) & decided).sum() / max(decided.sum(), 1)),
-        worn_passed=int((~fail & truth & decided).sum()), reusable_failed=int((fail & ~truth & decided).sum()))
+    counts = verdict_counts(verdicts, truth)
+    return Score(model=name, tests=len(labels), accuracy=float(np.mean(faulty_decision == truth)),
+                 marginal=counts["marginal"], accuracy_outside_band=counts["accuracy_outside_band"],
+                 worn_passed=counts["faulty_passed"], reusable_failed=counts["reusable_failed"], in_sample=in_sample)
 
 
 def judge(classifier: ValveClassifier, features_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -193,7 +189,7 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
     seed : int
         Seed of the folds and of the network's initial weights.
     name : str, optional
-        The candidate's name (default ``shop-`` and the first 8 hex digits of the labels' hash).
+        The candidate's name (default ``shop-`` and 8 hex digits of a hash of the labels, prior weight and seed).
     source : dict, optional
         Where the labels came from (history URL...), stored in the model.
 
@@ -240,9 +236,7 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
                         _weights(len(prior_x), len(y), prior_weight), seed, metadata, current)
     # a current model that learnt from shop labels (an adopted candidate) has likely seen these very tests
     learnt_from_labels = "labels_sha256" in current.metadata.get("edc_bench.training_data", "")
-    current_score = score(current.name, now_verdicts, now_decisions, y)
-    current_score = Score(**{**current_score.as_dict(), "in_sample": learnt_from_labels})
     return ShopTraining(candidate=candidate, name=name,
                         candidate_cv=score(f"{name} (cross-validated)", cv_verdicts.astype(str), cv_decisions, y),
-                        current=current_score, folds=FOLDS,
+                        current=score(current.name, now_verdicts, now_decisions, y, learnt_from_labels), folds=FOLDS,
                         prior_weight=prior_weight, prior_rows=len(prior_x), labels=len(y))

@@ -111,15 +111,6 @@ def train(dataset: Dataset, kind: str, seed: int, *, threshold: float = DEFAULT_
                           marginal_band=marginal_band, metadata=provenance)
 
 
-def fit(features: np.ndarray, labels: np.ndarray, kind: str, seed: int,
-        sample_weight: np.ndarray | None = None) -> Any:
-    """A fitted scikit-learn pipeline on relative features (weights per row if given)."""
-    pipeline = _pipeline(kind, seed)
-    fit_params = {} if sample_weight is None else {"classify__sample_weight": np.asarray(sample_weight, float)}
-    pipeline.fit(np.asarray(features, dtype=np.float64), np.asarray(labels, dtype=int), **fit_params)
-    return pipeline
-
-
 def fit_and_export(features: np.ndarray, labels: np.ndarray, kind: str, seed: int, *,
                    threshold: float = DEFAULT_THRESHOLD, marginal_band: float = DEFAULT_MARGINAL_BAND,
                    sample_weight: np.ndarray | None = None, metadata: dict[str, str] | None = None) -> TrainedModel:
@@ -132,7 +123,9 @@ def fit_and_export(features: np.ndarray, labels: np.ndarray, kind: str, seed: in
 
     X = np.asarray(features, dtype=np.float64)
     y = np.asarray(labels, dtype=int)
-    pipeline = fit(X, y, kind, seed, sample_weight)
+    pipeline = _pipeline(kind, seed)
+    fit_params = {} if sample_weight is None else {"classify__sample_weight": np.asarray(sample_weight, float)}
+    pipeline.fit(X, y, **fit_params)
     scaler = pipeline.steps[0][1]
     entries = {
         "edc_bench.model_kind": kind,

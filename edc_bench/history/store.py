@@ -307,13 +307,14 @@ class HistoryStore:
         ``labelled_by`` and ``labelled_at``; teardowns with no such test are
         left out (:meth:`unmatched_teardowns` lists them).
         """
-        return [row for row in self._match_teardowns() if row.get("record_dir")]
+        return [row for row in self.teardown_matches() if row.get("record_dir")]
 
     def unmatched_teardowns(self) -> list[dict[str, Any]]:
         """Teardowns of valves with no test judged before them (nothing to learn from yet)."""
-        return [row for row in self._match_teardowns() if not row.get("record_dir")]
+        return [row for row in self.teardown_matches() if not row.get("record_dir")]
 
-    def _match_teardowns(self) -> list[dict[str, Any]]:
+    def teardown_matches(self) -> list[dict[str, Any]]:
+        """Every teardown in order, with the test it labels (:meth:`labelled_tests`) or only its valve if none."""
         found = self.teardowns()
         valves = sorted({t["valve_id"] for t in found})
         query = sa.select(*(tests.c[name] for name in COLUMNS)).where(

@@ -149,8 +149,8 @@ def read_trace_mf4(path: Path) -> dict[str, np.ndarray]:
         raise ConfigError(f"{path}: not an MDF 4 file")
     try:
         with MDF(str(path)) as mdf:
-            group = next((n for n, g in enumerate(mdf.groups) if g.channel_group.comment == TRACE_GROUP_COMMENT
-                          or TRACE_GROUP_COMMENT in str(g.channel_group.comment)), None)
+            group = next((n for n, g in enumerate(mdf.groups) if TRACE_GROUP_COMMENT in str(g.channel_group.comment)),
+                         None)
             if group is None:
                 raise ConfigError(f"{path}: no edc-bench trace group in this MDF file")
             columns: dict[str, Any] = {}

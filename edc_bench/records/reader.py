@@ -42,13 +42,13 @@ def load_record(folder: Path) -> dict[str, Any]:
 def load_trace(folder: Path) -> dict[str, np.ndarray]:
     """The per-tick trace of a record folder (``trace.mf4``; ``trace.npz`` in records before schema 3)."""
     path = Path(folder) / TRACE_FILE
-    if path.exists() or not (Path(folder) / LEGACY_TRACE_FILE).exists():
+    if path.exists():
         from edc_bench.records.mdf import read_trace_mf4
 
-        if not path.exists():
-            raise ConfigError(f"{path}: the record folder has no trace")
         return read_trace_mf4(path)
     path = Path(folder) / LEGACY_TRACE_FILE
+    if not path.exists():
+        raise ConfigError(f"{folder}: the record folder has no trace ({TRACE_FILE})")
     try:
         with np.load(path) as data:
             return {name: data[name] for name in data.files}
