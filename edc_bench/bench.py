@@ -114,11 +114,21 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested)
     can_log_path = None
+    stream = None
+    if stream_can_log is not None:
+        try:
+            stream = StreamingCanLog(loop.frames, stream_can_log())
+        except OSError as exc:  # a full disk, a folder that vanished: the frames stay in memory all the same
+            loop.outcome.events.append(f"can.log could not be opened for streaming ({type(exc).__name__}: {exc}); "
+                                       "every frame is kept in memory and written with the record")
     with interrupt_guard():
-        if stream_can_log is not None:
-            with StreamingCanLog(loop.frames, stream_can_log()) as stream:
+        if stream is not None:
+            with stream:
                 outcome = loop.run()
             can_log_path = stream.path if stream.complete else None
+            if stream.error is not None:
+                outcome.events.append(f"can.log could not be streamed during the test ({stream.error}); every frame "
+                                      "is kept in memory and written with the record")
         else:
             outcome = loop.run()
     trace = loop.trace.view()

@@ -6,6 +6,7 @@ import subprocess
 import sys
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent  # the repository's root (configs/, docs/, ...)
 
@@ -42,3 +43,47 @@ def write_new_pump_type(folder: Path) -> Path:
     path = folder / "p-edc-newtype.toml"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def check_safe_and_complete(result: Any, rig: Any, tmp_path: Path) -> None:
+    """A test that ended in a fault: INVALID, the rig at 0 V and READY or FAULT, SAFE commanded within 20 ms of
+    the detection (when the bus still sends), and the record on disk holding every tick and frame up to it.
+
+    ``result`` is a :class:`~edc_bench.bench.BenchResult`, ``rig`` the :class:`~edc_bench.sim.rig.SimulatedRig`
+    (advanced 25 ms past the bench's last word, so its watchdog has acted where the bus is gone).
+    """
+    import json
+
+    import can
+
+    from edc_bench.diagnosis.verdict import Verdict
+    from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
+    from edc_bench.records.reader import load_trace
+    from edc_bench.records.record import write_record
+
+    outcome = result.outcome
+    assert result.verdict == Verdict.INVALID
+    assert result.classification is None
+    assert outcome.abort_time_s is not None or outcome.abort_reason.startswith("bus error")
+    # the rig's amplifier is off: by SAFE or by its own watchdog
+    assert rig.plant.drive_v == 0.0
+    assert rig.firmware.state.name in ("READY", "FAULT")
+    # SAFE commanded within 20 ms of detection, when the bus still sends
+    if outcome.abort_time_s is not None:
+        detected = outcome.ticks_start_s + outcome.abort_time_s
+        icd, frames = default_icd(), result.frames
+        safe_times = [frames.t_s[k] for k in range(frames.count)
+                      if not frames.rx[k] and frames.can_id[k] == BENCH_CMD_ID and frames.t_s[k] >= detected
+                      and icd.bench_cmd.decode(bytes(frames.data[k]))[2] == Mode.SAFE]
+        if safe_times:
+            assert safe_times[0] - detected <= 0.020
+    # everything measured so far is on disk
+    folder = write_record(result, tmp_path, figure=False)
+    doc = json.loads((folder / "record.json").read_text())
+    assert doc["verdict"] == Verdict.INVALID and doc["loop"]["abort_reason"] == outcome.abort_reason
+    assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
+    trace = load_trace(folder)
+    assert len(trace["t_s"]) == outcome.ticks_run > 1000
+    if outcome.abort_time_s is not None:  # the last tick recorded is the one that decided, or the one before it
+        period_s = result.variant.controller.period_s
+        assert outcome.abort_time_s - period_s - 1e-9 <= trace["t_s"][-1] <= outcome.abort_time_s + 1e-9

@@ -69,13 +69,16 @@ def _can_frames(frames: CanFrameLog, time_zero_s: float) -> tuple[np.ndarray, np
     from can.io.mf4 import STD_DTYPE
 
     n = frames.count
-    samples = np.zeros(n, dtype=STD_DTYPE)
-    samples["CAN_DataFrame.ID"] = frames.can_id[:n]
-    samples["CAN_DataFrame.DLC"] = frames.dlc[:n]
-    samples["CAN_DataFrame.DataLength"] = frames.dlc[:n]
-    samples["CAN_DataFrame.DataBytes"][:, :8] = frames.data[:n]
-    samples["CAN_DataFrame.Dir"] = np.where(frames.rx[:n], 0, 1)  # ASAM: 0 Rx, 1 Tx
-    return samples, frames.t_s[:n] - time_zero_s
+    # data frames only (bits 1 and 2 of the flags: remote, error): can.log keeps those, with their kind
+    data_frames = (frames.flags[:n] & 6) == 0
+    samples = np.zeros(int(data_frames.sum()), dtype=STD_DTYPE)
+    samples["CAN_DataFrame.ID"] = frames.can_id[:n][data_frames]
+    samples["CAN_DataFrame.IDE"] = frames.flags[:n][data_frames] & 1
+    samples["CAN_DataFrame.DLC"] = frames.dlc[:n][data_frames]
+    samples["CAN_DataFrame.DataLength"] = frames.dlc[:n][data_frames]
+    samples["CAN_DataFrame.DataBytes"][:, :8] = frames.data[:n][data_frames]
+    samples["CAN_DataFrame.Dir"] = np.where(frames.rx[:n][data_frames], 0, 1)  # ASAM: 0 Rx, 1 Tx
+    return samples, frames.t_s[:n][data_frames] - time_zero_s
 
 
 def write_trace_mf4(path: Path, trace: dict[str, np.ndarray], frames: CanFrameLog | None = None, *,

@@ -34,8 +34,10 @@ def log_frames(writer: can.CanutilsLogWriter, frames: CanFrameLog, start: int, s
     origin = frames.origin_unix_s
     for k in range(start, stop):
         dlc = int(frames.dlc[k])
+        flags = int(frames.flags[k])
         writer.on_message_received(can.Message(
-            timestamp=origin + float(frames.t_s[k]), arbitration_id=int(frames.can_id[k]), is_extended_id=False,
+            timestamp=origin + float(frames.t_s[k]), arbitration_id=int(frames.can_id[k]),
+            is_extended_id=bool(flags & 1), is_remote_frame=bool(flags & 2), is_error_frame=bool(flags & 4),
             dlc=dlc, data=bytes(frames.data[k, :dlc]), is_rx=bool(frames.rx[k]), channel=writer.channel,
         ))
 
@@ -61,6 +63,11 @@ class StreamingCanLog:
     ----------
     complete : bool
         True once :meth:`stop` has written every frame and closed the file.
+    error : str or None
+        Why streaming stopped early (a full disk, a vanished folder): the file
+        then ends where the error struck; the frames are still in memory, and
+        the record writes the whole log again when it can. Never raised: a
+        full disk must not cost the test or its verdict.
     """
 
     def __init__(self, frames: CanFrameLog, path: Path, period_s: float = 0.1) -> None:
@@ -69,6 +76,7 @@ class StreamingCanLog:
         self.period_s = period_s
         self.written = 0
         self.complete = False
+        self.error: str | None = None
         self._file = open(self.path, "w", encoding="ascii")  # noqa: SIM115 - closed in stop()
         self._writer = open_log_writer(self._file)
         self._stop = threading.Event()
@@ -91,16 +99,32 @@ class StreamingCanLog:
         self._file.flush()
         os.fsync(self._file.fileno())
 
+    def _flush_or_give_up(self) -> bool:
+        """Write what is new; on a write error note it, close the file and return False."""
+        try:
+            self._flush_new()
+        except (OSError, ValueError) as exc:  # ENOSPC, EIO, a file closed under us
+            self.error = f"{type(exc).__name__}: {exc}"
+            try:
+                self._file.close()
+            except OSError:
+                pass  # closing flushes again, into the same full disk
+            return False
+        return True
+
     def _run(self) -> None:
         while not self._stop.wait(self.period_s):
-            self._flush_new()
+            if not self._flush_or_give_up():
+                return
 
     def stop(self) -> None:
-        """Write what is left and close the file."""
+        """Write what is left and close the file (never raises; :attr:`error` says what went wrong)."""
         if self._thread.is_alive():
             self._stop.set()
             self._thread.join()
-        if not self._file.closed:
-            self._flush_new()
-            self._file.close()
-            self.complete = True
+        if not self._file.closed and self._flush_or_give_up():
+            try:
+                self._file.close()
+                self.complete = True
+            except OSError as exc:
+                self.error = f"{type(exc).__name__}: {exc}"

@@ -46,7 +46,7 @@ from edc_bench.protocol import (
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.runtime.clock import Clock, cpu_steal_s
 from edc_bench.runtime.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks
-from edc_bench.runtime.trace import CanFrameLog, Trace
+from edc_bench.runtime.trace import CanFrameLog, Trace, frame_flags
 
 # flag bits of trace column rig_flags
 FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
@@ -109,11 +109,27 @@ class LoopOutcome:
     ticks_lost: int = 0  # ticks skipped in those gaps
     reply_age_ticks: dict[int, int] = field(default_factory=dict)  # age at arrival (ticks) -> replies
     clock_origin_unix_s: float = 0.0  # Unix time of clock time 0 (the CAN log's timestamps are absolute)
+    other_frames: int = 0  # frames of no ICD message: other nodes' traffic, extended, remote or error frames
+    bus_bad_lines: int = 0  # lines the bus driver could not read as frames (slcan), skipped
+    bus_bad_line_samples: list[str] = field(default_factory=list)
+    frames_dropped: int = 0  # frames beyond the CAN log's maximum, counted but not stored
     events: list[str] = field(default_factory=list)
 
 
-class _BusFlooded(Exception):
+class _AbortTest(Exception):
+    """The bus did something that ends the test; the message is the reason."""
+
+
+class _BusFlooded(_AbortTest):
     """More frames arrived in one tick than the loop will read."""
+
+
+class _ForeignCommand(_AbortTest):
+    """Another node on the bus sends BENCH_CMD: two hosts would be driving one rig."""
+
+
+FOREIGN_COMMAND_REASON = ("another host is sending BENCH_CMD on the bus: a second bench or tool is driving the "
+                          "rig; stop it, then test again")
 
 
 class BenchLoop:
@@ -147,8 +163,11 @@ class BenchLoop:
         self.period_s = variant.controller.period_s
         self.ticks = int(round(variant.excitation.duration_s / self.period_s))
         self.trace = Trace(self.ticks)
-        # a command and a reply per tick, heartbeats, and the phases around the ticks
-        self.frames = CanFrameLog(2 * self.ticks + self.ticks // 50 + 4096)
+        # a command and a reply per tick, heartbeats, and the phases around the ticks; growing up to what the
+        # loop can read at most (the frame budget every tick and every wait step), so a busy bus is logged too
+        ready_steps = int(variant.acceptance.ready_timeout_s / 0.01) + 10
+        self.frames = CanFrameLog(2 * self.ticks + self.ticks // 50 + 4096,
+                                  (variant.acceptance.max_frames_per_tick + 2) * (self.ticks + ready_steps) + 4096)
         self.outcome = LoopOutcome(ticks_planned=self.ticks)
         self.controller: FelController | None = None
         self._counter = 0
@@ -163,10 +182,13 @@ class BenchLoop:
         self.current_a = math.nan
         self.newest_reply: RigFeedback | None = None
         self.newest_flags = 0  # its status bits as the trace stores them
+        self._foreign_command: str | None = None  # set when another host's BENCH_CMD came outside the ticks
+        self._sent_any = False
 
     # -- frames ----------------------------------------------------------------
     def _send(self, mode: int, drive_v: float, reference_mm: float, counter: int | None = None) -> int:
         self._counter = (self._counter + 1) & 0xFF if counter is None else counter
+        self._sent_any = True
         data = self.icd.make_bench_cmd(self._counter, mode, drive_v, min(max(reference_mm, 0.0), 65.535))
         self.bus.send(can.Message(arbitration_id=BENCH_CMD_ID, data=data, is_extended_id=False))
         self.frames.add(self.clock.now_s() if self.clock.waits_for_replies else self._t_s, BENCH_CMD_ID, data, False)
@@ -183,8 +205,32 @@ class BenchLoop:
         else:
             msg, now = self.bus.recv(0.0), self._t_s
         if msg is not None:
-            self.frames.add(now, msg.arbitration_id, msg.data, True)
+            self.frames.add(now, msg.arbitration_id, msg.data, True, frame_flags(msg))
         return msg, now
+
+    def _is_foreign_command(self, msg: can.Message) -> bool:
+        """A BENCH_CMD on the bus that this bench did not send (an interface echoing our own frames is no host)."""
+        data, frames = bytes(msg.data), self.frames
+        for k in range(frames.count - 1, max(-1, frames.count - 1024), -1):  # rare: only when one comes
+            if not frames.rx[k] and frames.can_id[k] == BENCH_CMD_ID and bytes(frames.data[k, : frames.dlc[k]]) == data:
+                return False
+        return True
+
+    def _not_icd(self, msg: can.Message) -> bool:
+        """True (and counted) for a frame that is no ICD message from the rig; raises for another host's command."""
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+            self.outcome.other_frames += 1
+            return True
+        can_id = msg.arbitration_id
+        if can_id == BENCH_CMD_ID:
+            if self._is_foreign_command(msg):
+                self.outcome.other_frames += 1
+                raise _ForeignCommand(FOREIGN_COMMAND_REASON)
+            return True
+        if can_id != RIG_FEEDBACK_ID and can_id != RIG_HEARTBEAT_ID:
+            self.outcome.other_frames += 1
+            return True
+        return False
 
     def _heartbeat(self, data: bytes | bytearray, now: float) -> None:
         try:
@@ -211,6 +257,12 @@ class BenchLoop:
                 self.clock.wait_until(self._t_s)
                 continue
             frames += 1
+            try:
+                if self._not_icd(msg):
+                    continue
+            except _ForeignCommand as foreign:
+                self._foreign_command = str(foreign)
+                continue
             if msg.arbitration_id == RIG_FEEDBACK_ID and counter is not None:
                 try:
                     reply = self.icd.parse_rig_feedback(msg.data)
@@ -231,12 +283,16 @@ class BenchLoop:
         ------
         _BusFlooded
             More than the frame budget arrived within one tick.
+        _ForeignCommand
+            Another host sent BENCH_CMD.
         """
         matcher, icd, outcome, trace = self.matcher, self.icd, self.outcome, self.trace
         for _ in range(self.max_frames_per_tick):
             msg, now = self._read(until_s)
             if msg is None:
                 return
+            if self._not_icd(msg):
+                continue
             can_id = msg.arbitration_id
             if can_id == RIG_FEEDBACK_ID:
                 try:
@@ -270,6 +326,8 @@ class BenchLoop:
             self._t_s += step
             self.clock.wait_until(self._t_s)
             self._receive(None, self._t_s + step * 0.5)
+            if self._foreign_command is not None:
+                raise _ForeignCommand(self._foreign_command)  # never send SAFE into another host's test
             if self.outcome.rig_state_at_start is None and self._rig_state is not None:
                 self.outcome.rig_state_at_start = self._rig_state.name
             if self._rig_state is RigState.READY:
@@ -314,6 +372,8 @@ class BenchLoop:
                 )
                 return self.outcome
             self._run_ticks()
+        except _AbortTest as abort:
+            self.outcome.abort_reason = str(abort)
         except KeyboardInterrupt:
             self.outcome.abort_reason = "interrupted by the operator"
         except can.CanError as exc:
@@ -326,17 +386,31 @@ class BenchLoop:
         finally:
             try:
                 self._phase(Phase.SAFE_STOP)
-                self._safe_stop()  # run_bench_test's interrupt guard keeps a second Ctrl-C from skipping it
+                if self._sent_any or self.outcome.abort_reason != FOREIGN_COMMAND_REASON:
+                    self._safe_stop()  # run_bench_test's interrupt guard keeps a second Ctrl-C from skipping it
+                else:  # never break into another host's test with a SAFE of ours
+                    self.outcome.events.append("no SAFE sent: this bench never commanded the rig, another host does")
             except can.CanError as exc:
                 self.outcome.events.append(f"SAFE could not be sent: {exc}")
             finally:
                 self.outcome.cpu_steal_s = cpu_steal_s() - steal_at_start
                 self.outcome.reply_age_ticks = dict(sorted(self.matcher.counts.ages.items()))
                 self.outcome.replies_too_old = self.matcher.counts.too_old
+                self._note_bus_figures()
                 if gc_was_enabled:
                     gc.enable()
                 gc.unfreeze()
         return self.outcome
+
+    def _note_bus_figures(self) -> None:
+        """What the bus driver skipped and the frame log could not hold, for the record."""
+        outcome, frames = self.outcome, self.frames
+        outcome.frames_dropped = frames.dropped
+        if frames.dropped:
+            outcome.events.append(f"CAN log full: {frames.dropped} frames after the first {frames.count} were "
+                                  "counted but not stored")
+        outcome.bus_bad_lines = int(getattr(self.bus, "bad_lines", 0))
+        outcome.bus_bad_line_samples = [repr(line) for line in getattr(self.bus, "bad_line_samples", [])]
 
     def _run_ticks(self) -> None:
         T = self.period_s
@@ -346,6 +420,8 @@ class BenchLoop:
         counter = self._send(Mode.SAFE, 0.0, 0.0)
         # not time-critical: frames queued since connecting may come first
         first = self._receive(counter, self._t_s + 0.1)
+        if self._foreign_command is not None:
+            raise _ForeignCommand(self._foreign_command)
         if first is None:
             self.outcome.abort_reason = "no reply to the first SAFE command"
             return
@@ -412,9 +488,9 @@ class BenchLoop:
                 # what came while waiting for this deadline (matched as the last drain did: replay sees the
                 # same frames between the same two commands); the sample is used only if young enough at tick k
                 self._drain(last_run + 1, clock.now_s())
-            except _BusFlooded as flood:
+            except _AbortTest as abort:
                 outcome.abort_time_s = t_k - t_start
-                outcome.abort_reason = str(flood)
+                outcome.abort_reason = str(abort)
                 return
             u = ctl.step(k, newest_usable=matcher.usable(k))
             sent_s[k] = clock.now_s()
@@ -426,9 +502,9 @@ class BenchLoop:
             last_run = k
             try:
                 self._drain(k + 1, t_k + T - read_margin_s)
-            except _BusFlooded as flood:
+            except _AbortTest as abort:
                 outcome.abort_time_s = t_k - t_start
-                outcome.abort_reason = str(flood)
+                outcome.abort_reason = str(abort)
                 return
             counts = matcher.counts
             outcome.missed_replies = counts.missed

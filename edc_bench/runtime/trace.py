@@ -113,38 +113,75 @@ class Trace:
         return {name: col[: self.rows] for name, col in self.columns.items()}
 
 
+#: bits of :attr:`CanFrameLog.flags`
+FRAME_EXTENDED, FRAME_REMOTE, FRAME_ERROR, FRAME_TRUNCATED = 1, 2, 4, 8
+
+
+def frame_flags(msg: Any) -> int:
+    """The :attr:`CanFrameLog.flags` of a python-can message (0 for a classic standard data frame)."""
+    return (msg.is_extended_id * FRAME_EXTENDED | msg.is_remote_frame * FRAME_REMOTE
+            | msg.is_error_frame * FRAME_ERROR | (len(msg.data) > 8) * FRAME_TRUNCATED)
+
+
 class CanFrameLog:
-    """Every frame sent and received, with time and direction.
+    """Every frame sent and received, with time, direction and kind.
+
+    Preallocated for the frames a test should see; a bus that brings more
+    (another node's traffic, a flood up to the loop's frame budget) makes it
+    grow, doubling at most up to ``max_capacity``, so even a hostile bus's
+    frames are all logged. Only beyond that are frames counted in
+    :attr:`dropped` and not stored (the record says how many).
 
     Parameters
     ----------
     capacity : int
-        Frames to allocate; frames beyond it are counted, not stored.
+        Frames to allocate at first.
+    max_capacity : int, optional
+        The most frames it grows to (default: ``capacity``, no growth).
     """
 
-    def __init__(self, capacity: int) -> None:
-        self.capacity = capacity
-        self.t_s = np.zeros(capacity)
-        self.can_id = np.zeros(capacity, dtype=np.uint16)
-        self.dlc = np.zeros(capacity, dtype=np.uint8)
-        self._raw = bytearray(capacity * 8)  # payloads, 8 bytes a frame; filled by slice assignment
-        self.data = np.frombuffer(self._raw, dtype=np.uint8).reshape(capacity, 8)
-        self.rx = np.zeros(capacity, dtype=bool)
+    def __init__(self, capacity: int, max_capacity: int | None = None) -> None:
+        self.capacity = 0
+        self.max_capacity = max(capacity, max_capacity or capacity)
+        self.t_s = np.zeros(0)
+        self.can_id = np.zeros(0, dtype=np.uint32)  # 29-bit extended ids too
+        self.dlc = np.zeros(0, dtype=np.uint8)
+        self._raw = bytearray()  # payloads, 8 bytes a frame; filled by slice assignment
+        self.data = np.zeros((0, 8), dtype=np.uint8)
+        self.rx = np.zeros(0, dtype=bool)
+        self.flags = np.zeros(0, dtype=np.uint8)  # FRAME_EXTENDED | FRAME_REMOTE | FRAME_ERROR | FRAME_TRUNCATED
         self.count = 0
         self.dropped = 0
         #: Unix time of clock time 0, so logs carry absolute timestamps (set by the loop when its clock starts)
         self.origin_unix_s = 0.0
+        self._grow(capacity)
 
-    def add(self, t_s: float, can_id: int, data: bytes | bytearray, rx: bool) -> None:
-        """Store one frame."""
+    def _grow(self, capacity: int) -> None:
+        n = self.count
+        for name in ("t_s", "can_id", "dlc", "rx", "flags"):
+            old = getattr(self, name)
+            new = np.zeros(capacity, dtype=old.dtype)
+            new[:n] = old[:n]
+            setattr(self, name, new)
+        self._raw = self._raw + bytearray(8 * (capacity - self.capacity))
+        self.data = np.frombuffer(self._raw, dtype=np.uint8).reshape(capacity, 8)
+        self.capacity = capacity
+
+    def add(self, t_s: float, can_id: int, data: bytes | bytearray, rx: bool, flags: int = 0) -> None:
+        """Store one frame (a payload beyond 8 bytes, CAN FD, is cut to 8 and flagged FRAME_TRUNCATED)."""
         n = self.count
         if n >= self.capacity:
-            self.dropped += 1
-            return
+            if self.capacity >= self.max_capacity:
+                self.dropped += 1
+                return
+            self._grow(min(2 * self.capacity, self.max_capacity))  # rare: a bus busier than planned
         self.t_s[n] = t_s
         self.can_id[n] = can_id
         length = len(data)
+        if length > 8:
+            data, length, flags = data[:8], 8, flags | FRAME_TRUNCATED
         self.dlc[n] = length
         self._raw[8 * n : 8 * n + length] = data
         self.rx[n] = rx
+        self.flags[n] = flags
         self.count = n + 1

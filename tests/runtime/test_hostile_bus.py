@@ -1,0 +1,321 @@
+"""A hostile or broken bus costs neither the record nor the rig's safety (#13).
+
+The bench runs its real slcan path (python-can's slcan bus through
+``BufferedSlcanBus``, pyserial's ``socket://``, a loopback TCP connection)
+against the simulated rig in simulated time (``SlcanSocketRig``), which
+misbehaves at ``FAULT_AT_S``: drops the connection, sends bytes that are not
+ASCII, extended frames, damaged lines, another host's BENCH_CMD. Each test
+checks the record on disk is complete and, where the test must end, that
+SAFE followed the detection within 20 ms (or the rig's watchdog acted where
+the bus is gone).
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+
+from edc_bench.bench import BenchResult, run_bench_test
+from edc_bench.config import load_variant, with_changes
+from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.physics.valve import parse_valve_spec
+from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Mode, default_icd
+from edc_bench.records.record import write_record
+from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, open_bus
+from edc_bench.runtime.clock import SimulatedClock
+from edc_bench.runtime.loop import FOREIGN_COMMAND_REASON
+from edc_bench.runtime.trace import FRAME_EXTENDED, CanFrameLog
+from edc_bench.sim.rig import SimulatedRig
+from edc_bench.testing.slcan_rig import SlcanSocketRig
+from helpers import check_safe_and_complete
+
+FAULT_AT_S = 2.5
+SHORT_S = 8.0  # tests that must run to their end (too short to converge: they end INVALID "not converged")
+
+
+def _variant(duration_s: float = 30.0):
+    return with_changes(load_variant(), {"excitation": {"duration_s": duration_s}}, "test")
+
+
+def run_over_slcan(link_action, duration_s: float = 30.0, valve: str = "worn") -> tuple[BenchResult, SimulatedRig,
+                                                                                          ClosingBus]:
+    """One test over a real slcan socket; ``link_action(link)`` schedules the misbehaviour."""
+    variant = _variant(duration_s)
+    rig = SimulatedRig(variant, parse_valve_spec(valve, variant), 1)
+    link = SlcanSocketRig(rig)
+    session = ClosingBus(open_bus({"interface": "slcan", "channel": link.channel}, default_icd().bitrate))
+    with session as bus:
+        link.accept()
+        link_action(link)
+        clock = SimulatedClock(link)
+        result = run_bench_test(bus, clock, variant, check_gains=False)
+    rig.advance_to(clock.now_s() + 0.025)  # 25 ms after the bench's last word: the watchdog has acted
+    return result, rig, session
+
+
+def _record(result: BenchResult, tmp_path: Path) -> tuple[dict, Path]:
+    folder = write_record(result, tmp_path, figure=False)
+    return json.loads((folder / "record.json").read_text()), folder
+
+
+def _safe_within_20_ms(result: BenchResult) -> float:
+    """Seconds from the abort's detection to the first SAFE the bench sent after it."""
+    outcome, frames, icd = result.outcome, result.frames, default_icd()
+    detected = outcome.ticks_start_s + outcome.abort_time_s
+    for k in range(frames.count):
+        if (not frames.rx[k] and frames.can_id[k] == BENCH_CMD_ID and frames.t_s[k] >= detected
+                and icd.parse_bench_cmd(bytes(frames.data[k])).mode == Mode.SAFE):
+            return float(frames.t_s[k] - detected)
+    raise AssertionError("no SAFE command after the abort")
+
+
+def ran_to_the_end(result: BenchResult) -> bool:
+    """Not aborted, every reply in time, SAFE confirmed at the end."""
+    outcome = result.outcome
+    return (outcome.abort_reason is None and outcome.missed_replies == 0 and outcome.safe_confirmed
+            and outcome.ticks_run == outcome.ticks_planned)
+
+
+def test_a_clean_slcan_run_goes_to_its_end() -> None:
+    """The harness itself: no misbehaviour, every reply matched."""
+    result, rig, session = run_over_slcan(lambda link: None, SHORT_S)
+    assert ran_to_the_end(result) and result.outcome.bus_bad_lines == 0
+    assert session.close_error is None
+
+
+def test_tcp_disconnect_mid_test_keeps_the_record_and_the_rig_is_safe(tmp_path: Path) -> None:
+    """Defect 1: leaving the bus context after the connection died raised, and the record was never written."""
+    result, rig, session = run_over_slcan(lambda link: link.at(FAULT_AT_S, link.disconnect))
+    assert result.outcome.abort_reason.startswith("bus error: CanOperationError"), result.outcome.abort_reason
+    assert session.close_error is not None  # closing the dead connection failed, and was only noted
+    check_safe_and_complete(result, rig, tmp_path)  # the rig's watchdog put it at 0 V: the bus is gone
+    assert result.outcome.ticks_run == pytest.approx(FAULT_AT_S * 1000 - 200, abs=60)
+
+
+def test_a_byte_that_is_not_ascii_is_skipped_not_fatal(tmp_path: Path) -> None:
+    """Defect 2: one non-UTF-8 byte ended the test and then the safe stop; now the line is counted and skipped."""
+    junk = [b"\xff\xfe\r", b"t1\xff18\x00\x01\r", b"\x80" * 100]
+
+    def act(link: SlcanSocketRig) -> None:
+        for n, data in enumerate(junk):
+            link.at(FAULT_AT_S + 0.1 * n, lambda data=data: link.write(data))
+
+    result, _, _ = run_over_slcan(act, SHORT_S)
+    assert ran_to_the_end(result) and result.outcome.bus_bad_lines == 3
+    doc, _ = _record(result, tmp_path)
+    assert doc["loop"]["bus_bad_lines"] == 3 and "\\xff" in doc["loop"]["bus_bad_line_samples"][0]
+
+
+def test_extended_ids_and_damaged_lines_are_logged_or_counted_never_taken_for_replies(tmp_path: Path) -> None:
+    """Defect 3: a 29-bit id overflowed the frame log, a bad hex digit raised in python-can's parser."""
+    icd = default_icd()
+    # a perfect RIG_FEEDBACK payload, but in an extended frame: another protocol's frame, never a reply
+    forged = icd.make_rig_feedback(0, amp_enabled=True, watchdog_tripped=False, over_current=False, lvdt_fault=False,
+                                   travel_limit=False, position_mm=9.0, current_a=0.5)
+    damaged = [b"tZZZ8\r", b"t12\r", b"t1218" + b"00" * 8 + b"FF\r", b"t-208" + b"00" * 8 + b"\r",
+               b"t_12800\r", b"t8001" + b"00\r", b"T200000001" + b"00\r"]
+
+    def act(link: SlcanSocketRig) -> None:
+        link.at(FAULT_AT_S, lambda: link.write_frame(0x1ABCDEF0, b"\x01\x02\x03", extended=True))
+        link.at(FAULT_AT_S + 0.05, lambda: link.write_frame(RIG_FEEDBACK_ID, forged, extended=True))
+        link.at(FAULT_AT_S + 0.1, lambda: [link.write(line) for line in damaged])
+
+    result, _, _ = run_over_slcan(act, SHORT_S)
+    outcome = result.outcome
+    assert ran_to_the_end(result)
+    assert outcome.bus_bad_lines == len(damaged)
+    assert outcome.other_frames == 2
+    frames = result.frames
+    extended = [k for k in range(frames.count) if frames.flags[k] & FRAME_EXTENDED]
+    assert [int(frames.can_id[k]) for k in extended] == [0x1ABCDEF0, RIG_FEEDBACK_ID]
+    doc, folder = _record(result, tmp_path)
+    logged = [m for m in can.LogReader(str(folder / "can.log")) if m.is_extended_id]
+    assert [(m.arbitration_id, bytes(m.data)) for m in logged] == [(0x1ABCDEF0, b"\x01\x02\x03"),
+                                                                  (RIG_FEEDBACK_ID, bytes(forged))]
+    assert doc["loop"]["other_frames"] == 2
+
+
+def test_another_hosts_command_ends_the_test_with_safe(tmp_path: Path) -> None:
+    """Defect 8, the bench's side: a second host sending BENCH_CMD on the bus is detected; SAFE within 20 ms."""
+    intruder = default_icd().make_bench_cmd(7, Mode.RUN, 3.0, 10.0)
+    result, rig, _ = run_over_slcan(lambda link: link.at(FAULT_AT_S, lambda: link.write_frame(BENCH_CMD_ID,
+                                                                                                intruder)))
+    assert result.outcome.abort_reason == FOREIGN_COMMAND_REASON
+    assert _safe_within_20_ms(result) <= 0.020
+    assert result.outcome.safe_confirmed
+    check_safe_and_complete(result, rig, tmp_path)
+
+
+def test_another_hosts_test_is_never_broken_into(tmp_path: Path) -> None:
+    """A rig another host is driving when this bench starts: no SAFE of ours, one clear reason."""
+    intruder = default_icd().make_bench_cmd(7, Mode.RUN, 3.0, 10.0)
+    result, _, _ = run_over_slcan(lambda link: link.at(0.05, lambda: link.write_frame(BENCH_CMD_ID, intruder)))
+    assert result.outcome.abort_reason == FOREIGN_COMMAND_REASON
+    sent = [k for k in range(result.frames.count) if not result.frames.rx[k]]
+    assert sent == []  # the bench never sent a frame into the other host's test
+    doc, _ = _record(result, tmp_path)
+    assert doc["verdict"] == Verdict.INVALID and any("no SAFE sent" in e for e in doc["loop"]["events"])
+
+
+def test_an_interface_echoing_our_own_commands_is_not_another_host() -> None:
+    """Some interfaces deliver the bench's own frames back (receive_own_messages): not a second host."""
+
+    class EchoBus(BufferedSlcanBus):
+        def send(self, msg: can.Message, timeout: float | None = None) -> None:
+            super().send(msg, timeout)
+            self._echo.append(msg)
+
+        def _recv_internal(self, timeout):
+            if self._echo:
+                return self._echo.pop(0), False
+            return super()._recv_internal(timeout)
+
+    variant = _variant(SHORT_S)
+    rig = SimulatedRig(variant, parse_valve_spec("new", variant), 1)
+    link = SlcanSocketRig(rig)
+    EchoBus._echo = []
+    with ClosingBus(EchoBus(link.channel, bitrate=500000, sleep_after_open=0)) as bus:
+        link.accept()
+        result = run_bench_test(bus, SimulatedClock(link), variant, check_gains=False, classify=False)
+    assert result.outcome.abort_reason is None, result.outcome.abort_reason
+
+
+# -- defect 4: a full disk --------------------------------------------------------------------------------------
+
+
+@pytest.fixture()
+def disk_full_after(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
+    """The CAN-log streamer's writes fail with ENOSPC once the test's clock passes FAULT_AT_S."""
+    from edc_bench.records import stream
+
+    calls = [0]
+    original = stream.StreamingCanLog._flush_new
+
+    def flush(self) -> None:
+        if self.frames.count and self.frames.t_s[self.frames.count - 1] > FAULT_AT_S:
+            calls[0] += 1
+            raise OSError(errno.ENOSPC, "No space left on device")
+        original(self)
+
+    monkeypatch.setattr(stream.StreamingCanLog, "_flush_new", flush)
+    yield calls
+
+
+def test_a_full_disk_while_streaming_costs_neither_the_verdict_nor_the_log(tmp_path: Path, disk_full_after,
+                                                                          simulated_bench) -> None:
+    """Defect 4: ENOSPC in the CAN-log streamer escaped as a thread traceback and the result was lost."""
+    variant = _variant(SHORT_S)
+    bench, clock, _ = simulated_bench(variant, "worn", 1)
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    # the streamer writes every 0.1 s of wall-clock time, and once more at the end: past FAULT_AT_S either fails
+    result = run_bench_test(bench, clock, variant, check_gains=False, stream_can_log=lambda: folder / "can.log")
+    assert disk_full_after[0] >= 1
+    assert ran_to_the_end(result) and result.can_log_path is None
+    assert any("can.log could not be streamed" in e and "No space left" in e for e in result.outcome.events)
+    # the disk has room again when the record is written: the log is rewritten whole from memory
+    write_record(result, tmp_path, figure=False, folder=folder)
+    assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
+
+
+# -- defect 6: the CAN log's capacity ------------------------------------------------------------------------------
+
+
+def test_a_busy_bus_is_logged_whole(tmp_path: Path) -> None:
+    """Defect 6: frames beyond the preallocated log were counted and silently lost; now it grows."""
+
+    def chatter(link: SlcanSocketRig) -> None:  # another node sends two frames every millisecond
+        for k in range(int(SHORT_S * 1000)):
+            link.at(0.3 + k * 1e-3, lambda k=k: (link.write_frame(0x300, k.to_bytes(4, "little")),
+                                                  link.write_frame(0x301, b"")))
+
+    result, _, _ = run_over_slcan(chatter, SHORT_S, valve="new")
+    frames, outcome = result.frames, result.outcome
+    assert ran_to_the_end(result) and outcome.frames_dropped == 0
+    planned = 2 * int(SHORT_S * 1000) + int(SHORT_S * 1000) // 50 + 4096
+    assert frames.count > planned  # beyond the first allocation
+    assert outcome.other_frames > 14000  # two a millisecond from 0.3 s until the test ended
+    doc, folder = _record(result, tmp_path)
+    assert len(list(can.LogReader(str(folder / "can.log")))) == frames.count
+    assert doc["loop"]["frames_dropped"] == 0
+
+
+def test_frames_beyond_the_log_maximum_are_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   simulated_bench) -> None:
+    from edc_bench.runtime import loop as loop_module
+
+    monkeypatch.setattr(loop_module, "CanFrameLog", lambda capacity, max_capacity: CanFrameLog(1000, 3000))
+    variant = _variant(SHORT_S)
+    bench, clock, _ = simulated_bench(variant, "worn", 1)
+    result = run_bench_test(bench, clock, variant, check_gains=False)
+    assert result.frames.count == 3000 and result.outcome.frames_dropped > 10000
+    doc, _ = _record(result, tmp_path)
+    assert doc["loop"]["frames_dropped"] == result.outcome.frames_dropped
+    assert any(f"{result.outcome.frames_dropped} frames after the first 3000" in e for e in doc["loop"]["events"])
+
+
+def test_frame_log_grows_by_doubling_up_to_its_maximum() -> None:
+    log = CanFrameLog(4, 10)
+    for n in range(13):
+        log.add(n * 1e-3, 0x1FFFFFFF if n % 2 else n, bytes([n]) * (n % 9), rx=bool(n % 2), flags=n % 2)
+    assert (log.count, log.capacity, log.dropped) == (10, 10, 3)
+    assert list(log.can_id[:4]) == [0, 0x1FFFFFFF, 2, 0x1FFFFFFF]
+    assert bytes(log.data[8, :8]) == bytes([8]) * 8 and log.dlc[3] == 3
+    log.add(0.0, 1, bytes(range(64)), rx=True)  # CAN FD: cut to 8, flagged
+    assert log.dropped == 4
+
+
+def test_sent_frames_carry_the_time_they_were_sent(simulated_bench) -> None:
+    """Defect 6, second part: a command is stamped when it went out, not when it was due."""
+    from edc_bench.runtime.clock import Clock
+
+    class SlowSendClock(Clock):
+        """Simulated time in which replies are waited for and every send takes 0.3 ms."""
+
+        waits_for_replies = True
+
+        def __init__(self, inner: SimulatedClock) -> None:
+            self.inner = inner
+
+        def now_s(self) -> float:
+            return self.inner.now_s()
+
+        def wait_until(self, t_s: float) -> float:
+            late = max(0.0, self.inner.now_s() - t_s)
+            self.inner.wait_until(t_s)
+            return late
+
+        def after_send(self, t_s: float) -> None:
+            self.inner.after_send(t_s)
+
+    class SlowBus(can.BusABC):
+        def __init__(self, inner, clock) -> None:
+            self.inner, self.clock = inner, clock
+            super().__init__(channel="slow")
+
+        def send(self, msg, timeout=None) -> None:
+            self.inner.send(msg, timeout)
+            self.clock.wait_until(self.clock.now_s() + 0.0003)
+
+        def recv(self, timeout=None):
+            return self.inner.recv(0.0)  # lockstep: what is there is there, no wall-clock wait
+
+        def _recv_internal(self, timeout):
+            return self.inner.recv(0.0), False
+
+    variant = _variant(SHORT_S)
+    bench, inner, _ = simulated_bench(variant, "new", 1)
+    clock = SlowSendClock(inner)
+    result = run_bench_test(SlowBus(bench, inner), clock, variant, check_gains=False, classify=False)
+    frames, start = result.frames, result.outcome.ticks_start_s
+    icd = default_icd()
+    run_times = [float(frames.t_s[k]) for k in range(frames.count) if not frames.rx[k]
+                 and icd.parse_bench_cmd(bytes(frames.data[k])).mode == Mode.RUN]
+    scheduled = [start + k * 1e-3 for k in range(len(run_times))]
+    offsets = [t - s for t, s in zip(run_times, scheduled, strict=True)]
+    assert min(offsets) >= 0.0003 - 1e-9  # the stamp is after the send returned
