@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.errors import ConfigError
+from edc_bench.protocol.icd import BENCH_CMD_ID
 from edc_bench.records.writer import CAN_LOG_FILE, LEGACY_TRACE_FILE, RECORD_FILE, TRACE_FILE
 
 #: A frame read back from a CAN log: time (s), CAN id, payload.
@@ -96,8 +97,11 @@ def read_can_log(path: Path) -> list[LoggedFrame]:
             raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log (not an MDF 4 file)")
     try:
         with can.LogReader(str(path)) as reader:
-            frames = [(float(m.timestamp), int(m.arbitration_id), bytes(m.data))
-                      for m in reader if not m.is_error_frame and not m.is_remote_frame]
+            # the ICD's frames are standard data frames: extended, remote and error frames are other traffic
+            messages = [m for m in reader if not (m.is_error_frame or m.is_remote_frame or m.is_extended_id)]
+        if any(not m.is_rx for m in messages):  # a log that records directions: a BENCH_CMD read is another host's
+            messages = [m for m in messages if not (m.is_rx and m.arbitration_id == BENCH_CMD_ID)]
+        frames = [(float(m.timestamp), int(m.arbitration_id), bytes(m.data)) for m in messages]
     except Exception as exc:  # noqa: BLE001 - each format's reader raises its own error types on a bad file
         raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log "
                           f"({type(exc).__name__}: {exc})") from None
