@@ -34,6 +34,8 @@ from edc_bench.protocol import (
 
 FW_MAJOR = 1
 FW_MINOR = 0
+#: the Mode values the ICD defines (DBC: 0 SAFE, 1 RUN); any other is an invalid frame, never a command
+DEFINED_MODES = frozenset(int(mode) for mode in Mode)
 
 Frame = tuple[int, bytes]
 """An outgoing CAN frame: (arbitration id, payload)."""
@@ -98,6 +100,7 @@ class FirmwareCounters:
     accepted: int = 0
     bad_crc: int = 0
     bad_length: int = 0
+    bad_mode: int = 0
     repeated_counter: int = 0
     stale_counter: int = 0
     ignored_in_boot: int = 0
@@ -163,11 +166,33 @@ class RigFirmware:
         if now_s >= self._next_heartbeat_s:
             if self.heartbeat_enabled:
                 out.append(self._heartbeat())
-            period = self.limits.heartbeat_period_s
             # keep the 10 Hz grid; skip missed beats rather than bursting them
-            missed = math.floor((now_s - self._next_heartbeat_s) / period)
-            self._next_heartbeat_s += (missed + 1) * period
+            self._next_heartbeat_s = self._heartbeat_after(now_s)
         return out
+
+    def skip_missed_heartbeats(self, now_s: float) -> None:
+        """Tell the firmware its main loop was held up until ``now_s``.
+
+        A caller that runs the timers deadline by deadline (the simulated rig
+        catching up on lost time) would otherwise send every periodic
+        heartbeat missed meanwhile in one burst. After this, at most one is
+        still due by ``now_s`` (the latest on the grid), and the next one
+        after it falls on the grid again. Other timers are untouched: the
+        watchdog still trips when it was due.
+
+        Parameters
+        ----------
+        now_s : float
+            The time the main loop resumes.
+        """
+        if now_s >= self._next_heartbeat_s + self.limits.heartbeat_period_s:
+            self._next_heartbeat_s = self._heartbeat_after(now_s) - self.limits.heartbeat_period_s
+
+    def _heartbeat_after(self, now_s: float) -> float:
+        """The first heartbeat time on the grid from power-up later than ``now_s``."""
+        period = self.limits.heartbeat_period_s
+        missed = math.floor((now_s - self._next_heartbeat_s) / period)
+        return self._next_heartbeat_s + (missed + 1) * period
 
     # -- frames ----------------------------------------------------------------
     def on_frame(self, can_id: int, data: bytes | bytearray, now_s: float) -> list[Frame]:
@@ -197,6 +222,9 @@ class RigFirmware:
             return []
         except ProtocolError:
             self.counters.bad_length += 1
+            return []
+        if cmd.mode not in DEFINED_MODES:  # the ICD defines SAFE and RUN only: any other Mode is an invalid frame
+            self.counters.bad_mode += 1
             return []
         if self.state is RigState.BOOT:
             self.counters.ignored_in_boot += 1

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState
+from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState, e2e_crc
 from firmware_proto.firmware import FirmwareLimits, RigFirmware
 
 
@@ -232,3 +232,41 @@ def test_other_ids_are_ignored(rig: Harness, icd: Icd) -> None:
     ready(rig)
     assert rig.fw.on_frame(0x121, icd.make_bench_cmd(1, Mode.RUN, 3.0, 10.0), rig.t) == []
     assert rig.hw.drive_v == 0.0
+
+
+def _with_mode(icd: Icd, counter: int, mode: int, drive_v: float) -> bytes:
+    """A BENCH_CMD payload with any Mode byte and a correct CRC (make_bench_cmd keeps to the DBC's 0..1)."""
+    payload = bytearray(icd.make_bench_cmd(counter, Mode.RUN, drive_v, 10.0))
+    payload[2] = mode
+    payload[0] = e2e_crc(icd.bench_cmd_data_id, bytes(payload))
+    return bytes(payload)
+
+
+@pytest.mark.parametrize("mode", [2, 3, 0x80, 255])
+def test_undefined_mode_is_ignored_and_counted_like_a_bad_crc(rig: Harness, icd: Icd, mode: int) -> None:
+    ready(rig)
+    assert rig.send(Mode.RUN, payload=_with_mode(icd, 1, mode, 3.0)) == []  # READY: not obeyed as RUN
+    assert rig.hw.drive_v == 0.0 and rig.fw.state is RigState.READY
+    rig.feedback(rig.send(Mode.RUN, 1.0, counter=1))  # its counter was not taken either
+    assert rig.send(Mode.RUN, payload=_with_mode(icd, 2, mode, 3.0)) == []  # RUNNING: no reply, drive kept
+    assert rig.hw.drive_v == 1.0
+    assert rig.fw.counters.bad_mode == 2 and rig.fw.counters.accepted == 1
+    assert rig.fw.next_deadline_s() == pytest.approx(rig.t + LIMITS.watchdog_s)  # it does not feed the watchdog
+
+
+@pytest.mark.parametrize("dlc", [0, 1, 7, 9])
+def test_bench_cmd_of_another_length_is_ignored_and_counted(rig: Harness, icd: Icd, dlc: int) -> None:
+    ready(rig)
+    payload = (icd.make_bench_cmd(1, Mode.RUN, 3.0, 10.0) + b"\x00")[:dlc]
+    assert rig.send(Mode.RUN, payload=payload) == []
+    assert rig.hw.drive_v == 0.0 and rig.fw.counters.bad_length == 1 and rig.fw.counters.accepted == 0
+
+
+def test_a_stalled_main_loop_sends_one_heartbeat_and_keeps_its_grid(rig: Harness) -> None:
+    ready(rig)  # beats due up to 0.2 s sent
+    rig.fw.skip_missed_heartbeats(1.05)  # held up from 0.25 s to 1.05 s: beats at 0.3 ... 1.0 missed
+    assert rig.states(rig.until(1.05)) == [RigState.READY]  # one, not eight
+    assert rig.fw.next_deadline_s() == pytest.approx(1.1)
+    rig.fw.skip_missed_heartbeats(1.1)  # nothing missed: nothing changes
+    assert len(rig.states(rig.until(1.1))) == 1
+    assert rig.fw.next_deadline_s() == pytest.approx(1.2)
