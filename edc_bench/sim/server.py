@@ -13,6 +13,12 @@ With an :class:`~edc_bench.sim.adapter.AdapterModel` (``edc-bench rig
 --adapter usb-fs``) frames are held back as a USB CAN adapter holds them: a
 host's command reaches the rig, and the rig's frames reach the hosts, only
 when the adapter would deliver them.
+
+Hosts are not trusted to behave (docs/simulation.md, "The rig server under
+hostile hosts"): the server never blocks on a host (each has a bounded
+output queue; what does not fit is dropped and counted, as an adapter
+overflows), takes only exactly-formed slcan lines, forwards remote frames as
+remote frames, and lets one host at a time command the rig.
 """
 
 from __future__ import annotations
@@ -27,14 +33,23 @@ import time
 import tty
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
+from edc_bench.protocol import BENCH_CMD_ID, RigState
+from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.sim.slcan import SlcanDevice
 
 _MAX_WAIT_S = 0.05
+#: Bytes queued for a host that does not read before lines for it are dropped: 0.7-1.4 s of a 1 kHz test's
+#: traffic to one host (one or two lines of some 22 bytes a tick), longer than a bench's 300 ms heartbeat rule
+#: tolerates; the kernel's socket buffer comes on top. A USB adapter buffers far less.
+HOST_QUEUE_BYTES = 32768
+#: A rig READY whose owner has sent no BENCH_CMD for this long (s) is free for another host's test.
+OWNER_IDLE_S = 1.0
 
 
 def reduce_timer_slack() -> bool:
@@ -47,15 +62,84 @@ def reduce_timer_slack() -> bool:
         return False
 
 
-class _Host:
-    """One connected host: its byte stream and slcan parser state."""
+@dataclass(frozen=True)
+class HostStats:
+    """What the server counted for one connected host.
 
-    def __init__(self, fd: int, write: Callable[[bytes], None], close: Callable[[], None], name: str) -> None:
-        self.fd = fd
-        self.write = write
+    Attributes
+    ----------
+    name : str
+        The host (peer address, pty path, or the name it was added with).
+    dropped_lines : int
+        Lines for the host dropped because its output queue was full (it did not read).
+    malformed_lines : int
+        Lines from the host answered BEL: malformed, unknown or too long.
+    refused_bench_cmds : int
+        ``BENCH_CMD`` frames refused because another host owned the rig.
+    """
+
+    name: str
+    dropped_lines: int
+    malformed_lines: int
+    refused_bench_cmds: int
+
+
+class _Host:
+    """One connected host: its byte streams, slcan parser state and counters.
+
+    What the server writes to a host goes through a bounded queue and is sent
+    without blocking; lines that do not fit are dropped whole, so the host's
+    stream stays a sequence of complete lines.
+    """
+
+    def __init__(self, fileobj: socket.socket | int, send: Callable[[bytes | bytearray], int],
+                 close: Callable[[], None], name: str, queue_bytes: int) -> None:
+        self.fileobj = fileobj
+        self.fd = fileobj if isinstance(fileobj, int) else fileobj.fileno()
         self.close = close
         self.name = name
         self.device = SlcanDevice()
+        self.pending = bytearray()  # queued for the host, not yet taken by the kernel
+        self.watching_writes = False  # registered for EVENT_WRITE while something is pending
+        self.dropped_lines = 0
+        self.refused_bench_cmds = 0
+        self.told_full = False  # a full queue and a refusal are logged once per host
+        self.told_refused = False
+        self.last_bench_cmd_s = -math.inf
+        self._send = send
+        self._queue_bytes = queue_bytes
+        self._broken = False
+
+    def queue(self, data: bytes) -> bool:
+        """Queue whole lines for the host and send what the kernel takes now; False if they were dropped."""
+        if self._broken:
+            return True  # a vanished host is noticed on its next read
+        if len(self.pending) + len(data) > self._queue_bytes:
+            self.dropped_lines += data.count(b"\r") + data.count(b"\a")
+            self.device.overrun = True  # the host can read it from its status flags (F)
+            return False
+        waiting = bool(self.pending)
+        self.pending += data
+        if not waiting:  # else the selector says when the host takes more
+            self.flush()
+        return True
+
+    def flush(self) -> None:
+        """Send what the kernel takes without blocking."""
+        while self.pending:
+            try:
+                sent = self._send(self.pending)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                self._broken = True
+                self.pending.clear()
+                return
+            del self.pending[:sent]
+
+    def stats(self) -> HostStats:
+        """The host's counters."""
+        return HostStats(self.name, self.dropped_lines, self.device.errors, self.refused_bench_cmds)
 
 
 class SlcanRigServer:
@@ -68,11 +152,18 @@ class SlcanRigServer:
     clock_s : callable, optional
         Monotonic clock in seconds (``time.perf_counter`` by default).
     log : callable, optional
-        Receives one line per connection event.
+        Receives one line per connection event, and once per host for a
+        host that does not read or whose ``BENCH_CMD`` is refused.
+    adapter : AdapterModel, optional
+        The CAN adapter's timing between hosts and rig; instant by default.
+    host_queue_bytes : int, optional
+        Bytes queued for a host that does not take them before further lines
+        for it are dropped (:data:`HOST_QUEUE_BYTES` by default).
     """
 
     def __init__(self, rig: SimulatedRig, clock_s: Callable[[], float] = time.perf_counter,
-                 log: Callable[[str], None] | None = None, adapter: AdapterModel | None = None) -> None:
+                 log: Callable[[str], None] | None = None, adapter: AdapterModel | None = None,
+                 host_queue_bytes: int = HOST_QUEUE_BYTES) -> None:
         self.rig = rig
         self.adapter = adapter or AdapterModel()
         self._rng = np.random.default_rng([rig.seed, 0xADA])
@@ -83,9 +174,12 @@ class SlcanRigServer:
         self.worst_gap_s = 0.0
         self._clock = clock_s
         self._log = log or (lambda line: None)
+        self._host_queue_bytes = host_queue_bytes
         self._selector = selectors.DefaultSelector()
         self._hosts: dict[int, _Host] = {}
+        self._owner: _Host | None = None  # the host whose BENCH_CMDs reach the rig
         self._t0 = 0.0
+        self._last_s: float | None = None  # when the last pass began
         self._stop = False
         #: Busy-poll while a host is connected (real-time fidelity at the cost of a core).
         self.poll_while_connected = True
@@ -93,6 +187,10 @@ class SlcanRigServer:
     def stop(self) -> None:
         """Ask :meth:`serve_forever` to return (safe to call from a signal handler)."""
         self._stop = True
+
+    def host_stats(self) -> list[HostStats]:
+        """What the server counted for each connected host (dropped, malformed, refused)."""
+        return [host.stats() for host in self._hosts.values()]
 
     def _now(self) -> float:
         return self._clock() - self._t0
@@ -114,25 +212,47 @@ class SlcanRigServer:
         path = os.ttyname(slave)
         # keep the slave open so the master does not see EOF between hosts
         self._pty_slave = slave
-        host = _Host(master, lambda data: _write_all(master, data), lambda: None, path)
-        self._hosts[master] = host
-        self._selector.register(master, selectors.EVENT_READ, ("host", host))
+        self._add(_Host(master, lambda data: os.write(master, data), lambda: None, path, self._host_queue_bytes))
         return path
 
     def _accept(self, server: socket.socket) -> None:
         conn, peer = server.accept()
-        conn.setblocking(True)
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        fd = conn.fileno()
+        self.add_host(conn, f"{peer[0]}:{peer[1]}")
+
+    def add_host(self, conn: socket.socket, name: str) -> None:
+        """Serve a host on a connected stream socket (an accepted connection, or one end of a socketpair).
+
+        Parameters
+        ----------
+        conn : socket.socket
+            The connection; the server makes it non-blocking and closes it when the host goes.
+        name : str
+            The host's name in the log and in :meth:`host_stats`.
+        """
+        conn.setblocking(False)  # a host that does not read must never hold up the loop
 
         def close() -> None:
             self._selector.unregister(conn)
             conn.close()
 
-        host = _Host(fd, conn.sendall, close, f"{peer[0]}:{peer[1]}")
-        self._hosts[fd] = host
-        self._selector.register(conn, selectors.EVENT_READ, ("host", host))
-        self._log(f"host connected: {host.name}")
+        self._add(_Host(conn, conn.send, close, name, self._host_queue_bytes))
+        self._log(f"host connected: {name}")
+
+    def _add(self, host: _Host) -> None:
+        self._hosts[host.fd] = host
+        self._selector.register(host.fileobj, selectors.EVENT_READ, ("host", host))
+
+    def _remove(self, host: _Host) -> None:
+        counts = host.stats()
+        noted = [f"{n} {what}" for n, what in ((counts.dropped_lines, "lines dropped"),
+                                                (counts.malformed_lines, "lines refused"),
+                                                (counts.refused_bench_cmds, "BENCH_CMD refused")) if n]
+        self._log(f"host disconnected: {host.name}" + (f" ({', '.join(noted)})" if noted else ""))
+        if self._owner is host:
+            self._owner = None  # the rig is free for the next host at once
+        del self._hosts[host.fd]
+        host.close()
 
     def _read(self, host: _Host) -> None:
         try:
@@ -142,26 +262,57 @@ class SlcanRigServer:
         except OSError:
             data = b""
         if not data:
-            self._log(f"host disconnected: {host.name}")
-            del self._hosts[host.fd]
-            host.close()
+            self._remove(host)
             return
-        frames, reply = host.device.feed(data)
+        now = self._now()
+        frames, reply = host.device.feed(data, admit=lambda frame: self._admit(host, frame, now))
         if reply:
-            self._safe_write(host, reply)
+            self._write(host, reply)
         for frame in frames:
-            now = self._now()
-            # other hosts on the bus see the frame too
-            self._broadcast(SlcanDevice.format_frame(frame.can_id, frame.data, frame.extended), exclude=host)
-            if frame.extended or frame.remote:
-                continue
-            if self.adapter.is_instant:
-                for can_id, data_out in self.rig.receive(frame.can_id, frame.data, now):
-                    self._broadcast(SlcanDevice.format_frame(can_id, data_out))
-            else:
-                self._last_to_rig = self.adapter.delivery_s(now, self._rng, self._last_to_rig)
-                self._to_rig.append((self._last_to_rig, frame.can_id, bytes(frame.data)))
+            self._on_bus(host, frame, now)
 
+    def _on_bus(self, sender: _Host, frame: SlcanFrame, now: float) -> None:
+        """A frame a host put on the bus: the other hosts see it, the rig gets it."""
+        self._broadcast(format_frame_line(frame), exclude=sender)  # a remote frame stays one, with its DLC
+        if frame.extended or frame.remote:
+            return  # the rig's ICD has standard data frames only
+        if self.adapter.is_instant:
+            self._from_rig(self.rig.receive(frame.can_id, frame.data, now), now)
+        else:
+            self._last_to_rig = self.adapter.delivery_s(now, self._rng, self._last_to_rig)
+            self._to_rig.append((self._last_to_rig, frame.can_id, bytes(frame.data)))
+
+    # -- who commands the rig --------------------------------------------------
+    def _admit(self, host: _Host, frame: SlcanFrame, now: float) -> bool:
+        """Whether a host's frame goes on the bus: a ``BENCH_CMD`` only from the host that owns the rig.
+
+        The first host to send a ``BENCH_CMD`` owns the rig until it disconnects, or until its test is over
+        (:meth:`_owner_is_done`); another host's ``BENCH_CMD`` is answered BEL and reaches nobody.
+        """
+        if frame.can_id != BENCH_CMD_ID or frame.extended or frame.remote:
+            return True
+        owner = self._owner
+        if owner is not None and owner is not host and not self._owner_is_done(owner, now):
+            host.refused_bench_cmds += 1
+            if not host.told_refused:
+                host.told_refused = True
+                self._log(f"host {host.name}: BENCH_CMD refused, the rig is owned by {owner.name}")
+            return False
+        if owner is not host:
+            self._owner = host
+            self._log(f"host {host.name}: owns the rig")
+        host.last_bench_cmd_s = now
+        return True
+
+    def _owner_is_done(self, owner: _Host, now: float) -> bool:
+        """The owner's test is over: the rig READY (amplifier off) and no ``BENCH_CMD`` from it for a while.
+
+        Only a SAFE command brings a rig that ran back to READY, so READY with the owner quiet for
+        :data:`OWNER_IDLE_S` is a finished test; a rig left RUNNING or in FAULT stays its owner's.
+        """
+        return self.rig.firmware.state is RigState.READY and now - owner.last_bench_cmd_s >= OWNER_IDLE_S
+
+    # -- to the hosts ----------------------------------------------------------
     def _from_rig(self, frames: list[tuple[int, bytes]], at_s: float) -> None:
         """Frames the rig sent at ``at_s``: to the hosts now, or when the adapter delivers them."""
         for can_id, data in frames:
@@ -180,16 +331,39 @@ class SlcanRigServer:
         while self._to_hosts and self._to_hosts[0][0] <= now:
             self._broadcast(self._to_hosts.popleft()[1])
 
-    def _safe_write(self, host: _Host, data: bytes) -> None:
-        try:
-            host.write(data)
-        except OSError:
-            pass  # a vanished host is noticed on its next read
+    def _write(self, host: _Host, data: bytes) -> None:
+        """Queue whole lines for a host; never blocks.
+
+        A host that does not take what it is sent loses frames as a CAN
+        adapter's host does when the adapter's buffer overflows: lines that
+        do not fit its queue are dropped and counted, and its status flags
+        (``F``) report a data overrun. It is not disconnected: a host that was
+        only held up (a VM stall, a debugger, a pause) reads on, sees the gaps
+        (counters, heartbeats) and its own fault rules decide, while the rig
+        and the other hosts go on in real time.
+        """
+        if not host.queue(data) and not host.told_full:
+            host.told_full = True
+            self._log(f"host {host.name}: not reading; output queue full at {self._host_queue_bytes} bytes, "
+                      "dropping its frames as an adapter overflows")
+        self._watch_writes(host)
+
+    def _flush(self, host: _Host) -> None:
+        host.flush()
+        self._watch_writes(host)
+
+    def _watch_writes(self, host: _Host) -> None:
+        """Ask the selector about the host's room to write only while something waits for it."""
+        wanted = bool(host.pending)
+        if wanted != host.watching_writes and host.fd in self._hosts:
+            events = selectors.EVENT_READ | (selectors.EVENT_WRITE if wanted else 0)
+            self._selector.modify(host.fileobj, events, ("host", host))
+            host.watching_writes = wanted
 
     def _broadcast(self, line: bytes, exclude: _Host | None = None) -> None:
         for host in list(self._hosts.values()):
             if host is not exclude and host.device.is_open:
-                self._safe_write(host, line)
+                self._write(host, line)
 
     # -- loop ------------------------------------------------------------------
     def serve_forever(self) -> None:
@@ -200,36 +374,42 @@ class SlcanRigServer:
         gc.collect()
         gc.freeze()  # what exists now is never scanned again: shorter collections
         self._t0 = self._clock()
-        rig = self.rig
-        last_s = self._now()
+        self._last_s = self._now()
         while not self._stop:
-            now = self._now()
-            if self._hosts:
-                self.worst_gap_s = max(self.worst_gap_s, now - last_s)
-            last_s = now
-            self._deliver_due(now)
-            self._from_rig(rig.advance_to(now), now)
-            if self._hosts and self.poll_while_connected:
-                wait_s = 0.0  # poll: a sleeping process on a VM can wake milliseconds late
-            else:
-                wait_s = min(_MAX_WAIT_S, max(0.0, rig.firmware.next_deadline_s() - self._now()))
-            for key, _ in self._selector.select(timeout=wait_s):
-                kind, obj = key.data
-                if kind == "listen":
-                    self._accept(obj)
-                else:
-                    self._read(obj)
+            self.serve_once()
         for host in list(self._hosts.values()):
             host.close()
         self._selector.close()
 
+    def serve_once(self, wait_s: float | None = None) -> None:
+        """One pass of the serve loop: what is due by now, then the sources that are ready.
 
-def _write_all(fd: int, data: bytes) -> None:
-    view = memoryview(data)
-    while view:
-        try:
-            written = os.write(fd, view)
-        except BlockingIOError:
-            time.sleep(0.0001)
-            continue
-        view = view[written:]
+        Parameters
+        ----------
+        wait_s : float, optional
+            The longest to wait for a source (s); by default none while a host is connected (polling), else
+            until the rig's next deadline, at most 50 ms.
+        """
+        rig = self.rig
+        now = self._now()
+        if self._hosts and self._last_s is not None:
+            self.worst_gap_s = max(self.worst_gap_s, now - self._last_s)
+        self._last_s = now
+        # a loop that was held up is a rig that was: one heartbeat on resuming, not a burst of the missed ones
+        rig.firmware.skip_missed_heartbeats(now)
+        self._deliver_due(now)
+        self._from_rig(rig.advance_to(now), now)
+        if wait_s is None:
+            if self._hosts and self.poll_while_connected:
+                wait_s = 0.0  # poll: a sleeping process on a VM can wake milliseconds late
+            else:
+                wait_s = min(_MAX_WAIT_S, max(0.0, rig.firmware.next_deadline_s() - self._now()))
+        for key, events in self._selector.select(timeout=wait_s):
+            kind, obj = key.data
+            if kind == "listen":
+                self._accept(obj)
+                continue
+            if events & selectors.EVENT_WRITE:
+                self._flush(obj)
+            if events & selectors.EVENT_READ and obj.fd in self._hosts:
+                self._read(obj)

@@ -3,25 +3,36 @@
 Enough of it for any slcan host, python-can's ``slcan`` interface included:
 open/close, bitrate, version and serial number, status flags, standard and
 extended data frames, remote frames. Unknown commands answer BEL, as devices do.
+
+Lines are parsed strictly, since whatever the device takes for a frame goes
+on the bus (to the rig, and to every other host). Frame lines are read by
+:func:`edc_bench.protocol.slcan.parse_frame_line`, the rules the bench reads
+an adapter's lines by (exact hex digits, exact lengths, DLC 0-8, ids in
+range, nothing after), so both ends of the link hold to the same rules.
+Commands without an argument take none. Anything else, and any line longer
+than :data:`MAX_LINE`, is answered BEL and counted.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+
+from edc_bench.protocol.slcan import SlcanFrame, format_frame_line, parse_frame_line
+
+__all__ = ["ERROR", "MAX_LINE", "OK", "STATUS_DATA_OVERRUN", "SlcanDevice", "SlcanFrame"]
 
 OK = b"\r"
 ERROR = b"\a"
 MAX_LINE = 64
+#: ``F`` status flag bit 3: frames were lost because the host did not take them (data overrun)
+STATUS_DATA_OVERRUN = 0x08
 
-
-@dataclass(frozen=True)
-class SlcanFrame:
-    """A CAN frame sent by the host."""
-
-    can_id: int
-    data: bytes
-    extended: bool = False
-    remote: bool = False
+_FRAME_KINDS = frozenset(b"tTrR")
+#: commands without an argument and their answers
+_PLAIN_COMMANDS = {b"O": OK, b"L": OK, b"C": OK, b"V": b"V1013\r", b"v": b"v1013\r", b"N": b"NEDC1\r"}
+#: register-level bit timing, acceptance filter: accepted (argument checked), not modelled
+_SETTINGS = {ord("s"): 4, ord("M"): 8, ord("m"): 8}
+_HEX_DIGITS = frozenset(b"0123456789abcdefABCDEF")
 
 
 class SlcanDevice:
@@ -31,19 +42,37 @@ class SlcanDevice:
     ----------
     is_open : bool
         Channel opened with ``O`` (or ``L``) and not closed since.
+    listen_only : bool
+        Opened with ``L``: the host may not transmit.
     bitrate_code : str
         Last ``S`` code set by the host.
+    errors : int
+        Lines answered BEL: malformed, unknown, too long, or a frame while not open.
+    overrun : bool
+        Frames for the host were lost since it last read the status flags (``F``); set by the server.
     """
 
     def __init__(self) -> None:
         self.is_open = False
         self.listen_only = False
         self.bitrate_code = "6"
-        self._buffer = bytearray()
         self.errors = 0
+        self.overrun = False
+        self._buffer = bytearray()
+        self._discarding = False  # inside a line that grew too long: dropped up to its CR
 
-    def feed(self, data: bytes) -> tuple[list[SlcanFrame], bytes]:
+    def feed(self, data: bytes,
+             admit: Callable[[SlcanFrame], bool] | None = None) -> tuple[list[SlcanFrame], bytes]:
         """Process bytes from the host.
+
+        Parameters
+        ----------
+        data : bytes
+            What the host sent, any chunk of its stream.
+        admit : callable, optional
+            Asked about each well-formed frame while the channel is open; a
+            frame it refuses is answered BEL instead of ``z``/``Z`` and not
+            returned.
 
         Returns
         -------
@@ -58,71 +87,66 @@ class SlcanDevice:
         while True:
             end = self._buffer.find(b"\r")
             if end < 0:
-                if len(self._buffer) > MAX_LINE:  # garbage without a terminator
+                if len(self._buffer) > MAX_LINE and not self._discarding:
+                    reply += self._error()  # once per overlong line, however it arrives
+                    self._discarding = True
+                if self._discarding:
                     self._buffer.clear()
-                    self.errors += 1
-                    reply += ERROR
                 break
-            line = bytes(self._buffer[:end]).lstrip(b"\n")
+            line = bytes(self._buffer[:end])
             del self._buffer[: end + 1]
-            answer, frame = self._command(line)
+            if self._discarding:
+                self._discarding = False  # the rest of the overlong line
+                continue
+            if len(line) > MAX_LINE:
+                reply += self._error()
+                continue
+            answer, frame = self._command(line.lstrip(b"\n"))  # LF after CR: hosts ending lines CR LF
+            if frame is not None and admit is not None and not admit(frame):
+                answer, frame = ERROR, None
             reply += answer
             if frame is not None:
                 frames.append(frame)
         return frames, bytes(reply)
 
+    def _error(self) -> bytes:
+        self.errors += 1
+        return ERROR
+
     def _command(self, line: bytes) -> tuple[bytes, SlcanFrame | None]:
         if not line:
             return OK, None
-        op, arg = chr(line[0]), line[1:].decode("ascii", "replace")
-        if op in "tTrR":
-            frame = self._parse_frame(op, arg)
+        op = line[0]
+        if op in _FRAME_KINDS:
+            frame = parse_frame_line(line)
             if frame is None or not self.is_open or self.listen_only:
-                self.errors += 1
-                return ERROR, None
-            return (b"z\r" if op in "tr" else b"Z\r"), frame
-        if op == "O":
-            self.is_open, self.listen_only = True, False
-        elif op == "L":
-            self.is_open, self.listen_only = True, True
-        elif op == "C":
-            self.is_open = False
-        elif op == "S" and len(arg) == 1 and arg in "012345678":
-            self.bitrate_code = arg
-        elif op in "sZMm":
-            pass  # register-level bit timing, timestamps, acceptance filter: accepted, not modelled
-        elif op == "V":
-            return b"V1013\r", None
-        elif op == "v":
-            return b"v1013\r", None
-        elif op == "N":
-            return b"NEDC1\r", None
-        elif op == "F":
-            return b"F00\r", None
-        else:
-            self.errors += 1
-            return ERROR, None
-        return OK, None
+                return self._error(), None
+            return (b"Z\r" if frame.extended else b"z\r"), frame
+        if line in _PLAIN_COMMANDS:
+            self._set_channel(line)
+            return _PLAIN_COMMANDS[line], None
+        if line == b"F":
+            flags, self.overrun = STATUS_DATA_OVERRUN if self.overrun else 0, False  # reading clears them
+            return f"F{flags:02X}\r".encode("ascii"), None
+        if op == ord("S") and len(line) == 2 and ord("0") <= line[1] <= ord("8"):
+            self.bitrate_code = chr(line[1])
+            return OK, None
+        if op == ord("Z") and line[1:] in (b"0", b"1"):
+            return OK, None
+        if op in _SETTINGS and len(line) == 1 + _SETTINGS[op] and all(c in _HEX_DIGITS for c in line[1:]):
+            return OK, None
+        return self._error(), None
 
-    @staticmethod
-    def _parse_frame(op: str, arg: str) -> SlcanFrame | None:
-        id_len = 3 if op in "tr" else 8
-        try:
-            can_id = int(arg[:id_len], 16)
-            dlc = int(arg[id_len])
-            if len(arg) < id_len + 1 or dlc > 8:
-                return None
-            if op in "rR":
-                return SlcanFrame(can_id, bytes(dlc), op == "R", True)
-            hex_data = arg[id_len + 1 : id_len + 1 + 2 * dlc]
-            if len(hex_data) != 2 * dlc:
-                return None
-            return SlcanFrame(can_id, bytes.fromhex(hex_data), op == "T")
-        except (ValueError, IndexError):
-            return None
+    def _set_channel(self, line: bytes) -> None:
+        """Open, listen-only or close, for the commands that change the channel."""
+        if line == b"O":
+            self.is_open, self.listen_only = True, False
+        elif line == b"L":
+            self.is_open, self.listen_only = True, True
+        elif line == b"C":
+            self.is_open = False
 
     @staticmethod
     def format_frame(can_id: int, data: bytes, extended: bool = False) -> bytes:
-        """The line a device sends to the host for a received frame."""
-        head = f"T{can_id:08X}" if extended else f"t{can_id:03X}"
-        return f"{head}{len(data)}{data.hex().upper()}\r".encode("ascii")
+        """The line a device sends to the host for a received data frame."""
+        return format_frame_line(SlcanFrame(can_id, bytes(data), extended))
