@@ -230,6 +230,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         "coulomb_friction_n": rig.plant_params.coulomb_friction_n,
         "damping_n_s_per_mm": rig.plant_params.damping_n_s_per_mm,
         "rig_counters": {"accepted": rig.firmware.counters.accepted, "bad_crc": rig.firmware.counters.bad_crc,
+                         "bad_mode": rig.firmware.counters.bad_mode,
                          "watchdog_trips": rig.firmware.counters.watchdog_trips},
     }
     return result
