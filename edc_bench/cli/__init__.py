@@ -22,20 +22,26 @@ COMMANDS = ("test", "rig", "variants", "tune", "calibrate", "train", "classify",
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every command's subparser."""
     from edc_bench import __version__
+    from edc_bench.cli.common import ArgumentParser
+    from edc_bench.cli.exit_codes import exit_codes_epilog
 
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="edc-bench",
         description="Bench diagnosis of P-EDC solenoid valves over CAN.",
+        epilog="Every command's --help ends with the exit codes it can return (README.md lists them all).",
     )
     parser.add_argument("--version", action="version", version=f"edc-bench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
         importlib.import_module(f"edc_bench.cli.{name.replace('-', '_')}_cmd").add_parser(sub)
+        # built here from exit_codes.py, so no command's help can drift from the codes it returns
+        sub.choices[name].epilog = exit_codes_epilog(name)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``edc-bench``; returns the process exit code."""
+    from edc_bench.cli.common import printable
     from edc_bench.errors import EdcBenchError, RigError
 
     parser = build_parser()
@@ -43,10 +49,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.run(args))
     except RigError as exc:
-        print(f"edc-bench {args.command}: error: {exc}", file=sys.stderr)
+        print(printable(f"edc-bench {args.command}: error: {exc}"), file=sys.stderr)
         return ExitCode.RIG_ERROR
     except EdcBenchError as exc:
-        print(f"edc-bench {args.command}: error: {exc}", file=sys.stderr)
+        print(printable(f"edc-bench {args.command}: error: {exc}"), file=sys.stderr)
         return ExitCode.BAD_INPUT
     except KeyboardInterrupt:
         print(f"edc-bench {args.command}: interrupted", file=sys.stderr)
@@ -61,8 +67,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         import traceback
 
         print(
-            f"edc-bench {args.command}: internal error: {type(exc).__name__}: {exc}\n"
-            "This is a bug in edc-bench; the details below help to fix it.",
+            printable(f"edc-bench {args.command}: internal error: {type(exc).__name__}: {exc}\n"
+                      "This is a bug in edc-bench; the details below help to fix it."),
             file=sys.stderr,
         )
         traceback.print_exc(file=sys.stderr)

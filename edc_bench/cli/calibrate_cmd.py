@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from edc_bench.cli.common import identity, positive_int, seed_number
 from edc_bench.cli.exit_codes import ExitCode
 
 
@@ -20,11 +21,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "mounted; with --valve SPEC on the simulated rig (the full loop, simulated time); with "
                     "neither, on a simulated population of new valves (the shipped baselines). On a rig, "
                     "calibrate valve by valve: mount a known-new valve, run with --append, repeat; each run adds "
-                    "its converged tests to the station's baseline. Exit codes: 0 done, 2 bad input, 3 rig or "
-                    "bus error, 12 no converged test (the reasons are printed), 130 interrupted.",
+                    "its converged tests to the station's baseline. Exit code 12: no converged test (the reasons "
+                    "are printed).",
     )
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (default: p-edc-default)")
-    p.add_argument("--tests", type=int, default=None,
+    p.add_argument("--tests", type=positive_int, default=None,
                    help="tests to run (default: 1 on a rig or with --valve, where each run is one valve; "
                         "20 for a simulated population)")
     how = p.add_mutually_exclusive_group()
@@ -40,16 +41,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--valve", default=None, metavar="SPEC",
                    help="calibrate on the simulated rig with this simulated valve (new, or physical values such as "
                         "clearance=0.09), through the full loop as 'edc-bench test' runs it")
-    p.add_argument("--valve-id", default="", metavar="ID", help="identity of the valve mounted, for the records")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--valve-id", type=identity(drawn=True), default="", metavar="ID",
+                   help="identity of the valve mounted, for the records")
+    p.add_argument("--seed", type=seed_number, default=None,
                    help="seed of the simulated rig's noise or the simulated population (default: 100 plus the "
                         "tests already in the baseline; each test adds its number)")
     p.add_argument("--interface", default=None, help="python-can interface of a real rig")
     p.add_argument("--channel", default=None, help="python-can channel of a real rig")
-    p.add_argument("--bitrate", type=int, default=None, help="CAN bit rate")
+    p.add_argument("--bitrate", type=positive_int, default=None, help="CAN bit rate")
     p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
                    help="folder for the calibration tests' records (default: ./records), as in 'edc-bench test'")
-    p.add_argument("--station", default=None, help="name of this bench station (default: the host name)")
+    p.add_argument("--station", type=identity(drawn=True), default=None,
+                   help="name of this bench station (default: the host name)")
     p.set_defaults(run=run)
 
 
@@ -67,7 +70,7 @@ def _run(args: argparse.Namespace) -> int:
     import socket
 
     from edc_bench import __version__
-    from edc_bench.cli.common import check_output_folder
+    from edc_bench.cli.common import bus_settings, check_output_folder
     from edc_bench.config import load_variant
     from edc_bench.diagnosis.baseline import (
         RECOMMENDED_TESTS,
@@ -79,13 +82,12 @@ def _run(args: argparse.Namespace) -> int:
     from edc_bench.errors import ConfigError
     from edc_bench.records.baseline_text import baseline_line
 
-    rig = bool(args.interface or args.channel)
+    bus = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False)
+    rig = bus is not None
     if rig and args.valve is not None:
         raise ConfigError("--valve simulates a valve on the simulated rig; with --interface/--channel the valve is "
                           "the one mounted on the rig: give one or the other")
     tests = args.tests if args.tests is not None else (1 if rig or args.valve is not None else 20)
-    if tests < 1:
-        raise ConfigError(f"--tests {tests}: give 1 or more")
     if args.out.suffix == ".toml":
         raise ConfigError(f"--out {args.out}: --out is the folder for the tests' records, as in 'edc-bench test'; "
                           "write the baseline to a file with --baseline-file FILE")
@@ -114,7 +116,7 @@ def _run(args: argparse.Namespace) -> int:
     seed = args.seed if args.seed is not None else 100 + len(earlier)
 
     if rig:
-        measured = _rig_tests(args, variant, tests)
+        measured = _rig_tests(args, bus, variant, tests)
     elif args.valve is not None:
         measured = _simulated_rig_tests(args, variant, tests, seed)
     else:
@@ -169,21 +171,21 @@ def _refuse_worn_valve(spec: str, variant: Any) -> None:
 
 def _check_writable(target: Path) -> None:
     """Refuse a baseline target that cannot be written: a folder, or a folder that cannot be made or written."""
-    import os
-
+    from edc_bench.cli.common import probe_writable
     from edc_bench.errors import ConfigError
 
     if target.is_dir():
         raise ConfigError(f"--baseline-file {target}: is a folder; give a file such as {target / 'baseline.toml'}")
+    if target.exists() and not target.is_file():
+        raise ConfigError(f"--baseline-file {target}: is a device or other special file; give a .toml file")
     folder = target.parent
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(f"{target}: cannot make its folder ({exc.strerror or exc}); give a writable place "
                           "with --baseline-file FILE") from None
-    if not os.access(folder, os.W_OK):
-        raise ConfigError(f"{target}: its folder {folder} is not writable; give a writable place with "
-                          "--baseline-file FILE")
+    probe_writable(folder, f"{target}: its folder {folder} is not writable; give a writable place with "
+                            "--baseline-file FILE")
 
 
 def _next_valve_command(argv: list[str]) -> str:
@@ -203,16 +205,14 @@ def _next_valve_command(argv: list[str]) -> str:
     return shlex.join(["edc-bench", *words, *([] if "--append" in words else ["--append"])])
 
 
-def _rig_tests(args: argparse.Namespace, variant: Any, tests: int) -> list[Any]:
-    """Real-time tests on the rig's mounted valve."""
+def _rig_tests(args: argparse.Namespace, config: dict[str, Any], variant: Any, tests: int) -> list[Any]:
+    """Real-time tests on the rig's mounted valve, on the bus ``config`` (checked: :func:`bus_settings`)."""
     from edc_bench.bench import run_bench_test
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import open_bus
     from edc_bench.runtime.clock import RealTimeClock
     from edc_bench.runtime.signals import stop_requested
 
-    config = {k: v for k, v in (("interface", args.interface), ("channel", args.channel),
-                                ("bitrate", args.bitrate)) if v is not None}
     out = []
     with open_bus(config, default_icd().bitrate) as bus:
         for n in range(tests):

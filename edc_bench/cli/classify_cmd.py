@@ -5,9 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from edc_bench.cli.common import print_quietly_if_closed
+from edc_bench.cli.common import positive_float, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
+
+if TYPE_CHECKING:
+    from edc_bench.diagnosis.baseline import Baseline
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,8 +24,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (for --af/--a1)")
-    p.add_argument("--af", type=float, default=None, help="identified af in V")
-    p.add_argument("--a1", type=float, default=None, help="identified a1 in V s/mm")
+    p.add_argument("--af", type=positive_float("af in V as 'edc-bench test' prints it, e.g. 0.07"), default=None,
+                   help="identified af in V")
+    p.add_argument("--a1", type=positive_float("a1 in V s/mm as 'edc-bench test' prints it, e.g. 0.0038"),
+                   default=None, help="identified a1 in V s/mm")
     p.add_argument("--model", type=Path, default=None,
                    help="ONNX model (default: the station's: the adopted one, else the packaged network)")
     p.add_argument("--nominal-baseline", action="store_true",
@@ -37,32 +43,30 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.diagnosis.judgement import classification_dict, classify_features
     from edc_bench.diagnosis.verdict import Verdict
     from edc_bench.errors import ConfigError
+    from edc_bench.records.reader import load_record
 
     if args.record_dir is not None:
         if args.af is not None or args.a1 is not None:
             raise ConfigError("give either a record folder or --af and --a1, not both")
-        record_file = args.record_dir / "record.json"
-        try:
-            record = json.loads(record_file.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise ConfigError(f"{record_file}: not a readable record ({exc})") from None
+        record = load_record(args.record_dir)
         if record.get("verdict") == Verdict.INVALID:
             out = {"verdict": Verdict.INVALID, "reasons": record.get("reasons", []), "record_dir": str(args.record_dir)}
             print_quietly_if_closed(lambda: _report(out, args.json))
             return ExitCode.INVALID
-        variant = load_variant(args.variant or record["variant"])
-        af, a1 = record["features"]["af"], record["features"]["a1"]
+        variant = load_variant(args.variant or str(record.get("variant", "")) or None)
+        af, a1 = _recorded_features(record, args.record_dir)
     else:
         if args.af is None or args.a1 is None:
             raise ConfigError("give --af and --a1 (with --variant), or a record folder")
         variant = load_variant(args.variant)
         af, a1 = args.af, args.a1
-    if not (af > 0 and a1 > 0):
-        raise ConfigError(f"af and a1 must be positive, got af={af}, a1={a1}")
     from edc_bench.diagnosis.baseline import load_baseline
     from edc_bench.diagnosis.judgement import nominal_baseline_warning, not_calibrated_reason
 
-    if not load_baseline(variant).calibrated and not args.nominal_baseline:
+    baseline = load_baseline(variant)
+    if args.record_dir is None:
+        _check_plausible(af, a1, baseline)  # typed values; a record's were measured
+    if not baseline.calibrated and not args.nominal_baseline:
         out = {"verdict": Verdict.INVALID, "variant": variant.name, "reasons": [not_calibrated_reason(variant)]}
         print_quietly_if_closed(lambda: _report(out, args.json))
         return ExitCode.INVALID
@@ -73,6 +77,38 @@ def run(args: argparse.Namespace) -> int:
         out["reasons"] = [nominal_baseline_warning(variant)]
     print_quietly_if_closed(lambda: _report(out, args.json))
     return exit_code_for(judged.verdict)
+
+
+#: A worn valve measures a few times its new-valve baseline; this many times is a typing or unit error.
+MAX_RATIO = 100.0
+
+
+def _recorded_features(record: dict[str, Any], folder: Path) -> tuple[float, float]:
+    """af and a1 of a record: positive finite numbers, or a ConfigError naming the record."""
+    import math
+
+    from edc_bench.errors import ConfigError
+
+    features = record.get("features")
+    try:
+        af, a1 = float(features["af"]), float(features["a1"])
+    except (TypeError, KeyError, ValueError):
+        raise ConfigError(f"{folder}: the record holds no features af and a1 (not a finished test's record)") from None
+    if not (math.isfinite(af) and math.isfinite(a1) and af > 0 and a1 > 0):
+        raise ConfigError(f"{folder}: the record's features af={af}, a1={a1} cannot be judged (they must be "
+                          "positive numbers); replay the test: edc-bench replay " + str(folder))
+    return af, a1
+
+
+def _check_plausible(af: float, a1: float, baseline: Baseline) -> None:
+    """Refuse features more than :data:`MAX_RATIO` times the baseline: a wrong unit or a typing error."""
+    from edc_bench.errors import ConfigError
+
+    for flag, value, base, unit in (("--af", af, baseline.af_v, "V"), ("--a1", a1, baseline.a1_v_s_per_mm, "V s/mm")):
+        if not base / MAX_RATIO <= value <= base * MAX_RATIO:
+            raise ConfigError(f"{flag} {value:g}: {value / base:.3g} times the new-valve baseline ({base:g} {unit}); "
+                              f"a worn valve measures a few times it: give {flag[2:]} in {unit} as 'edc-bench test' "
+                              "prints it")
 
 
 def _report(out: dict, as_json: bool) -> None:

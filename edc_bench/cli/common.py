@@ -1,11 +1,142 @@
-"""Arguments shared by several commands."""
+"""Arguments shared by several commands, and the checks every command makes of its input before any work.
+
+The same thing has the same flag in every command (docs/command-line.md):
+``--variant``, ``--valve SPEC`` (a simulated valve), ``--valve-id ID`` (the
+valve's identity), ``--db URL`` (the history), ``--seed N``, ``--out DIR`` (a
+folder the command writes into) and ``--<what>-file FILE`` / ``--figure`` /
+``--plot`` / ``--csv`` (one file). Old spellings stay as hidden aliases.
+"""
 
 from __future__ import annotations
 
 import argparse
+import math
+import unicodedata
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
+
+#: The longest identity (valve id, pump serial, operator, station) a record takes: a record folder's name
+#: holds the valve id, and folder names stop at 255 bytes.
+MAX_ID_CHARS = 100
+
+#: The largest seed (numpy's legacy generators take 32 bits).
+MAX_SEED = 2**32 - 1
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """argparse's formatter, but a text with line breaks (the exit-code epilog) keeps them."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        if "\n" in text:
+            return "\n".join(indent + line for line in text.splitlines())
+        return super()._fill_text(text, width, indent)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser, saying a usage error in one line that names the flag and points at ``--help``."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        """Print one line (no usage block) and exit with 2, as every refused input does."""
+        self.exit(2, printable(f"{self.prog}: error: {message} (see '{self.prog} --help')\n"))
+
+
+def printable(text: str) -> str:
+    """``text`` safe to print on any stream: text that is not valid Unicode (bytes of a non-UTF-8 argument) escaped."""
+    return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
+def add_hidden_alias(parser: Any, old: str, dest: str, **kwargs: Any) -> None:
+    """An old spelling of a flag that keeps scripts working but is left out of ``--help``."""
+    parser.add_argument(old, dest=dest, help=argparse.SUPPRESS, default=argparse.SUPPRESS, **kwargs)
+
+
+# -- argparse types: each names what was wrong and what to give instead ------------------------------------------
+
+
+def seed_number(text: str) -> int:
+    """``--seed``: a whole number from 0 to :data:`MAX_SEED`."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a seed: give a whole number, 0 or more "
+                                         f"(at most {MAX_SEED})")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """A count: a whole number, 1 or more."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number: give 1 or more") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is not a count: give 1 or more")
+    return value
+
+
+def finite_float(text: str, what: str) -> float:
+    """``text`` as a finite number, or an argparse error naming ``what`` is expected."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number: give {what}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number: give {what}")
+    return value
+
+
+def positive_float(what: str) -> Callable[[str], float]:
+    """An argparse type: a finite number above 0 (``what`` says which, with its unit and an example)."""
+    def parse(text: str) -> float:
+        value = finite_float(text, what)
+        if value <= 0:
+            raise argparse.ArgumentTypeError(f"{text} is not above 0: give {what}")
+        return value
+    return parse
+
+
+def identity(limit: int = MAX_ID_CHARS, drawn: bool = False) -> Callable[[str], str]:
+    """An argparse type for an identity (valve id, pump serial, operator, station): valid text, at most ``limit``.
+
+    ``drawn``: the text goes into a record, whose figure and report draw it; matplotlib reads text between two
+    '$' as a formula and fails on one it cannot parse, so '$' is refused there.
+    """
+    def parse(text: str) -> str:
+        problem = text_problem(text, limit)
+        if problem is None and drawn and "$" in text:
+            problem = "contains '$', which the record's figure and report cannot show; leave it out"
+        if problem:
+            raise argparse.ArgumentTypeError(f"{printable(repr(text))[:80]} {problem}")
+        return text
+    return parse
+
+
+def text_problem(text: str, limit: int, lines: bool = False) -> str | None:
+    """Why ``text`` cannot be kept in a record and the history, or None.
+
+    Text that is not valid Unicode (an argument in another encoding than the
+    terminal's UTF-8), control characters (a line break pasted with an id)
+    and anything longer than ``limit`` are refused; everything else, odd or
+    not, is kept exactly as given.
+    """
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return "is not valid UTF-8 text (typed in another encoding?): type it again in a UTF-8 terminal"
+    if len(text) > limit:
+        return f"is {len(text)} characters long: at most {limit}"
+    allowed = "\n\t" if lines else ""
+    # control characters and line breaks only: a no-break space pasted from a spreadsheet is odd, but text
+    if any(unicodedata.category(c) in ("Cc", "Zl", "Zp") and c not in allowed for c in text):
+        return "contains a control character (a line break, tab or escape): give it on one line, as printed"
+    return None
 
 
 def add_variant_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,11 +155,23 @@ def add_population_arguments(parser: argparse.ArgumentParser, count: int, seed: 
 
     parser.add_argument("--variants", nargs="+", default=["p-edc-default", "p-edc-long"], metavar="NAME",
                         help="variants to draw valves for (default: p-edc-default p-edc-long)")
-    parser.add_argument("--count", type=int, default=count, help=f"valves per variant (default: {count})")
-    parser.add_argument("--seed", type=int, default=seed,
+    parser.add_argument("--count", type=positive_int, default=count, help=f"valves per variant (default: {count})")
+    parser.add_argument("--seed", type=seed_number, default=seed,
                         help=f"population seed (default: {seed}; the shipped models were trained with 2026)")
     parser.add_argument("--model", type=Path, default=None,
                         help="ONNX model (default: the station's: the adopted one, else the packaged network)")
+
+
+def check_population_inputs(args: argparse.Namespace) -> None:
+    """Load every ``--variants`` name and the ``--model`` before a population is simulated (minutes of work)."""
+    from edc_bench.config import load_variant
+
+    for name in args.variants:
+        load_variant(name)
+    if args.model is not None:
+        from edc_bench.diagnosis.classifier import ValveClassifier
+
+        ValveClassifier(args.model)
 
 
 def print_quietly_if_closed(write: Callable[[], None]) -> None:
@@ -61,33 +204,148 @@ def parse_host_port(text: str) -> tuple[str, int]:
 
 
 def check_output_folder(folder: Path, flag: str) -> None:
-    """Refuse an output folder that is a file or cannot be made or written, before any work starts.
+    """Refuse an output folder that is a file or a device, or cannot be made or written, before any work starts.
+
+    A folder that does not exist yet is made (``--out records`` on a fresh station).
 
     Raises
     ------
     ConfigError
         Naming the flag, the folder and what to do.
     """
-    import os
-
     from edc_bench.errors import ConfigError
 
     if folder.exists() and not folder.is_dir():
-        raise ConfigError(f"{flag} {folder}: is a file, not a folder; give a folder for the records")
+        kind = "a file" if folder.is_file() else "a device or other special file"
+        raise ConfigError(f"{flag} {folder}: is {kind}, not a folder; give a folder (made if missing)")
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(f"{flag} {folder}: cannot make the folder ({exc.strerror or exc}); give a writable "
                           "folder") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ConfigError(f"{flag} {folder}: the folder is not writable; give a writable folder")
+    probe_writable(folder, f"{flag} {folder}: the folder is not writable")
 
 
-def add_history_db_argument(parser: Any, when: str = "") -> None:
-    """``--db URL``: the history database, as every command that reads or writes the history takes it."""
-    parser.add_argument("--db", default=None, metavar="URL",
+def check_output_file(path: Path, flag: str, suffix: str | None = None) -> None:
+    """Refuse an output file before any work starts: a folder, a device, a missing or unwritable folder, a wrong suffix.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file the command will write (replaced if it exists).
+    flag : str
+        The flag that named it, for the message.
+    suffix : str, optional
+        The suffix the file must have (``".png"``: the figures are PNG whatever the name says).
+
+    Raises
+    ------
+    ConfigError
+        Naming the flag, the path and what to give instead.
+    """
+    from edc_bench.errors import ConfigError
+
+    if path.is_dir():
+        raise ConfigError(f"{flag} {path}: is a folder; give a file name such as {path / ('out' + (suffix or ''))}")
+    if path.exists() and not path.is_file():
+        raise ConfigError(f"{flag} {path}: is a device or other special file, not a file; give a file name")
+    if suffix is not None and path.suffix.lower() != suffix:
+        raise ConfigError(f"{flag} {path}: the file is {suffix[1:].upper()}; give a name ending in {suffix}")
+    folder = path.parent
+    if not folder.is_dir():
+        raise ConfigError(f"{flag} {path}: the folder {folder} does not exist; make it first (mkdir -p {folder}) "
+                          "or give another place")
+    probe_writable(folder, f"{flag} {path}: its folder {folder} is not writable; give another place")
+
+
+def probe_writable(folder: Path, message: str) -> None:
+    """Write and remove a scratch file in ``folder``: the one test of writability that holds for root too."""
+    import tempfile
+
+    from edc_bench.errors import ConfigError
+
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise ConfigError(f"{message} ({exc.strerror or exc})") from None
+
+
+def bus_settings(interface: str | None, channel: str | None, bitrate: int | None, *,
+                 configured_alone: bool) -> dict[str, Any] | None:
+    """The python-can bus to open, checked before any work; None for no bus (the simulated rig).
+
+    The flags win; what they leave open comes from python-can's own sources
+    (``CAN_INTERFACE``/``CAN_CHANNEL``/``CAN_BITRATE``, then its config file).
+
+    Parameters
+    ----------
+    interface, channel, bitrate
+        The ``--interface``, ``--channel`` and ``--bitrate`` flags (None: not given).
+    configured_alone : bool
+        Whether python-can's environment or config file alone selects a bus (``test`` does; ``calibrate``
+        takes a bus from its flags only, and the environment only completes them).
+
+    Raises
+    ------
+    ConfigError
+        An interface python-can does not have, a channel without an interface, a bit rate that is not a
+        number: naming the setting and listing what python-can accepts.
+    """
+    import os
+
+    import can
+
+    from edc_bench.errors import ConfigError
+
+    flags = {k: v for k, v in (("interface", interface), ("channel", channel), ("bitrate", bitrate)) if v is not None}
+    if not flags and not configured_alone:
+        return None
+    configured = {**can.util.load_file_config(), **can.util.load_environment_config()}
+    if not flags and not configured.get("interface"):
+        return None
+    if "bitrate" in flags and len(flags) == 1 and not configured.get("interface"):
+        raise ConfigError(f"--bitrate {bitrate} sets the bit rate of a bus: give --interface and --channel too "
+                          "(the simulated rig has no bit rate)")
+    settings = {**{k: configured[k] for k in ("interface", "channel", "bitrate") if configured.get(k)}, **flags}
+    source = {"interface": "--interface" if interface is not None else
+              "CAN_INTERFACE" if os.environ.get("CAN_INTERFACE") else "interface in python-can's config file",
+              "bitrate": "--bitrate" if bitrate is not None else "CAN_BITRATE or python-can's config file"}
+    valid = sorted(can.interfaces.VALID_INTERFACES)
+    if not settings.get("interface"):
+        raise ConfigError(f"--channel {channel} needs --interface: the python-can interface of the adapter, one of "
+                          f"{', '.join(valid)} (e.g. --interface socketcan --channel can0, or --interface slcan "
+                          "--channel socket://127.0.0.1:5000); or set CAN_INTERFACE")
+    if settings["interface"] not in can.interfaces.VALID_INTERFACES:
+        raise ConfigError(f"{source['interface']} {settings['interface']!r}: python-can has no such interface; use "
+                          f"one of {', '.join(valid)}")
+    if "bitrate" in settings:
+        try:
+            settings["bitrate"] = int(settings["bitrate"])
+        except (TypeError, ValueError):
+            raise ConfigError(f"{source['bitrate']} {settings['bitrate']!r}: not a bit rate; give bits per second, "
+                              "e.g. 500000") from None
+        if settings["bitrate"] <= 0:
+            raise ConfigError(f"{source['bitrate']} {settings['bitrate']}: give bits per second above 0, e.g. 500000")
+    return settings
+
+
+def check_history_url(url: str | None) -> None:
+    """Refuse a history database that cannot be right before any work (see :func:`edc_bench.history.store.check_url`)."""
+    from edc_bench.history.store import check_url
+
+    check_url(url)
+
+
+def add_history_db_argument(parser: Any, when: str = "", dest: str = "db") -> None:
+    """``--db URL``: the history database, as every command that reads or writes the history takes it.
+
+    ``--history-db`` (what ``test`` called it before) stays as a hidden alias.
+    """
+    parser.add_argument("--db", dest=dest, default=None, metavar="URL",
                         help=f"{when}history database: sqlite:///FILE or postgresql+psycopg://USER@HOST/DB "
                              "(default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
+    add_hidden_alias(parser, "--history-db", dest)
 
 
 def add_history_label_arguments(parser: argparse.ArgumentParser) -> None:

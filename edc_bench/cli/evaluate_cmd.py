@@ -7,7 +7,11 @@ import json
 import sys
 import time
 
-from edc_bench.cli.common import add_history_label_arguments, add_population_arguments
+from edc_bench.cli.common import (
+    add_history_label_arguments,
+    add_population_arguments,
+    check_population_inputs,
+)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -43,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{where}, judged by {classifier.name}", file=sys.stderr)
         _print_report(report, "by teardown")
         return 0
+    check_population_inputs(args)  # before minutes of simulation
     start = time.perf_counter()
     dataset = make_dataset(args.variants, args.count, args.seed)
     elapsed = time.perf_counter() - start

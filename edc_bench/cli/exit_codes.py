@@ -31,3 +31,81 @@ def exit_code_for(verdict: str) -> ExitCode:
     """The exit code of a verdict (OK for a test judged without classification)."""
     return {Verdict.PASS: ExitCode.PASS, Verdict.MARGINAL: ExitCode.MARGINAL, Verdict.FAIL: ExitCode.FAIL,
             Verdict.INVALID: ExitCode.INVALID}.get(verdict, ExitCode.OK)
+
+
+#: What each code means, in the words of README's exit-code table and every command's ``--help``.
+MEANINGS: dict[int, str] = {
+    ExitCode.PASS: "PASS (a test, a classification, a replayed raw log), or done",
+    ExitCode.MARGINAL: "MARGINAL: near the boundary, retest",
+    ExitCode.FAIL: "FAIL: replace the valve",
+    ExitCode.INVALID: "INVALID: the test is not to be trusted (the reasons are printed)",
+    ExitCode.NOT_REPRODUCED: "replay: the log does not give the recorded result",
+    ExitCode.STATION_NOT_READY: "check-station: NO-GO (the advice is printed)",
+    ExitCode.BAD_INPUT: "bad input: the message names what was wrong and how to fix it; nothing was done",
+    ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
+    ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
+    ExitCode.INTERRUPTED: "interrupted (Ctrl-C or SIGTERM); a test's record is still written",
+}
+
+#: What 0 means for each command (default: done).
+SUCCESS: dict[str, str] = {
+    "test": "PASS: the valve is reusable",
+    "classify": "PASS: the valve is reusable",
+    "replay": "the record is reproduced exactly (a raw log: PASS)",
+    "check-station": "GO: this PC holds the loop rate",
+    "rig": "the rig was stopped (Ctrl-C or SIGTERM)",
+}
+
+#: The codes each command can return; every command can also return 2, 70 and 130 (:data:`ALWAYS`).
+COMMAND_CODES: dict[str, tuple[int, ...]] = {
+    "test": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID, ExitCode.RIG_ERROR),
+    "rig": (ExitCode.OK,),
+    "variants": (ExitCode.OK,),
+    "tune": (ExitCode.OK,),
+    "calibrate": (ExitCode.OK, ExitCode.INVALID, ExitCode.RIG_ERROR),
+    "train": (ExitCode.OK,),
+    "classify": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID),
+    "evaluate": (ExitCode.OK,),
+    "paper": (ExitCode.OK,),
+    "study-boundary": (ExitCode.OK,),
+    "perf": (ExitCode.OK,),
+    "replay": (ExitCode.OK, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID, ExitCode.NOT_REPRODUCED),
+    "history": (ExitCode.OK,),
+    "label": (ExitCode.OK,),
+    "report": (ExitCode.OK,),
+    "check-station": (ExitCode.OK, ExitCode.STATION_NOT_READY),
+}
+
+#: Codes any command can return: bad input (argparse too), a bug, Ctrl-C.
+ALWAYS = (ExitCode.BAD_INPUT, ExitCode.INTERNAL_ERROR, ExitCode.INTERRUPTED)
+
+#: The short names of README's sentence ("Exit codes: 0 PASS, 10 MARGINAL, ...").
+SHORT_NAMES: dict[int, str] = {
+    ExitCode.PASS: "PASS", ExitCode.MARGINAL: "MARGINAL", ExitCode.FAIL: "FAIL", ExitCode.INVALID: "INVALID",
+    ExitCode.NOT_REPRODUCED: "replay not reproduced", ExitCode.STATION_NOT_READY: "station NO-GO",
+    ExitCode.BAD_INPUT: "bad input", ExitCode.RIG_ERROR: "rig or bus error", ExitCode.INTERNAL_ERROR: "internal error",
+    ExitCode.INTERRUPTED: "interrupted",
+}
+
+
+def command_codes(command: str) -> list[int]:
+    """Every code ``command`` can return, in ascending order."""
+    return sorted({int(c) for c in (*COMMAND_CODES[command], *ALWAYS)})
+
+
+def exit_codes_epilog(command: str) -> str:
+    """The "exit codes:" block that ends ``edc-bench COMMAND --help``, one line per code."""
+    lines = ["exit codes:"]
+    for code in command_codes(command):
+        meaning = SUCCESS.get(command, "done") if code == 0 else MEANINGS[code]
+        lines.append(f"  {code:>3}  {meaning}")
+    return "\n".join(lines)
+
+
+def exit_codes_sentence() -> str:
+    """README's one-line summary: ``Exit codes: 0 PASS, 10 MARGINAL, ..., 130 interrupted.``
+
+    The outcomes first (0, then 10 and up), then the codes that say the command could not do its job.
+    """
+    codes = sorted({int(c) for c in ExitCode}, key=lambda c: (not (c == 0 or 10 <= c < 70), c))
+    return "Exit codes: " + ", ".join(f"{c} {SHORT_NAMES[c]}" for c in codes) + "."

@@ -8,7 +8,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from edc_bench.cli.common import add_history_db_argument, print_quietly_if_closed
+from edc_bench.cli.common import (
+    add_hidden_alias,
+    add_history_db_argument,
+    identity,
+    positive_int,
+    print_quietly_if_closed,
+)
 from edc_bench.diagnosis.verdict import Verdict
 
 
@@ -21,16 +27,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "--trend shows one valve's af and a1 over its visits against the new-valve baseline.",
     )
     add_history_db_argument(p)
-    p.add_argument("--valve", default=None, metavar="ID", help="only this valve")
-    p.add_argument("--pump-serial", default=None, metavar="SERIAL", help="only this pump")
+    p.add_argument("--valve-id", type=identity(), default=None, metavar="ID", help="only this valve")
+    add_hidden_alias(p, "--valve", "valve_id", type=identity())  # its name before --valve-id everywhere
+    p.add_argument("--pump-serial", type=identity(), default=None, metavar="SERIAL", help="only this pump")
     p.add_argument("--variant", default=None, help="only this variant (name or part number)")
     p.add_argument("--verdict", default=None, type=str.upper,
                    choices=[v.value for v in Verdict], help="only this verdict")
     p.add_argument("--since", default=None, metavar="DATE", help="from this day (YYYY-MM-DD) on")
     p.add_argument("--until", default=None, metavar="DATE", help="up to this day (YYYY-MM-DD), inclusive")
-    p.add_argument("--limit", type=int, default=None, metavar="N", help="only the newest N")
-    p.add_argument("--trend", default=None, metavar="VALVE_ID", help="one valve's af and a1 over its visits")
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG", help="with --trend: also draw it")
+    p.add_argument("--limit", type=positive_int, default=None, metavar="N", help="only the newest N")
+    p.add_argument("--trend", type=identity(), default=None, metavar="VALVE_ID",
+                   help="one valve's af and a1 over its visits")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG", help="with --trend: also draw it (a .png file)")
     p.add_argument("--csv", default=None, metavar="FILE", help="write the listed tests as CSV ('-': stdout)")
     p.add_argument("--add", nargs="+", type=Path, default=None, metavar="RECORD_DIR",
                    help="index record folders (after a test ran with --no-history, or to rebuild the history)")
@@ -40,13 +48,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """List, trend, export or add."""
+    from edc_bench.cli.common import check_output_file
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import Filters, HistoryStore, parse_day
 
-    if args.limit is not None and args.limit < 1:
-        raise ConfigError(f"--limit must be at least 1, got {args.limit}")
     if args.plot is not None and args.trend is None:
         raise ConfigError("--plot draws a valve's trend: give --trend VALVE_ID too")
+    if args.plot is not None:
+        check_output_file(args.plot, "--plot", ".png")
+    if args.csv is not None and args.csv != "-":
+        check_output_file(Path(args.csv), "--csv")
+    since, until = parse_day(args.since, "--since"), parse_day(args.until, "--until")
     with HistoryStore(args.db) as store:
         if args.add:
             from edc_bench.records.reader import load_record
@@ -57,9 +69,8 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if args.trend is not None:
             return _trend(store, args)
-        filters = Filters(valve_id=args.valve, pump_serial=args.pump_serial, variant=args.variant,
-                          verdict=args.verdict, since=parse_day(args.since, "--since"),
-                          until=parse_day(args.until, "--until"))
+        filters = Filters(valve_id=args.valve_id, pump_serial=args.pump_serial, variant=args.variant,
+                          verdict=args.verdict, since=since, until=until)
         rows = store.list(filters, args.limit)
     if args.csv is not None:
         _export(rows, args.csv)
@@ -79,11 +90,7 @@ def _export(rows: list[dict[str, Any]], target: str) -> None:
         return
     from edc_bench.paths import atomic_write
 
-    path = Path(target)
-    if not path.parent.exists():
-        from edc_bench.errors import ConfigError
-
-        raise ConfigError(f"--csv {target}: folder {path.parent} does not exist")
+    path = Path(target)  # checked before the history was read (run)
     atomic_write(path, lambda f: write_csv(rows, f), mode="w")
     print(f"wrote {len(rows)} test(s) to {path}", file=sys.stderr)
 
@@ -96,18 +103,20 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
     """Print the listed tests."""
     from rich.console import Console
     from rich.table import Table
+    from rich.text import Text
 
     from edc_bench.ui.live import VERDICT_STYLES
 
-    table = Table(title=f"{len(rows)} test(s) in {url} (times in UTC)")
+    # ids and names are the technicians' text, kept as given: rich Text, never read as markup ("V[/1]" is an id)
+    table = Table(title=Text(f"{len(rows)} test(s) in {url} (times in UTC)"))
     for col in ("started", "valve", "pump serial", "variant", "verdict", "af V", "a1 V s/mm", "P(faulty)",
                 "station", "operator"):
         table.add_column(col, no_wrap=col not in ("station", "operator"))
     for r in rows:
-        table.add_row(_when(r["started_at"]), r["valve_id"], r["pump_serial"], r["variant"],
-                      f"[{VERDICT_STYLES.get(r['verdict'], '')}]{r['verdict']}[/]", _fmt(r["af_v"], ".5f"),
-                      _fmt(r["a1_v_s_per_mm"], ".6f"), _fmt(r["probability_faulty"], ".3f"), r["station"],
-                      r["operator"])
+        table.add_row(_when(r["started_at"]), Text(r["valve_id"]), Text(r["pump_serial"]), Text(r["variant"]),
+                      Text(r["verdict"], style=VERDICT_STYLES.get(r["verdict"], "")), _fmt(r["af_v"], ".5f"),
+                      _fmt(r["a1_v_s_per_mm"], ".6f"), _fmt(r["probability_faulty"], ".3f"), Text(r["station"]),
+                      Text(r["operator"]))
     (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
 
 
@@ -131,12 +140,13 @@ def trend_table(rows: list[dict[str, Any]], valve: str, console: Any = None) -> 
     """Print one valve's visits with the change against the baseline."""
     from rich.console import Console
     from rich.table import Table
+    from rich.text import Text
 
-    table = Table(title=f"valve {valve}: {len(rows)} visit(s); change against the new-valve baseline")
+    table = Table(title=Text(f"valve {valve}: {len(rows)} visit(s); change against the new-valve baseline"))
     for col in ("started", "variant", "verdict", "af V", "af change", "a1 V s/mm", "a1 change", "distance"):
         table.add_column(col)
     for r in rows:
-        table.add_row(_when(r["started_at"]), r["variant"], r["verdict"], _fmt(r["af_v"], ".5f"),
+        table.add_row(_when(r["started_at"]), Text(r["variant"]), Text(r["verdict"]), _fmt(r["af_v"], ".5f"),
                       _pct(r["af_rel"]), _fmt(r["a1_v_s_per_mm"], ".6f"), _pct(r["a1_rel"]),
                       _fmt(r["distance"], "+.3f"))
     (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
@@ -166,7 +176,7 @@ def _plot(rows: list[dict[str, Any]], valve: str, path: Path) -> None:
     ax.axhline(0.0, color="grey", lw=0.8)
     ax.set_xlabel("visit")
     ax.set_ylabel("change against a new valve (%)")
-    ax.set_title(f"valve {valve}")
+    ax.set_title(f"valve {valve}", parse_math=False)  # the id as typed: '$' is not a formula here
     ax.set_xticks(list(visits), [r["started_at"][:10] for r in rows], rotation=30, fontsize=7)
     ax.legend()
     fig.tight_layout()

@@ -8,10 +8,18 @@ import math
 import sys
 from typing import Any
 
-from edc_bench.cli.common import add_history_db_argument, print_quietly_if_closed
+from edc_bench.cli.common import (
+    MAX_ID_CHARS,
+    add_history_db_argument,
+    positive_int,
+    print_quietly_if_closed,
+)
 
 #: A plunger clearance beyond this (mm) is a typing error, not a measurement.
 MAX_CLEARANCE_MM = 2.0
+
+#: The longest note kept with a finding.
+MAX_NOTE_CHARS = 2000
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -21,8 +29,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="When a valve is opened, record what was found: reusable, worn or faulty, the clearance "
                     "measured, a note, who and when. The finding labels the valve's last judged test before the "
                     "teardown; 'edc-bench train --from-history' learns from the labelled tests (worn and faulty "
-                    "both mean: replace). --list shows the findings and the tests they label. "
-                    "Exit codes: 0 recorded or listed, 2 bad input.",
+                    "both mean: replace). --list shows the findings and the tests they label.",
     )
     p.add_argument("valve_id", nargs="?", default=None, metavar="VALVE_ID", help="the valve, as its tests name it")
     p.add_argument("--finding", choices=("reusable", "worn", "faulty"), default=None, help="what the teardown found")
@@ -34,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "YYYY-MM-DDTHH:MM (UTC unless an offset is given) (default: now)")
     add_history_db_argument(p)
     p.add_argument("--list", action="store_true", help="list the findings (of VALVE_ID if given)")
-    p.add_argument("--delete", type=int, default=None, metavar="ID",
+    p.add_argument("--delete", type=positive_int, default=None, metavar="ID",
                    help="remove a finding recorded by mistake (its id from --list), then record the right one")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
@@ -44,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     """Record or list."""
     import getpass
 
+    from edc_bench.cli.common import text_problem
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import HistoryStore
 
@@ -64,18 +72,23 @@ def run(args: argparse.Namespace) -> int:
     if args.valve_id is None or args.finding is None:
         raise ConfigError("give the valve and what its teardown found: edc-bench label VALVE_ID --finding "
                           "reusable|worn|faulty [--clearance-mm MM] [--note TEXT] (or --list)")
-    valve_id = args.valve_id.strip()
-    if not valve_id or len(valve_id) > 200 or not valve_id.isprintable():
-        raise ConfigError(f"valve id {args.valve_id!r}: give the id the valve's tests were recorded with "
-                          "(printable, at most 200 characters)")
+    valve_id = args.valve_id  # as the tests recorded it, spaces and all
+    problem = "is empty" if not valve_id.strip() else text_problem(valve_id, MAX_ID_CHARS)
+    if problem:
+        raise ConfigError(f"VALVE_ID {args.valve_id!r} {problem}; give the id the valve's tests were recorded with "
+                          "(--valve-id of 'edc-bench test', see 'edc-bench history')")
+    problem = text_problem(args.note, MAX_NOTE_CHARS, lines=True)
+    if problem:
+        raise ConfigError(f"--note {problem}")
     clearance = args.clearance_mm
     if clearance is not None and not (math.isfinite(clearance) and 0 < clearance <= MAX_CLEARANCE_MM):
         raise ConfigError(f"--clearance-mm {clearance}: a plunger clearance is above 0 and at most "
                           f"{MAX_CLEARANCE_MM} mm (e.g. 0.19)")
     when = _teardown_time(args.date)
     by = (args.by if args.by is not None else getpass.getuser()).strip()
-    if not by or len(by) > 200 or not by.isprintable():
-        raise ConfigError(f"--by {args.by!r}: give who opened the valve (printable, at most 200 characters)")
+    problem = "is empty" if not by else text_problem(by, MAX_ID_CHARS)
+    if problem:
+        raise ConfigError(f"--by {args.by!r} {problem}; give who opened the valve")
     with HistoryStore(args.db) as store:
         store.add_teardown(valve_id, args.finding, labelled_by=by, labelled_at=when, clearance_mm=clearance,
                            note=args.note)
@@ -129,15 +142,17 @@ def _print_list(rows: list[dict[str, Any]], as_json: bool) -> None:
         return
     from rich.console import Console
     from rich.table import Table
+    from rich.text import Text
 
     table = Table(title=f"{len(rows)} teardown finding(s)")
     for col in ("id", "opened", "valve", "finding", "clearance mm", "by", "labels the test of", "verdict then",
                 "af/af0", "a1/a1_0"):
         table.add_column(col)
     for r in rows:
-        table.add_row(str(r["teardown_id"]), r["labelled_at"][:16].replace("T", " "), r["valve_id"], r["finding"],
-                      "" if r["teardown_clearance_mm"] is None else f"{r['teardown_clearance_mm']:.3f}",
-                      r["labelled_by"], (r.get("started_at") or "(no judged test)")[:16].replace("T", " "),
+        # ids and names as the technicians typed them: rich Text, never read as markup
+        table.add_row(str(r["teardown_id"]), r["labelled_at"][:16].replace("T", " "), Text(r["valve_id"]),
+                      r["finding"], "" if r["teardown_clearance_mm"] is None else f"{r['teardown_clearance_mm']:.3f}",
+                      Text(r["labelled_by"]), (r.get("started_at") or "(no judged test)")[:16].replace("T", " "),
                       r.get("verdict") or "", "" if r.get("af_rel") is None else f"{r['af_rel']:.3f}",
                       "" if r.get("a1_rel") is None else f"{r['a1_rel']:.3f}")
     Console(width=None if sys.stdout.isatty() else 160).print(table)

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from edc_bench.cli.common import check_output_file, positive_int, seed_number
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
@@ -15,19 +17,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "used valves (10 reusable, 8 faulty by physics) x 3 tests, print the outcome next to the "
                     "paper's, and draw the paper's Fig. 7.",
     )
-    p.add_argument("--variant", default="p-edc-default", help="variant to simulate (default: p-edc-default)")
-    p.add_argument("--seed", type=int, default=2010, help="seed (default: 2010)")
-    p.add_argument("--runs", type=int, default=1,
+    p.add_argument("--variant", default="p-edc-default", metavar="NAME|PART|PATH",
+                   help="variant to simulate (default: p-edc-default)")
+    p.add_argument("--seed", type=seed_number, default=2010, help="seed (default: 2010)")
+    p.add_argument("--runs", type=positive_int, default=1,
                    help="repeat with seeds seed, seed+1, ... and report each (default: 1)")
-    p.add_argument("--figure", type=Path, default=Path("paper-fig7.png"), help="where to draw Fig. 7")
+    p.add_argument("--figure", type=Path, default=Path("paper-fig7.png"), metavar="PNG",
+                   help="where to draw Fig. 7 (a .png file; default: paper-fig7.png)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiment, print the table, draw the figure."""
+    from edc_bench.config import load_variant
     from edc_bench.diagnosis.experiments import PAPER_OUTCOME, draw_figure7, paper_experiment
 
+    load_variant(args.variant)  # a bad variant or figure is refused before the experiment, not after it
+    if args.runs == 1:
+        check_output_file(args.figure, "--figure", ".png")
     if args.runs > 1:
         totals = []
         for seed in range(args.seed, args.seed + args.runs):

@@ -22,8 +22,39 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Draw and say where."""
+    from edc_bench.cli.common import check_output_folder, probe_writable
+    from edc_bench.records.reader import load_record
     from edc_bench.records.report import draw_report
 
+    _check_text(load_record(args.record_dir), args.record_dir)  # a folder that is not a record, and ...
+    if args.out is not None:
+        check_output_folder(args.out, "--out")  # ... an --out that cannot take the report, refused before drawing
+    else:
+        probe_writable(args.record_dir, f"{args.record_dir}: the record folder is not writable; write the report "
+                                        "elsewhere with --out DIR")
     pdf, png = draw_report(args.record_dir, args.out)
     print(f"report: {pdf}\npage image: {png}")
     return 0
+
+
+def _check_text(record: object, folder: Path, key: str = "record") -> None:
+    """Refuse a record holding text that is not valid Unicode (hand-edited, or bytes an older edc-bench kept).
+
+    The report draws the record's text; such text cannot be drawn, and the
+    one fix is in record.json itself.
+    """
+    from edc_bench.errors import ConfigError
+
+    if isinstance(record, dict):
+        for name, value in record.items():
+            _check_text(value, folder, f"{key}.{name}" if key != "record" else str(name))
+    elif isinstance(record, list):
+        for value in record:
+            _check_text(value, folder, key)
+    elif isinstance(record, str):
+        try:
+            record.encode("utf-8")
+        except UnicodeEncodeError:
+            shown = record.encode("utf-8", "backslashreplace").decode("utf-8")
+            raise ConfigError(f"{folder}/record.json: {key} {shown!r} is not valid text (bytes that are not "
+                              "UTF-8); correct it in record.json, then draw the report again") from None

@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from edc_bench.cli.common import add_variant_arguments, parse_host_port
+from edc_bench.cli.common import add_variant_arguments, parse_host_port, seed_number
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        help="serve on this TCP address (port 0 picks a free port)")
     where.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal and print its path")
     add_variant_arguments(p)
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default: 0)")
+    p.add_argument("--seed", type=seed_number, default=0, help="seed of the sensor noise (default: 0)")
     p.add_argument("--adapter", default="none", metavar="SPEC",
                    help="hold frames back as a CAN adapter would: usb-fs (a USB full-speed adapter, 1.5-3.5 ms "
                         "round trip), or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] (default: none)")
@@ -33,11 +33,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build the rig and serve until SIGINT or SIGTERM."""
     from edc_bench.config import load_variant
+    from edc_bench.errors import ConfigError
     from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.sim.adapter import parse_adapter
     from edc_bench.sim.rig import SimulatedRig
     from edc_bench.sim.server import SlcanRigServer
 
+    if args.listen is not None:
+        check_listen_address(*args.listen)  # before anything is built or started
     variant = load_variant(args.variant)
     valve = parse_valve_spec(args.valve, variant)
     adapter = parse_adapter(args.adapter)
@@ -46,7 +49,10 @@ def run(args: argparse.Namespace) -> int:
     if args.pty:
         where = server.open_pty()
     else:
-        host, port = server.listen_tcp(*args.listen)
+        try:
+            host, port = server.listen_tcp(*args.listen)
+        except OSError as exc:  # taken since the check: the same message
+            raise ConfigError(_listen_problem(args.listen, exc)) from None
         if host not in ("127.0.0.1", "::1", "localhost"):
             print(f"rig: warning: listening on {host}, not loopback", file=sys.stderr)
         where = f"socket://{host}:{port}"
@@ -58,3 +64,46 @@ def run(args: argparse.Namespace) -> int:
     # the longest the rig went without serving while a host was connected: a test can tell a disturbed rig
     print(f"rig: stopped; worst serve gap {server.worst_gap_s * 1e3:.2f} ms", flush=True)
     return 0
+
+
+def check_listen_address(host: str, port: int) -> None:
+    """Refuse ``--listen HOST:PORT`` that this machine cannot serve on: not its address, a port in use.
+
+    Binds a throw-away socket there and closes it: the one test that asks the
+    operating system itself (a name that does not resolve, an address of
+    another machine, a port taken or not permitted).
+
+    Raises
+    ------
+    ConfigError
+        Naming the address, what is wrong and what to give instead.
+    """
+    import socket
+
+    from edc_bench.errors import ConfigError
+
+    try:
+        socket.create_server((host, port)).close()
+    except (OSError, OverflowError) as exc:
+        raise ConfigError(_listen_problem((host, port), exc)) from None
+
+
+def _listen_problem(address: tuple[str, int], exc: Exception) -> str:
+    """Why ``--listen`` failed, in words, and what to give instead."""
+    import errno
+    import socket
+
+    host, port = address
+    code = getattr(exc, "errno", None)
+    if isinstance(exc, socket.gaierror) or (code or 0) < 0:  # getaddrinfo's codes are negative
+        why = f"{host!r} is not an address or a name this machine can resolve"
+    elif code == errno.EADDRNOTAVAIL:
+        why = f"{host} is not an address of this machine"
+    elif code == errno.EADDRINUSE:
+        why = f"port {port} is in use (another rig?); give another port, or 0 for any free one"
+    elif code == errno.EACCES:
+        why = f"port {port} needs privileges; give a port above 1023, or 0 for any free one"
+    else:
+        why = str(getattr(exc, "strerror", None) or exc)
+    return (f"--listen {host}:{port}: {why}; e.g. --listen 127.0.0.1:5000 (this machine only) or the address of "
+            "one of this machine's network interfaces")

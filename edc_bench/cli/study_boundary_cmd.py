@@ -5,7 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from edc_bench.cli.common import add_history_label_arguments, add_population_arguments
+from edc_bench.cli.common import (
+    add_history_label_arguments,
+    add_population_arguments,
+    check_output_file,
+    check_population_inputs,
+)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -18,7 +23,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_population_arguments(p, count=1000, seed=31)
     add_history_label_arguments(p)
-    p.add_argument("--figure", type=Path, default=Path("boundary-tradeoff.png"), help="output PNG")
+    p.add_argument("--figure", type=Path, default=Path("boundary-tradeoff.png"), metavar="PNG",
+                   help="where to draw the trade-off (a .png file; default: boundary-tradeoff.png)")
     p.set_defaults(run=run)
 
 
@@ -28,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.diagnosis.dataset import make_dataset
     from edc_bench.diagnosis.experiments import boundary_tradeoff, draw_tradeoff
 
+    check_output_file(args.figure, "--figure", ".png")  # before the work, not after it
     if args.from_history:
         from edc_bench.cli.common import history_label_dataset
 
@@ -38,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"{title}, all {'worn or faulty' if dataset.labels[0] else 'reusable'}: the trade-off "
                               "needs teardowns of both reusable and worn valves")
     else:
+        check_population_inputs(args)
         dataset = make_dataset(args.variants, args.count, args.seed)
         title = f"{len(dataset)} simulated valves ({', '.join(args.variants)})"
     curve = boundary_tradeoff(ValveClassifier(args.model), dataset)

@@ -8,7 +8,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from edc_bench.cli.common import add_variant_arguments, print_quietly_if_closed
+from edc_bench.cli.common import (
+    add_history_db_argument,
+    add_variant_arguments,
+    identity,
+    positive_int,
+    print_quietly_if_closed,
+    seed_number,
+)
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 
 
@@ -24,8 +31,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "that bus in real time.",
     )
     add_variant_arguments(p)
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulated rig's sensor noise (default: 0)")
-    p.add_argument("--duration-s", type=float, default=None, metavar="S",
+    p.add_argument("--seed", type=seed_number, default=0, help="seed of the simulated rig's sensor noise (default: 0)")
+    p.add_argument("--duration-s", type=_duration_s, default=None, metavar="S",
                    help="test duration in seconds (default: the variant's, 30 s)")
     p.add_argument("--estimator", choices=("rls", "gradient"), default=None,
                    help="override the variant's estimator (rls: recursive least squares; gradient: the paper's law)")
@@ -33,8 +40,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="run in real time; without a bus, starts the simulated rig as a process and drives it over slcan")
     p.add_argument("--interface", default=None, help="python-can interface, e.g. slcan, socketcan, pcan")
     p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
-    p.add_argument("--bitrate", type=int, default=None, help="CAN bit rate (default: the ICD's 500000)")
-    p.add_argument("--valve-id", default="", metavar="ID", help="identity of the valve under test, for the record")
+    p.add_argument("--bitrate", type=positive_int, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    p.add_argument("--valve-id", type=identity(drawn=True), default="", metavar="ID",
+                   help="identity of the valve under test, kept as given in the record and the history (at most "
+                        "100 characters; default on the simulated rig: its --valve SPEC; on a bus: none, with a "
+                        "warning)")
     p.add_argument("--coil-temp-c", type=_coil_temp, default=None, metavar="C",
                    help="the coil's temperature at the start of the test, to refer its measured resistance to "
                         "20 degC (default: 20, a coil that has rested in the workshop; give it for a coil still "
@@ -50,12 +60,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "1.5-3.5 ms round trip) or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] "
                         "(default: none)")
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
-    p.add_argument("--pump-serial", default="", metavar="SERIAL", help="serial number of the pump, for the record")
-    p.add_argument("--operator", default=None, help="who ran the test (default: the login name)")
-    p.add_argument("--station", default=None, help="name of this bench station (default: the host name)")
+    p.add_argument("--pump-serial", type=identity(drawn=True), default="", metavar="SERIAL",
+                   help="serial number of the pump, for the record")
+    p.add_argument("--operator", type=identity(drawn=True), default=None,
+                   help="who ran the test (default: the login name)")
+    p.add_argument("--station", type=identity(drawn=True), default=None,
+                   help="name of this bench station (default: the host name)")
     p.add_argument("--plain", action="store_true", help="log lines instead of the live panel, even on a terminal")
-    p.add_argument("--history-db", default=None, metavar="URL",
-                   help="history database (default: EDC_BENCH_HISTORY_URL, else SQLite in the data folder)")
+    add_history_db_argument(p, dest="history_db")
     p.add_argument("--no-history", action="store_true", help="do not add the test to the station's history")
     p.add_argument("--nominal-baseline", action="store_true",
                    help="judge a variant that has no measured new-valve baseline against the nominal one from its "
@@ -77,20 +89,20 @@ def _variant(args: argparse.Namespace) -> Any:
 
 
 def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
-    """Bus settings from flags, python-can's environment or config file; None for the in-process rig."""
-    import can
+    """Bus settings from flags, python-can's environment or config file (checked); None for the in-process rig."""
+    from edc_bench.cli.common import bus_settings
 
-    given = {k: v for k, v in (("interface", args.interface), ("channel", args.channel),
-                               ("bitrate", args.bitrate)) if v is not None}
-    if "interface" not in given and "channel" not in given:
-        # python-can's own sources, in its order of precedence: environment, then config file
-        configured = {**can.util.load_file_config(), **can.util.load_environment_config()}
-        if not configured.get("interface"):
-            return None
-        given = {**{k: configured[k] for k in ("interface", "channel", "bitrate") if configured.get(k)}, **given}
-        if "bitrate" in given:
-            given["bitrate"] = int(given["bitrate"])
-    return given
+    return bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True)
+
+
+def _duration_s(text: str) -> float:
+    """``--duration-s``: a test length in seconds, above 0 and at most 600 (a variant's longest)."""
+    from edc_bench.cli.common import positive_float
+
+    value = positive_float("the test length in seconds, e.g. 30")(text)
+    if value > 600:
+        raise argparse.ArgumentTypeError(f"{text} s: a test lasts at most 600 s (10 minutes); e.g. 30")
+    return value
 
 
 def _calibrate_command(variant: Any, bus_config: dict[str, Any] | None) -> str:
@@ -145,10 +157,19 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the test, write the record, report."""
-    from edc_bench.runtime.signals import interrupt_guard
+    from edc_bench.runtime.signals import interrupt_guard, stop_requested
 
+    if not args.no_history:
+        from edc_bench.cli.common import check_history_url
+
+        check_history_url(args.history_db)  # a test is minutes; a wrong database is refused before it
     with interrupt_guard():  # the first Ctrl-C aborts the test; later ones cannot cost the record
-        return _run_guarded(args)
+        code = _run_guarded(args)
+        if stop_requested() and code != ExitCode.INTERNAL_ERROR:
+            # the record is written (INVALID, "interrupted by the operator"); the exit code says who ended it
+            print("edc-bench test: interrupted by the operator; the record is written (INVALID)", file=sys.stderr)
+            return ExitCode.INTERRUPTED
+        return code
 
 
 def _identity(args: argparse.Namespace) -> dict[str, str]:
@@ -201,6 +222,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.sim.adapter import parse_adapter
 
     parse_adapter(args.adapter)  # refuse a bad --adapter before any work
+    if bus_config is None:
+        parse_valve_spec(args.valve, variant)  # and a bad --valve before the panel or the rig starts
     if args.adapter != "none" and bus_config is not None:
         print("edc-bench test: warning: --adapter simulates an adapter for the simulated rig; a real bus has its "
               "own timing", file=sys.stderr)
@@ -210,15 +233,21 @@ def _run_guarded(args: argparse.Namespace) -> int:
         import datetime
 
         started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-        folder.append(new_record_dir(args.out, args.valve_id or args.valve, variant.name, started))
+        folder.append(new_record_dir(args.out, valve_id, variant.name, started))
         return folder[0] / CAN_LOG_FILE
 
     simulated = bus_config is None and not args.realtime
+    # a simulated valve is named by its spec; a valve on a bus is named only by the technician
+    valve_id = args.valve_id or (args.valve if simulated else "")
+    if not valve_id:
+        print("edc-bench test: warning: no --valve-id: the record and the history name no valve (the bench cannot "
+              "read it off the valve); give --valve-id ID to follow this valve in 'edc-bench history --trend' "
+              "and 'edc-bench label'", file=sys.stderr)
     baseline_options = {"nominal_baseline": args.nominal_baseline,
                         "calibrate_command": _calibrate_command(variant, bus_config)}
     where = ("simulated rig, simulated time" if simulated else
              "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
-    valve_name = args.valve_id or (args.valve if bus_config is None else "?")
+    valve_name = valve_id or "?"
     title = f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve {valve_name}, {where}"
     # the panel's title says it all; a line on stderr would only tear the panel
     quiet = args.json or _live(args)
@@ -230,7 +259,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
             valve = parse_valve_spec(args.valve, variant)
             log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
                 f"simulated time, {variant.excitation.duration_s:g} s")
-            result = run_simulated_test(variant, valve, args.seed, valve_id=args.valve_id or args.valve,
+            result = run_simulated_test(variant, valve, args.seed, valve_id=valve_id,
                                         stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
                                         observer=observer, stream_can_log=stream_target, adapter=args.adapter,
                                         coil_temp_c=args.coil_temp_c, **baseline_options)

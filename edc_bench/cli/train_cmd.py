@@ -7,7 +7,15 @@ import sys
 import time
 from pathlib import Path
 
-from edc_bench.cli.common import add_history_db_argument
+from edc_bench.cli.common import (
+    add_hidden_alias,
+    add_history_db_argument,
+    check_output_file,
+    check_output_folder,
+    identity,
+    positive_int,
+    seed_number,
+)
 
 DEFAULT_VARIANTS = ("p-edc-default", "p-edc-long")
 DEFAULT_COUNT = 1000
@@ -25,18 +33,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "--from-history trains a candidate on the shop's labelled tests instead (teardown findings "
                     "recorded with 'edc-bench label'), with that simulated population as a prior, and prints its "
                     "cross-validated accuracy beside the current model's; --adopt makes a candidate the station's "
-                    "model. Exit codes: 0 done, 2 bad input or too few labels.",
+                    "model. Too few labels are refused as bad input (exit 2), with the counts.",
     )
     p.add_argument("--variants", nargs="+", default=list(DEFAULT_VARIANTS), metavar="NAME",
                    help=f"variants to draw populations from (default: {' '.join(DEFAULT_VARIANTS)})")
-    p.add_argument("--count", type=int, default=DEFAULT_COUNT, help=f"valves per variant (default: {DEFAULT_COUNT})")
-    p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"seed of data and weights (default: {DEFAULT_SEED})")
+    p.add_argument("--count", type=positive_int, default=DEFAULT_COUNT,
+                   help=f"valves per variant (default: {DEFAULT_COUNT})")
+    p.add_argument("--seed", type=seed_number, default=DEFAULT_SEED,
+                   help=f"seed of data and weights (default: {DEFAULT_SEED})")
     p.add_argument("--marginal-band", type=float, default=0.03,
                    help="half-width of the MARGINAL band around the boundary, in baseline ratios (default: 0.03)")
-    p.add_argument("--dataset", type=Path, default=None, help="train on this dataset file instead of simulating")
-    p.add_argument("--save-dataset", type=Path, default=None, help="also write the simulated dataset here")
-    p.add_argument("--out-dir", type=Path, default=None,
-                   help="where to write the models (default: the package's models folder)")
+    p.add_argument("--dataset", type=Path, default=None, metavar="FILE",
+                   help="train on this dataset file instead of simulating")
+    p.add_argument("--save-dataset", type=Path, default=None, metavar="FILE",
+                   help="also write the simulated dataset to this file")
+    p.add_argument("--models-dir", type=Path, default=None, metavar="DIR",
+                   help="folder to write the models into (default: the package's models folder)")
+    add_hidden_alias(p, "--out-dir", "models_dir", type=Path)  # its name before the flags were made consistent
     shop = p.add_argument_group("the shop's data")
     shop.add_argument("--from-history", action="store_true",
                       help="train a candidate on the history's labelled tests, the simulated population as prior")
@@ -45,12 +58,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                       help="how many labelled tests the whole simulated population counts as (default: 50; 0: the "
                            "labels alone)")
     shop.add_argument("--name", default=None, help="the candidate's name (default: shop- and its labels' hash)")
-    shop.add_argument("--out", type=Path, default=None, metavar="ONNX",
-                      help="where to write the candidate (default: candidates/NAME.onnx in the station's models "
-                           "folder)")
+    shop.add_argument("--candidate-file", type=Path, default=None, metavar="ONNX",
+                      help="the file to write the candidate to (default: candidates/NAME.onnx in the station's "
+                           "models folder)")
+    add_hidden_alias(shop, "--out", "candidate_file", type=Path)  # its name before --out meant a folder only
     shop.add_argument("--adopt", default=None, metavar="ONNX|shipped",
                       help="make this model the station's (a candidate file), or go back to the shipped network")
-    shop.add_argument("--by", default=None, metavar="NAME", help="with --adopt: who adopts (default: login name)")
+    shop.add_argument("--by", type=identity(), default=None, metavar="NAME",
+                      help="with --adopt: who adopts (default: login name)")
     shop.add_argument("--json", action="store_true", help="with --from-history: print the figures as JSON")
     p.set_defaults(run=run)
 
@@ -71,12 +86,15 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("training needs the 'train' extra: pip install '.[train]'") from None
     if args.count < 20:
         raise ConfigError(f"--count {args.count}: train on at least 20 valves per variant")
+    _check_training_inputs(args)
     if args.from_history:
         return _from_history(args)
     for flag, value in (("--db", args.db), ("--prior-weight", args.prior_weight), ("--name", args.name),
-                        ("--out", args.out), ("--by", args.by), ("--json", args.json or None)):
+                        ("--candidate-file", args.candidate_file), ("--by", args.by), ("--json", args.json or None)):
         if value is not None:
             raise ConfigError(f"{flag} goes with --from-history or --adopt")
+    out_dir = args.models_dir or packaged_model_path().parent
+    check_output_folder(out_dir, "--models-dir")  # before minutes of simulation and training
     if args.dataset is not None:
         dataset = Dataset.load(args.dataset)
     else:
@@ -87,14 +105,31 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         if args.save_dataset is not None:
             dataset.save(args.save_dataset)
-    out_dir = args.out_dir or packaged_model_path().parent
-    out_dir.mkdir(parents=True, exist_ok=True)
     for kind, name in (("mlp", DEFAULT_MODEL), ("linear", LINEAR_MODEL)):
         model = train(dataset, kind, args.seed, marginal_band=args.marginal_band)
         (out_dir / name).write_bytes(model.onnx_bytes)
         print(f"{kind}: training accuracy {model.train_accuracy:.4f} on {len(dataset)} tests -> {out_dir / name}")
     print(f"training data sha256 {dataset.content_hash()}")
     return 0
+
+
+def _check_training_inputs(args: argparse.Namespace) -> None:
+    """Everything training reads or writes, checked before minutes of simulation and training."""
+    import math
+
+    from edc_bench.config import load_variant
+    from edc_bench.errors import ConfigError
+
+    if not (math.isfinite(args.marginal_band) and 0 <= args.marginal_band < 0.5):
+        raise ConfigError(f"--marginal-band {args.marginal_band}: give the band's half-width in baseline ratios, "
+                          "0 or more and below 0.5 (default 0.03)")
+    if args.dataset is not None and not args.dataset.is_file():
+        raise ConfigError(f"--dataset {args.dataset}: no such file; give a dataset written with --save-dataset")
+    if args.save_dataset is not None:
+        check_output_file(args.save_dataset, "--save-dataset")
+    if args.dataset is None:
+        for name in args.variants:
+            load_variant(name)
 
 
 def _adopt(args: argparse.Namespace) -> int:
@@ -106,7 +141,8 @@ def _adopt(args: argparse.Namespace) -> int:
     if args.from_history:
         raise ConfigError("--adopt and --from-history are separate steps: train, read the figures, then adopt")
     for flag, value in (("--db", args.db), ("--prior-weight", args.prior_weight), ("--name", args.name),
-                        ("--out", args.out), ("--json", args.json or None), ("--dataset", args.dataset)):
+                        ("--candidate-file", args.candidate_file), ("--json", args.json or None),
+                        ("--dataset", args.dataset)):
         if value is not None:
             raise ConfigError(f"{flag} does not go with --adopt (it adopts a model file, or 'shipped')")
     if args.adopt == "shipped":
@@ -132,14 +168,14 @@ def _from_history(args: argparse.Namespace) -> int:
     from edc_bench.history.store import HistoryStore
     from edc_bench.paths import atomic_write
 
-    if args.out is not None and (args.out.is_dir() or not args.out.parent.is_dir()):
-        raise ConfigError(f"--out {args.out}: give a file name in a folder that exists (the candidate's .onnx)")
+    if args.candidate_file is not None:
+        check_output_file(args.candidate_file, "--candidate-file")
     if args.name is not None and not re.fullmatch(r"[A-Za-z0-9._-]{1,100}", args.name):
         raise ConfigError(f"--name {args.name!r}: use letters, digits, '.', '_' and '-' (at most 100), e.g. shop-2026-11")
     if args.prior_weight is not None and not (math.isfinite(args.prior_weight) and args.prior_weight >= 0):
         raise ConfigError(f"--prior-weight {args.prior_weight}: give how many labelled tests the simulated "
                           "population counts as, 0 or more (default 50)")
-    with HistoryStore(args.db) as store:
+    with HistoryStore(args.db) as store:  # checked (check_url) before it is opened
         labelled = labelled_tests(store)
         url = store.engine.url.render_as_string(hide_password=True)
     check_enough(labelled.labels, labelled.valves)  # before a simulation of the prior
@@ -156,7 +192,7 @@ def _from_history(args: argparse.Namespace) -> int:
     current = ValveClassifier()  # the station's model: adopted, else shipped
     result = train_from_labels(labelled, prior, current, prior_weight=prior_weight, seed=args.seed, name=args.name,
                                source={"history": url})
-    out = args.out or station_models_dir() / "candidates" / f"{result.name}.onnx"
+    out = args.candidate_file or station_models_dir() / "candidates" / f"{result.name}.onnx"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(out, lambda handle: handle.write(result.candidate.onnx_bytes))

@@ -19,8 +19,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "spring from its file, with the transport delay acceptance.max_reply_age_ms allows) that keep "
                     "the margins [controller] asks for (min_gain_margin_db, min_phase_margin_deg) with the most "
                     "closed-loop bandwidth. Prints the margins, the bandwidth and the expected settling of the "
-                    "present gains and the proposed ones. Exit codes: 0 done, 2 bad variant or no gains keep "
-                    "the margins.",
+                    "present gains and the proposed ones. No gains that keep the margins is bad input (exit 2).",
     )
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (default: p-edc-default)")
     p.add_argument("--write", action="store_true",
@@ -40,6 +39,12 @@ def run(args: argparse.Namespace) -> int:
 
     variant = load_variant(args.variant)
     path = variant_file(args.variant)
+    if args.write:
+        from edc_bench.cli.common import probe_writable
+
+        # the gains are written by replacing the file: its folder must take a new file, checked before tuning
+        probe_writable(path.parent, f"--write: the folder of {path} is not writable; copy the variant to a "
+                                    "writable place and tune that file")
     c = variant.controller
     plant = nominal_plant(variant)
     delay_ticks = max_reply_age_ticks(variant)

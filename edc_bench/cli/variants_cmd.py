@@ -13,9 +13,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """List variant names, part numbers and files."""
+    import os
+    from pathlib import Path
+
     from edc_bench.config import DEFAULT_VARIANT, available_variants, load_variant
     from edc_bench.errors import ConfigError
 
+    configured = os.environ.get("EDC_BENCH_VARIANTS_DIR")
+    if configured and Path(configured).exists() and not Path(configured).is_dir():
+        raise ConfigError(f"EDC_BENCH_VARIANTS_DIR={configured}: is a file, not a folder; point it to the folder "
+                          "of this station's variant files (or unset it)")
     for name, path in available_variants().items():
         try:
             variant = load_variant(path)

@@ -152,16 +152,41 @@ def load_variant(name_or_path: str | Path | None = None) -> Variant:
     """
     path = variant_file(name_or_path)
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read variant file ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    data = _variant_data(path, raw)
+    if not data:
+        raise ConfigError(f"{path}: the variant file is empty; copy configs/p-edc-default.toml and edit it "
+                          "(docs/variants.md)")
     variant = parse_variant(data, str(path))
     variant._source_file = str(path)
     return variant
+
+
+def _variant_data(path: Path, raw: bytes) -> dict[str, Any]:
+    """A variant file's bytes as TOML data; UTF-8 text (a byte-order mark, as Windows editors write, is allowed).
+
+    Raises
+    ------
+    ConfigError
+        In one line, for a file that is binary, in another encoding or not TOML, saying what to do.
+    """
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise ConfigError(f"{path}: the variant file is UTF-16 text; save it as UTF-8 (docs/variants.md)")
+    if b"\x00" in raw:
+        raise ConfigError(f"{path}: not a variant file: it holds binary data (NUL bytes); give a TOML text file "
+                          "such as configs/p-edc-default.toml")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise ConfigError(f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line}, e.g. a Latin-1 "
+                          "umlaut); save the file as UTF-8") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
 
 
 def variant_argument(variant: Variant) -> str:
@@ -183,7 +208,12 @@ def variant_file(name_or_path: str | Path | None = None) -> Path:
     """
     key = str(name_or_path) if name_or_path is not None else DEFAULT_VARIANT
     candidate = Path(key)
-    if candidate.suffix == ".toml" or "/" in key or candidate.is_file():
+    if candidate.suffix == ".toml" or "/" in key or candidate.exists():
+        if candidate.is_dir():
+            raise ConfigError(f"variant file {key!r} is a folder; give a .toml file in it, a name or a part number "
+                              "('edc-bench variants' lists them)")
+        if candidate.exists() and not candidate.is_file():
+            raise ConfigError(f"variant file {key!r} is a device or other special file; give a .toml file")
         if not candidate.is_file():
             raise ConfigError(f"variant file {key!r} does not exist")
         return candidate
@@ -193,7 +223,7 @@ def variant_file(name_or_path: str | Path | None = None) -> Path:
     for path in library.values():
         try:
             pump = tomllib.loads(path.read_text(encoding="utf-8")).get("pump", {})
-        except (OSError, tomllib.TOMLDecodeError):
+        except (OSError, ValueError):  # unreadable, not UTF-8, not TOML: 'edc-bench variants' says why
             continue
         if pump.get("part_number") == key:
             return path

@@ -1,36 +1,85 @@
 """Pump variant configuration: pydantic models, one per TOML section.
 
 Every number carries its unit in its name. Unknown keys are rejected so that a
-misspelt key never silently falls back to a default. Relations between
-sections (travel limits inside the stroke, drive limit within the amplifier,
-mid-stroke reachable without tripping over-current) are checked in
-:class:`Variant`.
+misspelt key never silently falls back to a default. Physical values must lie
+in a plausible range (each section's ``plausible`` table, with the reason in
+the message): a value valid for pydantic but absurd for a pump (a 1e308 kg
+rack, a 1 km stroke) is a typing or unit error, and would otherwise reach the
+gain check or the simulation. Relations between sections (travel limits
+inside the stroke, drive limit within the amplifier, mid-stroke reachable
+without tripping over-current) are checked in :class:`Variant`.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, get_args
+from typing import Annotated, Any, ClassVar, Literal, NamedTuple, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
+class Plausible(NamedTuple):
+    """The range a physical value takes in any P-EDC pump and bench, generous on purpose, and why."""
+
+    low: float
+    high: float
+    unit: str
+    reason: str  # completes "... <low> to <high> <unit>", e.g. "a rack with its armature weighs"
+
+    def check(self, value: float) -> None:
+        """Raise ValueError (pydantic reports it against the key) if ``value`` lies outside the range."""
+        if not self.low <= value <= self.high:
+            raise ValueError(f"implausible: {self.reason} {self.low:g} to {self.high:g} {self.unit}; check the "
+                             "value and its unit")
+
+
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
+
+    #: key -> its plausible range, checked after the key's type and sign (see :class:`Plausible`)
+    plausible: ClassVar[dict[str, Plausible]] = {}
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _plausible(cls, value: Any, info: ValidationInfo) -> Any:
+        limits = cls.plausible.get(info.field_name or "")
+        if limits is not None:
+            for number in value.values() if isinstance(value, dict) else [value]:  # one gain, or one per parameter
+                if isinstance(number, int | float):
+                    limits.check(float(number))
+        return value
 
 
 class PumpSection(_Section):
     """Identity of the pump variant."""
 
-    name: Annotated[str, Field(min_length=1, pattern=r"^[a-z0-9][a-z0-9_.-]*$")]
+    # at most 64 characters: the name is part of every record folder's name (255 bytes at most)
+    name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[a-z0-9][a-z0-9_.-]*$")]
     part_number: Annotated[str, Field(min_length=1)]
     description: str = ""
 
 
 class RackSection(_Section):
     """Rack, spring and pump-side mechanics (paper eq. 1)."""
+
+    plausible = {
+        "stroke_mm": Plausible(1, 60, "mm", "an in-line pump's control rack travels"),
+        "mid_stroke_mm": Plausible(0.5, 60, "mm", "mid-stroke of a control rack lies at"),
+        "mass_kg": Plausible(0.01, 10, "kg", "a control rack with the solenoid's armature weighs"),
+        "spring_n_per_mm": Plausible(0.01, 100, "N/mm", "a rack's return spring has a rate of"),
+        "preload_n": Plausible(0, 500, "N", "a return spring's preload is"),
+        "damping_n_s_per_mm": Plausible(0, 10, "N s/mm", "the pump side damps the rack by"),
+    }
 
     stroke_mm: PositiveFloat
     mid_stroke_mm: PositiveFloat
@@ -44,6 +93,17 @@ class RackSection(_Section):
 
 class CoilSection(_Section):
     """Solenoid coil, magnetic force and drive amplifier (paper eqs. 2-3)."""
+
+    plausible = {
+        "resistance_ohm": Plausible(0.05, 100, "ohm", "a rack solenoid's coil measures"),
+        "resistance_min_ohm": Plausible(0.05, 100, "ohm", "a rack solenoid's coil measures"),
+        "resistance_max_ohm": Plausible(0.05, 100, "ohm", "a rack solenoid's coil measures"),
+        "inductance_mh": Plausible(0.01, 1000, "mH", "a rack solenoid's inductance is"),
+        "force_constant_n_per_a": Plausible(0.01, 500, "N/A", "a rack solenoid pulls with"),
+        "magnetic_stiffness_n_per_mm": Plausible(0, 100, "N/mm", "a solenoid's magnetic stiffness is"),
+        "amplifier_gain": Plausible(0.01, 100, "", "a drive amplifier's gain is"),
+        "amplifier_limit_v": Plausible(0.5, 100, "V", "a bench amplifier (12, 24 or 48 V supplies) drives at most"),
+    }
 
     resistance_ohm: PositiveFloat = Field(description="nominal coil resistance at 20 degC (the reference coil)")
     inductance_mh: PositiveFloat
@@ -79,6 +139,11 @@ class ValvePreset(_Section):
     clearance_mm: PositiveFloat
     roughness: PositiveFloat = 1.0
 
+    plausible = {
+        "clearance_mm": Plausible(0.001, 2, "mm", "a plunger clearance, new to scrap, is"),
+        "roughness": Plausible(0.1, 5, "", "uneven wear multiplies friction and damping by"),
+    }
+
 
 class ValveSection(_Section):
     """How plunger wear maps to friction and damping (paper sec. 4).
@@ -88,6 +153,15 @@ class ValveSection(_Section):
     multiplies both. ``spread_rel`` is the log-normal spread between valves of
     the same clearance.
     """
+
+    plausible = {
+        "clearance_new_mm": Plausible(0.001, 2, "mm", "a plunger clearance, new to scrap, is"),
+        "clearance_spec_mm": Plausible(0.001, 2, "mm", "a plunger clearance, new to scrap, is"),
+        "coulomb_friction_new_n": Plausible(0.001, 100, "N", "a new valve's Coulomb friction is"),
+        "friction_gain_per_mm": Plausible(0, 1000, "1/mm", "friction grows with clearance by"),
+        "damping_new_n_s_per_mm": Plausible(0, 10, "N s/mm", "a new valve damps the rack by"),
+        "damping_gain_per_mm": Plausible(0, 1000, "1/mm", "damping grows with clearance by"),
+    }
 
     clearance_new_mm: PositiveFloat
     clearance_spec_mm: PositiveFloat
@@ -115,6 +189,12 @@ class ValveSection(_Section):
 class SensorModel(_Section):
     """One sensor: additive offset and Gaussian noise, then quantisation."""
 
+    plausible = {
+        "noise_sd": Plausible(0, 1, "mm or A", "a rack position or coil current sensor's noise is"),
+        "resolution": Plausible(1e-6, 1, "mm or A", "a rack position or coil current sensor resolves"),
+        "offset": Plausible(-5, 5, "mm or A", "a rack position or coil current sensor's offset is"),
+    }
+
     noise_sd: NonNegativeFloat
     resolution: PositiveFloat
     offset: Annotated[float, Field(allow_inf_nan=False)] = 0.0
@@ -129,6 +209,15 @@ class SensorsSection(_Section):
 
 class RigSection(_Section):
     """Rig firmware limits and timing (ICD v1)."""
+
+    plausible = {
+        "drive_limit_v": Plausible(0.5, 100, "V", "a rig drives its coil with at most"),
+        "over_current_a": Plausible(0.1, 100, "A", "a rig trips over-current at"),
+        "travel_max_mm": Plausible(0.5, 60, "mm", "a rack's upper travel limit is"),
+        "supply_voltage_v": Plausible(1, 100, "V", "a bench supply gives"),
+        "supply_min_v": Plausible(0, 100, "V", "a bench supply's lowest allowed voltage is"),
+        "boot_ms": Plausible(0, 60000, "ms", "a rig boots in"),
+    }
 
     drive_limit_v: PositiveFloat
     over_current_a: PositiveFloat
@@ -146,6 +235,8 @@ class RigSection(_Section):
 class ToneSection(_Section):
     """One sine of the excitation."""
 
+    plausible = {"amplitude_mm": Plausible(0.001, 30, "mm", "a tone moves the rack by")}
+
     frequency_hz: Annotated[float, Field(gt=0, le=50, allow_inf_nan=False)]
     amplitude_mm: PositiveFloat
     phase_deg: Annotated[float, Field(ge=-360, le=360, allow_inf_nan=False)] = 0.0
@@ -158,11 +249,17 @@ class ExcitationSection(_Section):
     cannot separate a3 from a1, see docs/method.md section 10 d). ``"multisine"`` sums all tones.
     """
 
+    plausible = {
+        "move_s": Plausible(0.01, 10, "s", "moving the rack to mid-stroke takes"),
+        "fade_s": Plausible(0.01, 10, "s", "fading the excitation in takes"),
+        "duration_s": Plausible(1, 600, "s", "a bench test lasts"),
+    }
+
     shape: Literal["sine", "multisine"] = "multisine"
     tones: Annotated[list[ToneSection], Field(min_length=1, max_length=8)]
-    move_s: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 1.0
-    fade_s: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 1.0
-    duration_s: Annotated[float, Field(gt=0, le=600, allow_inf_nan=False)] = 30.0
+    move_s: PositiveFloat = 1.0
+    fade_s: PositiveFloat = 1.0
+    duration_s: PositiveFloat = 30.0
 
     @property
     def active_tones(self) -> list[ToneSection]:
@@ -181,7 +278,16 @@ class ExcitationSection(_Section):
 class ControllerSection(_Section):
     """Loop rate and PID feedback gains, checked against the nominal plant."""
 
-    period_s: Annotated[float, Field(ge=1e-4, le=0.01, allow_inf_nan=False)] = 0.001
+    plausible = {
+        "period_s": Plausible(1e-4, 0.01, "s", "the bench loop runs at 100 Hz to 10 kHz, a period of"),
+        "kp_v_per_mm": Plausible(0, 100, "V/mm", "a rack position loop's proportional gain is"),
+        "ki_v_per_mm_s": Plausible(0, 10000, "V/(mm s)", "a rack position loop's integral gain is"),
+        "kd_v_s_per_mm": Plausible(0, 10, "V s/mm", "a rack position loop's derivative gain is"),
+        "derivative_filter_hz": Plausible(0.1, 5000, "Hz", "the derivative filter's corner lies at"),
+        "min_gain_margin_db": Plausible(0, 60, "dB", "a gain margin asked for is"),
+    }
+
+    period_s: PositiveFloat = 0.001
     kp_v_per_mm: NonNegativeFloat
     ki_v_per_mm_s: NonNegativeFloat
     kd_v_s_per_mm: NonNegativeFloat
@@ -201,6 +307,11 @@ class EstimatorSection(_Section):
     Parameters not listed in ``estimate`` stay at their nominal value (from
     the variant's physics); list only what the excitation makes identifiable.
     """
+
+    plausible = {
+        "initial_std_rel": Plausible(1e-6, 100, "", "the prior spread, relative to the nominal values, is"),
+        "gradient_gains_per_s": Plausible(1e-6, 1e5, "1/s", "a gradient law's gain is"),
+    }
 
     kind: Literal["rls", "gradient"] = "rls"
     estimate: Annotated[list[ParameterName], Field(min_length=1)] = [
@@ -232,6 +343,13 @@ class EstimatorSection(_Section):
 class AcceptanceSection(_Section):
     """When a test counts as trustworthy (else INVALID)."""
 
+    plausible = {
+        "convergence_window_s": Plausible(0.1, 600, "s", "the window af and a1 settle in is"),
+        "max_condition_number": Plausible(1.01, 1e12, "", "a usable regressor's condition number is at most"),
+        "max_tracking_error_mm": Plausible(0.01, 60, "mm", "the rack may stray from its reference by"),
+        "ready_timeout_s": Plausible(0.1, 600, "s", "a rig reports READY within"),
+    }
+
     settle_band_rel: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.02
     convergence_window_s: PositiveFloat = 5.0
     max_condition_number: Annotated[float, Field(gt=1, allow_inf_nan=False)] = 1e4
@@ -259,6 +377,11 @@ class AcceptanceSection(_Section):
 class PopulationSection(_Section):
     """How the simulated population of used valves is drawn."""
 
+    plausible = {
+        "clearance_min_mm": Plausible(0.001, 2, "mm", "a plunger clearance, new to scrap, is"),
+        "clearance_max_mm": Plausible(0.001, 2, "mm", "a plunger clearance, new to scrap, is"),
+    }
+
     clearance_min_mm: PositiveFloat
     clearance_max_mm: PositiveFloat
     rough_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.2
@@ -285,6 +408,11 @@ class DiagnosisSection(_Section):
     ``F_c + c * resistance_speed_mm_s > resistance_limit_n``. The label of a
     simulated valve comes from this physics, never from identified values.
     """
+
+    plausible = {
+        "resistance_speed_mm_s": Plausible(0.1, 10000, "mm/s", "a governor moves the rack at"),
+        "resistance_limit_n": Plausible(0.001, 1000, "N", "a valve's resisting force limit is"),
+    }
 
     resistance_speed_mm_s: PositiveFloat
     resistance_limit_n: PositiveFloat

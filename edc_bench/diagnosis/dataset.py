@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import zipfile
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -78,7 +79,7 @@ class Dataset:
             with np.load(Path(path)) as data:
                 columns = {name: data[name] for name in COLUMNS}
                 provenance = json.loads(str(data["provenance"]))
-        except (OSError, KeyError, ValueError) as exc:
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # a damaged or foreign file
             raise ConfigError(f"{path}: not an edc-bench dataset ({exc})") from None
         dataset = cls(columns, provenance)
         if provenance.get("content_sha256") != dataset.content_hash():

@@ -88,6 +88,80 @@ def default_url() -> str:
     return f"sqlite:///{data_dir() / 'history.sqlite'}"
 
 
+#: The first bytes of every SQLite database file.
+SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+def check_url(url: str | None) -> sa.engine.URL:
+    """Check a history URL without connecting: its form, its driver, and for SQLite the file and its folder.
+
+    The default (the station's data folder) is made if missing; a folder
+    named in a URL is never made, so a mistyped URL cannot start a second,
+    empty history beside the shop's.
+
+    Parameters
+    ----------
+    url : str, optional
+        ``--db``; default :func:`default_url` (``EDC_BENCH_HISTORY_URL``, else the data folder's SQLite file).
+
+    Returns
+    -------
+    sqlalchemy.engine.URL
+        The parsed URL.
+
+    Raises
+    ------
+    ConfigError
+        Naming the URL, where it came from, what is wrong and what to give instead.
+    """
+    given = url or os.environ.get("EDC_BENCH_HISTORY_URL")
+    text = url or default_url()
+    where = "" if url or not given else " (from EDC_BENCH_HISTORY_URL)"
+    fix = "give another with --db URL" + (" or EDC_BENCH_HISTORY_URL" if where else "")
+    try:
+        parsed = sa.engine.make_url(text)
+    except sa.exc.ArgumentError:
+        hint = f" (a file: sqlite:///{text})" if "://" not in text else ""
+        raise ConfigError(f"history database {text!r}{where} is not a database URL: use sqlite:///FILE{hint} or "
+                          "postgresql+psycopg://USER@HOST/DB") from None
+    try:
+        parsed.get_dialect()
+    except (sa.exc.NoSuchModuleError, ImportError) as exc:
+        raise ConfigError(f"history database {text!r}{where}: {exc}; use sqlite:///FILE or "
+                          "postgresql+psycopg://USER@HOST/DB (PostgreSQL needs edc-bench[postgres])") from None
+    if parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "", ":memory:"):
+        _check_sqlite_file(Path(parsed.database), f"history database {text}{where}", fix, default=not given)
+    return parsed
+
+
+def _check_sqlite_file(path: Path, what: str, fix: str, default: bool) -> None:
+    """Refuse a SQLite target that is a folder, a device, another kind of file, or in a missing folder."""
+    if path.is_dir():
+        raise ConfigError(f"{what}: {path} is a folder; name a file in it, e.g. sqlite:///{path / 'history.sqlite'}")
+    if path.exists() and not path.is_file():
+        raise ConfigError(f"{what}: {path} is a device or other special file, not a database file; {fix}")
+    if path.is_file() and path.stat().st_size > 0:
+        try:
+            with path.open("rb") as handle:
+                header = handle.read(len(SQLITE_HEADER))
+        except OSError as exc:
+            raise ConfigError(f"{what}: cannot read {path} ({exc.strerror}); {fix}") from None
+        if header != SQLITE_HEADER:
+            raise ConfigError(f"{what}: {path} is not a SQLite database (it holds other data); refusing to touch it: "
+                              f"{fix}")
+    if not path.parent.is_dir():
+        if default:
+            path.parent.mkdir(parents=True, exist_ok=True)  # the station's own data folder, on a fresh station
+        else:
+            raise ConfigError(f"{what}: the folder {path.parent} does not exist; make it first (mkdir -p "
+                              f"{path.parent}) or {fix}")
+
+
+def _text(value: Any) -> str:
+    """``value`` as text any database stores: text that is not valid Unicode (a hand-edited record) escaped."""
+    return str(value).encode("utf-8", "backslashreplace").decode("utf-8")
+
+
 def _finite(value: Any) -> float | None:
     try:
         number = float(value)
@@ -105,24 +179,24 @@ def row_from_record(record: dict[str, Any], record_dir: Path) -> dict[str, Any]:
     loop = record.get("loop") or {}
     reasons = record.get("reasons") or []
     return {
-        "record_dir": str(Path(record_dir).resolve()),
-        "started_at": str(record.get("started_at", "")),
-        "valve_id": str(record.get("valve_id", "")),
-        "pump_serial": str(identity.get("pump_serial", "")),
-        "variant": str(record.get("variant", "")),
-        "part_number": str(record.get("part_number", "")),
-        "verdict": str(record.get("verdict", "")),
+        "record_dir": _text(Path(record_dir).resolve()),
+        "started_at": _text(record.get("started_at", "")),
+        "valve_id": _text(record.get("valve_id", "")),
+        "pump_serial": _text(identity.get("pump_serial", "")),
+        "variant": _text(record.get("variant", "")),
+        "part_number": _text(record.get("part_number", "")),
+        "verdict": _text(record.get("verdict", "")),
         "af_v": _finite(features.get("af")),
         "a1_v_s_per_mm": _finite(features.get("a1")),
         "af_rel": _finite(rel.get("af")),
         "a1_rel": _finite(rel.get("a1")),
         "probability_faulty": _finite(cls.get("probability_faulty")),
         "distance": _finite(cls.get("distance")),
-        "station": str(identity.get("station", "")),
-        "operator": str(identity.get("operator", "")),
-        "clock": str(record.get("clock", "")),
-        "software_version": str(record.get("software_version", "")),
-        "reason": str(loop.get("abort_reason") or (reasons[0] if reasons else "")),
+        "station": _text(identity.get("station", "")),
+        "operator": _text(identity.get("operator", "")),
+        "clock": _text(record.get("clock", "")),
+        "software_version": _text(record.get("software_version", "")),
+        "reason": _text(loop.get("abort_reason") or (reasons[0] if reasons else "")),
         "model_name": cls.get("model_name") or (Path(cls["model_file"]).stem if cls.get("model_file") else None),
         "model_sha256": cls.get("model_sha256"),
     }
@@ -161,17 +235,11 @@ class HistoryStore:
     """
 
     def __init__(self, url: str | None = None) -> None:
+        parsed = check_url(url)
         self.url = url or default_url()
-        try:
-            parsed = sa.engine.make_url(self.url)
-        except sa.exc.ArgumentError:
-            raise ConfigError(f"history database {self.url!r} is not a database URL: use sqlite:///FILE or "
-                              "postgresql+psycopg://USER@HOST/DB") from None
         self.is_sqlite = parsed.get_backend_name() == "sqlite"
         kwargs: dict[str, Any] = {}
         if self.is_sqlite:
-            if parsed.database:
-                Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
             kwargs["connect_args"] = {"timeout": 30.0}
         try:
             self.engine = sa.create_engine(parsed, **kwargs)

@@ -86,7 +86,7 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
         bus_style = "red" if s.missed_replies or s.bad_replies else "green"
         grid.add_row("bus", Text(f"{s.missed_replies} replies missing, {s.bad_replies} bad, "
                                  f"{s.heartbeats} heartbeats", style=bus_style))
-    return Panel(grid, title=title, border_style="blue")
+    return Panel(grid, title=Text(title), border_style="blue")  # the title holds the valve id: never markup
 
 
 def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
@@ -116,10 +116,11 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
         body.add_row("timing", f"{t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, "
                                f"{t['overruns']} overruns, {result.outcome.missed_replies} replies missing")
     if record_dir is not None:
-        body.add_row("record", str(record_dir))
-        body.add_row("next", f"edc-bench report {record_dir}")
+        body.add_row("record", Text(str(record_dir)))
+        body.add_row("next", Text(f"edc-bench report {record_dir}"))
     style = {Verdict.PASS: "green", Verdict.MARGINAL: "yellow", Verdict.FAIL: "red"}.get(result.verdict, "magenta")
-    return Panel(body, title=f"valve {result.valve_id or '?'} on {result.variant.name}", border_style=style)
+    # the valve id as the technician typed it, never read as rich markup
+    return Panel(body, title=Text(f"valve {result.valve_id or '?'} on {result.variant.name}"), border_style=style)
 
 
 class LiveView:

@@ -123,7 +123,7 @@ def test_bad_calibrate_arguments_are_refused_before_any_test(tmp_path) -> None:
     env = _station(tmp_path)
     for args, message in (
         (("--out", "b.toml"), "--out is the folder for the tests' records"),
-        (("--tests", "0"), "--tests 0: give 1 or more"),
+        (("--tests", "0"), "argument --tests: 0 is not a count: give 1 or more"),
         (("--valve", "new", "--interface", "virtual"), "--valve simulates a valve on the simulated rig"),
         (("--baseline-file", str(tmp_path)), "is a folder; give a file such as"),
         (("--write", "--append"), "not allowed with argument"),

@@ -24,8 +24,8 @@ def test_classify_a_record_folder(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("args", "message"), [
     (["--af", "0.05"], "give --af and --a1"),
-    (["--af", "-1", "--a1", "0.01"], "must be positive"),
-    (["nowhere"], "not a readable record"),
+    (["--af", "-1", "--a1", "0.01"], "argument --af: -1 is not above 0"),
+    (["nowhere"], "no such record folder"),
     (["--af", "0.05", "--a1", "0.004", "--model", "missing.onnx"], "not found"),
 ])
 def test_classify_bad_input(tmp_path: Path, args: list[str], message: str) -> None:

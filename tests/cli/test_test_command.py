@@ -41,7 +41,8 @@ def test_cli_human_output_shows_the_numbers(tmp_path: Path) -> None:
         (["--variant", "nope"], "unknown variant 'nope'", 2),
         (["--valve", "cracked"], "unknown valve 'cracked'", 2),
         (["--duration-s", "3"], "excitation.duration_s (3 s) is too short", 2),
-        (["--interface", "nosuchbus"], "cannot open the CAN bus (interface=nosuchbus)", 3),
+        (["--interface", "nosuchbus"], "--interface 'nosuchbus': python-can has no such interface; use one of", 2),
+        (["--interface", "socketcan", "--channel", "nosuchcan0"], "cannot open the CAN bus (interface=socketcan", 3),
     ],
 )
 def test_cli_bad_input_is_one_clear_line(tmp_path: Path, args: list[str], message: str, code: int) -> None:

@@ -150,3 +150,59 @@ def test_a_station_adds_a_variant_by_dropping_a_file(tmp_path, monkeypatch) -> N
     assert str(station) in listing.stdout
     monkeypatch.setenv("EDC_BENCH_VARIANTS_DIR", str(station))
     assert load_variant("SHOP-42").name == "shop-pump"  # by part number
+
+
+@pytest.mark.parametrize(("section", "key", "value", "expected"), [
+    ("rack", "mass_kg", 1e308, r"\[rack\]\.mass_kg = 1e\+308: implausible: .* weighs 0\.01 to 10 kg; check the value"),
+    ("rack", "stroke_mm", 1e9, r"\[rack\]\.stroke_mm = 1000000000\.0: implausible: .* 1 to 60 mm"),
+    ("coil", "inductance_mh", 1e6, r"\[coil\]\.inductance_mh = 1000000\.0: implausible"),
+    ("controller", "period_s", 1.0, r"\[controller\]\.period_s = 1\.0: implausible: the bench loop runs at 100 Hz"),
+    ("excitation", "duration_s", 3600.0, r"\[excitation\]\.duration_s = 3600\.0: implausible: a bench test lasts 1 to"),
+])
+def test_an_absurd_value_is_refused_with_the_reason(tmp_path: Path, section: str, key: str, value: float,
+                                                    expected: str) -> None:
+    data = _raw()
+    data[section][key] = value
+    with pytest.raises(ConfigError, match=expected):
+        load_variant(_write(tmp_path, data))
+
+
+def test_every_shipped_variant_lies_in_the_plausible_ranges() -> None:
+    for path in available_variants().values():
+        load_variant(path)  # a range that refuses a shipped pump is too narrow
+
+
+def test_the_plausible_ranges_in_the_docs_are_the_schemas() -> None:
+    import re
+
+    from edc_bench.config import models
+
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "variants.md").read_text(encoding="utf-8")
+    rows = re.findall(r"^\| `\[[^|]+\]` \| `(\w+)` \| (-?[0-9.e+-]+) to ([0-9.e+-]+)( [^|]+)? \|", docs, re.MULTILINE)
+    documented = {(key, float(low), float(high), (unit or "").strip()) for key, low, high, unit in rows}
+
+    def sections(cls: type) -> list[type]:
+        return [cls, *(s for sub in cls.__subclasses__() for s in sections(sub))]
+
+    declared = {(key, p.low, p.high, p.unit) for cls in sections(models._Section) for key, p in cls.plausible.items()}
+    assert documented == declared
+
+
+@pytest.mark.parametrize(("content", "expected"), [
+    (bytes(range(256)), "binary data"),
+    ("description = 'Prüfstand'\n".encode("latin-1"), r"not UTF-8 text \(byte 0xfc on line 1"),
+    ("[pump]\n".encode("utf-16"), "UTF-16 text; save it as UTF-8"),
+    (b"  \n", "the variant file is empty"),
+])
+def test_a_file_that_is_not_utf8_toml_is_refused_in_one_line(tmp_path: Path, content: bytes, expected: str) -> None:
+    path = tmp_path / "x.toml"
+    path.write_bytes(content)
+    with pytest.raises(ConfigError, match=expected) as info:
+        load_variant(path)
+    assert len(str(info.value).splitlines()) == 1
+
+
+def test_a_byte_order_mark_is_fine(tmp_path: Path) -> None:
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + available_variants()["p-edc-default"].read_bytes())
+    assert load_variant(path).name == "p-edc-default"
