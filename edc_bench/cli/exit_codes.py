@@ -25,6 +25,7 @@ class ExitCode(enum.IntEnum):
     RIG_ERROR = 3
     INTERRUPTED = 130
     INTERNAL_ERROR = 70
+    RECORD_NOT_WRITTEN = 74  # edc-bench test: the record could not be written anywhere (sysexits' EX_IOERR)
 
 
 def exit_code_for(verdict: str) -> ExitCode:
@@ -45,6 +46,7 @@ MEANINGS: dict[int, str] = {
     ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
     ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
     ExitCode.INTERRUPTED: "interrupted (Ctrl-C or SIGTERM); a test's record is still written",
+    ExitCode.RECORD_NOT_WRITTEN: "the record could not be written (a full disk): the verdict printed was not saved",
 }
 
 #: What 0 means for each command (default: done).
@@ -58,7 +60,8 @@ SUCCESS: dict[str, str] = {
 
 #: The codes each command can return; every command can also return 2, 70 and 130 (:data:`ALWAYS`).
 COMMAND_CODES: dict[str, tuple[int, ...]] = {
-    "test": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID, ExitCode.RIG_ERROR),
+    "test": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID, ExitCode.RIG_ERROR,
+             ExitCode.RECORD_NOT_WRITTEN),
     "rig": (ExitCode.OK,),
     "variants": (ExitCode.OK,),
     "tune": (ExitCode.OK,),
@@ -84,7 +87,7 @@ SHORT_NAMES: dict[int, str] = {
     ExitCode.PASS: "PASS", ExitCode.MARGINAL: "MARGINAL", ExitCode.FAIL: "FAIL", ExitCode.INVALID: "INVALID",
     ExitCode.NOT_REPRODUCED: "replay not reproduced", ExitCode.STATION_NOT_READY: "station NO-GO",
     ExitCode.BAD_INPUT: "bad input", ExitCode.RIG_ERROR: "rig or bus error", ExitCode.INTERNAL_ERROR: "internal error",
-    ExitCode.INTERRUPTED: "interrupted",
+    ExitCode.INTERRUPTED: "interrupted", ExitCode.RECORD_NOT_WRITTEN: "record not written",
 }
 
 

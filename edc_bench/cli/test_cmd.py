@@ -207,9 +207,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.bench import run_bench_test, run_simulated_test
     from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.protocol import default_icd
-    from edc_bench.records.record import write_record
     from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
-    from edc_bench.runtime.bus import open_bus
+    from edc_bench.runtime.bus import ClosingBus, open_bus
     from edc_bench.runtime.clock import RealTimeClock
 
     from edc_bench.cli.common import check_output_folder
@@ -272,7 +271,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
                 rig_status: dict[str, float] = {}
                 with rig_process(args.variant, args.valve, args.seed, args.adapter, rig_status) as channel:
                     log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
-                    with open_bus({"interface": "slcan", "channel": channel}, icd.bitrate) as bus:
+                    session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
+                    with session as bus:
                         result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
                                                 observer=observer, stream_can_log=stream_target,
                                                 coil_temp_c=args.coil_temp_c, **baseline_options)
@@ -281,13 +281,24 @@ def _run_guarded(args: argparse.Namespace) -> int:
                                                      **rig_status}}
             else:
                 log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
-                with open_bus(bus_config, icd.bitrate) as bus:
+                session = ClosingBus(open_bus(bus_config, icd.bitrate))
+                with session as bus:
                     result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
                                             observer=observer, stream_can_log=stream_target,
                                             coil_temp_c=args.coil_temp_c, **baseline_options)
+            if session.close_error:  # a connection that died with the test: noted, the record is what matters
+                result.outcome.events.append(f"closing the bus failed: {session.close_error}")
     result.identity = identity
 
-    record_dir = write_record(result, args.out, figure=not args.no_figure, folder=folder[0] if folder else None)
+    record_dir, record_error = _write_record(result, args, folder[0] if folder else None)
+    if record_dir is None:
+        _report(args, result, None)
+        print(f"edc-bench test: error: the record could not be written ({record_error}). The verdict above was "
+              "not saved: free space on the disk or give a writable --out, then test the valve again.",
+              file=sys.stderr)
+        return ExitCode.RECORD_NOT_WRITTEN
+    if record_error:
+        print(f"edc-bench test: warning: {record_error}", file=sys.stderr)
     history_error = None if args.no_history else _index(record_dir, args.history_db)
     if (result.outcome.abort_reason or "").startswith("internal error"):
         print(f"edc-bench test: {result.outcome.abort_reason}\nThis is a bug in edc-bench; the rig was sent SAFE and "
@@ -296,6 +307,12 @@ def _run_guarded(args: argparse.Namespace) -> int:
     if history_error:
         print(f"edc-bench test: warning: the history was not updated ({history_error}); the record is complete. "
               f"Add it later with: edc-bench history --add {record_dir}", file=sys.stderr)
+    _report(args, result, record_dir)
+    return exit_code_for(result.verdict)
+
+
+def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> None:
+    """The verdict for the technician: JSON, the verdict panel, or plain lines."""
     if args.json:
         print_quietly_if_closed(lambda: print(json.dumps(summary(result, record_dir), indent=2)))
     elif _live(args):
@@ -306,7 +323,33 @@ def _run_guarded(args: argparse.Namespace) -> int:
         Console().print(verdict_panel(result, record_dir))
     else:
         print_quietly_if_closed(lambda: _print_report(result, record_dir))
-    return exit_code_for(result.verdict)
+
+
+def _write_record(result: Any, args: argparse.Namespace, folder: Path | None) -> tuple[Path | None, str | None]:
+    """Write the record under ``--out``; if that fails (a full disk), into a folder of its own in the temp folder.
+
+    Returns
+    -------
+    (folder, problem)
+        The record folder (None if it could not be written anywhere) and what went wrong on the way.
+    """
+    import tempfile
+
+    from edc_bench.records.record import write_record
+
+    try:
+        return write_record(result, args.out, figure=not args.no_figure, folder=folder), None
+    except OSError as exc:
+        first = f"{type(exc).__name__}: {exc}"
+    fallback = Path(tempfile.gettempdir()) / "edc-bench-unsaved-records"
+    result.outcome.events.append(f"the record could not be written under {args.out} ({first}); written here instead")
+    try:
+        fallback.mkdir(parents=True, exist_ok=True)
+        written = write_record(result, fallback, figure=False)
+    except OSError as exc:
+        return None, f"under {args.out}: {first}; under {fallback}: {type(exc).__name__}: {exc}"
+    return written, (f"the record could not be written under {args.out} ({first}); it was saved to {written} "
+                     "instead: move it to the records folder once there is room")
 
 
 def _index(record_dir: Path, url: str | None) -> str | None:
@@ -323,7 +366,7 @@ def _index(record_dir: Path, url: str | None) -> str | None:
     return None
 
 
-def _print_report(result: Any, record_dir: Path) -> None:
+def _print_report(result: Any, record_dir: Path | None) -> None:
     from edc_bench.diagnosis.coil_check import coil_line
     from edc_bench.records.baseline_text import baseline_line
 
@@ -354,5 +397,8 @@ def _print_report(result: Any, record_dir: Path) -> None:
     if t.get("ticks"):
         print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, overruns {t['overruns']}, "
               f"missed replies {result.outcome.missed_replies}, CPU steal meanwhile {t['cpu_steal_s']:.2f} s")
+    if record_dir is None:
+        print("record: not written (see the error below)")
+        return
     print(f"record: {record_dir}")
     print(f"report: edc-bench report {record_dir}")

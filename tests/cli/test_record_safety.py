@@ -1,0 +1,64 @@
+"""A full disk costs neither the verdict nor, where any room is left, the record (#13, defect 4)."""
+
+from __future__ import annotations
+
+import errno
+import json
+from pathlib import Path
+
+import pytest
+
+from edc_bench.cli import main
+from edc_bench.cli.exit_codes import ExitCode
+
+
+def _disk_full_under(monkeypatch: pytest.MonkeyPatch, folder: Path) -> None:
+    """Every record file written under ``folder`` fails with ENOSPC (the CAN log streamed there too)."""
+    from edc_bench import paths
+    from edc_bench.records import stream
+
+    original = paths.atomic_write
+
+    def atomic_write(path, *args, **kwargs):
+        if Path(path).resolve().is_relative_to(folder.resolve()):
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return original(path, *args, **kwargs)
+
+    for module in ("edc_bench.paths", "edc_bench.records.writer", "edc_bench.records.mdf"):
+        monkeypatch.setattr(f"{module}.atomic_write", atomic_write, raising=False)
+
+    def no_room(self) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(stream.StreamingCanLog, "_flush_new", no_room)
+
+
+def test_a_full_records_disk_saves_the_record_elsewhere_and_says_where(tmp_path: Path, monkeypatch, capsys) -> None:
+    out = tmp_path / "records"
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    _disk_full_under(monkeypatch, out)
+    code = main(["test", "--valve", "worn", "--duration-s", "8", "--out", str(out), "--no-figure", "--no-history",
+                 "--plain"])
+    err = capsys.readouterr().err
+    assert code == ExitCode.INVALID, err  # 8 s: too short to converge, judged as usual
+    assert "could not be written under" in err and "No space left on device" in err
+    saved = list((tmp_path / "tmp" / "edc-bench-unsaved-records").iterdir())
+    assert len(saved) == 1
+    doc = json.loads((saved[0] / "record.json").read_text())
+    assert any("could not be written under" in e for e in doc["loop"]["events"])
+    assert any("can.log could not be streamed" in e for e in doc["loop"]["events"])
+    assert (saved[0] / "can.log").stat().st_size > 0 and (saved[0] / "trace.mf4").is_file()
+
+
+def test_no_room_anywhere_prints_the_verdict_and_exits_74(tmp_path: Path, monkeypatch, capsys) -> None:
+    out = tmp_path / "records"
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    _disk_full_under(monkeypatch, tmp_path)
+    code = main(["test", "--valve", "worn", "--duration-s", "8", "--out", str(out), "--no-figure", "--no-history",
+                 "--plain"])
+    captured = capsys.readouterr()
+    assert code == ExitCode.RECORD_NOT_WRITTEN == 74
+    assert "verdict: INVALID" in captured.out and "record: not written" in captured.out
+    assert "the record could not be written" in captured.err and "free space" in captured.err
+    assert "Traceback" not in captured.err
