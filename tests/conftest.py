@@ -3,7 +3,7 @@
 The suite mirrors the package: one folder per layer (tests/protocol, ...,
 tests/cli) and tests/bench for the top-level bench.py, replay.py and
 station.py. Tests marked ``slow`` are skipped by default (``-m "not slow"``
-in pyproject.toml's addopts); run them with ``pytest -m slow``, everything
+in pyproject.toml's addopts); run them with ``pytest -m slow -n 0``, everything
 with ``pytest -m ""``.
 """
 
