@@ -30,6 +30,7 @@ from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, open_bus
 from edc_bench.runtime.clock import SimulatedClock
 from edc_bench.runtime.loop import FOREIGN_COMMAND_REASON
 from edc_bench.runtime.trace import FRAME_EXTENDED, CanFrameLog
+from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.testing.slcan_rig import SlcanSocketRig
 from helpers import check_safe_and_complete
@@ -324,3 +325,72 @@ def test_sent_frames_carry_the_time_they_were_sent(simulated_bench) -> None:
     scheduled = [start + k * 1e-3 for k in range(len(run_times))]
     offsets = [t - s for t, s in zip(run_times, scheduled, strict=True)]
     assert min(offsets) >= 0.0003 - 1e-9  # the stamp is after the send returned
+
+
+# -- defects 5, 7 and 8 from the bench's side: a test through `edc-bench rig`'s server with a hostile second host --
+
+
+class ServerInLockstep:
+    """The rig server (edc_bench.sim.server) stepped by the bench's simulated clock, over real sockets."""
+
+    def __init__(self, server, now: list[float]) -> None:
+        self.server, self.now = server, now
+
+    def service(self, now_s: float) -> None:
+        self.now[0] = now_s
+        self.server.serve_once(wait_s=0.05)  # the bench's line is there at once on loopback; then what else is
+        self.server.serve_once(wait_s=0.0)
+
+    def advance_to(self, t_s: float) -> None:
+        self.now[0] = t_s
+        self.server.serve_once(wait_s=0.0)
+
+
+def test_a_hostile_second_host_on_the_rig_server_does_not_disturb_the_test(tmp_path: Path) -> None:
+    """Another host that sends malformed lines, a remote frame and a valid RUN command of its own, and then never
+    reads what the rig sends: the bench's test runs to its end, sees none of it but the remote frame, and the
+    rig obeys only the bench."""
+    import socket
+
+    from edc_bench.sim.server import SlcanRigServer
+
+    variant = _variant(SHORT_S)
+    rig = SimulatedRig(variant, parse_valve_spec("worn", variant), 1)
+    now = [0.0]
+    log: list[str] = []
+    server = SlcanRigServer(rig, clock_s=lambda: now[0], log=log.append, host_queue_bytes=4096)
+    _, port = server.listen_tcp("127.0.0.1", 0)
+    intruder, intruder_end = socket.socketpair()
+    intruder.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    server.add_host(intruder_end, "intruder")
+    icd = default_icd()
+    drives_v: list[float] = []
+
+    def intrude(t_s: float) -> None:
+        if t_s >= FAULT_AT_S and not drives_v:
+            intruder.sendall(b"O\rt-2080000000000000000\rt1218" + b"00" * 8 + b"FF\rt_12800\rr3004\r")
+            intruder.sendall(format_frame_line(SlcanFrame(BENCH_CMD_ID, icd.make_bench_cmd(9, Mode.RUN, 20.0, 1.0))))
+            drives_v.append(rig.plant.drive_v)
+        elif drives_v:
+            drives_v.append(rig.plant.drive_v)
+
+    class Watching(ServerInLockstep):
+        def advance_to(self, t_s: float) -> None:
+            super().advance_to(t_s)
+            intrude(t_s)
+
+    session = ClosingBus(open_bus({"interface": "slcan", "channel": f"socket://127.0.0.1:{port}"}, icd.bitrate))
+    with session as bus:
+        clock = SimulatedClock(Watching(server, now))
+        result = run_bench_test(bus, clock, variant, check_gains=False)
+    assert ran_to_the_end(result), result.outcome
+    assert result.outcome.bus_bad_lines == 0  # no malformed line reached the bench
+    assert result.outcome.other_frames == 1  # the remote frame, forwarded as a remote frame
+    assert max(drives_v) < 15.0  # the intruder's 20 V was never applied
+    stats = {s.name: s for s in server.host_stats()}
+    assert stats["intruder"].malformed_lines == 3 and stats["intruder"].refused_bench_cmds == 1
+    assert stats["intruder"].dropped_lines > 0  # it never read: its frames were dropped, the test went on
+    assert any("BENCH_CMD refused" in line for line in log) and any("not reading" in line for line in log)
+    doc, folder = _record(result, tmp_path)
+    assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
+    intruder.close()
