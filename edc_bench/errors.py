@@ -8,6 +8,7 @@ so the CLI can turn it into one clear line instead of a traceback::
      +-- ProtocolError (ValueError)      a frame cannot be encoded or decoded   [edc_bench.protocol]
      |    +-- E2EError                   CRC of a received frame does not match [edc_bench.protocol]
      +-- RigError (RuntimeError)         the rig or its connection misbehaved
+     +-- RecordNotWrittenError (OSError) a measured test's record could not be written (a full disk)
 
 ``ProtocolError`` and ``E2EError`` belong to the rig protocol and are defined
 in :mod:`edc_bench.protocol.errors` (import them from :mod:`edc_bench.protocol`),
@@ -28,3 +29,7 @@ class ConfigError(EdcBenchError, ValueError):
 
 class RigError(EdcBenchError, RuntimeError):
     """The rig, or the connection to it, did not behave as the ICD requires."""
+
+
+class RecordNotWrittenError(EdcBenchError, OSError):
+    """A test was measured, but its record could not be written (a full disk, a folder gone)."""

@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``edc-bench``; returns the process exit code."""
     from edc_bench.cli.common import printable
-    from edc_bench.errors import EdcBenchError, RigError
+    from edc_bench.errors import EdcBenchError, RecordNotWrittenError, RigError
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -51,6 +51,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RigError as exc:
         print(printable(f"edc-bench {args.command}: error: {exc}"), file=sys.stderr)
         return ExitCode.RIG_ERROR
+    except RecordNotWrittenError as exc:
+        print(printable(f"edc-bench {args.command}: error: {exc}"), file=sys.stderr)
+        return ExitCode.RECORD_NOT_WRITTEN
     except EdcBenchError as exc:
         print(printable(f"edc-bench {args.command}: error: {exc}"), file=sys.stderr)
         return ExitCode.BAD_INPUT

@@ -209,12 +209,12 @@ def _rig_tests(args: argparse.Namespace, config: dict[str, Any], variant: Any, t
     """Real-time tests on the rig's mounted valve, on the bus ``config`` (checked: :func:`bus_settings`)."""
     from edc_bench.bench import run_bench_test
     from edc_bench.protocol import default_icd
-    from edc_bench.runtime.bus import open_bus
+    from edc_bench.runtime.bus import ClosingBus, open_bus
     from edc_bench.runtime.clock import RealTimeClock
     from edc_bench.runtime.signals import stop_requested
 
     out = []
-    with open_bus(config, default_icd().bitrate) as bus:
+    with ClosingBus(open_bus(config, default_icd().bitrate)) as bus:  # a dead connection must not cost the baseline
         for n in range(tests):
             result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id or "calibration",
                                     classify=False)
@@ -249,8 +249,15 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str
 
     import socket
 
+    from edc_bench.errors import RecordNotWrittenError
+
     result.identity = {"station": args.station or socket.gethostname(), "purpose": "calibration"}
-    record = write_record(result, args.out, figure=False)
+    try:
+        record = write_record(result, args.out, figure=False)
+    except OSError as exc:  # the baseline names each test's record: without it, no baseline
+        raise RecordNotWrittenError(f"the record of test {n + 1}/{tests} could not be written under {args.out} "
+                                    f"({type(exc).__name__}: {exc}); no baseline was written: free space or give "
+                                    "another --out, then calibrate again") from None
     head = f"test {n + 1}/{tests}"
     if result.verdict != Verdict.UNCLASSIFIED:  # INVALID, or a coil out of spec (FAIL): not a new valve's figures
         print(f"{head}: {result.verdict}, not used: {'; '.join(result.reasons)} (record {record})", file=sys.stderr)

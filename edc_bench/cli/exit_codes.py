@@ -25,7 +25,7 @@ class ExitCode(enum.IntEnum):
     RIG_ERROR = 3
     INTERRUPTED = 130
     INTERNAL_ERROR = 70
-    RECORD_NOT_WRITTEN = 74  # edc-bench test: the record could not be written anywhere (sysexits' EX_IOERR)
+    RECORD_NOT_WRITTEN = 74  # test, calibrate: a record could not be written anywhere (sysexits' EX_IOERR)
 
 
 def exit_code_for(verdict: str) -> ExitCode:
@@ -46,7 +46,7 @@ MEANINGS: dict[int, str] = {
     ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
     ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
     ExitCode.INTERRUPTED: "interrupted (Ctrl-C or SIGTERM); a test's record is still written",
-    ExitCode.RECORD_NOT_WRITTEN: "the record could not be written (a full disk): the verdict printed was not saved",
+    ExitCode.RECORD_NOT_WRITTEN: "a measured test's record could not be written anywhere (a full disk): not saved",
 }
 
 #: What 0 means for each command (default: done).
@@ -65,7 +65,7 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "rig": (ExitCode.OK,),
     "variants": (ExitCode.OK,),
     "tune": (ExitCode.OK,),
-    "calibrate": (ExitCode.OK, ExitCode.INVALID, ExitCode.RIG_ERROR),
+    "calibrate": (ExitCode.OK, ExitCode.INVALID, ExitCode.RIG_ERROR, ExitCode.RECORD_NOT_WRITTEN),
     "train": (ExitCode.OK,),
     "classify": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID),
     "evaluate": (ExitCode.OK,),

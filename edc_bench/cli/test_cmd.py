@@ -43,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bitrate", type=positive_int, default=None, help="CAN bit rate (default: the ICD's 500000)")
     p.add_argument("--valve-id", type=identity(drawn=True), default="", metavar="ID",
                    help="identity of the valve under test, kept as given in the record and the history (at most "
-                        "100 characters; default on the simulated rig: its --valve SPEC; on a bus: none, with a "
+                        "100 characters; default on the simulated rig in simulated time: its --valve SPEC; in real time: none, with a "
                         "warning)")
     p.add_argument("--coil-temp-c", type=_coil_temp, default=None, metavar="C",
                    help="the coil's temperature at the start of the test, to refer its measured resistance to "
@@ -165,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
         check_history_url(args.history_db)  # a test is minutes; a wrong database is refused before it
     with interrupt_guard():  # the first Ctrl-C aborts the test; later ones cannot cost the record
         code = _run_guarded(args)
-        if stop_requested() and code != ExitCode.INTERNAL_ERROR:
+        if stop_requested() and code not in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN):
             # the record is written (INVALID, "interrupted by the operator"); the exit code says who ended it
             print("edc-bench test: interrupted by the operator; the record is written (INVALID)", file=sys.stderr)
             return ExitCode.INTERRUPTED
@@ -299,7 +299,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
         return ExitCode.RECORD_NOT_WRITTEN
     if record_error:
         print(f"edc-bench test: warning: {record_error}", file=sys.stderr)
-    history_error = None if args.no_history else _index(record_dir, args.history_db)
+    saved_elsewhere = not record_dir.resolve().is_relative_to(Path(args.out).resolve())  # moved later, added then
+    history_error = None if args.no_history or saved_elsewhere else _index(record_dir, args.history_db)
     if (result.outcome.abort_reason or "").startswith("internal error"):
         print(f"edc-bench test: {result.outcome.abort_reason}\nThis is a bug in edc-bench; the rig was sent SAFE and "
               f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
@@ -326,7 +327,8 @@ def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> N
 
 
 def _write_record(result: Any, args: argparse.Namespace, folder: Path | None) -> tuple[Path | None, str | None]:
-    """Write the record under ``--out``; if that fails (a full disk), into a folder of its own in the temp folder.
+    """Write the record under ``--out``; if its record.json cannot be written (a full disk), into a new folder in
+    the temp folder.
 
     Returns
     -------
@@ -338,18 +340,23 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None) ->
     from edc_bench.records.record import write_record
 
     try:
-        return write_record(result, args.out, figure=not args.no_figure, folder=folder), None
+        written = write_record(result, args.out, figure=not args.no_figure, folder=folder)
+        missing = {k: v for k, v in result.record_files.items() if k.endswith("_error") and k != "figure_error"}
+        if not missing:
+            return written, None
+        return written, "the record is incomplete: " + "; ".join(f"{k[:-6]}: {v}" for k, v in missing.items())
     except OSError as exc:
         first = f"{type(exc).__name__}: {exc}"
-    fallback = Path(tempfile.gettempdir()) / "edc-bench-unsaved-records"
-    result.outcome.events.append(f"the record could not be written under {args.out} ({first}); written here instead")
+    where = f" (what was written is in {folder})" if folder is not None else ""
+    result.outcome.events.append(f"the record could not be written under {args.out} ({first}){where}")
     try:
-        fallback.mkdir(parents=True, exist_ok=True)
-        written = write_record(result, fallback, figure=False)
+        fallback = Path(tempfile.mkdtemp(prefix="edc-bench-record-"))
+        written = write_record(result, fallback, figure=False, folder=fallback)
     except OSError as exc:
-        return None, f"under {args.out}: {first}; under {fallback}: {type(exc).__name__}: {exc}"
+        return None, f"under {args.out}: {first}; in the temp folder: {type(exc).__name__}: {exc}"
     return written, (f"the record could not be written under {args.out} ({first}); it was saved to {written} "
-                     "instead: move it to the records folder once there is room")
+                     "instead and is not in the history: move it to the records folder once there is room, then "
+                     "add it with: edc-bench history --add FOLDER")
 
 
 def _index(record_dir: Path, url: str | None) -> str | None:

@@ -21,14 +21,21 @@ a damaged line for a frame could act on a reply nobody sent.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 STANDARD_ID_MAX = 0x7FF
 EXTENDED_ID_MAX = 0x1FFFFFFF
-_HEX_DIGITS = frozenset(b"0123456789abcdefABCDEF")
-#: per line kind: (id digits, extended, remote)
-_KINDS = {ord("t"): (3, False, False), ord("T"): (8, True, False), ord("r"): (3, False, True),
-          ord("R"): (8, True, True)}
+#: longer than any classic slcan frame line (``T``, 8 id digits, DLC, 16 data digits): a line beyond is noise
+MAX_LINE = 64
+_HEX = re.compile(rb"[0-9A-Fa-f]*")
+#: per line kind: the whole line's pattern (id, DLC, payload), extended, remote
+_KINDS = {
+    ord("t"): (re.compile(rb"t([0-9A-Fa-f]{3})([0-8])([0-9A-Fa-f]*)"), False, False),
+    ord("T"): (re.compile(rb"T([0-9A-Fa-f]{8})([0-8])([0-9A-Fa-f]*)"), True, False),
+    ord("r"): (re.compile(rb"r([0-9A-Fa-f]{3})([0-8])"), False, True),
+    ord("R"): (re.compile(rb"R([0-9A-Fa-f]{8})([0-8])"), True, True),
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,8 +54,9 @@ class SlcanFrame:
         return len(self.data) if self.dlc is None else self.dlc
 
 
-def _is_hex(text: bytes) -> bool:
-    return all(c in _HEX_DIGITS for c in text)
+def is_hex(text: bytes) -> bool:
+    """True if ``text`` is hex digits only (no sign, underscore or space)."""
+    return _HEX.fullmatch(text) is not None
 
 
 def parse_frame_line(line: bytes) -> SlcanFrame | None:
@@ -67,20 +75,17 @@ def parse_frame_line(line: bytes) -> SlcanFrame | None:
     """
     if not line or line[0] not in _KINDS:
         return None
-    id_digits, extended, remote = _KINDS[line[0]]
-    head = 1 + id_digits + 1  # kind, id, DLC
-    if len(line) < head:
+    pattern, extended, remote = _KINDS[line[0]]
+    match = pattern.fullmatch(line)
+    if match is None:
         return None
-    id_text, dlc_char = line[1 : 1 + id_digits], line[head - 1]
-    if not _is_hex(id_text) or not ord("0") <= dlc_char <= ord("8"):
-        return None
-    can_id, dlc = int(id_text, 16), dlc_char - ord("0")
+    can_id, dlc = int(match[1], 16), int(match[2])
     if can_id > (EXTENDED_ID_MAX if extended else STANDARD_ID_MAX):
         return None
-    payload = line[head:]
     if remote:
-        return SlcanFrame(can_id, b"", extended, True, dlc) if not payload else None
-    if len(payload) != 2 * dlc or not _is_hex(payload):
+        return SlcanFrame(can_id, b"", extended, True, dlc)
+    payload = match[3]
+    if len(payload) != 2 * dlc:
         return None
     return SlcanFrame(can_id, bytes.fromhex(payload.decode("ascii")), extended, False)
 

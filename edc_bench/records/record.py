@@ -72,6 +72,9 @@ class BenchResult:
         Where the CAN log was streamed while the test ran, if it was.
     identity : dict
         Who and where: ``pump_serial``, ``station``, ``operator`` (set by the caller).
+    record_files : dict
+        What :func:`write_record` wrote (record.json's ``files``), with ``*_error`` entries for files it
+        could not write.
     """
 
     judgement: Judgement
@@ -89,6 +92,7 @@ class BenchResult:
     can_log_path: Path | None = None
     software_version: str = __version__
     identity: dict[str, str] = field(default_factory=dict)
+    record_files: dict[str, str | None] = field(default_factory=dict)
 
     @property
     def verdict(self) -> Verdict:
@@ -190,21 +194,36 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
         An existing folder for this test (e.g. the one the CAN log was
         streamed into); a new one under ``out_dir`` otherwise.
 
+    Each file is written on its own: one that cannot be written (a full disk) is named with its error in
+    record.json's ``files`` (``trace_error``, ``can_log_error``, ``figure_error``), and record.json, the
+    smallest, is still written last.
+
     Returns
     -------
     pathlib.Path
         The record folder.
+
+    Raises
+    ------
+    OSError
+        If the folder or record.json cannot be written.
     """
     if folder is None:
         folder = new_record_dir(Path(out_dir), result.valve_id, result.variant.name, result.started_at)
     files: dict[str, str | None] = {"trace": None, "can_log": None, "figure": None}
-    write_trace_mf4(folder / TRACE_FILE, result.trace, result.frames, ticks_start_s=result.outcome.ticks_start_s,
-                    origin_unix_s=result.frames.origin_unix_s,
-                    comment=f"edc-bench {result.variant.name}, valve {result.valve_id or '?'}: {result.verdict}")
-    files["trace"] = TRACE_FILE
-    if result.can_log_path != folder / CAN_LOG_FILE:  # streamed there while the test ran: complete already
-        write_can_log(folder / CAN_LOG_FILE, result.frames)
-    files["can_log"] = CAN_LOG_FILE
+    try:
+        write_trace_mf4(folder / TRACE_FILE, result.trace, result.frames, ticks_start_s=result.outcome.ticks_start_s,
+                        origin_unix_s=result.frames.origin_unix_s,
+                        comment=f"edc-bench {result.variant.name}, valve {result.valve_id or '?'}: {result.verdict}")
+        files["trace"] = TRACE_FILE
+    except OSError as exc:
+        files["trace_error"] = f"{type(exc).__name__}: {exc}"
+    try:
+        if result.can_log_path != folder / CAN_LOG_FILE:  # streamed there while the test ran: complete already
+            write_can_log(folder / CAN_LOG_FILE, result.frames)
+        files["can_log"] = CAN_LOG_FILE
+    except OSError as exc:
+        files["can_log_error"] = f"{type(exc).__name__}: {exc}"
     if figure and len(result.trace["t_s"]):
         from edc_bench.records.figure import draw_report_figure
 
@@ -218,5 +237,6 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
             files["figure"] = FIGURE_FILE
         except Exception as exc:  # noqa: BLE001 - a figure is never worth losing the record
             files["figure_error"] = f"{type(exc).__name__}: {exc}"
+    result.record_files = files
     write_json(folder / RECORD_FILE, record_dict(result, files))
     return folder

@@ -23,7 +23,7 @@ import can
 from can.interfaces.slcan import slcanBus
 
 from edc_bench.errors import RigError
-from edc_bench.protocol.slcan import SlcanFrame, parse_frame_line
+from edc_bench.protocol.slcan import MAX_LINE, parse_frame_line
 
 
 class BufferedSlcanBus(slcanBus):
@@ -54,7 +54,6 @@ class BufferedSlcanBus(slcanBus):
     #: how long a send may wait for the peer to take the bytes: the rig's watchdog time, after which it is safe anyway
     send_timeout_s = 0.02
     _MAX_SAMPLES = 5
-    _MAX_LINE = 64  # longer than any slcan frame line: a stream without terminators is junk
 
     def __init__(self, channel: str, **kwargs: Any) -> None:
         self.bad_lines = 0
@@ -62,6 +61,7 @@ class BufferedSlcanBus(slcanBus):
         self.device_errors = 0
         self.shutdown_error: str | None = None
         self._lines: deque[bytes] = deque()
+        self._discarding = False  # dropping the rest of an overlong line
         super().__init__(channel, **kwargs)
         # a socket:// channel is read straight from its socket: pyserial's in_waiting says only 0 or 1 for it
         self._socket: socket.socket | None = getattr(self.serialPortOrig, "_socket", None)
@@ -71,39 +71,48 @@ class BufferedSlcanBus(slcanBus):
     def _bad(self, line: bytes) -> None:
         self.bad_lines += 1
         if len(self.bad_line_samples) < self._MAX_SAMPLES:
-            self.bad_line_samples.append(bytes(line[: self._MAX_LINE]))
+            self.bad_line_samples.append(bytes(line[:MAX_LINE]))
 
     @staticmethod
-    def _salvage(line: bytes) -> SlcanFrame | None:
-        """A whole frame line at the end of a damaged one (noise glued to the next line), if there is one.
+    def _frame_tail(line: bytes) -> bytes:
+        """Where a frame line could start at the end of a damaged line (noise glued to the next line).
 
         No hex digit is one of ``tTrR``, so the last of them starts the frame if any does; the strict
-        parser and the payload's CRC judge the rest.
+        parser and the payload's CRC judge the rest. Empty if there is none after the first byte.
         """
-        start = max(line.rfind(kind) for kind in (b"t", b"T", b"r", b"R"))
-        return parse_frame_line(line[start:]) if start > 0 else None
+        start = max(line.rfind(b"t"), line.rfind(b"T"), line.rfind(b"r"), line.rfind(b"R"))
+        return line[start:] if start > 0 else b""
 
     def _split_lines(self) -> None:
-        """Move every complete line of the buffer to the line queue (a BEL answer is a line of its own)."""
+        """Move every complete line of the buffer to the line queue (a BEL answer ends a line too)."""
         buffer = self._buffer
         while True:
-            ends = [i for i in (buffer.find(self._OK), buffer.find(self._ERROR)) if i >= 0]
-            if not ends:
-                if len(buffer) > self._MAX_LINE:
+            cr, bel = buffer.find(self._OK), buffer.find(self._ERROR)
+            end = cr if bel < 0 or 0 <= cr < bel else bel
+            if end < 0:
+                if len(buffer) > MAX_LINE:  # noise without a line end: counted once, dropped up to the next end
                     self._bad(buffer)
                     buffer.clear()
+                    self._discarding = True
                 return
-            end = min(ends)
-            if buffer[end : end + 1] == self._ERROR:
+            line = bytes(buffer[:end]).lstrip(b"\n")  # an adapter ending its lines with CR LF
+            if end == bel:
                 self.device_errors += 1
-                if end:
-                    self._lines.append(bytes(buffer[:end]))
-            else:
-                self._lines.append(bytes(buffer[:end]))
             del buffer[: end + 1]
+            if self._discarding:  # the rest of an overlong line: only a frame line at its end is kept
+                self._discarding = False
+                line = self._frame_tail(line)
+            if line:
+                self._lines.append(line)
 
-    def _read(self, timeout: float | None) -> bytes | None:
+    def _take(self, chunk: bytes) -> None:
+        self._buffer.extend(chunk)
+        self._split_lines()
+
+    def _read_line(self, timeout: float | None) -> bytes | None:
         """The next line (without its terminator), waiting at most ``timeout`` seconds; None if none came.
+
+        A peer that keeps sending bytes but no line end cannot hold the reader past ``timeout``.
 
         Raises
         ------
@@ -120,26 +129,23 @@ class BufferedSlcanBus(slcanBus):
             while True:
                 waiting = port.in_waiting
                 if waiting > 0:
-                    chunk = port.read(waiting) if self._socket is None else self._socket.recv(65536)
-                    if not chunk:
-                        raise OSError("connection closed by the other end")
-                    self._buffer.extend(chunk)
-                    self._split_lines()
-                    if self._lines:
-                        return self._lines.popleft()
-                    continue
+                    if self._socket is None:
+                        self._take(port.read(waiting))
+                    else:
+                        chunk = self._socket.recv(65536)
+                        if not chunk:
+                            raise OSError("connection closed by the other end")
+                        self._take(chunk)
+                elif not deadline.expired():
+                    # nothing waiting: block for one byte, but only for the time left (pyserial's timeout is fixed)
+                    left = deadline.time_left()
+                    if port.timeout != left:
+                        port.timeout = left
+                    self._take(port.read(1))
+                if self._lines:
+                    return self._lines.popleft()
                 if deadline.expired():
                     return None
-                # nothing waiting: block for one byte, but only for the time left (pyserial's own timeout is fixed)
-                left = deadline.time_left()
-                if port.timeout != left:
-                    port.timeout = left
-                chunk = port.read(1)
-                if chunk:
-                    self._buffer.extend(chunk)
-                    self._split_lines()
-                    if self._lines:
-                        return self._lines.popleft()
         except (serial.SerialException, OSError) as exc:
             raise can.CanOperationError(f"slcan stream failed: {exc}") from exc
 
@@ -148,18 +154,18 @@ class BufferedSlcanBus(slcanBus):
 
         deadline = serial.Timeout(timeout)
         while True:
-            line = self._read(deadline.time_left())
+            line = self._read_line(deadline.time_left())
             if line is None:
                 return None, False
             frame = parse_frame_line(line)
-            if frame is None and line not in (b"z", b"Z", b""):  # not an acknowledgement of our own sends
+            if frame is None and line not in (b"z", b"Z"):  # not an acknowledgement of our own sends
                 self._bad(line)
-                frame = self._salvage(line)
+                frame = parse_frame_line(self._frame_tail(line))
             if frame is not None:
                 return can.Message(arbitration_id=frame.can_id, is_extended_id=frame.extended,
                                    is_remote_frame=frame.remote, dlc=frame.length, data=frame.data,
                                    timestamp=time.time(), check=False), False
-            if deadline.expired():
+            if deadline.expired() and not self._lines:  # lines already read are taken at once, whatever the time
                 return None, False
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:

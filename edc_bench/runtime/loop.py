@@ -72,6 +72,8 @@ class Phase(enum.StrEnum):
 
 #: Ticks between two :meth:`LoopObserver.tick` calls.
 OBSERVE_EVERY = 100
+#: How often the loop looks for the rig's READY heartbeat before the test (s).
+_READY_STEP_S = 0.01
 
 
 class LoopObserver(Protocol):
@@ -112,6 +114,7 @@ class LoopOutcome:
     other_frames: int = 0  # frames of no ICD message: other nodes' traffic, extended, remote or error frames
     bus_bad_lines: int = 0  # lines the bus driver could not read as frames (slcan), skipped
     bus_bad_line_samples: list[str] = field(default_factory=list)
+    bus_device_errors: int = 0  # the adapter answered BEL: it refused a command of ours (slcan)
     frames_dropped: int = 0  # frames beyond the CAN log's maximum, counted but not stored
     events: list[str] = field(default_factory=list)
 
@@ -163,11 +166,12 @@ class BenchLoop:
         self.period_s = variant.controller.period_s
         self.ticks = int(round(variant.excitation.duration_s / self.period_s))
         self.trace = Trace(self.ticks)
-        # a command and a reply per tick, heartbeats, and the phases around the ticks; growing up to what the
-        # loop can read at most (the frame budget every tick and every wait step), so a busy bus is logged too
-        ready_steps = int(variant.acceptance.ready_timeout_s / 0.01) + 10
-        self.frames = CanFrameLog(2 * self.ticks + self.ticks // 50 + 4096,
-                                  (variant.acceptance.max_frames_per_tick + 2) * (self.ticks + ready_steps) + 4096)
+        # what the loop can read at most: the frame budget at each of a tick's two reads and each wait step for
+        # READY, its own command per tick, the safe stop; a busy or hostile bus is logged whole (the arrays take
+        # memory only as frames fill them)
+        budget = variant.acceptance.max_frames_per_tick
+        ready_steps = int(variant.acceptance.ready_timeout_s / _READY_STEP_S) + 2
+        self.frames = CanFrameLog((2 * budget + 1) * self.ticks + (budget + 1) * (ready_steps + 10) + 4096)
         self.outcome = LoopOutcome(ticks_planned=self.ticks)
         self.controller: FelController | None = None
         self._counter = 0
@@ -205,11 +209,20 @@ class BenchLoop:
         else:
             msg, now = self.bus.recv(0.0), self._t_s
         if msg is not None:
-            self.frames.add(now, msg.arbitration_id, msg.data, True, frame_flags(msg))
+            self.frames.add(now, msg.arbitration_id, msg.data, True, frame_flags(msg), msg.dlc)
         return msg, now
 
     def _is_foreign_command(self, msg: can.Message) -> bool:
-        """A BENCH_CMD on the bus that this bench did not send (an interface echoing our own frames is no host)."""
+        """A valid BENCH_CMD on the bus that this bench did not send (an interface echoing our own frames is no host).
+
+        Only a command the rig would obey counts (its CRC checked): a damaged frame with the id is no second host.
+        """
+        if not msg.is_rx:  # python-can marks an interface's echo of our own frame (receive_own_messages)
+            return False
+        try:
+            self.icd.parse_bench_cmd(msg.data)
+        except ProtocolError:
+            return False
         data, frames = bytes(msg.data), self.frames
         for k in range(frames.count - 1, max(-1, frames.count - 1024), -1):  # rare: only when one comes
             if not frames.rx[k] and frames.can_id[k] == BENCH_CMD_ID and bytes(frames.data[k, : frames.dlc[k]]) == data:
@@ -317,7 +330,7 @@ class BenchLoop:
     # -- phases ----------------------------------------------------------------
     def _wait_ready(self) -> bool:
         """Wait for READY, re-arming a FAULT with SAFE. False on timeout."""
-        step = 0.01
+        step = _READY_STEP_S
         limit = self.variant.acceptance.ready_timeout_s
         rearmed = False
         while self._t_s < limit:
@@ -411,6 +424,10 @@ class BenchLoop:
                                   "counted but not stored")
         outcome.bus_bad_lines = int(getattr(self.bus, "bad_lines", 0))
         outcome.bus_bad_line_samples = [repr(line) for line in getattr(self.bus, "bad_line_samples", [])]
+        outcome.bus_device_errors = int(getattr(self.bus, "device_errors", 0))
+        if outcome.bus_device_errors and outcome.abort_reason is not None:
+            outcome.abort_reason += (f"; the CAN adapter refused {outcome.bus_device_errors} of our frames (BEL): "
+                                     "with edc-bench rig, another host may own the rig")
 
     def _run_ticks(self) -> None:
         T = self.period_s

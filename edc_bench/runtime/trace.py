@@ -126,62 +126,51 @@ def frame_flags(msg: Any) -> int:
 class CanFrameLog:
     """Every frame sent and received, with time, direction and kind.
 
-    Preallocated for the frames a test should see; a bus that brings more
-    (another node's traffic, a flood up to the loop's frame budget) makes it
-    grow, doubling at most up to ``max_capacity``, so even a hostile bus's
-    frames are all logged. Only beyond that are frames counted in
-    :attr:`dropped` and not stored (the record says how many).
+    Allocated once, before the test, for ``capacity`` frames: enough for
+    what the loop can read at most (its frame budget at every read), so even a
+    hostile bus's frames are all logged. The arrays are zero-filled by the
+    operating system on first touch, so the memory a test really uses is what
+    its frames fill. Frames beyond ``capacity`` are counted in :attr:`dropped`,
+    not stored (the record says how many).
 
     Parameters
     ----------
     capacity : int
-        Frames to allocate at first.
-    max_capacity : int, optional
-        The most frames it grows to (default: ``capacity``, no growth).
+        Frames to allocate.
     """
 
-    def __init__(self, capacity: int, max_capacity: int | None = None) -> None:
-        self.capacity = 0
-        self.max_capacity = max(capacity, max_capacity or capacity)
-        self.t_s = np.zeros(0)
-        self.can_id = np.zeros(0, dtype=np.uint32)  # 29-bit extended ids too
-        self.dlc = np.zeros(0, dtype=np.uint8)
-        self._raw = bytearray()  # payloads, 8 bytes a frame; filled by slice assignment
-        self.data = np.zeros((0, 8), dtype=np.uint8)
-        self.rx = np.zeros(0, dtype=bool)
-        self.flags = np.zeros(0, dtype=np.uint8)  # FRAME_EXTENDED | FRAME_REMOTE | FRAME_ERROR | FRAME_TRUNCATED
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.t_s = np.zeros(capacity)
+        self.can_id = np.zeros(capacity, dtype=np.uint32)  # 29-bit extended ids too
+        self.dlc = np.zeros(capacity, dtype=np.uint8)
+        self.data = np.zeros((capacity, 8), dtype=np.uint8)
+        self._raw = memoryview(self.data).cast("B")  # payloads, 8 bytes a frame; filled by slice assignment
+        self.rx = np.zeros(capacity, dtype=bool)
+        self.flags = np.zeros(capacity, dtype=np.uint8)  # FRAME_EXTENDED | FRAME_REMOTE | FRAME_ERROR | FRAME_TRUNCATED
         self.count = 0
         self.dropped = 0
         #: Unix time of clock time 0, so logs carry absolute timestamps (set by the loop when its clock starts)
         self.origin_unix_s = 0.0
-        self._grow(capacity)
 
-    def _grow(self, capacity: int) -> None:
-        n = self.count
-        for name in ("t_s", "can_id", "dlc", "rx", "flags"):
-            old = getattr(self, name)
-            new = np.zeros(capacity, dtype=old.dtype)
-            new[:n] = old[:n]
-            setattr(self, name, new)
-        self._raw = self._raw + bytearray(8 * (capacity - self.capacity))
-        self.data = np.frombuffer(self._raw, dtype=np.uint8).reshape(capacity, 8)
-        self.capacity = capacity
+    def add(self, t_s: float, can_id: int, data: bytes | bytearray, rx: bool, flags: int = 0,
+            dlc: int | None = None) -> None:
+        """Store one frame.
 
-    def add(self, t_s: float, can_id: int, data: bytes | bytearray, rx: bool, flags: int = 0) -> None:
-        """Store one frame (a payload beyond 8 bytes, CAN FD, is cut to 8 and flagged FRAME_TRUNCATED)."""
+        A payload beyond 8 bytes (CAN FD) is cut to 8 and flagged FRAME_TRUNCATED; ``dlc`` is a remote
+        frame's DLC (it has no payload).
+        """
         n = self.count
         if n >= self.capacity:
-            if self.capacity >= self.max_capacity:
-                self.dropped += 1
-                return
-            self._grow(min(2 * self.capacity, self.max_capacity))  # rare: a bus busier than planned
+            self.dropped += 1
+            return
         self.t_s[n] = t_s
         self.can_id[n] = can_id
         length = len(data)
         if length > 8:
             data, length, flags = data[:8], 8, flags | FRAME_TRUNCATED
-        self.dlc[n] = length
         self._raw[8 * n : 8 * n + length] = data
+        self.dlc[n] = length if dlc is None or length else min(dlc, 8)
         self.rx[n] = rx
         self.flags[n] = flags
         self.count = n + 1

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edc_bench.protocol import BENCH_CMD_ID, RigState
+from edc_bench.protocol import BENCH_CMD_ID, Mode, ProtocolError, RigState
 from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.rig import SimulatedRig
@@ -299,10 +299,19 @@ class SlcanRigServer:
                 self._log(f"host {host.name}: BENCH_CMD refused, the rig is owned by {owner.name}")
             return False
         if owner is not host:
+            if not self._obeyable(frame.data):
+                return True  # the rig refuses it (bad CRC, undefined Mode): delivered, but it wins no ownership
             self._owner = host
             self._log(f"host {host.name}: owns the rig")
         host.last_bench_cmd_s = now
         return True
+
+    def _obeyable(self, payload: bytes) -> bool:
+        """Whether the rig would obey this ``BENCH_CMD`` payload (CRC and Mode as the firmware checks them)."""
+        try:
+            return self.rig.firmware.icd.parse_bench_cmd(payload).mode in (Mode.SAFE, Mode.RUN)
+        except ProtocolError:
+            return False
 
     def _owner_is_done(self, owner: _Host, now: float) -> bool:
         """The owner's test is over: the rig READY (amplifier off) and no ``BENCH_CMD`` from it for a while.

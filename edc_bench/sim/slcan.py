@@ -17,13 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from edc_bench.protocol.slcan import SlcanFrame, format_frame_line, parse_frame_line
+from edc_bench.protocol.slcan import MAX_LINE, SlcanFrame, format_frame_line, is_hex, parse_frame_line
 
 __all__ = ["ERROR", "MAX_LINE", "OK", "STATUS_DATA_OVERRUN", "SlcanDevice", "SlcanFrame"]
 
 OK = b"\r"
 ERROR = b"\a"
-MAX_LINE = 64
 #: ``F`` status flag bit 3: frames were lost because the host did not take them (data overrun)
 STATUS_DATA_OVERRUN = 0x08
 
@@ -32,7 +31,6 @@ _FRAME_KINDS = frozenset(b"tTrR")
 _PLAIN_COMMANDS = {b"O": OK, b"L": OK, b"C": OK, b"V": b"V1013\r", b"v": b"v1013\r", b"N": b"NEDC1\r"}
 #: register-level bit timing, acceptance filter: accepted (argument checked), not modelled
 _SETTINGS = {ord("s"): 4, ord("M"): 8, ord("m"): 8}
-_HEX_DIGITS = frozenset(b"0123456789abcdefABCDEF")
 
 
 class SlcanDevice:
@@ -133,7 +131,7 @@ class SlcanDevice:
             return OK, None
         if op == ord("Z") and line[1:] in (b"0", b"1"):
             return OK, None
-        if op in _SETTINGS and len(line) == 1 + _SETTINGS[op] and all(c in _HEX_DIGITS for c in line[1:]):
+        if op in _SETTINGS and len(line) == 1 + _SETTINGS[op] and is_hex(line[1:]):
             return OK, None
         return self._error(), None
 

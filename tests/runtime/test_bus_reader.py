@@ -89,3 +89,27 @@ def test_a_clean_stream_gives_every_frame_in_order(reader, lines: list[bytes]) -
     bus, conn = reader
     received = _all_received(bus, b"".join(lines), conn)
     assert [_line(m) + b"\r" for m in received] == lines
+
+
+def test_a_stream_of_noise_without_line_ends_cannot_hold_the_reader(reader) -> None:
+    """A peer that keeps sending bytes but never a line end: recv(0) reads one chunk and returns, leaving the rest
+    for later (the loop's frame budget counts frames, so bytes must not hold the reader either)."""
+    import select
+    import threading
+
+    bus, conn = reader
+    bus._buffer.clear()
+    bus._lines.clear()
+    noise = b"\x80" * 300_000 + b"\a" * 1000
+    sender = threading.Thread(target=conn.sendall, args=(noise,))
+    sender.start()
+    while not select.select([bus._socket], [], [], 1.0)[0]:
+        pass
+    before = bus.bad_lines
+    assert bus.recv(0.0) is None
+    assert bus.bad_lines == before + 1  # the overlong run counted once
+    assert select.select([bus._socket], [], [], 1.0)[0]  # the rest of the noise was left for later reads
+    while bus.recv(0.0) is not None or select.select([bus._socket], [], [], 0.2)[0]:
+        pass  # drain it all
+    sender.join()
+    assert _all_received(bus, b"", conn) == []  # and frames after it are read again (the sentinel came)

@@ -29,7 +29,7 @@ from edc_bench.records.record import write_record
 from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, open_bus
 from edc_bench.runtime.clock import SimulatedClock
 from edc_bench.runtime.loop import FOREIGN_COMMAND_REASON
-from edc_bench.runtime.trace import FRAME_EXTENDED, CanFrameLog
+from edc_bench.runtime.trace import FRAME_EXTENDED, FRAME_REMOTE, FRAME_TRUNCATED, CanFrameLog
 from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.testing.slcan_rig import SlcanSocketRig
@@ -125,6 +125,8 @@ def test_extended_ids_and_damaged_lines_are_logged_or_counted_never_taken_for_re
         link.at(FAULT_AT_S, lambda: link.write_frame(0x1ABCDEF0, b"\x01\x02\x03", extended=True))
         link.at(FAULT_AT_S + 0.05, lambda: link.write_frame(RIG_FEEDBACK_ID, forged, extended=True))
         link.at(FAULT_AT_S + 0.1, lambda: [link.write(line) for line in damaged])
+        # a BENCH_CMD with a payload the rig would refuse (bad CRC): damage, not a second host driving the rig
+        link.at(FAULT_AT_S + 0.2, lambda: link.write_frame(BENCH_CMD_ID, bytes(8)))
 
     result, _, _ = run_over_slcan(act, SHORT_S)
     outcome = result.outcome
@@ -233,7 +235,7 @@ def test_a_full_disk_while_streaming_costs_neither_the_verdict_nor_the_log(tmp_p
 
 
 def test_a_busy_bus_is_logged_whole(tmp_path: Path) -> None:
-    """Defect 6: frames beyond the preallocated log were counted and silently lost; now it grows."""
+    """Defect 6: frames beyond the log's capacity (two a tick) were counted and silently lost."""
 
     def chatter(link: SlcanSocketRig) -> None:  # another node sends two frames every millisecond
         for k in range(int(SHORT_S * 1000)):
@@ -243,8 +245,8 @@ def test_a_busy_bus_is_logged_whole(tmp_path: Path) -> None:
     result, _, _ = run_over_slcan(chatter, SHORT_S, valve="new")
     frames, outcome = result.frames, result.outcome
     assert ran_to_the_end(result) and outcome.frames_dropped == 0
-    planned = 2 * int(SHORT_S * 1000) + int(SHORT_S * 1000) // 50 + 4096
-    assert frames.count > planned  # beyond the first allocation
+    old_capacity = 2 * int(SHORT_S * 1000) + int(SHORT_S * 1000) // 50 + 4096
+    assert frames.count > old_capacity
     assert outcome.other_frames > 14000  # two a millisecond from 0.3 s until the test ended
     doc, folder = _record(result, tmp_path)
     assert len(list(can.LogReader(str(folder / "can.log")))) == frames.count
@@ -255,7 +257,7 @@ def test_frames_beyond_the_log_maximum_are_reported(tmp_path: Path, monkeypatch:
                                                    simulated_bench) -> None:
     from edc_bench.runtime import loop as loop_module
 
-    monkeypatch.setattr(loop_module, "CanFrameLog", lambda capacity, max_capacity: CanFrameLog(1000, 3000))
+    monkeypatch.setattr(loop_module, "CanFrameLog", lambda capacity: CanFrameLog(3000))
     variant = _variant(SHORT_S)
     bench, clock, _ = simulated_bench(variant, "worn", 1)
     result = run_bench_test(bench, clock, variant, check_gains=False)
@@ -265,15 +267,18 @@ def test_frames_beyond_the_log_maximum_are_reported(tmp_path: Path, monkeypatch:
     assert any(f"{result.outcome.frames_dropped} frames after the first 3000" in e for e in doc["loop"]["events"])
 
 
-def test_frame_log_grows_by_doubling_up_to_its_maximum() -> None:
-    log = CanFrameLog(4, 10)
+def test_frame_log_keeps_ids_kinds_and_lengths_up_to_its_capacity() -> None:
+    log = CanFrameLog(10)
     for n in range(13):
         log.add(n * 1e-3, 0x1FFFFFFF if n % 2 else n, bytes([n]) * (n % 9), rx=bool(n % 2), flags=n % 2)
-    assert (log.count, log.capacity, log.dropped) == (10, 10, 3)
-    assert list(log.can_id[:4]) == [0, 0x1FFFFFFF, 2, 0x1FFFFFFF]
+    assert (log.count, log.dropped) == (10, 3)
+    assert list(log.can_id[:4]) == [0, 0x1FFFFFFF, 2, 0x1FFFFFFF] and list(log.flags[:3]) == [0, 1, 0]
     assert bytes(log.data[8, :8]) == bytes([8]) * 8 and log.dlc[3] == 3
-    log.add(0.0, 1, bytes(range(64)), rx=True)  # CAN FD: cut to 8, flagged
-    assert log.dropped == 4
+    fd, remote = CanFrameLog(2), FRAME_REMOTE
+    fd.add(0.0, 1, bytes(range(64)), rx=True)  # CAN FD: cut to 8, flagged
+    fd.add(0.0, 2, b"", rx=True, flags=remote, dlc=5)  # a remote frame keeps its DLC
+    assert bytes(fd.data[0]) == bytes(range(8)) and fd.flags[0] == FRAME_TRUNCATED
+    assert fd.dlc[1] == 5 and fd.flags[1] == remote
 
 
 def test_sent_frames_carry_the_time_they_were_sent(simulated_bench) -> None:

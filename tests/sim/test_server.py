@@ -253,3 +253,22 @@ def test_the_rig_passes_on_after_a_finished_test_or_a_disconnect(served, icd: Ic
     second.sock.close()  # its owner gone, the rig is free at once
     server.serve_once(0.0)
     assert len(command(first, 4, Mode.SAFE)) == 2
+
+
+def test_a_command_the_rig_refuses_wins_no_ownership(served, icd: Icd) -> None:
+    """A host sending BENCH_CMDs the rig refuses (here a bad CRC) cannot hold the rig against a real bench."""
+    server, clock, _ = served
+    junk, bench = Host(server, "junk"), Host(server, "bench")
+    open_hosts(server, clock, junk, bench)
+    bad_crc = bytearray(icd.make_bench_cmd(1, Mode.RUN, 2.0, 10.0))
+    bad_crc[-1] ^= 0xFF
+    junk.send_frame(BENCH_CMD_ID, bytes(bad_crc))
+    clock.now_s += PERIOD_S
+    server.serve_once(0.0)
+    bench.read()
+    bench.send_frame(BENCH_CMD_ID, icd.make_bench_cmd(1, Mode.RUN, 2.0, 10.0))
+    clock.now_s += PERIOD_S
+    server.serve_once(0.0)
+    replies = [item for item in bench.read() if item.startswith(b"t121")]
+    assert len(replies) == 1 and server.rig.firmware.state is RigState.RUNNING  # the bench owns the rig
+    assert stats(server, "junk").refused_bench_cmds == 0  # delivered and refused by the rig, not by the server
