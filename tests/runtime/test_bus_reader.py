@@ -113,3 +113,19 @@ def test_a_stream_of_noise_without_line_ends_cannot_hold_the_reader(reader) -> N
         pass  # drain it all
     sender.join()
     assert _all_received(bus, b"", conn) == []  # and frames after it are read again (the sentinel came)
+
+
+def test_a_peer_that_stops_reading_makes_a_send_fail_not_hang() -> None:
+    """Sends give up after send_timeout_s: the loop aborts (and the rig's watchdog acts) instead of blocking."""
+    listener = socket.create_server(("127.0.0.1", 0))
+    bus = BufferedSlcanBus(f"socket://127.0.0.1:{listener.getsockname()[1]}", bitrate=500000, sleep_after_open=0)
+    conn, _ = listener.accept()  # and never read from
+    conn.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    bus._socket.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+    msg = can.Message(arbitration_id=0x120, data=bytes(8), is_extended_id=False)
+    with pytest.raises(can.CanOperationError):
+        for _ in range(100_000):  # the kernel's buffers fill within a few thousand frames
+            bus.send(msg)
+    bus.shutdown()
+    conn.close()
+    listener.close()
