@@ -25,7 +25,14 @@ def data_dir(create: bool = True) -> Path:
 
         path = Path(user_data_dir("edc-bench", appauthor=False))
     if create:
-        path.mkdir(parents=True, exist_ok=True)
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            from edc_bench.errors import ConfigError
+
+            where = "EDC_BENCH_DATA_DIR" if configured else "the station's data folder"
+            raise ConfigError(f"{where} {path} cannot be used as a folder ({exc.strerror}): set EDC_BENCH_DATA_DIR "
+                              "to a folder this user can write") from None
     return path
 
 

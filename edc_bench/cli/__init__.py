@@ -9,6 +9,7 @@ clear line; anything else is an internal error with its own exit code.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import sys
 from collections.abc import Sequence
@@ -66,13 +67,50 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return ExitCode.OK
+    except OSError as exc:
+        message = path_problem(exc)
+        if message is None:
+            return _internal_error(args.command, exc)
+        print(printable(f"edc-bench {args.command}: error: {message}"), file=sys.stderr)
+        return ExitCode.RECORD_NOT_WRITTEN if exc.errno in _NO_ROOM else ExitCode.BAD_INPUT
     except Exception as exc:  # noqa: BLE001 - the last line of defence for the technician
-        import traceback
+        return _internal_error(args.command, exc)
 
-        print(
-            printable(f"edc-bench {args.command}: internal error: {type(exc).__name__}: {exc}\n"
-                      "This is a bug in edc-bench; the details below help to fix it."),
-            file=sys.stderr,
-        )
-        traceback.print_exc(file=sys.stderr)
-        return ExitCode.INTERNAL_ERROR
+
+_NO_ROOM = (errno.ENOSPC, errno.EDQUOT)
+#: what to do about a path the system refused, by errno
+_PATH_ADVICE = {
+    errno.ENAMETOOLONG: "the path or one of its names is too long: give a shorter one",
+    errno.EACCES: "not allowed: give a path this user may use",
+    errno.EPERM: "not allowed (an immutable or protected file): give another path",
+    errno.EEXIST: "something is already there: give another path",
+    errno.ENOTDIR: "a part of the path is a file, not a folder: check the path",
+    errno.EISDIR: "it is a folder: give a file",
+    errno.ELOOP: "the path loops through symbolic links: check it",
+    errno.EROFS: "the file system is read-only: give a path on a writable one",
+    errno.ENOENT: "no such file or folder: check the path",
+    errno.ENOSPC: "the disk is full: free space, then run it again",
+    errno.EDQUOT: "the disk quota is used up: free space, then run it again",
+}
+
+
+def path_problem(exc: OSError) -> str | None:
+    """One line for an OSError on a path the user gave (or the environment named); None for any other OSError.
+
+    Every command checks its paths before it works; this is the net under those checks, for what the system
+    refuses in ways no check foresaw (a name too long, an immutable file, a data folder that is a file).
+    """
+    if exc.filename is None or exc.errno not in _PATH_ADVICE:
+        return None
+    target = f"{exc.filename}" + (f" -> {exc.filename2}" if exc.filename2 else "")
+    return f"{target}: {exc.strerror}: {_PATH_ADVICE[exc.errno]}"
+
+
+def _internal_error(command: str, exc: BaseException) -> int:
+    """A bug: say so, with the traceback that helps to fix it."""
+    import traceback
+
+    print(printable(f"edc-bench {command}: internal error: {type(exc).__name__}: {exc}\n"
+                    "This is a bug in edc-bench; the details below help to fix it."), file=sys.stderr)
+    traceback.print_exception(exc, file=sys.stderr)
+    return ExitCode.INTERNAL_ERROR

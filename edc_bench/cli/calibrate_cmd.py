@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from edc_bench.cli.common import identity, positive_int, seed_number
+from edc_bench.cli.common import bit_rate, count_up_to, identity, seed_number
 from edc_bench.cli.exit_codes import ExitCode
 
 
@@ -25,7 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "are printed).",
     )
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (default: p-edc-default)")
-    p.add_argument("--tests", type=positive_int, default=None,
+    p.add_argument("--tests", type=count_up_to(100, " (each test is a valve, or 30 s of a simulated one)"), default=None,
                    help="tests to run (default: 1 on a rig or with --valve, where each run is one valve; "
                         "20 for a simulated population)")
     how = p.add_mutually_exclusive_group()
@@ -48,7 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "tests already in the baseline; each test adds its number)")
     p.add_argument("--interface", default=None, help="python-can interface of a real rig")
     p.add_argument("--channel", default=None, help="python-can channel of a real rig")
-    p.add_argument("--bitrate", type=positive_int, default=None, help="CAN bit rate")
+    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate")
     p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
                    help="folder for the calibration tests' records (default: ./records), as in 'edc-bench test'")
     p.add_argument("--station", type=identity(drawn=True), default=None,

@@ -53,7 +53,12 @@ def run(args: argparse.Namespace) -> int:
             out = {"verdict": Verdict.INVALID, "reasons": record.get("reasons", []), "record_dir": str(args.record_dir)}
             print_quietly_if_closed(lambda: _report(out, args.json))
             return ExitCode.INVALID
-        variant = load_variant(args.variant or str(record.get("variant", "")) or None)
+        recorded = str(record.get("variant", ""))
+        variant = load_variant(args.variant or recorded or None)
+        if args.variant and recorded and variant.name != recorded:
+            raise ConfigError(f"the record was measured on variant {recorded}; --variant {args.variant} is "
+                              f"{variant.name}, another pump's baseline: leave --variant out (or give {recorded}'s "
+                              "file)")
         af, a1 = _recorded_features(record, args.record_dir)
     else:
         if args.af is None or args.a1 is None:

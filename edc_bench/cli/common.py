@@ -21,7 +21,7 @@ from typing import Any, NoReturn
 MAX_ID_CHARS = 100
 
 #: The largest seed (numpy's legacy generators take 32 bits).
-MAX_SEED = 2**32 - 1
+MAX_SEED = 2**31 - 1  # seeds of runs and population members count up from it, within numpy's and sklearn's 2**32
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -71,13 +71,38 @@ def seed_number(text: str) -> int:
 
 
 def positive_int(text: str) -> int:
-    """A count: a whole number, 1 or more."""
+    """A count or an id: a whole number, 1 or more (at most 2**63 - 1, what a database stores)."""
+    return count_up_to(2**63 - 1)(text)
+
+
+def count_up_to(limit: int, why: str = "") -> Callable[[str], int]:
+    """An argparse type: a whole number from 1 to ``limit`` (``why`` says what the limit stands for)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number: give 1 or more") from None
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"{value} is not a count: give 1 or more")
+        if value > limit:
+            raise argparse.ArgumentTypeError(f"{value} is too many: at most {limit}{why}")
+        return value
+    return parse
+
+
+#: valves a simulated population may have per variant (a run of the largest takes hours)
+MAX_POPULATION = 20_000
+
+
+def bit_rate(text: str) -> int:
+    """``--bitrate``: a classic CAN bit rate, 10 kbit/s to 1 Mbit/s."""
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number: give 1 or more") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not a count: give 1 or more")
+        value = 0
+    if not 10_000 <= value <= 1_000_000:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a CAN bit rate: give bits per second, 10000 to 1000000 "
+                                         "(the ICD's is 500000)")
     return value
 
 
@@ -130,12 +155,17 @@ def text_problem(text: str, limit: int, lines: bool = False) -> str | None:
         text.encode("utf-8")
     except UnicodeEncodeError:
         return "is not valid UTF-8 text (typed in another encoding?): type it again in a UTF-8 terminal"
+    if text and not text.strip():  # empty is "not given" (the flags' default)
+        return "is blank: give the id as printed on the part"
     if len(text) > limit:
         return f"is {len(text)} characters long: at most {limit}"
     allowed = "\n\t" if lines else ""
     # control characters and line breaks only: a no-break space pasted from a spreadsheet is odd, but text
     if any(unicodedata.category(c) in ("Cc", "Zl", "Zp") and c not in allowed for c in text):
         return "contains a control character (a line break, tab or escape): give it on one line, as printed"
+    # invisible format characters (zero-width space, right-to-left override) make two ids look alike
+    if any(unicodedata.category(c) == "Cf" for c in text):
+        return "contains an invisible character (zero-width or text-direction): type it again, as printed"
     return None
 
 
@@ -155,7 +185,8 @@ def add_population_arguments(parser: argparse.ArgumentParser, count: int, seed: 
 
     parser.add_argument("--variants", nargs="+", default=["p-edc-default", "p-edc-long"], metavar="NAME",
                         help="variants to draw valves for (default: p-edc-default p-edc-long)")
-    parser.add_argument("--count", type=positive_int, default=count, help=f"valves per variant (default: {count})")
+    parser.add_argument("--count", type=count_up_to(MAX_POPULATION, " valves per variant (that many take hours)"),
+                        default=count, help=f"valves per variant (default: {count}; at most {MAX_POPULATION})")
     parser.add_argument("--seed", type=seed_number, default=seed,
                         help=f"population seed (default: {seed}; the shipped models were trained with 2026)")
     parser.add_argument("--model", type=Path, default=None,
@@ -271,6 +302,11 @@ def probe_writable(folder: Path, message: str) -> None:
         raise ConfigError(f"{message} ({exc.strerror or exc})") from None
 
 
+#: interfaces that cannot guess their channel, with an example of one
+_NEEDS_CHANNEL = {"slcan": "socket://127.0.0.1:5000 or /dev/ttyACM0", "serial": "/dev/ttyUSB0",
+                  "socketcan": "can0", "robotell": "/dev/ttyUSB0", "seeedstudio": "/dev/ttyUSB0"}
+
+
 def bus_settings(interface: str | None, channel: str | None, bitrate: int | None, *,
                  configured_alone: bool) -> dict[str, Any] | None:
     """The python-can bus to open, checked before any work; None for no bus (the simulated rig).
@@ -313,12 +349,16 @@ def bus_settings(interface: str | None, channel: str | None, bitrate: int | None
               "bitrate": "--bitrate" if bitrate is not None else "CAN_BITRATE or python-can's config file"}
     valid = sorted(can.interfaces.VALID_INTERFACES)
     if not settings.get("interface"):
-        raise ConfigError(f"--channel {channel} needs --interface: the python-can interface of the adapter, one of "
+        given = f"--channel {channel} needs --interface" if channel is not None else "--interface is empty"
+        raise ConfigError(f"{given}: give the python-can interface of the adapter, one of "
                           f"{', '.join(valid)} (e.g. --interface socketcan --channel can0, or --interface slcan "
                           "--channel socket://127.0.0.1:5000); or set CAN_INTERFACE")
     if settings["interface"] not in can.interfaces.VALID_INTERFACES:
         raise ConfigError(f"{source['interface']} {settings['interface']!r}: python-can has no such interface; use "
                           f"one of {', '.join(valid)}")
+    if settings["interface"] in _NEEDS_CHANNEL and not settings.get("channel"):
+        raise ConfigError(f"{source['interface']} {settings['interface']} needs --channel: the adapter's port or "
+                          f"address, e.g. --channel {_NEEDS_CHANNEL[settings['interface']]} (or set CAN_CHANNEL)")
     if "bitrate" in settings:
         try:
             settings["bitrate"] = int(settings["bitrate"])
@@ -362,7 +402,7 @@ def history_label_dataset(url: str | None) -> tuple[object, str]:
     from edc_bench.history.labels import labelled_tests
     from edc_bench.history.store import HistoryStore
 
-    with HistoryStore(url) as store:
+    with HistoryStore(url, must_exist=True) as store:
         labelled = labelled_tests(store)
         where = store.engine.url.render_as_string(hide_password=True)
     if len(labelled) == 0:

@@ -59,12 +59,17 @@ def run(args: argparse.Namespace) -> int:
     if args.csv is not None and args.csv != "-":
         check_output_file(Path(args.csv), "--csv")
     since, until = parse_day(args.since, "--since"), parse_day(args.until, "--until")
-    with HistoryStore(args.db) as store:
-        if args.add:
-            from edc_bench.records.reader import load_record
+    if since is not None and until is not None and since > until:
+        raise ConfigError(f"--since {args.since} is after --until {args.until}: give the earlier day first")
+    records = []
+    if args.add:  # every record read before any is added: one bad folder adds nothing
+        from edc_bench.records.reader import load_record
 
-            for folder in args.add:
-                store.add(load_record(folder), folder)
+        records = [(load_record(folder), folder) for folder in args.add]
+    with HistoryStore(args.db, must_exist=not args.add) as store:
+        if args.add:
+            for record, folder in records:
+                store.add(record, folder)
             print(f"indexed {len(args.add)} record folder(s) in {store.url}", file=sys.stderr)
             return 0
         if args.trend is not None:

@@ -58,14 +58,14 @@ def run(args: argparse.Namespace) -> int:
     if args.delete is not None:
         if args.finding is not None or args.list:
             raise ConfigError("--delete removes one finding; record the right one in a second command")
-        with HistoryStore(args.db) as store:
+        with HistoryStore(args.db, must_exist=True) as store:
             gone = store.delete_teardown(args.delete)
         print(f"removed finding {args.delete}: valve {gone['valve_id']}, {gone['finding']}, {gone['labelled_at']}")
         return 0
     if args.list:
         if args.finding is not None:
             raise ConfigError("--list shows findings; record one without --list")
-        with HistoryStore(args.db) as store:
+        with HistoryStore(args.db, must_exist=True) as store:
             rows = _listing(store, args.valve_id)
         print_quietly_if_closed(lambda: _print_list(rows, args.json))
         return 0
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     problem = "is empty" if not by else text_problem(by, MAX_ID_CHARS)
     if problem:
         raise ConfigError(f"--by {args.by!r} {problem}; give who opened the valve")
-    with HistoryStore(args.db) as store:
+    with HistoryStore(args.db, must_exist=True) as store:
         store.add_teardown(valve_id, args.finding, labelled_by=by, labelled_at=when, clearance_mm=clearance,
                            note=args.note)
         row = next(r for r in reversed(_listing(store, valve_id)) if r["labelled_at"] == when)

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from edc_bench.cli.common import check_output_file, positive_int, seed_number
+from edc_bench.cli.common import check_output_file, count_up_to, seed_number
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--variant", default="p-edc-default", metavar="NAME|PART|PATH",
                    help="variant to simulate (default: p-edc-default)")
     p.add_argument("--seed", type=seed_number, default=2010, help="seed (default: 2010)")
-    p.add_argument("--runs", type=positive_int, default=1,
+    p.add_argument("--runs", type=count_up_to(100, " (each run is minutes)"), default=1,
                    help="repeat with seeds seed, seed+1, ... and report each (default: 1)")
     p.add_argument("--figure", type=Path, default=Path("paper-fig7.png"), metavar="PNG",
                    help="where to draw Fig. 7 (a .png file; default: paper-fig7.png)")

@@ -11,8 +11,8 @@ from typing import Any
 from edc_bench.cli.common import (
     add_history_db_argument,
     add_variant_arguments,
+    bit_rate,
     identity,
-    positive_int,
     print_quietly_if_closed,
     seed_number,
 )
@@ -40,7 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="run in real time; without a bus, starts the simulated rig as a process and drives it over slcan")
     p.add_argument("--interface", default=None, help="python-can interface, e.g. slcan, socketcan, pcan")
     p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
-    p.add_argument("--bitrate", type=positive_int, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
     p.add_argument("--valve-id", type=identity(drawn=True), default="", metavar="ID",
                    help="identity of the valve under test, kept as given in the record and the history (at most "
                         "100 characters; default on the simulated rig in simulated time: its --valve SPEC; in real time: none, with a "
@@ -226,6 +226,11 @@ def _run_guarded(args: argparse.Namespace) -> int:
     if args.adapter != "none" and bus_config is not None:
         print("edc-bench test: warning: --adapter simulates an adapter for the simulated rig; a real bus has its "
               "own timing", file=sys.stderr)
+    simulated_only = [flag for flag, given in (("--no-stiction", args.no_stiction),
+                                               ("--no-sensor-noise", args.no_sensor_noise)) if given]
+    if bus_config is not None and simulated_only:
+        print(f"edc-bench test: warning: {', '.join(simulated_only)} describe the simulated rig; on a real bus the "
+              "valve mounted is what is tested", file=sys.stderr)
 
     def stream_target() -> Path:
         # the record folder exists from the first frame on: a killed test leaves its CAN log

@@ -11,9 +11,10 @@ from edc_bench.cli.common import (
     add_hidden_alias,
     add_history_db_argument,
     check_output_file,
+    MAX_POPULATION,
     check_output_folder,
+    count_up_to,
     identity,
-    positive_int,
     seed_number,
 )
 
@@ -37,7 +38,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--variants", nargs="+", default=list(DEFAULT_VARIANTS), metavar="NAME",
                    help=f"variants to draw populations from (default: {' '.join(DEFAULT_VARIANTS)})")
-    p.add_argument("--count", type=positive_int, default=DEFAULT_COUNT,
+    p.add_argument("--count", type=count_up_to(MAX_POPULATION, " valves per variant (that many take hours)"),
+                   default=DEFAULT_COUNT,
                    help=f"valves per variant (default: {DEFAULT_COUNT})")
     p.add_argument("--seed", type=seed_number, default=DEFAULT_SEED,
                    help=f"seed of data and weights (default: {DEFAULT_SEED})")
@@ -175,7 +177,7 @@ def _from_history(args: argparse.Namespace) -> int:
     if args.prior_weight is not None and not (math.isfinite(args.prior_weight) and args.prior_weight >= 0):
         raise ConfigError(f"--prior-weight {args.prior_weight}: give how many labelled tests the simulated "
                           "population counts as, 0 or more (default 50)")
-    with HistoryStore(args.db) as store:  # checked (check_url) before it is opened
+    with HistoryStore(args.db, must_exist=True) as store:  # checked (check_url) before it is opened
         labelled = labelled_tests(store)
         url = store.engine.url.render_as_string(hide_password=True)
     check_enough(labelled.labels, labelled.valves)  # before a simulation of the prior

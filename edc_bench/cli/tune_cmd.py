@@ -41,6 +41,13 @@ def run(args: argparse.Namespace) -> int:
     path = variant_file(args.variant)
     if args.write:
         from edc_bench.cli.common import probe_writable
+        from edc_bench.config.loader import is_shipped
+        from edc_bench.errors import ConfigError
+
+        if is_shipped(path):  # its baselines and models were made with its gains: never changed in place
+            raise ConfigError(f"--write: {path} is a shipped variant and is not changed in place; copy it to the "
+                              f"station's variants folder under a new [pump].name (docs/new-pump-type.md) and tune "
+                              "that file")
 
         # the gains are written by replacing the file: its folder must take a new file, checked before tuning
         probe_writable(path.parent, f"--write: the folder of {path} is not writable; copy the variant to a "

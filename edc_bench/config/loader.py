@@ -28,6 +28,13 @@ def variant_dirs() -> list[Path]:
     return [d for d in dirs if d.is_dir()]
 
 
+def is_shipped(path: Path) -> bool:
+    """True for a file of the shipped variant library (the package's, or ``configs/`` of a source checkout)."""
+    package_dir = Path(__file__).resolve().parent.parent
+    folder = Path(path).resolve().parent
+    return folder in (package_dir / "_variants", package_dir.parent / "configs")
+
+
 def station_variant_dir() -> Path:
     """The station's variant folder: ``EDC_BENCH_VARIANTS_DIR``, else ``variants`` in the data folder."""
     import os

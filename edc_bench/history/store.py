@@ -92,7 +92,7 @@ def default_url() -> str:
 SQLITE_HEADER = b"SQLite format 3\x00"
 
 
-def check_url(url: str | None) -> sa.engine.URL:
+def check_url(url: str | None, must_exist: bool = False) -> sa.engine.URL:
     """Check a history URL without connecting: its form, its driver, and for SQLite the file and its folder.
 
     The default (the station's data folder) is made if missing; a folder
@@ -103,6 +103,10 @@ def check_url(url: str | None) -> sa.engine.URL:
     ----------
     url : str, optional
         ``--db``; default :func:`default_url` (``EDC_BENCH_HISTORY_URL``, else the data folder's SQLite file).
+    must_exist : bool, optional
+        For commands that only read or label what is there: a SQLite file named by ``--db`` or
+        ``EDC_BENCH_HISTORY_URL`` must exist (a mistyped name would show an empty history, or keep a
+        finding where no one looks for it).
 
     Returns
     -------
@@ -129,8 +133,19 @@ def check_url(url: str | None) -> sa.engine.URL:
     except (sa.exc.NoSuchModuleError, ImportError) as exc:
         raise ConfigError(f"history database {text!r}{where}: {exc}; use sqlite:///FILE or "
                           "postgresql+psycopg://USER@HOST/DB (PostgreSQL needs edc-bench[postgres])") from None
-    if parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "", ":memory:"):
-        _check_sqlite_file(Path(parsed.database), f"history database {text}{where}", fix, default=not given)
+    if parsed.get_backend_name() == "sqlite":
+        if parsed.database in (None, "", ":memory:"):
+            raise ConfigError(f"history database {text!r}{where} is in memory and keeps nothing: give a file, "
+                              "sqlite:///FILE")
+        if parsed.query:
+            raise ConfigError(f"history database {text!r}{where}: options after '?' are not used; give the file "
+                              "alone, sqlite:///FILE")
+        path = Path(parsed.database)
+        _check_sqlite_file(path, f"history database {text}{where}", fix, default=not given)
+        if must_exist and given and not path.exists():
+            raise ConfigError(f"history database {text}{where}: there is no history at {path}; check the URL "
+                              "(nothing was created). A new history is started by 'edc-bench test' or "
+                              "'edc-bench history --add' with this URL")
     return parsed
 
 
@@ -232,10 +247,12 @@ class HistoryStore:
     url : str, optional
         SQLAlchemy URL: ``sqlite:///path`` or ``postgresql+psycopg://user@host/db``
         (default: :func:`default_url`).
+    must_exist : bool, optional
+        Refuse a SQLite file named by the URL that does not exist (see :func:`check_url`).
     """
 
-    def __init__(self, url: str | None = None) -> None:
-        parsed = check_url(url)
+    def __init__(self, url: str | None = None, must_exist: bool = False) -> None:
+        parsed = check_url(url, must_exist)
         self.url = url or default_url()
         self.is_sqlite = parsed.get_backend_name() == "sqlite"
         kwargs: dict[str, Any] = {}

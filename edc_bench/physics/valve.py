@@ -88,6 +88,7 @@ def parse_valve_spec(text: str, variant: Variant) -> ValveSpec:
     """
     presets = variant.valve.presets
     fields: dict[str, float] = {}
+    given: set[str] = set()
     for part in (p.strip() for p in text.split(",")):
         if not part:
             continue
@@ -102,6 +103,9 @@ def parse_valve_spec(text: str, variant: Variant) -> ValveSpec:
         key, _, raw = (s.strip() for s in part.partition("="))
         if key not in _SPEC_KEYS:
             raise ConfigError(f"--valve {text!r}: unknown key {key!r}; expected one of {', '.join(sorted(_SPEC_KEYS))}")
+        if key in given:
+            raise ConfigError(f"--valve {text!r}: {key} is given twice; give each value once")
+        given.add(key)
         try:
             value = float(raw)
         except ValueError:
