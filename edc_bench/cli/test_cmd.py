@@ -403,8 +403,15 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
         print(f"  {name:>2} = {p['value']:.6g} +/- {p['std']:.2g}{tail}{kind}")
     ident = result.identification
     if ident is not None:
-        print(f"converged: {result.converged} (settle af {ident.settle_s['af']:.1f} s, a1 {ident.settle_s['a1']:.1f} s;"
-              f" condition number {ident.condition_number:.3g})")
+        print(f"converged: {result.converged} ({ident.periods} excitation periods of {ident.period_s:g} s; "
+              f"condition number {ident.condition_number:.3g})")
+        if ident.model_fit is not None:
+            fit = ident.model_fit
+            print(f"model fit: residual {fit.residual_ratio:.2f}x the sensor noise, period-to-period spread af "
+                  f"{fit.spread_rel['af']:.1%} a1 {fit.spread_rel['a1']:.1%}, solenoid gain variation "
+                  f"+/-{fit.gain_variation_rel:.0%}" + ("" if fit.fits else " - DOES NOT FIT"))
+    if result.stop is not None:
+        print(f"stopped: {result.stop['reason']} at {result.stop['time_s']:.1f} s")
     t = result.timing
     if t.get("ticks"):
         print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, overruns {t['overruns']}, "

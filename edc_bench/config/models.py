@@ -121,6 +121,9 @@ class CoilSection(_Section):
         default=40.0, description="heat that warms the coil by 1 K (simulated rig)")
     thermal_resistance_k_per_w: Annotated[float, Field(gt=0, le=1e3, allow_inf_nan=False)] = Field(
         default=3.0, description="coil temperature rise per watt dissipated, in steady state (simulated rig)")
+    force_constant_variation_per_mm: Annotated[float, Field(ge=-0.1, le=0.1, allow_inf_nan=False)] = Field(
+        default=0.0, description="relative change of force_constant_n_per_a per mm of rack travel from mid-stroke "
+        "(simulated rig: a real proportional solenoid's pull varies with position; 0: constant)")
 
     @model_validator(mode="after")
     def _spec(self) -> CoilSection:
@@ -170,6 +173,9 @@ class ValveSection(_Section):
     damping_new_n_s_per_mm: NonNegativeFloat
     damping_gain_per_mm: NonNegativeFloat
     stiction_ratio: Annotated[float, Field(ge=1.0, le=5.0, allow_inf_nan=False)] = 1.3
+    stribeck_velocity_mm_s: Annotated[float, Field(ge=0, le=1000, allow_inf_nan=False)] = Field(
+        default=0.0, description="Stribeck speed (simulated rig): sliding friction falls from the breakaway force "
+        "to Coulomb friction as exp(-(v/v_s)^2); 0: it falls at once")
     spread_rel: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.08
     presets: dict[str, ValvePreset]
 
@@ -344,13 +350,29 @@ class AcceptanceSection(_Section):
     """When a test counts as trustworthy (else INVALID)."""
 
     plausible = {
-        "convergence_window_s": Plausible(0.1, 600, "s", "the window af and a1 settle in is"),
+        "convergence_window_s": Plausible(0.1, 600, "s", "the window the online estimates' settle times look at is"),
         "max_condition_number": Plausible(1.01, 1e12, "", "a usable regressor's condition number is at most"),
         "max_tracking_error_mm": Plausible(0.01, 60, "mm", "the rack may stray from its reference by"),
         "ready_timeout_s": Plausible(0.1, 600, "s", "a rig reports READY within"),
     }
 
-    settle_band_rel: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.02
+    settle_band_rel: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(
+        default=0.02, description="settled: af and a1 over the first half of the excitation periods and over the "
+        "second half agree within this (relative)")
+    min_periods: Annotated[int, Field(ge=2, le=100)] = Field(
+        default=3, description="whole excitation periods (after the first, which learns) a verdict needs at least")
+    max_residual_ratio: Annotated[float, Field(gt=1, le=1000, allow_inf_nan=False)] = Field(
+        default=5.0, description="the model does not fit when what it leaves unexplained of the smoothed drive "
+        "exceeds this multiple of the noise the position sensor leaves in it (fitting pumps: 0.5-4)")
+    max_period_spread_rel: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
+        default=0.02, description="the model does not fit when af or a1 scatter more than this (standard deviation, "
+        "relative) from one excitation period to the next")
+    max_gain_variation_rel: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
+        default=0.25, description="the model does not fit when the solenoid's force constant varies more than this "
+        "(+/-, relative) over the excitation's swing: its first-order correction no longer holds")
+    verdict_confidence: Annotated[float, Field(ge=0.5, lt=1, allow_inf_nan=False)] = Field(
+        default=0.99, description="a test stops early when af and a1 within this confidence interval cannot change "
+        "the verdict")
     convergence_window_s: PositiveFloat = 5.0
     max_condition_number: Annotated[float, Field(gt=1, allow_inf_nan=False)] = 1e4
     max_missed_replies_in_row: Annotated[int, Field(ge=1, le=100)] = 5
@@ -507,6 +529,13 @@ class Variant(_Section):
             raise ValueError(
                 f"excitation tone at {fastest} Hz is too fast for a {self.controller.period_s * 1e3:g} ms period: "
                 f"keep tones below {nyquist_hz / 10:g} Hz"
+            )
+        reach_mm = max(rack.mid_stroke_mm, rack.stroke_mm - rack.mid_stroke_mm)
+        if abs(coil.force_constant_variation_per_mm) * reach_mm >= 0.9:
+            raise ValueError(
+                f"coil.force_constant_variation_per_mm ({coil.force_constant_variation_per_mm:g}) changes the force "
+                f"constant by {abs(coil.force_constant_variation_per_mm) * reach_mm:.0%} at the end of the stroke: "
+                "keep it within +/-90 % over the stroke"
             )
         hold_v = hold_a * coil.resistance_ohm / coil.amplifier_gain
         if hold_v >= rig.drive_limit_v:

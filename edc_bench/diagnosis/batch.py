@@ -17,6 +17,7 @@ and evaluate a classifier on.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
@@ -26,8 +27,16 @@ from scipy.linalg import expm
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
 from edc_bench.control.fel import condition_number, regressor_matrix
-from edc_bench.diagnosis.batch_link import BatchLink
+from edc_bench.diagnosis.batch_link import RING, BatchLink
 from edc_bench.diagnosis.identification import settle_times_s
+from edc_bench.diagnosis.period_fit import (
+    BlockAccumulator,
+    FitSetup,
+    PeriodFit,
+    accumulate,
+    rows,
+    solve,
+)
 from edc_bench.control.coil import CoilEstimator
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate, resistance_at_ohm, temperature_after_c
 from edc_bench.physics.feedforward import feedforward_truth
@@ -51,17 +60,21 @@ class BatchResult:
     truth : numpy.ndarray
         (N, 6) true values from each valve's physics.
     converged : numpy.ndarray
-        (N,) af and a1 stayed within the settle band over the last window.
+        (N,) at least ``acceptance.min_periods`` periods, each with af and a1 within the settle band.
     settle_s : dict of numpy.ndarray
         Settle times of af and a1 (s after the excitation starts).
     condition_number : float
-        Of the (common) regression over the steady excitation.
+        Of the period fit's normal equations (the median over the valves).
     reply_age_ticks : dict of int to int
         With an adapter: replies per age (ticks from command to first use), over all valves.
     coil_ohm : numpy.ndarray
         (N,) the coil resistance each test measured last (from drive and current).
     coil_end_ohm : numpy.ndarray
         (N,) the simulated coils' resistance at the end (warmed by the test).
+    model_fits : numpy.ndarray
+        (N,) the model fits each test (:class:`~edc_bench.diagnosis.identification.ModelFit`'s limits).
+    periods : PeriodResults
+        The period fit after any number of periods (what an early-stopped test would have found).
 
     ``parameters`` and ``truth`` are referred to the reference coil, as the full loop's are.
     """
@@ -76,6 +89,8 @@ class BatchResult:
     reply_age_ticks: dict[int, int] = field(default_factory=dict)
     coil_ohm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     coil_end_ohm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    model_fits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    periods: PeriodResults | None = None
 
     def feature(self, name: str) -> np.ndarray:
         """Column of one parameter, e.g. ``feature("af")``."""
@@ -137,8 +152,17 @@ class _VectorPlant:
         self._tables = None
 
     def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
-                   coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        f = -(self.pump.preload_n + fc * sign)
+                   coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray,
+                   fs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        pump = self.pump
+        if pump.linear:
+            f = -(pump.preload_n + fc * sign)
+        else:  # as :class:`~edc_bench.sim.plant.Plant`: the departures from the linear model held over the step
+            friction = fc
+            if pump.stribeck_velocity_mm_s > 0.0:
+                friction = fc + (fs - fc) * np.exp(-(v / pump.stribeck_velocity_mm_s) ** 2)
+            f = (pump.force_constant_n_per_a * pump.force_constant_slope_per_mm * (x - pump.force_constant_mid_mm) * i
+                 - (pump.preload_n + friction * sign))
         xn = phi[0] * x + phi[1] * v + phi[2] * i + gam[0] * coil_v + gam[1] * f
         vn = phi[3] * x + phi[4] * v + phi[5] * i + gam[2] * coil_v + gam[3] * f
         i_n = phi[8] * i + gam[4] * coil_v
@@ -147,7 +171,7 @@ class _VectorPlant:
     def advance_period(self, drive_v: np.ndarray) -> None:
         coil_v = self.pump.amplifier_gain * _clip(drive_v, self.pump.amplifier_limit_v)
         sign = np.where(self.v > 0.0, 1.0, -1.0)
-        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc)
+        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc, self.fs)
         ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
         self.x = np.where(ok, xn, self.x)
         self.v = np.where(ok, vn, self.v)
@@ -173,7 +197,7 @@ class _VectorPlant:
         coil_v = self.pump.amplifier_gain * _clip(drive_v[moving], self.pump.amplifier_limit_v)
         x, v, i = self.x[moving], self.v[moving], self.i[moving]
         sign = np.where(v > 0.0, 1.0, -1.0)
-        xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, self.fc[moving])
+        xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, self.fc[moving], self.fs[moving])
         ok = ~self.stuck[moving] & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
         smooth = moving[ok]
         self.x[smooth], self.v[smooth], self.i[smooth] = xn[ok], vn[ok], i_n[ok]
@@ -187,18 +211,20 @@ class _VectorPlant:
         x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
         pump = self.pump
         k, ki, fpre, stroke = pump.net_stiffness_n_per_mm, pump.force_constant_n_per_a, pump.preload_n, pump.stroke_mm
+        slope, x_mid = pump.force_constant_slope_per_mm, pump.force_constant_mid_mm
         steps = QUANTA_PER_PERIOD if quanta is None else int(quanta.max())
         for step in range(steps):
-            net = ki * i - k * x - fpre
+            net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
             hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
             sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
-            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc)
+            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc, fs)
             # held racks: only the current evolves
             i_hold = phi[8] * i + gam[4] * coil_v
             reversed_ = vn * sign <= 0.0
             frac = np.where(v != vn, v / np.where(v != vn, v - vn, 1.0), 0.0)
             x_rev = x + frac * (xn - x)
-            slow = ~reversed_ & (np.abs(vn) < STICK_SPEED_MM_S) & (np.abs(ki * i_n - k * xn - fpre) <= fs)
+            pull = ki * (1.0 + slope * (xn - x_mid)) * i_n
+            slow = ~reversed_ & (np.abs(vn) < STICK_SPEED_MM_S) & (np.abs(pull - k * xn - fpre) <= fs)
             new_stuck = reversed_ | slow
             xn = np.where(reversed_, x_rev, xn)
             vn = np.where(new_stuck, 0.0, vn)
@@ -248,6 +274,57 @@ class _Noise:
         row = self._buf[self._row]
         self._row += 1
         return row
+
+
+class _RowFeeder:
+    """Collects each valve's ticks and feeds the period fit in spans (:mod:`edc_bench.diagnosis.period_fit`).
+
+    The loop's trace holds every tick; a batch of hundreds of valves cannot, so the ticks are kept only until the
+    span they belong to has been turned into rows, with half a smoothing window on either side. The rows are
+    computed by the same function as the loop's, so the identification is the same.
+    """
+
+    SPAN = 500
+
+    def __init__(self, setup: FitSetup, acc: BlockAccumulator, n: int, lag: int) -> None:
+        self.setup, self.acc, self.half = setup, acc, setup.window // 2
+        cap = self.SPAN + 2 * self.half + 2 + lag
+        self.x, self.u, self.rho, self.r1 = (np.zeros((cap, n)) for _ in range(4))
+        self.valid = np.zeros((cap, n), dtype=bool)
+        self.base = setup.first_tick - self.half  # the tick of row 0
+        self.p = setup.first_tick  # the first tick of the next span
+
+    def tick(self, k: int, drive_v: np.ndarray, rho: np.ndarray, r1: np.ndarray) -> None:
+        """What tick ``k`` sent and used."""
+        row = k - self.base
+        if 0 <= row:
+            self.u[row], self.rho[row], self.r1[row] = drive_v, rho, r1
+
+    def sample(self, j: int, position_mm: np.ndarray, valid: np.ndarray | bool = True) -> None:
+        """The sample of tick ``j``'s command (taken before its drive applied); a span is fed once its last is in."""
+        row = j - self.base
+        if row < 0:
+            return
+        self.x[row], self.valid[row] = position_mm, valid
+        if j == self.p + self.SPAN + self.half:
+            self._feed(self.SPAN)
+
+    def _feed(self, span: int) -> None:
+        if span <= 0:
+            return
+        rows_ = span + 2 * self.half + 1
+        X, y, use = rows(self.setup, self.x[:rows_], self.u[:rows_], self.rho[:rows_], self.r1[:rows_],
+                         self.valid[:rows_])
+        accumulate(self.setup, self.acc, self.p - self.half, X, y, use)
+        keep_from = span  # the next span needs from its first tick - half on
+        for a in (self.x, self.u, self.rho, self.r1, self.valid):
+            a[: len(a) - keep_from] = a[keep_from:]
+        self.base += keep_from
+        self.p += span
+
+    def finish(self, last_tick: int) -> None:
+        """Feed the last, partial span (ticks up to ``last_tick``, the last with a sample and half a window after)."""
+        self._feed(last_tick - self.half - self.p)
 
 
 def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
@@ -352,6 +429,16 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         adapter, seeds, T, QUANTA_PER_PERIOD, max_reply_age_ticks(variant), reference_mm)
     usable = None
     u2 = np.zeros(n)
+    # the identification the verdict rests on: the period fit, fed the same rows as the loop's trace gives it
+    setup = FitSetup.from_variant(variant)
+    blocks = setup.blocks_in(ticks)
+    fit_acc = BlockAccumulator(setup, max(blocks, 1), n)
+    lag = 0 if link is None else RING - 2  # through an adapter, command j's sample is read from the link later
+    feeder = _RowFeeder(setup, fit_acc, n, lag)
+    # the tick after which a loop's trace holds b whole periods (and the half window that smooths their end)
+    block_end_ticks = {setup.first_tick + (b + 1) * setup.block_ticks + setup.window // 2: b + 1
+                       for b in range(blocks)}
+    coil_at_blocks = np.full((max(blocks, 1) + 1, n), r_ref)
 
     for k in range(ticks):
         t = k * T
@@ -420,42 +507,103 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         if k > 0:  # the first tick's current came under no drive of the test's (as in the loop: left out)
             pending_current, u_before = read_current(), u_last
         u_last = u
+        feeder.tick(k, u, rho, r1)
+        if k in block_end_ticks:  # a loop stopped here would refer its parameters to this coil figure
+            coil_at_blocks[block_end_ticks[k]] = coil_mean
         if link is None:
             # the rig: sample, then apply the drive, then one period passes
             x_meas = sample()
+            feeder.sample(k, x_meas)
             plant.advance_period(u)
             r_prev = now0[k] + start * now_slope[k]
         else:
             link.send(k, u, noise.next())
             link.advance_period(k, plant.advance_quanta, lambda: plant.x, read)
+            if k >= lag:
+                feeder.sample(k - lag, *link.delivered_sample(k - lag))
         plant.add_heat(T)
         if k % HISTORY_EVERY == 0:
             history[hist_rows, 0] = theta[h_af]
             history[hist_rows, 1] = theta[h_a1]
             hist_rows += 1
 
-    final = np.tile(nominal, (n, 1))
-    inductive = inductive_shares(variant)
-    for j, i in enumerate(est_idx):
-        # as the reference coil gives them: the inductive shares put right (as judge_run does for the loop)
-        final[:, i] = referred_from_estimate(inductive[i], theta[j] / scales[i], r_ref, coil_mean)
+    if link is not None:  # the last commands' samples, as far as they reached the rig
+        for j in range(max(0, ticks - lag), ticks):
+            feeder.sample(j, *link.delivered_sample(j))
+    feeder.finish(ticks - 1)
+    coil_at_blocks[blocks if blocks else 0] = coil_mean
     history = history[:hist_rows]
     t_hist = np.arange(hist_rows) * HISTORY_EVERY * T
     acc = variant.acceptance
     settle = {name: settle_times_s(t_hist, history[:, row, :], adapt_from, acc.settle_band_rel)
               for name, row in (("af", 0), ("a1", 1))}
-    remaining = (ticks - 1) * T - adapt_from - acc.convergence_window_s
-    converged = (settle["af"] <= remaining) & (settle["a1"] <= remaining)
     truth = np.array([list(feedforward_truth(replace(p, resistance_ohm=r_ref))) for p in plant.params])
-    return BatchResult(final, truth, converged, settle, _condition_number(design, ref0),
+    periods = PeriodResults(variant, setup, fit_acc, blocks, coil_at_blocks, nominal, r_ref)
+    at_end = periods.at(blocks)
+    return BatchResult(at_end.parameters, truth, at_end.converged, settle, at_end.condition_number,
                        list(valves), list(seeds), dict(sorted(link.ages.items())) if link is not None else {},
-                       coil_mean.copy(), plant.resistance_ohm.copy())
+                       coil_mean.copy(), plant.resistance_ohm.copy(), model_fits=at_end.model_fits,
+                       periods=periods)
 
 
-def _condition_number(design: ControllerDesign, reference) -> float:
-    """Condition number of the normalised regression over the steady excitation, as the loop's analysis finds it."""
+@dataclass
+class BatchIdentification:
+    """The batch's identification as a test stopped after some periods would have it (arrays over valves)."""
+
+    parameters: np.ndarray
+    converged: np.ndarray
+    model_fits: np.ndarray
+    fit: PeriodFit | None
+    condition_number: float
+
+
+class PeriodResults:
+    """The period fit of every valve, at any number of periods: a test that stopped then would give these."""
+
+    def __init__(self, variant: Variant, setup: FitSetup, acc: BlockAccumulator, blocks: int,
+                 coil_at_blocks: np.ndarray, nominal: np.ndarray, r_ref: float) -> None:
+        self.variant, self.setup, self.acc, self.blocks = variant, setup, acc, blocks
+        self.coil_at_blocks, self.nominal, self.r_ref = coil_at_blocks, nominal, r_ref
+        self.n = acc.A.shape[1]
+        self.reference_condition = _reference_condition_number(ControllerDesign.from_variant(variant))
+
+    def stop_time_s(self, periods: int) -> float:
+        """When a test has ``periods`` whole periods (and the half smoothing window after them)."""
+        s = self.setup
+        return (s.first_tick + periods * s.block_ticks + s.window // 2 + 1) * s.period_s
+
+    def at(self, periods: int) -> BatchIdentification:
+        """Parameters (referred to the reference coil), converged and model-fit flags after ``periods`` periods."""
+        from edc_bench.diagnosis.identification import expected_drive_noise_v
+
+        acc = self.variant.acceptance
+        fit = solve(self.acc, periods, acc.settle_band_rel)
+        final = np.tile(self.nominal, (self.n, 1))
+        if fit is None:
+            nan = np.full(self.n, False)
+            final[:, [PARAMETER_NAMES.index(c) for c in ("af", "a1")]] = np.nan
+            return BatchIdentification(final, nan, nan, None, math.inf)
+        inductive = inductive_shares(self.variant)
+        coil = self.coil_at_blocks[periods]
+        for name in fit.columns:
+            if name in PARAMETER_NAMES:
+                i = PARAMETER_NAMES.index(name)
+                final[:, i] = referred_from_estimate(inductive[i], fit.value(name), self.r_ref, coil)
+        noise = expected_drive_noise_v(self.variant)
+        enough = periods >= acc.min_periods
+        fits = (not enough) | ((fit.residual_rms_v <= acc.max_residual_ratio * noise)
+                          & (fit.spread_rel["af"] <= acc.max_period_spread_rel)
+                          & (fit.spread_rel["a1"] <= acc.max_period_spread_rel)
+                          & (fit.gain_variation_rel <= acc.max_gain_variation_rel))
+        converged = fit.settled & enough
+        return BatchIdentification(final, converged, fits, fit, max(self.reference_condition,
+                                                                    float(np.median(fit.condition_number))))
+
+
+def _reference_condition_number(design: ControllerDesign) -> float:
+    """Condition number of the reference's regressors over the steady excitation, as the loop's analysis finds it."""
     T = design.period_s
     t = np.arange(int(round((design.move_s + design.fade_s) / T)), design.ticks) * T
-    phi = regressor_matrix(reference, t, T)
+    phi = regressor_matrix(design.reference(design.mid_mm), t, T)
     keep = np.abs(phi[:, 2]) >= design.reversal_speed_mm_s
     return condition_number(phi[keep][:, list(design.estimated)])

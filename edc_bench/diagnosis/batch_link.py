@@ -127,6 +127,11 @@ class BatchLink:
         self._errors[:] = 0
         return error, fresh, (k - self.newest_tick) <= max_age
 
+    def delivered_sample(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """The rack sampled when command ``j`` reached each valve's rig, and whether it has (``j`` must be one of
+        the last ``RING - 2`` commands sent)."""
+        return self._sample[j % RING].copy(), j < self._next_delivery
+
     def send(self, k: int, drive_v: np.ndarray, noise_mm: np.ndarray) -> None:
         """Tick ``k``'s command leaves the bench; ``noise_mm`` is the LVDT noise of the sample it will bring back."""
         slot = k % RING

@@ -1,15 +1,19 @@
-"""After a test: how far to trust its identification. Pure numpy on the trace.
+"""After a test: its identification and how far to trust it. Pure numpy on the trace.
 
-- settle time of each parameter: from the start of the excitation until it
-  stays within ``settle_band_rel`` of its final value;
-- converged: af and a1 stayed in that band through the last
-  ``convergence_window_s``;
-- conditioning: condition number of the normalised information matrix of
-  the regression (columns scaled to unit norm, so it measures collinearity
-  of the regressors, not their units);
-- uncertainty: least-squares standard deviation of each estimated parameter
-  from the data of the last window (sigma^2 (W^T W)^-1), the same for both
-  estimators.
+- parameters: the period fit (:mod:`edc_bench.diagnosis.period_fit`), least
+  squares over the whole excitation periods in the trace;
+- converged: at least ``acceptance.min_periods`` periods, and no drift (af
+  and a1 of the first half of the periods and of the second half agree
+  within ``settle_band_rel``);
+- model fit: the residual against the noise the position sensor causes,
+  the spread of af and a1 from period to period, and the solenoid's gain
+  variation, each against its limit (:class:`ModelFit`);
+- conditioning: condition number of the reference's regressors over the
+  steady excitation (columns scaled to unit norm: collinearity of the
+  excitation, not units), or the fit's own if larger;
+- uncertainty: standard error of the mean over the periods (at least the
+  least-squares one);
+- settle times of the online estimates (informational).
 """
 
 from __future__ import annotations
@@ -21,11 +25,62 @@ import numpy as np
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.fel import FelController, condition_number, regressor_matrix
+from edc_bench.diagnosis.period_fit import (
+    GAIN_TERMS,
+    FitSetup,
+    PeriodFit,
+    expected_drive_noise_v,
+    solve,
+    trace_blocks,
+)
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """How well the feedforward model explains the drive (docs/method.md, "Model fit").
+
+    Attributes
+    ----------
+    residual_rms_v : float
+        What the fitted model leaves unexplained of the drive (V rms).
+    expected_noise_v : float
+        What the position sensor's noise alone leaves, through the PID (V rms).
+    residual_ratio : float
+        Their ratio: about 1 when the model explains all but the noise.
+    spread_rel : dict
+        ``af``, ``a1``: standard deviation of the estimates from one excitation period to the next, relative.
+    gain_variation_rel : float
+        The solenoid's force constant's variation over the swing (+/-, relative), as identified.
+    problems : list of str
+        What does not fit (empty when the model fits), each with the measured figure and its limit.
+    """
+
+    residual_rms_v: float
+    expected_noise_v: float
+    residual_ratio: float
+    spread_rel: dict[str, float]
+    gain_variation_rel: float
+    problems: list[str]
+
+    @property
+    def fits(self) -> bool:
+        """True when no measure is beyond its limit."""
+        return not self.problems
+
+    def as_dict(self) -> dict:
+        """Plain data for the record."""
+        return {"residual_rms_v": self.residual_rms_v, "expected_noise_v": self.expected_noise_v,
+                "residual_ratio": self.residual_ratio, "spread_rel": dict(self.spread_rel),
+                "gain_variation_rel": self.gain_variation_rel, "fits": self.fits, "problems": list(self.problems)}
 
 
 @dataclass(frozen=True)
 class Identification:
-    """Quality figures of one identification."""
+    """Quality figures of one identification.
+
+    ``final``, ``std``, ``condition_number``, ``residual_rms_v`` and ``model_fit`` are the period fit's
+    (:mod:`edc_bench.diagnosis.period_fit`); ``settle_s`` are the online estimator's settle times, for the record.
+    """
 
     final: dict[str, float]
     std: dict[str, float]
@@ -34,6 +89,11 @@ class Identification:
     condition_number: float
     samples_used: int
     residual_rms_v: float
+    periods: int = 0
+    period_s: float = 0.0
+    settled: bool = False
+    model_fit: ModelFit | None = None
+    nuisance: dict[str, float] | None = None
 
 
 def settle_times_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel: float) -> np.ndarray:
@@ -68,8 +128,32 @@ def settle_times_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel
     return np.where(last_out < 0, 0.0, np.where(last_out == rows - 1, math.inf, np.maximum(0.0, after - start_s)))
 
 
+def model_fit_problems(variant: Variant, fit: PeriodFit, expected_noise_v: float) -> list[str]:
+    """What in ``fit`` (one test) is beyond the variant's model-fit limits, each with figure and limit."""
+    acc = variant.acceptance
+    out = []
+    ratio = float(fit.residual_rms_v[0]) / expected_noise_v if expected_noise_v > 0 else math.inf
+    if ratio > acc.max_residual_ratio:
+        out.append(f"it leaves {float(fit.residual_rms_v[0]) * 1e3:.1f} mV rms of the drive unexplained, "
+                   f"{ratio:.1f}x the sensor noise (limit {acc.max_residual_ratio:g}x)")
+    for name in ("af", "a1"):
+        spread = float(fit.spread_rel[name][0])
+        if fit.blocks >= 2 and not spread <= acc.max_period_spread_rel:
+            out.append(f"{name} scatters {spread:.1%} from one excitation period to the next "
+                       f"(limit {acc.max_period_spread_rel:.0%})")
+    variation = float(fit.gain_variation_rel[0])
+    if not variation <= acc.max_gain_variation_rel:
+        out.append(f"the solenoid's force constant varies about +/-{variation:.0%} over the swing (the model's "
+                   f"correction holds to +/-{acc.max_gain_variation_rel:.0%})")
+    return out
+
+
 def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Variant) -> Identification:
     """Quality figures of the identification in ``trace``.
+
+    The parameters, their uncertainty, the conditioning and the model fit are the period fit's
+    (:mod:`edc_bench.diagnosis.period_fit`) over the whole excitation periods in the trace; the settle
+    times are the online estimator's.
 
     Parameters
     ----------
@@ -82,45 +166,40 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
     """
     acc = variant.acceptance
     t = trace["t_s"]
-    final = {n: float(trace[f"{n}_hat"][-1]) if len(t) else math.nan for n in PARAMETER_NAMES}
     start = variant.excitation.move_s
     settle = {n: float(settle_times_s(t, trace[f"{n}_hat"], start, acc.settle_band_rel))
               for n in (PARAMETER_NAMES[i] for i in controller.estimated)}
-    # settled early enough to have stayed in the band for the whole last window
-    remaining = (t[-1] if len(t) else 0.0) - start - acc.convergence_window_s
-    converged = bool(remaining > 0 and all(settle[n] <= remaining for n in ("af", "a1")))
-
+    setup = FitSetup.from_variant(variant)
+    blocks, periods = trace_blocks(setup, trace, reference_resistance_ohm=variant.coil.resistance_ohm)
+    fit = solve(blocks, periods, acc.settle_band_rel)
+    final = {n: float(trace[f"{n}_hat"][-1]) if len(t) else math.nan for n in PARAMETER_NAMES}
     std = {n: math.nan for n in PARAMETER_NAMES}
-    cond = math.inf
-    used = 0
-    residual_rms = math.nan
-    mask = trace["adapting"].astype(bool)
-    if mask.sum() >= 2 * len(controller.estimated):
-        phi_all = regressor_matrix(controller.reference, t[mask], variant.controller.period_s)
-        est = list(controller.estimated)
-        fixed = list(controller.fixed)
-        nominal = np.array(controller.nominal)
-        y_all = trace["drive_v"][mask] - phi_all[:, fixed] @ nominal[fixed]
-        phi = phi_all[:, est]
-        # conditioning over the steady excitation: the fade-in transient would mask collinearity
-        steady = t[mask] >= start + variant.excitation.fade_s
-        phi_s = phi[steady] if steady.sum() > len(est) else phi
-        cond = condition_number(phi_s)
-        # uncertainty over the last window
-        window = t[mask] >= (t[-1] - acc.convergence_window_s)
-        phi_w, y_w = phi[window], y_all[window]
-        used = int(window.sum())
-        a_final = np.array([final[PARAMETER_NAMES[i]] for i in est])
-        resid = y_w - phi_w @ a_final
-        if used > len(est):
-            sigma2 = float(resid @ resid) / (used - len(est))
-            residual_rms = math.sqrt(float(resid @ resid) / used)
-            try:
-                cov = sigma2 * np.linalg.inv(phi_w.T @ phi_w)
-                for j, i in enumerate(est):
-                    std[PARAMETER_NAMES[i]] = float(math.sqrt(max(cov[j, j], 0.0)))
-            except np.linalg.LinAlgError:
-                pass
     for i in controller.fixed:
+        final[PARAMETER_NAMES[i]] = controller.nominal[i]
         std[PARAMETER_NAMES[i]] = 0.0
-    return Identification(final, std, settle, converged, cond, used, residual_rms)
+    period_s = setup.block_ticks * setup.period_s
+    if fit is None:
+        return Identification(final, std, settle, False, math.inf, 0, math.nan, 0, period_s)
+    # identifiability is the excitation's: the reference's regressors over the steady excitation, where the rack
+    # slides (the trajectory's incidental harmonics would make a single sine look identifiable)
+    ref_rows = t[t >= variant.excitation.move_s + variant.excitation.fade_s]
+    phi = regressor_matrix(controller.reference, ref_rows, setup.period_s)
+    phi = phi[np.abs(phi[:, 2]) >= setup.exclusion_mm_s][:, list(controller.estimated)]
+    cond = max(condition_number(phi), float(fit.condition_number[0])) if len(phi) > len(controller.estimated) \
+        else math.inf
+    for name in (PARAMETER_NAMES[i] for i in controller.estimated):
+        final[name] = float(fit.value(name)[0])
+        std[name] = float(fit.std_of(name)[0])
+    noise = expected_drive_noise_v(variant)
+    model_fit = ModelFit(
+        residual_rms_v=float(fit.residual_rms_v[0]), expected_noise_v=noise,
+        residual_ratio=float(fit.residual_rms_v[0]) / noise if noise > 0 else math.inf,
+        spread_rel={n: float(fit.spread_rel[n][0]) for n in ("af", "a1")},
+        gain_variation_rel=float(fit.gain_variation_rel[0]),
+        problems=model_fit_problems(variant, fit, noise) if periods >= acc.min_periods else [],
+    )
+    settled = bool(fit.settled[0])
+    converged = settled and periods >= acc.min_periods
+    nuisance = {name: float(fit.value(name)[0]) for name in GAIN_TERMS}
+    return Identification(final, std, settle, converged, cond, int(fit.samples[0]),
+                          float(fit.residual_rms_v[0]), periods, period_s, settled, model_fit, nuisance)

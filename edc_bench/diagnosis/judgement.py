@@ -22,7 +22,7 @@ from edc_bench.control.fel import FelController
 from edc_bench.diagnosis.baseline import Baseline, load_baseline
 from edc_bench.diagnosis.classifier import Classification, ValveClassifier, default_classifier
 from edc_bench.diagnosis.coil_check import coil_finding, coil_reason
-from edc_bench.diagnosis.identification import Identification, analyse
+from edc_bench.diagnosis.identification import Identification, ModelFit, analyse
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
@@ -94,10 +94,19 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
         reasons.append(f"aborted: {outcome.abort_reason}")
     if ident is None:
         return reasons or ["no identification"]
-    if not outcome.abort_reason and not ident.converged:
-        settle = ", ".join(f"{n} {ident.settle_s[n]:.1f} s" for n in ("af", "a1"))
-        reasons.append(f"not converged: af and a1 must settle within {acc.settle_band_rel:.0%} for the last "
-                       f"{acc.convergence_window_s:g} s (settle times {settle})")
+    fit = ident.model_fit
+    if not outcome.abort_reason and fit is not None and not fit.fits:
+        reasons.append(model_fit_reason(fit))
+    elif not outcome.abort_reason and not ident.converged:
+        if ident.periods < acc.min_periods:
+            reasons.append(f"not converged: {ident.periods} whole excitation period(s) of {ident.period_s:g} s "
+                           f"measured, at least {acc.min_periods} needed after the first (a longer test is needed)")
+        else:
+            spread = "" if fit is None else (f" (period-to-period spread af {fit.spread_rel['af']:.1%}, "
+                                             f"a1 {fit.spread_rel['a1']:.1%})")
+            reasons.append(f"not converged: af and a1 were still drifting (their first {ident.periods // 2} and "
+                           f"last {ident.periods - ident.periods // 2} excitation periods differ by more than "
+                           f"{acc.settle_band_rel:.0%}){spread}; retest")
     if not outcome.abort_reason and ident.condition_number > acc.max_condition_number:
         reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
                        f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
@@ -111,6 +120,18 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
         reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing "
                        f"(limit {acc.max_missed_reply_fraction:.1%})")
     return reasons
+
+
+#: What a technician does about a pump the model does not fit (the panel and the report show it).
+MODEL_FIT_ADVICE = ("a longer test will not help. Check that the variant is this pump's (its coil and spring), "
+                    "that the rack moves freely and the solenoid's armature and wiring are sound; a pump that "
+                    "behaves like this needs its own variant (docs/faults.md, 'The model does not fit')")
+MODEL_FIT_PREFIX = "the feedforward model does not fit this pump: "
+
+
+def model_fit_reason(fit: ModelFit) -> str:
+    """The INVALID reason for a model that does not fit: what was measured, and what to do."""
+    return MODEL_FIT_PREFIX + "; ".join(fit.problems) + "; " + MODEL_FIT_ADVICE
 
 
 def reference_values(variant: Variant, baseline: Baseline | None) -> dict[str, dict[str, Any]]:

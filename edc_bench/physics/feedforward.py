@@ -11,6 +11,12 @@ with K = k_A k_i and k' = k - k_x::
     a0 = R k' / K    b  = R F_pre / K         af = R F_c / K
 
 (see docs/method.md for the derivation).
+
+A solenoid whose force constant varies with position, k_i(x) = k_i (1 + s (x - x_m)),
+is linearised about mid-stroke x_m at the current that holds the rack there:
+its pull then has the extra negative stiffness K_m = s (k' x_m + F_pre), so
+k' becomes k' - K_m and the preload F_pre + K_m x_m (docs/method.md, "A force
+constant that varies with position"). For s = 0 nothing changes.
 """
 
 from __future__ import annotations
@@ -48,18 +54,22 @@ def feedforward_truth(params: PlantParameters) -> FeedforwardParameters:
     -------
     FeedforwardParameters
         With K = k_A k_i and k' = k - k_x: a3 = L m/K, a2 = (m R + L c)/K,
-        a1 = (L k' + R c)/K, a0 = R k'/K, b = R F_pre/K, af = R F_c/K.
+        a1 = (L k' + R c)/K, a0 = R k'/K, b = R F_pre/K, af = R F_c/K; for a
+        force constant that varies with position, linearised about mid-stroke
+        (k_i at x_m, k' - K_m for k', F_pre + K_m x_m for F_pre).
     """
     gain = params.amplifier_gain * params.force_constant_n_per_a
     m = params.mass_n_s2_per_mm
     r, l_h, c = params.resistance_ohm, params.inductance_h, params.damping_n_s_per_mm
-    k_net = params.net_stiffness_n_per_mm
+    k_slope = params.magnetic_stiffness_from_slope_n_per_mm  # 0 for a constant force constant
+    k_net = params.net_stiffness_n_per_mm - k_slope
+    preload = params.preload_n + k_slope * params.force_constant_mid_mm
     return FeedforwardParameters(
         a3=l_h * m / gain,
         a2=(m * r + l_h * c) / gain,
         a1=(l_h * k_net + r * c) / gain,
         a0=r * k_net / gain,
-        b=r * params.preload_n / gain,
+        b=r * preload / gain,
         af=r * params.coulomb_friction_n / gain,
     )
 

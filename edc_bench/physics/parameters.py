@@ -11,6 +11,7 @@ Units: x in mm, x' in mm/s, i in A, u in V, forces in N, mass in kg (used as
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,14 @@ class PlantParameters:
     temperature_coefficient_per_k, thermal_capacity_j_per_k, thermal_resistance_k_per_w : float
         The coil's resistance per kelvin (relative) and its first-order thermal model
         (:mod:`edc_bench.physics.coil`).
+    force_constant_slope_per_mm : float
+        Relative change of the force constant per mm of rack travel: k_i(x) = k_i (1 + s (x - x_m)).
+        A real proportional solenoid's pull varies with the armature's position; 0 for the linear model.
+    force_constant_mid_mm : float
+        x_m, where the force constant is ``force_constant_n_per_a`` (the variant's mid-stroke).
+    stribeck_velocity_mm_s : float
+        Stribeck speed v_s: sliding friction falls from the breakaway force F_s to F_c as
+        F_c + (F_s - F_c) exp(-(v / v_s)^2). 0: it falls to F_c as soon as the rack slides.
     """
 
     mass_kg: float
@@ -69,6 +78,36 @@ class PlantParameters:
     temperature_coefficient_per_k: float = 0.0
     thermal_capacity_j_per_k: float = 40.0
     thermal_resistance_k_per_w: float = 3.0
+    force_constant_slope_per_mm: float = 0.0
+    force_constant_mid_mm: float = 0.0
+    stribeck_velocity_mm_s: float = 0.0
+
+    @property
+    def linear(self) -> bool:
+        """True when the plant is the linear model (constant force constant, no Stribeck decay)."""
+        return self.force_constant_slope_per_mm == 0.0 and self.stribeck_velocity_mm_s == 0.0
+
+    def force_constant_at(self, position_mm: float) -> float:
+        """The solenoid's force constant k_i(x) in N/A with the rack at ``position_mm``."""
+        return self.force_constant_n_per_a * (1.0 + self.force_constant_slope_per_mm
+                                              * (position_mm - self.force_constant_mid_mm))
+
+    def sliding_friction_n(self, speed_mm_s: float) -> float:
+        """Friction opposing a rack sliding at ``speed_mm_s`` (Stribeck: F_s at breakaway, F_c when fast)."""
+        if self.stribeck_velocity_mm_s <= 0.0:
+            return self.coulomb_friction_n
+        excess = self.stiction_friction_n - self.coulomb_friction_n
+        return self.coulomb_friction_n + excess * math.exp(-(speed_mm_s / self.stribeck_velocity_mm_s) ** 2)
+
+    @property
+    def magnetic_stiffness_from_slope_n_per_mm(self) -> float:
+        """K_m = s (k' x_m + F_pre): the stiffness the varying force constant adds at mid-stroke's holding current.
+
+        With k_i(x) = k_i (1 + s (x - x_m)) the pull k_i(x) i about x_m at the current i_0 that holds the rack
+        there (k_i i_0 = k' x_m + F_pre) grows by k_i s i_0 per mm: a negative stiffness, as k_x is.
+        """
+        return self.force_constant_slope_per_mm * (self.net_stiffness_n_per_mm * self.force_constant_mid_mm
+                                                   + self.preload_n)
 
     @property
     def resistance_20c_ohm(self) -> float:

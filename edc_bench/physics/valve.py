@@ -200,6 +200,9 @@ def plant_parameters(variant: Variant, valve: ValveSpec, *, stiction: bool = Tru
         temperature_coefficient_per_k=coil.temperature_coefficient_per_k,
         thermal_capacity_j_per_k=coil.thermal_capacity_j_per_k,
         thermal_resistance_k_per_w=coil.thermal_resistance_k_per_w,
+        force_constant_slope_per_mm=coil.force_constant_variation_per_mm,
+        force_constant_mid_mm=variant.rack.mid_stroke_mm,
+        stribeck_velocity_mm_s=variant.valve.stribeck_velocity_mm_s if stiction else 0.0,
     )
 
 

@@ -70,6 +70,9 @@ class BenchResult:
         The simulated valve and rig, when the rig was simulated.
     can_log_path : pathlib.Path or None
         Where the CAN log was streamed while the test ran, if it was.
+    stop : dict or None
+        Why and when the test ended: ``reason`` (``verdict certain``, ``model does not fit``, ``full length``,
+        ``aborted``), ``time_s``, ``full_length`` (the fixed length was asked for), ``max_s``.
     identity : dict
         Who and where: ``pump_serial``, ``station``, ``operator`` (set by the caller).
     record_files : dict
@@ -90,6 +93,7 @@ class BenchResult:
     truth: FeedforwardParameters | None = None
     simulation: dict[str, Any] | None = None
     can_log_path: Path | None = None
+    stop: dict[str, Any] | None = None
     software_version: str = __version__
     identity: dict[str, str] = field(default_factory=dict)
     record_files: dict[str, str | None] = field(default_factory=dict)
@@ -164,11 +168,18 @@ def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, 
         "identification": None if ident is None else {
             "estimator": result.variant.estimator.kind,
             "excitation_start_s": result.variant.excitation.move_s,
-            "settle_s": ident.settle_s,
+            "method": "least squares over whole excitation periods, on the smoothed rack trajectory",
+            "periods": ident.periods,
+            "period_s": ident.period_s,
+            "settled": ident.settled,
+            "samples_used": ident.samples_used,
             "condition_number": ident.condition_number,
-            "samples_in_last_window": ident.samples_used,
             "residual_rms_v": ident.residual_rms_v,
+            "model_fit": None if ident.model_fit is None else ident.model_fit.as_dict(),
+            "gain_terms": ident.nuisance,
+            "online_settle_s": ident.settle_s,
         },
+        "stop": result.stop,
         "timing": result.timing,
         "loop": outcome,
         "stability_margins": None if result.margins is None else dataclasses.asdict(result.margins),

@@ -115,7 +115,7 @@ def test_not_toml(tmp_path: Path) -> None:
 def test_missing_file_and_unknown_name() -> None:
     with pytest.raises(ConfigError, match=r"variant file 'nope/x.toml' does not exist"):
         load_variant("nope/x.toml")
-    with pytest.raises(ConfigError, match=r"unknown variant 'p-edc-nope': give a name \(p-edc-default, p-edc-long"):
+    with pytest.raises(ConfigError, match=r"unknown variant 'p-edc-nope': give a name \(p-edc-default, p-edc-hard, p-edc-long"):
         load_variant("p-edc-nope")
 
 

@@ -1,0 +1,406 @@
+"""The identification the verdict rests on: least squares over whole excitation periods.
+
+The online estimator (:mod:`edc_bench.control.estimators`) keeps the
+feedforward right while the test runs; it regresses on the *reference* with a
+memory of about one period. The diagnosis features come from this module
+instead (docs/method.md, "The identification the verdict rests on"):
+
+- **On the trajectory the rack followed.** The drive u_k is held from the
+  moment the rig takes command k, when it also samples the rack; the
+  regressors are the measured rack position smoothed by a Savitzky-Golay
+  filter (a local polynomial, ``SMOOTHING_ORDER``, over about an eighth of the
+  fastest tone's period) and its derivatives, taken at mid-hold. A lightly
+  damped rack rings after every reversal (0.08 mm on the hard variant); a
+  regression on the reference takes that ringing for damping (a1 -20 %).
+  Smoothing leaves sensor noise at a few per mille of the signal, so it
+  biases nothing measurable.
+- **Only while the rack slides.** Rows where the reference or the rack moves
+  slower than ``reversal_exclusion`` of the peak speed are left out: stick
+  windows and breakaway are no part of the sgn(x') model.
+- **With the solenoid's first-order position dependence.** A force constant
+  k_i (1 + s (x - x_m)) divides the drive by 1 + s Delta; to first order that
+  adds Delta^2, Delta x' and Delta sgn(x') to the regressors (Delta = x - x_m).
+  Their coefficients are nuisance parameters; the one of Delta sgn(x') is
+  -s af, which gives the force constant's variation over the swing.
+- **In whole periods.** Normal equations are summed per period of the
+  excitation (its tones' common period), after a first period in which the
+  feedforward learns. The estimate is the least-squares solution over all
+  periods; each period's own solution gives the spread from one period to the
+  next, hence the uncertainty (standard error of the mean), and the settle
+  test (the first half of the periods against the second: no drift).
+
+Pure numpy; the loop's trace (:func:`trace_blocks`) and the batch path
+(:class:`BlockAccumulator` fed with :func:`rows`) use the same code.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import convolve1d
+from scipy.signal import savgol_coeffs
+
+from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.design import ControllerDesign
+
+#: Polynomial order of the smoothing (derivatives up to the third are taken from it).
+SMOOTHING_ORDER = 4
+#: Names of the nuisance terms of the force constant's position dependence (Delta = x - x_m).
+GAIN_TERMS = ("d2", "dv", "df")  # Delta^2, Delta x', Delta sgn(x')
+#: Periods used at least before a test can count as converged (three give a spread with two degrees of freedom).
+MIN_PERIODS = 3
+
+
+def excitation_period_s(frequencies_hz: list[float]) -> float:
+    """The tones' common period (whole periods of every tone), or the slowest tone's period if they have none short.
+
+    >>> excitation_period_s([0.5, 3.0])
+    2.0
+    """
+    slowest = min(frequencies_hz)
+    for m in range(1, 9):
+        span = m / slowest
+        if all(abs(f * span - round(f * span)) < 1e-6 * max(1.0, f * span) for f in frequencies_hz):
+            return span
+    return 1.0 / slowest
+
+
+@dataclass(frozen=True)
+class FitSetup:
+    """Everything the period fit needs from a variant, as numbers.
+
+    Attributes
+    ----------
+    period_s : float
+        Tick period T.
+    block_ticks : int
+        Ticks of one excitation period (a block).
+    first_tick : int
+        First tick of the first block: the move, the fade-in and one period of learning are left out.
+    window : int
+        Savitzky-Golay window (odd, ticks).
+    exclusion_mm_s : float
+        Rows where |r'| or |x'| is below this are left out (stick windows).
+    mid_mm : float
+        x_m, about which the force constant varies.
+    estimated, fixed : tuple of int
+        Indices into a3..af of the estimated and the fixed parameters.
+    nominal : tuple of float
+        Nominal a3..af (the fixed ones are taken off the target with them).
+    scales : tuple of float
+        Column scales of the basis and the gain terms (conditioning only).
+    swing_mm : float
+        The excitation's amplitude about mid-stroke (sum of the tones').
+    """
+
+    period_s: float
+    block_ticks: int
+    first_tick: int
+    window: int
+    exclusion_mm_s: float
+    mid_mm: float
+    estimated: tuple[int, ...]
+    fixed: tuple[int, ...]
+    nominal: tuple[float, ...]
+    scales: tuple[float, ...]
+    swing_mm: float
+
+    @classmethod
+    def from_variant(cls, variant: Variant) -> FitSetup:
+        """The setup of ``variant``'s tests."""
+        design = ControllerDesign.from_variant(variant)
+        tones = variant.excitation.active_tones
+        T = design.period_s
+        block_s = excitation_period_s([t.frequency_hz for t in tones])
+        fastest_hz = max(t.frequency_hz for t in tones)
+        window = max(SMOOTHING_ORDER + 3, int(round(0.125 / fastest_hz / T)))
+        window = min(window, 41) | 1  # odd; 41 ms at most (the 3 Hz tone's eighth)
+        block_ticks = int(round(block_s / T))
+        first = int(round((design.move_s + design.fade_s) / T)) + block_ticks
+        swing = sum(t.amplitude_mm for t in tones)
+        velocity = design.scales[2]
+        return cls(period_s=T, block_ticks=block_ticks, first_tick=first, window=window,
+                   exclusion_mm_s=design.reversal_speed_mm_s, mid_mm=design.mid_mm, estimated=design.estimated,
+                   fixed=design.fixed, nominal=design.nominal,
+                   scales=(*design.scales, swing * swing, swing * velocity, swing), swing_mm=swing)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """Names of the fitted coefficients: the estimated parameters, then :data:`GAIN_TERMS`."""
+        return tuple(PARAMETER_NAMES[i] for i in self.estimated) + GAIN_TERMS
+
+    def block_of(self, tick: int) -> int:
+        """The block a tick belongs to (negative before the first)."""
+        return (tick - self.first_tick) // self.block_ticks if tick >= self.first_tick else -1
+
+    def blocks_in(self, ticks: int) -> int:
+        """Complete blocks in ``ticks`` ticks whose every row can be smoothed (half a window beyond their end)."""
+        usable = ticks - self.window // 2 - 1 - self.first_tick
+        return max(0, usable // self.block_ticks)
+
+
+def _smoothing_kernels(window: int, period_s: float) -> list[np.ndarray]:
+    """Savitzky-Golay kernels for x, x', x'', x''' (for :func:`scipy.ndimage.convolve1d`)."""
+    return [savgol_coeffs(window, SMOOTHING_ORDER, deriv=q, delta=period_s, use="conv") for q in range(4)]
+
+
+def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.ndarray,
+         reference_velocity_mm_s: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Regressors, target and usable-row mask for a span of ticks.
+
+    Parameters
+    ----------
+    setup : FitSetup
+    position_mm : numpy.ndarray
+        (T,) or (T, N): the rack sampled when each tick's command took effect.
+    drive_v : numpy.ndarray
+        The drive of each tick (held until the next).
+    rho : numpy.ndarray
+        The coil's resistance over the reference coil's, as the loop used it at each tick.
+    reference_velocity_mm_s : numpy.ndarray
+        r' at mid-tick.
+    valid : numpy.ndarray
+        False where a tick's own sample is missing (no reply, a gap).
+
+    Returns
+    -------
+    (X, y, use)
+        X (T, [N,] p) scaled regressors, y (T, [N]) target, use (T, [N]) the rows to fit: the first and last
+        half window of the span are never usable (their smoothing is incomplete).
+    """
+    x = np.asarray(position_mm, dtype=float)
+    kernels = _smoothing_kernels(setup.window, setup.period_s)
+    smooth = [convolve1d(x, k, axis=0, mode="nearest") for k in kernels]
+    # mid-hold: the drive of row k acts from sample k to sample k + 1
+    mid = [np.concatenate((0.5 * (s[:-1] + s[1:]), s[-1:]), axis=0) for s in smooth]
+    x0, x1, x2, x3 = mid
+    sgn = np.sign(x1)
+    delta = x0 - setup.mid_mm
+    basis = (x3, x2, x1, x0, np.ones_like(x0), sgn)
+    # the drive smoothed as the trajectory is, at mid-hold: both sides of the model through the same filter, so the
+    # moments a CAN adapter lets each drive take effect (two in one USB frame) average out as they do in the rack
+    raw = np.asarray(drive_v, dtype=float) / np.asarray(rho, dtype=float)
+    target = convolve1d(raw, kernels[0], axis=0, mode="nearest")
+    for i in setup.fixed:
+        target = target - setup.nominal[i] * basis[i]
+    sc = setup.scales
+    cols = [basis[i] / sc[i] for i in setup.estimated]
+    cols += [delta * delta / sc[6], delta * x1 / sc[7], delta * sgn / sc[8]]
+    X = np.stack(cols, axis=-1)
+    # a row needs its sample and the next, and every sample the smoothing reaches, to be real
+    half = setup.window // 2
+    bad = (~np.asarray(valid, dtype=bool)).astype(np.int64)
+    cum = np.concatenate((np.zeros_like(bad[:1]), np.cumsum(bad, axis=0)), axis=0)
+    ticks = len(bad)
+    k = np.arange(ticks)
+    hi, lo = np.minimum(k + half + 2, ticks), np.maximum(k - half, 0)  # samples k - half .. k + 1 + half
+    near_bad = (cum[hi] - cum[lo]) > 0
+    edge = np.zeros(len(x), dtype=bool)
+    edge[half: len(x) - half - 1] = True
+    if x.ndim == 2:
+        edge = edge[:, None]
+    limit = setup.exclusion_mm_s
+    sliding = (np.abs(reference_velocity_mm_s) >= limit) & (np.abs(x1) >= limit)
+    use = sliding & ~near_bad & edge & np.isfinite(target) & np.all(np.isfinite(X), axis=-1)
+    return X, np.where(use, target, 0.0), use
+
+
+class BlockAccumulator:
+    """Normal equations per block (excitation period), for one or N tests.
+
+    Parameters
+    ----------
+    setup : FitSetup
+    blocks : int
+        Most blocks a test can have.
+    n : int, optional
+        Tests side by side (the batch path); 1 for the loop.
+    """
+
+    def __init__(self, setup: FitSetup, blocks: int, n: int = 1) -> None:
+        p = len(setup.columns)
+        self.setup = setup
+        self.A = np.zeros((blocks, n, p, p))
+        self.z = np.zeros((blocks, n, p))
+        self.yy = np.zeros((blocks, n))
+        self.count = np.zeros((blocks, n))
+
+    def add(self, block: int, X: np.ndarray, y: np.ndarray, use: np.ndarray) -> None:
+        """Add the rows of one span that all belong to ``block`` (X (T, N, p) or (T, p))."""
+        if X.ndim == 2:
+            X, y, use = X[:, None, :], y[:, None], use[:, None]
+        w = use.astype(float)
+        Xw = X * w[..., None]
+        self.A[block] += np.einsum("tnp,tnq->npq", Xw, X)
+        self.z[block] += np.einsum("tnp,tn->np", Xw, y)
+        self.yy[block] += np.einsum("tn,tn->n", y * w, y)
+        self.count[block] += w.sum(axis=0)
+
+
+def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray, y: np.ndarray,
+               use: np.ndarray) -> None:
+    """Add rows for ticks ``start .. start + len(X) - 1`` to their blocks (rows before the first block are skipped)."""
+    T = len(X)
+    k = max(start, setup.first_tick)
+    end = start + T
+    while k < end:
+        block = setup.block_of(k)
+        if block >= len(acc.A):
+            return
+        block_end = min(end, setup.first_tick + (block + 1) * setup.block_ticks)
+        sl = slice(k - start, block_end - start)
+        acc.add(block, X[sl], y[sl], use[sl])
+        k = block_end
+
+
+@dataclass
+class PeriodFit:
+    """The identification over whole periods, for one or N tests (arrays over tests, or scalars for one).
+
+    Attributes
+    ----------
+    theta : numpy.ndarray
+        ([N,] p) the coefficients in physical units (estimated parameters, then gain terms).
+    block_theta : numpy.ndarray
+        (blocks, [N,] p) each period's own solution.
+    std : numpy.ndarray
+        ([N,] p) standard error of the mean of the periods (the larger of the spread's and the residual's).
+    blocks : int
+        Periods used.
+    residual_rms_v : numpy.ndarray
+        RMS of what the model leaves unexplained.
+    spread_rel : dict
+        ``af``, ``a1``: standard deviation of the periods' estimates, relative to the estimate.
+    gain_variation_rel : numpy.ndarray
+        The force constant's variation over the swing, +/- relative (from the Delta sgn(x') term).
+    condition_number : numpy.ndarray
+        Of the scaled normal equations.
+    settled : numpy.ndarray
+        No drift: af and a1 over the first half of the periods and over the second half agree within the
+        settle band.
+    """
+
+    theta: np.ndarray
+    block_theta: np.ndarray
+    std: np.ndarray
+    blocks: int
+    residual_rms_v: np.ndarray
+    spread_rel: dict[str, np.ndarray]
+    gain_variation_rel: np.ndarray
+    condition_number: np.ndarray
+    settled: np.ndarray
+    samples: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    columns: tuple[str, ...] = ()
+
+    def value(self, name: str) -> np.ndarray:
+        """The estimate of one coefficient (``af``, ``a1``, ``d2``...)."""
+        return self.theta[..., self.columns.index(name)]
+
+    def std_of(self, name: str) -> np.ndarray:
+        """Its standard error."""
+        return self.std[..., self.columns.index(name)]
+
+
+def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodFit | None:
+    """The fit over the first ``blocks`` blocks (None if there are none); vectorised over tests."""
+    setup = acc.setup
+    if blocks <= 0:
+        return None
+    A, z, yy, count = acc.A[:blocks], acc.z[:blocks], acc.yy[:blocks], acc.count[:blocks]
+    p = A.shape[-1]
+    ridge = 1e-12 * np.eye(p)
+    A_all, z_all = A.sum(axis=0), z.sum(axis=0)
+    scale = np.sqrt(np.maximum(np.einsum("npp->np", A_all), 1e-300))
+    A_n = A_all / scale[:, :, None] / scale[:, None, :]
+    theta_n = np.linalg.solve(A_all + ridge * scale[:, :, None] * scale[:, None, :], z_all[..., None])[..., 0]
+    cond = np.linalg.cond(A_n)
+    # each period on its own (a period with too few rows gives NaN)
+    enough = count >= 4 * p
+    safe_A = np.where(enough[..., None, None], A, np.eye(p))
+    block_n = np.linalg.solve(safe_A + ridge, np.where(enough[..., None], z, 0.0)[..., None])[..., 0]
+    block_n = np.where(enough[..., None], block_n, np.nan)
+    n_rows = count.sum(axis=0)
+    ssr = yy.sum(axis=0) - 2 * np.einsum("np,np->n", theta_n, z_all) + np.einsum("np,npq,nq->n", theta_n, A_all,
+                                                                                     theta_n)
+    ssr = np.maximum(ssr, 0.0)
+    residual_rms = np.sqrt(ssr / np.maximum(n_rows, 1))
+    sigma2 = ssr / np.maximum(n_rows - p, 1)
+    cov_diag = np.einsum("npp->np", np.linalg.inv(A_all + ridge * scale[:, :, None] * scale[:, None, :])) * sigma2[:, None]
+    units = np.array([setup.scales[i] for i in setup.estimated] + list(setup.scales[6:9]))
+    theta = theta_n / units
+    block_theta = block_n / units
+    ls_std = np.sqrt(np.maximum(cov_diag, 0.0)) / units
+    good = np.isfinite(block_theta).all(axis=-1)
+    used = good.sum(axis=0)
+    spread_sd = np.sqrt(np.nansum(np.where(good[..., None], (block_theta - theta) ** 2, 0.0), axis=0)
+                        / np.maximum(used - 1, 1)[:, None])
+    spread_sd = np.where((used >= 2)[:, None], spread_sd, np.nan)  # one period: no spread known
+    std = np.maximum(spread_sd / np.sqrt(np.maximum(used, 1))[:, None], ls_std)
+    cols = setup.columns
+    i_af, i_a1, i_df = cols.index("af"), cols.index("a1"), cols.index("df")
+    af, a1 = theta[:, i_af], theta[:, i_a1]
+    spread = {"af": spread_sd[:, i_af] / np.abs(af), "a1": spread_sd[:, i_a1] / np.abs(a1)}
+    gain_variation = np.abs(theta[:, i_df] / af) * setup.swing_mm
+    # settled: no drift; the periods' first half and second half agree within the band (scatter is the model
+    # fit's business, and averages out)
+    half = blocks // 2
+    settled = used == blocks
+    for i in (i_af, i_a1):
+        if blocks >= 2:
+            early = np.nanmean(block_theta[:half, :, i], axis=0)
+            late = np.nanmean(block_theta[half:, :, i], axis=0)
+            settled = settled & (np.abs(late - early) <= settle_band_rel * np.abs(theta[:, i]))
+    return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, cond, settled,
+                     n_rows, cols)
+
+
+def trace_blocks(setup: FitSetup, trace: dict[str, np.ndarray], rho: np.ndarray | None = None,
+                 reference_resistance_ohm: float = 1.0) -> tuple[BlockAccumulator, int]:
+    """The normal equations of a loop's trace per block, and how many blocks are complete.
+
+    Parameters
+    ----------
+    setup : FitSetup
+    trace : dict of numpy.ndarray
+        The filled trace columns (``position_mm``, ``drive_v``, ``coil_resistance_ohm``,
+        ``reference_velocity_mm_s``, ``reply_ok``, ``gap``).
+    reference_resistance_ohm : float
+        The reference coil's resistance (rho = measured / reference).
+    """
+    ticks = len(trace["t_s"])
+    blocks = setup.blocks_in(ticks)
+    acc = BlockAccumulator(setup, max(blocks, 1))
+    if blocks == 0:
+        return acc, 0
+    if rho is None:
+        rho = np.asarray(trace["coil_resistance_ohm"], dtype=float) / reference_resistance_ohm
+    valid = trace["reply_ok"].astype(bool) & ~trace["gap"].astype(bool)
+    X, y, use = rows(setup, trace["position_mm"], trace["drive_v"], rho, trace["reference_velocity_mm_s"], valid)
+    accumulate(setup, acc, 0, X, y, use)
+    return acc, blocks
+
+
+def expected_drive_noise_v(variant: Variant) -> float:
+    """The noise the position sensor alone leaves in the smoothed drive (V rms): the residual's yardstick.
+
+    White sensor noise sigma (noise and quantisation) through ``kp e + D(e)``, D the PID's filtered difference
+    ``d_k = a d_{k-1} + b (e_k - e_{k-1})``, then through the fit's smoothing: sigma^2 times the sum of the squared
+    impulse response. The integrator's share is negligible at the tick rate.
+    """
+    from edc_bench.control.pid import PidGains, derivative_filter_coefficients
+
+    c = variant.controller
+    lvdt = variant.sensors.lvdt
+    sigma2 = lvdt.noise_sd ** 2 + lvdt.resolution ** 2 / 12.0
+    gains = PidGains(c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm, c.derivative_filter_hz)
+    a, b = derivative_filter_coefficients(gains, c.period_s)
+    # impulse response of kp e + D(e) (D: d_k = a d_{k-1} + b (e_k - e_{k-1})), then the smoothing the fit applies
+    setup = FitSetup.from_variant(variant)
+    n = 20 * setup.window
+    impulse = np.zeros(n)
+    impulse[0] = c.kp_v_per_mm + b
+    impulse[1:] = b * (a - 1.0) * a ** np.arange(n - 1)
+    smoothed = np.convolve(impulse, _smoothing_kernels(setup.window, setup.period_s)[0])
+    return math.sqrt(sigma2 * float(smoothed @ smoothed))
