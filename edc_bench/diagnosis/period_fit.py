@@ -39,8 +39,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import convolve1d
-from scipy.signal import savgol_coeffs
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
@@ -142,8 +140,28 @@ class FitSetup:
 
 
 def _smoothing_kernels(window: int, period_s: float) -> list[np.ndarray]:
-    """Savitzky-Golay kernels for x, x', x'', x''' (for :func:`scipy.ndimage.convolve1d`)."""
-    return [savgol_coeffs(window, SMOOTHING_ORDER, deriv=q, delta=period_s, use="conv") for q in range(4)]
+    """Savitzky-Golay weights for x and its first three derivatives at a window's centre.
+
+    ``out[t] = sum_j c[j] x[t + j - h]``: the least-squares polynomial of :data:`SMOOTHING_ORDER` through the
+    window's samples, differentiated at its centre (numpy only: scipy.signal would cost a second at every start
+    of the command line).
+    """
+    half = window // 2
+    j = np.arange(-half, half + 1, dtype=float)
+    fit = np.linalg.pinv(np.vander(j, SMOOTHING_ORDER + 1, increasing=True))  # polynomial coefficients from samples
+    return [math.factorial(q) * fit[q] / period_s ** q for q in range(4)]
+
+
+def _smooth(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Apply :func:`_smoothing_kernels` weights along axis 0; the ends repeat the first and last sample."""
+    half = len(weights) // 2
+    pad = [(half, half)] + [(0, 0)] * (values.ndim - 1)
+    padded = np.pad(values, pad, mode="edge")
+    ticks = len(values)
+    out = weights[0] * padded[:ticks]
+    for j in range(1, len(weights)):
+        out = out + weights[j] * padded[j: j + ticks]
+    return out
 
 
 def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.ndarray,
@@ -172,7 +190,7 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     """
     x = np.asarray(position_mm, dtype=float)
     kernels = _smoothing_kernels(setup.window, setup.period_s)
-    smooth = [convolve1d(x, k, axis=0, mode="nearest") for k in kernels]
+    smooth = [_smooth(x, k) for k in kernels]
     # mid-hold: the drive of row k acts from sample k to sample k + 1
     mid = [np.concatenate((0.5 * (s[:-1] + s[1:]), s[-1:]), axis=0) for s in smooth]
     x0, x1, x2, x3 = mid
@@ -182,7 +200,7 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     # the drive smoothed as the trajectory is, at mid-hold: both sides of the model through the same filter, so the
     # moments a CAN adapter lets each drive take effect (two in one USB frame) average out as they do in the rack
     raw = np.asarray(drive_v, dtype=float) / np.asarray(rho, dtype=float)
-    target = convolve1d(raw, kernels[0], axis=0, mode="nearest")
+    target = _smooth(raw, kernels[0])
     for i in setup.fixed:
         target = target - setup.nominal[i] * basis[i]
     sc = setup.scales
@@ -232,10 +250,10 @@ class BlockAccumulator:
         if X.ndim == 2:
             X, y, use = X[:, None, :], y[:, None], use[:, None]
         w = use.astype(float)
-        Xw = X * w[..., None]
-        self.A[block] += np.einsum("tnp,tnq->npq", Xw, X)
-        self.z[block] += np.einsum("tnp,tn->np", Xw, y)
-        self.yy[block] += np.einsum("tn,tn->n", y * w, y)
+        Xw = (X * w[..., None]).transpose(1, 2, 0)  # (N, p, T): one batched matrix product per test (BLAS)
+        self.A[block] += Xw @ X.transpose(1, 0, 2)
+        self.z[block] += (Xw @ y.T[..., None])[..., 0]
+        self.yy[block] += ((y * w) * y).sum(axis=0)
         self.count[block] += w.sum(axis=0)
 
 
@@ -402,5 +420,5 @@ def expected_drive_noise_v(variant: Variant) -> float:
     impulse = np.zeros(n)
     impulse[0] = c.kp_v_per_mm + b
     impulse[1:] = b * (a - 1.0) * a ** np.arange(n - 1)
-    smoothed = np.convolve(impulse, _smoothing_kernels(setup.window, setup.period_s)[0])
+    smoothed = np.convolve(impulse, _smoothing_kernels(setup.window, setup.period_s)[0][::-1])
     return math.sqrt(sigma2 * float(smoothed @ smoothed))
