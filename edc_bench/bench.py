@@ -45,7 +45,7 @@ from edc_bench.records.record import BenchResult
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.gain_check import check_variant_gains
-from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase
+from edc_bench.runtime.loop import BenchLoop, LoopObserver, LoopOutcome, Phase
 from edc_bench.runtime.signals import interrupt_guard, stop_requested
 from edc_bench.runtime.timing import timing_summary
 
@@ -58,7 +58,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
                    classify: bool = True, classifier_path: Path | None = None,
                    stream_can_log: Callable[[], Path] | None = None,
                    coil_temp_c: float | None = None, nominal_baseline: bool = False,
-                   calibrate_command: str | None = None) -> BenchResult:
+                   calibrate_command: str | None = None, full_length: bool = False) -> BenchResult:
     """Run one bench test on ``bus``.
 
     Parameters
@@ -96,6 +96,9 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         by default such a test ends INVALID, "variant not calibrated".
     calibrate_command : str, optional
         The command that calibrates the variant on this rig, quoted in that reason.
+    full_length : bool, optional
+        Run the variant's whole duration; by default a classified test stops as soon as its verdict is certain
+        or its model is known not to fit (:mod:`edc_bench.diagnosis.early_stop`).
 
     Returns
     -------
@@ -112,7 +115,14 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     # loaded before the test: a damaged baseline file is refused now, not after it
     baseline = load_baseline(variant) if classify else None
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested)
+    stop_rule = None
+    if classify and not full_length and baseline is not None and (baseline.calibrated or nominal_baseline):
+        from edc_bench.diagnosis.classifier import default_classifier
+        from edc_bench.diagnosis.early_stop import EarlyStop
+
+        stop_rule = EarlyStop(variant, baseline, default_classifier(str(classifier_path) if classifier_path else None))
+    loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested,
+                     stop_rule=stop_rule)
     can_log_path = None
     stream = None
     if stream_can_log is not None:
@@ -143,6 +153,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
                           nominal_baseline=nominal_baseline, calibrate_command=calibrate_command,
                           baseline=baseline, real_rig=not isinstance(clock, SimulatedClock))
     return BenchResult(
+        stop=stop_summary(variant, outcome, full_length, stop_rule is not None),
         judgement=judgement,
         timing=timing,
         outcome=outcome,
@@ -158,6 +169,25 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     )
 
 
+def stop_summary(variant: Variant, outcome: LoopOutcome, full_length: bool, early_stop: bool) -> dict:
+    """Why and when the test ended, for the record."""
+    from edc_bench.diagnosis.early_stop import ABORTED, FULL_LENGTH
+
+    max_s = variant.excitation.duration_s
+    if outcome.stop is not None:
+        out = dict(outcome.stop)
+    elif outcome.abort_reason:
+        out = {"reason": ABORTED, "time_s": outcome.abort_time_s if outcome.abort_time_s is not None else
+               outcome.ticks_run * variant.controller.period_s}
+    else:
+        out = {"reason": FULL_LENGTH, "time_s": outcome.ticks_run * variant.controller.period_s}
+    out.update(max_s=max_s, full_length=full_length, early_stop=early_stop)
+    if out["reason"] == FULL_LENGTH and not full_length:
+        out["why_full_length"] = ("no early stop: the test is not classified against a calibrated baseline"
+                                  if not early_stop else "the verdict was not certain before the maximum duration")
+    return out
+
+
 _channels = itertools.count()
 
 
@@ -167,7 +197,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
                        classify: bool = True, stream_can_log: Callable[[], Path] | None = None,
                        adapter: AdapterModel | str | None = None, clock_wrapper: Callable[[Clock], Clock] | None = None,
                        coil_temp_c: float | None = None, nominal_baseline: bool = False,
-                       calibrate_command: str | None = None) -> BenchResult:
+                       calibrate_command: str | None = None, full_length: bool = False) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -190,7 +220,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         from the simulated valve, which the bench does not know.
     clock_wrapper : callable, optional
         Wraps the simulated clock (e.g. :class:`~edc_bench.testing.stalls.StallingClock` to inject host stalls).
-    nominal_baseline, calibrate_command
+    nominal_baseline, calibrate_command, full_length
         As :func:`run_bench_test`.
 
     Returns
@@ -215,7 +245,8 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, observer=observer,
                                 truth=rig.truth, check_gains=check_gains, classify=classify,
                                 stream_can_log=stream_can_log, coil_temp_c=coil_temp_c,
-                                nominal_baseline=nominal_baseline, calibrate_command=calibrate_command)
+                                nominal_baseline=nominal_baseline, calibrate_command=calibrate_command,
+                                full_length=full_length)
     result.simulation = {
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},

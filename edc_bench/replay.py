@@ -265,6 +265,16 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     return ReplayReport(judged, run, compare_with_record(judged, record) + run.notes + notes, compared=True)
 
 
+def _ends_at_a_period(variant: Variant, ticks: int) -> bool:
+    """A log of ``ticks`` ticks ends where an early stop ends a test (after whole excitation periods)."""
+    from edc_bench.diagnosis.period_fit import FitSetup
+
+    setup = FitSetup.from_variant(variant)
+    periods = setup.blocks_in(ticks)
+    return periods >= variant.acceptance.min_periods and \
+        ticks == setup.first_tick + periods * setup.block_ticks + setup.window // 2 + 1
+
+
 def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,
                    nominal_baseline: bool = False) -> ReplayReport:
     """Replay a raw CAN log with a variant (no record: timing is not judged).
@@ -277,7 +287,8 @@ def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,
     # a raw log does not say when the loop's clock started; its ticks are taken at k T exactly
     run = replay_frames(frames, variant)
     planned = int(round(variant.excitation.duration_s / variant.controller.period_s))
-    abort = None if run.ticks == planned else f"the log ends after {run.ticks} of {planned} ticks"
+    abort = None if run.ticks == planned or _ends_at_a_period(variant, run.ticks) else \
+        f"the log ends after {run.ticks} of {planned} ticks"
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
                           gaps=run.gaps, ticks_lost=run.ticks_lost,
                           abort_reason=abort)

@@ -24,6 +24,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_population_arguments(p, count=300, seed=777)
     add_history_label_arguments(p)
+    p.add_argument("--time-to-verdict", action="store_true",
+                   help="also stop each simulated test as the bench does (as soon as its verdict is certain) and "
+                        "print the time to verdict (median, 95th percentile) and the early verdicts' accuracy "
+                        "against the full-length tests'")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
@@ -48,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
         _print_report(report, "by teardown")
         return 0
     check_population_inputs(args)  # before minutes of simulation
+    if args.time_to_verdict:
+        return _time_to_verdict(args, classifier)
     start = time.perf_counter()
     dataset = make_dataset(args.variants, args.count, args.seed)
     elapsed = time.perf_counter() - start
@@ -69,3 +75,26 @@ def _print_report(report: dict, truth: str) -> None:
     print(f"accuracy outside the marginal band: {report['accuracy_outside_band']:.2%} "
           f"(faulty passed {report['faulty_passed']}, reusable failed {report['reusable_failed']}; "
           f"{report['faulty']} faulty, {report['reusable']} reusable {truth})")
+
+
+def _time_to_verdict(args: argparse.Namespace, classifier) -> int:
+    """Early stop against the full-length test on a simulated population, printed."""
+    from edc_bench.diagnosis.experiments import time_to_verdict
+
+    report = time_to_verdict(classifier, list(args.variants), args.count, args.seed)
+    report["model"] = classifier.name
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0
+    print(f"time to verdict: {report['valves']} simulated valves ({', '.join(args.variants)}), seed {args.seed}, "
+          f"judged by {classifier.name}")
+    print(f"  median {report['median_s']:.1f} s, 95th percentile {report['p95_s']:.1f} s")
+    for name, v in report["per_variant"].items():
+        print(f"  {name}: median {v['median_s']:.1f} s, 95th percentile {v['p95_s']:.1f} s "
+              f"(full length {v['full_length_s']:g} s, {v['valves']} valves)")
+    for label, title in (("early", "stopped early"), ("full", "full length")):
+        r = report[label]
+        print(f"{title}: INVALID {r['invalid']}, MARGINAL {r['marginal']} of {r['judged']} "
+              f"({r['marginal_fraction']:.1%}), accuracy outside the marginal band {r['accuracy_outside_band']:.2%} "
+              f"(faulty passed {r['faulty_passed']}, reusable failed {r['reusable_failed']})")
+    return 0

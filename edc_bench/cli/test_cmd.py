@@ -73,6 +73,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="judge a variant that has no measured new-valve baseline against the nominal one from its "
                         "physics (bring-up only: the verdict may be wrong, and the record, panel and report say "
                         "so); without it such a test is INVALID, 'variant not calibrated'")
+    p.add_argument("--full-length", action="store_true",
+                   help="run the variant's whole excitation.duration_s; by default the test stops as soon as af and "
+                        "a1 are known well enough that the verdict cannot change (or the model is known not to fit)")
     p.set_defaults(run=run)
 
 
@@ -247,7 +250,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
         print("edc-bench test: warning: no --valve-id: the record and the history name no valve (the bench cannot "
               "read it off the valve); give --valve-id ID to follow this valve in 'edc-bench history --trend' "
               "and 'edc-bench label'", file=sys.stderr)
-    baseline_options = {"nominal_baseline": args.nominal_baseline,
+    baseline_options = {"nominal_baseline": args.nominal_baseline, "full_length": args.full_length,
                         "calibrate_command": _calibrate_command(variant, bus_config)}
     where = ("simulated rig, simulated time" if simulated else
              "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
@@ -262,7 +265,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
         if simulated:
             valve = parse_valve_spec(args.valve, variant)
             log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
-                f"simulated time, {variant.excitation.duration_s:g} s")
+                f"simulated time, at most {variant.excitation.duration_s:g} s")
             result = run_simulated_test(variant, valve, args.seed, valve_id=valve_id,
                                         stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
                                         observer=observer, stream_can_log=stream_target, adapter=args.adapter,

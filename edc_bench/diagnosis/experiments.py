@@ -49,6 +49,88 @@ def verdict_counts(verdicts: np.ndarray, truth: np.ndarray) -> dict[str, Any]:
     }
 
 
+# --------------------------------------------------------------------------- time to verdict
+
+
+def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count_per_variant: int,
+                    seed: int) -> dict[str, Any]:
+    """Early stop against the full-length test on a simulated population (batch path, the loop's rule).
+
+    Every valve's test is simulated to its full length once; the period fit after each number of whole
+    periods is what a test stopped then would have found (:class:`~edc_bench.diagnosis.batch.PeriodResults`), so
+    the stop rule of :class:`~edc_bench.diagnosis.early_stop.EarlyStop` is applied period by period. Both
+    verdicts are compared with the physical labels.
+
+    Returns
+    -------
+    dict
+        ``stop_s`` (per valve), ``median_s``, ``p95_s``, and for ``early`` and ``full``: INVALID count and
+        :func:`verdict_counts`; per variant the median and 95th percentile.
+    """
+    from statistics import NormalDist
+
+    from edc_bench.diagnosis.early_stop import certain_verdicts
+
+    stop_all, early_v, full_v, truth_all, variant_of = [], [], [], [], []
+    early_ok, full_ok = [], []
+    per_variant = {}
+    for v_index, name in enumerate(variant_names):
+        variant = load_variant(name)
+        acc = variant.acceptance
+        baseline = load_baseline(variant, station=False)
+        population_seed = seed * 1000 + v_index
+        valves = draw_population(variant, count_per_variant, population_seed)
+        seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]
+        result = run_batch(variant, valves, seeds)
+        periods = result.periods
+        n = len(valves)
+        z = NormalDist().inv_cdf(0.5 + acc.verdict_confidence / 2.0)
+        base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+        stop_p = np.full(n, periods.blocks)
+        decided = np.zeros(n, dtype=bool)
+        stop_features = np.full((n, 2), np.nan)
+        stop_trusted = np.zeros(n, dtype=bool)
+        for p in range(min(acc.min_periods, periods.blocks), periods.blocks + 1):
+            at = periods.at(p)
+            if at.fit is None:
+                continue
+            centre = at.parameters[:, [5, 2]] / base
+            width = z * np.column_stack([at.fit.std_of("af"), at.fit.std_of("a1")]) / base
+            misfit = ~at.model_fits
+            good = at.converged & at.model_fits & (at.condition_number <= acc.max_condition_number)
+            certain = good & certain_verdicts(classifier, centre, width)
+            stop_now = ~decided & (certain | misfit | (p == periods.blocks))
+            stop_p[stop_now] = p
+            stop_features[stop_now] = centre[stop_now]
+            stop_trusted[stop_now] = good[stop_now]
+            decided |= stop_now
+        stop_s = np.array([periods.stop_time_s(int(p)) for p in stop_p])
+        full_trusted = result.converged & result.model_fits
+        full_features = result.parameters[:, [5, 2]] / base
+        truth = np.array([is_faulty(variant, v) for v in valves])
+        stop_all.append(stop_s)
+        truth_all.append(truth)
+        variant_of += [name] * n
+        early_ok.append(stop_trusted)
+        full_ok.append(full_trusted)
+        early_v.append(stop_features)
+        full_v.append(full_features)
+        per_variant[name] = {"valves": n, "median_s": float(np.median(stop_s)),
+                             "p95_s": float(np.percentile(stop_s, 95)),
+                             "full_length_s": float(variant.excitation.duration_s)}
+    stop = np.concatenate(stop_all)
+    truth = np.concatenate(truth_all)
+    out: dict[str, Any] = {"valves": len(stop), "median_s": float(np.median(stop)),
+                           "p95_s": float(np.percentile(stop, 95)), "per_variant": per_variant,
+                           "stop_s": stop.tolist()}
+    for label, features, ok in (("early", early_v, early_ok), ("full", full_v, full_ok)):
+        f, good = np.concatenate(features), np.concatenate(ok)
+        verdicts, _, _ = classifier.classify_many(np.where(np.isfinite(f), f, 1.0)[good])
+        out[label] = {"invalid": int((~good).sum()), "judged": int(good.sum()),
+                      **verdict_counts(verdicts, truth[good])}
+    return out
+
+
 # --------------------------------------------------------------------------- the paper
 
 

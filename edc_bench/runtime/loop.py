@@ -76,6 +76,18 @@ OBSERVE_EVERY = 100
 _READY_STEP_S = 0.01
 
 
+class StopRule(Protocol):
+    """Decides whether a test may end before its full length (:class:`~edc_bench.diagnosis.early_stop.EarlyStop`)."""
+
+    #: ticks after which :meth:`check` is asked (the ends of whole excitation periods)
+    check_ticks: dict[int, int]
+    #: when the test is expected to end (trace time, s), for the live view
+    expected_end_s: float
+
+    def check(self, k: int, columns: dict) -> dict | None:
+        """At tick ``k``: the reason to stop now (a dict with ``reason`` and ``time_s``), or None."""
+
+
 class LoopObserver(Protocol):
     """Watches a test as it runs (the live view, log lines). Must return quickly: it runs inside the loop."""
 
@@ -117,6 +129,7 @@ class LoopOutcome:
     bus_device_errors: int = 0  # the adapter answered BEL: it refused a command of ours (slcan)
     frames_dropped: int = 0  # frames beyond the CAN log's maximum, counted but not stored
     events: list[str] = field(default_factory=list)
+    stop: dict | None = None  # the stop rule's decision, when it ended the test early
 
 
 class _AbortTest(Exception):
@@ -153,10 +166,15 @@ class BenchLoop:
     stop_requested : callable, optional
         Polled every tick and while waiting for the rig; True ends the test
         as an abort (the operator's Ctrl-C or SIGTERM).
+    stop_rule : StopRule, optional
+        Asked at the end of each excitation period whether the test may end now (early stop); the test runs
+        its full length without one.
     """
 
     def __init__(self, bus: can.BusABC, clock: Clock, variant: Variant, icd: Icd,
-                 observer: LoopObserver | None = None, stop_requested: Callable[[], bool] | None = None) -> None:
+                 observer: LoopObserver | None = None, stop_requested: Callable[[], bool] | None = None,
+                 stop_rule: StopRule | None = None) -> None:
+        self.stop_rule = stop_rule
         self.bus = bus
         self.clock = clock
         self.variant = variant
@@ -470,7 +488,7 @@ class BenchLoop:
         read_margin_s = 0.5 * T
         self._phase(Phase.SOFT_START)
 
-        stop_requested = self.stop_requested
+        stop_requested, stop_rule = self.stop_requested, self.stop_rule
         k, last_run = 0, -1
         while k < self.ticks:
             if stop_requested():
@@ -571,4 +589,10 @@ class BenchLoop:
                     observer.tick(k, self)
                 if k == identify_from_k:
                     observer.phase(Phase.IDENTIFY)
+            if stop_rule is not None and k in stop_rule.check_ticks:
+                # a few ms once an excitation period (one period's rows); a real-time tick may run late once
+                decision = stop_rule.check(k, trace.columns)
+                if decision is not None:
+                    outcome.stop = decision
+                    return
             k += 1

@@ -67,7 +67,11 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
     grid.add_row("phase", steps)
     if s.ticks:
         bar = ProgressBar(total=s.ticks, completed=s.tick + 1, width=40)
-        grid.add_row("time", Group(Text(f"{s.t_s:5.1f} s of {s.duration_s:g} s, {s.time_left_s:4.1f} s left"), bar))
+        if s.expected_end_s == s.expected_end_s:  # early stop: when the verdict is expected to be known
+            when = f"{s.t_s:5.1f} s, about {s.time_left_s:4.1f} s left (at most {s.max_time_left_s:.0f} s)"
+        else:
+            when = f"{s.t_s:5.1f} s of {s.duration_s:g} s, {s.time_left_s:4.1f} s left"
+        grid.add_row("time", Group(Text(when), bar))
         error_um = (s.reference_mm - s.position_mm) * 1e3
         both = list(s.rack_history) + list(s.reference_history)
         lo, hi = (min(both), max(both)) if both else (0.0, 1.0)
@@ -87,6 +91,19 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
         grid.add_row("bus", Text(f"{s.missed_replies} replies missing, {s.bad_replies} bad, "
                                  f"{s.heartbeats} heartbeats", style=bus_style))
     return Panel(grid, title=Text(title), border_style="blue")  # the title holds the valve id: never markup
+
+
+def stop_line(stop: dict) -> str:
+    """Why and when a test ended, in words."""
+    at = f"after {stop['time_s']:.1f} s of at most {stop['max_s']:g} s"
+    if stop["reason"] == "verdict certain":
+        return f"{at}: af and a1 known well enough that the verdict cannot change ({stop.get('periods')} periods)"
+    if stop["reason"] == "model does not fit":
+        return f"{at}: the model does not fit this pump; a longer test would not help"
+    if stop["reason"] == "full length":
+        return f"{at}: full length" + (" (--full-length)" if stop.get("full_length") else
+                                       f" ({stop['why_full_length']})" if stop.get("why_full_length") else "")
+    return f"{at}: aborted"
 
 
 def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
@@ -111,6 +128,16 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     if result.judgement.baseline is not None:
         nominal = result.judgement.baseline.get("calibrated") is False
         body.add_row("baseline", Text(baseline_line(result.judgement.baseline), style="bold magenta" if nominal else ""))
+    stop = getattr(result, "stop", None)
+    if stop is not None:
+        body.add_row("ended", stop_line(stop))
+    ident = result.identification
+    if ident is not None and ident.model_fit is not None:
+        fit = ident.model_fit
+        body.add_row("model fit", Text(f"residual {fit.residual_ratio:.1f}x the sensor noise, period-to-period spread "
+                                       f"af {fit.spread_rel['af']:.1%} a1 {fit.spread_rel['a1']:.1%}, solenoid gain "
+                                       f"+/-{fit.gain_variation_rel:.0%}" + ("" if fit.fits else ": DOES NOT FIT"),
+                                       style="" if fit.fits else "bold magenta"))
     t = result.timing
     if t.get("ticks"):
         body.add_row("timing", f"{t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, "

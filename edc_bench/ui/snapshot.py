@@ -41,6 +41,7 @@ class Snapshot:
     reference_history: deque = field(default_factory=lambda: deque(maxlen=100))
     af_history: list = field(default_factory=list)
     a1_history: list = field(default_factory=list)
+    expected_end_s: float = float("nan")  # when the test is expected to end (early stop), NaN: at its full length
 
     def enter(self, name: str) -> None:
         """A new phase began."""
@@ -64,7 +65,13 @@ class Snapshot:
 
     @property
     def time_left_s(self) -> float:
-        """Seconds of test left."""
+        """Seconds of test expected to be left (to the expected early stop, else to the full length)."""
+        end_s = self.expected_end_s if self.expected_end_s == self.expected_end_s else self.duration_s
+        return max(min(end_s, self.duration_s) - self.tick * self.period_s, 0.0)
+
+    @property
+    def max_time_left_s(self) -> float:
+        """Seconds left at most (the full length)."""
         return max(self.ticks - self.tick, 0) * self.period_s
 
     @property
@@ -87,4 +94,5 @@ def read_tick(k: int, loop: Any) -> dict[str, Any]:
         "worst_lateness_recent_us": float(np.max(recent)) * 1e6 if len(recent) else 0.0,
         "overruns": outcome.overruns, "missed_replies": outcome.missed_replies,
         "bad_replies": outcome.bad_replies, "heartbeats": outcome.heartbeats,
+        "expected_end_s": float(getattr(getattr(loop, "stop_rule", None), "expected_end_s", float("nan"))),
     }

@@ -29,7 +29,7 @@ def variant():
 
 @pytest.fixture(scope="module")
 def new_valve_on_each_coil(variant):
-    return {coil: run_simulated_test(variant, f"new,{coil}", seed=3,
+    return {coil: run_simulated_test(variant, f"new,{coil}", seed=3, full_length=True,
                                      coil_temp_c=80.0 if "coil_temp_c=80" in coil else None) for coil in COILS}
 
 

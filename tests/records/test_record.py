@@ -21,7 +21,8 @@ from edc_bench.runtime.trace import TRACE_COLUMNS
 def record(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
     data = load_variant().model_dump()
     data["excitation"]["duration_s"] = 12.0
-    result = run_simulated_test(parse_variant(data), "worn", 2, valve_id="V/0042 test", check_gains=False)
+    result = run_simulated_test(parse_variant(data), "worn", 2, valve_id="V/0042 test", check_gains=False,
+                                full_length=True)
     return write_record(result, tmp_path_factory.mktemp("records")), result
 
 

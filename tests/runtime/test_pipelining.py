@@ -152,7 +152,7 @@ def test_reordered_replies_are_matched_by_counter(simulated_bench) -> None:
 def test_host_stalls_shorter_than_the_watchdog_are_gaps(variant: Variant, adapter: str | None,
                                                         tmp_path: Path) -> None:
     clocks: list[StallingClock] = []
-    result = run_simulated_test(variant, "new", seed=2, adapter=adapter,
+    result = run_simulated_test(variant, "new", seed=2, adapter=adapter, full_length=True,
                                 clock_wrapper=lambda c: clocks.append(StallingClock(c, 0.005, 1.0)) or clocks[0])
     o = result.outcome
     assert result.verdict == Verdict.PASS, result.reasons

@@ -22,7 +22,7 @@ def test_live_panel_renders_every_phase() -> None:
             self.trace = type("T", (), {"columns": result.trace})()
             self.ticks, self.period_s, self.outcome = len(result.trace["t_s"]), 0.001, result.outcome
 
-    result = run_simulated_test(load_variant(), "new", 1)
+    result = run_simulated_test(load_variant(), "new", 1, full_length=True)
     snapshot = Snapshot()
     loop = FakeLoop(result)
     console = Console(record=True, width=120, color_system=None)
