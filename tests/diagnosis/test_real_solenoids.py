@@ -1,0 +1,206 @@
+"""Issue #11: identification that holds on real solenoids, and a verdict as soon as the numbers are known.
+
+Reproduced first: on p-edc-hard (a force constant +/-10 % over the swing, Stribeck friction, damping ratio
+0.3) the regression on the reference put a1 at -34 % and af at +12 % on a new valve and never settled, so
+every test was INVALID "not converged". These tests hold the period fit to the issue's figures.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from edc_bench.bench import run_simulated_test
+from edc_bench.config import load_variant, parse_variant
+from edc_bench.diagnosis.batch import run_batch
+from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.physics.feedforward import feedforward_truth
+from edc_bench.physics.valve import nominal_plant, parse_valve_spec, plant_parameters
+from edc_bench.sim.plant import Plant
+
+VALVES = ("new", "worn", "faulty")
+SEEDS = (0, 1, 2)
+
+
+@pytest.fixture(scope="module")
+def hard():
+    return load_variant("p-edc-hard")
+
+
+def _with_gain_variation(variant, per_mm: float):
+    data = variant.model_dump()
+    data["coil"]["force_constant_variation_per_mm"] = per_mm
+    data["pump"]["name"] = "gain-test"
+    return parse_variant(data)
+
+
+# ---------------------------------------------------------------------------------------------- the plant
+
+
+def test_the_hard_variant_is_what_the_issue_asks_for(hard) -> None:
+    p = nominal_plant(hard)
+    k_eff = p.net_stiffness_n_per_mm - p.magnetic_stiffness_from_slope_n_per_mm  # linearised at mid-stroke
+    zeta = p.damping_n_s_per_mm / (2 * math.sqrt(k_eff * p.mass_n_s2_per_mm))
+    assert 0.25 <= zeta <= 0.35
+    swing = sum(t.amplitude_mm for t in hard.excitation.active_tones)
+    low, high = (p.force_constant_at(hard.rack.mid_stroke_mm + s * swing) / p.force_constant_n_per_a for s in (-1, 1))
+    assert low == pytest.approx(0.9, abs=0.01) and high == pytest.approx(1.1, abs=0.01)
+    assert p.sliding_friction_n(0.0) == pytest.approx(p.stiction_friction_n)
+    assert p.sliding_friction_n(20.0) == pytest.approx(p.coulomb_friction_n, rel=1e-9)
+    assert p.coulomb_friction_n < p.sliding_friction_n(1.0) < p.stiction_friction_n
+    # the existing variants keep the linear model
+    for name in ("p-edc-default", "p-edc-long", "paper"):
+        assert nominal_plant(load_variant(name)).linear
+
+
+def test_a_position_dependent_force_constant_holds_the_rack_where_k_i_x_i_balances_the_spring(hard) -> None:
+    params = replace(plant_parameters(hard, parse_valve_spec("new", hard), stiction=False),
+                     temperature_coefficient_per_k=0.0, coulomb_friction_n=0.0, stiction_friction_n=0.0)
+    plant = Plant(params, position_mm=10.0)
+    plant.stuck = False
+    drive_v = 2.0
+    plant.set_drive_v(drive_v)
+    for _ in range(20):  # 2 s: the lightly damped rack settles
+        plant.advance(1000)
+    current_a = params.amplifier_gain * drive_v / params.resistance_ohm
+    x = plant.x_mm
+    # from first principles: k_i (1 + s (x - x_m)) i = k' x + F_pre
+    pull = params.force_constant_at(x) * current_a
+    assert pull == pytest.approx(params.net_stiffness_n_per_mm * x + params.preload_n, rel=1e-4)
+    assert abs(x - params.equilibrium_mm(drive_v)) > 0.1  # the constant-k_i answer is measurably elsewhere
+
+
+def test_batch_plant_steps_the_nonlinear_plant_as_the_simulated_rig_does(hard) -> None:
+    from edc_bench.diagnosis.batch import _VectorPlant
+
+    valve = parse_valve_spec("faulty", hard)
+    single = Plant(plant_parameters(hard, valve), quantum_s=1e-4, position_mm=0.0)
+    vector = _VectorPlant(hard, [valve], True, 1e-3)
+    t = np.arange(3000) * 1e-3
+    drive = 2.0 + 1.5 * np.sin(2 * np.pi * 0.7 * t)  # slow reversals: stick, Stribeck breakaway, sliding
+    xs, xv = [], []
+    for u in drive:
+        single.set_drive_v(float(u))
+        single.advance(10)
+        vector.advance_period(np.array([u]))
+        vector.add_heat(1e-3)  # the coil warms in both
+        xs.append(single.x_mm)
+        xv.append(float(vector.x[0]))
+    assert np.max(np.abs(np.array(xs) - np.array(xv))) < 2e-3  # mm, over a 7 mm travel
+
+
+# ------------------------------------------------------------------------------------- identification
+
+
+@pytest.fixture(scope="module")
+def hard_batch(hard):
+    """New, worn and faulty valves, three seeds each, on the hard variant (batch path, full length)."""
+    valves = [parse_valve_spec(v, hard) for v in VALVES for _ in SEEDS]
+    seeds = [s for _ in VALVES for s in SEEDS]
+    return run_batch(hard, valves, seeds)
+
+
+def test_hard_variant_af_within_5_and_a1_within_10_percent_converged_for_every_valve_and_seed(hard_batch) -> None:
+    error = hard_batch.parameters / hard_batch.truth - 1.0
+    af, a1 = error[:, 5], error[:, 2]
+    print("af error %", np.round(af * 100, 2), "a1 error %", np.round(a1 * 100, 2))
+    assert np.all(np.abs(af) < 0.05) and np.all(np.abs(a1) < 0.10)
+    assert hard_batch.converged.all() and hard_batch.model_fits.all()
+
+
+def test_three_seeds_spread_less_than_a_fifth_of_the_new_to_worn_difference(hard_batch) -> None:
+    for column in (5, 2):  # af, a1
+        values = hard_batch.parameters[:, column].reshape(len(VALVES), len(SEEDS))
+        new_to_worn = values[1].mean() - values[0].mean()
+        for row in values:
+            assert np.ptp(row) < new_to_worn / 5, (column, row, new_to_worn)
+
+
+def test_the_loop_identifies_the_hard_variant_as_the_batch_path_does(hard, hard_batch) -> None:
+    loop = run_simulated_test(hard, "worn", 1, full_length=True)
+    assert loop.converged and loop.judgement.identification.model_fit.fits
+    for name, column in (("af", 5), ("a1", 2)):
+        assert loop.parameters[name]["value"] == pytest.approx(hard_batch.parameters[4, column], rel=0.01), name
+        assert abs(loop.parameters[name]["error_rel"]) < (0.05 if name == "af" else 0.10)
+    fit = loop.judgement.identification.model_fit
+    # the solenoid's gain variation is seen (+/-10 % in the plant, first-order estimate)
+    assert 0.05 < fit.gain_variation_rel < 0.2
+
+
+def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within_1_percent() -> None:
+    variant = load_variant("p-edc-default")
+    for valve in VALVES:
+        result = run_simulated_test(variant, valve, 3)
+        assert abs(result.parameters["af"]["error_rel"]) < 0.02 and abs(result.parameters["a1"]["error_rel"]) < 0.05
+    matched = run_simulated_test(variant, "worn", 3, stiction=False, sensor_noise=False, full_length=True)
+    for name, entry in matched.parameters.items():
+        if entry["estimated"]:
+            assert abs(entry["error_rel"]) < 0.01, (name, entry["error_rel"])
+
+
+# ------------------------------------------------------------------------------------------- model fit
+
+
+@pytest.mark.parametrize("per_mm", [0.0667, -0.0667], ids=["+30%", "-30%"])
+def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_early(hard, per_mm: float) -> None:
+    variant = _with_gain_variation(hard, per_mm)  # +/-30 % over the swing
+    for valve in ("new", "worn"):
+        result = run_simulated_test(variant, valve, 0, nominal_baseline=True)
+        assert result.verdict == Verdict.INVALID
+        reason = next(r for r in result.reasons if "model" in r)
+        assert reason.startswith("the feedforward model does not fit this pump: ")
+        assert "a longer test will not help" in reason
+        assert not any(r.startswith("not converged") for r in result.reasons)
+        assert result.stop["reason"] == "model does not fit"
+        assert result.stop["time_s"] < variant.excitation.duration_s
+        assert not result.judgement.identification.model_fit.fits
+
+
+def test_every_record_carries_the_model_fit(tmp_path: Path) -> None:
+    import json
+
+    from edc_bench.records.record import write_record
+
+    result = run_simulated_test(load_variant("p-edc-hard"), "new", 0)
+    doc = json.loads((write_record(result, tmp_path, figure=False) / "record.json").read_text())
+    fit = doc["identification"]["model_fit"]
+    assert fit["fits"] is True and fit["problems"] == []
+    assert 0.3 < fit["residual_ratio"] < doc["config"]["acceptance"]["max_residual_ratio"]
+    assert set(fit["spread_rel"]) == {"af", "a1"}
+    assert doc["stop"]["reason"] == "verdict certain" and doc["stop"]["max_s"] == 30.0
+
+
+# ---------------------------------------------------------------------------------------- early stop
+
+
+def test_an_early_stop_gives_the_full_length_verdict_on_the_hard_variant(hard) -> None:
+    for valve in VALVES:
+        early = run_simulated_test(hard, valve, 2)
+        assert early.stop["reason"] == "verdict certain" and early.stop["time_s"] <= 12.0
+        assert early.verdict in (Verdict.PASS, Verdict.FAIL)
+        assert (early.verdict == Verdict.FAIL) == (valve != "new")
+        assert abs(early.parameters["af"]["error_rel"]) < 0.05 and abs(early.parameters["a1"]["error_rel"]) < 0.10
+
+
+def test_a_test_not_classified_runs_its_full_length_and_says_why() -> None:
+    result = run_simulated_test(load_variant(), "new", 0, classify=False)
+    assert result.timing["ticks"] == 30_000
+    assert result.stop["reason"] == "full length" and "not classified" in result.stop["why_full_length"]
+
+
+@pytest.mark.slow
+def test_time_to_verdict_over_210_valves_median_10_s_p95_20_s_with_the_full_lengths_accuracy() -> None:
+    from edc_bench.diagnosis.classifier import default_classifier
+    from edc_bench.diagnosis.experiments import time_to_verdict
+
+    report = time_to_verdict(default_classifier(), ["p-edc-default", "p-edc-long", "p-edc-hard"], 70, 777)
+    print({k: v for k, v in report.items() if k != "stop_s"})
+    assert report["valves"] == 210
+    assert report["median_s"] <= 10.0 + 0.1 and report["p95_s"] <= 20.0
+    early, full = report["early"], report["full"]
+    assert early["accuracy_outside_band"] >= full["accuracy_outside_band"]
+    assert early["marginal_fraction"] <= full["marginal_fraction"]
