@@ -152,9 +152,18 @@ def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
                   "this verdict may be wrong (edc-bench calibrate --append)"]
     elif baseline:
         lines.append("baseline " + baseline_line(baseline).split(", station")[0])
-    if not cls or (coil and coil.get("in_spec") is False):  # with a classification the reasons repeat the above
+    fit = (record.get("identification") or {}).get("model_fit") or {}
+    if fit.get("fits") is False:  # what to do matters more than the figures, which the record holds
+        lines += ["THE MODEL DOES NOT FIT THIS PUMP: a longer test will",
+                  "not help. Check the variant is this pump's, the rack",
+                  "moves freely, the solenoid's armature and wiring",
+                  "(docs/faults.md). " + "; ".join(p.split(" (limit")[0] for p in fit.get("problems", []))[:40]]
+    elif not cls or (coil and coil.get("in_spec") is False):  # with a classification the reasons repeat the above
         for reason in record.get("reasons") or []:
             lines.append(reason if len(reason) < 60 else reason[:57] + "...")
+    stop = record.get("stop")
+    if stop and stop.get("time_s") is not None:
+        lines.append(f"ended after {stop['time_s']:.1f} s of at most {stop.get('max_s', 0):g} s: {stop['reason']}")
     for n, line in enumerate(lines):
         ax.text(0.0, 1.0 - n * 0.12, line, fontsize=8, va="top", transform=ax.transAxes,
                 weight="bold" if n == 0 else "normal")
