@@ -27,10 +27,10 @@ from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
 from edc_bench.diagnosis.baseline import Baseline
-from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.diagnosis.judgement import Judgement, judge_run
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
+from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
@@ -271,8 +271,7 @@ def _ends_at_a_period(variant: Variant, ticks: int) -> bool:
 
     setup = FitSetup.from_variant(variant)
     periods = setup.blocks_in(ticks)
-    return periods >= variant.acceptance.min_periods and \
-        ticks == setup.first_tick + periods * setup.block_ticks + setup.window // 2 + 1
+    return periods >= variant.acceptance.min_periods and ticks == setup.end_tick(periods) + 1
 
 
 def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,

@@ -110,6 +110,8 @@ def _internal_error(command: str, exc: BaseException) -> int:
     """A bug: say so, with the traceback that helps to fix it."""
     import traceback
 
+    from edc_bench.cli.common import printable
+
     print(printable(f"edc-bench {command}: internal error: {type(exc).__name__}: {exc}\n"
                     "This is a bug in edc-bench; the details below help to fix it."), file=sys.stderr)
     traceback.print_exception(exc, file=sys.stderr)

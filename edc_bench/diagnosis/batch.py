@@ -25,8 +25,8 @@ import numpy as np
 from scipy.linalg import expm
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.design import ControllerDesign
-from edc_bench.control.fel import condition_number, regressor_matrix
 from edc_bench.diagnosis.batch_link import RING, BatchLink
 from edc_bench.diagnosis.identification import settle_times_s
 from edc_bench.diagnosis.period_fit import (
@@ -34,11 +34,17 @@ from edc_bench.diagnosis.period_fit import (
     FitSetup,
     PeriodFit,
     accumulate,
+    expected_drive_noise_v,
+    reference_condition_number,
     rows,
     solve,
 )
-from edc_bench.control.coil import CoilEstimator
-from edc_bench.physics.coil import inductive_shares, referred_from_estimate, resistance_at_ohm, temperature_after_c
+from edc_bench.physics.coil import (
+    inductive_shares,
+    referred_from_estimate,
+    resistance_at_ohm,
+    temperature_after_c,
+)
 from edc_bench.physics.feedforward import feedforward_truth
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.runtime.replies import max_reply_age_ticks
@@ -436,8 +442,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     lag = 0 if link is None else RING - 2  # through an adapter, command j's sample is read from the link later
     feeder = _RowFeeder(setup, fit_acc, n, lag)
     # the tick after which a loop's trace holds b whole periods (and the half window that smooths their end)
-    block_end_ticks = {setup.first_tick + (b + 1) * setup.block_ticks + setup.window // 2: b + 1
-                       for b in range(blocks)}
+    block_end_ticks = {setup.end_tick(b): b for b in range(1, blocks + 1)}
     coil_at_blocks = np.full((max(blocks, 1) + 1, n), r_ref)
 
     for k in range(ticks):
@@ -565,16 +570,16 @@ class PeriodResults:
         self.variant, self.setup, self.acc, self.blocks = variant, setup, acc, blocks
         self.coil_at_blocks, self.nominal, self.r_ref = coil_at_blocks, nominal, r_ref
         self.n = acc.A.shape[1]
-        self.reference_condition = _reference_condition_number(ControllerDesign.from_variant(variant))
+        self.reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
+        self.noise_v = expected_drive_noise_v(variant)
 
     def stop_time_s(self, periods: int) -> float:
         """When a test has ``periods`` whole periods (and the half smoothing window after them)."""
-        s = self.setup
-        return (s.first_tick + periods * s.block_ticks + s.window // 2 + 1) * s.period_s
+        return self.setup.end_s(periods)
 
     def at(self, periods: int) -> BatchIdentification:
         """Parameters (referred to the reference coil), converged and model-fit flags after ``periods`` periods."""
-        from edc_bench.diagnosis.identification import expected_drive_noise_v
+        from edc_bench.diagnosis.identification import model_fits
 
         acc = self.variant.acceptance
         fit = solve(self.acc, periods, acc.settle_band_rel)
@@ -589,21 +594,8 @@ class PeriodResults:
             if name in PARAMETER_NAMES:
                 i = PARAMETER_NAMES.index(name)
                 final[:, i] = referred_from_estimate(inductive[i], fit.value(name), self.r_ref, coil)
-        noise = expected_drive_noise_v(self.variant)
         enough = periods >= acc.min_periods
-        fits = (not enough) | ((fit.residual_rms_v <= acc.max_residual_ratio * noise)
-                          & (fit.spread_rel["af"] <= acc.max_period_spread_rel)
-                          & (fit.spread_rel["a1"] <= acc.max_period_spread_rel)
-                          & (fit.gain_variation_rel <= acc.max_gain_variation_rel))
+        fits = (not enough) | model_fits(self.variant, fit, self.noise_v)
         converged = fit.settled & enough
         return BatchIdentification(final, converged, fits, fit, max(self.reference_condition,
                                                                     float(np.median(fit.condition_number))))
-
-
-def _reference_condition_number(design: ControllerDesign) -> float:
-    """Condition number of the reference's regressors over the steady excitation, as the loop's analysis finds it."""
-    T = design.period_s
-    t = np.arange(int(round((design.move_s + design.fade_s) / T)), design.ticks) * T
-    phi = regressor_matrix(design.reference(design.mid_mm), t, T)
-    keep = np.abs(phi[:, 2]) >= design.reversal_speed_mm_s
-    return condition_number(phi[keep][:, list(design.estimated)])

@@ -28,10 +28,20 @@ from typing import Any
 import numpy as np
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.design import ControllerDesign
 from edc_bench.diagnosis.baseline import Baseline
 from edc_bench.diagnosis.classifier import ValveClassifier
-from edc_bench.diagnosis.identification import model_fit_problems
-from edc_bench.diagnosis.period_fit import BlockAccumulator, FitSetup, PeriodFit, accumulate, rows, solve
+from edc_bench.diagnosis.identification import model_fit_failures, model_fit_problems
+from edc_bench.diagnosis.period_fit import (
+    BlockAccumulator,
+    FitSetup,
+    PeriodFit,
+    accumulate,
+    expected_drive_noise_v,
+    reference_condition_number,
+    rows,
+    solve,
+)
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate
 
 #: The reasons a test ends, as records give them.
@@ -58,30 +68,23 @@ class EarlyStop:
         ticks = int(round(variant.excitation.duration_s / setup.period_s))
         self.max_periods = setup.blocks_in(ticks)
         self.acc = BlockAccumulator(setup, max(self.max_periods, 1))
-        half = setup.window // 2
         #: tick -> whole periods the trace holds once that tick has its sample
-        self.check_ticks = {setup.first_tick + b * setup.block_ticks + half: b for b in range(1, self.max_periods + 1)}
+        self.check_ticks = {setup.end_tick(b): b for b in range(1, self.max_periods + 1)}
         self.duration_s = ticks * setup.period_s
-        acc = variant.acceptance
-        self.z = NormalDist().inv_cdf(0.5 + acc.verdict_confidence / 2.0)
-        self.expected_end_s = self.end_s(min(acc.min_periods, self.max_periods))
+        self.expected_end_s = setup.end_s(min(variant.acceptance.min_periods, self.max_periods))
         self.fed = 0
         self._r_ref = variant.coil.resistance_ohm
         self._inductive = inductive_shares(variant)
-        self._noise_v = None
-
-    def end_s(self, periods: int) -> float:
-        """When a test with ``periods`` whole periods ends (trace time)."""
-        s = self.setup
-        return (s.first_tick + periods * s.block_ticks + s.window // 2 + 1) * s.period_s
+        self._noise_v = expected_drive_noise_v(variant)
+        self._reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
+        self._z = interval_z(variant)
+        self._base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
 
     def _feed(self, periods: int, columns: dict[str, np.ndarray]) -> None:
         """Add the rows of periods ``fed .. periods - 1`` from the trace's columns."""
         s, half = self.setup, self.setup.window // 2
-        start = s.first_tick + self.fed * s.block_ticks
-        end = s.first_tick + periods * s.block_ticks
-        lo, hi = start - half, end + half + 1
-        sl = slice(lo, hi)
+        lo = s.first_tick + self.fed * s.block_ticks - half
+        sl = slice(lo, s.end_tick(periods) + 1)
         rho = columns["coil_resistance_ohm"][sl] / self._r_ref
         valid = columns["reply_ok"][sl].astype(bool) & ~columns["gap"][sl].astype(bool)
         X, y, use = rows(s, columns["position_mm"][sl], columns["drive_v"][sl], rho,
@@ -91,66 +94,74 @@ class EarlyStop:
 
     def check(self, k: int, columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
         """At tick ``k`` (one of :attr:`check_ticks`): the reason to stop now, with its figures, or None."""
-        from edc_bench.diagnosis.identification import expected_drive_noise_v
-
         periods = self.check_ticks[k]
         self._feed(periods, columns)
-        acc = self.variant.acceptance
-        if periods < acc.min_periods:
-            self.expected_end_s = self.end_s(min(acc.min_periods, self.max_periods))
-            return None
+        acc, setup = self.variant.acceptance, self.setup
         fit = solve(self.acc, periods, acc.settle_band_rel)
-        if fit is None:
+        if periods < acc.min_periods or fit is None:
+            self.expected_end_s = setup.end_s(min(acc.min_periods, self.max_periods))
             return None
-        if self._noise_v is None:
-            self._noise_v = expected_drive_noise_v(self.variant)
-        time_s = self.end_s(periods)
-        problems = model_fit_problems(self.variant, fit, self._noise_v)
-        if problems:
-            return {"reason": MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods, "problems": problems}
-        if not bool(fit.settled[0]) or float(fit.condition_number[0]) > acc.max_condition_number:
-            self.expected_end_s = self.end_s(min(periods + 1, self.max_periods))
-            return None
-        coil_ohm = float(columns["coil_resistance_ohm"][k])
-        centre, half_width = self._relative_box(fit, coil_ohm)
-        if self._certain(centre, half_width):
-            verdicts, _, _ = self.classifier.classify_many(centre[None, :])
+        parameters = np.array([[referred_from_estimate(self._inductive[PARAMETER_NAMES.index(name)],
+                                                       float(fit.value(name)[0]), self._r_ref,
+                                                       float(columns["coil_resistance_ohm"][k]))
+                                for name in ("af", "a1")]])
+        centre, half_width = relative_box(parameters, fit, self._base, self._z)
+        misfit, trusted, certain = stop_flags(self.variant, self.classifier, fit, periods, centre, half_width,
+                                              self._noise_v, self._reference_condition)
+        time_s = setup.end_s(periods)
+        if misfit[0]:
+            return {"reason": MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods,
+                    "problems": model_fit_problems(self.variant, fit, self._noise_v)}
+        if certain[0]:
+            verdicts, _, _ = self.classifier.classify_many(centre)
             return {"reason": VERDICT_CERTAIN, "time_s": time_s, "periods": periods, "verdict": str(verdicts[0]),
                     "confidence": acc.verdict_confidence,
-                    "features_rel": {"af": float(centre[0]), "a1": float(centre[1])},
-                    "half_width_rel": {"af": float(half_width[0]), "a1": float(half_width[1])}}
+                    "features_rel": {"af": float(centre[0, 0]), "a1": float(centre[0, 1])},
+                    "half_width_rel": {"af": float(half_width[0, 0]), "a1": float(half_width[0, 1])}}
+        if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
+            self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
+            return None
         # when would the interval, shrinking as 1 / sqrt(periods), leave the verdict alone? (one classifier call)
         more = np.arange(periods + 1, self.max_periods + 1)
-        certain = self._certain_many(centre, half_width[None, :] * np.sqrt(periods / more)[:, None])
-        self.expected_end_s = self.end_s(int(more[np.argmax(certain)])) if certain.any() else self.duration_s
+        boxes = certain_verdicts(self.classifier, np.repeat(centre, len(more), axis=0),
+                                 half_width * np.sqrt(periods / more)[:, None])
+        self.expected_end_s = setup.end_s(int(more[np.argmax(boxes)])) if boxes.any() else self.duration_s
         return None
 
-    def _relative_box(self, fit: PeriodFit, coil_ohm: float) -> tuple[np.ndarray, np.ndarray]:
-        """af and a1 relative to the baseline (referred to the reference coil), and z standard errors of each."""
-        base = self.baseline
-        out, width = [], []
-        for name, base_value in (("af", base.af_v), ("a1", base.a1_v_s_per_mm)):
-            i = PARAMETER_NAMES.index(name)
-            value = referred_from_estimate(self._inductive[i], float(fit.value(name)[0]), self._r_ref, coil_ohm)
-            out.append(value / base_value)
-            width.append(self.z * float(fit.std_of(name)[0]) / abs(base_value))
-        return np.array(out), np.array(width)
 
-    def _certain(self, centre: np.ndarray, half_width: np.ndarray) -> bool:
-        """The same verdict at the centre and every corner of the box."""
-        return bool(self._certain_many(centre, half_width[None, :])[0])
+def interval_z(variant: Variant) -> float:
+    """Standard errors either side of an estimate for the variant's ``verdict_confidence`` (normal)."""
+    return NormalDist().inv_cdf(0.5 + variant.acceptance.verdict_confidence / 2.0)
 
-    def _certain_many(self, centre: np.ndarray, half_widths: np.ndarray) -> np.ndarray:
-        """For each row of half-widths: the same verdict at the centre and every corner of that box."""
-        if len(half_widths) == 0:
-            return np.zeros(0, dtype=bool)
-        signs = np.array([[0, 0], [-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)
-        points = centre[None, None, :] + signs[None, :, :] * half_widths[:, None, :]  # (boxes, 5, 2)
-        finite = np.all(np.isfinite(points), axis=(1, 2))
-        points = np.where(np.isfinite(points), points, 1.0)
-        verdicts, _, _ = self.classifier.classify_many(points.reshape(-1, 2))
-        verdicts = verdicts.reshape(len(half_widths), 5)
-        return finite & np.all(verdicts == verdicts[:, :1], axis=1)
+
+def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray, z: float) -> tuple[np.ndarray, np.ndarray]:
+    """af and a1 relative to the baseline, and z standard errors of each: (N, 2) each.
+
+    ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1.
+    """
+    std = np.column_stack([fit.std_of("af"), fit.std_of("a1")])
+    return parameters / base, z * std / np.abs(base)
+
+
+def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, periods: int, centres: np.ndarray,
+               half_widths: np.ndarray, noise_v: float,
+               reference_condition: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The stop rule per test, vectorised (the loop's :class:`EarlyStop` and the batch study use it alike).
+
+    Returns
+    -------
+    (misfit, trusted, certain)
+        The model does not fit (stop: INVALID); the fit is settled, conditioned and fitting after enough periods
+        (the judgement would trust it); and, trusted, the verdict is the same over the whole box (stop).
+    """
+    acc = variant.acceptance
+    enough = periods >= acc.min_periods
+    failures = model_fit_failures(variant, fit, noise_v)
+    misfit = enough & np.any(np.stack(list(failures.values())), axis=0)
+    condition = np.maximum(fit.condition_number, reference_condition)
+    trusted = enough & fit.settled & ~misfit & (condition <= acc.max_condition_number)
+    certain = trusted & certain_verdicts(classifier, centres, half_widths)
+    return misfit, trusted, certain
 
 
 def certain_verdicts(classifier: ValveClassifier, centres: np.ndarray, half_widths: np.ndarray) -> np.ndarray:

@@ -18,7 +18,11 @@ from edc_bench.diagnosis.dataset import COLUMNS, Dataset
 from edc_bench.diagnosis.population import draw_population, new_valves
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.valve import ValveSpec, sample_valve
-from edc_bench.physics.wear import clearance_for_resisting_force, is_faulty, resisting_force_n
+from edc_bench.physics.wear import (
+    clearance_for_resisting_force,
+    is_faulty,
+    resisting_force_n,
+)
 
 # --------------------------------------------------------------------------- evaluation
 
@@ -67,11 +71,9 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         ``stop_s`` (per valve), ``median_s``, ``p95_s``, and for ``early`` and ``full``: INVALID count and
         :func:`verdict_counts`; per variant the median and 95th percentile.
     """
-    from statistics import NormalDist
+    from edc_bench.diagnosis.early_stop import interval_z, relative_box, stop_flags
 
-    from edc_bench.diagnosis.early_stop import certain_verdicts
-
-    stop_all, early_v, full_v, truth_all, variant_of = [], [], [], [], []
+    stop_all, early_v, full_v, truth_all = [], [], [], []
     early_ok, full_ok = [], []
     per_variant = {}
     for v_index, name in enumerate(variant_names):
@@ -84,7 +86,7 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         result = run_batch(variant, valves, seeds)
         periods = result.periods
         n = len(valves)
-        z = NormalDist().inv_cdf(0.5 + acc.verdict_confidence / 2.0)
+        z = interval_z(variant)
         base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
         stop_p = np.full(n, periods.blocks)
         decided = np.zeros(n, dtype=bool)
@@ -94,15 +96,13 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
             at = periods.at(p)
             if at.fit is None:
                 continue
-            centre = at.parameters[:, [5, 2]] / base
-            width = z * np.column_stack([at.fit.std_of("af"), at.fit.std_of("a1")]) / base
-            misfit = ~at.model_fits
-            good = at.converged & at.model_fits & (at.condition_number <= acc.max_condition_number)
-            certain = good & certain_verdicts(classifier, centre, width)
+            centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, z)
+            misfit, trusted, certain = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
+                                                  periods.reference_condition)
             stop_now = ~decided & (certain | misfit | (p == periods.blocks))
             stop_p[stop_now] = p
             stop_features[stop_now] = centre[stop_now]
-            stop_trusted[stop_now] = good[stop_now]
+            stop_trusted[stop_now] = trusted[stop_now]
             decided |= stop_now
         stop_s = np.array([periods.stop_time_s(int(p)) for p in stop_p])
         full_trusted = result.converged & result.model_fits
@@ -110,7 +110,6 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         truth = np.array([is_faulty(variant, v) for v in valves])
         stop_all.append(stop_s)
         truth_all.append(truth)
-        variant_of += [name] * n
         early_ok.append(stop_trusted)
         full_ok.append(full_trusted)
         early_v.append(stop_features)

@@ -128,23 +128,41 @@ def settle_times_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel
     return np.where(last_out < 0, 0.0, np.where(last_out == rows - 1, math.inf, np.maximum(0.0, after - start_s)))
 
 
+def model_fit_failures(variant: Variant, fit: PeriodFit, expected_noise_v: float) -> dict[str, np.ndarray]:
+    """Per model-fit measure, per test: beyond the variant's limit (NaN counts as beyond). Vectorised over tests."""
+    acc = variant.acceptance
+    ratio = fit.residual_rms_v / expected_noise_v if expected_noise_v > 0 else np.full_like(fit.residual_rms_v, np.inf)
+    spread_known = fit.blocks >= 2
+    return {
+        "residual": ~(ratio <= acc.max_residual_ratio),
+        "af": spread_known & ~(fit.spread_rel["af"] <= acc.max_period_spread_rel),
+        "a1": spread_known & ~(fit.spread_rel["a1"] <= acc.max_period_spread_rel),
+        "gain": ~(fit.gain_variation_rel <= acc.max_gain_variation_rel),
+    }
+
+
+def model_fits(variant: Variant, fit: PeriodFit, expected_noise_v: float) -> np.ndarray:
+    """Per test: no model-fit measure beyond its limit."""
+    return ~np.any(np.stack(list(model_fit_failures(variant, fit, expected_noise_v).values())), axis=0)
+
+
 def model_fit_problems(variant: Variant, fit: PeriodFit, expected_noise_v: float) -> list[str]:
     """What in ``fit`` (one test) is beyond the variant's model-fit limits, each with figure and limit."""
     acc = variant.acceptance
+    failed = {name: bool(flags[0]) for name, flags in model_fit_failures(variant, fit, expected_noise_v).items()}
     out = []
-    ratio = float(fit.residual_rms_v[0]) / expected_noise_v if expected_noise_v > 0 else math.inf
-    if ratio > acc.max_residual_ratio:
-        out.append(f"it leaves {float(fit.residual_rms_v[0]) * 1e3:.1f} mV rms of the drive unexplained, "
+    if failed["residual"]:
+        residual = float(fit.residual_rms_v[0])
+        ratio = residual / expected_noise_v if expected_noise_v > 0 else math.inf
+        out.append(f"it leaves {residual * 1e3:.1f} mV rms of the drive unexplained, "
                    f"{ratio:.1f}x the sensor noise (limit {acc.max_residual_ratio:g}x)")
     for name in ("af", "a1"):
-        spread = float(fit.spread_rel[name][0])
-        if fit.blocks >= 2 and not spread <= acc.max_period_spread_rel:
-            out.append(f"{name} scatters {spread:.1%} from one excitation period to the next "
+        if failed[name]:
+            out.append(f"{name} scatters {float(fit.spread_rel[name][0]):.1%} from one excitation period to the next "
                        f"(limit {acc.max_period_spread_rel:.0%})")
-    variation = float(fit.gain_variation_rel[0])
-    if not variation <= acc.max_gain_variation_rel:
-        out.append(f"the solenoid's force constant varies about +/-{variation:.0%} over the swing (the model's "
-                   f"correction holds to +/-{acc.max_gain_variation_rel:.0%})")
+    if failed["gain"]:
+        out.append(f"the solenoid's force constant varies about +/-{float(fit.gain_variation_rel[0]):.0%} over the "
+                   f"swing (the model's correction holds to +/-{acc.max_gain_variation_rel:.0%})")
     return out
 
 

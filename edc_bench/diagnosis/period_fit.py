@@ -133,10 +133,18 @@ class FitSetup:
         """The block a tick belongs to (negative before the first)."""
         return (tick - self.first_tick) // self.block_ticks if tick >= self.first_tick else -1
 
+    def end_tick(self, blocks: int) -> int:
+        """The tick whose sample completes ``blocks`` whole blocks (their last row, the next sample and half a
+        smoothing window after it): a test stopped after this tick holds them, and no more."""
+        return self.first_tick + blocks * self.block_ticks + self.window // 2
+
+    def end_s(self, blocks: int) -> float:
+        """How long a test stopped after :meth:`end_tick` of ``blocks`` lasted (trace time)."""
+        return (self.end_tick(blocks) + 1) * self.period_s
+
     def blocks_in(self, ticks: int) -> int:
-        """Complete blocks in ``ticks`` ticks whose every row can be smoothed (half a window beyond their end)."""
-        usable = ticks - self.window // 2 - 1 - self.first_tick
-        return max(0, usable // self.block_ticks)
+        """Complete blocks in ``ticks`` ticks (the inverse of :meth:`end_tick`)."""
+        return max(0, (ticks - 1 - self.end_tick(0)) // self.block_ticks)
 
 
 def _smoothing_kernels(window: int, period_s: float) -> list[np.ndarray]:
@@ -372,6 +380,18 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
             settled = settled & (np.abs(late - early) <= settle_band_rel * np.abs(theta[:, i]))
     return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, cond, settled,
                      n_rows, cols)
+
+
+def reference_condition_number(design: ControllerDesign) -> float:
+    """Condition number of the reference's regressors over the steady excitation where it slides: identifiability is
+    the excitation's (:func:`edc_bench.diagnosis.identification.analyse` takes it over a trace's own reference)."""
+    from edc_bench.control.fel import condition_number, regressor_matrix
+
+    T = design.period_s
+    t = np.arange(int(round((design.move_s + design.fade_s) / T)), design.ticks) * T
+    phi = regressor_matrix(design.reference(design.mid_mm), t, T)
+    keep = np.abs(phi[:, 2]) >= design.reversal_speed_mm_s
+    return condition_number(phi[keep][:, list(design.estimated)])
 
 
 def trace_blocks(setup: FitSetup, trace: dict[str, np.ndarray], rho: np.ndarray | None = None,

@@ -101,3 +101,17 @@ def test_calibrate_without_room_for_a_record_writes_no_baseline_and_exits_74(tmp
     assert code == ExitCode.RECORD_NOT_WRITTEN
     assert "the record of test 1/1 could not be written" in err and "no baseline was written" in err
     assert "Traceback" not in err and not baseline.exists()
+
+
+def test_a_bug_in_a_command_says_so_with_exit_70(monkeypatch, capsys) -> None:
+    # the net under every command: its own message and the traceback, never a second error from the net itself
+    import edc_bench.cli.variants_cmd as variants_cmd
+
+    def broken(args):
+        raise RuntimeError("deliberate")
+
+    monkeypatch.setattr(variants_cmd, "run", broken)
+    assert main(["variants"]) == ExitCode.INTERNAL_ERROR
+    err = capsys.readouterr().err
+    assert "edc-bench variants: internal error: RuntimeError: deliberate" in err
+    assert "This is a bug in edc-bench" in err and "NameError" not in err
