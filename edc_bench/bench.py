@@ -146,6 +146,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     timing["missed_replies"] = outcome.missed_replies
     timing["cpu_steal_s"] = outcome.cpu_steal_s
     timing["first_tick_unix_s"] = outcome.first_tick_unix_s
+    if stop_rule is not None:  # the early stop's longest call, which a real-time tick had to wait for
+        timing["stop_check_max_us"] = outcome.stop_check_max_s * 1e6
     if observer is not None:
         observer.phase(Phase.CLASSIFY)
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,

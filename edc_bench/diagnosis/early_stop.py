@@ -15,9 +15,17 @@ the first period at which the interval, shrinking as 1/sqrt(periods), would
 leave the verdict unchanged.
 
 The loop calls :meth:`EarlyStop.check` at the ticks in
-:attr:`EarlyStop.check_ticks` (bench layer: :func:`edc_bench.bench.run_bench_test`);
-the rows of one period are fed at a time, so a check costs a few
-milliseconds however long the test has run.
+:attr:`EarlyStop.check_ticks` (bench layer: :func:`edc_bench.bench.run_bench_test`).
+The work is spread so that no call holds a real-time tick past its deadline
+(each costs well under a tick period, however long the test and its variant):
+
+- every :data:`STEP_TICKS` ticks the rows completed since the last step are
+  fed (their replies in: the feed lags by the oldest reply the loop accepts);
+- at a period's end the last rows are fed, the fit solved and the stop rule
+  asked (one classifier call, five points);
+- the expected end is searched one candidate period per step, half a step
+  after each feed, until found (the live view shows the last estimate
+  meanwhile).
 """
 
 from __future__ import annotations
@@ -43,6 +51,10 @@ from edc_bench.diagnosis.period_fit import (
     solve,
 )
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate
+from edc_bench.runtime.replies import max_reply_age_ticks
+
+#: Ticks between two feeds of rows (and between two steps of the expected-end search): about 0.1 ms of numpy each.
+STEP_TICKS = 100
 
 #: The reasons a test ends, as records give them.
 VERDICT_CERTAIN, MODEL_DOES_NOT_FIT, FULL_LENGTH, ABORTED = ("verdict certain", "model does not fit", "full length",
@@ -68,52 +80,91 @@ class EarlyStop:
         ticks = int(round(variant.excitation.duration_s / setup.period_s))
         self.max_periods = setup.blocks_in(ticks)
         self.acc = BlockAccumulator(setup, max(self.max_periods, 1))
-        #: tick -> whole periods the trace holds once that tick has its sample
-        self.check_ticks = {setup.end_tick(b): b for b in range(1, self.max_periods + 1)}
+        #: tick -> whole periods the trace holds once that tick has its sample: where the stop rule is asked
+        self.period_ends = {setup.end_tick(b): b for b in range(1, self.max_periods + 1)}
+        #: a row is fed once every sample its smoothing reaches is in, replies as old as the loop accepts included
+        self.feed_lag_ticks = setup.window // 2 + max_reply_age_ticks(variant) + 1
+        # counted back from each period's end, so that the end has only the last few rows left to feed
+        self.feed_ticks = {end - 1 - j * STEP_TICKS for end in self.period_ends
+                           for j in range(-(-setup.block_ticks // STEP_TICKS))}
+        self.search_ticks = {k - STEP_TICKS // 2 for k in self.feed_ticks} - set(self.period_ends) - self.feed_ticks
+        #: every tick after which :meth:`check` wants to be called
+        self.check_ticks = set(self.period_ends) | self.feed_ticks | self.search_ticks
         self.duration_s = ticks * setup.period_s
         self.expected_end_s = setup.end_s(min(variant.acceptance.min_periods, self.max_periods))
-        self.fed = 0
+        self.fed_to_tick = setup.first_tick  # rows of ticks before this one are in the accumulator
+        self._search: tuple[np.ndarray, np.ndarray, int, int] | None = None  # centre, half width, periods, next
         self._r_ref = variant.coil.resistance_ohm
         self._inductive = inductive_shares(variant)
         self._noise_v = expected_drive_noise_v(variant)
         self._reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
         self._z = interval_z(variant)
         self._base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+        # the classifier's first call costs several times a later one: paid now, before the loop's first tick
+        certain_verdicts(classifier, np.ones((1, 2)), np.full((1, 2), 0.01))
 
-    def _feed(self, periods: int, columns: dict[str, np.ndarray]) -> None:
-        """Add the rows of periods ``fed .. periods - 1`` from the trace's columns."""
-        s, half = self.setup, self.setup.window // 2
-        lo = s.first_tick + self.fed * s.block_ticks - half
-        sl = slice(lo, s.end_tick(periods) + 1)
+    def _feed(self, to_tick: int, columns: dict[str, np.ndarray]) -> None:
+        """Add the rows of ticks ``fed_to_tick .. to_tick - 1`` from the trace's columns."""
+        start, half = self.fed_to_tick, self.setup.window // 2
+        if to_tick <= start:
+            return
+        # the smoothing of a row reaches half a window either side, and the next sample: rows() leaves the span's
+        # edges out, so the span reaches that far beyond the rows fed
+        lo = start - half
+        sl = slice(lo, to_tick + half + 1)
         rho = columns["coil_resistance_ohm"][sl] / self._r_ref
         valid = columns["reply_ok"][sl].astype(bool) & ~columns["gap"][sl].astype(bool)
-        X, y, use = rows(s, columns["position_mm"][sl], columns["drive_v"][sl], rho,
+        X, y, use = rows(self.setup, columns["position_mm"][sl], columns["drive_v"][sl], rho,
                          columns["reference_velocity_mm_s"][sl], valid)
-        accumulate(s, self.acc, lo, X, y, use)
-        self.fed = periods
+        accumulate(self.setup, self.acc, lo, X, y, use)
+        self.fed_to_tick = to_tick
+
+    def _search_step(self) -> None:
+        """One candidate period of the expected-end search: would the interval, shrunk to it, leave the verdict
+        alone? (one classifier call, five points)"""
+        if self._search is None:
+            return
+        centre, half_width, periods, more = self._search
+        if more > self.max_periods:
+            self.expected_end_s, self._search = self.duration_s, None
+            return
+        if certain_verdicts(self.classifier, centre, half_width * np.sqrt(periods / more))[0]:
+            self.expected_end_s, self._search = self.setup.end_s(more), None
+        else:  # not before the next candidate, at the earliest
+            self.expected_end_s = self.setup.end_s(min(more + 1, self.max_periods))
+            self._search = (centre, half_width, periods, more + 1)
 
     def check(self, k: int, columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
         """At tick ``k`` (one of :attr:`check_ticks`): the reason to stop now, with its figures, or None."""
-        periods = self.check_ticks[k]
-        self._feed(periods, columns)
+        periods = self.period_ends.get(k)
+        if periods is None:
+            if k in self.feed_ticks:
+                self._feed(k - self.feed_lag_ticks, columns)
+            else:
+                self._search_step()
+            return None
+        self._search = None  # the new period's figures replace an unfinished search
         acc, setup = self.variant.acceptance, self.setup
-        fit = solve(self.acc, periods, acc.settle_band_rel)
-        if periods < acc.min_periods or fit is None:
+        self._feed(setup.first_tick + periods * setup.block_ticks, columns)
+        if periods < acc.min_periods:
             self.expected_end_s = setup.end_s(min(acc.min_periods, self.max_periods))
+            return None
+        fit = solve(self.acc, periods, acc.settle_band_rel)
+        if fit is None:
+            self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None
         parameters = np.array([[referred_from_estimate(self._inductive[PARAMETER_NAMES.index(name)],
                                                        float(fit.value(name)[0]), self._r_ref,
                                                        float(columns["coil_resistance_ohm"][k]))
                                 for name in ("af", "a1")]])
         centre, half_width = relative_box(parameters, fit, self._base, self._z)
-        misfit, trusted, certain = stop_flags(self.variant, self.classifier, fit, periods, centre, half_width,
-                                              self._noise_v, self._reference_condition)
+        misfit, trusted, certain, verdicts = stop_flags(self.variant, self.classifier, fit, periods, centre,
+                                                        half_width, self._noise_v, self._reference_condition)
         time_s = setup.end_s(periods)
         if misfit[0]:
             return {"reason": MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods,
                     "problems": model_fit_problems(self.variant, fit, self._noise_v)}
         if certain[0]:
-            verdicts, _, _ = self.classifier.classify_many(centre)
             return {"reason": VERDICT_CERTAIN, "time_s": time_s, "periods": periods, "verdict": str(verdicts[0]),
                     "confidence": acc.verdict_confidence,
                     "features_rel": {"af": float(centre[0, 0]), "a1": float(centre[0, 1])},
@@ -121,11 +172,10 @@ class EarlyStop:
         if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
             self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None
-        # when would the interval, shrinking as 1 / sqrt(periods), leave the verdict alone? (one classifier call)
-        more = np.arange(periods + 1, self.max_periods + 1)
-        boxes = certain_verdicts(self.classifier, np.repeat(centre, len(more), axis=0),
-                                 half_width * np.sqrt(periods / more)[:, None])
-        self.expected_end_s = setup.end_s(int(more[np.argmax(boxes)])) if boxes.any() else self.duration_s
+        # when would the interval, shrinking as 1 / sqrt(periods), leave the verdict alone? Searched a period at a
+        # time over the next steps (all at once would cost a classifier call per remaining period in this tick)
+        self._search = (centre, half_width, periods, periods + 1)
+        self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))  # the earliest it can be, meanwhile
         return None
 
 
@@ -145,14 +195,15 @@ def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray, z: fl
 
 def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, periods: int, centres: np.ndarray,
                half_widths: np.ndarray, noise_v: float,
-               reference_condition: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               reference_condition: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The stop rule per test, vectorised (the loop's :class:`EarlyStop` and the batch study use it alike).
 
     Returns
     -------
-    (misfit, trusted, certain)
+    (misfit, trusted, certain, verdicts)
         The model does not fit (stop: INVALID); the fit is settled, conditioned and fitting after enough periods
-        (the judgement would trust it); and, trusted, the verdict is the same over the whole box (stop).
+        (the judgement would trust it); and, trusted, the verdict is the same over the whole box (stop); the
+        verdict at each box's centre ("" where no test was trusted: the classifier is not asked then).
     """
     acc = variant.acceptance
     enough = periods >= acc.min_periods
@@ -160,19 +211,24 @@ def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, pe
     misfit = enough & np.any(np.stack(list(failures.values())), axis=0)
     condition = np.maximum(fit.condition_number, reference_condition)
     trusted = enough & fit.settled & ~misfit & (condition <= acc.max_condition_number)
-    certain = trusted & certain_verdicts(classifier, centres, half_widths)
-    return misfit, trusted, certain
+    if not trusted.any():  # the loop's check before the fit settles: no classifier call in that tick
+        return misfit, trusted, trusted.copy(), np.full(len(centres), "", dtype=object)
+    same, verdicts = certain_verdicts(classifier, centres, half_widths, with_verdicts=True)
+    return misfit, trusted, trusted & same, verdicts
 
 
-def certain_verdicts(classifier: ValveClassifier, centres: np.ndarray, half_widths: np.ndarray) -> np.ndarray:
+def certain_verdicts(classifier: ValveClassifier, centres: np.ndarray, half_widths: np.ndarray, *,
+                     with_verdicts: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """For N boxes of relative features (centres and half-widths (N, 2)): the same verdict at centre and corners.
 
-    The batch path's form of :meth:`EarlyStop.check`'s test (one classifier call for all valves).
+    The batch path's form of :meth:`EarlyStop.check`'s test (one classifier call for all valves). With
+    ``with_verdicts``, also the verdict at each centre.
     """
     signs = np.array([[0, 0], [-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)
     points = centres[:, None, :] + signs[None, :, :] * half_widths[:, None, :]
     finite = np.all(np.isfinite(points), axis=(1, 2))
     points = np.where(np.isfinite(points), points, 1.0)
-    verdicts, _, _ = classifier.classify_many(points.reshape(-1, 2))
+    verdicts = classifier.verdicts(points.reshape(-1, 2))
     verdicts = verdicts.reshape(len(centres), 5)
-    return finite & np.all(verdicts == verdicts[:, :1], axis=1)
+    same = finite & np.all(verdicts == verdicts[:, :1], axis=1)
+    return (same, verdicts[:, 0]) if with_verdicts else same

@@ -97,8 +97,8 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
             if at.fit is None:
                 continue
             centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, z)
-            misfit, trusted, certain = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
-                                                  periods.reference_condition)
+            misfit, trusted, certain, _ = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
+                                                     periods.reference_condition)
             stop_now = ~decided & (certain | misfit | (p == periods.blocks))
             stop_p[stop_now] = p
             stop_features[stop_now] = centre[stop_now]

@@ -35,6 +35,7 @@ Pure numpy; the loop's trace (:func:`trace_blocks`) and the batch path
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -147,28 +148,37 @@ class FitSetup:
         return max(0, (ticks - 1 - self.end_tick(0)) // self.block_ticks)
 
 
-def _smoothing_kernels(window: int, period_s: float) -> list[np.ndarray]:
-    """Savitzky-Golay weights for x and its first three derivatives at a window's centre.
+@functools.lru_cache(maxsize=8)
+def _smoothing_kernels(window: int, period_s: float) -> np.ndarray:
+    """Savitzky-Golay weights for x and its first three derivatives at a window's centre, (4, window).
 
     ``out[t] = sum_j c[j] x[t + j - h]``: the least-squares polynomial of :data:`SMOOTHING_ORDER` through the
     window's samples, differentiated at its centre (numpy only: scipy.signal would cost a second at every start
-    of the command line).
+    of the command line). Cached: the early stop smooths a short span every tenth of a second. Read only.
     """
     half = window // 2
     j = np.arange(-half, half + 1, dtype=float)
     fit = np.linalg.pinv(np.vander(j, SMOOTHING_ORDER + 1, increasing=True))  # polynomial coefficients from samples
-    return [math.factorial(q) * fit[q] / period_s ** q for q in range(4)]
+    kernels = np.stack([math.factorial(q) * fit[q] / period_s ** q for q in range(4)])
+    kernels.flags.writeable = False
+    return kernels
 
 
 def _smooth(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Apply :func:`_smoothing_kernels` weights along axis 0; the ends repeat the first and last sample."""
-    half = len(weights) // 2
-    pad = [(half, half)] + [(0, 0)] * (values.ndim - 1)
+    """Smooth each of Q signals with its own weights: ``values`` (Q, T, ...), ``weights`` (Q, W) -> (Q, T, ...).
+
+    Along the time axis; the ends repeat the first and last sample. One pass over the window for all Q signals:
+    a short span costs the same few dozen numpy operations as a long one (the per-element sums are those of
+    smoothing each signal alone).
+    """
+    half = weights.shape[1] // 2
+    pad = [(0, 0), (half, half)] + [(0, 0)] * (values.ndim - 2)
     padded = np.pad(values, pad, mode="edge")
-    ticks = len(values)
-    out = weights[0] * padded[:ticks]
-    for j in range(1, len(weights)):
-        out = out + weights[j] * padded[j: j + ticks]
+    ticks = values.shape[1]
+    w = weights.reshape(weights.shape + (1,) * (values.ndim - 2))
+    out = w[:, 0, None] * padded[:, :ticks]
+    for j in range(1, weights.shape[1]):
+        out = out + w[:, j, None] * padded[:, j: j + ticks]
     return out
 
 
@@ -198,7 +208,10 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     """
     x = np.asarray(position_mm, dtype=float)
     kernels = _smoothing_kernels(setup.window, setup.period_s)
-    smooth = [_smooth(x, k) for k in kernels]
+    raw = np.broadcast_to(np.asarray(drive_v, dtype=float) / np.asarray(rho, dtype=float), x.shape)
+    # x and its three derivatives, and the drive smoothed as the trajectory is (below), in one pass
+    smoothed = _smooth(np.stack([x, x, x, x, raw]), np.concatenate([kernels, kernels[:1]]))
+    smooth = list(smoothed[:4])
     # mid-hold: the drive of row k acts from sample k to sample k + 1
     mid = [np.concatenate((0.5 * (s[:-1] + s[1:]), s[-1:]), axis=0) for s in smooth]
     x0, x1, x2, x3 = mid
@@ -207,8 +220,7 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     basis = (x3, x2, x1, x0, np.ones_like(x0), sgn)
     # the drive smoothed as the trajectory is, at mid-hold: both sides of the model through the same filter, so the
     # moments a CAN adapter lets each drive take effect (two in one USB frame) average out as they do in the rack
-    raw = np.asarray(drive_v, dtype=float) / np.asarray(rho, dtype=float)
-    target = _smooth(raw, kernels[0])
+    target = smoothed[4]
     for i in setup.fixed:
         target = target - setup.nominal[i] * basis[i]
     sc = setup.scales

@@ -199,6 +199,8 @@ class LinkFigures:
     late_after_gap_us: float = float("nan")  # worst lateness of the tick just after a gap: resynchronised?
     steal_s: float = 0.0
     rig_worst_gap_ms: float | None = None
+    stop_check_max_us: float = float("nan")  # the early stop's longest call (NaN: no early stop)
+    stop_reason: str = ""
 
 
 def link_test(variant_name: str | None, duration_s: float, *, adapter: str = "none",
@@ -233,7 +235,8 @@ def link_test(variant_name: str | None, duration_s: float, *, adapter: str = "no
         reply_age_ticks=dict(outcome.reply_age_ticks), replies_too_old=outcome.replies_too_old, gaps=outcome.gaps,
         ticks_lost=outcome.ticks_lost, stalls_injected=getattr(clock, "stalls", 0),
         late_after_gap_us=float(np.nanmax(late_after)) if len(late_after) else float("nan"),
-        steal_s=outcome.cpu_steal_s, rig_worst_gap_ms=status.get("worst_gap_ms"))
+        steal_s=outcome.cpu_steal_s, rig_worst_gap_ms=status.get("worst_gap_ms"),
+        stop_check_max_us=result.timing.get("stop_check_max_us", float("nan")), stop_reason=result.stop["reason"])
 
 
 def age_percentile(ages: dict[int, int], q: float) -> float:

@@ -114,8 +114,9 @@ def _links(variant_name: str | None, sizes: Sizes) -> list[Figure]:
         Figure("realtime", f"usb-fs adapter, {duration_s:g} s test: reply age p99", age_percentile(usb.reply_age_ticks, 99),
                "ticks", age_percentile(usb.reply_age_ticks, 50), "reply age p50", "test valid (PASS on a new valve)",
                usb.verdict == "PASS",
-               f"{usb.verdict} {'; '.join(usb.reasons)}; ages {usb.reply_age_ticks}; {usb.replies_too_old} too old "
-               f"(never used); {machine}"),
+               f"{usb.verdict} {'; '.join(usb.reasons)}; ended: {usb.stop_reason} after {usb.ticks_run} ticks, the "
+               f"early stop's longest check {usb.stop_check_max_us:.0f} us; ages {usb.reply_age_ticks}; "
+               f"{usb.replies_too_old} too old (never used); {machine}"),
         Figure("realtime", f"5 ms host stall every second, {duration_s:g} s test: ticks lost per stall",
                stalls.ticks_lost / max(stalls.gaps, 1), "ticks", 5.0, "ticks in 5 ms",
                "test valid, back on time after each gap", stalls.verdict == "PASS" and recovered,

@@ -24,7 +24,7 @@ import enum
 import gc
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Container
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -79,8 +79,9 @@ _READY_STEP_S = 0.01
 class StopRule(Protocol):
     """Decides whether a test may end before its full length (:class:`~edc_bench.diagnosis.early_stop.EarlyStop`)."""
 
-    #: ticks after which :meth:`check` is asked (the ends of whole excitation periods)
-    check_ticks: dict[int, int]
+    #: ticks after which :meth:`check` is asked (the ends of whole excitation periods, and steps of work spread
+    #: between them); each call must return well within a tick period
+    check_ticks: Container[int]
     #: when the test is expected to end (trace time, s), for the live view
     expected_end_s: float
 
@@ -130,6 +131,7 @@ class LoopOutcome:
     frames_dropped: int = 0  # frames beyond the CAN log's maximum, counted but not stored
     events: list[str] = field(default_factory=list)
     stop: dict | None = None  # the stop rule's decision, when it ended the test early
+    stop_check_max_s: float = 0.0  # the stop rule's longest call (CPU time it took from one tick)
 
 
 class _AbortTest(Exception):
@@ -590,8 +592,10 @@ class BenchLoop:
                 if k == identify_from_k:
                     observer.phase(Phase.IDENTIFY)
             if stop_rule is not None and k in stop_rule.check_ticks:
-                # a few ms once an excitation period (one period's rows); a real-time tick may run late once
+                # the rule spreads its work over many ticks; its longest call is in the record's timing
+                began = time.perf_counter()
                 decision = stop_rule.check(k, trace.columns)
+                outcome.stop_check_max_s = max(outcome.stop_check_max_s, time.perf_counter() - began)
                 if decision is not None:
                     outcome.stop = decision
                     return

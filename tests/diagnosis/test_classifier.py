@@ -67,3 +67,29 @@ def test_marginal_band_around_the_boundary() -> None:
                                                  [1.0, 1.0], [2.0, 2.0]]))
     assert list(verdicts) == [Verdict.MARGINAL, Verdict.PASS, Verdict.FAIL, Verdict.PASS, Verdict.FAIL]
     assert abs(d[0]) < 0.005
+
+
+@pytest.mark.parametrize("name", [DEFAULT_MODEL, LINEAR_MODEL])
+def test_verdicts_alone_are_classify_many_s_verdicts(name: str) -> None:
+    """The early stop's cheaper path skips the full boundary scan only where the band cannot be reached; the
+    verdicts are the same everywhere, the band's edges included (points placed at band +/- a hair from the
+    boundary along the scan's own directions, and a random cloud over the feature plane)."""
+    clf = ValveClassifier(packaged_model_path(name))
+    rng = np.random.default_rng(3)
+    cloud = np.column_stack([rng.uniform(0.6, 2.2, 4000), rng.uniform(0.6, 2.8, 4000)])
+    # points on the boundary (bisected along rays from (1, 1)), then moved off it by about the band
+    angles = rng.uniform(0.0, 0.5 * np.pi, 200)
+    rays = np.column_stack([np.cos(angles), np.sin(angles)])
+    lo, hi = np.zeros(200), np.full(200, 3.0)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        faulty = clf.probabilities(1.0 + mid[:, None] * rays) >= clf.threshold
+        lo, hi = np.where(faulty, lo, mid), np.where(faulty, mid, hi)
+    on = 1.0 + hi[:, None] * rays
+    offsets = clf.marginal_band * np.array([0.5, 0.9, 0.99, 1.01, 1.1, 2.0])
+    near = np.concatenate([on + s * o * rays for o in offsets for s in (-1.0, 1.0)])
+    points = np.concatenate([cloud, on, near])
+    full, _, _ = clf.classify_many(points)
+    fast = clf.verdicts(points)
+    assert list(fast) == list(full)
+    assert {Verdict.PASS.value, Verdict.MARGINAL.value, Verdict.FAIL.value} <= set(full)

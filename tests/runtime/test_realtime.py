@@ -114,7 +114,8 @@ def _attempts(run, what: str, tries: int = 3):
 @pytest.mark.realtime
 def test_realtime_full_test_through_a_usb_adapter_passes_a_new_valve(tmp_path: Path) -> None:
     """`edc-bench test --realtime --adapter usb-fs`: the rig process holds frames back as a USB full-speed adapter
-    does (1.5-3.5 ms round trip); the shipped variant, as shipped, runs its full 30 s test and passes a new valve."""
+    does (1.5-3.5 ms round trip); the shipped variant, as shipped and as a technician runs it (the early stop on,
+    its checks in real time), completes its test and passes a new valve."""
     def run():
         proc = edc_bench("test", "--realtime", "--adapter", "usb-fs", "--valve", "new", "--json", "--no-figure",
                          "--no-history", "--out", "rec", cwd=tmp_path, timeout=180)
@@ -126,7 +127,11 @@ def test_realtime_full_test_through_a_usb_adapter_passes_a_new_valve(tmp_path: P
         description = (f"{summary['verdict']} {summary['reasons']}, reply ages {loop['reply_age_ticks']}, "
                        f"{loop['replies_too_old']} too old, {loop['gaps']} gaps")
         if completed:
-            assert loop["ticks_run"] == 30_000 and loop["safe_confirmed"]
+            # ended when the verdict was certain, at the end of a whole period, or at the full 30 s
+            stop = doc["stop"]
+            assert stop["reason"] in ("verdict certain", "full length"), stop
+            assert loop["ticks_run"] == round(stop["time_s"] * 1000) and loop["safe_confirmed"]
+            assert stop["reason"] == "verdict certain" or loop["ticks_run"] == 30_000
             assert max(map(int, loop["reply_age_ticks"])) >= 2  # the adapter's latency was there
         rig = doc["simulation"]["rig_process"]
         # the rig process not serving for as many ticks as the missed-reply limit allows in a row can end the
@@ -145,7 +150,8 @@ def test_realtime_full_test_through_a_usb_adapter_passes_a_new_valve(tmp_path: P
 @pytest.mark.realtime
 def test_realtime_host_stall_of_5_ms_every_second_leaves_the_test_valid() -> None:
     """A bench PC that stalls 5 ms once a second (really: the process sleeps): each stall is a gap of about five
-    ticks, the loop resynchronises, and the test completes valid (PASS on a new valve)."""
+    ticks, the loop resynchronises, and the test completes valid (PASS on a new valve). Full length (15 s here), so
+    every run sees at least 12 stalls."""
     from edc_bench.bench import run_bench_test
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import open_bus
@@ -161,12 +167,13 @@ def test_realtime_host_stall_of_5_ms_every_second_leaves_the_test_valid() -> Non
         with rig_process(None, "new", 0, "none", status) as channel, \
                 open_bus({"interface": "slcan", "channel": channel}, default_icd().bitrate) as bus:
             clock = StallingClock(RealTimeClock(), stall_s=0.005, every_s=1.0, first_s=2.5)
-            result = run_bench_test(bus, clock, variant)
+            result = run_bench_test(bus, clock, variant, full_length=True)
         outcome = result.outcome
         description = (f"{result.verdict} {result.reasons}, {clock.stalls} stalls injected, {outcome.gaps} gaps, "
                        f"{outcome.ticks_lost} ticks lost, reply ages {outcome.reply_age_ticks}")
         completed = result.verdict == "PASS"
         if completed:
+            assert result.stop["reason"] == "full length"
             assert outcome.ticks_run == 15_000 and clock.stalls >= 12
             assert outcome.gaps >= clock.stalls  # every injected stall shows as a gap (the machine may add some)
             assert 4 * clock.stalls <= outcome.ticks_lost
