@@ -45,7 +45,7 @@ from edc_bench.protocol import (
 )
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.runtime.clock import Clock, cpu_steal_s
-from edc_bench.runtime.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks
+from edc_bench.runtime.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks, stale_limit_ticks
 from edc_bench.runtime.trace import CanFrameLog, Trace, frame_flags
 
 # flag bits of trace column rig_flags
@@ -107,7 +107,8 @@ class LoopOutcome:
     ticks_planned: int
     ticks_run: int = 0
     missed_replies: int = 0
-    max_missed_in_row: int = 0
+    max_missed_in_row: int = 0  # commands in a row without a usable reply (the PID held meanwhile)
+    max_unanswered_in_row: int = 0  # commands in a row with no reply at all
     bad_replies: int = 0
     overruns: int = 0  # ticks that started a period or more late (each a host stall, ending in a gap)
     abort_reason: str | None = None
@@ -470,6 +471,9 @@ class BenchLoop:
         trace, matcher, sent_s = self.trace, self.matcher, self._sent_s
         acceptance = self.variant.acceptance
         max_in_row = acceptance.max_missed_replies_in_row
+        # without a usable sample the PID holds; as long as the rig's watchdog lets a silent bench go (the
+        # replies still coming, too late: a link that held them back once), the test goes on
+        max_stale_in_row = stale_limit_ticks(self.variant)
         max_missed_fraction = acceptance.max_missed_reply_fraction
         heartbeat_timeout_s = self.variant.rig.heartbeat_period_ms * 1e-3 * acceptance.heartbeat_timeout_periods
         max_error_mm = acceptance.max_tracking_error_mm
@@ -546,6 +550,7 @@ class BenchLoop:
             counts = matcher.counts
             outcome.missed_replies = counts.missed
             outcome.max_missed_in_row = counts.max_missed_in_row
+            outcome.max_unanswered_in_row = counts.max_unanswered_in_row
             reply, position_mm, current_a = self.newest_reply, self.position_mm, self.current_a
             if reply is not None and reply.any_fault:
                 outcome.abort_reason = "rig fault: " + ", ".join(
@@ -558,13 +563,17 @@ class BenchLoop:
                 state = self._rig_state.name if self._rig_state is not None else "unknown"
                 outcome.abort_reason = (f"rig amplifier off while running (rig state {state}, "
                                         f"fault code {FaultCode(self._rig_fault_code).name})")
-            elif counts.missed_in_row > max_in_row:
-                outcome.abort_reason = f"{counts.missed_in_row} replies missing in a row (limit {max_in_row})"
+            elif counts.unanswered_in_row > max_in_row:
+                outcome.abort_reason = (f"{counts.unanswered_in_row} replies missing in a row (limit {max_in_row}): "
+                                        "the rig stopped answering")
                 if counts.too_old:
-                    outcome.abort_reason += (
-                        f"; {counts.too_old} replies came, but older than acceptance.max_reply_age_ms "
-                        f"({acceptance.max_reply_age_ms:g} ms): the link is slower than the variant's gains are "
-                        "checked for (raise max_reply_age_ms and retune the gains for that delay)")
+                    outcome.abort_reason += f" ({counts.too_old} replies came earlier, too old to use)"
+            elif counts.missed_in_row > max_stale_in_row:
+                outcome.abort_reason = (
+                    f"no usable reply for {counts.missed_in_row} ticks in a row (limit {max_stale_in_row}, the "
+                    f"rig's watchdog time); {counts.too_old} replies came, but older than "
+                    f"acceptance.max_reply_age_ms ({acceptance.max_reply_age_ms:g} ms): the link is slower than the "
+                    "variant's gains are checked for (raise max_reply_age_ms and retune the gains for that delay)")
             elif k >= 1000 and counts.missed > max_missed_fraction * (k + 1):
                 outcome.abort_reason = (f"{counts.missed} of {k + 1} replies missing "
                                         f"(limit {max_missed_fraction:.1%})")

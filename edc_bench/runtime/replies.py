@@ -8,6 +8,14 @@ comes. A reply whose sample would be older than ``max_age_ticks`` at the
 tick that could use it is never used; a command that stays unanswered that
 long counts as missed.
 
+Two streaks, for two different faults: ``unanswered_in_row`` counts
+commands in a row that got no reply at all (the rig or the link went
+silent: a test ends after a few), reset by any reply that comes, too late
+or not; ``missed_in_row`` counts commands in a row without a usable reply
+(the controller has run on an old sample since), reset only by a usable one.
+A link that held its frames back a few milliseconds once (a USB adapter's
+host controller, a busy rig) breaks only the second, briefly.
+
 Pure bookkeeping, no bus and no clock: the loop and replay run the same
 matching on the same frames, so a replay sees exactly the samples the loop
 used.
@@ -33,6 +41,13 @@ def max_reply_age_ticks(variant: Variant) -> int:
     return max(1, math.ceil(variant.acceptance.max_reply_age_ms * 1e-3 / variant.controller.period_s - 1e-9))
 
 
+def stale_limit_ticks(variant: Variant) -> int:
+    """Commands in a row without a usable reply after which a test ends: as long as the rig's watchdog lets the
+    bench go silent (``rig.watchdog_ms``), and never fewer than ``acceptance.max_missed_replies_in_row``."""
+    watchdog = math.ceil(variant.rig.watchdog_ms * 1e-3 / variant.controller.period_s - 1e-9)
+    return max(variant.acceptance.max_missed_replies_in_row, watchdog)
+
+
 @dataclass
 class ReplyCounts:
     """What the matcher has seen of the replies."""
@@ -41,8 +56,10 @@ class ReplyCounts:
     too_old: int = 0  # answered, but too late to be used
     unmatched: int = 0  # a counter no command in flight carries (stale, repeated, or from another host)
     missed: int = 0  # commands never answered within the age limit
-    missed_in_row: int = 0
+    missed_in_row: int = 0  # commands in a row without a usable reply
     max_missed_in_row: int = 0
+    unanswered_in_row: int = 0  # commands in a row with no reply at all yet (any reply that comes resets it)
+    max_unanswered_in_row: int = 0
     ages: dict[int, int] = field(default_factory=dict)  # age in ticks at arrival -> replies
 
 
@@ -61,6 +78,7 @@ class ReplyMatcher:
         self._in_flight: deque[tuple[int, int]] = deque()  # (tick, counter), oldest first
         self._answered: set[int] = set()
         self._expired: set[int] = set()  # ticks whose commands expired unanswered
+        self._late: set[int] = set()  # ticks whose replies came too old before their commands expired
         self.newest_tick = SYNC_TICK
         self.counts = ReplyCounts()
 
@@ -79,16 +97,23 @@ class ReplyMatcher:
             if old_tick in self._answered:
                 self._answered.discard(old_tick)
                 counts.missed_in_row = 0
+                counts.unanswered_in_row = 0
             else:
-                # its reply may still come, too late: remembered until the counter comes round again
-                self._expired.add(old_tick)
                 missed.append(old_tick)
                 counts.missed += 1
                 counts.missed_in_row += 1
                 counts.max_missed_in_row = max(counts.max_missed_in_row, counts.missed_in_row)
+                if old_tick in self._late:  # answered, too late: the link is slow, not silent
+                    self._late.discard(old_tick)
+                else:
+                    # its reply may still come, too late: remembered until the counter comes round again
+                    self._expired.add(old_tick)
+                    counts.unanswered_in_row += 1
+                    counts.max_unanswered_in_row = max(counts.max_unanswered_in_row, counts.unanswered_in_row)
         previous = self._tick_of[counter]
         if previous is not None:
             self._expired.discard(previous)
+            self._late.discard(previous)
         self._tick_of[counter] = tick
         in_flight.append((tick, counter))
         return missed
@@ -105,10 +130,13 @@ class ReplyMatcher:
             self._expired.discard(tick)
             counts.ages[age] = counts.ages.get(age, 0) + 1
             counts.too_old += 1
+            counts.unanswered_in_row = 0  # the link is alive
             return None
         counts.ages[age] = counts.ages.get(age, 0) + 1
         if age > self.max_age_ticks:
-            counts.too_old += 1  # left unanswered: it counts as missed when it expires
+            counts.too_old += 1  # not used: it counts as missed when its command expires
+            counts.unanswered_in_row = 0  # but the link is alive
+            self._late.add(tick)
             return None
         self._answered.add(tick)
         counts.matched += 1

@@ -18,7 +18,6 @@ from edc_bench.bench import run_simulated_test
 from edc_bench.config import load_variant, parse_variant
 from edc_bench.diagnosis.batch import run_batch
 from edc_bench.diagnosis.verdict import Verdict
-from edc_bench.physics.feedforward import feedforward_truth
 from edc_bench.physics.valve import nominal_plant, parse_valve_spec, plant_parameters
 from edc_bench.sim.plant import Plant
 

@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 import can
+import numpy as np
 import pytest
 from helpers import check_safe_and_complete
 
@@ -89,6 +90,29 @@ def test_isolated_missing_replies_are_tolerated(simulated_bench) -> None:
     assert 1 <= result.outcome.missed_replies <= 4
     assert result.outcome.bad_replies == result.outcome.missed_replies
     assert result.verdict == "FAIL"  # a worn valve, judged as usual
+
+
+@pytest.mark.parametrize("held_ms", [6.0, 8.0])
+def test_a_link_that_holds_its_replies_back_once_does_not_end_the_test(simulated_bench, held_ms: float) -> None:
+    """For 10 ms every reply comes ``held_ms`` late (a USB adapter's host controller, a busy rig): more than 5
+    in a row too old to use, so the PID held, but the link never went silent. The test goes on (before: aborted,
+    "6 replies missing in a row"); a link that stays slow still ends it (test_pipelining.py), a silent one too.
+    (Replies held back 10 ms or more look like silence: 6 commands expire before the first comes.)"""
+    rule = Rule("delay", FAULT_AT_S, FAULT_AT_S + 0.010, direction="rx", can_id=0x121, delay_s=held_ms * 1e-3)
+    result, _, _ = run_with(simulated_bench, rule=rule)
+    o = result.outcome
+    assert o.abort_reason is None, o.abort_reason
+    assert o.max_missed_in_row > 5 and o.replies_too_old >= 6  # what the old rule ended the test for
+    assert o.max_unanswered_in_row <= 5
+    assert result.verdict == "FAIL"  # a worn valve, judged as usual
+
+
+def test_a_rig_that_goes_silent_ends_the_test_as_before(simulated_bench) -> None:
+    result, _, _ = run_with(simulated_bench, rule=Rule("drop", FAULT_AT_S, direction="rx", can_id=0x121))
+    assert result.outcome.abort_reason == "6 replies missing in a row (limit 5): the rig stopped answering"
+    # decided when the sixth command without a reply passed the age limit (4 ticks): 10 ticks after the last reply
+    answered = np.flatnonzero(result.trace["reply_ok"].astype(bool))
+    assert result.outcome.abort_time_s - result.trace["t_s"][answered[-1]] == pytest.approx(0.010, abs=0.0015)
 
 
 def test_rig_never_ready_is_one_clear_line(tmp_path: Path, simulated_bench) -> None:

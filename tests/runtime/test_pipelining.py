@@ -62,6 +62,27 @@ def test_matcher_counts_missed_in_row_only_when_they_expire() -> None:
     assert m.counts.missed_in_row == 0 and m.counts.missed == 8  # tick 7 missed, tick 8 answered
 
 
+def test_replies_that_come_too_late_end_the_silence_but_not_the_missing_samples() -> None:
+    """Two streaks: a silent link (no reply at all) and a slow one (replies, but too old to use)."""
+    m = ReplyMatcher(max_age_ticks=2)
+    for k in range(10):  # nothing comes back: silent
+        m.sent(k, k)
+    assert m.counts.unanswered_in_row == m.counts.missed_in_row == 7
+    m.match(3, next_tick=10)  # tick 3's reply, 7 ticks old: never used, but the link is alive
+    assert m.counts.unanswered_in_row == 0 and m.counts.missed_in_row == 7 and m.counts.too_old == 1
+    m.match(8, next_tick=11)  # too old before its command expired: missed when it does, yet not silent
+    m.sent(10, 10)
+    m.sent(11, 11)
+    assert m.counts.missed_in_row == 9 and m.counts.unanswered_in_row == 1  # tick 8 late, tick 9 unanswered
+    m.match(11, next_tick=12)  # a usable reply ends both, once its command leaves the window
+    m.sent(12, 12)
+    m.sent(13, 13)
+    assert m.counts.missed_in_row == 11 and m.counts.unanswered_in_row == 3  # ticks 9 and 10 unanswered
+    m.sent(14, 14)
+    assert m.counts.missed_in_row == m.counts.unanswered_in_row == 0  # tick 11 answered in time
+    assert m.counts.max_unanswered_in_row == 7 and m.counts.max_missed_in_row == 11
+
+
 # -- the adapter model -------------------------------------------------------------------------------------------
 
 def test_usb_fs_round_trips_fall_in_the_measured_range() -> None:

@@ -15,8 +15,9 @@ from edc_bench.physics.valve import parse_valve_spec, plant_parameters
 STEAL_LIMIT_S = 0.15  # CPU steal during one 12 s run above which real-time figures say nothing about the code
 STALL_LIMIT_US = 10_000  # a bench tick this late means the machine did not run the process
 RIG_GAP_LIMIT_MS = 10.0  # the rig process went this long (half its watchdog) without serving: not run by the machine
-# with the shipped acceptance (5 replies missing in a row end a test), a rig process not serving for 5 ms is enough
-LINK_GAP_LIMIT_MS = 5.0
+# with the shipped acceptance a test ends when 6 commands in a row pass the 4 ms age limit with no reply at all:
+# a rig process that does not serve for 8 ms (less the adapter's round trip) gets there
+LINK_GAP_LIMIT_MS = 8.0
 # a bench process that lost more than 1 tick in 500 to stalls of its own (each a whole period late) was not given
 # its 1 kHz by this machine: the shipped acceptance allows 1 % of ticks, and the stall test spends half of that
 OWN_LOSS_LIMIT = 0.002
@@ -92,11 +93,14 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
 
 
 def _attempts(run, what: str, tries: int = 3):
-    """Run ``run()`` until an attempt is undisturbed, and return whether it completed; skip if none was.
+    """Run ``run()`` until an attempt completes or is undisturbed, and return whether it completed; skip if
+    every attempt was disturbed and none completed.
 
     ``run`` returns (completed, timing, rig, description, machine): ``machine`` names what this machine did to
-    the run beyond :func:`disturbed`'s checks ("" if nothing). An undisturbed attempt is the code's verdict, pass
-    or fail; only when every attempt was disturbed is the test skipped, with every attempt's figures.
+    the run beyond :func:`disturbed`'s checks ("" if nothing). A completed attempt passes, disturbed or not (the
+    disturbance excuses a failure, it does not spoil a success; ``run`` has checked the completed run's figures);
+    an undisturbed attempt that did not complete fails; only when every attempt was disturbed and failed is the
+    test skipped, with every attempt's figures.
     """
     seen = []
     for attempt in range(tries):
@@ -105,7 +109,7 @@ def _attempts(run, what: str, tries: int = 3):
         seen.append(f"{description}: steal {timing['cpu_steal_s']:.2f} s, worst tick "
                     f"{(timing['lateness_max_us'] or 0) / 1e3:.1f} ms late, rig's worst serve gap "
                     f"{(rig or {}).get('worst_gap_ms')} ms {machine}")
-        if not disturbed(timing, rig) and not machine:
+        if completed or (not disturbed(timing, rig) and not machine):
             return completed
     pytest.skip(f"{what}: every attempt was disturbed by this machine: " + "; ".join(seen))
 
