@@ -16,15 +16,17 @@ leave the verdict unchanged.
 
 The loop calls :meth:`EarlyStop.check` at the ticks in
 :attr:`EarlyStop.check_ticks` (bench layer: :func:`edc_bench.bench.run_bench_test`).
-The work is spread so that no call holds a real-time tick past its deadline
-(each costs well under a tick period, however long the test and its variant):
+The work is spread so that no call costs more than a tick or two, however
+long the test and its variant (steps 0.2-0.6 ms, the period-end decision
+1-3 ms on a 2-core VM):
 
 - every :data:`STEP_TICKS` ticks the rows completed since the last step are
   fed (their replies in: the feed lags by the oldest reply the loop accepts);
 - at a period's end the last rows are fed, the fit solved and the stop rule
   asked (one classifier call, five points);
-- the expected end is searched one candidate period per step, half a step
-  after each feed, until found (the live view shows the last estimate
+- the expected end is searched a candidate period per step (more if the
+  test has more periods left than a period has steps), half a step after
+  each feed, until found (the live view shows the earliest it can be
   meanwhile).
 """
 
@@ -53,7 +55,7 @@ from edc_bench.diagnosis.period_fit import (
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate
 from edc_bench.runtime.replies import max_reply_age_ticks
 
-#: Ticks between two feeds of rows (and between two steps of the expected-end search): about 0.1 ms of numpy each.
+#: Ticks between two feeds of rows (and between two steps of the expected-end search): 0.2-0.6 ms each.
 STEP_TICKS = 100
 
 #: The reasons a test ends, as records give them.
@@ -90,6 +92,10 @@ class EarlyStop:
         self.search_ticks = {k - STEP_TICKS // 2 for k in self.feed_ticks} - set(self.period_ends) - self.feed_ticks
         #: every tick after which :meth:`check` wants to be called
         self.check_ticks = set(self.period_ends) | self.feed_ticks | self.search_ticks
+        #: candidate periods each search step tries: enough to finish between two period ends (the fewest steps)
+        ends = sorted(self.period_ends)
+        steps = min((sum(1 for t in self.search_ticks if a < t < b) for a, b in zip(ends, ends[1:])), default=1)
+        self.search_per_step = max(1, -(-self.max_periods // max(steps, 1)))
         self.duration_s = ticks * setup.period_s
         self.expected_end_s = setup.end_s(min(variant.acceptance.min_periods, self.max_periods))
         self.fed_to_tick = setup.first_tick  # rows of ticks before this one are in the accumulator
@@ -119,6 +125,21 @@ class EarlyStop:
         accumulate(self.setup, self.acc, lo, X, y, use)
         self.fed_to_tick = to_tick
 
+    def _solve_with_pending(self, periods: int, columns: dict[str, np.ndarray]) -> PeriodFit | None:
+        """The fit over ``periods`` blocks with the last block's rows not yet fed for good added as they stand now
+        (a reply still on its way counts as missing, as in a test stopped here), then taken out again: the later
+        steps feed them with their replies."""
+        block = periods - 1
+        saved = (self.acc.A[block].copy(), self.acc.z[block].copy(), self.acc.yy[block].copy(),
+                 self.acc.count[block].copy())
+        fed_to = self.fed_to_tick
+        self._feed(self.setup.first_tick + periods * self.setup.block_ticks, columns)
+        try:
+            return solve(self.acc, periods, self.variant.acceptance.settle_band_rel)
+        finally:
+            self.acc.A[block], self.acc.z[block], self.acc.yy[block], self.acc.count[block] = saved
+            self.fed_to_tick = fed_to
+
     def _search_step(self) -> None:
         """One candidate period of the expected-end search: would the interval, shrunk to it, leave the verdict
         alone? (one classifier call, five points)"""
@@ -128,11 +149,16 @@ class EarlyStop:
         if more > self.max_periods:
             self.expected_end_s, self._search = self.duration_s, None
             return
-        if certain_verdicts(self.classifier, centre, half_width * np.sqrt(periods / more))[0]:
-            self.expected_end_s, self._search = self.setup.end_s(more), None
+        # enough candidates per step to finish before the next period's end (one, unless the test is long)
+        candidates = np.arange(more, min(more + self.search_per_step, self.max_periods + 1))
+        boxes = certain_verdicts(self.classifier, np.repeat(centre, len(candidates), axis=0),
+                                 half_width * np.sqrt(periods / candidates)[:, None])
+        if boxes.any():
+            self.expected_end_s, self._search = self.setup.end_s(int(candidates[np.argmax(boxes)])), None
         else:  # not before the next candidate, at the earliest
-            self.expected_end_s = self.setup.end_s(min(more + 1, self.max_periods))
-            self._search = (centre, half_width, periods, more + 1)
+            after = int(candidates[-1]) + 1
+            self.expected_end_s = self.setup.end_s(min(after, self.max_periods))
+            self._search = (centre, half_width, periods, after)
 
     def check(self, k: int, columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
         """At tick ``k`` (one of :attr:`check_ticks`): the reason to stop now, with its figures, or None."""
@@ -145,11 +171,12 @@ class EarlyStop:
             return None
         self._search = None  # the new period's figures replace an unfinished search
         acc, setup = self.variant.acceptance, self.setup
-        self._feed(setup.first_tick + periods * setup.block_ticks, columns)
+        # rows whose samples are final for good; the period's last few wait for replies still on their way
+        self._feed(k - self.feed_lag_ticks, columns)
         if periods < acc.min_periods:
             self.expected_end_s = setup.end_s(min(acc.min_periods, self.max_periods))
             return None
-        fit = solve(self.acc, periods, acc.settle_band_rel)
+        fit = self._solve_with_pending(periods, columns)
         if fit is None:
             self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None

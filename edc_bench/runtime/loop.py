@@ -80,7 +80,7 @@ class StopRule(Protocol):
     """Decides whether a test may end before its full length (:class:`~edc_bench.diagnosis.early_stop.EarlyStop`)."""
 
     #: ticks after which :meth:`check` is asked (the ends of whole excitation periods, and steps of work spread
-    #: between them); each call must return well within a tick period
+    #: between them); each call must be short (it runs inside a tick: at most a tick or two late after it)
     check_ticks: Container[int]
     #: when the test is expected to end (trace time, s), for the live view
     expected_end_s: float
@@ -132,7 +132,7 @@ class LoopOutcome:
     frames_dropped: int = 0  # frames beyond the CAN log's maximum, counted but not stored
     events: list[str] = field(default_factory=list)
     stop: dict | None = None  # the stop rule's decision, when it ended the test early
-    stop_check_max_s: float = 0.0  # the stop rule's longest call (CPU time it took from one tick)
+    stop_check_max_s: float = 0.0  # the stop rule's longest call (wall time, perf_counter)
 
 
 class _AbortTest(Exception):
@@ -564,8 +564,10 @@ class BenchLoop:
                 outcome.abort_reason = (f"rig amplifier off while running (rig state {state}, "
                                         f"fault code {FaultCode(self._rig_fault_code).name})")
             elif counts.unanswered_in_row > max_in_row:
+                why = (f"no valid reply ({outcome.bad_replies} failed their CRC check in this test)"
+                       if outcome.bad_replies else "the rig stopped answering")
                 outcome.abort_reason = (f"{counts.unanswered_in_row} replies missing in a row (limit {max_in_row}): "
-                                        "the rig stopped answering")
+                                        f"{why}")
                 if counts.too_old:
                     outcome.abort_reason += f" ({counts.too_old} replies came earlier, too old to use)"
             elif counts.missed_in_row > max_stale_in_row:

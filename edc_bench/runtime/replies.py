@@ -79,6 +79,9 @@ class ReplyMatcher:
         self._answered: set[int] = set()
         self._expired: set[int] = set()  # ticks whose commands expired unanswered
         self._late: set[int] = set()  # ticks whose replies came too old before their commands expired
+        # expired commands with no reply at all, newer than the newest command that got one: the silence
+        self._silent: deque[int] = deque()
+        self._newest_replied = SYNC_TICK
         self.newest_tick = SYNC_TICK
         self.counts = ReplyCounts()
 
@@ -97,19 +100,20 @@ class ReplyMatcher:
             if old_tick in self._answered:
                 self._answered.discard(old_tick)
                 counts.missed_in_row = 0
-                counts.unanswered_in_row = 0
-            else:
-                missed.append(old_tick)
-                counts.missed += 1
-                counts.missed_in_row += 1
-                counts.max_missed_in_row = max(counts.max_missed_in_row, counts.missed_in_row)
-                if old_tick in self._late:  # answered, too late: the link is slow, not silent
-                    self._late.discard(old_tick)
-                else:
-                    # its reply may still come, too late: remembered until the counter comes round again
-                    self._expired.add(old_tick)
-                    counts.unanswered_in_row += 1
-                    counts.max_unanswered_in_row = max(counts.max_unanswered_in_row, counts.unanswered_in_row)
+                continue
+            missed.append(old_tick)
+            counts.missed += 1
+            counts.missed_in_row += 1
+            counts.max_missed_in_row = max(counts.max_missed_in_row, counts.missed_in_row)
+            if old_tick in self._late:  # answered, too late: the link is slow, not silent
+                self._late.discard(old_tick)
+                continue
+            # its reply may still come, too late: remembered until the counter comes round again
+            self._expired.add(old_tick)
+            if old_tick > self._newest_replied:  # no later command answered either: the silence goes on
+                self._silent.append(old_tick)
+                counts.unanswered_in_row = len(self._silent)
+                counts.max_unanswered_in_row = max(counts.max_unanswered_in_row, counts.unanswered_in_row)
         previous = self._tick_of[counter]
         if previous is not None:
             self._expired.discard(previous)
@@ -118,24 +122,34 @@ class ReplyMatcher:
         in_flight.append((tick, counter))
         return missed
 
+    def _replied(self, tick: int) -> None:
+        """A reply to ``tick``'s command came (usable or not): the silence before it is over."""
+        self._newest_replied = max(self._newest_replied, tick)
+        silent = self._silent
+        while silent and silent[0] <= tick:
+            silent.popleft()
+        self.counts.unanswered_in_row = len(silent)
+
     def match(self, counter: int, next_tick: int) -> int | None:
         """The tick a reply with ``counter`` answers, if it may be used at ``next_tick``; else None."""
         tick = self._tick_of[counter]
         counts = self.counts
-        if tick is None or tick in self._answered:
-            counts.unmatched += 1
-            return None
-        age = next_tick - tick
+        in_flight = self._in_flight
         if tick in self._expired:  # already counted missed; note that it came, too late
             self._expired.discard(tick)
-            counts.ages[age] = counts.ages.get(age, 0) + 1
+            counts.ages[next_tick - tick] = counts.ages.get(next_tick - tick, 0) + 1
             counts.too_old += 1
-            counts.unanswered_in_row = 0  # the link is alive
+            self._replied(tick)  # the link is alive
             return None
+        if (tick is None or tick in self._answered or tick in self._late
+                or not in_flight or tick < in_flight[0][0]):
+            counts.unmatched += 1  # a repeat of a reply already seen, or for no command in flight
+            return None
+        age = next_tick - tick
         counts.ages[age] = counts.ages.get(age, 0) + 1
+        self._replied(tick)
         if age > self.max_age_ticks:
             counts.too_old += 1  # not used: it counts as missed when its command expires
-            counts.unanswered_in_row = 0  # but the link is alive
             self._late.add(tick)
             return None
         self._answered.add(tick)

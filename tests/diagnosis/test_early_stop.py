@@ -12,32 +12,15 @@ import numpy as np
 import pytest
 
 from edc_bench.bench import run_simulated_test
-from edc_bench.config import load_variant
+from edc_bench.config import load_variant, with_changes
 from edc_bench.diagnosis import early_stop
-from edc_bench.diagnosis.classifier import default_classifier
+from edc_bench.diagnosis.baseline import load_baseline
+from edc_bench.diagnosis.classifier import ValveClassifier, default_classifier
 from edc_bench.diagnosis.period_fit import BlockAccumulator, accumulate, rows
 
 # a valve just inside the marginal band of the default variant: its verdict becomes certain only after several
 # periods (24 s with seed 0), so the expected-end search runs at many period ends
 SLOW_TO_DECIDE = "clearance=0.183"
-
-
-class _CountingClassifier:
-    """The station's classifier, counting the points of each call."""
-
-    def __init__(self, inner) -> None:
-        self.inner, self.calls = inner, []
-
-    def classify_many(self, features_rel):
-        self.calls.append(len(features_rel))
-        return self.inner.classify_many(features_rel)
-
-    def verdicts(self, features_rel):
-        self.calls.append(len(features_rel))
-        return self.inner.verdicts(features_rel)
-
-    def __getattr__(self, name):
-        return getattr(self.inner, name)
 
 
 class _Watch:
@@ -56,17 +39,17 @@ class _Watch:
 
 @pytest.fixture(scope="module")
 def spread_run():
-    """A slow-to-decide valve's test, every stop-rule call recorded: (tick, rows smoothed, classifier points)."""
+    """A slow-to-decide valve's test, every stop-rule call recorded: (tick, rows smoothed, points the classifier
+    was asked about, points it scanned in full)."""
     mp = pytest.MonkeyPatch()
-    counting = _CountingClassifier(default_classifier())
-    calls, spans, boxes = [], [], []
+    calls, spans, asked, full, boxes = [], [], [], [], []
     real_check, real_rows, real_flags = early_stop.EarlyStop.check, early_stop.rows, early_stop.stop_flags
+    real_verdicts, real_many = ValveClassifier.verdicts, ValveClassifier.classify_many
 
     def check(self, k, columns):
-        spans.clear()
-        before = len(counting.calls)
+        spans.clear(), asked.clear(), full.clear()
         out = real_check(self, k, columns)
-        calls.append((k, sum(spans), sum(counting.calls[before:])))
+        calls.append((k, sum(spans), sum(asked), sum(full)))
         return out
 
     def counted_rows(setup, position_mm, *args):
@@ -78,10 +61,19 @@ def spread_run():
         boxes.append((periods, centres.copy(), half_widths.copy(), bool(out[1][0]), bool(out[2][0])))
         return out
 
+    def verdicts(self, features_rel):
+        asked.append(len(features_rel))
+        return real_verdicts(self, features_rel)
+
+    def classify_many(self, features_rel):
+        full.append(len(features_rel))
+        return real_many(self, features_rel)
+
     mp.setattr(early_stop.EarlyStop, "check", check)
     mp.setattr(early_stop, "rows", counted_rows)
     mp.setattr(early_stop, "stop_flags", flags)
-    mp.setattr("edc_bench.diagnosis.classifier.default_classifier", lambda path=None: counting)
+    mp.setattr(ValveClassifier, "verdicts", verdicts)
+    mp.setattr(ValveClassifier, "classify_many", classify_many)
     watch = _Watch()
     try:
         result = run_simulated_test(load_variant(), SLOW_TO_DECIDE, 0, observer=watch)
@@ -102,16 +94,17 @@ def test_no_call_smooths_more_than_a_step_of_rows_or_asks_the_classifier_more_th
     rule = watch.rule
     window = rule.setup.window
     assert len(calls) > 10 * result.stop["periods"]
-    assert sum(points for _, _, points in calls) >= 5 * 6  # the classifier was asked, and counted
-    for k, span, points in calls:
+    assert sum(asked for _, _, asked, _ in calls) >= 5 * 6  # the classifier was asked, and counted
+    for k, span, asked, full in calls:
         assert span <= early_stop.STEP_TICKS + window + 1, (k, span)  # a step's rows and their smoothing margins
-        assert points <= 5, (k, points)  # one box: its centre and four corners
+        assert asked <= 5 * rule.search_per_step, (k, asked)  # one box per candidate: centre and four corners
+        assert full <= asked, (k, full, asked)  # the full boundary scan only for points near the band
         if k not in rule.period_ends:
-            assert span == 0 or points == 0, (k, span, points)  # a step feeds or searches, never both
-    # the end of a period has only the few rows the reply lag held back left to feed
-    for k, span, _ in calls:
+            assert span == 0 or asked == 0, (k, span, asked)  # a step feeds or searches, never both
+    # the end of a period feeds what the reply lag held back: once for good, once as it stands for the decision
+    for k, span, _, _ in calls:
         if k in rule.period_ends:
-            assert span <= rule.feed_lag_ticks + window + 1, (k, span)
+            assert span <= 2 * (rule.feed_lag_ticks + window + 1), (k, span)
 
 
 def test_the_expected_end_found_step_by_step_is_the_one_a_search_over_every_period_gives(spread_run) -> None:
@@ -137,22 +130,65 @@ def test_the_expected_end_found_step_by_step_is_the_one_a_search_over_every_peri
 
 @pytest.mark.parametrize("adapter", [None, "usb-fs"])
 def test_rows_fed_a_step_at_a_time_sum_to_the_rows_of_the_whole_trace(adapter) -> None:
-    """The accumulator the stop rule built step by step holds what one pass over the finished trace gives (through
-    a USB adapter's late replies too: the feed waits for the oldest reply the loop accepts)."""
+    """The accumulator the stop rule built step by step holds what one pass over the finished trace gives, for
+    every period the test went on after (through a USB adapter's late replies too)."""
     watch = _Watch()
-    result = run_simulated_test(load_variant(), "worn", 1, observer=watch, adapter=adapter)
+    result = run_simulated_test(load_variant(), SLOW_TO_DECIDE, 0, observer=watch, adapter=adapter)
     rule = watch.rule
-    periods = result.stop["periods"]
-    trace, setup = result.trace, rule.setup
+    periods = result.stop.get("periods", rule.max_periods)  # the slow valve may run its full length
+    assert periods >= 4
+    whole = _whole_trace_accumulator(rule, result.trace, periods)
+    done = periods - 1  # the last period's final rows were only added for the decision, then taken out
+    np.testing.assert_allclose(rule.acc.A[:done], whole.A[:done], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(rule.acc.z[:done], whole.z[:done], rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(rule.acc.count[:done], whole.count[:done])
+    held_back = whole.count[done] - rule.acc.count[done]
+    assert (0 <= held_back).all() and (held_back <= rule.feed_lag_ticks - rule.setup.window // 2).all()
+
+
+def _whole_trace_accumulator(rule, trace, periods: int) -> BlockAccumulator:
+    setup = rule.setup
     valid = trace["reply_ok"].astype(bool) & ~trace["gap"].astype(bool)
     X, y, use = rows(setup, trace["position_mm"], trace["drive_v"],
                      trace["coil_resistance_ohm"] / rule.variant.coil.resistance_ohm,
                      trace["reference_velocity_mm_s"], valid)
     whole = BlockAccumulator(setup, periods)
     accumulate(setup, whole, 0, X, y, use)
-    # the last period's final rows were fed at its end, before the replies to its last ticks could come
-    complete = periods if adapter is None else periods - 1
-    np.testing.assert_allclose(rule.acc.A[:complete], whole.A[:complete], rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(rule.acc.z[:complete], whole.z[:complete], rtol=1e-9, atol=1e-12)
-    np.testing.assert_array_equal(rule.acc.count[:complete], whole.count[:complete])
-    assert (rule.acc.count[periods - 1] >= whole.count[periods - 1] - 2 * rule.feed_lag_ticks).all()
+    return whole
+
+
+def test_a_period_s_last_rows_wait_for_their_replies_where_the_rack_slides_across_the_period_s_end() -> None:
+    """An excitation whose periods end mid-slide (0.5 Hz and 1.5 Hz: the rack at 17 mm/s there), replies 3 ticks
+    late: at each period's end the last rows lack their samples. The decision counts them as missing (as a test
+    stopped there would), and the later steps feed them with their replies. Before, they were fed at the end,
+    as missing, for good: the stop rule's fit lost up to max_reply_age + 1 sliding rows a period."""
+    variant = with_changes(load_variant(), {"excitation": {"tones": [
+        {"frequency_hz": 0.5, "amplitude_mm": 4.0}, {"frequency_hz": 1.5, "amplitude_mm": 0.5}]}}, "mid-slide")
+    trace = run_simulated_test(variant, "worn", 1, classify=False).trace
+    rule = early_stop.EarlyStop(variant, load_baseline(variant), default_classifier())
+    setup, late = rule.setup, 3
+    boundary = setup.first_tick + 2 * setup.block_ticks
+    assert abs(trace["reference_velocity_mm_s"][boundary - 2]) > 2 * setup.exclusion_mm_s  # sliding there
+    periods = 5
+    last = setup.end_tick(periods)
+    for k in sorted(t for t in rule.check_ticks if t <= last):
+        columns = dict(trace)
+        pending = np.zeros(len(trace["reply_ok"]), dtype=bool)
+        pending[k - late + 1: k + 1] = True  # the replies to the last ticks' commands are still on their way
+        columns["reply_ok"] = trace["reply_ok"].astype(bool) & ~pending
+        rule.check(k, columns)
+    whole = _whole_trace_accumulator(rule, trace, periods)
+    done = periods - 1
+    np.testing.assert_array_equal(rule.acc.count[:done], whole.count[:done])
+    np.testing.assert_allclose(rule.acc.A[:done], whole.A[:done], rtol=1e-9, atol=1e-12)
+
+
+def test_a_long_test_searches_enough_periods_a_step_to_finish_between_two_period_ends() -> None:
+    for duration_s in (30.0, 60.0, 120.0):
+        variant = with_changes(load_variant(), {"excitation": {"duration_s": duration_s}}, "long")
+        rule = early_stop.EarlyStop(variant, load_baseline(variant), default_classifier())
+        ends = sorted(rule.period_ends)
+        steps = min(sum(1 for t in rule.search_ticks if a < t < b) for a, b in zip(ends, ends[1:]))
+        candidates = rule.max_periods - variant.acceptance.min_periods
+        assert steps * rule.search_per_step >= candidates, duration_s
+        assert rule.search_per_step == (1 if duration_s <= 40 else rule.search_per_step)

@@ -63,23 +63,31 @@ def test_matcher_counts_missed_in_row_only_when_they_expire() -> None:
 
 
 def test_replies_that_come_too_late_end_the_silence_but_not_the_missing_samples() -> None:
-    """Two streaks: a silent link (no reply at all) and a slow one (replies, but too old to use)."""
+    """Two streaks: silence (commands in a row with no reply at all, newer than the newest answered one) and
+    missing samples (commands in a row without a usable reply). Calls in the loop's order: a reply is matched
+    at ``next_tick`` after the command of ``next_tick - 1`` went out."""
     m = ReplyMatcher(max_age_ticks=2)
     for k in range(10):  # nothing comes back: silent
         m.sent(k, k)
-    assert m.counts.unanswered_in_row == m.counts.missed_in_row == 7
-    m.match(3, next_tick=10)  # tick 3's reply, 7 ticks old: never used, but the link is alive
-    assert m.counts.unanswered_in_row == 0 and m.counts.missed_in_row == 7 and m.counts.too_old == 1
-    m.match(8, next_tick=11)  # too old before its command expired: missed when it does, yet not silent
-    m.sent(10, 10)
-    m.sent(11, 11)
-    assert m.counts.missed_in_row == 9 and m.counts.unanswered_in_row == 1  # tick 8 late, tick 9 unanswered
-    m.match(11, next_tick=12)  # a usable reply ends both, once its command leaves the window
-    m.sent(12, 12)
+    assert m.counts.unanswered_in_row == m.counts.missed_in_row == 7  # ticks 0-6 expired
+    m.match(3, next_tick=10)  # tick 3's reply, 7 ticks old: never used; the silence is ticks 4-6 now
+    assert m.counts.unanswered_in_row == 3 and m.counts.missed_in_row == 7 and m.counts.too_old == 1
+    m.match(7, next_tick=10)  # too old before its command expired: not used, but nothing before it is silent
+    assert m.counts.unanswered_in_row == 0 and m.counts.too_old == 2
+    m.sent(10, 10)  # tick 7 expires: a missing sample, not silence
+    m.sent(11, 11)  # tick 8 expires with no reply: silence again
+    assert m.counts.missed_in_row == 9 and m.counts.unanswered_in_row == 1
+    m.match(3, next_tick=12)  # tick 3's reply again: a repeat ends nothing
+    assert m.counts.unmatched == 1 and m.counts.unanswered_in_row == 1 and m.counts.too_old == 2
+    m.match(11, next_tick=12)  # usable: the silence before it is over at once
+    assert m.counts.unanswered_in_row == 0
+    m.sent(12, 12)  # ticks 9 and 10 expire unanswered, but tick 11 was answered: no silence, missing samples
     m.sent(13, 13)
-    assert m.counts.missed_in_row == 11 and m.counts.unanswered_in_row == 3  # ticks 9 and 10 unanswered
-    m.sent(14, 14)
-    assert m.counts.missed_in_row == m.counts.unanswered_in_row == 0  # tick 11 answered in time
+    assert m.counts.missed_in_row == 11 and m.counts.unanswered_in_row == 0
+    m.sent(14, 14)  # tick 11's usable sample leaves the window: the run of missing samples ends
+    assert m.counts.missed_in_row == 0
+    m.match(11, next_tick=15)  # a repeat of a used reply
+    assert m.counts.unmatched == 2 and m.counts.matched == 1
     assert m.counts.max_unanswered_in_row == 7 and m.counts.max_missed_in_row == 11
 
 
