@@ -165,6 +165,13 @@ class ValveClassifier:
         x = np.ascontiguousarray(features_rel, dtype=np.float32)
         return self.session.run([self._output], {self._input: x})[0][:, 1]
 
+    def _flipped(self, x: np.ndarray, faulty: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """Whether the class at x + r u differs from x's, for every direction u and radius r: (n, directions,
+        radii)."""
+        pts = x[:, None, None, :] + radii[None, None, :, None] * self._directions[None, :, None, :]
+        side = (self.probabilities(pts.reshape(-1, 2)) >= self.threshold).reshape(len(x), _DIRECTIONS, len(radii))
+        return side != faulty[:, None, None]
+
     def distances(self, features_rel: np.ndarray, faulty: np.ndarray | None = None) -> np.ndarray:
         """Signed distance of each row to the boundary (positive: faulty side).
 
@@ -175,10 +182,7 @@ class ValveClassifier:
         if faulty is None:
             faulty = self.probabilities(x) >= self.threshold
         dirs = self._directions
-        # stage 1: points x + r u for every direction and radius
-        pts = x[:, None, None, :] + _RADII[None, None, :, None] * dirs[None, :, None, :]
-        side = (self.probabilities(pts.reshape(-1, 2)) >= self.threshold).reshape(n, _DIRECTIONS, len(_RADII))
-        flipped = side != faulty[:, None, None]
+        flipped = self._flipped(x, faulty, _RADII)  # stage 1
         any_flip = flipped.any(axis=2)
         first = np.where(any_flip, flipped.argmax(axis=2), len(_RADII))  # (n, dirs)
         best = first.min(axis=1)
@@ -221,9 +225,7 @@ class ValveClassifier:
         x = np.asarray(features_rel, dtype=np.float64)
         faulty = self.probabilities(x) >= self.threshold
         near = _RADII[: int(np.searchsorted(_RADII, self.marginal_band)) + 1]
-        pts = x[:, None, None, :] + near[None, None, :, None] * self._directions[None, :, None, :]
-        side = (self.probabilities(pts.reshape(-1, 2)) >= self.threshold).reshape(len(x), _DIRECTIONS, len(near))
-        close = (side != faulty[:, None, None]).any(axis=(1, 2))
+        close = self._flipped(x, faulty, near).any(axis=(1, 2))
         out = np.where(faulty, Verdict.FAIL.value, Verdict.PASS.value).astype(object)
         if close.any():
             out[close] = self.classify_many(x[close])[0]

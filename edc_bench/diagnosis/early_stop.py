@@ -22,7 +22,8 @@ long the test and its variant (steps 0.2-0.6 ms, the period-end decision
 
 - every :data:`STEP_TICKS` ticks the rows completed since the last step are
   fed (their replies in: the feed lags by the oldest reply the loop accepts);
-- at a period's end the last rows are fed, the fit solved and the stop rule
+- at a period's end the fit is solved with the period's last rows as they
+  stand (fed for good by the next steps, their replies in) and the stop rule
   asked (one classifier call, five points);
 - the expected end is searched a candidate period per step (more if the
   test has more periods left than a period has steps), half a step after
@@ -49,8 +50,8 @@ from edc_bench.diagnosis.period_fit import (
     accumulate,
     expected_drive_noise_v,
     reference_condition_number,
-    rows,
     solve,
+    trace_rows,
 )
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate
 from edc_bench.runtime.replies import max_reply_age_ticks
@@ -117,12 +118,8 @@ class EarlyStop:
         # the smoothing of a row reaches half a window either side, and the next sample: rows() leaves the span's
         # edges out, so the span reaches that far beyond the rows fed
         lo = start - half
-        sl = slice(lo, to_tick + half + 1)
-        rho = columns["coil_resistance_ohm"][sl] / self._r_ref
-        valid = columns["reply_ok"][sl].astype(bool) & ~columns["gap"][sl].astype(bool)
-        X, y, use = rows(self.setup, columns["position_mm"][sl], columns["drive_v"][sl], rho,
-                         columns["reference_velocity_mm_s"][sl], valid)
-        accumulate(self.setup, self.acc, lo, X, y, use)
+        span = slice(lo, to_tick + half + 1)
+        accumulate(self.setup, self.acc, lo, *trace_rows(self.setup, columns, self._r_ref, span))
         self.fed_to_tick = to_tick
 
     def _solve_with_pending(self, periods: int, columns: dict[str, np.ndarray]) -> PeriodFit | None:

@@ -406,7 +406,17 @@ def reference_condition_number(design: ControllerDesign) -> float:
     return condition_number(phi[keep][:, list(design.estimated)])
 
 
-def trace_blocks(setup: FitSetup, trace: dict[str, np.ndarray], rho: np.ndarray | None = None,
+def trace_rows(setup: FitSetup, trace: dict[str, np.ndarray], reference_resistance_ohm: float,
+               span: slice = slice(None)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`rows` of a loop's trace columns over ``span`` (a tick's sample counts if its reply came in time and
+    the tick was not lost in a gap): for the finished trace, and for the early stop's steps as the test runs."""
+    rho = np.asarray(trace["coil_resistance_ohm"][span], dtype=float) / reference_resistance_ohm
+    valid = trace["reply_ok"][span].astype(bool) & ~trace["gap"][span].astype(bool)
+    return rows(setup, trace["position_mm"][span], trace["drive_v"][span], rho,
+                trace["reference_velocity_mm_s"][span], valid)
+
+
+def trace_blocks(setup: FitSetup, trace: dict[str, np.ndarray],
                  reference_resistance_ohm: float = 1.0) -> tuple[BlockAccumulator, int]:
     """The normal equations of a loop's trace per block, and how many blocks are complete.
 
@@ -424,11 +434,7 @@ def trace_blocks(setup: FitSetup, trace: dict[str, np.ndarray], rho: np.ndarray 
     acc = BlockAccumulator(setup, max(blocks, 1))
     if blocks == 0:
         return acc, 0
-    if rho is None:
-        rho = np.asarray(trace["coil_resistance_ohm"], dtype=float) / reference_resistance_ohm
-    valid = trace["reply_ok"].astype(bool) & ~trace["gap"].astype(bool)
-    X, y, use = rows(setup, trace["position_mm"], trace["drive_v"], rho, trace["reference_velocity_mm_s"], valid)
-    accumulate(setup, acc, 0, X, y, use)
+    accumulate(setup, acc, 0, *trace_rows(setup, trace, reference_resistance_ohm))
     return acc, blocks
 
 

@@ -13,10 +13,10 @@ import pytest
 
 from edc_bench.bench import run_simulated_test
 from edc_bench.config import load_variant, with_changes
-from edc_bench.diagnosis import early_stop
+from edc_bench.diagnosis import early_stop, period_fit
 from edc_bench.diagnosis.baseline import load_baseline
 from edc_bench.diagnosis.classifier import ValveClassifier, default_classifier
-from edc_bench.diagnosis.period_fit import BlockAccumulator, accumulate, rows
+from edc_bench.diagnosis.period_fit import trace_blocks
 
 # a valve just inside the marginal band of the default variant: its verdict becomes certain only after several
 # periods (24 s with seed 0), so the expected-end search runs at many period ends
@@ -43,7 +43,7 @@ def spread_run():
     was asked about, points it scanned in full)."""
     mp = pytest.MonkeyPatch()
     calls, spans, asked, full, boxes = [], [], [], [], []
-    real_check, real_rows, real_flags = early_stop.EarlyStop.check, early_stop.rows, early_stop.stop_flags
+    real_check, real_rows, real_flags = early_stop.EarlyStop.check, period_fit.rows, early_stop.stop_flags
     real_verdicts, real_many = ValveClassifier.verdicts, ValveClassifier.classify_many
 
     def check(self, k, columns):
@@ -70,7 +70,7 @@ def spread_run():
         return real_many(self, features_rel)
 
     mp.setattr(early_stop.EarlyStop, "check", check)
-    mp.setattr(early_stop, "rows", counted_rows)
+    mp.setattr(period_fit, "rows", counted_rows)
     mp.setattr(early_stop, "stop_flags", flags)
     mp.setattr(ValveClassifier, "verdicts", verdicts)
     mp.setattr(ValveClassifier, "classify_many", classify_many)
@@ -137,24 +137,13 @@ def test_rows_fed_a_step_at_a_time_sum_to_the_rows_of_the_whole_trace(adapter) -
     rule = watch.rule
     periods = result.stop.get("periods", rule.max_periods)  # the slow valve may run its full length
     assert periods >= 4
-    whole = _whole_trace_accumulator(rule, result.trace, periods)
+    whole, _ = trace_blocks(rule.setup, result.trace, rule.variant.coil.resistance_ohm)
     done = periods - 1  # the last period's final rows were only added for the decision, then taken out
     np.testing.assert_allclose(rule.acc.A[:done], whole.A[:done], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(rule.acc.z[:done], whole.z[:done], rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(rule.acc.count[:done], whole.count[:done])
     held_back = whole.count[done] - rule.acc.count[done]
     assert (0 <= held_back).all() and (held_back <= rule.feed_lag_ticks - rule.setup.window // 2).all()
-
-
-def _whole_trace_accumulator(rule, trace, periods: int) -> BlockAccumulator:
-    setup = rule.setup
-    valid = trace["reply_ok"].astype(bool) & ~trace["gap"].astype(bool)
-    X, y, use = rows(setup, trace["position_mm"], trace["drive_v"],
-                     trace["coil_resistance_ohm"] / rule.variant.coil.resistance_ohm,
-                     trace["reference_velocity_mm_s"], valid)
-    whole = BlockAccumulator(setup, periods)
-    accumulate(setup, whole, 0, X, y, use)
-    return whole
 
 
 def test_a_period_s_last_rows_wait_for_their_replies_where_the_rack_slides_across_the_period_s_end() -> None:
@@ -177,7 +166,7 @@ def test_a_period_s_last_rows_wait_for_their_replies_where_the_rack_slides_acros
         pending[k - late + 1: k + 1] = True  # the replies to the last ticks' commands are still on their way
         columns["reply_ok"] = trace["reply_ok"].astype(bool) & ~pending
         rule.check(k, columns)
-    whole = _whole_trace_accumulator(rule, trace, periods)
+    whole, _ = trace_blocks(setup, trace, variant.coil.resistance_ohm)
     done = periods - 1
     np.testing.assert_array_equal(rule.acc.count[:done], whole.count[:done])
     np.testing.assert_allclose(rule.acc.A[:done], whole.A[:done], rtol=1e-9, atol=1e-12)
@@ -191,4 +180,4 @@ def test_a_long_test_searches_enough_periods_a_step_to_finish_between_two_period
         steps = min(sum(1 for t in rule.search_ticks if a < t < b) for a, b in zip(ends, ends[1:]))
         candidates = rule.max_periods - variant.acceptance.min_periods
         assert steps * rule.search_per_step >= candidates, duration_s
-        assert rule.search_per_step == (1 if duration_s <= 40 else rule.search_per_step)
+        assert (rule.search_per_step == 1) == (duration_s <= 40)  # one a step unless the test is long
