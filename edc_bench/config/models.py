@@ -392,7 +392,11 @@ class AcceptanceSection(_Section):
     max_tracking_error_mm: PositiveFloat = Field(
         default=2.0, description="abort if the rack stays this far from its reference (a stuck sensor or rack)"
     )
-    tracking_error_ticks: Annotated[int, Field(ge=1, le=10000)] = 50
+    tracking_error_ticks: Annotated[int, Field(ge=1, le=10000)] = Field(
+        default=100, description="ticks in a row beyond max_tracking_error_mm that end the test: twice a sticky "
+        "valve's longest stick-slip (50 ms, a faulty valve on a pump the model fits badly), and short enough that a "
+        "stuck sensor is caught before the PID winds the coil up to the rig's over-current trip",
+    )
     ready_timeout_s: PositiveFloat = 3.0
 
 

@@ -47,6 +47,7 @@ from edc_bench.protocol.errors import ProtocolError
 from edc_bench.runtime.clock import Clock, cpu_steal_s
 from edc_bench.runtime.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks, stale_limit_ticks
 from edc_bench.runtime.trace import CanFrameLog, Trace, frame_flags
+from edc_bench.runtime.tracking import OffReferenceRun
 
 # flag bits of trace column rig_flags
 FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
@@ -476,9 +477,7 @@ class BenchLoop:
         max_stale_in_row = stale_limit_ticks(self.variant)
         max_missed_fraction = acceptance.max_missed_reply_fraction
         heartbeat_timeout_s = self.variant.rig.heartbeat_period_ms * 1e-3 * acceptance.heartbeat_timeout_periods
-        max_error_mm = acceptance.max_tracking_error_mm
-        error_ticks_limit = acceptance.tracking_error_ticks
-        error_ticks = 0
+        off_reference = OffReferenceRun(acceptance.max_tracking_error_mm, acceptance.tracking_error_ticks)
         follow_from_k = int(self.variant.excitation.move_s / T)  # the rack must follow once it has arrived
         rig = self.variant.rig
         position_range = (rig.travel_min_mm - 1.0, self.variant.rack.stroke_mm + 1.0)
@@ -588,12 +587,8 @@ class BenchLoop:
                 outcome.abort_reason = (f"sample out of range: rack {position_mm:.3f} mm, coil {current_a:.3f} A "
                                         f"(plausible {position_range[0]:g}..{position_range[1]:g} mm, "
                                         f"|i| <= {rig.over_current_a:g} A)")
-            else:
-                error_ticks = error_ticks + 1 if k > follow_from_k and abs(ctl.reference_mm - position_mm) > \
-                    max_error_mm else 0
-                if error_ticks >= error_ticks_limit:
-                    outcome.abort_reason = (f"rack does not follow its reference: more than {max_error_mm:g} mm off "
-                                            f"for {error_ticks} ticks (stuck rack or sensor)")
+            elif k > follow_from_k:
+                outcome.abort_reason = off_reference.update(ctl.reference_mm, position_mm)
             if outcome.abort_reason is not None:
                 outcome.abort_time_s = t_k - t_start
                 return

@@ -174,3 +174,20 @@ def test_bus_error_mid_test_ends_invalid_with_the_data_so_far(tmp_path: Path, si
     folder = write_record(result, tmp_path)
     assert json.loads((folder / "record.json").read_text())["verdict"] == "INVALID"
     assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
+
+
+
+@pytest.mark.parametrize("name", ["p-edc-default", "p-edc-long", "p-edc-hard"])
+def test_a_stuck_sensor_ends_the_test_100_ticks_after_the_rack_reads_2_mm_off(simulated_bench, name: str) -> None:
+    """Caught by the bench, as a stuck sensor, before the PID winds the coil up to the rig's over-current trip
+    (165 ticks on p-edc-default; a limit of 200 ticks let the rig trip first)."""
+    variant = load_variant(name)
+    bench, clock, rig = simulated_bench(variant, "worn", 1, interface="virtual")
+    schedule_rig_fault(rig, "lvdt_stuck", FAULT_AT_S)
+    result = run_bench_test(bench, clock, variant, check_gains=False)
+    reason = result.outcome.abort_reason
+    assert reason.startswith("rack does not follow its reference: more than 2 mm off for 100 ticks, moving 0.00 mm")
+    assert reason.endswith("(stuck rack or sensor)")
+    off = np.abs(result.trace["reference_mm"] - result.trace["position_mm"]) > 2.0
+    assert off[-100:].all() and not off[-101]  # the whole run, and no more, in the trace
+    assert np.abs(result.trace["current_a"]).max() < 0.5 * variant.rig.over_current_a  # 4.8-6.4 A of 15
