@@ -475,6 +475,8 @@ class BenchLoop:
         # without a usable sample the PID holds; as long as the rig's watchdog lets a silent bench go (the
         # replies still coming, too late: a link that held them back once), the test goes on
         max_stale_in_row = stale_limit_ticks(self.variant)
+        stale_limit_source = ("the rig's watchdog time" if max_stale_in_row > max_in_row
+                              else "acceptance.max_missed_replies_in_row")
         max_missed_fraction = acceptance.max_missed_reply_fraction
         heartbeat_timeout_s = self.variant.rig.heartbeat_period_ms * 1e-3 * acceptance.heartbeat_timeout_periods
         off_reference = OffReferenceRun(acceptance.max_tracking_error_mm, acceptance.tracking_error_ticks)
@@ -571,8 +573,8 @@ class BenchLoop:
                     outcome.abort_reason += f" ({counts.too_old} replies came earlier, too old to use)"
             elif counts.missed_in_row > max_stale_in_row:
                 outcome.abort_reason = (
-                    f"no usable reply for {counts.missed_in_row} ticks in a row (limit {max_stale_in_row}, the "
-                    f"rig's watchdog time); {counts.too_old} replies came, but older than "
+                    f"no usable reply for {counts.missed_in_row} ticks in a row (limit {max_stale_in_row}, "
+                    f"{stale_limit_source}); {counts.too_old} replies came, but older than "
                     f"acceptance.max_reply_age_ms ({acceptance.max_reply_age_ms:g} ms): the link is slower than the "
                     "variant's gains are checked for (raise max_reply_age_ms and retune the gains for that delay)")
             elif k >= 1000 and counts.missed > max_missed_fraction * (k + 1):

@@ -151,6 +151,7 @@ def test_replies_older_than_the_age_limit_are_never_used_and_say_why(variant: Va
     result = run_simulated_test(variant, "new", seed=1, adapter="latency_ms=2.5,jitter_ms=0.5")
     assert result.verdict == Verdict.INVALID
     assert "older than acceptance.max_reply_age_ms (4 ms)" in result.reasons[0]
+    assert "ticks in a row (limit 20, the rig's watchdog time)" in result.reasons[0]
     assert result.outcome.replies_too_old > 0
     # never used: on every tick whose newest sample was too old, the feedback held its last value
     trace = result.trace
@@ -243,3 +244,10 @@ def test_a_flooding_bus_ends_the_test_with_safe_at_once(simulated_bench) -> None
     assert rig.plant.drive_v == 0.0  # the rig got SAFE through the flood
     # every read was bounded: no tick read more than the budget
     assert bus.flooded <= variant.acceptance.max_frames_per_tick * 7
+
+
+def test_the_slow_link_limit_names_where_it_comes_from(variant: Variant) -> None:
+    """With more missed replies allowed in a row than the rig's watchdog lasts, that allowance is the limit."""
+    patient = with_changes(variant, {"acceptance": {"max_missed_replies_in_row": 30}}, "patient")
+    result = run_simulated_test(patient, "new", seed=1, adapter="latency_ms=2.5,jitter_ms=0.5")
+    assert "ticks in a row (limit 30, acceptance.max_missed_replies_in_row)" in result.reasons[0], result.reasons
