@@ -41,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--valve", default=None, metavar="SPEC",
                    help="calibrate on the simulated rig with this simulated valve (new, or physical values such as "
                         "clearance=0.09), through the full loop as 'edc-bench test' runs it")
-    p.add_argument("--valve-id", type=identity(drawn=True), default="", metavar="ID",
+    p.add_argument("--valve-id", type=identity(), default="", metavar="ID",
                    help="identity of the valve mounted, for the records")
     p.add_argument("--seed", type=seed_number, default=None,
                    help="seed of the simulated rig's noise or the simulated population (default: 100 plus the "
@@ -51,7 +51,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate")
     p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
                    help="folder for the calibration tests' records (default: ./records), as in 'edc-bench test'")
-    p.add_argument("--station", type=identity(drawn=True), default=None,
+    p.add_argument("--station", type=identity(), default=None,
                    help="name of this bench station (default: the host name)")
     p.set_defaults(run=run)
 

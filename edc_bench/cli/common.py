@@ -127,16 +127,10 @@ def positive_float(what: str) -> Callable[[str], float]:
     return parse
 
 
-def identity(limit: int = MAX_ID_CHARS, drawn: bool = False) -> Callable[[str], str]:
-    """An argparse type for an identity (valve id, pump serial, operator, station): valid text, at most ``limit``.
-
-    ``drawn``: the text goes into a record, whose figure and report draw it; matplotlib reads text between two
-    '$' as a formula and fails on one it cannot parse, so '$' is refused there.
-    """
+def identity(limit: int = MAX_ID_CHARS) -> Callable[[str], str]:
+    """An argparse type for an identity (valve id, pump serial, operator, station): valid text, at most ``limit``."""
     def parse(text: str) -> str:
         problem = text_problem(text, limit)
-        if problem is None and drawn and "$" in text:
-            problem = "contains '$', which the record's figure and report cannot show; leave it out"
         if problem:
             raise argparse.ArgumentTypeError(f"{printable(repr(text))[:80]} {problem}")
         return text

@@ -41,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--interface", default=None, help="python-can interface, e.g. slcan, socketcan, pcan")
     p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
     p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
-    p.add_argument("--valve-id", type=identity(drawn=True), default="", metavar="ID",
+    p.add_argument("--valve-id", type=identity(), default="", metavar="ID",
                    help="identity of the valve under test, kept as given in the record and the history (at most "
                         "100 characters; default on the simulated rig in simulated time: its --valve SPEC; in real time: none, with a "
                         "warning)")
@@ -60,11 +60,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "1.5-3.5 ms round trip) or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] "
                         "(default: none)")
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
-    p.add_argument("--pump-serial", type=identity(drawn=True), default="", metavar="SERIAL",
+    p.add_argument("--pump-serial", type=identity(), default="", metavar="SERIAL",
                    help="serial number of the pump, for the record")
-    p.add_argument("--operator", type=identity(drawn=True), default=None,
+    p.add_argument("--operator", type=identity(), default=None,
                    help="who ran the test (default: the login name)")
-    p.add_argument("--station", type=identity(drawn=True), default=None,
+    p.add_argument("--station", type=identity(), default=None,
                    help="name of this bench station (default: the host name)")
     p.add_argument("--plain", action="store_true", help="log lines instead of the live panel, even on a terminal")
     add_history_db_argument(p, dest="history_db")

@@ -35,7 +35,7 @@ def draw_report_figure(path: Path, trace: dict[str, np.ndarray], title: str,
 
     t = trace["t_s"]
     fig, axes = plt.subplots(4, 1, figsize=(8.3, 10.5), sharex=True, constrained_layout=True)
-    fig.suptitle(title)
+    fig.suptitle(title, parse_math=False)  # ids as typed: a '$' in them is no formula
     panels: list[tuple[Any, list[tuple[str, str]], str]] = [
         (axes[0], [("af_hat", "$\\hat a_f$"), ("b_hat", "$\\hat b$ / 10")], "V"),
         (axes[1], [("a1_hat", "$\\hat a_1$"), ("a2_hat", "$\\hat a_2$ x 10")], "V s/mm, V s$^2$/mm"),

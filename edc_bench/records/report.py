@@ -13,6 +13,7 @@ the decision plane (Fig. 7).
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,8 @@ _VERDICT_COLOURS = {Verdict.PASS: "#2e7d32", Verdict.MARGINAL: "#f9a825", Verdic
 _VERDICT_MEANINGS = {Verdict.PASS: "The valve can be reused.", Verdict.MARGINAL: "Near the limit: test again.",
                      Verdict.FAIL: "Worn: replace the valve.",
                      Verdict.INVALID: "The test is not to be trusted; nothing was judged."}
+_ID_COLUMN_CHARS = 40  # characters of 7.5 pt text in the identity block's value column (two lines at most: the
+# row's room; record.json holds the whole value)
 _UNITS = {"a3": "V s^3/mm", "a2": "V s^2/mm", "a1": "V s/mm", "a0": "V/mm", "b": "V", "af": "V"}
 
 
@@ -100,7 +103,11 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
     for n, (key, value) in enumerate(_identity_lines(record, folder)):
         y = 1.0 - n * 0.1
         ax_id.text(0.0, y, key, fontsize=7.5, weight="bold", va="top", transform=ax_id.transAxes)
-        ax_id.text(0.34, y, value, fontsize=7.5, va="top", transform=ax_id.transAxes, wrap=True)
+        # ids as typed: a '$' in them is no formula; wrapped here, as matplotlib's own wrapping measures text
+        # with two '$' as a formula whatever parse_math says
+        ax_id.text(0.34, y, textwrap.fill(value, _ID_COLUMN_CHARS, max_lines=2, placeholder=" ...",
+                                          break_on_hyphens=False), fontsize=7.5,
+                   va="top", transform=ax_id.transAxes, parse_math=False)
 
     ax_v = fig.add_subplot(grid[0:6, 1])
     ax_v.axis("off")
@@ -166,7 +173,7 @@ def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
         lines.append(f"ended after {stop['time_s']:.1f} s of at most {stop.get('max_s', 0):g} s: {stop['reason']}")
     for n, line in enumerate(lines):
         ax.text(0.0, 1.0 - n * 0.12, line, fontsize=8, va="top", transform=ax.transAxes,
-                weight="bold" if n == 0 else "normal")
+                weight="bold" if n == 0 else "normal", parse_math=False)  # reasons quote ids and paths
 
 
 def _parameter_table(ax: Any, record: dict[str, Any]) -> None:
