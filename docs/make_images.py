@@ -49,7 +49,7 @@ def main() -> None:
     variant = load_variant()
     identity = {"pump_serial": "PS-20231", "station": "bench-2", "operator": "m.keller"}
 
-    class Capture:  # an observer that keeps the snapshot at 12 s, as the live panel showed it
+    class Capture:  # an observer that keeps the snapshot at 6 s, as the live panel showed it (the test stops at 10 s)
         def __init__(self) -> None:
             self.snapshot = Snapshot()
             self.frozen = None
@@ -59,7 +59,7 @@ def main() -> None:
 
         def tick(self, k: int, loop) -> None:
             self.snapshot.update(k, loop)
-            if k == 12_000:
+            if k == 6_000:
                 import copy
 
                 self.frozen = copy.deepcopy(self.snapshot)
@@ -72,7 +72,7 @@ def main() -> None:
     index_record_dir(new_dir)
     console = _console()
     console.print(render_snapshot(capture.frozen, title))
-    _save(console, "live-view.svg", "edc-bench test (live panel, 12 s into the test)")
+    _save(console, "live-view.svg", "edc-bench test (live panel, 6 s into the test)")
     console = _console()
     console.print(verdict_panel(new, Path("records") / new_dir.name))
     _save(console, "verdict-pass.svg", "edc-bench test: PASS")

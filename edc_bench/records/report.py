@@ -227,7 +227,8 @@ def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any]) 
             continue
         ratio = trace[f"{name}_hat"] / ref
         ceiling = max(ceiling, float(np.nanmax(ratio)) * 1.1)
-        ax.plot(t, ratio, colour, lw=0.9, label=f"{name} / {source}")
+        ax.plot(t, ratio, colour, lw=0.9, label=f"{name} / {source}, online")
+        _period_fit_span(ax, record, name, ref, colour, float(t[-1]) if len(t) else math.nan)
     ax.axhline(1.0, color="grey", lw=0.6)
     start_s = (record.get("identification") or {}).get("excitation_start_s")
     if start_s is not None:
@@ -237,7 +238,22 @@ def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any]) 
     ax.set_xlabel("time (s)", fontsize=8)
     ax.set_ylabel("estimate / reference", fontsize=8)
     ax.tick_params(labelsize=7)
-    ax.legend(fontsize=7, loc="upper right")
+    ax.legend(fontsize=6.5, loc="lower right")  # the estimates sit at 1-2.5 once the excitation runs
+
+
+def _period_fit_span(ax: Any, record: dict[str, Any], name: str, ref: float, colour: str, end_s: float) -> None:
+    """The period fit's value (the feature) over the whole periods it used, with its 2-sigma band."""
+    param = (record.get("parameters") or {}).get(name) or {}
+    ident = record.get("identification") or {}
+    value, std = param.get("value"), param.get("std")
+    periods, period_s = ident.get("periods"), ident.get("period_s")
+    if not (isinstance(value, float) and isinstance(std, float) and periods and period_s and math.isfinite(end_s)):
+        return
+    start_s = max(0.0, end_s - periods * period_s)
+    ax.hlines(value / ref, start_s, end_s, colors=colour, lw=2.2, linestyles="--",
+              label=f"{name}, period fit over {periods} periods (the feature)")
+    ax.fill_between([start_s, end_s], (value - 2 * std) / ref, (value + 2 * std) / ref, color=colour, alpha=0.2,
+                    lw=0)
 
 
 def boundary_distance(af_rel: np.ndarray, a1_rel: np.ndarray, p_faulty: np.ndarray, threshold: float) -> np.ndarray:
