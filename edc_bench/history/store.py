@@ -54,6 +54,13 @@ tests = sa.Table(
     sa.Column("reason", sa.Text, nullable=False),
     sa.Column("model_name", sa.String(200)),  # the classifier that judged (None: not classified)
     sa.Column("model_sha256", sa.String(64)),
+    # how the test went: the coil (referred to 20 degC; in its spec?), whether the model fitted the pump, when and
+    # why it stopped (None in rows of an older edc-bench, and where the record does not say)
+    sa.Column("coil_r20_ohm", sa.Float),
+    sa.Column("coil_in_spec", sa.Boolean),
+    sa.Column("model_fits", sa.Boolean),
+    sa.Column("stop_reason", sa.String(40)),
+    sa.Column("test_s", sa.Float),
 )
 
 teardowns = sa.Table(
@@ -185,6 +192,15 @@ def _finite(value: Any) -> float | None:
     return number if number == number and abs(number) != float("inf") else None
 
 
+def _flag(value: Any) -> bool | None:
+    return value if isinstance(value, bool) else None
+
+
+def _mapping(value: Any) -> dict[str, Any]:
+    """``value`` if a record section is a mapping, else empty (a hand-edited record, or one written before it)."""
+    return value if isinstance(value, dict) else {}
+
+
 def row_from_record(record: dict[str, Any], record_dir: Path) -> dict[str, Any]:
     """The history row of a record (record.json's content)."""
     features = record.get("features") or {}
@@ -193,6 +209,9 @@ def row_from_record(record: dict[str, Any], record_dir: Path) -> dict[str, Any]:
     identity = record.get("identity") or {}
     loop = record.get("loop") or {}
     reasons = record.get("reasons") or []
+    coil = _mapping(record.get("coil"))
+    model_fit = _mapping(_mapping(record.get("identification")).get("model_fit"))
+    stop = _mapping(record.get("stop"))
     return {
         "record_dir": _text(Path(record_dir).resolve()),
         "started_at": _text(record.get("started_at", "")),
@@ -214,6 +233,11 @@ def row_from_record(record: dict[str, Any], record_dir: Path) -> dict[str, Any]:
         "reason": _text(loop.get("abort_reason") or (reasons[0] if reasons else "")),
         "model_name": cls.get("model_name") or (Path(cls["model_file"]).stem if cls.get("model_file") else None),
         "model_sha256": cls.get("model_sha256"),
+        "coil_r20_ohm": _finite(coil.get("resistance_20c_ohm")),
+        "coil_in_spec": _flag(coil.get("in_spec")),
+        "model_fits": _flag(model_fit.get("fits")),
+        "stop_reason": _text(stop["reason"])[:40] if stop.get("reason") else None,
+        "test_s": _finite(stop.get("time_s")),
     }
 
 
@@ -440,13 +464,27 @@ def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
     cursor.close()
 
 
+#: What a spreadsheet reads as the start of a formula in a cell (OWASP's list for CSV injection).
+_FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def _cell(value: Any) -> Any:
+    """A text that a spreadsheet would run as a formula (a valve id '=HYPERLINK(...)') quoted with a leading "'",
+    which spreadsheets show as text; numbers and other text as they are."""
+    return "'" + value if isinstance(value, str) and value.startswith(_FORMULA_STARTS) else value
+
+
 def write_csv(rows: Iterable[dict[str, Any]], handle: IO[str], columns: Sequence[str] = COLUMNS) -> int:
-    """Rows as CSV with a header; returns the number of rows written."""
+    """Rows as CSV with a header; returns the number of rows written.
+
+    Text that a spreadsheet would take for a formula is written with a leading "'" (CSV injection: the ids and
+    notes are typed at the bench); numbers are written as they are.
+    """
     writer = csv.DictWriter(handle, fieldnames=list(columns), extrasaction="ignore")
     writer.writeheader()
     count = 0
     for row in rows:
-        writer.writerow(row)
+        writer.writerow({name: _cell(value) for name, value in row.items()})
         count += 1
     return count
 

@@ -178,8 +178,10 @@ def test_two_bench_tests_finishing_at_once_and_an_aborted_one_are_all_indexed(tm
     procs = [subprocess.Popen([*base, "--valve", valve, "--valve-id", f"V-{valve}", "--pump-serial", "P-77"],
                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for valve in ("new", "worn")]
-    # and one stopped by the operator (SIGINT) half-way: INVALID, indexed all the same
-    interrupted = subprocess.Popen([*base, "--valve", "new", "--valve-id", "V-stopped", "--duration-s", "600"],
+    # and one stopped by the operator (SIGINT) half-way: INVALID, indexed all the same (full length: stopped early
+    # at 10 s, "verdict certain", it could end before the signal came)
+    interrupted = subprocess.Popen([*base, "--valve", "new", "--valve-id", "V-stopped", "--duration-s", "600",
+                                    "--full-length"],
                                    env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 11], [o[1] for o in outs]
@@ -198,6 +200,12 @@ def test_two_bench_tests_finishing_at_once_and_an_aborted_one_are_all_indexed(tm
     assert rows["V-new"]["verdict"] == "PASS" and rows["V-worn"]["verdict"] == "FAIL"
     assert rows["V-worn"]["pump_serial"] == "P-77"
     assert rows["V-stopped"]["verdict"] == "INVALID" and "interrupted" in rows["V-stopped"]["reason"]
+    # how each went: coil, model fit, when and why it stopped
+    for name in ("V-new", "V-worn"):
+        assert rows[name]["coil_in_spec"] is True and rows[name]["coil_r20_ohm"] == pytest.approx(0.7, rel=0.1)
+        assert rows[name]["model_fits"] is True
+        assert rows[name]["stop_reason"] == "verdict certain" and rows[name]["test_s"] == pytest.approx(10.0, abs=0.1)
+    assert rows["V-stopped"]["stop_reason"] == "aborted" and 0 < rows["V-stopped"]["test_s"] < 600
     assert (tmp_path / "station.sqlite-wal").exists() or (tmp_path / "station.sqlite").exists()
 
 
@@ -224,3 +232,36 @@ def test_history_command(tmp_path: Path) -> None:
     bad = subprocess.run([sys.executable, "-m", "edc_bench", "history", "--db", "nonsense"], capture_output=True,
                          text=True, timeout=120)
     assert bad.returncode == 2 and "not a database URL" in bad.stderr
+
+
+def test_a_pump_the_model_does_not_fit_is_kept_as_such(tmp_path: Path) -> None:
+    """The history says which tests the model did not fit (so the shop can find a pump that needs its own variant)."""
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant, parse_variant
+    from edc_bench.history.store import row_from_record
+    from edc_bench.records.reader import load_record
+    from edc_bench.records.record import write_record
+
+    data = load_variant("p-edc-hard").model_dump()
+    data["coil"]["force_constant_variation_per_mm"] = 0.0667  # +/-30 % over the swing
+    data["pump"]["name"] = "gain-test"
+    result = run_simulated_test(parse_variant(data), "worn", 0, nominal_baseline=True)
+    folder = write_record(result, tmp_path, figure=False)
+    row = row_from_record(load_record(folder), folder)
+    assert row["verdict"] == "INVALID" and row["model_fits"] is False
+    assert row["stop_reason"] == "model does not fit" and row["test_s"] < 30.0
+    assert row["reason"].startswith("the feedforward model does not fit this pump")
+    # a record without those sections (hand-edited, or older) leaves them empty
+    bare = row_from_record({"verdict": "PASS", "coil": "?", "identification": {"model_fit": None}}, folder)
+    assert [bare[k] for k in ("coil_r20_ohm", "coil_in_spec", "model_fits", "stop_reason", "test_s")] == [None] * 5
+
+
+def test_csv_export_never_hands_a_spreadsheet_a_formula(tmp_path: Path) -> None:
+    """An id typed as '=HYPERLINK(...)' (or starting +, -, @) is exported as text; numbers stay numbers."""
+    rows = [{"valve_id": '=HYPERLINK("http://x","open")', "pump_serial": "+41", "operator": "@ana",
+             "station": "-bay 2", "af_rel": -0.25, "distance": -0.6, "reason": "plain text"}]
+    out = io.StringIO()
+    write_csv(rows, out, columns=list(rows[0]))
+    (read,) = csv.DictReader(io.StringIO(out.getvalue()))
+    assert read == {"valve_id": '\'=HYPERLINK("http://x","open")', "pump_serial": "'+41", "operator": "'@ana",
+                    "station": "'-bay 2", "af_rel": "-0.25", "distance": "-0.6", "reason": "plain text"}

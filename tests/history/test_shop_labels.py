@@ -21,7 +21,8 @@ def _row(valve: str, started: str, af_rel: float | None, a1_rel: float | None, v
     row = {name: "" for name in COLUMNS}
     row.update(record_dir=f"/records/{valve}-{started}-{n}", started_at=started, valve_id=valve, verdict=verdict,
                af_v=None, a1_v_s_per_mm=None, af_rel=af_rel, a1_rel=a1_rel, probability_faulty=None, distance=None,
-               model_name=None, model_sha256=None)
+               model_name=None, model_sha256=None, coil_r20_ohm=None, coil_in_spec=None, model_fits=None,
+               stop_reason=None, test_s=None)
     return row
 
 
@@ -71,10 +72,12 @@ def test_an_older_history_gets_the_new_columns_and_keeps_its_rows(tmp_path: Path
     with sqlite3.connect(path) as conn:  # as the previous version made it: no model columns, no teardowns
         conn.execute("ALTER TABLE tests DROP COLUMN model_name")
         conn.execute("ALTER TABLE tests DROP COLUMN model_sha256")
+        for name in ("coil_r20_ohm", "coil_in_spec", "model_fits", "stop_reason", "test_s"):  # and none of these
+            conn.execute(f"ALTER TABLE tests DROP COLUMN {name}")
         conn.execute("DROP TABLE teardowns")
     with HistoryStore(f"sqlite:///{path}") as store:
         rows = store.list()
-        assert len(rows) == 1 and rows[0]["model_name"] is None
+        assert len(rows) == 1 and rows[0]["model_name"] is None and rows[0]["model_fits"] is None
         store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-02")
         assert store.labelled_tests()[0]["label"] == 0
 
