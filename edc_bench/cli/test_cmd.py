@@ -149,6 +149,9 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
         "classification": result.classification,
         "settle_s": None if result.identification is None else result.identification.settle_s,
         "condition_number": None if result.identification is None else result.identification.condition_number,
+        "model_fit": (None if result.identification is None or result.identification.model_fit is None
+                      else result.identification.model_fit.as_dict()),
+        "stop": result.stop,
         "timing": result.timing,
         "clock": result.clock,
         "record_dir": str(record_dir) if record_dir else None,

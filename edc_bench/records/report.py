@@ -163,8 +163,11 @@ def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
     if fit.get("fits") is False:  # what to do matters more than the figures, which the record holds
         lines += ["THE MODEL DOES NOT FIT THIS PUMP: a longer test will",
                   "not help. Check the variant is this pump's, the rack",
-                  "moves freely, the solenoid's armature and wiring",
-                  "(docs/faults.md). " + "; ".join(p.split(" (limit")[0] for p in fit.get("problems", []))[:40]]
+                  "moves freely, the solenoid's armature and wiring; a",
+                  "pump like this needs its own variant (docs/faults.md)."]
+        # each problem whole, wrapped to the block's width (record.json holds the figures with their limits)
+        for problem in fit.get("problems", [])[:3]:
+            lines += textwrap.wrap(problem.split(" (limit")[0] + ";", 54)
     elif not cls or (coil and coil.get("in_spec") is False):  # with a classification the reasons repeat the above
         for reason in record.get("reasons") or []:
             lines.append(reason if len(reason) < 60 else reason[:57] + "...")
