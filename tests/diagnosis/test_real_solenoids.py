@@ -206,3 +206,16 @@ def test_time_to_verdict_over_210_valves_median_10_s_p95_20_s_with_the_full_leng
     early, full = report["early"], report["full"]
     assert early["accuracy_outside_band"] >= full["accuracy_outside_band"]
     assert early["marginal_fraction"] <= full["marginal_fraction"]
+
+
+@pytest.mark.xfail(strict=True, reason="known, open (#11): through a USB adapter's timing jitter the residual of a "
+                   "faulty valve exceeds 5x the sensor noise, the residual's only yardstick; found by the review of "
+                   "2026-11-23, not fixed yet")
+@pytest.mark.parametrize("name", ["p-edc-default", "p-edc-hard"])
+def test_a_pump_the_model_fits_is_judged_through_a_usb_adapter(name: str) -> None:
+    """Same faulty valve: without latency FAIL, model fitting (residual 2.5x on p-edc-default); through usb-fs
+    (0.5 ms jitter, 1 ms USB frames) af and a1 stay within 1 %, yet the residual is 5.2-5.7x and the test INVALID,
+    'the feedforward model does not fit this pump'."""
+    result = run_simulated_test(load_variant(name), "faulty", 0, adapter="usb-fs")
+    assert result.judgement.identification.model_fit.fits, result.reasons
+    assert result.verdict == Verdict.FAIL
