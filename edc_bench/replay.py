@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.config import parse_variant
+from edc_bench.config.loader import without_retired_keys
 from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
@@ -211,7 +212,8 @@ def record_variant(record: dict[str, Any], source: str) -> Variant:
     config = record.get("config")
     if not isinstance(config, dict):
         raise ConfigError(f"{source}: the record holds no variant configuration")
-    return parse_variant(config, f"{source} (recorded variant)")
+    # a record of an older edc-bench may hold settings since retired; it replays under today's rules
+    return parse_variant(without_retired_keys(config), f"{source} (recorded variant)")
 
 
 def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None) -> ReplayReport:

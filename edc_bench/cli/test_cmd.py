@@ -413,7 +413,8 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
               f"condition number {ident.condition_number:.3g})")
         if ident.model_fit is not None:
             fit = ident.model_fit
-            print(f"model fit: residual {fit.residual_ratio:.2f}x the sensor noise, period-to-period spread af "
+            print(f"model fit: residual {fit.residual_ratio:.2f}x the sensor noise ({fit.systematic_ratio:.2f}x the "
+                  f"same every period), period-to-period spread af "
                   f"{fit.spread_rel['af']:.1%} a1 {fit.spread_rel['a1']:.1%}, solenoid gain variation "
                   f"+/-{fit.gain_variation_rel:.0%}" + ("" if fit.fits else " - DOES NOT FIT"))
     if result.stop is not None:

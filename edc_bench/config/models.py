@@ -362,11 +362,9 @@ class AcceptanceSection(_Section):
     min_periods: Annotated[int, Field(ge=2, le=100)] = Field(
         default=3, description="whole excitation periods (after the first, which learns) a verdict needs at least")
     max_residual_ratio: Annotated[float, Field(gt=1, le=1000, allow_inf_nan=False)] = Field(
-        default=5.0, description="the model does not fit when what it leaves unexplained of the smoothed drive "
-        "exceeds this multiple of the noise the position sensor leaves in it (fitting pumps: 0.5-4)")
-    max_period_spread_rel: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
-        default=0.02, description="the model does not fit when af or a1 scatter more than this (standard deviation, "
-        "relative) from one excitation period to the next")
+        default=5.0, description="the model does not fit when what it leaves unexplained of the smoothed drive the "
+        "same way in every excitation period exceeds this multiple of the noise the position sensor leaves in it "
+        "(fitting pumps: 0.6-2.9, through a USB adapter too)")
     max_gain_variation_rel: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
         default=0.25, description="the model does not fit when the solenoid's force constant varies more than this "
         "(+/-, relative) over the excitation's swing: its first-order correction no longer holds")

@@ -127,14 +127,13 @@ class EarlyStop:
         (a reply still on its way counts as missing, as in a test stopped here), then taken out again: the later
         steps feed them with their replies."""
         block = periods - 1
-        saved = (self.acc.A[block].copy(), self.acc.z[block].copy(), self.acc.yy[block].copy(),
-                 self.acc.count[block].copy())
+        saved = self.acc.snapshot(block)
         fed_to = self.fed_to_tick
         self._feed(self.setup.first_tick + periods * self.setup.block_ticks, columns)
         try:
             return solve(self.acc, periods, self.variant.acceptance.settle_band_rel)
         finally:
-            self.acc.A[block], self.acc.z[block], self.acc.yy[block], self.acc.count[block] = saved
+            self.acc.restore(block, saved)
             self.fed_to_tick = fed_to
 
     def _search_step(self) -> None:

@@ -5,9 +5,11 @@
 - converged: at least ``acceptance.min_periods`` periods, and no drift (af
   and a1 of the first half of the periods and of the second half agree
   within ``settle_band_rel``);
-- model fit: the residual against the noise the position sensor causes,
-  the spread of af and a1 from period to period, and the solenoid's gain
-  variation, each against its limit (:class:`ModelFit`);
+- model fit: the part of the residual that repeats from period to period
+  against the noise the position sensor causes, and the solenoid's gain
+  variation, each against its limit; the whole residual and the spread of
+  af and a1 from period to period are recorded beside them
+  (:class:`ModelFit`);
 - conditioning: condition number of the reference's regressors over the
   steady excitation (columns scaled to unit norm: collinearity of the
   excitation, not units), or the fit's own if larger;
@@ -46,7 +48,13 @@ class ModelFit:
     expected_noise_v : float
         What the position sensor's noise alone leaves, through the PID (V rms).
     residual_ratio : float
-        Their ratio: about 1 when the model explains all but the noise.
+        Their ratio: about 1 when the model explains all but the sensor noise; a CAN adapter's timing jitter and
+        other noise raise it (through a USB adapter 3-7).
+    systematic_rms_v : float
+        The part of the residual that repeats from one excitation period to the next (V rms): the model's misfit.
+        Noise, never the same twice, drops out of it; it is what the model-fit limit judges.
+    systematic_ratio : float
+        That against the sensor noise (``expected_noise_v``).
     spread_rel : dict
         ``af``, ``a1``: standard deviation of the estimates from one excitation period to the next, relative.
     gain_variation_rel : float
@@ -61,6 +69,8 @@ class ModelFit:
     spread_rel: dict[str, float]
     gain_variation_rel: float
     problems: list[str]
+    systematic_rms_v: float = math.nan
+    systematic_ratio: float = math.nan
 
     @property
     def fits(self) -> bool:
@@ -70,7 +80,8 @@ class ModelFit:
     def as_dict(self) -> dict:
         """Plain data for the record."""
         return {"residual_rms_v": self.residual_rms_v, "expected_noise_v": self.expected_noise_v,
-                "residual_ratio": self.residual_ratio, "spread_rel": dict(self.spread_rel),
+                "residual_ratio": self.residual_ratio, "systematic_rms_v": self.systematic_rms_v,
+                "systematic_ratio": self.systematic_ratio, "spread_rel": dict(self.spread_rel),
                 "gain_variation_rel": self.gain_variation_rel, "fits": self.fits, "problems": list(self.problems)}
 
 
@@ -129,14 +140,17 @@ def settle_times_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel
 
 
 def model_fit_failures(variant: Variant, fit: PeriodFit, expected_noise_v: float) -> dict[str, np.ndarray]:
-    """Per model-fit measure, per test: beyond the variant's limit (NaN counts as beyond). Vectorised over tests."""
+    """Per model-fit measure, per test: beyond the variant's limit (NaN counts as beyond). Vectorised over tests.
+
+    The residual is judged by its part that repeats from period to period (:func:`~edc_bench.diagnosis.period_fit.
+    solve`): noise (the sensor's, an adapter's timing jitter) raises the whole residual and the period-to-period
+    spread without biasing af or a1, and widens their uncertainty, which the verdict takes into account.
+    """
     acc = variant.acceptance
-    ratio = fit.residual_rms_v / expected_noise_v if expected_noise_v > 0 else np.full_like(fit.residual_rms_v, np.inf)
-    spread_known = fit.blocks >= 2
+    ratio = (fit.systematic_rms_v / expected_noise_v if expected_noise_v > 0
+             else np.full_like(fit.systematic_rms_v, np.inf))
     return {
         "residual": ~(ratio <= acc.max_residual_ratio),
-        "af": spread_known & ~(fit.spread_rel["af"] <= acc.max_period_spread_rel),
-        "a1": spread_known & ~(fit.spread_rel["a1"] <= acc.max_period_spread_rel),
         "gain": ~(fit.gain_variation_rel <= acc.max_gain_variation_rel),
     }
 
@@ -152,14 +166,10 @@ def model_fit_problems(variant: Variant, fit: PeriodFit, expected_noise_v: float
     failed = {name: bool(flags[0]) for name, flags in model_fit_failures(variant, fit, expected_noise_v).items()}
     out = []
     if failed["residual"]:
-        residual = float(fit.residual_rms_v[0])
-        ratio = residual / expected_noise_v if expected_noise_v > 0 else math.inf
-        out.append(f"it leaves {residual * 1e3:.1f} mV rms of the drive unexplained, "
-                   f"{ratio:.1f}x the sensor noise (limit {acc.max_residual_ratio:g}x)")
-    for name in ("af", "a1"):
-        if failed[name]:
-            out.append(f"{name} scatters {float(fit.spread_rel[name][0]):.1%} from one excitation period to the next "
-                       f"(limit {acc.max_period_spread_rel:.0%})")
+        systematic = float(fit.systematic_rms_v[0])
+        ratio = systematic / expected_noise_v if expected_noise_v > 0 else math.inf
+        out.append(f"it leaves {systematic * 1e3:.1f} mV rms of the drive unexplained the same way in every "
+                   f"excitation period, {ratio:.1f}x the sensor noise (limit {acc.max_residual_ratio:g}x)")
     if failed["gain"]:
         out.append(f"the solenoid's force constant varies about +/-{float(fit.gain_variation_rel[0]):.0%} over the "
                    f"swing (the model's correction holds to +/-{acc.max_gain_variation_rel:.0%})")
@@ -212,6 +222,8 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
     model_fit = ModelFit(
         residual_rms_v=float(fit.residual_rms_v[0]), expected_noise_v=noise,
         residual_ratio=float(fit.residual_rms_v[0]) / noise if noise > 0 else math.inf,
+        systematic_rms_v=float(fit.systematic_rms_v[0]),
+        systematic_ratio=float(fit.systematic_rms_v[0]) / noise if noise > 0 else math.inf,
         spread_rel={n: float(fit.spread_rel[n][0]) for n in ("af", "a1")},
         gain_variation_rel=float(fit.gain_variation_rel[0]),
         problems=model_fit_problems(variant, fit, noise) if periods >= acc.min_periods else [],

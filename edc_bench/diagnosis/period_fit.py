@@ -28,6 +28,11 @@ instead (docs/method.md, "The identification the verdict rests on"):
   periods; each period's own solution gives the spread from one period to the
   next, hence the uncertainty (standard error of the mean), and the settle
   test (the first half of the periods against the second: no drift).
+- **Misfit, apart from noise.** What the model leaves unexplained the same
+  way in every period is its misfit; noise (the sensor's, a CAN adapter's
+  timing jitter) is not the same twice. Products of each row's residual with
+  the residuals of the earlier periods at the same phase measure the first
+  without the second (``systematic_rms_v``).
 
 Pure numpy; the loop's trace (:func:`trace_blocks`) and the batch path
 (:class:`BlockAccumulator` fed with :func:`rows`) use the same code.
@@ -248,6 +253,11 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
 class BlockAccumulator:
     """Normal equations per block (excitation period), for one or N tests.
 
+    Beside each block's normal equations it keeps the products of each row with the rows of every earlier
+    block at the same phase of the excitation (the same tick of the period): what the model leaves unexplained
+    the same way in every period is its misfit; noise (the sensor's, a CAN adapter's timing) is not the same
+    twice, and drops out of these products (:func:`solve`, ``systematic_rms_v``).
+
     Parameters
     ----------
     setup : FitSetup
@@ -264,9 +274,19 @@ class BlockAccumulator:
         self.z = np.zeros((blocks, n, p))
         self.yy = np.zeros((blocks, n))
         self.count = np.zeros((blocks, n))
+        # sums over the rows of block b times the rows of the blocks before it at the same phase (both used):
+        # y y', X y' + X' y, X X'^T, and the pairs
+        self.pair_yy = np.zeros((blocks, n))
+        self.pair_xy = np.zeros((blocks, n, p))
+        self.pair_xx = np.zeros((blocks, n, p, p))
+        self.pair_count = np.zeros((blocks, n))
+        # by phase, over the used rows fed so far: sum of X, of y, and their count. Rows come in time order (a
+        # span's unused edge rows aside), so a row of block b finds here the rows of blocks 0..b-1 at its phase
+        self._by_phase = np.zeros((setup.block_ticks, n, p + 2))
 
-    def add(self, block: int, X: np.ndarray, y: np.ndarray, use: np.ndarray) -> None:
-        """Add the rows of one span that all belong to ``block`` (X (T, N, p) or (T, p))."""
+    def add(self, block: int, X: np.ndarray, y: np.ndarray, use: np.ndarray, phase: int = 0) -> None:
+        """Add the rows of one span that all belong to ``block`` (X (T, N, p) or (T, p)), its first row at tick
+        ``phase`` of the block. Each row is used in one span only, and the used rows come in time order."""
         if X.ndim == 2:
             X, y, use = X[:, None, :], y[:, None], use[:, None]
         w = use.astype(float)
@@ -275,6 +295,28 @@ class BlockAccumulator:
         self.z[block] += (Xw @ y.T[..., None])[..., 0]
         self.yy[block] += ((y * w) * y).sum(axis=0)
         self.count[block] += w.sum(axis=0)
+        p = X.shape[-1]
+        earlier = self._by_phase[phase: phase + len(X)]
+        X0, y0 = earlier[..., :p], earlier[..., p]
+        self.pair_yy[block] += (y * w * y0).sum(axis=0)
+        self.pair_xy[block] += (Xw @ y0.T[..., None])[..., 0] + (X0.transpose(1, 2, 0) @ (w * y).T[..., None])[..., 0]
+        self.pair_xx[block] += Xw @ X0.transpose(1, 0, 2)
+        self.pair_count[block] += (w * earlier[..., p + 1]).sum(axis=0)
+        earlier[..., :p] += X * w[..., None]
+        earlier[..., p] += y * w
+        earlier[..., p + 1] += w
+
+    def snapshot(self, block: int) -> tuple:
+        """What :meth:`add` to ``block`` changes, to :meth:`restore` after a trial (the early stop's pending rows)."""
+        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count)
+        return tuple(a[block].copy() for a in arrays) + (self._by_phase.copy(),)
+
+    def restore(self, block: int, saved: tuple) -> None:
+        """Undo the :meth:`add` calls since :meth:`snapshot` of ``block``."""
+        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count)
+        for a, value in zip(arrays, saved):
+            a[block] = value
+        self._by_phase = saved[-1]
 
 
 def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray, y: np.ndarray,
@@ -287,9 +329,10 @@ def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray
         block = setup.block_of(k)
         if block >= len(acc.A):
             return
-        block_end = min(end, setup.first_tick + (block + 1) * setup.block_ticks)
+        block_start = setup.first_tick + block * setup.block_ticks
+        block_end = min(end, block_start + setup.block_ticks)
         sl = slice(k - start, block_end - start)
-        acc.add(block, X[sl], y[sl], use[sl])
+        acc.add(block, X[sl], y[sl], use[sl], phase=k - block_start)
         k = block_end
 
 
@@ -331,6 +374,7 @@ class PeriodFit:
     settled: np.ndarray
     samples: np.ndarray = field(default_factory=lambda: np.zeros(0))
     columns: tuple[str, ...] = ()
+    systematic_rms_v: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def value(self, name: str) -> np.ndarray:
         """The estimate of one coefficient (``af``, ``a1``, ``d2``...)."""
@@ -364,6 +408,12 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
                                                                                      theta_n)
     ssr = np.maximum(ssr, 0.0)
     residual_rms = np.sqrt(ssr / np.maximum(n_rows, 1))
+    # the residual's part that repeats from one period to the next: r_b . r_b' over the pairs of rows at the same
+    # phase of two periods (noise, not the same twice, averages out of it; it can come out below 0 by noise: none)
+    pair_ss = (acc.pair_yy[1:blocks].sum(axis=0) - np.einsum("np,np->n", theta_n, acc.pair_xy[1:blocks].sum(axis=0))
+               + np.einsum("np,npq,nq->n", theta_n, acc.pair_xx[1:blocks].sum(axis=0), theta_n))
+    pairs = acc.pair_count[1:blocks].sum(axis=0)
+    systematic_rms = np.where(pairs > 0, np.sqrt(np.maximum(pair_ss, 0.0) / np.maximum(pairs, 1)), np.nan)
     sigma2 = ssr / np.maximum(n_rows - p, 1)
     cov_diag = np.einsum("npp->np", np.linalg.inv(A_all + ridge * scale[:, :, None] * scale[:, None, :])) * sigma2[:, None]
     units = np.array([setup.scales[i] for i in setup.estimated] + list(setup.scales[6:9]))
@@ -391,7 +441,7 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
             late = np.nanmean(block_theta[half:, :, i], axis=0)
             settled = settled & (np.abs(late - early) <= settle_band_rel * np.abs(theta[:, i]))
     return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, cond, settled,
-                     n_rows, cols)
+                     n_rows, cols, systematic_rms)
 
 
 def reference_condition_number(design: ControllerDesign) -> float:

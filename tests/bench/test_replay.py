@@ -35,6 +35,17 @@ def test_replay_reproduces_a_simulated_test_exactly(tmp_path: Path, valve: str, 
     assert report.run.max_drive_deviation_v <= 0.0005 + 1e-9
 
 
+def test_a_record_of_an_older_edc_bench_replays_under_today_s_rules(tmp_path: Path) -> None:
+    """Records made before #11's review hold [acceptance].max_period_spread_rel, since retired."""
+    folder = write_record(run_simulated_test(load_variant(), "worn", 5), tmp_path, figure=False)
+    path = folder / "record.json"
+    doc = json.loads(path.read_text())
+    doc["config"]["acceptance"]["max_period_spread_rel"] = 0.02
+    path.write_text(json.dumps(doc))
+    report = replay_record(folder)
+    assert report.reproduced, report.differences
+
+
 def _run_with_lost_replies(simulated_bench, rule: Rule):
     variant = load_variant()
     bench, clock, _ = simulated_bench(variant, "worn", 2)

@@ -66,6 +66,9 @@ def test_written_copy_round_trips(tmp_path: Path) -> None:
         (lambda d: d["coil"].pop("resistance_ohm"), r"\[coil\]\.resistance_ohm: required key is missing"),
         (lambda d: d["coil"].update(inductance_mh="1 mH"), r"\[coil\]\.inductance_mh = '1 mH': Input should be a valid number"),
         (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: acceptance, coil, controller, diagnosis, estimator, excitation, pump, rack, rig"),
+        # retired (#11): the spread between periods is noise; the file says what replaced it
+        (lambda d: d.setdefault("acceptance", {}).update(max_period_spread_rel=0.02),
+         r"\[acceptance\]\.max_period_spread_rel: no longer a setting: .*max_residual_ratio.*Delete the line"),
         (lambda d: d["rig"].update(travel_max_mm=25.0), r"travel limits must satisfy.*25.0 <= 20.0"),
         (lambda d: d["rack"].update(mid_stroke_mm=30.0), r"mid_stroke_mm \(30.0\) must lie inside the stroke"),
         (lambda d: d["coil"].update(magnetic_stiffness_n_per_mm=3.0), r"no stable rest position"),
@@ -91,7 +94,7 @@ def test_written_copy_round_trips(tmp_path: Path) -> None:
         (lambda d: d["diagnosis"]["population"].update(clearance_max_mm=0.05), r"clearance_max_mm must exceed"),
         (lambda d: d["excitation"].update(move_s=5.0, fade_s=5.0, duration_s=9.0), r"must exceed move_s \+ fade_s"),
     ],
-    ids=["negative", "unknown-key", "missing", "wrong-type", "unknown-section", "travel", "mid-stroke",
+    ids=["negative", "unknown-key", "missing", "wrong-type", "unknown-section", "retired-key", "travel", "mid-stroke",
          "unstable", "drive-limit", "over-current", "preset", "stiction", "name", "nested",
          "swing-above", "swing-below", "too-short", "tone-too-fast", "coil-spec", "supply", "hold-voltage",
          "clearance-spec", "population", "move-fade"],

@@ -142,6 +142,10 @@ def test_rows_fed_a_step_at_a_time_sum_to_the_rows_of_the_whole_trace(adapter) -
     np.testing.assert_allclose(rule.acc.A[:done], whole.A[:done], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(rule.acc.z[:done], whole.z[:done], rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(rule.acc.count[:done], whole.count[:done])
+    # and the products of each row with the row a period before, which the model-fit check judges by
+    for name in ("pair_yy", "pair_xy", "pair_xx", "pair_count"):
+        np.testing.assert_allclose(getattr(rule.acc, name)[:done], getattr(whole, name)[:done], rtol=1e-9,
+                                   atol=1e-12, err_msg=name)
     held_back = whole.count[done] - rule.acc.count[done]
     assert (0 <= held_back).all() and (held_back <= rule.feed_lag_ticks - rule.setup.window // 2).all()
 

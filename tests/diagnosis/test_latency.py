@@ -2,7 +2,11 @@
 
 Measured (2026-11, 200 valves): usb-fs a1 +0.13 % on average, 95 % of valves within 0.6 %, at most 1.5 % (3 valves
 beyond 1 %); af within 1 % on every valve; no verdict changed. 5 ms round trip with 1 ms jitter: af and a1 within
-0.85 % on every valve, no verdict changed. The bounds below leave room for those figures, not more.
+0.85 % on every valve, no verdict changed. p-edc-hard (lightly damped, a force constant varying +/-10 %) through
+usb-fs: af within 0.6 %; a1 -0.6 % on average, 95 % of valves within 1.5 %, at most 2.1 %. Through every link the
+model fits every valve: the repeating part of the residual is at most 1.7x (default), 3.9x (hard), 2.5x (slow
+link) the sensor noise, against the limit of 5, while the whole residual reaches 5.9x, 7.5x, 8.9x. The bounds
+below leave room for those figures, not more.
 
 Each case runs the same 200 simulated used valves through the batch path twice, with the same sensor noise:
 once with replies within the tick, once through the adapter model. "5 ms latency plus 1 ms jitter" is taken as
@@ -46,10 +50,12 @@ def verdicts(variant: Variant, parameters: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("link", "variant_of"), [("usb-fs", lambda: load_variant("p-edc-default")),
-                                                  ("latency_ms=2.5,jitter_ms=0.5", slow_link_variant)],
-                         ids=["usb-fs", "5ms-round-trip-1ms-jitter"])
-def test_adapter_latency_leaves_identification_and_verdicts_alone(link, variant_of) -> None:
+@pytest.mark.parametrize(("link", "variant_of", "p95_rel", "max_rel"),
+                         [("usb-fs", lambda: load_variant("p-edc-default"), 0.01, 0.02),
+                          ("usb-fs", lambda: load_variant("p-edc-hard"), 0.02, 0.03),
+                          ("latency_ms=2.5,jitter_ms=0.5", slow_link_variant, 0.01, 0.02)],
+                         ids=["usb-fs", "usb-fs-hard", "5ms-round-trip-1ms-jitter"])
+def test_adapter_latency_leaves_identification_and_verdicts_alone(link, variant_of, p95_rel, max_rel) -> None:
     variant = variant_of()
     check_variant_gains(variant)  # the gains hold their margins at the link's delay
     valves = draw_population(variant, VALVES, seed=12)
@@ -58,7 +64,15 @@ def test_adapter_latency_leaves_identification_and_verdicts_alone(link, variant_
     delayed = run_batch(variant, valves, seeds, adapter=parse_adapter(link))
     ages = delayed.reply_age_ticks
     print(f"\n{link}: reply ages (ticks: replies) {ages}")
+    fit = delayed.periods.at(delayed.periods.blocks).fit
+    noise = delayed.periods.noise_v
+    print(f"  model fit through the link: residual up to {np.max(fit.residual_rms_v) / noise:.2f}x the sensor "
+          f"noise, its repeating part up to {np.max(fit.systematic_rms_v) / noise:.2f}x "
+          f"(limit {variant.acceptance.max_residual_ratio:g}x)")
     assert instant.converged.all() and delayed.converged.all()
+    # the link's timing is noise, not misfit: a pump the model fits still fits through it (#11's review found
+    # faulty valves INVALID "does not fit" through usb-fs when the whole residual was judged)
+    assert instant.model_fits.all() and delayed.model_fits.all()
     for name in ("af", "a1"):
         j = PARAMETER_NAMES.index(name)
         rel = delayed.parameters[:, j] / instant.parameters[:, j] - 1.0
@@ -66,8 +80,8 @@ def test_adapter_latency_leaves_identification_and_verdicts_alone(link, variant_
               f"95th percentile |d| {np.percentile(np.abs(rel), 95):.4%}, max |d| {np.abs(rel).max():.4%}, "
               f"{int((np.abs(rel) > 0.01).sum())} of {VALVES} beyond 1 %")
         assert abs(rel.mean()) < 0.01, name
-        assert np.percentile(np.abs(rel), 95) < 0.01, name
-        assert np.abs(rel).max() < 0.02, name
+        assert np.percentile(np.abs(rel), 95) < p95_rel, name
+        assert np.abs(rel).max() < max_rel, name
     v0, v1 = verdicts(variant, instant.parameters), verdicts(variant, delayed.parameters)
     differ = np.nonzero(v0 != v1)[0]
     print(f"  verdicts: {len(differ)} of {VALVES} differ: "

@@ -128,6 +128,10 @@ def test_the_loop_identifies_the_hard_variant_as_the_batch_path_does(hard, hard_
     fit = loop.judgement.identification.model_fit
     # the solenoid's gain variation is seen (+/-10 % in the plant, first-order estimate)
     assert 0.05 < fit.gain_variation_rel < 0.2
+    # and the model fit is measured alike: the residual and its part that repeats from period to period
+    batch_fit = hard_batch.periods.at(hard_batch.periods.blocks).fit
+    assert fit.residual_rms_v == pytest.approx(batch_fit.residual_rms_v[4], rel=0.05)
+    assert fit.systematic_rms_v == pytest.approx(batch_fit.systematic_rms_v[4], rel=0.1)
 
 
 def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within_1_percent() -> None:
@@ -178,6 +182,8 @@ def test_every_record_carries_the_model_fit(tmp_path: Path) -> None:
     fit = doc["identification"]["model_fit"]
     assert fit["fits"] is True and fit["problems"] == []
     assert 0.3 < fit["residual_ratio"] < doc["config"]["acceptance"]["max_residual_ratio"]
+    assert 0 <= fit["systematic_ratio"] < fit["residual_ratio"]
+    assert fit["systematic_rms_v"] == pytest.approx(fit["systematic_ratio"] * fit["expected_noise_v"])
     assert set(fit["spread_rel"]) == {"af", "a1"}
     assert doc["stop"]["reason"] == "verdict certain" and doc["stop"]["max_s"] == 30.0
 
@@ -214,14 +220,19 @@ def test_time_to_verdict_over_210_valves_median_10_s_p95_20_s_with_the_full_leng
     assert early["marginal_fraction"] <= full["marginal_fraction"]
 
 
-@pytest.mark.xfail(strict=True, reason="known, open (#11): through a USB adapter's timing jitter the residual of a "
-                   "faulty valve exceeds 5x the sensor noise, the residual's only yardstick; found by the review of "
-                   "2026-11-23, not fixed yet")
-@pytest.mark.parametrize("name", ["p-edc-default", "p-edc-hard"])
+@pytest.mark.parametrize("name", ["p-edc-default", "p-edc-hard", "p-edc-long"])
 def test_a_pump_the_model_fits_is_judged_through_a_usb_adapter(name: str) -> None:
-    """Same faulty valve: without latency FAIL, model fitting (residual 2.5x on p-edc-default); through usb-fs
-    (0.5 ms jitter, 1 ms USB frames) af and a1 stay within 1 %, yet the residual is 5.2-5.7x and the test INVALID,
-    'the feedforward model does not fit this pump'."""
-    result = run_simulated_test(load_variant(name), "faulty", 0, adapter="usb-fs")
-    assert result.judgement.identification.model_fit.fits, result.reasons
-    assert result.verdict == Verdict.FAIL
+    """A USB adapter's timing jitter is noise, not misfit. Found by #11's review: through usb-fs (0.5 ms jitter,
+    1 ms USB frames) a faulty valve's whole residual reached 5.2-5.9x the sensor noise (2.5-3.7x without latency)
+    and the test was INVALID, 'the feedforward model does not fit this pump', though af and a1 stayed within 1 %.
+    The misfit is now judged by the residual's part that repeats from period to period: 1.6-3.7x here."""
+    variant = load_variant(name)
+    for valve in VALVES:
+        lockstep = run_simulated_test(variant, valve, 0)
+        usb = run_simulated_test(variant, valve, 0, adapter="usb-fs")
+        fit = usb.judgement.identification.model_fit
+        print(f"{name} {valve}: residual {fit.residual_ratio:.2f}x, repeating {fit.systematic_ratio:.2f}x; "
+              f"{lockstep.verdict.value} -> {usb.verdict.value} at {usb.stop['time_s']:.1f} s")
+        assert fit.fits, usb.reasons
+        assert fit.systematic_ratio < 0.8 * variant.acceptance.max_residual_ratio  # a margin, not a coin toss
+        assert usb.verdict == lockstep.verdict != Verdict.INVALID

@@ -1,0 +1,100 @@
+"""The period fit's misfit measure: the residual's part that repeats from one excitation period to the next.
+
+Synthetic rows, so that the truth is known: a target that is the model plus a misfit repeating every period plus
+white noise. The noise must drop out of the repeating part, the misfit must not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edc_bench.config import load_variant
+from edc_bench.diagnosis.period_fit import BlockAccumulator, FitSetup, accumulate, solve
+
+BLOCKS = 6
+
+
+@pytest.fixture(scope="module")
+def setup() -> FitSetup:
+    return FitSetup.from_variant(load_variant("p-edc-default"))
+
+
+def _rows(setup: FitSetup, misfit_v: float, noise_v: float, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    ticks = BLOCKS * setup.block_ticks
+    p = len(setup.columns)
+    X = rng.normal(size=(ticks, p))
+    theta = rng.normal(size=p)
+    phase = np.arange(ticks) % setup.block_ticks
+    # the same shape every period (three harmonics of it), rms misfit_v
+    shape = sum(np.sin(2 * np.pi * h * phase / setup.block_ticks + h) for h in (1, 2, 5)) / np.sqrt(1.5)
+    y = X @ theta + misfit_v * shape + noise_v * rng.normal(size=ticks)
+    use = rng.random(ticks) > 0.3  # rows left out (stick windows, missing replies)
+    return X, np.where(use, y, 0.0), use
+
+
+def _fit(setup: FitSetup, X, y, use, span: int | None = None):
+    acc = BlockAccumulator(setup, BLOCKS)
+    start = setup.first_tick
+    if span is None:
+        accumulate(setup, acc, start, X, y, use)
+        return acc
+    # as the batch path and the stop rule feed it: spans overlapping by the smoothing's half window, their edge rows
+    # not used, so that a span's first rows can belong to the period before the one its predecessor ended in
+    edge = 20
+    for lo in range(0, len(X), span):
+        a, b = max(lo - edge, 0), min(lo + span + edge, len(X))
+        mine = np.zeros(b - a, dtype=bool)
+        mine[lo - a: min(lo + span, len(X)) - a] = True
+        accumulate(setup, acc, start + a, X[a:b], y[a:b], use[a:b] & mine)
+    return acc
+
+
+def test_noise_drops_out_of_the_repeating_part_and_a_repeating_misfit_stays(setup) -> None:
+    noise = 1e-3
+    for misfit in (0.0, 0.5e-3, 2e-3):
+        fit = solve(_fit(setup, *_rows(setup, misfit, noise)), BLOCKS, 0.02)
+        print(f"misfit {misfit * 1e3:.1f} mV, noise 1 mV: residual {fit.residual_rms_v[0] * 1e3:.3f} mV, "
+              f"repeating {fit.systematic_rms_v[0] * 1e3:.3f} mV")
+        assert fit.residual_rms_v[0] == pytest.approx(np.hypot(misfit, noise), rel=0.03)
+        assert fit.systematic_rms_v[0] == pytest.approx(misfit, abs=0.15 * noise)
+
+
+def test_more_noise_raises_the_residual_but_not_its_repeating_part(setup) -> None:
+    quiet = solve(_fit(setup, *_rows(setup, 2e-3, 0.5e-3, seed=1)), BLOCKS, 0.02)
+    noisy = solve(_fit(setup, *_rows(setup, 2e-3, 5e-3, seed=1)), BLOCKS, 0.02)
+    assert noisy.residual_rms_v[0] > 2.5 * quiet.residual_rms_v[0]
+    assert noisy.systematic_rms_v[0] == pytest.approx(quiet.systematic_rms_v[0], rel=0.15)
+
+
+def test_fed_in_overlapping_spans_it_is_what_one_pass_gives(setup) -> None:
+    rows = _rows(setup, 1e-3, 1e-3, seed=2)
+    whole, spans = _fit(setup, *rows), _fit(setup, *rows, span=500)
+    for name in ("A", "z", "yy", "count", "pair_yy", "pair_xy", "pair_xx", "pair_count"):
+        np.testing.assert_allclose(getattr(spans, name), getattr(whole, name), rtol=1e-9, atol=1e-12, err_msg=name)
+
+
+def test_one_period_has_no_repeating_part_to_measure(setup) -> None:
+    fit = solve(_fit(setup, *_rows(setup, 1e-3, 1e-3)), 1, 0.02)
+    assert np.isnan(fit.systematic_rms_v[0])
+
+
+def test_a_trial_feed_is_taken_back_whole(setup) -> None:
+    """The stop rule adds a period's last rows for a decision, then takes them out (snapshot, restore)."""
+    X, y, use = _rows(setup, 1e-3, 1e-3, seed=3)
+    cut = 2 * setup.block_ticks + 1500
+    acc = BlockAccumulator(setup, BLOCKS)
+    accumulate(setup, acc, setup.first_tick, X[:cut], y[:cut], use[:cut])
+    before = {name: getattr(acc, name).copy() for name in ("A", "pair_yy", "pair_xx", "pair_count")}
+    saved = acc.snapshot(2)
+    accumulate(setup, acc, setup.first_tick + cut, X[cut:3 * setup.block_ticks], y[cut:3 * setup.block_ticks],
+               use[cut:3 * setup.block_ticks])
+    acc.restore(2, saved)
+    for name, value in before.items():
+        np.testing.assert_array_equal(getattr(acc, name), value, err_msg=name)
+    # and the rows fed again after give what one pass gives
+    accumulate(setup, acc, setup.first_tick + cut, X[cut:], y[cut:], use[cut:])
+    whole = _fit(setup, X, y, use)
+    np.testing.assert_allclose(acc.pair_yy, whole.pair_yy, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(acc.pair_count, whole.pair_count)
