@@ -99,6 +99,12 @@ class EarlyStop:
         self.search_per_step = max(1, -(-self.max_periods // max(steps, 1)))
         self.duration_s = ticks * setup.period_s
         self.expected_end_s = setup.end_s(min(variant.acceptance.min_periods, self.max_periods))
+        #: True while :attr:`expected_end_s` is only the earliest the test can end (before the first decision, a
+        #: fit not trusted yet, a search not finished): the live view says "at least"
+        self.expected_end_is_earliest = True
+        #: the last period-end decision, for the live view: periods, af and a1 relative to the baseline, the
+        #: half widths of their interval, the verdict at the centre ("" while not trusted); None before the first
+        self.latest: dict[str, Any] | None = None
         self.fed_to_tick = setup.first_tick  # rows of ticks before this one are in the accumulator
         self._search: tuple[np.ndarray, np.ndarray, int, int] | None = None  # centre, half width, periods, next
         self._r_ref = variant.coil.resistance_ohm
@@ -144,6 +150,7 @@ class EarlyStop:
         centre, half_width, periods, more = self._search
         if more > self.max_periods:
             self.expected_end_s, self._search = self.duration_s, None
+            self.expected_end_is_earliest = False
             return
         # enough candidates per step to finish before the next period's end (one, unless the test is long)
         candidates = np.arange(more, min(more + self.search_per_step, self.max_periods + 1))
@@ -151,6 +158,7 @@ class EarlyStop:
                                  half_width * np.sqrt(periods / candidates)[:, None])
         if boxes.any():
             self.expected_end_s, self._search = self.setup.end_s(int(candidates[np.argmax(boxes)])), None
+            self.expected_end_is_earliest = False
         else:  # not before the next candidate, at the earliest
             after = int(candidates[-1]) + 1
             self.expected_end_s = self.setup.end_s(min(after, self.max_periods))
@@ -166,6 +174,7 @@ class EarlyStop:
                 self._search_step()
             return None
         self._search = None  # the new period's figures replace an unfinished search
+        self.expected_end_is_earliest = True
         acc, setup = self.variant.acceptance, self.setup
         # rows whose samples are final for good; the period's last few wait for replies still on their way
         self._feed(k - self.feed_lag_ticks, columns)
@@ -183,6 +192,9 @@ class EarlyStop:
         centre, half_width = relative_box(parameters, fit, self._base, self._z)
         misfit, trusted, certain, verdicts = stop_flags(self.variant, self.classifier, fit, periods, centre,
                                                         half_width, self._noise_v, self._reference_condition)
+        self.latest = {"periods": periods, "af_rel": float(centre[0, 0]), "a1_rel": float(centre[0, 1]),
+                       "af_half_width_rel": float(half_width[0, 0]), "a1_half_width_rel": float(half_width[0, 1]),
+                       "verdict": str(verdicts[0])}
         time_s = setup.end_s(periods)
         if misfit[0]:
             return {"reason": MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods,

@@ -82,7 +82,8 @@ class FitSetup:
     block_ticks : int
         Ticks of one excitation period (a block).
     first_tick : int
-        First tick of the first block: the move, the fade-in and one period of learning are left out.
+        First tick of the first block: the move, the fade-in and one period of learning (less half a smoothing
+        window and a tick) are left out.
     window : int
         Savitzky-Golay window (odd, ticks).
     exclusion_mm_s : float
@@ -122,7 +123,10 @@ class FitSetup:
         window = max(SMOOTHING_ORDER + 3, int(round(0.125 / fastest_hz / T)))
         window = min(window, 41) | 1  # odd; 41 ms at most (the 3 Hz tone's eighth)
         block_ticks = int(round(block_s / T))
-        first = int(round((design.move_s + design.fade_s) / T)) + block_ticks
+        # one period of learning, less the half window and the sample that complete a block's last rows: so the
+        # blocks are in hand when move, fade-in, learning and they have run (3 on the shipped variants: 10.0 s,
+        # where 21 ticks more were waited before)
+        first = int(round((design.move_s + design.fade_s) / T)) + block_ticks - (window // 2 + 1)
         swing = sum(t.amplitude_mm for t in tones)
         velocity = design.scales[2]
         return cls(period_s=T, block_ticks=block_ticks, first_tick=first, window=window,

@@ -68,7 +68,8 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
     if s.ticks:
         bar = ProgressBar(total=s.ticks, completed=s.tick + 1, width=40)
         if s.expected_end_s == s.expected_end_s:  # early stop: when the verdict is expected to be known
-            when = f"{s.t_s:5.1f} s, about {s.time_left_s:4.1f} s left (at most {s.max_time_left_s:.0f} s)"
+            how = "at least" if s.expected_end_is_earliest else "about"
+            when = f"{s.t_s:5.1f} s, {how} {s.time_left_s:4.1f} s left (at most {s.max_time_left_s:.0f} s)"
         else:
             when = f"{s.t_s:5.1f} s of {s.duration_s:g} s, {s.time_left_s:4.1f} s left"
         grid.add_row("time", Group(Text(when), bar))
@@ -80,9 +81,10 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
         grid.add_row("", Text(sparkline(s.reference_history, lo, hi), style="dim"))
         grid.add_row("coil", f"{s.current_a:6.3f} A   drive {s.drive_v:+6.3f} V "
                              f"(feedforward {s.feedforward_v:+6.3f}, PID {s.feedback_v:+6.3f})")
-        grid.add_row("af", f"{s.af:9.5f} V        {_settled(s.af_history)}")
+        grid.add_row("verdict on", period_fit_line(s.period_fit))
+        grid.add_row("af online", f"{s.af:9.5f} V        {_settled(s.af_history)}")
         grid.add_row("", Text(sparkline(s.af_history), style="yellow"))
-        grid.add_row("a1", f"{s.a1:9.6f} V s/mm   {_settled(s.a1_history)}")
+        grid.add_row("a1 online", f"{s.a1:9.6f} V s/mm   {_settled(s.a1_history)}")
         grid.add_row("", Text(sparkline(s.a1_history), style="yellow"))
         late_style = "red" if s.overruns else "green"
         grid.add_row("loop", Text(f"worst lateness {s.worst_lateness_recent_us:5.0f} us now, "
@@ -91,6 +93,16 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
         grid.add_row("bus", Text(f"{s.missed_replies} replies missing, {s.bad_replies} bad, "
                                  f"{s.heartbeats} heartbeats", style=bus_style))
     return Panel(grid, title=Text(title), border_style="blue")  # the title holds the valve id: never markup
+
+
+def period_fit_line(fit: dict | None) -> Text:
+    """What the verdict will rest on, as the stop rule last saw it: af and a1 over whole periods, against a new
+    valve, with their interval (the online estimates below only keep the feedforward right)."""
+    if fit is None:
+        return Text("af and a1 over whole excitation periods, from the first decision on", style="dim")
+    verdict = f": {fit['verdict']} so far" if fit.get("verdict") else ": not settled yet"
+    return Text(f"af {fit['af_rel'] - 1:+.1%} +/-{fit['af_half_width_rel']:.1%}, a1 {fit['a1_rel'] - 1:+.1%} "
+                f"+/-{fit['a1_half_width_rel']:.1%} against a new valve, {fit['periods']} periods{verdict}")
 
 
 def stop_line(stop: dict) -> str:

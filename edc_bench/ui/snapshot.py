@@ -42,6 +42,8 @@ class Snapshot:
     af_history: list = field(default_factory=list)
     a1_history: list = field(default_factory=list)
     expected_end_s: float = float("nan")  # when the test is expected to end (early stop), NaN: at its full length
+    expected_end_is_earliest: bool = True  # expected_end_s is only the earliest it can be (not decided on yet)
+    period_fit: dict | None = None  # the stop rule's last decision (EarlyStop.latest): what the verdict rests on
 
     def enter(self, name: str) -> None:
         """A new phase began."""
@@ -85,6 +87,7 @@ def read_tick(k: int, loop: Any) -> dict[str, Any]:
     cols = loop.trace.columns
     recent = cols["lateness_s"][max(0, k - 99): k + 1]
     outcome = loop.outcome
+    rule = getattr(loop, "stop_rule", None)
     return {
         "tick": k, "ticks": loop.ticks, "period_s": loop.period_s, "t_s": float(cols["t_s"][k]),
         "reference_mm": float(cols["reference_mm"][k]), "position_mm": float(cols["position_mm"][k]),
@@ -94,5 +97,7 @@ def read_tick(k: int, loop: Any) -> dict[str, Any]:
         "worst_lateness_recent_us": float(np.max(recent)) * 1e6 if len(recent) else 0.0,
         "overruns": outcome.overruns, "missed_replies": outcome.missed_replies,
         "bad_replies": outcome.bad_replies, "heartbeats": outcome.heartbeats,
-        "expected_end_s": float(getattr(getattr(loop, "stop_rule", None), "expected_end_s", float("nan"))),
+        "expected_end_s": float(getattr(rule, "expected_end_s", float("nan"))),
+        "expected_end_is_earliest": bool(getattr(rule, "expected_end_is_earliest", True)),
+        "period_fit": None if getattr(rule, "latest", None) is None else dict(rule.latest),
     }

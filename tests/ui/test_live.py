@@ -67,3 +67,46 @@ def test_live_view_draws_in_a_child_process_and_never_blocks_the_loop(capfd: pyt
     assert view._proc.returncode == 0
     out = capfd.readouterr().out
     assert "live view test" in out and "identify" in out and "3 replies missing" in out
+
+
+def test_the_live_panel_shows_what_the_verdict_rests_on_and_whether_the_time_left_is_a_guess() -> None:
+    """Before the first decision the time left is only the least it can be; once the stop rule has searched, it is
+    its estimate. The panel shows the period fit's af and a1 against a new valve (what the verdict rests on; on
+    p-edc-hard the online estimates differ from it by 10-30 %), labelling the online ones as such."""
+    from rich.console import Console
+
+    from edc_bench.ui.live import render_snapshot
+    from edc_bench.ui.snapshot import Snapshot
+
+    class Watch:
+        def __init__(self) -> None:
+            self.panels: dict[int, tuple[str, dict | None, float, bool]] = {}
+
+        def phase(self, name) -> None:
+            pass
+
+        def tick(self, k, loop) -> None:
+            if k % 250 == 0:
+                snapshot = Snapshot()
+                snapshot.enter("excite")
+                snapshot.update(k, loop)
+                console = Console(record=True, width=160, color_system=None)
+                console.print(render_snapshot(snapshot, "title"))
+                rule = loop.stop_rule
+                self.panels[k] = (console.export_text(), None if rule.latest is None else dict(rule.latest),
+                                  rule.expected_end_s, rule.expected_end_is_earliest)
+
+    watch = Watch()
+    # a valve near the marginal band's edge: not certain after three periods, so the rule searches for when
+    result = run_simulated_test(load_variant(), "clearance=0.183", 0, observer=watch)
+    assert result.stop["reason"] == "verdict certain" and result.stop["periods"] > 3
+    before = [text for k, (text, latest, _, _) in watch.panels.items() if latest is None]
+    assert before and all("at least" in text and "from the first decision on" in text for text in before)
+    guesses = [(k, text, latest, end_s) for k, (text, latest, end_s, earliest) in watch.panels.items()
+               if latest is not None and not earliest]
+    assert guesses, "the rule's estimate of the end was never shown"
+    k, text, latest, end_s = guesses[0]
+    assert f"about {end_s - k * 0.001:4.1f} s left" in text
+    assert f"af {latest['af_rel'] - 1:+.1%} +/-{latest['af_half_width_rel']:.1%}" in text
+    assert f"{latest['periods']} periods: {latest['verdict']} so far" in text
+    assert "af online" in text and "a1 online" in text
