@@ -11,7 +11,8 @@ A test may stop once, after at least ``acceptance.min_periods`` whole periods
 
 Otherwise the test runs on, up to the variant's duration. Before each period
 ends, :attr:`EarlyStop.expected_end_s` says when the test is expected to end:
-the first period at which the interval, shrinking as 1/sqrt(periods), would
+the first period at which the interval, shrinking as 1/sqrt(periods) (and as
+Student's t quantile falls with the periods' degrees of freedom), would
 leave the verdict unchanged.
 
 The loop calls :meth:`EarlyStop.check` at the ticks in
@@ -33,6 +34,7 @@ long the test and its variant (steps 0.2-0.6 ms, the period-end decision
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from statistics import NormalDist
 from typing import Any
 
@@ -111,7 +113,7 @@ class EarlyStop:
         self._inductive = inductive_shares(variant)
         self._noise_v = expected_drive_noise_v(variant)
         self._reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
-        self._z = interval_z(variant)
+        self.interval = Interval.of(variant, self.max_periods)
         self._base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
         # the classifier's first call costs several times a later one: paid now, before the loop's first tick
         certain_verdicts(classifier, np.ones((1, 2)), np.full((1, 2), 0.01))
@@ -155,7 +157,7 @@ class EarlyStop:
         # enough candidates per step to finish before the next period's end (one, unless the test is long)
         candidates = np.arange(more, min(more + self.search_per_step, self.max_periods + 1))
         boxes = certain_verdicts(self.classifier, np.repeat(centre, len(candidates), axis=0),
-                                 half_width * np.sqrt(periods / candidates)[:, None])
+                                 half_width * self.interval.shrink(periods, candidates)[:, None])
         if boxes.any():
             self.expected_end_s, self._search = self.setup.end_s(int(candidates[np.argmax(boxes)])), None
             self.expected_end_is_earliest = False
@@ -189,7 +191,7 @@ class EarlyStop:
                                                        float(fit.value(name)[0]), self._r_ref,
                                                        float(columns["coil_resistance_ohm"][k]))
                                 for name in ("af", "a1")]])
-        centre, half_width = relative_box(parameters, fit, self._base, self._z)
+        centre, half_width = relative_box(parameters, fit, self._base, self.interval)
         misfit, trusted, certain, verdicts = stop_flags(self.variant, self.classifier, fit, periods, centre,
                                                         half_width, self._noise_v, self._reference_condition)
         self.latest = {"periods": periods, "af_rel": float(centre[0, 0]), "a1_rel": float(centre[0, 1]),
@@ -207,25 +209,61 @@ class EarlyStop:
         if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
             self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None
-        # when would the interval, shrinking as 1 / sqrt(periods), leave the verdict alone? Searched a period at a
+        # when would the interval, shrinking with more periods (Interval.shrink), leave the verdict alone? Searched a period at a
         # time over the next steps (all at once would cost a classifier call per remaining period in this tick)
         self._search = (centre, half_width, periods, periods + 1)
         self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))  # the earliest it can be, meanwhile
         return None
 
 
-def interval_z(variant: Variant) -> float:
-    """Standard errors either side of an estimate for the variant's ``verdict_confidence`` (normal)."""
-    return NormalDist().inv_cdf(0.5 + variant.acceptance.verdict_confidence / 2.0)
+@dataclass(frozen=True)
+class Interval:
+    """How many standard errors either side of an estimate make the variant's ``verdict_confidence`` interval.
 
+    The standard error from the periods' spread rests on few periods (two degrees of freedom from three), so it
+    takes Student's t quantile for them; the least-squares one, on thousands of rows, the normal quantile.
 
-def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray, z: float) -> tuple[np.ndarray, np.ndarray]:
-    """af and a1 relative to the baseline, and z standard errors of each: (N, 2) each.
-
-    ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1.
+    Attributes
+    ----------
+    z : float
+        Normal quantile.
+    t : numpy.ndarray
+        Student's t quantile by degrees of freedom (index 0: NaN).
     """
-    std = np.column_stack([fit.std_of("af"), fit.std_of("a1")])
-    return parameters / base, z * std / np.abs(base)
+
+    z: float
+    t: np.ndarray
+
+    @classmethod
+    def of(cls, variant: Variant, max_periods: int) -> Interval:
+        """The quantiles for ``variant``'s confidence, up to ``max_periods`` periods."""
+        from scipy.stats import t as student_t
+
+        q = 0.5 + variant.acceptance.verdict_confidence / 2.0
+        dof = np.arange(max(max_periods, 2))
+        return cls(NormalDist().inv_cdf(q), np.where(dof > 0, student_t.ppf(q, np.maximum(dof, 1)), np.nan))
+
+    def shrink(self, periods: int, more: np.ndarray) -> np.ndarray:
+        """How a half width after ``periods`` periods would shrink after ``more`` (1/sqrt(periods), and the spread's
+        quantile with its degrees of freedom)."""
+        more = np.asarray(more)
+        t_now = self.t[min(periods - 1, len(self.t) - 1)]
+        t_then = self.t[np.minimum(more - 1, len(self.t) - 1)]
+        return np.sqrt(periods / more) * t_then / t_now
+
+
+def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray,
+                 interval: Interval) -> tuple[np.ndarray, np.ndarray]:
+    """af and a1 relative to the baseline, and the half width of their interval: (N, 2) each.
+
+    ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1. The half
+    width is the larger of t standard errors from the periods' spread and z least-squares ones (NaN, no box, with
+    fewer than two periods).
+    """
+    t = interval.t[np.clip(fit.periods_used - 1, 0, len(interval.t) - 1)][:, None]
+    columns = [fit.columns.index("af"), fit.columns.index("a1")]
+    half = np.maximum(t * fit.spread_se[:, columns], interval.z * fit.ls_std[:, columns])
+    return parameters / base, half / np.abs(base)
 
 
 def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, periods: int, centres: np.ndarray,

@@ -71,7 +71,7 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         ``stop_s`` (per valve), ``median_s``, ``p95_s``, and for ``early`` and ``full``: INVALID count and
         :func:`verdict_counts`; per variant the median and 95th percentile.
     """
-    from edc_bench.diagnosis.early_stop import interval_z, relative_box, stop_flags
+    from edc_bench.diagnosis.early_stop import Interval, relative_box, stop_flags
 
     stop_all, early_v, full_v, truth_all = [], [], [], []
     early_ok, full_ok = [], []
@@ -86,7 +86,7 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         result = run_batch(variant, valves, seeds)
         periods = result.periods
         n = len(valves)
-        z = interval_z(variant)
+        interval = Interval.of(variant, periods.blocks)
         base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
         stop_p = np.full(n, periods.blocks)
         decided = np.zeros(n, dtype=bool)
@@ -96,7 +96,7 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
             at = periods.at(p)
             if at.fit is None:
                 continue
-            centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, z)
+            centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, interval)
             misfit, trusted, certain, _ = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
                                                      periods.reference_condition)
             stop_now = ~decided & (certain | misfit | (p == periods.blocks))

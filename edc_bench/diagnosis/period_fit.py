@@ -351,7 +351,7 @@ class PeriodFit:
     block_theta : numpy.ndarray
         (blocks, [N,] p) each period's own solution.
     std : numpy.ndarray
-        ([N,] p) standard error of the mean of the periods (the larger of the spread's and the residual's).
+        ([N,] p) standard error of the mean of the periods (the larger of ``spread_se`` and ``ls_std``).
     blocks : int
         Periods used.
     residual_rms_v : numpy.ndarray
@@ -365,6 +365,18 @@ class PeriodFit:
     settled : numpy.ndarray
         No drift: af and a1 over the first half of the periods and over the second half agree within the
         settle band.
+    samples : numpy.ndarray
+        Rows used.
+    columns : tuple of str
+        Names of the coefficients.
+    systematic_rms_v : numpy.ndarray
+        The residual's part that repeats from period to period (RMS, V): the model's misfit.
+    spread_se : numpy.ndarray
+        ([N,] p) standard error of the mean from the periods' spread (NaN with fewer than two periods).
+    ls_std : numpy.ndarray
+        ([N,] p) the least-squares standard error, from the residual.
+    periods_used : numpy.ndarray
+        Periods with rows enough for their own solution (the spread's degrees of freedom are one fewer).
     """
 
     theta: np.ndarray
@@ -379,6 +391,9 @@ class PeriodFit:
     samples: np.ndarray = field(default_factory=lambda: np.zeros(0))
     columns: tuple[str, ...] = ()
     systematic_rms_v: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    spread_se: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ls_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    periods_used: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
     def value(self, name: str) -> np.ndarray:
         """The estimate of one coefficient (``af``, ``a1``, ``d2``...)."""
@@ -429,7 +444,8 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     spread_sd = np.sqrt(np.nansum(np.where(good[..., None], (block_theta - theta) ** 2, 0.0), axis=0)
                         / np.maximum(used - 1, 1)[:, None])
     spread_sd = np.where((used >= 2)[:, None], spread_sd, np.nan)  # one period: no spread known
-    std = np.maximum(spread_sd / np.sqrt(np.maximum(used, 1))[:, None], ls_std)
+    spread_se = spread_sd / np.sqrt(np.maximum(used, 1))[:, None]
+    std = np.maximum(spread_se, ls_std)
     cols = setup.columns
     i_af, i_a1, i_df = cols.index("af"), cols.index("a1"), cols.index("df")
     af, a1 = theta[:, i_af], theta[:, i_a1]
@@ -445,7 +461,7 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
             late = np.nanmean(block_theta[half:, :, i], axis=0)
             settled = settled & (np.abs(late - early) <= settle_band_rel * np.abs(theta[:, i]))
     return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, cond, settled,
-                     n_rows, cols, systematic_rms)
+                     n_rows, cols, systematic_rms, spread_se, ls_std, used)
 
 
 def reference_condition_number(design: ControllerDesign) -> float:

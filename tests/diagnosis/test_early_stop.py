@@ -118,7 +118,7 @@ def test_the_expected_end_found_step_by_step_is_the_one_a_search_over_every_peri
             continue
         more = np.arange(periods + 1, rule.max_periods + 1)
         box = early_stop.certain_verdicts(classifier, np.repeat(centre, len(more), axis=0),
-                                          half_width * np.sqrt(periods / more)[:, None])
+                                          half_width * rule.interval.shrink(periods, more)[:, None])
         expected = setup.end_s(int(more[np.argmax(box)])) if box.any() else rule.duration_s
         # what the live view showed at the last observed tick before the next period's end
         next_end = setup.end_tick(periods + 1)

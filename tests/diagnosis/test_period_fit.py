@@ -98,3 +98,14 @@ def test_a_trial_feed_is_taken_back_whole(setup) -> None:
     whole = _fit(setup, X, y, use)
     np.testing.assert_allclose(acc.pair_yy, whole.pair_yy, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(acc.pair_count, whole.pair_count)
+
+
+def test_the_interval_takes_student_s_t_for_the_spread_of_few_periods() -> None:
+    from edc_bench.diagnosis.early_stop import Interval
+
+    interval = Interval.of(load_variant("p-edc-default"), 14)  # verdict_confidence 0.99
+    assert interval.z == pytest.approx(2.5758, abs=1e-4)
+    assert interval.t[2] == pytest.approx(9.9248, abs=1e-4)  # three periods: two degrees of freedom
+    assert interval.t[12] == pytest.approx(3.0545, abs=1e-4)
+    # from 3 periods to 6 the half width shrinks by sqrt(1/2) and by t(5) / t(2)
+    assert interval.shrink(3, np.array([6]))[0] == pytest.approx(np.sqrt(0.5) * 4.0321 / 9.9248, rel=1e-4)

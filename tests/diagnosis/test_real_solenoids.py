@@ -207,6 +207,32 @@ def test_a_test_not_classified_runs_its_full_length_and_says_why() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("name", ["p-edc-default", "p-edc-hard"])
+def test_the_early_interval_holds_what_the_full_length_test_finds(name: str) -> None:
+    """The 99 % box the early stop judges by, after three periods, through a USB adapter's jitter: does it hold
+    the 30 s estimate? With the normal quantile on the spread of three periods it held it for 96 and 95 of 100
+    valves (p-edc-default, p-edc-hard); with Student's t for the spread's two degrees of freedom, 100 and 99.
+    (It is the test's own noise; the identification's bias, measured in docs/bench-test.md, is no part of it.)"""
+    from edc_bench.diagnosis.baseline import load_baseline
+    from edc_bench.diagnosis.early_stop import Interval, relative_box
+    from edc_bench.diagnosis.population import draw_population
+    from edc_bench.sim.adapter import parse_adapter
+
+    variant = load_variant(name)
+    valves = draw_population(variant, 100, seed=3)
+    result = run_batch(variant, valves, list(range(100)), adapter=parse_adapter("usb-fs"))
+    baseline = load_baseline(variant, station=False)
+    base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+    at = result.periods.at(3)
+    centre, half_width = relative_box(at.parameters[:, [5, 2]], at.fit, base,
+                                      Interval.of(variant, result.periods.blocks))
+    full = result.parameters[:, [5, 2]] / base
+    inside = np.all(np.abs(full - centre) <= half_width, axis=1)
+    print(f"{name}: the full-length estimate inside the early box for {inside.sum()} of 100 valves")
+    assert inside.mean() >= 0.98
+
+
+@pytest.mark.slow
 def test_time_to_verdict_over_210_valves_median_10_s_p95_20_s_with_the_full_lengths_accuracy() -> None:
     from edc_bench.diagnosis.classifier import default_classifier
     from edc_bench.diagnosis.experiments import time_to_verdict
