@@ -209,8 +209,9 @@ class EarlyStop:
         if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
             self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None
-        # when would the interval, shrinking with more periods (Interval.shrink), leave the verdict alone? Searched a period at a
-        # time over the next steps (all at once would cost a classifier call per remaining period in this tick)
+        # when would the interval, shrinking with more periods (Interval.shrink), leave the verdict alone? Searched
+        # a period at a time over the next steps (all at once would cost a classifier call per remaining period in
+        # this tick)
         self._search = (centre, half_width, periods, periods + 1)
         self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))  # the earliest it can be, meanwhile
         return None
