@@ -146,8 +146,8 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     ident = result.identification
     if ident is not None and ident.model_fit is not None:
         fit = ident.model_fit
-        body.add_row("model fit", Text(f"residual {fit.residual_ratio:.1f}x the sensor noise ({fit.systematic_ratio:.1f}x the "
-                                       f"same every period), period-to-period spread "
+        body.add_row("model fit", Text(f"residual {fit.residual_ratio:.1f}x the sensor noise "
+                                       f"({fit.systematic_ratio:.1f}x the same every period), period-to-period spread "
                                        f"af {fit.spread_rel['af']:.1%} a1 {fit.spread_rel['a1']:.1%}, solenoid gain "
                                        f"+/-{fit.gain_variation_rel:.0%}" + ("" if fit.fits else ": DOES NOT FIT"),
                                        style="" if fit.fits else "bold magenta"))
