@@ -55,6 +55,10 @@ SMOOTHING_ORDER = 4
 GAIN_TERMS = ("d2", "dv", "df")  # Delta^2, Delta x', Delta sgn(x')
 #: Periods used at least before a test can count as converged (three give a spread with two degrees of freedom).
 MIN_PERIODS = 3
+#: From this many periods the drift test allows for the scatter within each half (four degrees of freedom), up to
+#: Student's t quantile of DRIFT_CONFIDENCE (two-sided) times the standard error of the halves' difference.
+DRIFT_MIN_PERIODS = 6
+DRIFT_CONFIDENCE = 0.99
 
 
 def excitation_period_s(frequencies_hz: list[float]) -> float:
@@ -155,6 +159,14 @@ class FitSetup:
     def blocks_in(self, ticks: int) -> int:
         """Complete blocks in ``ticks`` ticks (the inverse of :meth:`end_tick`)."""
         return max(0, (ticks - 1 - self.end_tick(0)) // self.block_ticks)
+
+
+@functools.lru_cache(maxsize=64)
+def _drift_t(dof: int) -> float:
+    """Student's t quantile for the drift test (scipy.stats, loaded only when a test has run that many periods)."""
+    from scipy.stats import t
+
+    return float(t.ppf(0.5 + DRIFT_CONFIDENCE / 2, dof))
 
 
 @functools.lru_cache(maxsize=8)
@@ -451,15 +463,23 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     af, a1 = theta[:, i_af], theta[:, i_a1]
     spread = {"af": spread_sd[:, i_af] / np.abs(af), "a1": spread_sd[:, i_a1] / np.abs(a1)}
     gain_variation = np.abs(theta[:, i_df] / af) * setup.swing_mm
-    # settled: no drift; the periods' first half and second half agree within the band (scatter is the model
-    # fit's business, and averages out)
+    # settled: no drift; the periods' first half and second half agree within the band, or, from
+    # DRIFT_MIN_PERIODS on, within t standard errors of their difference from the scatter inside each half
+    # (scatter is noise, a CAN adapter's jitter mostly: 4 % per period on a1 through usb-fs on p-edc-hard, which
+    # moved two half means 2.3 % apart on a pump that fits; a drift does not inflate the scatter within a half)
     half = blocks // 2
     settled = used == blocks
     for i in (i_af, i_a1):
         if blocks >= 2:
-            early = np.nanmean(block_theta[:half, :, i], axis=0)
-            late = np.nanmean(block_theta[half:, :, i], axis=0)
-            settled = settled & (np.abs(late - early) <= settle_band_rel * np.abs(theta[:, i]))
+            first, second = block_theta[:half, :, i], block_theta[half:, :, i]
+            early, late = np.nanmean(first, axis=0), np.nanmean(second, axis=0)
+            tolerance = settle_band_rel * np.abs(theta[:, i])
+            if blocks >= DRIFT_MIN_PERIODS:
+                squares = np.nansum((first - early) ** 2, axis=0) + np.nansum((second - late) ** 2, axis=0)
+                within = squares / (blocks - 2)
+                noise = _drift_t(blocks - 2) * np.sqrt(within * (1.0 / half + 1.0 / (blocks - half)))
+                tolerance = np.maximum(tolerance, np.where(np.isfinite(noise), noise, 0.0))
+            settled = settled & (np.abs(late - early) <= tolerance)
     return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, cond, settled,
                      n_rows, cols, systematic_rms, spread_se, ls_std, used)
 
