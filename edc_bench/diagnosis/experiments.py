@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from edc_bench.config import load_variant
+from edc_bench.config import Variant, load_variant, parse_variant
 from edc_bench.diagnosis.baseline import Baseline, load_baseline
-from edc_bench.diagnosis.batch import run_batch
+from edc_bench.diagnosis.batch import BatchResult, run_batch
 from edc_bench.diagnosis.classifier import ValveClassifier
 from edc_bench.diagnosis.dataset import COLUMNS, Dataset
 from edc_bench.diagnosis.population import draw_population, new_valves
@@ -56,14 +56,53 @@ def verdict_counts(verdicts: np.ndarray, truth: np.ndarray) -> dict[str, Any]:
 # --------------------------------------------------------------------------- time to verdict
 
 
+def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassifier,
+                  baseline: Baseline) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where the bench's stop rule would have ended each test of a batch run, and with what.
+
+    The period fit after each number of whole periods is what a test stopped then would have found
+    (:class:`~edc_bench.diagnosis.batch.PeriodResults`), so the rule of
+    :class:`~edc_bench.diagnosis.early_stop.EarlyStop` is applied period by period.
+
+    Returns
+    -------
+    (stop_periods, trusted, features_rel, misfit)
+        Per test: the periods the test ran, whether its numbers were trusted then (else INVALID), af and a1 over
+        the baseline then, and whether it stopped because the model does not fit.
+    """
+    from edc_bench.diagnosis.early_stop import Interval, relative_box, stop_flags
+
+    periods = result.periods
+    n = len(result.parameters)
+    interval = Interval.of(variant, periods.blocks)
+    base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+    stop_p = np.full(n, periods.blocks)
+    decided = np.zeros(n, dtype=bool)
+    features = np.full((n, 2), np.nan)
+    trusted_at_stop = np.zeros(n, dtype=bool)
+    misfit_at_stop = np.zeros(n, dtype=bool)
+    for p in range(min(variant.acceptance.min_periods, periods.blocks), periods.blocks + 1):
+        at = periods.at(p)
+        if at.fit is None:
+            continue
+        centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, interval)
+        misfit, trusted, certain, _ = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
+                                                 periods.reference_condition)
+        stop_now = ~decided & (certain | misfit | (p == periods.blocks))
+        stop_p[stop_now] = p
+        features[stop_now] = centre[stop_now]
+        trusted_at_stop[stop_now] = trusted[stop_now]
+        misfit_at_stop[stop_now] = misfit[stop_now]
+        decided |= stop_now
+    return stop_p, trusted_at_stop, features, misfit_at_stop
+
+
 def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count_per_variant: int,
                     seed: int) -> dict[str, Any]:
     """Early stop against the full-length test on a simulated population (batch path, the loop's rule).
 
-    Every valve's test is simulated to its full length once; the period fit after each number of whole
-    periods is what a test stopped then would have found (:class:`~edc_bench.diagnosis.batch.PeriodResults`), so
-    the stop rule of :class:`~edc_bench.diagnosis.early_stop.EarlyStop` is applied period by period. Both
-    verdicts are compared with the physical labels.
+    Every valve's test is simulated to its full length once and stopped by :func:`early_outcome`. Both verdicts
+    are compared with the physical labels.
 
     Returns
     -------
@@ -71,42 +110,21 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         ``stop_s`` (per valve), ``median_s``, ``p95_s``, and for ``early`` and ``full``: INVALID count and
         :func:`verdict_counts`; per variant the median and 95th percentile.
     """
-    from edc_bench.diagnosis.early_stop import Interval, relative_box, stop_flags
-
     stop_all, early_v, full_v, truth_all = [], [], [], []
     early_ok, full_ok = [], []
     per_variant = {}
     for v_index, name in enumerate(variant_names):
         variant = load_variant(name)
-        acc = variant.acceptance
         baseline = load_baseline(variant, station=False)
         population_seed = seed * 1000 + v_index
         valves = draw_population(variant, count_per_variant, population_seed)
         seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]
         result = run_batch(variant, valves, seeds)
         periods = result.periods
-        n = len(valves)
-        interval = Interval.of(variant, periods.blocks)
-        base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
-        stop_p = np.full(n, periods.blocks)
-        decided = np.zeros(n, dtype=bool)
-        stop_features = np.full((n, 2), np.nan)
-        stop_trusted = np.zeros(n, dtype=bool)
-        for p in range(min(acc.min_periods, periods.blocks), periods.blocks + 1):
-            at = periods.at(p)
-            if at.fit is None:
-                continue
-            centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, interval)
-            misfit, trusted, certain, _ = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
-                                                     periods.reference_condition)
-            stop_now = ~decided & (certain | misfit | (p == periods.blocks))
-            stop_p[stop_now] = p
-            stop_features[stop_now] = centre[stop_now]
-            stop_trusted[stop_now] = trusted[stop_now]
-            decided |= stop_now
+        stop_p, stop_trusted, stop_features, _ = early_outcome(variant, result, classifier, baseline)
         stop_s = np.array([periods.stop_time_s(int(p)) for p in stop_p])
         full_trusted = result.converged & result.model_fits
-        full_features = result.parameters[:, [5, 2]] / base
+        full_features = result.parameters[:, [5, 2]] / np.array([baseline.af_v, baseline.a1_v_s_per_mm])
         truth = np.array([is_faulty(variant, v) for v in valves])
         stop_all.append(stop_s)
         truth_all.append(truth)
@@ -114,7 +132,7 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         full_ok.append(full_trusted)
         early_v.append(stop_features)
         full_v.append(full_features)
-        per_variant[name] = {"valves": n, "median_s": float(np.median(stop_s)),
+        per_variant[name] = {"valves": len(valves), "median_s": float(np.median(stop_s)),
                              "p95_s": float(np.percentile(stop_s, 95)),
                              "full_length_s": float(variant.excitation.duration_s)}
     stop = np.concatenate(stop_all)
@@ -128,6 +146,72 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         out[label] = {"invalid": int((~good).sum()), "judged": int(good.sum()),
                       **verdict_counts(verdicts, truth[good])}
     return out
+
+
+# --------------------------------------------------------------------------- beyond the model's reach
+
+
+def with_gain_variation(variant: Variant, variation_rel: float) -> Variant:
+    """``variant`` with a solenoid whose force constant varies by +/-``variation_rel`` over the excitation's swing
+    (negative: falling towards full delivery), named ``<name>-gainNN`` (``-gainNN-falling``)."""
+    swing_mm = sum(tone.amplitude_mm for tone in variant.excitation.active_tones)
+    data = variant.model_dump()
+    data["coil"]["force_constant_variation_per_mm"] = variation_rel / swing_mm
+    falling = "-falling" if variation_rel < 0 else ""
+    data["pump"]["name"] = f"{variant.pump.name}-gain{abs(variation_rel) * 100:.0f}{falling}"
+    return parse_variant(data)
+
+
+def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: int, seed: int,
+               variant_name: str = "p-edc-hard") -> list[dict[str, Any]]:
+    """What the bench makes of pumps whose solenoid's gain varies more than the model's first order covers.
+
+    One population of ``count`` used valves of ``variant_name`` (seed ``seed``), each on a pump whose force
+    constant varies by each of ``variations_rel`` over the swing, judged against the variant's baseline and
+    stopped by the bench's rule (:func:`early_outcome`). A pump the bench judges must be identified as well as the
+    hard variant is held to; the others must be INVALID "does not fit".
+
+    Returns
+    -------
+    list of dict
+        Per variation: ``variation_rel``, ``valves``, ``judged``, ``misfit`` (INVALID by the model fit),
+        ``af_error_max``/``a1_error_max`` (largest |error| against the plant's truth among the judged, NaN if
+        none), ``faulty_passed``/``reusable_failed`` (among the judged), and over all at their stop
+        ``gain_identified`` and ``repeating_ratio`` (the residual's repeating part over the sensor noise), (min, max).
+    """
+    base_variant = load_variant(variant_name)
+    baseline = load_baseline(base_variant, station=False)
+    valves = draw_population(base_variant, count, seed)
+    seeds = [seed * 100_000 + n for n in range(count)]
+    truth_faulty = np.array([is_faulty(base_variant, v) for v in valves])
+    rows = []
+    for variation in variations_rel:
+        variant = with_gain_variation(base_variant, variation)
+        result = run_batch(variant, valves, seeds)
+        stop_p, trusted, features, misfit = early_outcome(variant, result, classifier, baseline)
+        estimate = np.zeros((len(valves), 2))
+        gain, repeating = np.zeros(len(valves)), np.zeros(len(valves))
+        for p in np.unique(stop_p):  # each test's figures where it stopped
+            at, here = result.periods.at(int(p)), stop_p == p
+            estimate[here] = at.parameters[here][:, [5, 2]]
+            gain[here] = at.fit.gain_variation_rel[here]
+            repeating[here] = at.fit.systematic_rms_v[here] / result.periods.noise_v
+        errors = np.abs(estimate / result.truth[:, [5, 2]] - 1)
+        verdicts = np.full(len(valves), "", dtype=object)
+        if trusted.any():
+            judged_verdicts, _, _ = classifier.classify_many(features[trusted])
+            verdicts[trusted] = judged_verdicts  # verdict names
+        rows.append({
+            "variation_rel": variation, "valves": len(valves), "judged": int(trusted.sum()),
+            "misfit": int(misfit.sum()),
+            "af_error_max": float(errors[trusted, 0].max()) if trusted.any() else float("nan"),
+            "a1_error_max": float(errors[trusted, 1].max()) if trusted.any() else float("nan"),
+            "faulty_passed": int(((verdicts == Verdict.PASS.value) & truth_faulty).sum()),
+            "reusable_failed": int(((verdicts == Verdict.FAIL.value) & ~truth_faulty).sum()),
+            "gain_identified": (float(gain.min()), float(gain.max())),
+            "repeating_ratio": (float(np.nanmin(repeating)), float(np.nanmax(repeating))),
+        })
+    return rows
 
 
 # --------------------------------------------------------------------------- the paper

@@ -149,7 +149,10 @@ def test_single_sine_with_only_identifiable_parameters_is_accepted() -> None:
     # estimate only what one sine can tell apart: a3 and a2 stay at nominal
     variant = _with(load_variant(), excitation={"shape": "sine"}, estimator={"estimate": ["a1", "a0", "b", "af"]})
     result = run_simulated_test(variant, "worn", 1, check_gains=False)
-    assert result.identification.condition_number < 1e3
+    # one sine tells Delta^2 sgn(x') from sgn(x') less well than two tones (5.6e3 here, about 100 with the shipped
+    # excitation), but within the acceptance limit
+    assert result.identification.condition_number < variant.acceptance.max_condition_number
+    assert result.verdict != Verdict.INVALID, result.reasons
     assert abs(result.parameters["af"]["error_rel"]) < 0.08
 
 

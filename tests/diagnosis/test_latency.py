@@ -1,12 +1,12 @@
 """Identification through a CAN adapter's latency: the same af, a1 and verdicts as with none (issue #12).
 
-Measured (2026-11, 200 valves): usb-fs a1 +0.13 % on average, 95 % of valves within 0.6 %, at most 1.5 % (3 valves
-beyond 1 %); af within 1 % on every valve; no verdict changed. 5 ms round trip with 1 ms jitter: af and a1 within
-0.85 % on every valve, no verdict changed. p-edc-hard (lightly damped, a force constant varying +/-10 %) through
-usb-fs: af within 0.6 %; a1 -0.6 % on average, 95 % of valves within 1.5 %, at most 2.1 %. Through every link the
-model fits every valve: the repeating part of the residual is at most 1.7x (default), 3.9x (hard), 2.5x (slow
-link) the sensor noise, against the limit of 5, while the whole residual reaches 5.9x, 7.5x, 8.9x. The bounds
-below leave room for those figures, not more.
+Measured (2026-11, 200 valves, with the period fit's second-order friction term): usb-fs af +0.18 % and a1 -0.17 %
+on average, every valve within 0.6 %; no verdict changed. 5 ms round trip with 1 ms jitter: af and a1 within 0.1 %
+on every valve, no verdict changed. p-edc-hard (lightly damped, a force constant varying +/-10 %) through usb-fs:
+af within 0.85 %; a1 -0.72 % on average, 95 % of valves within 1.7 %, at most 2.9 % (before the term: -0.6 %, 1.5 %,
+2.1 %). Through every link the model fits every valve and has converged: the repeating part of the residual is at
+most 1.4x (default), 2.9x (hard), 2.0x (slow link) the sensor noise, against the limit of 5, while the whole
+residual reaches 5.7x, 7.1x, 8.9x. The bounds below leave room for those figures, not more.
 
 Each case runs the same 200 simulated used valves through the batch path twice, with the same sensor noise:
 once with replies within the tick, once through the adapter model. "5 ms latency plus 1 ms jitter" is taken as

@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 from edc_bench.bench import run_simulated_test
-from edc_bench.config import load_variant, parse_variant
+from edc_bench.config import load_variant
 from edc_bench.diagnosis.batch import run_batch
+from edc_bench.diagnosis.experiments import with_gain_variation
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.valve import nominal_plant, parse_valve_spec, plant_parameters
 from edc_bench.sim.plant import Plant
@@ -28,13 +29,6 @@ SEEDS = (0, 1, 2)
 @pytest.fixture(scope="module")
 def hard():
     return load_variant("p-edc-hard")
-
-
-def _with_gain_variation(variant, per_mm: float):
-    data = variant.model_dump()
-    data["coil"]["force_constant_variation_per_mm"] = per_mm
-    data["pump"]["name"] = "gain-test"
-    return parse_variant(data)
 
 
 # ---------------------------------------------------------------------------------------------- the plant
@@ -148,12 +142,12 @@ def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within
 # ------------------------------------------------------------------------------------------- model fit
 
 
-@pytest.mark.parametrize("per_mm", [0.0667, -0.0667], ids=["+30%", "-30%"])
-def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_early(hard, per_mm: float) -> None:
+@pytest.mark.parametrize("variation_rel", [0.30, -0.30], ids=["+30%", "-30%"])
+def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_early(hard, variation_rel: float) -> None:
     """Every valve, the faulty one included: with its friction not yet learnt it sticks for up to 50 ms at a time
     on this pump (2.8 mm off its reference), which ended the test at 2 s as "stuck rack or sensor" before the
     tracking check waits 100 ticks (runtime/tracking.py)."""
-    variant = _with_gain_variation(hard, per_mm)  # +/-30 % over the swing
+    variant = with_gain_variation(hard, variation_rel)
     for valve in VALVES:
         result = run_simulated_test(variant, valve, 0, nominal_baseline=True)
         assert result.verdict == Verdict.INVALID
@@ -164,12 +158,33 @@ def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_ear
         assert result.stop["reason"] == "model does not fit"
         assert result.stop["time_s"] < variant.excitation.duration_s
         assert not result.judgement.identification.model_fit.fits
-        if valve == "faulty" and per_mm > 0:  # the stick-slip the tracking check must ride out (docs/bench-test.md)
+        # the stick-slip the tracking check must ride out (docs/bench-test.md)
+        if valve == "faulty" and variation_rel > 0:
             off = np.abs(result.trace["reference_mm"] - result.trace["position_mm"]) > 2.0
             edges = np.flatnonzero(np.diff(np.r_[0, off.astype(np.int8), 0]))
             longest = int((edges[1::2] - edges[::2]).max()) if len(edges) else 0
             print(f"+30 % faulty: longest run more than 2 mm off {longest} ticks")
             assert 0 < longest < variant.acceptance.tracking_error_ticks // 2 + 1
+
+
+@pytest.mark.slow
+def test_a_pump_beyond_the_hard_variant_is_judged_only_where_it_is_identified_as_well() -> None:
+    """Found by #11's second review: with the first-order model alone, pumps whose force constant varied by +22 % or
+    -15 % over the swing passed the model-fit rule with a1 up to 10.6 % and 12.5 % off (the hard variant is held to
+    10 %). With the friction's second-order term the judged ones are identified as well as the hard variant, the
+    others are INVALID "does not fit", and every valve on a +15 % pump is still judged (docs/method.md, "Beyond the
+    first order"; all rows: python docs/gain_sweep.py)."""
+    from edc_bench.diagnosis.classifier import default_classifier
+    from edc_bench.diagnosis.experiments import gain_sweep
+
+    rows = gain_sweep(default_classifier(), [0.15, 0.22, -0.15], 60, 5)
+    for row in rows:
+        print(row)
+        if row["judged"]:
+            assert row["af_error_max"] < 0.05 and row["a1_error_max"] < 0.10, row
+        assert row["faulty_passed"] == 0, row
+        assert row["judged"] + row["misfit"] == row["valves"], row  # the rest is INVALID for the model fit
+    assert rows[0]["judged"] == rows[0]["valves"]
 
 
 def test_every_record_carries_the_model_fit(tmp_path: Path) -> None:
