@@ -358,7 +358,8 @@ class AcceptanceSection(_Section):
 
     settle_band_rel: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(
         default=0.02, description="settled: af and a1 over the first half of the excitation periods and over the "
-        "second half agree within this (relative)")
+        "second half agree within this (relative), or, from 8 periods on, within what their period-to-period noise "
+        "explains")
     min_periods: Annotated[int, Field(ge=2, le=100)] = Field(
         default=3, description="whole excitation periods (after the first, which learns) a verdict needs at least")
     max_residual_ratio: Annotated[float, Field(gt=1, le=1000, allow_inf_nan=False)] = Field(

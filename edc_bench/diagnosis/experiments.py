@@ -214,6 +214,23 @@ def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: 
     return rows
 
 
+# --------------------------------------------------------------------------- the drift test's yardstick
+
+
+def drift_critical_value(periods: int, draws: int = 400_000, seed: int = 2026, quantile: float = 0.99) -> float:
+    """The ``quantile`` of :func:`~edc_bench.diagnosis.period_fit.drift_statistic` over ``periods`` periods of
+    white noise (Monte Carlo, ``draws`` series): the table :data:`~edc_bench.diagnosis.period_fit.DRIFT_CRITICAL`
+    holds it, rounded to 0.01, for 400 000 draws and seed 2026."""
+    from edc_bench.diagnosis.period_fit import drift_statistic
+
+    rng = np.random.default_rng([seed, periods])
+    chunk = max(1, 4_000_000 // periods)
+    values = []
+    for start in range(0, draws, chunk):
+        values.append(drift_statistic(rng.normal(size=(periods, min(chunk, draws - start)))))
+    return float(np.quantile(np.concatenate(values), quantile))
+
+
 # --------------------------------------------------------------------------- the paper
 
 

@@ -23,6 +23,7 @@ from edc_bench.diagnosis.baseline import Baseline, load_baseline
 from edc_bench.diagnosis.classifier import Classification, ValveClassifier, default_classifier
 from edc_bench.diagnosis.coil_check import coil_finding, coil_reason
 from edc_bench.diagnosis.identification import Identification, ModelFit, analyse
+from edc_bench.diagnosis.period_fit import DRIFT_MIN_PERIODS
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
@@ -104,9 +105,11 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
         else:
             spread = "" if fit is None else (f" (period-to-period spread af {fit.spread_rel['af']:.1%}, "
                                              f"a1 {fit.spread_rel['a1']:.1%})")
+            beyond = (f"more than {acc.settle_band_rel:.0%}" if ident.periods < DRIFT_MIN_PERIODS else
+                      f"more than {acc.settle_band_rel:.0%} and more than their period-to-period noise explains")
             reasons.append(f"not converged: af and a1 were still drifting (their first {ident.periods // 2} and "
-                           f"last {ident.periods - ident.periods // 2} excitation periods differ by more than "
-                           f"{acc.settle_band_rel:.0%}){spread}; retest")
+                           f"last {ident.periods - ident.periods // 2} excitation periods differ by {beyond})"
+                           f"{spread}; retest")
     if not outcome.abort_reason and ident.condition_number > acc.max_condition_number:
         reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
                        f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
