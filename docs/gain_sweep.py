@@ -20,8 +20,9 @@ def main() -> None:
     for row in gain_sweep(default_classifier(), list(VARIATIONS), 60, 5):
         low, high = row["gain_identified"]
         least, most = row["repeating_ratio"]
+        af, a1 = (f"{row[key]:.1%}" if row["judged"] else "-" for key in ("af_error_max", "a1_error_max"))
         print(f"| {row['variation_rel']:+.0%} | {row['judged']} of {row['valves']} | {row['misfit']} "
-              f"| {row['af_error_max']:.1%} | {row['a1_error_max']:.1%} | {row['faulty_passed']} "
+              f"| {af} | {a1} | {row['faulty_passed']} "
               f"| {row['reusable_failed']} | {low:.0%}-{high:.0%} | {least:.1f}-{most:.1f} |", flush=True)
 
 

@@ -133,10 +133,14 @@ def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within
     for valve in VALVES:
         result = run_simulated_test(variant, valve, 3)
         assert abs(result.parameters["af"]["error_rel"]) < 0.02 and abs(result.parameters["a1"]["error_rel"]) < 0.05
-    matched = run_simulated_test(variant, "worn", 3, stiction=False, sensor_noise=False, full_length=True)
-    for name, entry in matched.parameters.items():
-        if entry["estimated"]:
-            assert abs(entry["error_rel"]) < 0.01, (name, entry["error_rel"])
+    # the model-matched plant: no noise, so one seed says it all; a new valve of p-edc-long is the closest to the
+    # bound (af -0.99 % at 30 s, docs/bench-test.md, "Measured accuracy")
+    for name, valve in (("p-edc-default", "worn"), ("p-edc-default", "new"), ("p-edc-long", "new")):
+        matched = run_simulated_test(load_variant(name), valve, 3, stiction=False, sensor_noise=False,
+                                     full_length=True)
+        for parameter, entry in matched.parameters.items():
+            if entry["estimated"]:
+                assert abs(entry["error_rel"]) < 0.01, (name, valve, parameter, entry["error_rel"])
 
 
 # ------------------------------------------------------------------------------------------- model fit
@@ -226,7 +230,8 @@ def test_a_test_not_classified_runs_its_full_length_and_says_why() -> None:
 def test_the_early_interval_holds_what_the_full_length_test_finds(name: str) -> None:
     """The 99 % box the early stop judges by, after three periods, through a USB adapter's jitter: does it hold
     the 30 s estimate? With the normal quantile on the spread of three periods it held it for 96 and 95 of 100
-    valves (p-edc-default, p-edc-hard); with Student's t for the spread's two degrees of freedom, 100 and 99.
+    valves (p-edc-default, p-edc-hard); with Student's t for the spread's two degrees of freedom, 100 and 100
+    (100 and 99 before the period fit's second-order term).
     (It is the test's own noise; the identification's bias, measured in docs/bench-test.md, is no part of it.)"""
     from edc_bench.diagnosis.baseline import load_baseline
     from edc_bench.diagnosis.early_stop import Interval, relative_box
