@@ -64,10 +64,10 @@ DRIFT_MIN_PERIODS = 8
 #: :func:`edc_bench.diagnosis.experiments.drift_critical_value`; tests/diagnosis/test_period_fit.py checks it).
 #: Interpolated between, the last value beyond.
 DRIFT_CRITICAL = (
-    (8, 4.78), (9, 4.44), (10, 4.21), (11, 4.04), (12, 3.89), (13, 3.77), (14, 3.67), (15, 3.61), (16, 3.54),
-    (17, 3.49), (18, 3.41), (19, 3.38), (20, 3.35), (21, 3.30), (22, 3.26), (23, 3.25), (24, 3.22), (25, 3.20),
-    (26, 3.18), (27, 3.15), (28, 3.12), (29, 3.10), (30, 3.09), (31, 3.07), (32, 3.06), (40, 2.96), (48, 2.90),
-    (64, 2.82), (96, 2.76), (128, 2.71), (192, 2.67), (256, 2.64), (384, 2.63), (512, 2.63),
+    (8, 5.29), (9, 4.79), (10, 4.49), (11, 4.28), (12, 4.08), (13, 3.93), (14, 3.82), (15, 3.73), (16, 3.62),
+    (17, 3.56), (18, 3.47), (19, 3.44), (20, 3.39), (21, 3.36), (22, 3.31), (23, 3.29), (24, 3.26), (25, 3.23),
+    (26, 3.22), (27, 3.19), (28, 3.15), (29, 3.13), (30, 3.13), (31, 3.09), (32, 3.08), (40, 2.97), (48, 2.91),
+    (64, 2.82), (96, 2.76), (128, 2.71), (192, 2.67), (256, 2.65), (384, 2.62), (512, 2.62),
 )
 
 
@@ -171,28 +171,46 @@ class FitSetup:
         return max(0, (ticks - 1 - self.end_tick(0)) // self.block_ticks)
 
 
-def drift_statistic(per_period: np.ndarray) -> np.ndarray:
-    """The difference between the means of the second and the first half of the periods, in standard errors.
-
-    The noise is taken from the differences between successive periods, the largest left out (von Neumann,
-    trimmed): a drift hardly inflates it (a linear drift of b per period adds about b^2 / 2 to the variance, a
-    transient its small late steps), and a step not at all, where the scatter about each half's mean would grow with
-    any drift inside a half and let a steady drift of any size pass. ``per_period`` is (periods, ...), periods >= 3.
-    """
+def _halves_gap(per_period: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gap between the means of the second and the first half of the periods, and its standard error, with
+    the period farthest from the median left out of both (``per_period`` is (periods, ...), periods >= 4)."""
     periods = per_period.shape[0]
-    half = periods // 2
-    gap = np.abs(np.mean(per_period[half:], axis=0) - np.mean(per_period[:half], axis=0))
-    steps = np.sort(np.diff(per_period, axis=0) ** 2, axis=0)[:-1]
-    variance = np.sum(steps, axis=0) / (2.0 * (periods - 2))
+    outlier = np.argmax(np.abs(per_period - np.median(per_period, axis=0)), axis=0)
+    index = np.arange(periods).reshape((periods,) + (1,) * (per_period.ndim - 1))
+    # the kept periods in time order: a stable sort puts the left-out one last
+    order = np.argsort(index == outlier, axis=0, kind="stable")[:-1]
+    kept = np.take_along_axis(per_period, order, axis=0)
+    first = order < periods // 2
+    early_n, late_n = first.sum(axis=0), (~first).sum(axis=0)
+    gap = np.abs(np.where(first, 0.0, kept).sum(axis=0) / late_n - np.where(first, kept, 0.0).sum(axis=0) / early_n)
+    steps = np.sort(np.diff(kept, axis=0) ** 2, axis=0)[:-1]
+    variance = np.sum(steps, axis=0) / (2.0 * (periods - 3))
+    return gap, np.sqrt(variance * (1.0 / early_n + 1.0 / late_n))
+
+
+def drift_statistic(per_period: np.ndarray) -> np.ndarray:
+    """The gap between the means of the second and the first half of the periods, in standard errors, one
+    outlying period aside.
+
+    The period farthest from the median is left out of both halves and of the noise: a CAN adapter's timing
+    scatters the periods' estimates with heavier tails than a normal distribution's (a1 of one `p-edc-hard`
+    valve 5.8 % off in one period of 13 through usb-fs, where the others scatter 1 %), and a drift moves many
+    periods, not one. The noise is taken from the differences between successive periods, the largest left out
+    (von Neumann, trimmed): a drift hardly inflates it (a steady drift of b per period adds about b^2 / 2 to the
+    variance, a step nothing), where the scatter about each half's own mean would grow with any drift inside a
+    half and let a steady drift of any size pass. ``per_period`` is (periods, ...), periods >= 4.
+    """
+    gap, standard_error = _halves_gap(per_period)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return gap / np.sqrt(variance * (1.0 / half + 1.0 / (periods - half)))
+        return gap / standard_error
 
 
 def drift_free(per_period: np.ndarray, estimate: np.ndarray, band_rel: float) -> np.ndarray:
     """Whether a coefficient's estimates, period by period, show no drift.
 
     The means over the first half of the periods and over the second half must agree within ``band_rel`` of the
-    estimate, or, from :data:`DRIFT_MIN_PERIODS` periods on, within what the periods' noise explains: their
+    estimate. From :data:`DRIFT_MIN_PERIODS` periods on, one outlying period is left out of them
+    (:func:`drift_statistic`), and they may also differ by what the periods' noise explains: their
     :func:`drift_statistic` at most the 99 % quantile it has on white noise (:data:`DRIFT_CRITICAL`), so that a
     test whose estimates merely scatter is called drifting once in a hundred at most.
 
@@ -213,14 +231,15 @@ def drift_free(per_period: np.ndarray, estimate: np.ndarray, band_rel: float) ->
     periods = per_period.shape[0]
     if periods < 2:
         return np.ones(per_period.shape[1:], dtype=bool)
-    half = periods // 2
-    early, late = np.nanmean(per_period[:half], axis=0), np.nanmean(per_period[half:], axis=0)
-    within_band = np.abs(late - early) <= band_rel * np.abs(estimate)
     if periods < DRIFT_MIN_PERIODS:
-        return within_band
+        half = periods // 2
+        early, late = np.nanmean(per_period[:half], axis=0), np.nanmean(per_period[half:], axis=0)
+        return np.abs(late - early) <= band_rel * np.abs(estimate)
+    gap, standard_error = _halves_gap(per_period)
     ns, values = zip(*DRIFT_CRITICAL)
-    noise_only = drift_statistic(per_period) <= np.interp(periods, ns, values)  # NaN compares False
-    return within_band | noise_only
+    with np.errstate(divide="ignore", invalid="ignore"):
+        noise_only = gap / standard_error <= np.interp(periods, ns, values)
+    return (gap <= band_rel * np.abs(estimate)) | noise_only  # NaN compares False
 
 
 @functools.lru_cache(maxsize=8)
