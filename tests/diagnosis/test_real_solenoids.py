@@ -138,9 +138,11 @@ def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within
     for name, valve in (("p-edc-default", "worn"), ("p-edc-default", "new"), ("p-edc-long", "new")):
         matched = run_simulated_test(load_variant(name), valve, 3, stiction=False, sensor_noise=False,
                                      full_length=True)
-        for parameter, entry in matched.parameters.items():
-            if entry["estimated"]:
-                assert abs(entry["error_rel"]) < 0.01, (name, valve, parameter, entry["error_rel"])
+        errors = {parameter: entry["error_rel"]
+                  for parameter, entry in matched.parameters.items() if entry["estimated"]}
+        print(name, valve, "model-matched plant, 30 s:", {p: f"{e:+.2%}" for p, e in errors.items()})
+        for parameter, error in errors.items():
+            assert abs(error) < 0.01, (name, valve, parameter, error)
 
 
 # ------------------------------------------------------------------------------------------- model fit
