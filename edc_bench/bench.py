@@ -45,7 +45,8 @@ from edc_bench.records.record import BenchResult
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.gain_check import check_variant_gains
-from edc_bench.runtime.loop import BenchLoop, LoopObserver, LoopOutcome, Phase
+from edc_bench.engine.outcome import LoopOutcome, StopReason
+from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase
 from edc_bench.runtime.signals import interrupt_guard, stop_requested
 from edc_bench.runtime.timing import timing_summary
 
@@ -173,18 +174,16 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
 
 def stop_summary(variant: Variant, outcome: LoopOutcome, full_length: bool, early_stop: bool) -> dict:
     """Why and when the test ended, for the record."""
-    from edc_bench.diagnosis.early_stop import ABORTED, FULL_LENGTH
-
     max_s = variant.excitation.duration_s
     if outcome.stop is not None:
         out = dict(outcome.stop)
-    elif outcome.abort_reason:
-        out = {"reason": ABORTED, "time_s": outcome.abort_time_s if outcome.abort_time_s is not None else
+    elif outcome.abort is not None:
+        out = {"reason": StopReason.ABORTED, "time_s": outcome.abort_time_s if outcome.abort_time_s is not None else
                outcome.ticks_run * variant.controller.period_s}
     else:
-        out = {"reason": FULL_LENGTH, "time_s": outcome.ticks_run * variant.controller.period_s}
+        out = {"reason": StopReason.FULL_LENGTH, "time_s": outcome.ticks_run * variant.controller.period_s}
     out.update(max_s=max_s, full_length=full_length, early_stop=early_stop)
-    if out["reason"] == FULL_LENGTH and not full_length:
+    if out["reason"] is StopReason.FULL_LENGTH and not full_length:
         out["why_full_length"] = ("no early stop: the test is not classified against a calibrated baseline"
                                   if not early_stop else "the verdict was not certain before the maximum duration")
     return out

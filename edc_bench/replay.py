@@ -10,7 +10,7 @@ computes is checked against the command that was logged (to the codec's
 (:func:`edc_bench.diagnosis.judgement.judge_run`).
 
 What a CAN log cannot hold is taken from the record when there is one: the
-tick timing (lateness, overruns) and why the loop stopped. A raw log alone
+tick timing (lateness, ticks late) and why the loop stopped. A raw log alone
 is judged without them.
 """
 
@@ -25,7 +25,6 @@ import numpy as np
 from edc_bench.config import parse_variant
 from edc_bench.config.loader import without_retired_keys
 from edc_bench.config.models import Variant
-from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
 from edc_bench.diagnosis.baseline import Baseline
 from edc_bench.diagnosis.judgement import Judgement, judge_run
@@ -35,9 +34,8 @@ from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
-from edc_bench.runtime.loop import LoopOutcome, reply_flags
-from edc_bench.runtime.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks
-from edc_bench.runtime.trace import Trace
+from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, abort_from_record
+from edc_bench.engine.tick import TickEngine
 
 #: The command carries the drive in mV; a replayed drive further off than this is a different run.
 DRIVE_TOLERANCE_V = 0.0005 + 1e-9
@@ -81,13 +79,13 @@ def _find_sync(frames: list[LoggedFrame], icd: Icd) -> tuple[Any, int]:
 
 def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s: float = 0.0,
                   icd: Icd | None = None) -> ReplayedRun:
-    """Rebuild a test's trace and controller from its frames.
+    """Rebuild a test's trace and controller from its frames, through the loop's own tick engine.
 
     The frames are taken in the order the loop logged them: a RUN command is
     a tick (its counter says which, so ticks lost to a host stall show as a
-    jump), and each reply logged after it is matched as the loop matched it
-    between that tick and the next (:class:`~edc_bench.runtime.replies.ReplyMatcher`),
-    so the controller is fed exactly the samples the loop used.
+    jump), and each frame logged after it goes to the engine as the loop
+    handed it over between that tick and the next, so the controller is fed
+    exactly the samples the loop used.
 
     Parameters
     ----------
@@ -109,59 +107,40 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
     sync, first_run = _find_sync(frames, icd)
     if sync is None or first_run < 0:
         raise ConfigError("the CAN log holds no bench test (no synchronising SAFE reply followed by RUN commands)")
-    T = variant.controller.period_s
-    capacity = int(round(variant.excitation.duration_s / T))
-    ctl = build_controller(variant, sync.position_mm)
-    ctl.add_sample(SYNC_TICK, sync.position_mm)
-    trace = Trace(capacity)
-    matcher = ReplyMatcher(max_reply_age_ticks(variant))
-    position_mm, current_a, newest_flags = sync.position_mm, sync.current_a, 0
+    capacity = int(round(variant.excitation.duration_s / variant.controller.period_s))
+    engine = TickEngine(variant, icd, capacity)
     worst = 0.0
     k, first_counter = -1, None
-    gaps = ticks_lost = 0
     for _, can_id, data in frames[first_run:]:
-        if can_id == BENCH_CMD_ID:
-            try:
-                cmd = icd.parse_bench_cmd(data)
-            except ProtocolError:
-                continue
-            if cmd.mode != Mode.RUN:
-                break  # the safe stop: the ticks are over
-            if first_counter is None:
-                first_counter = cmd.counter
-            tick = k + 1 + (cmd.counter - (first_counter + k + 1)) % 256  # a jump: ticks lost to a stall
-            if tick >= capacity:
-                raise ConfigError(f"the CAN log has more than the variant's {capacity} ticks: "
-                                  "give the variant the test ran with")
-            for gap in range(k + 1, tick):
-                trace.write_gap(gap, (ticks_start_s + gap * T) - ticks_start_s, ctl)
-            if tick > k + 1:
-                ctl.resync()
-                gaps, ticks_lost = gaps + 1, ticks_lost + tick - k - 1
-            k = tick
-            u = ctl.step(k, newest_usable=matcher.usable(k))
-            worst = max(worst, abs(u - cmd.drive_v))
-            matcher.sent(k, cmd.counter)
-            t_k = ticks_start_s + k * T  # as the loop computed it, to the last bit
-            trace.write_tick(k, t_k - ticks_start_s, math.nan, math.nan, ctl, position_mm, current_a, u, False,
-                             newest_flags, k - matcher.newest_tick)
-        elif can_id == RIG_FEEDBACK_ID and k >= 0:
-            try:
-                reply = icd.parse_rig_feedback(data)
-            except ProtocolError:
-                continue  # the loop skips a reply with a bad CRC too
-            tick = matcher.match(reply.counter, k + 1)
-            if tick is None:
-                continue
-            flags = reply_flags(reply)
-            trace.reply_arrived(tick, math.nan, reply.position_mm, reply.current_a, flags)
-            ctl.add_sample(tick, reply.position_mm, reply.current_a)
-            if tick == matcher.newest_tick:
-                position_mm, current_a, newest_flags = reply.position_mm, reply.current_a, flags
+        if can_id != BENCH_CMD_ID:
+            if k >= 0:  # the log's times are not the loop's clock: a reply's latency is not known here
+                engine.receive(can_id, data, math.nan)
+            continue
+        try:
+            cmd = icd.parse_bench_cmd(data)
+        except ProtocolError:
+            continue
+        if cmd.mode != Mode.RUN:
+            break  # the safe stop: the ticks are over
+        if first_counter is None:
+            first_counter = cmd.counter
+            engine.start(sync, (first_counter - 1) & 0xFF, ticks_start_s)
+        tick = k + 1 + (cmd.counter - (first_counter + k + 1)) % 256  # a jump: ticks lost to a stall
+        if tick >= capacity:
+            raise ConfigError(f"the CAN log has more than the variant's {capacity} ticks: "
+                              "give the variant the test ran with")
+        if tick > k + 1:
+            engine.skip(k + 1, tick - k - 1)
+        k = tick
+        engine.command(k)
+        worst = max(worst, abs(engine.drive_v - cmd.drive_v))
+        engine.sent(k, math.nan, math.nan)
     if worst > DRIVE_TOLERANCE_V:
         raise ConfigError(f"replayed drives differ from the logged commands by up to {worst * 1e3:.1f} mV: the log "
                           "was not made with this variant (or this edc-bench version's controller)")
-    return ReplayedRun(trace.view(), ctl, k + 1, matcher.counts.missed, worst, gaps=gaps, ticks_lost=ticks_lost)
+    outcome = engine.outcome
+    return ReplayedRun(engine.trace.view(), engine.controller, k + 1, engine.matcher.counts.missed, worst,
+                       gaps=outcome.gaps, ticks_lost=outcome.ticks_lost)
 
 
 @dataclass
@@ -245,7 +224,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                          "station: judged with the station's model")
     run = replay_frames(frames, variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
     outcome = LoopOutcome(ticks_planned=loop.get("ticks_planned", run.ticks), ticks_run=run.ticks,
-                          missed_replies=run.missed_replies, abort_reason=loop.get("abort_reason"),
+                          missed_replies=run.missed_replies, abort=abort_from_record(loop),
                           gaps=run.gaps, ticks_lost=run.ticks_lost)
     if loop.get("missed_replies", run.missed_replies) != run.missed_replies:
         run.notes.append(f"missed replies: recorded {loop.get('missed_replies')}, found {run.missed_replies} in the log")
@@ -289,11 +268,10 @@ def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,
     run = replay_frames(frames, variant)
     planned = int(round(variant.excitation.duration_s / variant.controller.period_s))
     abort = None if run.ticks == planned or _ends_at_a_period(variant, run.ticks) else \
-        f"the log ends after {run.ticks} of {planned} ticks"
+        Abort(AbortKind.LOG_ENDS, {"ticks": run.ticks, "planned": planned})
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
-                          gaps=run.gaps, ticks_lost=run.ticks_lost,
-                          abort_reason=abort)
-    timing = {"ticks": run.ticks, "overruns": 0}
+                          gaps=run.gaps, ticks_lost=run.ticks_lost, abort=abort)
+    timing = {"ticks": run.ticks, "ticks_late": 0}
     run.notes.append("raw CAN log: tick timing is not in it and was not judged")
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classifier_path=classifier_path,
                        nominal_baseline=nominal_baseline)

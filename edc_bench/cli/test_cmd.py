@@ -17,6 +17,7 @@ from edc_bench.cli.common import (
     seed_number,
 )
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
+from edc_bench.engine.outcome import AbortKind
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -312,7 +313,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
         print(f"edc-bench test: warning: {record_error}", file=sys.stderr)
     saved_elsewhere = not record_dir.resolve().is_relative_to(Path(args.out).resolve())  # moved later, added then
     history_error = None if args.no_history or saved_elsewhere else _index(record_dir, args.history_db)
-    if (result.outcome.abort_reason or "").startswith("internal error"):
+    abort = result.outcome.abort
+    if abort is not None and abort.kind is AbortKind.INTERNAL_ERROR:
         print(f"edc-bench test: {result.outcome.abort_reason}\nThis is a bug in edc-bench; the rig was sent SAFE and "
               f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
         return ExitCode.INTERNAL_ERROR
@@ -421,7 +423,7 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
         print(f"stopped: {result.stop['reason']} at {result.stop['time_s']:.1f} s")
     t = result.timing
     if t.get("ticks"):
-        print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, overruns {t['overruns']}, "
+        print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, ticks late {t['ticks_late']}, "
               f"missed replies {result.outcome.missed_replies}, CPU steal meanwhile {t['cpu_steal_s']:.2f} s")
     if record_dir is None:
         print("record: not written (see the error below)")

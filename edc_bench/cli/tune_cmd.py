@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.control.stability import loop_margins
     from edc_bench.control.tuning import step_figures, tune_pid
     from edc_bench.physics.valve import nominal_plant
-    from edc_bench.runtime.replies import max_reply_age_ticks
+    from edc_bench.engine.replies import max_reply_age_ticks
 
     variant = load_variant(args.variant)
     path = variant_file(args.variant)

@@ -47,7 +47,7 @@ from edc_bench.physics.coil import (
 )
 from edc_bench.physics.feedforward import feedforward_truth
 from edc_bench.physics.valve import ValveSpec, plant_parameters
-from edc_bench.runtime.replies import max_reply_age_ticks
+from edc_bench.engine.replies import max_reply_age_ticks
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
 

@@ -44,7 +44,7 @@ class BatchLink:
     quanta_per_period : int
         The plant's finest steps per period; deliveries are rounded to them.
     max_age_ticks : int
-        The oldest sample the loop may use (:func:`~edc_bench.runtime.replies.max_reply_age_ticks`).
+        The oldest sample the loop may use (:func:`~edc_bench.engine.replies.max_reply_age_ticks`).
     reference_mm : callable
         ``reference_mm(ticks, valves)``: the reference at each tick's start (r(0) for tick -1), per valve.
     """

@@ -45,6 +45,7 @@ from edc_bench.control.design import ControllerDesign
 from edc_bench.diagnosis.baseline import Baseline
 from edc_bench.diagnosis.classifier import ValveClassifier
 from edc_bench.diagnosis.identification import model_fit_failures, model_fit_problems
+from edc_bench.engine.outcome import StopReason
 from edc_bench.diagnosis.period_fit import (
     BlockAccumulator,
     FitSetup,
@@ -56,14 +57,11 @@ from edc_bench.diagnosis.period_fit import (
     trace_rows,
 )
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate
-from edc_bench.runtime.replies import max_reply_age_ticks
+from edc_bench.engine.replies import max_reply_age_ticks
 
 #: Ticks between two feeds of rows (and between two steps of the expected-end search): 0.2-0.6 ms each.
 STEP_TICKS = 100
 
-#: The reasons a test ends, as records give them.
-VERDICT_CERTAIN, MODEL_DOES_NOT_FIT, FULL_LENGTH, ABORTED = ("verdict certain", "model does not fit", "full length",
-                                                             "aborted")
 
 
 class EarlyStop:
@@ -199,10 +197,10 @@ class EarlyStop:
                        "verdict": str(verdicts[0])}
         time_s = setup.end_s(periods)
         if misfit[0]:
-            return {"reason": MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods,
+            return {"reason": StopReason.MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods,
                     "problems": model_fit_problems(self.variant, fit, self._noise_v)}
         if certain[0]:
-            return {"reason": VERDICT_CERTAIN, "time_s": time_s, "periods": periods, "verdict": str(verdicts[0]),
+            return {"reason": StopReason.VERDICT_CERTAIN, "time_s": time_s, "periods": periods, "verdict": str(verdicts[0]),
                     "confidence": acc.verdict_confidence,
                     "features_rel": {"af": float(centre[0, 0]), "a1": float(centre[0, 1])},
                     "half_width_rel": {"af": float(half_width[0, 0]), "a1": float(half_width[0, 1])}}

@@ -27,7 +27,7 @@ from edc_bench.diagnosis.period_fit import DRIFT_MIN_PERIODS
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
-from edc_bench.runtime.loop import LoopOutcome
+from edc_bench.engine.outcome import LoopOutcome
 
 #: The decision plane stored with a judged test: a square grid of P(faulty) over the relative features.
 DECISION_PLANE_POINTS = 60
@@ -114,10 +114,10 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
         reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
                        f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
     ticks = max(int(timing.get("ticks", 0)), 1)
-    late = timing.get("overruns", 0) + outcome.ticks_lost
+    late = timing.get("ticks_late", 0) + outcome.ticks_lost
     if late / ticks > acc.max_overrun_fraction:
         lost = f", {outcome.ticks_lost} lost in {outcome.gaps} host stalls" if outcome.ticks_lost else ""
-        reasons.append(f"timing: {late} of {ticks} ticks overran or were lost ({timing.get('overruns', 0)} overran"
+        reasons.append(f"timing: {late} of {ticks} ticks overran or were lost ({timing.get('ticks_late', 0)} late"
                        f"{lost}; limit {acc.max_overrun_fraction:.1%})")
     if outcome.missed_replies / ticks > acc.max_missed_reply_fraction:
         reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing "
@@ -174,7 +174,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     outcome : LoopOutcome
         What happened in the loop.
     timing : dict
-        Tick timing (``ticks``, ``overruns``).
+        Tick timing (``ticks``, ``ticks_late``).
     truth : FeedforwardParameters, optional
         The simulated plant's true parameters.
     classify : bool, optional

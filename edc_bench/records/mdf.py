@@ -31,7 +31,7 @@ from edc_bench.errors import ConfigError
 from edc_bench.paths import atomic_write
 
 if TYPE_CHECKING:  # only types: writing a file needs nothing of the running loop
-    from edc_bench.runtime.trace import CanFrameLog
+    from edc_bench.engine.trace import CanFrameLog
 
 TRACE_GROUP_COMMENT = "edc-bench per-tick trace (time 0: the first tick)"
 CAN_GROUP_COMMENT = "edc-bench CAN traffic, bench and rig (Tx: sent by the bench)"

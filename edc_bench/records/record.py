@@ -37,8 +37,8 @@ from edc_bench.records.writer import (
     write_json,
 )
 from edc_bench.records.mdf import write_trace_mf4
-from edc_bench.runtime.loop import LoopOutcome
-from edc_bench.runtime.trace import CanFrameLog
+from edc_bench.engine.outcome import LoopOutcome
+from edc_bench.engine.trace import CanFrameLog
 
 
 @dataclass
@@ -51,7 +51,7 @@ class BenchResult:
         The verdict, its reasons, the identified parameters and features,
         and what they were compared with (see also the shortcuts below).
     timing : dict
-        Tick lateness percentiles, overruns, missed replies, CPU steal.
+        Tick lateness percentiles, ticks late, missed replies, CPU steal.
     outcome : LoopOutcome
         What happened in the loop (aborts, replies, heartbeats).
     margins : LoopMargins or None
@@ -142,7 +142,7 @@ class BenchResult:
 def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, Any]:
     """The content of record.json."""
     ident = result.identification
-    outcome = dataclasses.asdict(result.outcome)
+    outcome = result.outcome.as_dict()
     return {
         "schema": RECORD_SCHEMA,
         "verdict": result.verdict,

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, TextIO
 import can
 
 if TYPE_CHECKING:  # only a type: the CAN log writer needs nothing of the runtime
-    from edc_bench.runtime.trace import CanFrameLog
+    from edc_bench.engine.trace import CanFrameLog
 
 _BATCH = 32
 CHANNEL = "can0"

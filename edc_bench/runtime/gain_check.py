@@ -22,7 +22,7 @@ from edc_bench.control.stability import LoopMargins, loop_margins, refuse_poor_m
 from edc_bench.paths import cache_dir, write_json_atomic
 from edc_bench.physics.parameters import PlantParameters
 from edc_bench.physics.valve import nominal_plant
-from edc_bench.runtime.replies import max_reply_age_ticks
+from edc_bench.engine.replies import max_reply_age_ticks
 
 
 def cached_loop_margins(params: PlantParameters, kp: float, ki: float, kd: float, derivative_filter_hz: float,

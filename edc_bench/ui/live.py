@@ -22,6 +22,7 @@ from rich.text import Text
 
 from edc_bench.diagnosis.coil_check import coil_line
 from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.engine.outcome import StopReason
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
 
@@ -86,9 +87,10 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
         grid.add_row("", Text(sparkline(s.af_history), style="yellow"))
         grid.add_row("a1 online", f"{s.a1:9.6f} V s/mm   {_settled(s.a1_history)}")
         grid.add_row("", Text(sparkline(s.a1_history), style="yellow"))
-        late_style = "red" if s.overruns else "green"
+        late_style = "red" if s.ticks_late_or_lost else "green"
         grid.add_row("loop", Text(f"worst lateness {s.worst_lateness_recent_us:5.0f} us now, "
-                                  f"{s.worst_lateness_us:5.0f} us in all; {s.overruns} overruns", style=late_style))
+                                  f"{s.worst_lateness_us:5.0f} us in all; {s.ticks_late_or_lost} ticks late or lost",
+                                  style=late_style))
         bus_style = "red" if s.missed_replies or s.bad_replies else "green"
         grid.add_row("bus", Text(f"{s.missed_replies} replies missing, {s.bad_replies} bad, "
                                  f"{s.heartbeats} heartbeats", style=bus_style))
@@ -108,11 +110,12 @@ def period_fit_line(fit: dict | None) -> Text:
 def stop_line(stop: dict) -> str:
     """Why and when a test ended, in words."""
     at = f"after {stop['time_s']:.1f} s of at most {stop['max_s']:g} s"
-    if stop["reason"] == "verdict certain":
+    reason = StopReason(stop["reason"])
+    if reason is StopReason.VERDICT_CERTAIN:
         return f"{at}: af and a1 known well enough that the verdict cannot change ({stop.get('periods')} periods)"
-    if stop["reason"] == "model does not fit":
+    if reason is StopReason.MODEL_DOES_NOT_FIT:
         return f"{at}: the model does not fit this pump; a longer test would not help"
-    if stop["reason"] == "full length":
+    if reason is StopReason.FULL_LENGTH:
         return f"{at}: full length" + (" (--full-length)" if stop.get("full_length") else
                                        f" ({stop['why_full_length']})" if stop.get("why_full_length") else "")
     return f"{at}: aborted"
@@ -154,7 +157,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     t = result.timing
     if t.get("ticks"):
         body.add_row("timing", f"{t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, "
-                               f"{t['overruns']} overruns, {result.outcome.missed_replies} replies missing")
+                               f"{t['ticks_late'] + result.outcome.ticks_lost} ticks late or lost, {result.outcome.missed_replies} replies missing")
     if record_dir is not None:
         body.add_row("record", Text(str(record_dir)))
         body.add_row("next", Text(f"edc-bench report {record_dir}"))

@@ -33,7 +33,7 @@ class Snapshot:
     a1: float = float("nan")
     worst_lateness_recent_us: float = 0.0
     worst_lateness_us: float = 0.0
-    overruns: int = 0
+    ticks_late_or_lost: int = 0  # as the timing summary counts them against max_overrun_fraction
     missed_replies: int = 0
     bad_replies: int = 0
     heartbeats: int = 0
@@ -95,7 +95,7 @@ def read_tick(k: int, loop: Any) -> dict[str, Any]:
         "feedforward_v": float(cols["feedforward_v"][k]), "feedback_v": float(cols["feedback_v"][k]),
         "af": float(cols["af_hat"][k]), "a1": float(cols["a1_hat"][k]),
         "worst_lateness_recent_us": float(np.max(recent)) * 1e6 if len(recent) else 0.0,
-        "overruns": outcome.overruns, "missed_replies": outcome.missed_replies,
+        "ticks_late_or_lost": outcome.ticks_late + outcome.ticks_lost, "missed_replies": outcome.missed_replies,
         "bad_replies": outcome.bad_replies, "heartbeats": outcome.heartbeats,
         "expected_end_s": float(getattr(rule, "expected_end_s", float("nan"))),
         "expected_end_is_earliest": bool(getattr(rule, "expected_end_is_earliest", True)),

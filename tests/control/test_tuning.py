@@ -11,7 +11,7 @@ from edc_bench.control.stability import loop_margins
 from edc_bench.control.tuning import step_figures, tune_pid
 from edc_bench.errors import ConfigError
 from edc_bench.physics.valve import nominal_plant
-from edc_bench.runtime.replies import max_reply_age_ticks
+from edc_bench.engine.replies import max_reply_age_ticks
 
 
 def _present(variant):

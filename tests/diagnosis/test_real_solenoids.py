@@ -152,7 +152,7 @@ def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within
 def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_early(hard, variation_rel: float) -> None:
     """Every valve, the faulty one included: with its friction not yet learnt it sticks for up to 50 ms at a time
     on this pump (2.8 mm off its reference), which ended the test at 2 s as "stuck rack or sensor" before the
-    tracking check waits 100 ticks (runtime/tracking.py)."""
+    tracking check waits 100 ticks (engine/tracking.py)."""
     variant = with_gain_variation(hard, variation_rel)
     for valve in VALVES:
         result = run_simulated_test(variant, valve, 0, nominal_baseline=True)

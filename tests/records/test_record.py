@@ -14,7 +14,7 @@ from edc_bench.config import load_variant, parse_variant
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID
 from edc_bench.records.reader import load_trace
 from edc_bench.records.record import write_record
-from edc_bench.runtime.trace import TRACE_COLUMNS
+from edc_bench.engine.trace import TRACE_COLUMNS
 
 
 @pytest.fixture(scope="module")

@@ -28,8 +28,8 @@ from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Mode, default_icd
 from edc_bench.records.record import write_record
 from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, open_bus
 from edc_bench.runtime.clock import SimulatedClock
-from edc_bench.runtime.loop import FOREIGN_COMMAND_REASON
-from edc_bench.runtime.trace import FRAME_EXTENDED, FRAME_REMOTE, FRAME_TRUNCATED, CanFrameLog
+from edc_bench.engine.outcome import AbortKind
+from edc_bench.engine.trace import FRAME_EXTENDED, FRAME_REMOTE, FRAME_TRUNCATED, CanFrameLog
 from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.testing.slcan_rig import SlcanSocketRig
@@ -153,7 +153,8 @@ def test_another_hosts_command_ends_the_test_with_safe(tmp_path: Path) -> None:
     intruder = default_icd().make_bench_cmd(7, Mode.RUN, 3.0, 10.0)
     result, rig, _ = run_over_slcan(lambda link: link.at(FAULT_AT_S, lambda: link.write_frame(BENCH_CMD_ID,
                                                                                                 intruder)))
-    assert result.outcome.abort_reason == FOREIGN_COMMAND_REASON
+    assert result.outcome.abort.kind is AbortKind.FOREIGN_COMMAND
+    assert result.outcome.abort_reason.startswith("another host is sending BENCH_CMD on the bus")
     assert _safe_within_20_ms(result) <= 0.020
     assert result.outcome.safe_confirmed
     check_safe_and_complete(result, rig, tmp_path)
@@ -163,7 +164,8 @@ def test_another_hosts_test_is_never_broken_into(tmp_path: Path) -> None:
     """A rig another host is driving when this bench starts: no SAFE of ours, one clear reason."""
     intruder = default_icd().make_bench_cmd(7, Mode.RUN, 3.0, 10.0)
     result, _, _ = run_over_slcan(lambda link: link.at(0.05, lambda: link.write_frame(BENCH_CMD_ID, intruder)))
-    assert result.outcome.abort_reason == FOREIGN_COMMAND_REASON
+    assert result.outcome.abort.kind is AbortKind.FOREIGN_COMMAND
+    assert result.outcome.abort_reason.startswith("another host is sending BENCH_CMD on the bus")
     sent = [k for k in range(result.frames.count) if not result.frames.rx[k]]
     assert sent == []  # the bench never sent a frame into the other host's test
     doc, _ = _record(result, tmp_path)

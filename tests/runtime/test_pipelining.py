@@ -16,7 +16,7 @@ from edc_bench.protocol import BENCH_CMD_ID, RIG_HEARTBEAT_ID, Mode, default_icd
 from edc_bench.records.record import write_record
 from edc_bench.replay import replay_record
 from edc_bench.runtime.gain_check import check_variant_gains
-from edc_bench.runtime.replies import ReplyMatcher
+from edc_bench.engine.replies import ReplyMatcher
 from edc_bench.sim.adapter import PRESETS, AdapterModel, parse_adapter
 from edc_bench.testing.faults import FaultyBus, Rule
 from edc_bench.testing.stalls import StallingClock

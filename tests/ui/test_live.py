@@ -53,7 +53,8 @@ def test_live_view_draws_in_a_child_process_and_never_blocks_the_loop(capfd: pyt
                      "af_hat", "a1_hat", "lateness_s")
             self.trace = type("T", (), {"columns": {n: np.linspace(0.0, 1.0, 3000) for n in names}})()
             self.ticks, self.period_s = 3000, 0.001
-            self.outcome = type("O", (), {"overruns": 2, "missed_replies": 3, "bad_replies": 0, "heartbeats": 9})()
+            self.outcome = type("O", (), {"ticks_late": 1, "ticks_lost": 1, "missed_replies": 3, "bad_replies": 0,
+                                          "heartbeats": 9})()
 
     loop = FakeLoop()
     with LiveView("live view test") as view:

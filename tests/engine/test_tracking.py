@@ -1,12 +1,15 @@
-"""The loop's check that the rack follows its reference (edc_bench.runtime.tracking)."""
+"""The loop's check that the rack follows its reference (edc_bench.engine.tracking)."""
 
 from __future__ import annotations
 
-from edc_bench.runtime.tracking import OffReferenceRun
+from edc_bench.engine.outcome import Abort, AbortKind
+from edc_bench.engine.tracking import OffReferenceRun
 
 
 def _run(run: OffReferenceRun, positions_mm: list[float], reference_mm: float = 10.0) -> list[str | None]:
-    return [run.update(reference_mm, x) for x in positions_mm]
+    """The abort's sentence at each tick (None while the rack may still stray)."""
+    return [Abort(AbortKind.OFF_REFERENCE, run.figures()).sentence if run.update(reference_mm, x) else None
+            for x in positions_mm]
 
 
 def test_a_stuck_rack_ends_the_test_after_exactly_the_limit_and_says_stuck() -> None:

@@ -32,36 +32,27 @@ class OffReferenceRun:
     _low_mm: float = field(default=0.0, repr=False)
     _high_mm: float = field(default=0.0, repr=False)
 
-    def update(self, reference_mm: float, position_mm: float) -> str | None:
-        """Take one tick's reference and measured position; return the abort reason once the limit is reached."""
+    def update(self, reference_mm: float, position_mm: float) -> bool:
+        """Take one tick's reference and measured position; True once the limit is reached."""
         if abs(reference_mm - position_mm) <= self.max_error_mm:
             self.ticks = 0
-            return None
+            return False
         if self.ticks == 0:
             self._low_mm = self._high_mm = position_mm
         else:
             self._low_mm = min(self._low_mm, position_mm)
             self._high_mm = max(self._high_mm, position_mm)
         self.ticks += 1
-        if self.ticks < self.ticks_limit:
-            return None
-        return self.reason()
+        return self.ticks >= self.ticks_limit
 
     @property
     def moved_mm(self) -> float:
         """How far the rack moved (peak to peak) during the current run, mm."""
         return self._high_mm - self._low_mm if self.ticks else 0.0
 
-    def reason(self) -> str:
-        """The abort reason for the current run."""
-        moved_mm = self.moved_mm
-        if moved_mm < 0.5 * self.max_error_mm:
-            why = "stuck rack or sensor"
-        else:
-            why = ("it moves, but the loop cannot hold it: the variant's gains or model do not fit this pump, "
-                   "or the drive's polarity is reversed")
-        return (f"rack does not follow its reference: more than {self.max_error_mm:g} mm off for {self.ticks} "
-                f"ticks, moving {moved_mm:.2f} mm meanwhile ({why})")
+    def figures(self) -> dict[str, float]:
+        """The current run as an abort's figures (:attr:`~edc_bench.engine.outcome.AbortKind.OFF_REFERENCE`)."""
+        return {"max_error_mm": self.max_error_mm, "ticks": self.ticks, "moved_mm": self.moved_mm}
 
 
 __all__ = ["OffReferenceRun"]

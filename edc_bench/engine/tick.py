@@ -1,0 +1,357 @@
+"""The tick as a sans-I/O core: frames and times in, commands and typed aborts out.
+
+:class:`TickEngine` owns, for one test, everything that happens at a tick
+except waiting and the bus: reading the rig's frames (heartbeats, replies
+matched to their commands by counter, another host's commands), the
+controller step, the command's bytes, the trace row, the abort checks and
+the stop rule's hook. It never touches a bus or a clock (in the spirit of
+h11's ``Connection``), so every driver runs the same sequence:
+
+- :class:`~edc_bench.runtime.loop.BenchLoop` (real or simulated time) reads
+  frames from its bus and passes them to :meth:`TickEngine.receive`, sends
+  what :meth:`TickEngine.command` returns, and tells :meth:`TickEngine.sent`;
+- :func:`~edc_bench.replay.replay_frames` passes a CAN log's frames in the
+  order the loop logged them, and compares each command it gets with the
+  one logged.
+
+One tick, in order::
+
+    receive(...)*          what came since the last tick (replies matched for use from ``next_tick``)
+    skip(k, lost)          only after a host stall: the lost ticks, as gap rows
+    command(k)             controller step -> BENCH_CMD payload
+    sent(k, ...)           the command went out: its counter in flight, its trace row
+    receive(...)*          what comes until the next deadline
+    check(k)               abort checks -> Abort or None
+    stop_check(k)          the stop rule, at its ticks -> its decision or None
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Container
+from typing import Any, Protocol
+
+from edc_bench.config.models import Variant
+from edc_bench.control.design import build_controller
+from edc_bench.control.fel import FelController
+from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome
+from edc_bench.engine.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks, stale_limit_ticks
+from edc_bench.engine.trace import Trace
+from edc_bench.engine.tracking import OffReferenceRun
+from edc_bench.protocol import (
+    BENCH_CMD_ID,
+    RIG_FEEDBACK_ID,
+    RIG_HEARTBEAT_ID,
+    FaultCode,
+    Icd,
+    Mode,
+    RigFeedback,
+    RigState,
+)
+from edc_bench.protocol.errors import ProtocolError
+
+# flag bits of trace column rig_flags
+FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
+
+#: How many of its own commands the engine remembers, to tell an interface's echo from another host's command.
+_OWN_COMMANDS_KEPT = 1024
+
+
+def reply_flags(reply: RigFeedback) -> int:
+    """The reply's status bits as the trace's ``rig_flags`` column stores them."""
+    return (reply.amp_enabled * FLAG_AMP | reply.watchdog_tripped * FLAG_WATCHDOG
+            | reply.over_current * FLAG_OVER_CURRENT | reply.lvdt_fault * FLAG_LVDT
+            | reply.travel_limit * FLAG_TRAVEL)
+
+
+class StopRule(Protocol):
+    """Decides whether a test may end before its full length (:class:`~edc_bench.diagnosis.early_stop.EarlyStop`)."""
+
+    #: ticks after which :meth:`check` is asked (the ends of whole excitation periods, and steps of work spread
+    #: between them); each call must be short (it runs inside a tick: at most a tick or two late after it)
+    check_ticks: Container[int]
+    #: when the test is expected to end (trace time, s), for the live view
+    expected_end_s: float
+
+    def check(self, k: int, columns: dict) -> dict | None:
+        """At tick ``k``: the reason to stop now (a dict with ``reason`` and ``time_s``), or None."""
+
+
+class TickEngine:
+    """One test's ticks, without I/O.
+
+    Parameters
+    ----------
+    variant : Variant
+        The variant as the test runs it.
+    icd : Icd
+        The compiled ICD.
+    ticks : int
+        Ticks the test may run (the trace's rows).
+    stop_rule : StopRule, optional
+        Asked at its ticks whether the test may end now.
+    timer : callable, optional
+        A monotonic clock in seconds, only to measure the stop rule's longest call for the record.
+    """
+
+    def __init__(self, variant: Variant, icd: Icd, ticks: int, stop_rule: StopRule | None = None,
+                 timer: Callable[[], float] | None = None) -> None:
+        self.variant = variant
+        self.icd = icd
+        self.ticks = ticks
+        self.period_s = variant.controller.period_s
+        self.stop_rule = stop_rule
+        self._timer = timer
+        self.trace = Trace(ticks)
+        self.outcome = LoopOutcome(ticks_planned=ticks)
+        self.matcher = ReplyMatcher(max_reply_age_ticks(variant))
+        self.controller: FelController | None = None
+        self.counter = 0  # the last command's counter
+        self.run_base = 0  # tick k's command carries counter run_base + k
+        self.next_tick = 0  # the tick a reply arriving now could first be used at
+        self.t_start_s = 0.0
+        self.rig_state: RigState | None = None
+        self.rig_fault_code = 0
+        self.last_heartbeat_s = 0.0
+        self.position_mm = math.nan
+        self.current_a = math.nan
+        self.newest_reply: RigFeedback | None = None
+        self.newest_flags = 0  # its status bits as the trace stores them
+        self.drive_v = math.nan  # the last command's drive
+        self.foreign_command = False  # another host's BENCH_CMD was seen
+        self.ticking = False  # between start() and finish(): replies are matched to the ticks' commands
+        self._sent_s = [0.0] * ticks
+        self._own: deque[bytes] = deque(maxlen=_OWN_COMMANDS_KEPT)
+        self._limits()
+
+    def _limits(self) -> None:
+        variant, acceptance, T = self.variant, self.variant.acceptance, self.period_s
+        self._max_in_row = acceptance.max_missed_replies_in_row
+        # without a usable sample the PID holds; as long as the rig's watchdog lets a silent bench go (the
+        # replies still coming, too late: a link that held them back once), the test goes on
+        self._max_stale_in_row = stale_limit_ticks(variant)
+        self._heartbeat_timeout_s = variant.rig.heartbeat_period_ms * 1e-3 * acceptance.heartbeat_timeout_periods
+        self._off_reference = OffReferenceRun(acceptance.max_tracking_error_mm, acceptance.tracking_error_ticks)
+        self._follow_from_k = int(variant.excitation.move_s / T)  # the rack must follow once it has arrived
+        self._position_range = (variant.rig.travel_min_mm - 1.0, variant.rack.stroke_mm + 1.0)
+
+    # -- frames in -------------------------------------------------------------------------------------------
+    def receive(self, can_id: int, data: bytes | bytearray, now_s: float, *, other: bool = False,
+                is_rx: bool = True) -> RigFeedback | None:
+        """Take one frame read from the bus at ``now_s``.
+
+        Parameters
+        ----------
+        can_id, data
+            The frame's identifier and payload.
+        now_s : float
+            When it was read (clock time; NaN where unknown, as in replay).
+        other : bool
+            An extended, remote or error frame: no ICD message.
+        is_rx : bool
+            False for an interface's echo of a frame this bench sent.
+
+        Returns
+        -------
+        RigFeedback or None
+            A reply with a valid CRC (matched to its command while the ticks run), else None.
+        """
+        outcome = self.outcome
+        if other:
+            outcome.other_frames += 1
+            return None
+        if can_id == RIG_FEEDBACK_ID:
+            try:
+                reply = self.icd.parse_rig_feedback(data)
+            except ProtocolError:
+                outcome.bad_replies += 1
+                return None
+            if self.ticking:
+                self._match(reply, now_s)
+            return reply
+        if can_id == RIG_HEARTBEAT_ID:
+            self._heartbeat(data, now_s)
+        elif can_id == BENCH_CMD_ID:
+            if self._is_foreign_command(data, is_rx):
+                outcome.other_frames += 1
+                self.foreign_command = True
+        else:
+            outcome.other_frames += 1
+        return None
+
+    def _match(self, reply: RigFeedback, now_s: float) -> None:
+        """A reply during the ticks: its sample goes into its tick's row and the controller, if still usable."""
+        matcher = self.matcher
+        tick = matcher.match(reply.counter, self.next_tick)
+        if tick is None:
+            return
+        flags = reply_flags(reply)
+        self.trace.reply_arrived(tick, now_s - self._sent_s[tick], reply.position_mm, reply.current_a, flags)
+        self.controller.add_sample(tick, reply.position_mm, reply.current_a)
+        if tick == matcher.newest_tick:
+            self.position_mm, self.current_a, self.newest_reply = reply.position_mm, reply.current_a, reply
+            self.newest_flags = flags
+
+    def _heartbeat(self, data: bytes | bytearray, now_s: float) -> None:
+        try:
+            beat = self.icd.parse_heartbeat(data)
+        except ProtocolError:
+            return
+        outcome = self.outcome
+        outcome.heartbeats += 1
+        self.rig_state = beat.state
+        self.rig_fault_code = beat.fault_code
+        self.last_heartbeat_s = now_s
+        if outcome.fw_version is None:
+            outcome.fw_version = f"{beat.fw_major}.{beat.fw_minor}"
+
+    def _is_foreign_command(self, data: bytes | bytearray, is_rx: bool) -> bool:
+        """A valid BENCH_CMD this bench did not send (an interface echoing our own frames is no host).
+
+        Only a command the rig would obey counts (its CRC checked): a damaged frame with the id is no second host.
+        """
+        if not is_rx:  # python-can marks an interface's echo of our own frame (receive_own_messages)
+            return False
+        try:
+            self.icd.parse_bench_cmd(data)
+        except ProtocolError:
+            return False
+        return bytes(data) not in self._own  # rare: searched only when a command comes in
+
+    # -- commands out ----------------------------------------------------------------------------------------
+    def safe_command(self) -> bytes:
+        """The payload of a SAFE command with the next counter (outside the ticks)."""
+        self.counter = (self.counter + 1) & 0xFF
+        return self._encode(Mode.SAFE, 0.0, 0.0)
+
+    def _encode(self, mode: int, drive_v: float, reference_mm: float) -> bytes:
+        data = self.icd.make_bench_cmd(self.counter, mode, drive_v, min(max(reference_mm, 0.0), 65.535))
+        self._own.append(data)
+        return data
+
+    def start(self, sync: RigFeedback, sync_counter: int, t_start_s: float, sync_s: float = 0.0) -> None:
+        """Begin the ticks from the reply to the synchronising SAFE command (counter ``sync_counter``, sent at
+        clock time ``sync_s``).
+
+        Tick k's command carries counter ``sync_counter + 1 + k`` and runs at ``t_start_s + k T``.
+        """
+        self.position_mm, self.current_a = sync.position_mm, sync.current_a
+        self.run_base = (sync_counter + 1) & 0xFF
+        self.controller = build_controller(self.variant, sync.position_mm)
+        self.controller.add_sample(SYNC_TICK, sync.position_mm)
+        self.t_start_s = t_start_s
+        self.outcome.ticks_start_s = t_start_s
+        self.last_heartbeat_s = max(self.last_heartbeat_s, sync_s)
+        self.ticking = True
+
+    def finish(self) -> None:
+        """The ticks are over: replies that still come (during the safe stop) are no longer the test's."""
+        self.ticking = False
+
+    def tick_time_s(self, k: int) -> float:
+        """Clock time of tick ``k``'s deadline."""
+        return self.t_start_s + k * self.period_s
+
+    def skip(self, k: int, lost: int) -> None:
+        """A host stall cost ticks ``k`` to ``k + lost - 1``: gap rows for them, and the controller resynchronised.
+
+        Skipped, never sent late in a burst.
+        """
+        trace, ctl, t0 = self.trace, self.controller, self.t_start_s
+        for g in range(k, k + lost):
+            trace.write_gap(g, self.tick_time_s(g) - t0, ctl)
+        self.outcome.gaps += 1
+        self.outcome.ticks_lost += lost
+        if k + lost < self.ticks:
+            ctl.resync()
+        else:
+            self.outcome.ticks_run = self.ticks
+
+    def command(self, k: int) -> bytes:
+        """The controller's step for tick ``k``: the RUN command's payload (its drive in :attr:`drive_v`)."""
+        ctl = self.controller
+        self.drive_v = ctl.step(k, newest_usable=self.matcher.usable(k))
+        self.counter = (self.run_base + k) & 0xFF
+        return self._encode(Mode.RUN, self.drive_v, ctl.reference_mm)
+
+    def sent(self, k: int, sent_s: float, lateness_s: float) -> None:
+        """Tick ``k``'s command went out at ``sent_s`` (clock time), ``lateness_s`` after its deadline."""
+        matcher = self.matcher
+        self._sent_s[k] = sent_s
+        matcher.sent(k, self.counter)
+        self.trace.write_tick(k, self.tick_time_s(k) - self.t_start_s, lateness_s, math.nan, self.controller,
+                              self.position_mm, self.current_a, self.drive_v, False, self.newest_flags,
+                              k - matcher.newest_tick)
+        outcome = self.outcome
+        outcome.ticks_run = k + 1
+        if lateness_s > self.period_s:
+            outcome.ticks_late += 1
+        self.next_tick = k + 1
+
+    # -- decisions -------------------------------------------------------------------------------------------
+    def check(self, k: int) -> Abort | None:
+        """After tick ``k``'s reads: the abort that ends the test now, or None."""
+        outcome, counts = self.outcome, self.matcher.counts
+        outcome.missed_replies = counts.missed
+        outcome.max_missed_in_row = counts.max_missed_in_row
+        outcome.max_unanswered_in_row = counts.max_unanswered_in_row
+        abort = self._abort(k)
+        if abort is None and k > self._follow_from_k and self._off_reference.update(
+                self.controller.reference_mm, self.position_mm):
+            abort = Abort(AbortKind.OFF_REFERENCE, self._off_reference.figures())
+        return None if abort is None else abort.at(self.tick_time_s(k) - self.t_start_s)
+
+    def _abort(self, k: int) -> Abort | None:
+        """The rig's and the link's checks, in the order they are asked."""
+        reply, counts, acceptance = self.newest_reply, self.matcher.counts, self.variant.acceptance
+        if reply is not None and reply.any_fault:
+            flags = [name for name, bit in (("watchdog tripped", reply.watchdog_tripped),
+                                            ("over-current", reply.over_current), ("LVDT fault", reply.lvdt_fault),
+                                            ("travel limit", reply.travel_limit)) if bit]
+            return Abort(AbortKind.RIG_FAULT, {"flags": flags})
+        if reply is not None and not reply.amp_enabled:
+            return Abort(AbortKind.AMPLIFIER_OFF, {"state": self.rig_state.name if self.rig_state else "unknown",
+                                                   "fault_code": FaultCode(self.rig_fault_code).name})
+        if counts.unanswered_in_row > self._max_in_row:
+            return Abort(AbortKind.SILENCE, {"in_row": counts.unanswered_in_row, "limit": self._max_in_row,
+                                             "bad_replies": self.outcome.bad_replies, "too_old": counts.too_old})
+        if counts.missed_in_row > self._max_stale_in_row:
+            return Abort(AbortKind.SLOW_LINK, {
+                "in_row": counts.missed_in_row, "limit": self._max_stale_in_row, "too_old": counts.too_old,
+                "limit_from_watchdog": self._max_stale_in_row > self._max_in_row,
+                "max_reply_age_ms": acceptance.max_reply_age_ms})
+        if k >= 1000 and counts.missed > acceptance.max_missed_reply_fraction * (k + 1):
+            return Abort(AbortKind.REPLIES_MISSING, {"missed": counts.missed, "ticks": k + 1,
+                                                     "limit_fraction": acceptance.max_missed_reply_fraction})
+        silent_s = self.tick_time_s(k) - self.last_heartbeat_s
+        if silent_s > self._heartbeat_timeout_s:
+            return Abort(AbortKind.HEARTBEAT_LOST, {"silent_ms": silent_s * 1e3,
+                                                    "limit_ms": self._heartbeat_timeout_s * 1e3})
+        if self.rig_state is RigState.FAULT:
+            return Abort(AbortKind.RIG_FAULT_STATE, {"fault_code": FaultCode(self.rig_fault_code).name})
+        low, high = self._position_range
+        over_current_a = self.variant.rig.over_current_a
+        if not (low <= self.position_mm <= high) or abs(self.current_a) > over_current_a:
+            return Abort(AbortKind.SAMPLE_OUT_OF_RANGE, {
+                "position_mm": self.position_mm, "current_a": self.current_a, "position_min_mm": low,
+                "position_max_mm": high, "current_max_a": over_current_a})
+        return None
+
+    def stop_check(self, k: int) -> dict[str, Any] | None:
+        """At tick ``k``: the stop rule's decision to end the test now, if it has one (kept in the outcome)."""
+        rule = self.stop_rule
+        if rule is None or k not in rule.check_ticks:
+            return None
+        # the rule spreads its work over many ticks; its longest call is in the record's timing
+        timer = self._timer
+        began = timer() if timer is not None else 0.0
+        decision = rule.check(k, self.trace.columns)
+        if timer is not None:
+            self.outcome.stop_check_max_s = max(self.outcome.stop_check_max_s, timer() - began)
+        if decision is not None:
+            self.outcome.stop = decision
+        return decision
+
+
+__all__ = ["StopRule", "TickEngine", "reply_flags"]

@@ -1,0 +1,156 @@
+"""The tick engine driven by hand: frames and times in, commands and typed aborts out, no bus and no clock."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from edc_bench.config import Variant
+from edc_bench.engine.outcome import Abort, AbortKind, describe, what_to_check
+from edc_bench.engine.tick import TickEngine
+from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState
+
+SYNC_COUNTER = 41
+
+
+def _feedback(icd: Icd, counter: int, position_mm: float, **flags: bool) -> bytes:
+    bits = dict(amp_enabled=True, watchdog_tripped=False, over_current=False, lvdt_fault=False, travel_limit=False)
+    bits.update(flags)
+    return icd.make_rig_feedback(counter, position_mm=position_mm, current_a=0.5, **bits)
+
+
+def _started(variant: Variant, icd: Icd, ticks: int = 2000) -> TickEngine:
+    engine = TickEngine(variant, icd, ticks)
+    engine.receive(RIG_HEARTBEAT_ID, icd.make_heartbeat(RigState.READY, FaultCode.NONE, 1, 0, 24.0), 0.0)
+    sync = engine.receive(RIG_FEEDBACK_ID, _feedback(icd, SYNC_COUNTER, 10.0), 0.0)
+    assert sync is not None and not engine.ticking  # before the ticks a reply is only handed back
+    engine.start(sync, SYNC_COUNTER, t_start_s=0.002, sync_s=0.001)
+    return engine
+
+
+def _run(engine: TickEngine, icd: Icd, ticks: int, answer: bool = True, heartbeat_every: int = 100) -> Abort | None:
+    """Ticks 0..ticks-1 as a rig that answers each command within its tick, at the reference."""
+    for k in range(ticks):
+        data = engine.command(k)
+        cmd = icd.parse_bench_cmd(data)
+        assert cmd.counter == (SYNC_COUNTER + 1 + k) & 0xFF and cmd.mode == Mode.RUN
+        now = engine.tick_time_s(k)
+        engine.sent(k, now, 0.0)
+        if answer:
+            engine.receive(RIG_FEEDBACK_ID, _feedback(icd, cmd.counter, cmd.reference_mm), now + 0.0004)
+        if k % heartbeat_every == 0:
+            engine.receive(RIG_HEARTBEAT_ID, icd.make_heartbeat(RigState.RUNNING, FaultCode.NONE, 1, 0, 24.0), now)
+        abort = engine.check(k)
+        if abort is not None:
+            return abort
+    return None
+
+
+def test_an_answering_rig_runs_tick_after_tick_with_each_sample_in_its_row(variant: Variant, icd: Icd) -> None:
+    engine = _started(variant, icd)
+    assert _run(engine, icd, 500) is None
+    trace = engine.trace.view()
+    assert engine.outcome.ticks_run == 500 and len(trace["t_s"]) == 500
+    assert trace["reply_ok"].all() and trace["sample_age_ticks"][1:].max() == 1
+    assert trace["reply_latency_s"] == pytest.approx(np.full(500, 0.0004))
+    np.testing.assert_allclose(trace["t_s"], np.arange(500) * variant.controller.period_s)
+    # each command's drive is the one the trace holds
+    assert engine.drive_v == trace["drive_v"][-1]
+    assert engine.outcome.missed_replies == 0 and engine.outcome.fw_version == "1.0"
+
+
+def test_a_silent_rig_ends_the_test_with_a_typed_abort_after_the_limit(variant: Variant, icd: Icd) -> None:
+    engine = _started(variant, icd)
+    assert _run(engine, icd, 100) is None
+    abort = _run_from(engine, icd, 100, 200, answer=False)
+    assert abort is not None and abort.kind is AbortKind.SILENCE
+    limit = variant.acceptance.max_missed_replies_in_row
+    assert abort.figures["in_row"] == limit + 1 and abort.figures["limit"] == limit
+    assert abort.sentence == f"{limit + 1} replies missing in a row (limit {limit}): the rig stopped answering"
+    assert abort.time_s == pytest.approx(engine.outcome.ticks_run * variant.controller.period_s - 0.001)
+
+
+def _run_from(engine: TickEngine, icd: Icd, first: int, last: int, answer: bool) -> Abort | None:
+    for k in range(first, last):
+        data = engine.command(k)
+        engine.sent(k, engine.tick_time_s(k), 0.0)
+        if answer:
+            engine.receive(RIG_FEEDBACK_ID, _feedback(icd, icd.parse_bench_cmd(data).counter, 10.0),
+                           engine.tick_time_s(k))
+        abort = engine.check(k)
+        if abort is not None:
+            return abort
+    return None
+
+
+def test_a_fault_flag_in_a_reply_is_a_rig_fault_naming_it(variant: Variant, icd: Icd) -> None:
+    engine = _started(variant, icd)
+    data = engine.command(0)
+    engine.sent(0, engine.tick_time_s(0), 0.0)
+    engine.receive(RIG_FEEDBACK_ID, _feedback(icd, icd.parse_bench_cmd(data).counter, 10.0, travel_limit=True), 0.0)
+    abort = engine.check(0)
+    assert abort.kind is AbortKind.RIG_FAULT and abort.figures == {"flags": ["travel limit"]}
+    assert abort.sentence == "rig fault: travel limit" and "mounting" in abort.check
+
+
+def test_another_hosts_command_is_seen_and_our_own_echo_is_not(variant: Variant, icd: Icd) -> None:
+    engine = _started(variant, icd)
+    ours = engine.command(0)
+    engine.receive(BENCH_CMD_ID, ours, 0.0)  # an interface that echoes what we send, marked as received
+    assert not engine.foreign_command
+    engine.receive(BENCH_CMD_ID, b"\x00" * 8, 0.0)  # damaged: no rig would obey it, so no second host
+    assert not engine.foreign_command
+    engine.receive(BENCH_CMD_ID, icd.make_bench_cmd(7, Mode.RUN, 3.0, 10.0), 0.0)
+    assert engine.foreign_command and engine.outcome.other_frames == 1
+
+
+def test_a_host_stall_is_a_gap_of_rows_never_a_burst(variant: Variant, icd: Icd) -> None:
+    engine = _started(variant, icd)
+    assert _run(engine, icd, 10) is None
+    engine.skip(10, 5)
+    assert engine.outcome.gaps == 1 and engine.outcome.ticks_lost == 5
+    data = engine.command(15)
+    assert icd.parse_bench_cmd(data).counter == (SYNC_COUNTER + 1 + 15) & 0xFF  # the counter tells replay the jump
+    engine.sent(15, engine.tick_time_s(15), 0.0)
+    trace = engine.trace.view()
+    assert trace["gap"][10:15].all() and not trace["gap"][15] and math.isnan(trace["lateness_s"][12])
+
+
+def test_replies_after_the_ticks_are_not_the_tests(variant: Variant, icd: Icd) -> None:
+    engine = _started(variant, icd)
+    data = engine.command(0)
+    engine.sent(0, 0.002, 0.0)
+    engine.finish()
+    engine.receive(RIG_FEEDBACK_ID, _feedback(icd, icd.parse_bench_cmd(data).counter, 12.0), 0.003)
+    assert engine.matcher.counts.matched == 0 and not engine.trace.view()["reply_ok"][0]
+
+
+def test_every_abort_kind_has_a_sentence_and_something_to_check() -> None:
+    figures = {
+        AbortKind.RIG_NOT_READY: {"timeout_s": 2.0, "state": "FAULT"},
+        AbortKind.RIG_FAULT: {"flags": ["over-current"]},
+        AbortKind.AMPLIFIER_OFF: {"state": "READY", "fault_code": "NONE"},
+        AbortKind.RIG_FAULT_STATE: {"fault_code": "WATCHDOG"},
+        AbortKind.SILENCE: {"in_row": 6, "limit": 5, "bad_replies": 2, "too_old": 1},
+        AbortKind.SLOW_LINK: {"in_row": 21, "limit": 20, "too_old": 30, "limit_from_watchdog": True,
+                              "max_reply_age_ms": 3.0},
+        AbortKind.REPLIES_MISSING: {"missed": 40, "ticks": 1000, "limit_fraction": 0.02},
+        AbortKind.HEARTBEAT_LOST: {"silent_ms": 501.0, "limit_ms": 500.0},
+        AbortKind.SAMPLE_OUT_OF_RANGE: {"position_mm": 30.0, "current_a": 0.1, "position_min_mm": -1.0,
+                                        "position_max_mm": 21.0, "current_max_a": 8.0},
+        AbortKind.OFF_REFERENCE: {"max_error_mm": 2.0, "ticks": 100, "moved_mm": 0.0},
+        AbortKind.BUS_FLOODED: {"limit": 64},
+        AbortKind.BUS_ERROR: {"error": "CanOperationError: gone"},
+        AbortKind.INTERNAL_ERROR: {"error": "ZeroDivisionError: x"},
+        AbortKind.LOG_ENDS: {"ticks": 10, "planned": 30000},
+        AbortKind.RECORDED: {"sentence": "as an older record said"},
+    }
+    for kind in AbortKind:
+        abort = Abort(kind, figures.get(kind, {}))
+        assert describe(abort) and "{" not in describe(abort) and what_to_check(kind)
+        assert Abort.from_dict(abort.as_dict()) == abort  # the record's form reads back as the same value
+    refused = Abort(AbortKind.SILENCE, figures[AbortKind.SILENCE]).with_figures(adapter_refused=3)
+    assert refused.sentence.endswith("the CAN adapter refused 3 of our frames (BEL): with edc-bench rig, another "
+                                     "host may own the rig")
