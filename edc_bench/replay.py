@@ -28,6 +28,7 @@ from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
 from edc_bench.diagnosis.baseline import Baseline
 from edc_bench.diagnosis.judgement import Judgement, judge_run
+from edc_bench.diagnosis.trust import Problem
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
 from edc_bench.physics.feedforward import nominal_parameters
@@ -231,13 +232,13 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     timing = dict(record.get("timing") or {})
     classify = record.get("verdict") != Verdict.UNCLASSIFIED
     coil = record.get("coil") or {}
-    given = coil.get("temp_start_c") if str(coil.get("temp_source", "")).startswith("given") else None
+    given = coil.get("temp_start_c") if coil.get("temp_given") else None
     # a record judged against the nominal baseline (--nominal-baseline) is replayed the same way
     nominal = (record.get("baseline") or {}).get("calibrated") is False
     # judged against the baseline the record was judged against, whatever the station holds now
     recorded = record.get("baseline")
     baseline = Baseline.from_summary(recorded) if recorded and recorded.get("af_v") else None
-    if any(str(r).startswith("variant not calibrated") for r in record.get("reasons") or []):
+    if Problem.NOT_CALIBRATED in Problem.from_names(record["problems"]):
         nominal_figures = nominal_parameters(variant)  # refused then: refused again, even if calibrated since
         baseline = Baseline(nominal_figures.af, nominal_figures.a1)
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,

@@ -64,7 +64,9 @@ def check_safe_and_complete(result: Any, rig: Any, tmp_path: Path) -> None:
     outcome = result.outcome
     assert result.verdict == Verdict.INVALID
     assert result.classification is None
-    assert outcome.abort_time_s is not None or outcome.abort_reason.startswith("bus error")
+    from edc_bench.engine.outcome import AbortKind
+
+    assert outcome.abort_time_s is not None or outcome.abort.kind is AbortKind.BUS_ERROR
     # the rig's amplifier is off: by SAFE or by its own watchdog
     assert rig.plant.drive_v == 0.0
     assert rig.firmware.state.name in ("READY", "FAULT")
@@ -81,6 +83,8 @@ def check_safe_and_complete(result: Any, rig: Any, tmp_path: Path) -> None:
     folder = write_record(result, tmp_path, figure=False)
     doc = json.loads((folder / "record.json").read_text())
     assert doc["verdict"] == Verdict.INVALID and doc["loop"]["abort_reason"] == outcome.abort_reason
+    # the abort as a value beside its sentence, and the trust rule's problem, as the record keeps them
+    assert doc["loop"]["abort"] == outcome.abort.as_dict() and "aborted" in doc["problems"]
     assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
     trace = load_trace(folder)
     assert len(trace["t_s"]) == outcome.ticks_run > 1000

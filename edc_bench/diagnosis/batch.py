@@ -29,6 +29,7 @@ from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.design import ControllerDesign
 from edc_bench.diagnosis.batch_link import RING, BatchLink
 from edc_bench.diagnosis.identification import settle_times_s
+from edc_bench.diagnosis.trust import Problem, judged_condition_number, trust_problems
 from edc_bench.diagnosis.period_fit import (
     BlockAccumulator,
     FitSetup,
@@ -81,6 +82,8 @@ class BatchResult:
         (N,) the model fits each test (:class:`~edc_bench.diagnosis.identification.ModelFit`'s limits).
     periods : PeriodResults
         The period fit after any number of periods (what an early-stopped test would have found).
+    problems : numpy.ndarray
+        (N,) the trust rule's problems per test (:class:`~edc_bench.diagnosis.trust.Problem` bits; 0: trusted).
 
     ``parameters`` and ``truth`` are referred to the reference coil, as the full loop's are.
     """
@@ -97,6 +100,12 @@ class BatchResult:
     coil_end_ohm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     model_fits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     periods: PeriodResults | None = None
+    problems: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def trusted(self) -> np.ndarray:
+        """(N,) the trust rule (:mod:`edc_bench.diagnosis.trust`) finds nothing wrong with the test."""
+        return self.problems == 0
 
     def feature(self, name: str) -> np.ndarray:
         """Column of one parameter, e.g. ``feature("af")``."""
@@ -548,7 +557,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     return BatchResult(at_end.parameters, truth, at_end.converged, settle, at_end.condition_number,
                        list(valves), list(seeds), dict(sorted(link.ages.items())) if link is not None else {},
                        coil_mean.copy(), plant.resistance_ohm.copy(), model_fits=at_end.model_fits,
-                       periods=periods)
+                       periods=periods, problems=at_end.problems)
 
 
 @dataclass
@@ -560,6 +569,12 @@ class BatchIdentification:
     model_fits: np.ndarray
     fit: PeriodFit | None
     condition_number: float
+    problems: np.ndarray  # (N,) the trust rule's problems per test (Problem bits; 0: trusted)
+
+    @property
+    def trusted(self) -> np.ndarray:
+        """(N,) the trust rule finds nothing wrong with the test."""
+        return self.problems == 0
 
 
 class PeriodResults:
@@ -587,7 +602,8 @@ class PeriodResults:
         if fit is None:
             nan = np.full(self.n, False)
             final[:, [PARAMETER_NAMES.index(c) for c in ("af", "a1")]] = np.nan
-            return BatchIdentification(final, nan, nan, None, math.inf)
+            return BatchIdentification(final, nan, nan, None, math.inf,
+                                       np.full(self.n, int(Problem.TOO_FEW_PERIODS | Problem.POORLY_CONDITIONED)))
         inductive = inductive_shares(self.variant)
         coil = self.coil_at_blocks[periods]
         for name in fit.columns:
@@ -597,5 +613,9 @@ class PeriodResults:
         enough = periods >= acc.min_periods
         fits = (not enough) | model_fits(self.variant, fit, self.noise_v)
         converged = fit.settled & enough
+        problems = trust_problems(acc, periods=periods, settled=fit.settled, misfit=~fits,
+                                  condition_number=judged_condition_number(self.reference_condition,
+                                                                           fit.condition_number))
         return BatchIdentification(final, converged, fits, fit, max(self.reference_condition,
-                                                                    float(np.median(fit.condition_number))))
+                                                                    float(np.median(fit.condition_number))),
+                                   problems)

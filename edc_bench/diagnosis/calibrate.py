@@ -13,11 +13,11 @@ SIMULATED_POPULATION = "simulated population"
 def population_tests(variant: Variant, tests: int, seed: int) -> list[BaselineTest]:
     """Converged tests of ``tests`` simulated new valves (each with the variant's spread between valves).
 
-    Only converged tests count, as on a real rig. The batch path writes no records.
+    Only trusted tests count (the trust rule, :mod:`edc_bench.diagnosis.trust`), as on a real rig. The batch path writes no records.
     """
     valves = new_valves(variant, tests, seed)
     result = run_batch(variant, valves, [seed * 100_000 + n for n in range(tests)])
     af, a1 = result.feature("af"), result.feature("a1")
     return [BaselineTest(float(af[n]), float(a1[n]), valve_id=f"{valves[n].label} (seed {seed})",
                          source=SIMULATED_POPULATION)
-            for n in range(tests) if result.converged[n]]
+            for n in range(tests) if result.trusted[n]]

@@ -82,6 +82,7 @@ def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: fl
         "resistance_start_ohm": r_start,
         "resistance_20c_ohm": r20,
         "temp_start_c": temp_c,
+        "temp_given": coil_temp_c is not None,
         "temp_source": "given (--coil-temp-c)" if coil_temp_c is not None else "assumed: a rested coil at 20 degC",
         "warming_k": (r_end / r_start - 1.0) / alpha if alpha > 0 and r_start > 0 else math.nan,
         "spec_ohm": [low, high],
@@ -115,6 +116,6 @@ def coil_line(finding: dict[str, Any] | None) -> str:
     low, high = finding["spec_ohm"]
     spec = "no spec in the variant" if finding["in_spec"] is None else (
         f"spec {low:g}-{high:g} ohm: {'in spec' if finding['in_spec'] else 'OUT OF SPEC'}")
-    assumed = "" if finding["temp_source"].startswith("given") else ", coil assumed at 20 degC at the start"
+    assumed = "" if finding["temp_given"] else ", coil assumed at 20 degC at the start"
     return (f"{finding['resistance_20c_ohm']:.3f} ohm at 20 degC ({spec}{assumed}); warmed "
             f"{finding['warming_k']:+.1f} K in the test, {finding['resistance_ohm']:.3f} ohm at the end")

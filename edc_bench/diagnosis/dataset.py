@@ -90,7 +90,7 @@ class Dataset:
 def _chunk_worker(args: tuple[Variant, list[ValveSpec], list[int]]) -> tuple[np.ndarray, np.ndarray]:
     variant, valves, seeds = args
     result = run_batch(variant, valves, seeds)
-    return result.parameters[:, [5, 2]], result.converged & result.model_fits
+    return result.parameters[:, [5, 2]], result.trusted
 
 
 def run_population(variant: Variant, valves: list[ValveSpec], seeds: list[int],

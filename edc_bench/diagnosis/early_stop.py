@@ -44,7 +44,8 @@ from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
 from edc_bench.diagnosis.baseline import Baseline
 from edc_bench.diagnosis.classifier import ValveClassifier
-from edc_bench.diagnosis.identification import model_fit_failures, model_fit_problems
+from edc_bench.diagnosis.identification import model_fit_problems, model_fits
+from edc_bench.diagnosis.trust import judged_condition_number, trust_problems
 from edc_bench.engine.outcome import StopReason
 from edc_bench.diagnosis.period_fit import (
     BlockAccumulator,
@@ -277,12 +278,11 @@ def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, pe
         (the judgement would trust it); and, trusted, the verdict is the same over the whole box (stop); the
         verdict at each box's centre ("" where no test was trusted: the classifier is not asked then).
     """
-    acc = variant.acceptance
-    enough = periods >= acc.min_periods
-    failures = model_fit_failures(variant, fit, noise_v)
-    misfit = enough & np.any(np.stack(list(failures.values())), axis=0)
-    condition = np.maximum(fit.condition_number, reference_condition)
-    trusted = enough & fit.settled & ~misfit & (condition <= acc.max_condition_number)
+    enough = periods >= variant.acceptance.min_periods
+    misfit = enough & ~model_fits(variant, fit, noise_v)
+    problems = trust_problems(variant.acceptance, periods=periods, settled=fit.settled, misfit=misfit,
+                              condition_number=judged_condition_number(reference_condition, fit.condition_number))
+    trusted = problems == 0
     if not trusted.any():  # the loop's check before the fit settles: no classifier call in that tick
         return misfit, trusted, trusted.copy(), np.full(len(centres), "", dtype=object)
     same, verdicts = certain_verdicts(classifier, centres, half_widths, with_verdicts=True)

@@ -123,7 +123,7 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         periods = result.periods
         stop_p, stop_trusted, stop_features, _ = early_outcome(variant, result, classifier, baseline)
         stop_s = np.array([periods.stop_time_s(int(p)) for p in stop_p])
-        full_trusted = result.converged & result.model_fits
+        full_trusted = result.trusted
         full_features = result.parameters[:, [5, 2]] / np.array([baseline.af_v, baseline.a1_v_s_per_mm])
         truth = np.array([is_faulty(variant, v) for v in valves])
         stop_all.append(stop_s)

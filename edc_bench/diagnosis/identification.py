@@ -26,15 +26,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
-from edc_bench.control.fel import FelController, condition_number, regressor_matrix
+from edc_bench.control.design import ControllerDesign
+from edc_bench.control.fel import FelController
 from edc_bench.diagnosis.period_fit import (
     GAIN_TERMS,
     FitSetup,
     PeriodFit,
     expected_drive_noise_v,
+    reference_condition_number,
     solve,
     trace_blocks,
 )
+from edc_bench.diagnosis.trust import judged_condition_number
 
 
 @dataclass(frozen=True)
@@ -208,13 +211,10 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
     period_s = setup.block_ticks * setup.period_s
     if fit is None:
         return Identification(final, std, settle, False, math.inf, 0, math.nan, 0, period_s)
-    # identifiability is the excitation's: the reference's regressors over the steady excitation, where the rack
-    # slides (the trajectory's incidental harmonics would make a single sine look identifiable)
-    ref_rows = t[t >= variant.excitation.move_s + variant.excitation.fade_s]
-    phi = regressor_matrix(controller.reference, ref_rows, setup.period_s)
-    phi = phi[np.abs(phi[:, 2]) >= setup.exclusion_mm_s][:, list(controller.estimated)]
-    cond = max(condition_number(phi), float(fit.condition_number[0])) if len(phi) > len(controller.estimated) \
-        else math.inf
+    # identifiability is the excitation's (the trajectory's incidental harmonics would make a single sine look
+    # identifiable), or the fit's where that is worse: the trust rule's one definition
+    cond = float(judged_condition_number(reference_condition_number(ControllerDesign.from_variant(variant)),
+                                         fit.condition_number[0]))
     for name in (PARAMETER_NAMES[i] for i in controller.estimated):
         final[name] = float(fit.value(name)[0])
         std[name] = float(fit.std_of(name)[0])

@@ -24,6 +24,7 @@ from edc_bench.diagnosis.classifier import Classification, ValveClassifier, defa
 from edc_bench.diagnosis.coil_check import coil_finding, coil_reason
 from edc_bench.diagnosis.identification import Identification, ModelFit, analyse
 from edc_bench.diagnosis.period_fit import DRIFT_MIN_PERIODS
+from edc_bench.diagnosis.trust import Problem, trust_problems
 from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
@@ -70,6 +71,9 @@ class Judgement:
         threshold and marginal band.
     coil : dict or None
         The coil's resistance measured in the test and its spec (:func:`~edc_bench.diagnosis.coil_check.coil_finding`).
+    problems : Problem
+        What stands between the test and a verdict on the valve's wear, as values (the trust rule's problems,
+        the variant not calibrated, the coil out of spec); ``reasons`` says them in words.
     """
 
     verdict: Verdict
@@ -84,42 +88,57 @@ class Judgement:
     decision_plane: dict[str, Any] | None = None
     features_volt: dict[str, float] = field(default_factory=dict)
     coil: dict[str, Any] | None = None
+    problems: Problem = Problem.NONE
+
+
+def run_problems(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
+                 timing: dict[str, float]) -> Problem:
+    """The trust rule (:func:`~edc_bench.diagnosis.trust.trust_problems`) for one run."""
+    if ident is None:
+        aborted = Problem.ABORTED if outcome.aborted else Problem.NONE
+        return aborted | Problem.NOT_IDENTIFIED
+    fit = ident.model_fit
+    flags = trust_problems(
+        variant.acceptance, periods=ident.periods, settled=ident.settled, misfit=fit is not None and not fit.fits,
+        condition_number=ident.condition_number, aborted=outcome.aborted, ticks=int(timing.get("ticks", 0)),
+        ticks_late_or_lost=timing.get("ticks_late", 0) + outcome.ticks_lost, missed_replies=outcome.missed_replies)
+    return Problem(int(flags))
 
 
 def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
-                  timing: dict[str, float]) -> list[str]:
-    """Reasons the run is not to be trusted (empty if it is)."""
-    reasons = []
+                  timing: dict[str, float], problems: Problem | None = None) -> list[str]:
+    """Why the run is not to be trusted, in words (empty if it is): the sentences of :func:`run_problems`."""
+    problems = run_problems(variant, outcome, ident, timing) if problems is None else problems
     acc = variant.acceptance
-    if outcome.abort_reason:
+    reasons = []
+    if Problem.ABORTED in problems:
         reasons.append(f"aborted: {outcome.abort_reason}")
-    if ident is None:
+    if Problem.NOT_IDENTIFIED in problems:
         return reasons or ["no identification"]
     fit = ident.model_fit
-    if not outcome.abort_reason and fit is not None and not fit.fits:
+    if Problem.MODEL_DOES_NOT_FIT in problems:
         reasons.append(model_fit_reason(fit))
-    elif not outcome.abort_reason and not ident.converged:
-        if ident.periods < acc.min_periods:
-            reasons.append(f"not converged: {ident.periods} whole excitation period(s) of {ident.period_s:g} s "
-                           f"measured, at least {acc.min_periods} needed after the first (a longer test is needed)")
-        else:
-            spread = "" if fit is None else (f" (period-to-period spread af {fit.spread_rel['af']:.1%}, "
-                                             f"a1 {fit.spread_rel['a1']:.1%})")
-            beyond = (f"more than {acc.settle_band_rel:.0%}" if ident.periods < DRIFT_MIN_PERIODS else
-                      f"more than {acc.settle_band_rel:.0%} and more than their period-to-period noise explains")
-            reasons.append(f"not converged: af and a1 were still drifting (their first {ident.periods // 2} and "
-                           f"last {ident.periods - ident.periods // 2} excitation periods differ by {beyond})"
-                           f"{spread}; retest")
-    if not outcome.abort_reason and ident.condition_number > acc.max_condition_number:
+    if Problem.TOO_FEW_PERIODS in problems:
+        reasons.append(f"not converged: {ident.periods} whole excitation period(s) of {ident.period_s:g} s "
+                       f"measured, at least {acc.min_periods} needed after the first (a longer test is needed)")
+    if Problem.DRIFTING in problems:
+        spread = "" if fit is None else (f" (period-to-period spread af {fit.spread_rel['af']:.1%}, "
+                                         f"a1 {fit.spread_rel['a1']:.1%})")
+        beyond = (f"more than {acc.settle_band_rel:.0%}" if ident.periods < DRIFT_MIN_PERIODS else
+                  f"more than {acc.settle_band_rel:.0%} and more than their period-to-period noise explains")
+        reasons.append(f"not converged: af and a1 were still drifting (their first {ident.periods // 2} and "
+                       f"last {ident.periods - ident.periods // 2} excitation periods differ by {beyond})"
+                       f"{spread}; retest")
+    if Problem.POORLY_CONDITIONED in problems:
         reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
                        f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
     ticks = max(int(timing.get("ticks", 0)), 1)
-    late = timing.get("ticks_late", 0) + outcome.ticks_lost
-    if late / ticks > acc.max_overrun_fraction:
+    if Problem.TIMING in problems:
+        late = timing.get("ticks_late", 0) + outcome.ticks_lost
         lost = f", {outcome.ticks_lost} lost in {outcome.gaps} host stalls" if outcome.ticks_lost else ""
         reasons.append(f"timing: {late} of {ticks} ticks overran or were lost ({timing.get('ticks_late', 0)} late"
                        f"{lost}; limit {acc.max_overrun_fraction:.1%})")
-    if outcome.missed_replies / ticks > acc.max_missed_reply_fraction:
+    if Problem.REPLIES_MISSING in problems:
         reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing "
                        f"(limit {acc.max_missed_reply_fraction:.1%})")
     return reasons
@@ -196,7 +215,8 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         on fewer valves than recommended, is named in the reasons.
     """
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
-    reasons = trust_reasons(variant, outcome, ident, timing)
+    problems = run_problems(variant, outcome, ident, timing)
+    reasons = trust_reasons(variant, outcome, ident, timing, problems)
     parameters: dict[str, dict[str, Any]] = {}
     inductive = inductive_shares(variant)._asdict()
     r_ref, r_hat = variant.coil.resistance_ohm, measured_resistance_ohm(trace, variant)
@@ -220,10 +240,10 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         verdict=Verdict.INVALID if reasons else Verdict.UNCLASSIFIED,
         reasons=(reasons or ["test trustworthy; classification switched off"]) + ([bad_coil] if bad_coil else []),
         parameters=parameters, features=features,
-        converged=bool(ident and ident.converged and not outcome.abort_reason),
+        converged=bool(ident and ident.converged and not outcome.aborted),
         identification=ident, reference_values=reference_values(variant, None),
         features_volt={n: volts_at_coil(inductive[n], features[n], r_ref, r_hat) for n in ("af", "a1")},
-        coil=coil,
+        coil=coil, problems=problems | (Problem.COIL_OUT_OF_SPEC if bad_coil else Problem.NONE),
     )
     if not reasons and bad_coil:
         # a coil out of spec fails the valve, whatever its wear: it is replaced or repaired first
@@ -235,6 +255,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         if not baseline.calibrated and not nominal_baseline:
             # the coil's spec needs no baseline: a coil out of spec still fails the valve
             judgement.verdict = Verdict.FAIL if bad_coil else Verdict.INVALID
+            judgement.problems |= Problem.NOT_CALIBRATED
             judgement.baseline = None  # nothing was compared with it
             judgement.reasons = ([bad_coil] if bad_coil else []) + [not_calibrated_reason(variant, calibrate_command)]
             return judgement

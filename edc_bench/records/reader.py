@@ -37,6 +37,34 @@ def load_record(folder: Path) -> dict[str, Any]:
         raise ConfigError(f"{path}: not a readable record ({exc})") from None
     if not isinstance(record, dict) or "verdict" not in record:
         raise ConfigError(f"{path}: not an edc-bench record (no verdict)")
+    return upgraded(record)
+
+
+def upgraded(record: dict[str, Any]) -> dict[str, Any]:
+    """A record of an older schema in today's form, so that every reader reads one form.
+
+    Schema 4 gave as values what older records held only as sentences: the verdict's ``problems``, whether
+    the coil's temperature was given (``coil.temp_given``), the abort's kind (``loop.abort``; an older one
+    becomes kind ``recorded``, its sentence kept), and the timing's ``ticks_late`` (formerly ``overruns``).
+    Reading those sentences is this function's alone: it is the one place that knows the old wording.
+    """
+    if int(record.get("schema") or 0) >= 4:
+        return record
+    from edc_bench.engine.outcome import abort_from_record
+
+    record = dict(record)
+    reasons = [str(r) for r in record.get("reasons") or []]
+    record.setdefault("problems", ["not calibrated"] if any(r.startswith("variant not calibrated")
+                                                            for r in reasons) else [])
+    if isinstance(record.get("coil"), dict):
+        coil = dict(record["coil"])
+        coil.setdefault("temp_given", str(coil.get("temp_source", "")).startswith("given"))
+        record["coil"] = coil
+    if isinstance(record.get("timing"), dict) and "ticks_late" not in record["timing"]:
+        record["timing"] = {**record["timing"], "ticks_late": record["timing"].get("overruns", 0)}
+    if isinstance(record.get("loop"), dict) and "abort" not in record["loop"]:
+        abort = abort_from_record(record["loop"])
+        record["loop"] = {**record["loop"], "abort": None if abort is None else abort.as_dict()}
     return record
 
 
