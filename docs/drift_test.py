@@ -1,6 +1,6 @@
 """Print the figures of docs/method.md section 7, "The noise allowance": ``python docs/drift_test.py``.
 
-How often the drift test (edc_bench.diagnosis.period_fit.drift_free, settle band 2 %) calls white noise drifting,
+How often the drift test (edc_bench.identification.period_fit.drift_free, settle band 2 %) calls white noise drifting,
 how often it catches drifts of several shapes, and where its statistic lies on the real scatter of 200 p-edc-hard
 valves through the simulated USB full-speed adapter (30 s, batch path). About two minutes.
 """
@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from edc_bench.config import load_variant
-from edc_bench.diagnosis.batch import run_batch
-from edc_bench.diagnosis.period_fit import DRIFT_CRITICAL, drift_free, drift_statistic
-from edc_bench.diagnosis.population import draw_population
+from edc_bench.identification.period_fit import DRIFT_CRITICAL, drift_free, drift_statistic
+from edc_bench.population.batch import run_batch
+from edc_bench.population.valves import draw_population
 from edc_bench.sim.adapter import parse_adapter
 
 BAND_REL = 0.02
@@ -43,7 +43,7 @@ def main() -> None:
                     cells.append(f"{size:.0%}/{scatter:.0%}: {1 - drift_free(y, y.mean(axis=0), BAND_REL).mean():.0%}")
             print(f"  {periods} periods, {name}: " + ", ".join(cells))
     variant = load_variant("p-edc-hard")
-    valves = draw_population(variant, 200, seed=12)  # the population of tests/diagnosis/test_latency.py
+    valves = draw_population(variant, 200, seed=12)  # the population of tests/population/test_latency.py
     result = run_batch(variant, valves, list(range(5000, 5200)), adapter=parse_adapter("usb-fs"))
     fit = result.periods.at(result.periods.blocks).fit
     limit = np.interp(fit.blocks, *zip(*DRIFT_CRITICAL))

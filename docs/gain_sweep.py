@@ -7,8 +7,8 @@ judged ones are identified, and whether their verdicts are right. About four min
 
 from __future__ import annotations
 
-from edc_bench.diagnosis.classifier import default_classifier
-from edc_bench.diagnosis.experiments import gain_sweep
+from edc_bench.experiments.studies import gain_sweep
+from edc_bench.verdict.classifier import default_classifier
 
 VARIATIONS = (0.10, 0.15, 0.20, 0.22, 0.25, 0.30, -0.10, -0.15, -0.20, -0.22, -0.25, -0.30)
 

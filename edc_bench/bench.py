@@ -33,19 +33,19 @@ from typing import TYPE_CHECKING
 import can
 
 from edc_bench.config.models import Variant
-from edc_bench.diagnosis.baseline import load_baseline
-from edc_bench.diagnosis.judgement import judge_run
 from edc_bench.physics.feedforward import FeedforwardParameters
 from edc_bench.physics.valve import ValveSpec, parse_valve_spec
+from edc_bench.verdict.baseline import load_baseline
+from edc_bench.verdict.judgement import judge_run
 
 if TYPE_CHECKING:
     from edc_bench.sim.adapter import AdapterModel
+from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.gain_check import check_variant_gains
-from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase
 from edc_bench.runtime.signals import interrupt_guard, stop_requested
 from edc_bench.runtime.timing import timing_summary
@@ -99,7 +99,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         The command that calibrates the variant on this rig, quoted in that reason.
     full_length : bool, optional
         Run the variant's whole duration; by default a classified test stops as soon as its verdict is certain
-        or its model is known not to fit (:mod:`edc_bench.diagnosis.early_stop`).
+        or its model is known not to fit (:mod:`edc_bench.verdict.early_stop`).
 
     Returns
     -------
@@ -118,8 +118,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     stop_rule = None
     if classify and not full_length and baseline is not None and (baseline.calibrated or nominal_baseline):
-        from edc_bench.diagnosis.classifier import default_classifier
-        from edc_bench.diagnosis.early_stop import EarlyStop
+        from edc_bench.verdict.classifier import default_classifier
+        from edc_bench.verdict.early_stop import EarlyStop
 
         stop_rule = EarlyStop(variant, baseline, default_classifier(str(classifier_path) if classifier_path else None))
     loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested,

@@ -7,7 +7,7 @@ feeds the same positions, tick by tick, to a controller built from the same
 variant, so the estimator walks the same path bit for bit; each drive it
 computes is checked against the command that was logged (to the codec's
 1 mV). The trace it rebuilds is judged by the same code as the live test
-(:func:`edc_bench.diagnosis.judgement.judge_run`).
+(:func:`edc_bench.verdict.judgement.judge_run`).
 
 What a CAN log cannot hold is taken from the record when there is one: the
 tick timing (lateness, ticks late) and why the loop stopped. A raw log alone
@@ -26,17 +26,17 @@ from edc_bench.config import parse_variant
 from edc_bench.config.loader import without_retired_keys
 from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
-from edc_bench.diagnosis.baseline import Baseline
-from edc_bench.diagnosis.judgement import Judgement, judge_run
-from edc_bench.diagnosis.trust import Problem
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, abort_from_record
+from edc_bench.engine.tick import TickEngine
 from edc_bench.errors import ConfigError
+from edc_bench.identification.trust import Problem
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
-from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, abort_from_record
-from edc_bench.engine.tick import TickEngine
+from edc_bench.verdict.baseline import Baseline
+from edc_bench.verdict.judgement import Judgement, judge_run
+from edc_bench.verdict.verdicts import Verdict
 
 #: The command carries the drive in mV; a replayed drive further off than this is a different run.
 DRIVE_TOLERANCE_V = 0.0005 + 1e-9
@@ -215,7 +215,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     notes = []
     judged_by = (record.get("classification") or {}).get("model_sha256")
     if classifier_path is None and judged_by:
-        from edc_bench.diagnosis.classifier import find_model
+        from edc_bench.verdict.classifier import find_model
 
         # judged by the model that judged it, whatever the station adopted since
         classifier_path = find_model(judged_by)
@@ -249,7 +249,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
 
 def _ends_at_a_period(variant: Variant, ticks: int) -> bool:
     """A log of ``ticks`` ticks ends where an early stop ends a test (after whole excitation periods)."""
-    from edc_bench.diagnosis.period_fit import FitSetup
+    from edc_bench.identification.period_fit import FitSetup
 
     setup = FitSetup.from_variant(variant)
     periods = setup.blocks_in(ticks)

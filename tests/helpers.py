@@ -56,10 +56,10 @@ def check_safe_and_complete(result: Any, rig: Any, tmp_path: Path) -> None:
 
     import can
 
-    from edc_bench.diagnosis.verdict import Verdict
     from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
     from edc_bench.records.reader import load_trace
     from edc_bench.records.record import write_record
+    from edc_bench.verdict.verdicts import Verdict
 
     outcome = result.outcome
     assert result.verdict == Verdict.INVALID

@@ -72,15 +72,15 @@ def _run(args: argparse.Namespace) -> int:
     from edc_bench import __version__
     from edc_bench.cli.common import bus_settings, check_output_folder
     from edc_bench.config import load_variant
-    from edc_bench.diagnosis.baseline import (
+    from edc_bench.errors import ConfigError
+    from edc_bench.records.baseline_text import baseline_line
+    from edc_bench.verdict.baseline import (
         RECOMMENDED_TESTS,
         baseline_from_tests,
         read_baseline,
         station_baseline_path,
         write_baseline,
     )
-    from edc_bench.errors import ConfigError
-    from edc_bench.records.baseline_text import baseline_line
 
     bus = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False)
     rig = bus is not None
@@ -120,7 +120,7 @@ def _run(args: argparse.Namespace) -> int:
     elif args.valve is not None:
         measured = _simulated_rig_tests(args, variant, tests, seed)
     else:
-        from edc_bench.diagnosis.calibrate import population_tests
+        from edc_bench.population.calibrate import population_tests
 
         print(f"calibrating {variant.name} on {tests} simulated new valves (seed {seed})", file=sys.stderr)
         measured = population_tests(variant, tests, seed)
@@ -243,13 +243,12 @@ def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, see
 
 def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str) -> list[Any]:
     """Write the test's record and print its line; the test as a baseline entry if it converged."""
-    from edc_bench.diagnosis.baseline import BaselineTest
-    from edc_bench.diagnosis.verdict import Verdict
-    from edc_bench.records.record import write_record
-
     import socket
 
     from edc_bench.errors import RecordNotWrittenError
+    from edc_bench.records.record import write_record
+    from edc_bench.verdict.baseline import BaselineTest
+    from edc_bench.verdict.verdicts import Verdict
 
     result.identity = {"station": args.station or socket.gethostname(), "purpose": "calibration"}
     try:

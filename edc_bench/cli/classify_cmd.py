@@ -11,7 +11,7 @@ from edc_bench.cli.common import positive_float, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 
 if TYPE_CHECKING:
-    from edc_bench.diagnosis.baseline import Baseline
+    from edc_bench.verdict.baseline import Baseline
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -40,10 +40,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Classify and report."""
     from edc_bench.config import load_variant
-    from edc_bench.diagnosis.judgement import classification_dict, classify_features
-    from edc_bench.diagnosis.verdict import Verdict
     from edc_bench.errors import ConfigError
     from edc_bench.records.reader import load_record
+    from edc_bench.verdict.judgement import classification_dict, classify_features
+    from edc_bench.verdict.verdicts import Verdict
 
     if args.record_dir is not None:
         if args.af is not None or args.a1 is not None:
@@ -65,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError("give --af and --a1 (with --variant), or a record folder")
         variant = load_variant(args.variant)
         af, a1 = args.af, args.a1
-    from edc_bench.diagnosis.baseline import load_baseline
-    from edc_bench.diagnosis.judgement import nominal_baseline_warning, not_calibrated_reason
+    from edc_bench.verdict.baseline import load_baseline
+    from edc_bench.verdict.judgement import nominal_baseline_warning, not_calibrated_reason
 
     baseline = load_baseline(variant)
     if args.record_dir is None:

@@ -194,7 +194,7 @@ def check_population_inputs(args: argparse.Namespace) -> None:
     for name in args.variants:
         load_variant(name)
     if args.model is not None:
-        from edc_bench.diagnosis.classifier import ValveClassifier
+        from edc_bench.verdict.classifier import ValveClassifier
 
         ValveClassifier(args.model)
 

@@ -34,9 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, judge, report."""
-    from edc_bench.diagnosis.classifier import ValveClassifier
-    from edc_bench.diagnosis.dataset import make_dataset
-    from edc_bench.diagnosis.experiments import evaluate
+    from edc_bench.learning.dataset import make_dataset
+    from edc_bench.learning.evaluation import evaluate
+    from edc_bench.verdict.classifier import ValveClassifier
 
     classifier = ValveClassifier(args.model)
     if args.from_history:
@@ -79,7 +79,7 @@ def _print_report(report: dict, truth: str) -> None:
 
 def _time_to_verdict(args: argparse.Namespace, classifier) -> int:
     """Early stop against the full-length test on a simulated population, printed."""
-    from edc_bench.diagnosis.experiments import time_to_verdict
+    from edc_bench.experiments.studies import time_to_verdict
 
     report = time_to_verdict(classifier, list(args.variants), args.count, args.seed)
     report["model"] = classifier.name

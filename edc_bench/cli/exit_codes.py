@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import enum
 
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.verdict.verdicts import Verdict
 
 
 class ExitCode(enum.IntEnum):

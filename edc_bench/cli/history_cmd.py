@@ -15,7 +15,7 @@ from edc_bench.cli.common import (
     positive_int,
     print_quietly_if_closed,
 )
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.verdict.verdicts import Verdict
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -31,7 +31,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the experiment, print the table, draw the figure."""
     from edc_bench.config import load_variant
-    from edc_bench.diagnosis.experiments import PAPER_OUTCOME, draw_figure7, paper_experiment
+    from edc_bench.experiments.studies import PAPER_OUTCOME, draw_figure7, paper_experiment
 
     load_variant(args.variant)  # a bad variant or figure is refused before the experiment, not after it
     if args.runs == 1:

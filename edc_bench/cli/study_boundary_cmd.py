@@ -30,9 +30,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, sweep, plot, print."""
-    from edc_bench.diagnosis.classifier import ValveClassifier
-    from edc_bench.diagnosis.dataset import make_dataset
-    from edc_bench.diagnosis.experiments import boundary_tradeoff, draw_tradeoff
+    from edc_bench.experiments.studies import boundary_tradeoff, draw_tradeoff
+    from edc_bench.learning.dataset import make_dataset
+    from edc_bench.verdict.classifier import ValveClassifier
 
     check_output_file(args.figure, "--figure", ".png")  # before the work, not after it
     if args.from_history:

@@ -111,7 +111,7 @@ def _duration_s(text: str) -> float:
 
 def _calibrate_command(variant: Any, bus_config: dict[str, Any] | None) -> str:
     """The exact calibrate command for this variant on this rig (the simulated rig: a simulated new valve)."""
-    from edc_bench.diagnosis.judgement import default_calibrate_command
+    from edc_bench.verdict.judgement import default_calibrate_command
 
     words = ["--valve", "new"] if bus_config is None else [
         word for key in ("interface", "channel", "bitrate") if bus_config.get(key) is not None
@@ -212,13 +212,12 @@ def _observer(args: argparse.Namespace, title: str) -> Any:
 
 def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.bench import run_bench_test, run_simulated_test
+    from edc_bench.cli.common import check_output_folder
     from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.protocol import default_icd
     from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
     from edc_bench.runtime.bus import ClosingBus, open_bus
     from edc_bench.runtime.clock import RealTimeClock
-
-    from edc_bench.cli.common import check_output_folder
 
     check_output_folder(args.out, "--out")  # before the test, not after it
     variant = _variant(args)
@@ -387,7 +386,7 @@ def _index(record_dir: Path, url: str | None) -> str | None:
 
 
 def _print_report(result: Any, record_dir: Path | None) -> None:
-    from edc_bench.diagnosis.coil_check import coil_line
+    from edc_bench.identification.coil_check import coil_line
     from edc_bench.records.baseline_text import baseline_line
 
     print(f"verdict: {result.verdict}")

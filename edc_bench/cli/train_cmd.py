@@ -8,10 +8,10 @@ import time
 from pathlib import Path
 
 from edc_bench.cli.common import (
+    MAX_POPULATION,
     add_hidden_alias,
     add_history_db_argument,
     check_output_file,
-    MAX_POPULATION,
     check_output_folder,
     count_up_to,
     identity,
@@ -74,16 +74,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate (or load) the data, train both models, write them."""
-    from edc_bench.diagnosis.classifier import DEFAULT_MODEL, LINEAR_MODEL, packaged_model_path
-    from edc_bench.diagnosis.dataset import Dataset, make_dataset
     from edc_bench.errors import ConfigError
+    from edc_bench.learning.dataset import Dataset, make_dataset
+    from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, packaged_model_path
 
     if args.adopt is not None:  # adopting needs no training extra
         return _adopt(args)
     try:
         import sklearn  # noqa: F401
 
-        from edc_bench.diagnosis.train import train
+        from edc_bench.learning.train import train
     except ImportError:
         raise ConfigError("training needs the 'train' extra: pip install '.[train]'") from None
     if args.count < 20:
@@ -137,8 +137,8 @@ def _check_training_inputs(args: argparse.Namespace) -> None:
 def _adopt(args: argparse.Namespace) -> int:
     import getpass
 
-    from edc_bench.diagnosis.adoption import adopt, adopt_shipped
     from edc_bench.errors import ConfigError
+    from edc_bench.learning.adoption import adopt, adopt_shipped
 
     if args.from_history:
         raise ConfigError("--adopt and --from-history are separate steps: train, read the figures, then adopt")
@@ -162,13 +162,13 @@ def _from_history(args: argparse.Namespace) -> int:
     import math
     import re
 
-    from edc_bench.diagnosis.classifier import ValveClassifier, station_models_dir
-    from edc_bench.diagnosis.dataset import Dataset, cached_dataset
-    from edc_bench.diagnosis.shop_training import DEFAULT_PRIOR_WEIGHT, check_enough, train_from_labels
     from edc_bench.errors import ConfigError
     from edc_bench.history.labels import labelled_tests
     from edc_bench.history.store import HistoryStore
+    from edc_bench.learning.dataset import Dataset, cached_dataset
+    from edc_bench.learning.shop_training import DEFAULT_PRIOR_WEIGHT, check_enough, train_from_labels
     from edc_bench.paths import atomic_write
+    from edc_bench.verdict.classifier import ValveClassifier, station_models_dir
 
     if args.candidate_file is not None:
         check_output_file(args.candidate_file, "--candidate-file")

@@ -3,7 +3,7 @@
 :class:`ControllerDesign` is derived once from a variant's physics (the
 nominal feedforward parameters), its excitation, its PID gains and its
 estimator settings. The loop's :class:`~edc_bench.control.fel.FelController`,
-the batch path (:mod:`edc_bench.diagnosis.batch`) and the perf floor
+the batch path (:mod:`edc_bench.population.batch`) and the perf floor
 (:mod:`edc_bench.perf.compute`) all take their reference, PID coefficients,
 starting estimates, prior, regressor scales and parameter split from it,
 so none of them decides these on its own; ``tests/control/test_design.py``

@@ -66,7 +66,7 @@ def reply_flags(reply: RigFeedback) -> int:
 
 
 class StopRule(Protocol):
-    """Decides whether a test may end before its full length (:class:`~edc_bench.diagnosis.early_stop.EarlyStop`)."""
+    """Decides whether a test may end before its full length (:class:`~edc_bench.verdict.early_stop.EarlyStop`)."""
 
     #: ticks after which :meth:`check` is asked (the ends of whole excitation periods, and steps of work spread
     #: between them); each call must be short (it runs inside a tick: at most a tick or two late after it)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from edc_bench.diagnosis.shop_training import LabelledTests
 from edc_bench.history.store import HistoryStore
+from edc_bench.learning.shop_training import LabelledTests
 
 
 def labelled_tests(store: HistoryStore) -> LabelledTests:

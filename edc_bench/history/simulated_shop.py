@@ -27,13 +27,13 @@ from typing import Any
 import numpy as np
 
 from edc_bench.config import load_variant
-from edc_bench.diagnosis.baseline import load_baseline
-from edc_bench.diagnosis.classifier import ValveClassifier
-from edc_bench.diagnosis.dataset import run_population
-from edc_bench.diagnosis.population import draw_population
-from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.history.store import HistoryStore
+from edc_bench.learning.dataset import run_population
 from edc_bench.physics.wear import resisting_force_n
+from edc_bench.population.valves import draw_population
+from edc_bench.verdict.baseline import load_baseline
+from edc_bench.verdict.classifier import ValveClassifier
+from edc_bench.verdict.verdicts import Verdict
 
 SHOP_START = dt.datetime(2026, 1, 5, 8, 0, tzinfo=dt.UTC)
 DEFAULT_SCRAP_FACTOR = 0.85

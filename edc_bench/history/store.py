@@ -26,8 +26,8 @@ from typing import IO, Any
 
 import sqlalchemy as sa
 
-from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.errors import ConfigError
+from edc_bench.verdict.verdicts import Verdict
 
 metadata = sa.MetaData()
 

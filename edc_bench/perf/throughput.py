@@ -16,9 +16,9 @@ import numpy as np
 def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, float]:
     """Valve tests per minute in the batch path: one process, and ``workers`` processes as ``train`` runs it."""
     from edc_bench.config import load_variant
-    from edc_bench.diagnosis.batch import run_batch
-    from edc_bench.diagnosis.dataset import run_population
-    from edc_bench.diagnosis.population import draw_population
+    from edc_bench.learning.dataset import run_population
+    from edc_bench.population.batch import run_batch
+    from edc_bench.population.valves import draw_population
 
     variant = load_variant(variant_name)
     population = draw_population(variant, valves, 7)

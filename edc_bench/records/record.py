@@ -21,11 +21,12 @@ import numpy as np
 from edc_bench import __version__
 from edc_bench.config.models import Variant
 from edc_bench.control.stability import LoopMargins
-from edc_bench.diagnosis.identification import Identification
-from edc_bench.diagnosis.judgement import Judgement
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.engine.outcome import LoopOutcome
+from edc_bench.engine.trace import CanFrameLog
+from edc_bench.identification.analysis import Identification
 from edc_bench.physics.feedforward import FeedforwardParameters
 from edc_bench.protocol import default_icd
+from edc_bench.records.mdf import write_trace_mf4
 from edc_bench.records.writer import (
     CAN_LOG_FILE,
     FIGURE_FILE,
@@ -36,9 +37,8 @@ from edc_bench.records.writer import (
     write_can_log,
     write_json,
 )
-from edc_bench.records.mdf import write_trace_mf4
-from edc_bench.engine.outcome import LoopOutcome
-from edc_bench.engine.trace import CanFrameLog
+from edc_bench.verdict.judgement import Judgement
+from edc_bench.verdict.verdicts import Verdict
 
 
 @dataclass

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.paths import atomic_write
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.records.reader import load_record, load_trace
+from edc_bench.verdict.verdicts import Verdict
 
 REPORT_PDF = "report.pdf"
 REPORT_PNG = "report-page.png"

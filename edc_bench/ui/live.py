@@ -20,11 +20,11 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
-from edc_bench.diagnosis.coil_check import coil_line
-from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.engine.outcome import StopReason
+from edc_bench.identification.coil_check import coil_line
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
+from edc_bench.verdict.verdicts import Verdict
 
 _BARS = "▁▂▃▄▅▆▇█"
 VERDICT_STYLES = {Verdict.PASS: "bold white on green", Verdict.MARGINAL: "bold black on yellow",

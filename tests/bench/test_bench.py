@@ -22,7 +22,7 @@ import pytest
 
 from edc_bench.bench import BenchResult, run_simulated_test
 from edc_bench.config import Variant, load_variant, parse_variant
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.verdict.verdicts import Verdict
 
 VARIANTS = ("p-edc-default", "p-edc-long")
 VALVES = ("new", "worn", "faulty")

@@ -335,11 +335,11 @@ def _tripwire(*_args: object, **_kwargs: object) -> None:
 
 #: The long-running work of every command (what bad input must never reach).
 WORK = ("edc_bench.bench.run_bench_test", "edc_bench.bench.run_simulated_test", "edc_bench.sim.process.rig_process",
-        "edc_bench.sim.server.SlcanRigServer.serve_forever", "edc_bench.diagnosis.dataset.make_dataset",
-        "edc_bench.diagnosis.dataset.cached_dataset", "edc_bench.diagnosis.experiments.paper_experiment",
-        "edc_bench.diagnosis.calibrate.population_tests", "edc_bench.station.check_station",
+        "edc_bench.sim.server.SlcanRigServer.serve_forever", "edc_bench.learning.dataset.make_dataset",
+        "edc_bench.learning.dataset.cached_dataset", "edc_bench.experiments.studies.paper_experiment",
+        "edc_bench.population.calibrate.population_tests", "edc_bench.station.check_station",
         "edc_bench.perf.suite.run", "edc_bench.control.tuning.tune_pid",
-        "edc_bench.diagnosis.shop_training.train_from_labels", "edc_bench.records.report.draw_report")
+        "edc_bench.learning.shop_training.train_from_labels", "edc_bench.records.report.draw_report")
 
 
 @pytest.fixture()

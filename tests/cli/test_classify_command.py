@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from helpers import edc_bench
 
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.verdict.verdicts import Verdict
 
 
 def test_classify_a_record_folder(tmp_path: Path) -> None:

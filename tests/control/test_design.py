@@ -9,10 +9,10 @@ from edc_bench.config import Variant
 from edc_bench.config.models import PARAMETER_NAMES
 from edc_bench.control.design import START_AT_ZERO, ControllerDesign
 from edc_bench.control.pid import derivative_filter_coefficients
-from edc_bench.diagnosis.batch import run_batch
 from edc_bench.perf.compute import lean_tick
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.physics.valve import ValveSpec
+from edc_bench.population.batch import run_batch
 
 
 def test_design_takes_the_nominal_model_from_the_variants_physics(variant: Variant) -> None:
@@ -54,7 +54,7 @@ def test_a_changed_design_changes_the_floor_and_the_controller_alike(variant: Va
 def test_batch_path_identifies_like_the_loop_from_the_same_design(variant: Variant) -> None:
     """On the noise-free model plant the only difference left is the codec's 1 um / 1 mV quantisation in the loop.
 
-    (The noisy, stiction case is held to the documented 1 % by tests/diagnosis/test_batch.py.)
+    (The noisy, stiction case is held to the documented 1 % by tests/population/test_batch.py.)
     """
     from edc_bench.bench import run_simulated_test
 

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import edc_bench
 
-from edc_bench.diagnosis.classifier import ValveClassifier, default_classifier, packaged_model_path
-from edc_bench.diagnosis.shop_training import LabelledTests, train_from_labels
 from edc_bench.errors import ConfigError
 from edc_bench.history.store import COLUMNS, HistoryStore
-from helpers import edc_bench
+from edc_bench.learning.shop_training import LabelledTests, train_from_labels
+from edc_bench.verdict.classifier import ValveClassifier, default_classifier, packaged_model_path
 
 
 def _row(valve: str, started: str, af_rel: float | None, a1_rel: float | None, verdict: str = "PASS",
@@ -123,7 +123,7 @@ def test_training_from_history_refuses_too_few_labels_saying_how_many(tmp_path: 
 
 
 def test_labels_from_too_few_valves_are_refused_before_training() -> None:
-    from edc_bench.diagnosis.shop_training import check_enough
+    from edc_bench.learning.shop_training import check_enough
 
     labels = np.array([0, 1] * 20)
     with pytest.raises(ConfigError, match="from at least 5 different valves"):
@@ -149,7 +149,7 @@ def test_a_candidate_learns_the_shops_limit_and_is_adopted_explicitly(tmp_path: 
     candidate = tmp_path / "candidate.onnx"
     candidate.write_bytes(result.candidate.onnx_bytes)
     assert ValveClassifier().path == packaged_model_path()  # written is not adopted
-    from edc_bench.diagnosis.adoption import adopt, adopt_shipped
+    from edc_bench.learning.adoption import adopt, adopt_shipped
 
     adoption = adopt(candidate, "ana")
     station = ValveClassifier()
@@ -164,7 +164,7 @@ def test_a_candidate_learns_the_shops_limit_and_is_adopted_explicitly(tmp_path: 
     adopt(candidate, "ana")  # as the message says: adopting again restores it
     assert ValveClassifier().sha256 == adoption["sha256"]
     # a model whose name is a path stays inside the station's models folder
-    from edc_bench.diagnosis.train import fit_and_export
+    from edc_bench.learning.train import fit_and_export
 
     odd = fit_and_export(labelled.features_rel, labelled.labels, "linear", 1,
                          metadata={"edc_bench.model_name": "../../escaped"})
@@ -185,7 +185,7 @@ def test_a_record_names_its_model_and_replays_with_it_after_the_station_changed_
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from edc_bench.bench import run_simulated_test
     from edc_bench.config import load_variant, parse_variant
-    from edc_bench.diagnosis.adoption import adopt, adopt_shipped
+    from edc_bench.learning.adoption import adopt, adopt_shipped
     from edc_bench.records.record import write_record
     from edc_bench.replay import replay_record
 

@@ -14,10 +14,10 @@ import pytest
 
 from edc_bench.bench import run_simulated_test
 from edc_bench.config import load_variant
-from edc_bench.diagnosis.classifier import packaged_model_path
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.records.record import write_record
 from edc_bench.records.report import REPORT_PNG, draw_report
+from edc_bench.verdict.classifier import packaged_model_path
 
 
 @pytest.fixture(scope="module")
@@ -45,8 +45,8 @@ def test_record_names_the_model_and_holds_what_the_report_shows(worn_record: Pat
 # be imported or found, as on another machine that only has the folder.
 _ISOLATED_REPORT = """
 import sys
-for name in ("edc_bench.config", "edc_bench.physics", "edc_bench.control", "edc_bench.diagnosis.classifier",
-             "edc_bench.diagnosis.judgement", "edc_bench.diagnosis.baseline", "onnxruntime", "edc_bench.sim"):
+for name in ("edc_bench.config", "edc_bench.physics", "edc_bench.control", "edc_bench.verdict.classifier",
+             "edc_bench.verdict.judgement", "edc_bench.verdict.baseline", "onnxruntime", "edc_bench.sim"):
     sys.modules[name] = None  # any import of these now fails
 from edc_bench.records.report import draw_report
 draw_report(sys.argv[1])

@@ -21,11 +21,11 @@ from helpers import check_safe_and_complete
 
 from edc_bench.bench import BenchResult, run_bench_test
 from edc_bench.config import load_variant
-from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.records.record import write_record
 from edc_bench.runtime.clock import SimulatedClock
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.testing.faults import RIG_FAULTS, FaultyBus, Rule, schedule_rig_fault
+from edc_bench.verdict.verdicts import Verdict
 
 FAULT_AT_S = 2.5  # clock time of the fault (the rig boots in 0.2 s, the ticks start just after)
 

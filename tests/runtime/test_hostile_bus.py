@@ -19,21 +19,21 @@ from pathlib import Path
 
 import can
 import pytest
+from helpers import check_safe_and_complete
 
 from edc_bench.bench import BenchResult, run_bench_test
 from edc_bench.config import load_variant, with_changes
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.engine.outcome import AbortKind
+from edc_bench.engine.trace import FRAME_EXTENDED, FRAME_REMOTE, FRAME_TRUNCATED, CanFrameLog
 from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Mode, default_icd
+from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.records.record import write_record
 from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, open_bus
 from edc_bench.runtime.clock import SimulatedClock
-from edc_bench.engine.outcome import AbortKind
-from edc_bench.engine.trace import FRAME_EXTENDED, FRAME_REMOTE, FRAME_TRUNCATED, CanFrameLog
-from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.testing.slcan_rig import SlcanSocketRig
-from helpers import check_safe_and_complete
+from edc_bench.verdict.verdicts import Verdict
 
 FAULT_AT_S = 2.5
 SHORT_S = 8.0  # tests that must run to their end (too short to converge: they end INVALID "not converged")

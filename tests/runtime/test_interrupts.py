@@ -18,8 +18,8 @@ import can
 import pytest
 from helpers import REPO
 
-from edc_bench.diagnosis.verdict import Verdict
 from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
+from edc_bench.verdict.verdicts import Verdict
 
 
 def _start_test(tmp_path: Path, *extra: str) -> subprocess.Popen:

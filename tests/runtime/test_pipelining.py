@@ -10,16 +10,16 @@ import pytest
 
 from edc_bench.bench import run_bench_test, run_simulated_test
 from edc_bench.config import Variant, load_variant, with_changes
-from edc_bench.diagnosis.verdict import Verdict
+from edc_bench.engine.replies import ReplyMatcher
 from edc_bench.errors import ConfigError
 from edc_bench.protocol import BENCH_CMD_ID, RIG_HEARTBEAT_ID, Mode, default_icd
 from edc_bench.records.record import write_record
 from edc_bench.replay import replay_record
 from edc_bench.runtime.gain_check import check_variant_gains
-from edc_bench.engine.replies import ReplyMatcher
 from edc_bench.sim.adapter import PRESETS, AdapterModel, parse_adapter
 from edc_bench.testing.faults import FaultyBus, Rule
 from edc_bench.testing.stalls import StallingClock
+from edc_bench.verdict.verdicts import Verdict
 
 
 @pytest.fixture(scope="module")
@@ -134,7 +134,7 @@ def test_gain_check_includes_the_transport_delay(variant: Variant, fast_link_var
 @pytest.mark.parametrize("valve", ["new", "worn"])
 def test_usb_adapter_identifies_as_without_latency(variant: Variant, valve: str) -> None:
     """Same valve, same seed, shipped variant: through a USB full-speed adapter af and a1 stay within 1 %, the
-    verdict agrees (tests/diagnosis/test_latency.py checks 200 valves on the batch path)."""
+    verdict agrees (tests/population/test_latency.py checks 200 valves on the batch path)."""
     instant = run_simulated_test(variant, valve, seed=3)
     usb = run_simulated_test(variant, valve, seed=3, adapter="usb-fs")
     assert usb.verdict == instant.verdict and usb.verdict in (Verdict.PASS, Verdict.FAIL)

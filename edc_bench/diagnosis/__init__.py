@@ -1,1 +1,0 @@
-"""Diagnosis: valve populations, the batch path, the classifier and the verdict."""

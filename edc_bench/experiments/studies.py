@@ -1,0 +1,394 @@
+"""Studies on simulated populations: held-out evaluation, the paper's
+experiment (Tsai & Tseng 2010, section 5) and the decision-boundary trade-off."""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edc_bench.config import Variant, load_variant, parse_variant
+from edc_bench.learning.dataset import COLUMNS, Dataset
+from edc_bench.learning.evaluation import verdict_counts
+from edc_bench.physics.valve import ValveSpec, sample_valve
+from edc_bench.physics.wear import (
+    clearance_for_resisting_force,
+    is_faulty,
+    resisting_force_n,
+)
+from edc_bench.population.batch import BatchResult, run_batch
+from edc_bench.population.valves import draw_population, new_valves
+from edc_bench.verdict.baseline import Baseline, load_baseline
+from edc_bench.verdict.classifier import ValveClassifier
+from edc_bench.verdict.verdicts import Verdict
+
+# --------------------------------------------------------------------------- time to verdict
+
+
+def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassifier,
+                  baseline: Baseline) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where the bench's stop rule would have ended each test of a batch run, and with what.
+
+    The period fit after each number of whole periods is what a test stopped then would have found
+    (:class:`~edc_bench.population.batch.PeriodResults`), so the rule of
+    :class:`~edc_bench.verdict.early_stop.EarlyStop` is applied period by period.
+
+    Returns
+    -------
+    (stop_periods, trusted, features_rel, misfit)
+        Per test: the periods the test ran, whether its numbers were trusted then (else INVALID), af and a1 over
+        the baseline then, and whether it stopped because the model does not fit.
+    """
+    from edc_bench.verdict.early_stop import Interval, relative_box, stop_flags
+
+    periods = result.periods
+    n = len(result.parameters)
+    interval = Interval.of(variant, periods.blocks)
+    base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+    stop_p = np.full(n, periods.blocks)
+    decided = np.zeros(n, dtype=bool)
+    features = np.full((n, 2), np.nan)
+    trusted_at_stop = np.zeros(n, dtype=bool)
+    misfit_at_stop = np.zeros(n, dtype=bool)
+    for p in range(min(variant.acceptance.min_periods, periods.blocks), periods.blocks + 1):
+        at = periods.at(p)
+        if at.fit is None:
+            continue
+        centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, interval)
+        misfit, trusted, certain, _ = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
+                                                 periods.reference_condition)
+        stop_now = ~decided & (certain | misfit | (p == periods.blocks))
+        stop_p[stop_now] = p
+        features[stop_now] = centre[stop_now]
+        trusted_at_stop[stop_now] = trusted[stop_now]
+        misfit_at_stop[stop_now] = misfit[stop_now]
+        decided |= stop_now
+    return stop_p, trusted_at_stop, features, misfit_at_stop
+
+
+def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count_per_variant: int,
+                    seed: int) -> dict[str, Any]:
+    """Early stop against the full-length test on a simulated population (batch path, the loop's rule).
+
+    Every valve's test is simulated to its full length once and stopped by :func:`early_outcome`. Both verdicts
+    are compared with the physical labels.
+
+    Returns
+    -------
+    dict
+        ``stop_s`` (per valve), ``median_s``, ``p95_s``, and for ``early`` and ``full``: INVALID count and
+        :func:`verdict_counts`; per variant the median and 95th percentile.
+    """
+    stop_all, early_v, full_v, truth_all = [], [], [], []
+    early_ok, full_ok = [], []
+    per_variant = {}
+    for v_index, name in enumerate(variant_names):
+        variant = load_variant(name)
+        baseline = load_baseline(variant, station=False)
+        population_seed = seed * 1000 + v_index
+        valves = draw_population(variant, count_per_variant, population_seed)
+        seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]
+        result = run_batch(variant, valves, seeds)
+        periods = result.periods
+        stop_p, stop_trusted, stop_features, _ = early_outcome(variant, result, classifier, baseline)
+        stop_s = np.array([periods.stop_time_s(int(p)) for p in stop_p])
+        full_trusted = result.trusted
+        full_features = result.parameters[:, [5, 2]] / np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+        truth = np.array([is_faulty(variant, v) for v in valves])
+        stop_all.append(stop_s)
+        truth_all.append(truth)
+        early_ok.append(stop_trusted)
+        full_ok.append(full_trusted)
+        early_v.append(stop_features)
+        full_v.append(full_features)
+        per_variant[name] = {"valves": len(valves), "median_s": float(np.median(stop_s)),
+                             "p95_s": float(np.percentile(stop_s, 95)),
+                             "full_length_s": float(variant.excitation.duration_s)}
+    stop = np.concatenate(stop_all)
+    truth = np.concatenate(truth_all)
+    out: dict[str, Any] = {"valves": len(stop), "median_s": float(np.median(stop)),
+                           "p95_s": float(np.percentile(stop, 95)), "per_variant": per_variant,
+                           "stop_s": stop.tolist()}
+    for label, features, ok in (("early", early_v, early_ok), ("full", full_v, full_ok)):
+        f, good = np.concatenate(features), np.concatenate(ok)
+        verdicts, _, _ = classifier.classify_many(np.where(np.isfinite(f), f, 1.0)[good])
+        out[label] = {"invalid": int((~good).sum()), "judged": int(good.sum()),
+                      **verdict_counts(verdicts, truth[good])}
+    return out
+
+
+# --------------------------------------------------------------------------- beyond the model's reach
+
+
+def with_gain_variation(variant: Variant, variation_rel: float) -> Variant:
+    """``variant`` with a solenoid whose force constant varies by +/-``variation_rel`` over the excitation's swing
+    (negative: falling towards full delivery), named ``<name>-gainNN`` (``-gainNN-falling``)."""
+    swing_mm = sum(tone.amplitude_mm for tone in variant.excitation.active_tones)
+    data = variant.model_dump()
+    data["coil"]["force_constant_variation_per_mm"] = variation_rel / swing_mm
+    falling = "-falling" if variation_rel < 0 else ""
+    data["pump"]["name"] = f"{variant.pump.name}-gain{abs(variation_rel) * 100:.0f}{falling}"
+    return parse_variant(data)
+
+
+def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: int, seed: int,
+               variant_name: str = "p-edc-hard") -> list[dict[str, Any]]:
+    """What the bench makes of pumps whose solenoid's gain varies more than the model's first order covers.
+
+    One population of ``count`` used valves of ``variant_name`` (seed ``seed``), each on a pump whose force
+    constant varies by each of ``variations_rel`` over the swing, judged against the variant's baseline and
+    stopped by the bench's rule (:func:`early_outcome`). A pump the bench judges must be identified as well as the
+    hard variant is held to; the others must be INVALID "does not fit".
+
+    Returns
+    -------
+    list of dict
+        Per variation: ``variation_rel``, ``valves``, ``judged``, ``misfit`` (INVALID by the model fit),
+        ``af_error_max``/``a1_error_max`` (largest |error| against the plant's truth among the judged, NaN if
+        none), ``faulty_passed``/``reusable_failed`` (among the judged), and over all at their stop
+        ``gain_identified`` and ``repeating_ratio`` (the residual's repeating part over the sensor noise), (min, max).
+    """
+    base_variant = load_variant(variant_name)
+    baseline = load_baseline(base_variant, station=False)
+    valves = draw_population(base_variant, count, seed)
+    seeds = [seed * 100_000 + n for n in range(count)]
+    truth_faulty = np.array([is_faulty(base_variant, v) for v in valves])
+    rows = []
+    for variation in variations_rel:
+        variant = with_gain_variation(base_variant, variation)
+        result = run_batch(variant, valves, seeds)
+        stop_p, trusted, features, misfit = early_outcome(variant, result, classifier, baseline)
+        estimate = np.zeros((len(valves), 2))
+        gain, repeating = np.zeros(len(valves)), np.zeros(len(valves))
+        for p in np.unique(stop_p):  # each test's figures where it stopped
+            at, here = result.periods.at(int(p)), stop_p == p
+            estimate[here] = at.parameters[here][:, [5, 2]]
+            gain[here] = at.fit.gain_variation_rel[here]
+            repeating[here] = at.fit.systematic_rms_v[here] / result.periods.noise_v
+        errors = np.abs(estimate / result.truth[:, [5, 2]] - 1)
+        verdicts = np.full(len(valves), "", dtype=object)
+        if trusted.any():
+            judged_verdicts, _, _ = classifier.classify_many(features[trusted])
+            verdicts[trusted] = judged_verdicts  # verdict names
+        rows.append({
+            "variation_rel": variation, "valves": len(valves), "judged": int(trusted.sum()),
+            "misfit": int(misfit.sum()),
+            "af_error_max": float(errors[trusted, 0].max()) if trusted.any() else float("nan"),
+            "a1_error_max": float(errors[trusted, 1].max()) if trusted.any() else float("nan"),
+            "faulty_passed": int(((verdicts == Verdict.PASS.value) & truth_faulty).sum()),
+            "reusable_failed": int(((verdicts == Verdict.FAIL.value) & ~truth_faulty).sum()),
+            "gain_identified": (float(gain.min()), float(gain.max())),
+            "repeating_ratio": (float(np.nanmin(repeating)), float(np.nanmax(repeating))),
+        })
+    return rows
+
+
+# --------------------------------------------------------------------------- the drift test's yardstick
+
+
+def drift_critical_value(periods: int, draws: int = 400_000, seed: int = 2026, quantile: float = 0.99) -> float:
+    """The ``quantile`` of :func:`~edc_bench.identification.period_fit.drift_statistic` over ``periods`` periods of
+    white noise (Monte Carlo, ``draws`` series): the table :data:`~edc_bench.identification.period_fit.DRIFT_CRITICAL`
+    holds it, rounded to 0.01, for 400 000 draws and seed 2026."""
+    from edc_bench.identification.period_fit import drift_statistic
+
+    rng = np.random.default_rng([seed, periods])
+    chunk = max(1, 4_000_000 // periods)
+    values = []
+    for start in range(0, draws, chunk):
+        values.append(drift_statistic(rng.normal(size=(periods, min(chunk, draws - start)))))
+    return float(np.quantile(np.concatenate(values), quantile))
+
+
+# --------------------------------------------------------------------------- the paper
+
+
+PAPER_OUTCOME = {"reusable_right": 10, "reusable": 10, "faulty_right": 7, "faulty": 8}
+
+
+@dataclass
+class PaperExperiment:
+    """The paper's protocol reproduced in simulation."""
+
+    train_features: np.ndarray  # (18, 2) relative
+    train_labels: np.ndarray  # (18,)
+    test_features: np.ndarray  # (54, 2) relative
+    test_valve: np.ndarray  # (54,) valve index 0..17
+    test_truth: np.ndarray  # (18,) faulty by physics
+    test_verdicts: np.ndarray  # (54,)
+    valve_outcome: np.ndarray  # (18,) judged faulty by majority of its 3 tests
+    classifier: ValveClassifier
+    baseline: Baseline
+    variant: str
+
+    @property
+    def reusable_right(self) -> int:
+        return int(((~self.valve_outcome) & ~self.test_truth).sum())
+
+    @property
+    def faulty_right(self) -> int:
+        return int((self.valve_outcome & self.test_truth).sum())
+
+
+def _rows(variant: Any, valves: list[ValveSpec], seed: int, repeats: int) -> np.ndarray:
+    specs = [v for v in valves for _ in range(repeats)]
+    seeds = [seed * 100 + n for n in range(len(specs))]
+    result = run_batch(variant, specs, seeds)
+    return np.column_stack([result.feature("af"), result.feature("a1")])
+
+
+def severely_worn_clearance_mm(variant: Any) -> float:
+    """Clearance of the paper's "severely worn" training valves.
+
+    A network trained on two clusters puts its boundary about halfway between
+    them. The paper's outcome (7 of 8 faulty valves caught, the miss close to
+    the boundary) implies its severely worn valves lay about as far beyond the
+    failure limit as new valves lie below it; so do these: resisting force
+    = limit + (limit - new valve's).
+    """
+    preset = variant.valve.presets["new"]
+    new_force = resisting_force_n(variant, ValveSpec(preset.clearance_mm, preset.roughness))
+    limit = variant.diagnosis.resistance_limit_n
+    return clearance_for_resisting_force(variant, 2 * limit - new_force)
+
+
+def paper_experiment(variant_name: str = "p-edc-default", seed: int = 2010, repeats: int = 3) -> PaperExperiment:
+    """Train on 6 valves (4 new, 2 severely worn) x 3 tests, test on 18 used valves
+    (10 reusable, 8 faulty by physics) x 3 tests, as in the paper's section 5.
+
+    Needs the ``train`` extra (the network is trained on the 18 patterns).
+    """
+    from edc_bench.learning.train import train
+
+    variant = load_variant(variant_name)
+    baseline = load_baseline(variant, station=False)  # simulated features: the shipped simulated baseline
+    rng = np.random.default_rng(seed)
+    severe_clearance = severely_worn_clearance_mm(variant)
+    train_valves = new_valves(variant, 4, seed) + [
+        sample_valve(variant, severe_clearance, rng, label=f"severely-worn-{n}") for n in range(2)]
+    used = draw_population(variant, 400, seed + 1)
+    reusable = [v for v in used if not is_faulty(variant, v)][:10]
+    faulty = [v for v in used if is_faulty(variant, v)][:8]
+    test_valves = reusable + faulty
+    train_abs = _rows(variant, train_valves, seed + 2, repeats)
+    test_abs = _rows(variant, test_valves, seed + 3, repeats)
+    to_rel = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+    train_rel, test_rel = train_abs / to_rel, test_abs / to_rel
+    labels = np.repeat([0, 0, 0, 0, 1, 1], repeats)
+    # 12 new against 6 worn patterns: weigh the classes equally (the worn rows twice), or the
+    # boundary drifts towards the worn cluster and lets faulty valves near the limit pass
+    fit_rel = np.vstack([train_rel, train_rel[labels == 1]])
+    fit_abs = np.vstack([train_abs, train_abs[labels == 1]])
+    fit_labels = np.concatenate([labels, labels[labels == 1]])
+    columns = {name: np.zeros(len(fit_labels)) for name in COLUMNS}
+    columns.update(af=fit_abs[:, 0], a1=fit_abs[:, 1], af_rel=fit_rel[:, 0], a1_rel=fit_rel[:, 1],
+                   faulty=fit_labels.astype(bool), converged=np.ones(len(fit_labels), bool))
+    model = train(Dataset(columns, {"experiment": "paper", "seed": seed}), "mlp", seed)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "paper.onnx"
+        path.write_bytes(model.onnx_bytes)
+        classifier = ValveClassifier(path)
+    verdicts, p_faulty, _ = classifier.classify_many(test_rel)
+    test_valve = np.repeat(np.arange(len(test_valves)), repeats)
+    # the paper has two classes: abnormal when P(faulty) reaches the threshold (no marginal band)
+    abnormal = (p_faulty >= classifier.threshold).reshape(len(test_valves), repeats)
+    judged_faulty = abnormal.sum(axis=1) * 2 > repeats
+    truth = np.array([is_faulty(variant, v) for v in test_valves])
+    return PaperExperiment(train_rel, labels, test_rel, test_valve, truth, verdicts, judged_faulty, classifier,
+                           baseline, variant.name)
+
+
+def draw_figure7(exp: PaperExperiment, path: Path) -> None:
+    """The (af, a1) plane with the test valves, the boundary and the marginal band (paper Fig. 7)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse
+
+    from edc_bench.paths import atomic_write
+
+    b = exp.baseline
+    scale = np.array([b.af_v, b.a1_v_s_per_mm])
+    pts = np.vstack([exp.test_features, exp.train_features])
+    lo, hi = pts.min(axis=0) * 0.9, pts.max(axis=0) * 1.08
+    A, B, _ = exp.classifier.boundary_grid((lo[0], hi[0]), (lo[1], hi[1]), n=70)
+    grid = np.column_stack([A.ravel(), B.ravel()])
+    dist = exp.classifier.distances(grid).reshape(A.shape)
+    fig, ax = plt.subplots(figsize=(7.5, 6.0), constrained_layout=True)
+    ax.contour(A * scale[0], B * scale[1], dist, levels=[0.0], colors="k", linewidths=1.5)
+    band = exp.classifier.marginal_band
+    ax.contourf(A * scale[0], B * scale[1], dist, levels=[-band, band], colors=["0.85"])
+    for v in range(len(exp.test_truth)):
+        rows = exp.test_features[exp.test_valve == v] * scale
+        marker = "o" if exp.valve_outcome[v] else "+"
+        color = "C3" if exp.test_truth[v] else "C0"
+        ax.scatter(rows[:, 0], rows[:, 1], marker=marker, s=40, color=color,
+                   facecolors="none" if marker == "o" else color)
+        centre = rows.mean(axis=0)
+        size = np.maximum(rows.max(axis=0) - rows.min(axis=0), scale * 0.04) * 2.2
+        ax.add_patch(Ellipse(centre, size[0], size[1], fill=False, linestyle="--", linewidth=0.7, color="0.4"))
+    train_pts = exp.train_features * scale
+    ax.scatter(train_pts[:, 0], train_pts[:, 1], marker="x", color="0.5", s=25, label="training tests")
+    ax.plot([], [], "k-", label="decision boundary")
+    ax.fill([], [], color="0.85", label=f"marginal band (+/- {band:g} of baseline)")
+    ax.scatter([], [], marker="+", color="k", label="judged normal (majority of 3 tests)")
+    ax.scatter([], [], marker="o", facecolors="none", color="k", label="judged abnormal")
+    ax.scatter([], [], marker="s", color="C0", label="reusable (physics)")
+    ax.scatter([], [], marker="s", color="C3", label="faulty (physics)")
+    ax.set_xlabel("$\\hat a_f$, V")
+    ax.set_ylabel("$\\hat a_1$, V s/mm")
+    ax.set_title(f"Paper's protocol in simulation ({exp.variant}): "
+                 f"{exp.reusable_right}/10 reusable and {exp.faulty_right}/8 faulty right")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
+    atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=110))
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------------- boundary study
+
+
+def boundary_tradeoff(classifier: ValveClassifier, dataset: Dataset,
+                      shifts: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Move the boundary by ``shift`` (relative-feature units, positive: fewer FAILs).
+
+    Returns the rate of reusable valves replaced needlessly and of faulty
+    valves passed for each shift.
+    """
+    ok = dataset.columns["converged"].astype(bool)
+    d = classifier.distances(dataset.features[ok])
+    truth = dataset.labels[ok] == 1
+    shifts = np.linspace(-0.4, 0.4, 81) if shifts is None else shifts
+    needless = np.array([(d[~truth] > s).mean() for s in shifts])
+    passed = np.array([(d[truth] <= s).mean() for s in shifts])
+    return {"shift": shifts, "needless_replacement": needless, "faulty_passed": passed}
+
+
+def draw_tradeoff(curve: dict[str, np.ndarray], path: Path, title: str) -> None:
+    """Plot the trade-off curve."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from edc_bench.paths import atomic_write
+
+    fig, ax = plt.subplots(figsize=(6.5, 5.0), constrained_layout=True)
+    ax.plot(curve["needless_replacement"] * 100, curve["faulty_passed"] * 100, "-o", markersize=3)
+    zero = int(np.argmin(np.abs(curve["shift"])))
+    ax.plot(curve["needless_replacement"][zero] * 100, curve["faulty_passed"][zero] * 100, "r*", markersize=14,
+            label="trained boundary")
+    for k in range(0, len(curve["shift"]), 10):
+        ax.annotate(f"{curve['shift'][k]:+.2f}", (curve["needless_replacement"][k] * 100,
+                                                   curve["faulty_passed"][k] * 100), fontsize=7)
+    ax.set_xlabel("reusable valves replaced needlessly, %")
+    ax.set_ylabel("faulty valves passed, %")
+    ax.set_title(title)
+    ax.legend()
+    ax.grid(alpha=0.3)
+    atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=110))
+    plt.close(fig)

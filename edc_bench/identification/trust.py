@@ -1,0 +1,123 @@
+"""The one rule for trusting a test, vectorised: it serves one test (the judgement), the early stop's check
+after each period, and 10,000 simulated tests of the batch path alike.
+
+A test is trusted when nothing in :class:`Problem` holds for it. The rule
+takes arrays (one entry per test; scalars broadcast) and gives each test's
+problems as bits, so code branches on the bits and the judgement turns
+them into sentences (:func:`edc_bench.verdict.judgement.trust_reasons`).
+
+The excitation's conditioning is part of the rule, defined once
+(:func:`judged_condition_number`): the larger of the reference's own
+regressors' (a property of the excitation: identifiability is decided by
+what the reference makes the plant do) and the period fit's.
+"""
+
+from __future__ import annotations
+
+import enum
+
+import numpy as np
+
+from edc_bench.config.models import AcceptanceSection
+
+
+class Problem(enum.IntFlag):
+    """What stands between a test and a verdict on the valve's wear. The first eight are the trust rule's."""
+
+    NONE = 0
+    #: the loop was cut short (the abort says why)
+    ABORTED = enum.auto()
+    #: nothing was identified (the test ended before its first tick)
+    NOT_IDENTIFIED = enum.auto()
+    #: the feedforward model does not fit the pump (a longer test will not help)
+    MODEL_DOES_NOT_FIT = enum.auto()
+    #: fewer whole excitation periods than the variant needs
+    TOO_FEW_PERIODS = enum.auto()
+    #: af and a1 still drifting between the first and second half of the periods
+    DRIFTING = enum.auto()
+    #: the excitation does not make af and a1 identifiable
+    POORLY_CONDITIONED = enum.auto()
+    #: too many ticks late or lost to host stalls
+    TIMING = enum.auto()
+    #: too many replies missing
+    REPLIES_MISSING = enum.auto()
+    #: the variant has no measured new-valve baseline to judge against (not a trust problem: the verdict's)
+    NOT_CALIBRATED = enum.auto()
+    #: the coil's resistance is out of its spec (not a trust problem: the valve FAILs whatever its wear)
+    COIL_OUT_OF_SPEC = enum.auto()
+
+    @property
+    def names(self) -> list[str]:
+        """The problems set, by name, lowercase with spaces (the record's ``problems``)."""
+        return [p.name.lower().replace("_", " ") for p in Problem if p and p in self]
+
+    @classmethod
+    def from_names(cls, names: list[str]) -> Problem:
+        """The problems a record lists (:attr:`names`)."""
+        out = cls.NONE
+        for name in names:
+            out |= cls[name.upper().replace(" ", "_")]
+        return out
+
+
+#: The trust rule's problems: a test with none of them is trusted.
+TRUST_PROBLEMS = (Problem.ABORTED | Problem.NOT_IDENTIFIED | Problem.MODEL_DOES_NOT_FIT | Problem.TOO_FEW_PERIODS
+                  | Problem.DRIFTING | Problem.POORLY_CONDITIONED | Problem.TIMING | Problem.REPLIES_MISSING)
+
+
+def judged_condition_number(excitation_condition: float, fit_condition: np.ndarray | float) -> np.ndarray:
+    """The condition number the trust rule judges: the excitation's, or the period fit's where that is worse."""
+    return np.maximum(excitation_condition, np.asarray(fit_condition, dtype=float))
+
+
+def trust_problems(acceptance: AcceptanceSection, *, periods: np.ndarray | int, settled: np.ndarray | bool,
+                   misfit: np.ndarray | bool, condition_number: np.ndarray | float,
+                   aborted: np.ndarray | bool = False, ticks: np.ndarray | int = 1,
+                   ticks_late_or_lost: np.ndarray | int = 0, missed_replies: np.ndarray | int = 0) -> np.ndarray:
+    """Each test's problems under the trust rule, as :class:`Problem` bits (an int array; 0: trusted).
+
+    Parameters
+    ----------
+    acceptance : AcceptanceSection
+        The variant's limits.
+    periods : int or numpy.ndarray
+        Whole excitation periods the fit used.
+    settled : bool or numpy.ndarray
+        af and a1 settled (the halves of the periods agree).
+    misfit : bool or numpy.ndarray
+        A model-fit measure is beyond its limit (judged only with enough periods).
+    condition_number : float or numpy.ndarray
+        :func:`judged_condition_number`.
+    aborted : bool or numpy.ndarray, optional
+        The loop was cut short.
+    ticks, ticks_late_or_lost, missed_replies : int or numpy.ndarray, optional
+        Ticks that ran; those late or lost to host stalls; commands whose replies never came in time.
+
+    Notes
+    -----
+    An aborted test is judged only on its abort, timing and replies (what it identified before the abort is not
+    evidence); a model that does not fit is named instead of 'not converged' (a longer test will not help).
+    """
+    periods = np.asarray(periods)
+    aborted = np.asarray(aborted, dtype=bool)
+    enough = periods >= acceptance.min_periods
+    misfit = enough & np.asarray(misfit, dtype=bool) & ~aborted
+    unsettled = ~aborted & ~misfit & ~(enough & np.asarray(settled, dtype=bool))
+    ticks = np.maximum(np.asarray(ticks), 1)
+    found = (
+        (aborted, Problem.ABORTED),
+        (misfit, Problem.MODEL_DOES_NOT_FIT),
+        (unsettled & ~enough, Problem.TOO_FEW_PERIODS),
+        (unsettled & enough, Problem.DRIFTING),
+        (~aborted & ~(np.asarray(condition_number, dtype=float) <= acceptance.max_condition_number),
+         Problem.POORLY_CONDITIONED),
+        (np.asarray(ticks_late_or_lost) / ticks > acceptance.max_overrun_fraction, Problem.TIMING),
+        (np.asarray(missed_replies) / ticks > acceptance.max_missed_reply_fraction, Problem.REPLIES_MISSING),
+    )
+    flags = np.zeros(np.broadcast_shapes(*(np.shape(bits) for bits, _ in found)), dtype=np.int64)
+    for bits, problem in found:
+        flags |= np.where(bits, int(problem), 0)
+    return flags
+
+
+__all__ = ["TRUST_PROBLEMS", "Problem", "judged_condition_number", "trust_problems"]

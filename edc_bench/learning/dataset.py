@@ -1,0 +1,179 @@
+"""Datasets of identified features with their ground truth, as files with provenance.
+
+A dataset is the batch path run over a simulated population of one or more
+variants: per valve the identified af and a1, their ratios to the variant's
+baseline, whether the test converged, and the physical truth (resisting
+force, label). Files are ``.npz`` with a ``provenance`` JSON entry (variants,
+seed, counts, generator version, content hash).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import zipfile
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edc_bench import __version__
+from edc_bench.config import load_variant
+from edc_bench.config.models import Variant
+from edc_bench.errors import ConfigError
+from edc_bench.paths import atomic_write
+from edc_bench.physics.valve import ValveSpec
+from edc_bench.physics.wear import is_faulty, resisting_force_n
+from edc_bench.population.batch import run_batch
+from edc_bench.population.valves import draw_population
+from edc_bench.verdict.baseline import load_baseline
+
+GENERATOR_VERSION = 1
+CHUNK = 500
+COLUMNS = ("af", "a1", "af_rel", "a1_rel", "faulty", "converged", "resisting_force_n", "clearance_mm",
+           "roughness", "variant_index", "seed")
+
+
+@dataclass
+class Dataset:
+    """Columns of one dataset (one row per simulated bench test)."""
+
+    columns: dict[str, np.ndarray]
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.columns["af"])
+
+    @property
+    def features(self) -> np.ndarray:
+        """(N, 2) relative features [af/af0, a1/a1_0]."""
+        return np.column_stack([self.columns["af_rel"], self.columns["a1_rel"]])
+
+    @property
+    def labels(self) -> np.ndarray:
+        """(N,) 1 for faulty, 0 for reusable."""
+        return self.columns["faulty"].astype(int)
+
+    def content_hash(self) -> str:
+        """SHA-256 of the columns (order and values)."""
+        digest = hashlib.sha256()
+        for name in COLUMNS:
+            digest.update(name.encode())
+            digest.update(np.ascontiguousarray(self.columns[name]).tobytes())
+        return digest.hexdigest()
+
+    def save(self, path: Path) -> None:
+        """Write the dataset (atomically) with its provenance."""
+        provenance = {**self.provenance, "content_sha256": self.content_hash(), "rows": len(self)}
+        atomic_write(Path(path), lambda f: np.savez_compressed(
+            f, provenance=np.array(json.dumps(provenance, sort_keys=True)), **self.columns))
+
+    @classmethod
+    def load(cls, path: Path) -> Dataset:
+        """Read a dataset written by :meth:`save`, checking its hash."""
+        try:
+            with np.load(Path(path)) as data:
+                columns = {name: data[name] for name in COLUMNS}
+                provenance = json.loads(str(data["provenance"]))
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # a damaged or foreign file
+            raise ConfigError(f"{path}: not an edc-bench dataset ({exc})") from None
+        dataset = cls(columns, provenance)
+        if provenance.get("content_sha256") != dataset.content_hash():
+            raise ConfigError(f"{path}: content does not match its recorded hash; regenerate it")
+        return dataset
+
+
+def _chunk_worker(args: tuple[Variant, list[ValveSpec], list[int]]) -> tuple[np.ndarray, np.ndarray]:
+    variant, valves, seeds = args
+    result = run_batch(variant, valves, seeds)
+    return result.parameters[:, [5, 2]], result.trusted
+
+
+def run_population(variant: Variant, valves: list[ValveSpec], seeds: list[int],
+                   workers: int) -> tuple[np.ndarray, np.ndarray]:
+    """Batch tests of ``valves`` in chunks of :data:`CHUNK`, over ``workers`` processes.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        Features ``[af, a1]`` per valve, and whether each converged.
+    """
+    jobs = [(variant, valves[i:i + CHUNK], seeds[i:i + CHUNK]) for i in range(0, len(valves), CHUNK)]
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            parts = list(pool.map(_chunk_worker, jobs))
+    else:
+        parts = [_chunk_worker(job) for job in jobs]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def make_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int,
+                 workers: int | None = None) -> Dataset:
+    """Simulate a population per variant through the batch path.
+
+    Parameters
+    ----------
+    variant_names : sequence of str
+        Variants to draw valves for.
+    count_per_variant : int
+        Valves (one test each) per variant.
+    seed : int
+        Seed of the populations and of the sensor noise; same seed, same dataset.
+    workers : int, optional
+        Processes to spread chunks over (default: all cores).
+    """
+    workers = workers or os.cpu_count() or 1
+    cols: dict[str, list[Any]] = {name: [] for name in COLUMNS}
+    for v_index, name in enumerate(variant_names):
+        variant = load_variant(name)
+        baseline = load_baseline(variant, station=False)  # simulated features: the shipped simulated baseline
+        population_seed = seed * 1000 + v_index
+        valves = draw_population(variant, count_per_variant, population_seed)
+        seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]
+        features, converged = run_population(variant, valves, seeds, workers)
+        cols["af"].append(features[:, 0])
+        cols["a1"].append(features[:, 1])
+        cols["af_rel"].append(features[:, 0] / baseline.af_v)
+        cols["a1_rel"].append(features[:, 1] / baseline.a1_v_s_per_mm)
+        cols["faulty"].append(np.array([is_faulty(variant, v) for v in valves]))
+        cols["converged"].append(converged)
+        cols["resisting_force_n"].append(np.array([resisting_force_n(variant, v) for v in valves]))
+        cols["clearance_mm"].append(np.array([v.clearance_mm for v in valves]))
+        cols["roughness"].append(np.array([v.roughness for v in valves]))
+        cols["variant_index"].append(np.full(count_per_variant, v_index))
+        cols["seed"].append(np.array(seeds))
+    columns = {name: np.concatenate(parts) for name, parts in cols.items()}
+    provenance = {"variants": list(variant_names), "count_per_variant": count_per_variant, "seed": seed,
+                  "generator_version": GENERATOR_VERSION, "edc_bench_version": __version__}
+    return Dataset(columns, provenance)
+
+
+def cached_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int,
+                   workers: int | None = None) -> tuple[Dataset, bool]:
+    """:func:`make_dataset`, kept in the cache folder so the next call with the same arguments loads it.
+
+    Returns the dataset and whether it came from the cache. The cache key holds the arguments, the
+    generator and edc-bench versions and the variants' content, so a changed variant simulates again.
+    """
+    from edc_bench.paths import cache_dir
+
+    key = json.dumps({"variants": [load_variant(name).model_dump(mode="json") for name in variant_names],
+                      "count": count_per_variant, "seed": seed, "generator": GENERATOR_VERSION,
+                      "version": __version__}, sort_keys=True)
+    path = cache_dir() / "datasets" / f"population-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
+    if path.exists():
+        try:
+            return Dataset.load(path), True
+        except ConfigError:
+            pass  # a damaged cache entry is simulated again
+    dataset = make_dataset(variant_names, count_per_variant, seed, workers)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        dataset.save(path)
+    except OSError:
+        pass  # a cache that cannot be written costs time, not results
+    return dataset, False

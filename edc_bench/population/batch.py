@@ -1,0 +1,621 @@
+"""Many bench tests at once: the simulated test vectorised across valves.
+
+The same physics and the same controller as the full loop (docs/bench-test.md) run
+on numpy arrays, one element per valve, without the CAN round trip, the
+codec or the rig firmware: at tick k the controller uses the rack sampled at
+tick k-1, the sample at tick k is taken before the new drive is applied, the
+drive is held for one period. The plant steps exactly (matrix exponential per
+valve); valves whose velocity reverses or that are stuck are replayed in
+0.1 ms quanta with the same Karnopp rule as :class:`~edc_bench.sim.plant.Plant`.
+Sensor noise is drawn from the same model but not the same stream, so a
+valve's identified parameters agree with the full loop's within the noise;
+``tests/population/test_batch.py`` checks the agreement.
+
+This is what makes populations of thousands of valves cheap enough to train
+and evaluate a classifier on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.linalg import expm
+
+from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.coil import CoilEstimator
+from edc_bench.control.design import ControllerDesign
+from edc_bench.engine.replies import max_reply_age_ticks
+from edc_bench.identification.analysis import settle_times_s
+from edc_bench.identification.period_fit import (
+    BlockAccumulator,
+    FitSetup,
+    PeriodFit,
+    accumulate,
+    expected_drive_noise_v,
+    reference_condition_number,
+    rows,
+    solve,
+)
+from edc_bench.identification.trust import Problem, judged_condition_number, trust_problems
+from edc_bench.physics.coil import (
+    inductive_shares,
+    referred_from_estimate,
+    resistance_at_ohm,
+    temperature_after_c,
+)
+from edc_bench.physics.feedforward import feedforward_truth
+from edc_bench.physics.valve import ValveSpec, plant_parameters
+from edc_bench.population.batch_link import RING, BatchLink
+from edc_bench.sim.adapter import AdapterModel
+from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
+
+QUANTA_PER_PERIOD = 10
+HISTORY_EVERY = 10  # ticks between stored estimates (settle times at 10 ms resolution)
+
+
+@dataclass
+class BatchResult:
+    """Identified parameters of many simulated bench tests.
+
+    Attributes
+    ----------
+    parameters : numpy.ndarray
+        (N, 6) final estimates of a3, a2, a1, a0, b, af.
+    truth : numpy.ndarray
+        (N, 6) true values from each valve's physics.
+    converged : numpy.ndarray
+        (N,) at least ``acceptance.min_periods`` periods, each with af and a1 within the settle band.
+    settle_s : dict of numpy.ndarray
+        Settle times of af and a1 (s after the excitation starts).
+    condition_number : float
+        Of the period fit's normal equations (the median over the valves).
+    reply_age_ticks : dict of int to int
+        With an adapter: replies per age (ticks from command to first use), over all valves.
+    coil_ohm : numpy.ndarray
+        (N,) the coil resistance each test measured last (from drive and current).
+    coil_end_ohm : numpy.ndarray
+        (N,) the simulated coils' resistance at the end (warmed by the test).
+    model_fits : numpy.ndarray
+        (N,) the model fits each test (:class:`~edc_bench.identification.analysis.ModelFit`'s limits).
+    periods : PeriodResults
+        The period fit after any number of periods (what an early-stopped test would have found).
+    problems : numpy.ndarray
+        (N,) the trust rule's problems per test (:class:`~edc_bench.identification.trust.Problem` bits; 0: trusted).
+
+    ``parameters`` and ``truth`` are referred to the reference coil, as the full loop's are.
+    """
+
+    parameters: np.ndarray
+    truth: np.ndarray
+    converged: np.ndarray
+    settle_s: dict[str, np.ndarray]
+    condition_number: float
+    valves: list[ValveSpec]
+    seeds: list[int]
+    reply_age_ticks: dict[int, int] = field(default_factory=dict)
+    coil_ohm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    coil_end_ohm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    model_fits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    periods: PeriodResults | None = None
+    problems: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def trusted(self) -> np.ndarray:
+        """(N,) the trust rule (:mod:`edc_bench.identification.trust`) finds nothing wrong with the test."""
+        return self.problems == 0
+
+    def feature(self, name: str) -> np.ndarray:
+        """Column of one parameter, e.g. ``feature("af")``."""
+        return self.parameters[:, PARAMETER_NAMES.index(name)]
+
+
+class _VectorPlant:
+    """The plant of N valves (same pump, different friction and damping)."""
+
+    def __init__(self, variant: Variant, valves: Sequence[ValveSpec], stiction: bool, period_s: float) -> None:
+        params = [plant_parameters(variant, v, stiction=stiction) for v in valves]
+        self.params = params
+        # the pump's own parameters are the same for every valve: read them from the first
+        self.pump = params[0]
+        n = len(params)
+        self.fc = np.array([p.coulomb_friction_n for p in params])
+        self.fs = np.array([p.stiction_friction_n for p in params])
+        aug = np.zeros((n, 5, 5))
+        for j, p in enumerate(params):
+            a, b = p.state_matrices()
+            aug[j, :3, :3] = a
+            aug[j, :3, 3:] = b
+        period = expm(aug * period_s)
+        quantum = expm(aug * (period_s / QUANTA_PER_PERIOD))
+        # coefficients as contiguous rows, so a step indexes no views
+        self.phi, self.gam = _coefficients(period)
+        self.phi_q, self.gam_q = _coefficients(quantum)
+        self._aug = aug
+        self._period_s = period_s
+        self._tables: tuple[np.ndarray, np.ndarray] | None = None
+        self.x = np.zeros(n)
+        self.v = np.zeros(n)
+        self.i = np.zeros(n)
+        self.stuck = np.ones(n, dtype=bool)
+        # the coil warms as in :class:`~edc_bench.sim.plant.Plant`: stepped every THERMAL_STEP_S
+        self.temp_c = np.array([p.coil_temp_c for p in params])
+        self.resistance_ohm = np.array([p.resistance_ohm for p in params])
+        self._r20 = np.array([p.resistance_20c_ohm for p in params])
+        self._heat_j = np.zeros(n)
+        self._heat_s = 0.0
+
+    def add_heat(self, dt_s: float) -> None:
+        """The coils dissipated R i^2 for ``dt_s``; every THERMAL_STEP_S, step their temperature and resistance."""
+        self._heat_j += self.resistance_ohm * self.i * self.i * dt_s
+        self._heat_s += dt_s
+        if self._heat_s < THERMAL_STEP_S - 1e-9:
+            return
+        p = self.pump
+        self.temp_c = temperature_after_c(self.temp_c, self._heat_j / self._heat_s, self._heat_s, p.ambient_c,
+                                          p.thermal_capacity_j_per_k, p.thermal_resistance_k_per_w)
+        self._heat_j[:] = 0.0
+        self._heat_s = 0.0
+        if p.temperature_coefficient_per_k == 0.0:
+            return
+        self.resistance_ohm = resistance_at_ohm(self._r20, self.temp_c, p.temperature_coefficient_per_k)
+        self._aug[:, 2, 2] = -self.resistance_ohm / p.inductance_h
+        self.phi, self.gam = _coefficients(expm(self._aug * self._period_s))
+        self.phi_q, self.gam_q = _coefficients(expm(self._aug * (self._period_s / QUANTA_PER_PERIOD)))
+        self._tables = None
+
+    def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
+                   coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray,
+                   fs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        pump = self.pump
+        if pump.linear:
+            f = -(pump.preload_n + fc * sign)
+        else:  # as :class:`~edc_bench.sim.plant.Plant`: the departures from the linear model held over the step
+            friction = fc
+            if pump.stribeck_velocity_mm_s > 0.0:
+                friction = fc + (fs - fc) * np.exp(-(v / pump.stribeck_velocity_mm_s) ** 2)
+            f = (pump.force_constant_n_per_a * pump.force_constant_slope_per_mm * (x - pump.force_constant_mid_mm) * i
+                 - (pump.preload_n + friction * sign))
+        xn = phi[0] * x + phi[1] * v + phi[2] * i + gam[0] * coil_v + gam[1] * f
+        vn = phi[3] * x + phi[4] * v + phi[5] * i + gam[2] * coil_v + gam[3] * f
+        i_n = phi[8] * i + gam[4] * coil_v
+        return xn, vn, i_n
+
+    def advance_period(self, drive_v: np.ndarray) -> None:
+        coil_v = self.pump.amplifier_gain * _clip(drive_v, self.pump.amplifier_limit_v)
+        sign = np.where(self.v > 0.0, 1.0, -1.0)
+        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc, self.fs)
+        ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
+        self.x = np.where(ok, xn, self.x)
+        self.v = np.where(ok, vn, self.v)
+        self.i = np.where(ok, i_n, self.i)
+        fine = np.nonzero(~ok)[0]
+        if len(fine):
+            self._advance_fine(fine, coil_v[fine])
+
+    def advance_quanta(self, quanta: np.ndarray, drive_v: np.ndarray) -> None:
+        """Advance each valve by its own number of quanta (0..QUANTA_PER_PERIOD) under a constant drive.
+
+        Used when a CAN adapter makes the drive change mid-period (:mod:`edc_bench.population.batch_link`).
+        """
+        if self._tables is None:
+            # Phi and Gamma of m quanta, m = 0..QUANTA_PER_PERIOD, indexed [m, coefficient, valve]
+            q_s = self._period_s / QUANTA_PER_PERIOD
+            pairs = [_coefficients(expm(self._aug * (m * q_s))) for m in range(QUANTA_PER_PERIOD + 1)]
+            self._tables = np.stack([p for p, _ in pairs]), np.stack([g for _, g in pairs])
+        moving = np.nonzero(quanta > 0)[0]
+        m = quanta[moving]
+        phi_t, gam_t = self._tables
+        phi, gam = phi_t[m, :, moving].T, gam_t[m, :, moving].T
+        coil_v = self.pump.amplifier_gain * _clip(drive_v[moving], self.pump.amplifier_limit_v)
+        x, v, i = self.x[moving], self.v[moving], self.i[moving]
+        sign = np.where(v > 0.0, 1.0, -1.0)
+        xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, self.fc[moving], self.fs[moving])
+        ok = ~self.stuck[moving] & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
+        smooth = moving[ok]
+        self.x[smooth], self.v[smooth], self.i[smooth] = xn[ok], vn[ok], i_n[ok]
+        if not ok.all():
+            self._advance_fine(moving[~ok], coil_v[~ok], m[~ok])
+
+    def _advance_fine(self, idx: np.ndarray, coil_v: np.ndarray, quanta: np.ndarray | None = None) -> None:
+        """Karnopp stepping in quanta: the whole period, or ``quanta[j]`` quanta for valve ``idx[j]``."""
+        phi, gam = self.phi_q[:, idx], self.gam_q[:, idx]
+        fc, fs = self.fc[idx], self.fs[idx]
+        x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
+        pump = self.pump
+        k, ki, fpre, stroke = pump.net_stiffness_n_per_mm, pump.force_constant_n_per_a, pump.preload_n, pump.stroke_mm
+        slope, x_mid = pump.force_constant_slope_per_mm, pump.force_constant_mid_mm
+        steps = QUANTA_PER_PERIOD if quanta is None else int(quanta.max())
+        for step in range(steps):
+            net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
+            hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
+            sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
+            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc, fs)
+            # held racks: only the current evolves
+            i_hold = phi[8] * i + gam[4] * coil_v
+            reversed_ = vn * sign <= 0.0
+            frac = np.where(v != vn, v / np.where(v != vn, v - vn, 1.0), 0.0)
+            x_rev = x + frac * (xn - x)
+            pull = ki * (1.0 + slope * (xn - x_mid)) * i_n
+            slow = ~reversed_ & (np.abs(vn) < STICK_SPEED_MM_S) & (np.abs(pull - k * xn - fpre) <= fs)
+            new_stuck = reversed_ | slow
+            xn = np.where(reversed_, x_rev, xn)
+            vn = np.where(new_stuck, 0.0, vn)
+            low, high = xn <= 0.0, xn >= stroke
+            xn = np.where(low, 0.0, np.where(high, stroke, xn))
+            vn = np.where(low | high, 0.0, vn)
+            new_stuck = new_stuck | low | high
+            if quanta is not None:  # valves whose quanta are done keep their state
+                done = step >= quanta
+                xn, vn, i_n, new_stuck = (np.where(done, x, xn), np.where(done, v, vn), np.where(done, i, i_n),
+                                          np.where(done, stuck, new_stuck))
+                hold = hold & ~done
+            x = np.where(hold, x, xn)
+            v = np.where(hold, 0.0, vn)
+            i = np.where(hold, i_hold, i_n)
+            stuck = np.where(hold, True, new_stuck)
+        self.x[idx], self.v[idx], self.i[idx], self.stuck[idx] = x, v, i, stuck
+
+
+def _clip(values: np.ndarray, limit: float) -> np.ndarray:
+    # np.clip's Python wrapper costs several microseconds a call; this is the same for finite limits
+    return np.minimum(np.maximum(values, -limit), limit)
+
+
+def _coefficients(augmented: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of Phi (9, n) and Gamma (6, n) from a stack of augmented exponentials (n, 5, 5)."""
+    n = len(augmented)
+    phi = np.ascontiguousarray(augmented[:, :3, :3].reshape(n, 9).T)
+    gam = np.ascontiguousarray(augmented[:, :3, 3:].reshape(n, 6).T)
+    return phi, gam
+
+
+class _Noise:
+    """Seeded Gaussian noise in blocks of ticks, one column per valve."""
+
+    def __init__(self, seeds: Sequence[int], sd: float, block: int = 1000) -> None:
+        self.rngs = [np.random.default_rng(s) for s in seeds]
+        self.sd = sd
+        self.block = block
+        self._buf = np.zeros((0, len(seeds)))
+        self._row = 0
+
+    def next(self) -> np.ndarray:
+        if self._row >= len(self._buf):
+            self._buf = np.column_stack([r.standard_normal(self.block) for r in self.rngs]) * self.sd
+            self._row = 0
+        row = self._buf[self._row]
+        self._row += 1
+        return row
+
+
+class _RowFeeder:
+    """Collects each valve's ticks and feeds the period fit in spans (:mod:`edc_bench.identification.period_fit`).
+
+    The loop's trace holds every tick; a batch of hundreds of valves cannot, so the ticks are kept only until the
+    span they belong to has been turned into rows, with half a smoothing window on either side. The rows are
+    computed by the same function as the loop's, so the identification is the same.
+    """
+
+    SPAN = 500
+
+    def __init__(self, setup: FitSetup, acc: BlockAccumulator, n: int, lag: int) -> None:
+        self.setup, self.acc, self.half = setup, acc, setup.window // 2
+        cap = self.SPAN + 2 * self.half + 2 + lag
+        self.x, self.u, self.rho, self.r1 = (np.zeros((cap, n)) for _ in range(4))
+        self.valid = np.zeros((cap, n), dtype=bool)
+        self.base = setup.first_tick - self.half  # the tick of row 0
+        self.p = setup.first_tick  # the first tick of the next span
+
+    def tick(self, k: int, drive_v: np.ndarray, rho: np.ndarray, r1: np.ndarray) -> None:
+        """What tick ``k`` sent and used."""
+        row = k - self.base
+        if 0 <= row:
+            self.u[row], self.rho[row], self.r1[row] = drive_v, rho, r1
+
+    def sample(self, j: int, position_mm: np.ndarray, valid: np.ndarray | bool = True) -> None:
+        """The sample of tick ``j``'s command (taken before its drive applied); a span is fed once its last is in."""
+        row = j - self.base
+        if row < 0:
+            return
+        self.x[row], self.valid[row] = position_mm, valid
+        if j == self.p + self.SPAN + self.half:
+            self._feed(self.SPAN)
+
+    def _feed(self, span: int) -> None:
+        if span <= 0:
+            return
+        rows_ = span + 2 * self.half + 1
+        X, y, use = rows(self.setup, self.x[:rows_], self.u[:rows_], self.rho[:rows_], self.r1[:rows_],
+                         self.valid[:rows_])
+        accumulate(self.setup, self.acc, self.p - self.half, X, y, use)
+        keep_from = span  # the next span needs from its first tick - half on
+        for a in (self.x, self.u, self.rho, self.r1, self.valid):
+            a[: len(a) - keep_from] = a[keep_from:]
+        self.base += keep_from
+        self.p += span
+
+    def finish(self, last_tick: int) -> None:
+        """Feed the last, partial span (ticks up to ``last_tick``, the last with a sample and half a window after)."""
+        self._feed(last_tick - self.half - self.p)
+
+
+def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
+              sensor_noise: bool = True, adapter: AdapterModel | None = None) -> BatchResult:
+    """Run one simulated bench test per valve, vectorised.
+
+    Parameters
+    ----------
+    variant : Variant
+        Pump variant (the same for all valves).
+    valves : sequence of ValveSpec
+        One per test.
+    seeds : sequence of int
+        Sensor-noise seed per test.
+    stiction, sensor_noise : bool
+        As in :func:`edc_bench.bench.run_simulated_test`.
+    adapter : AdapterModel, optional
+        A CAN adapter between bench and rig (:mod:`edc_bench.population.batch_link`): commands take effect and
+        samples are taken when it delivers them, and the PID uses the newest sample young enough
+        (``acceptance.max_reply_age_ms``), holding its output otherwise. Instant by default.
+
+    Returns
+    -------
+    BatchResult
+    """
+    n = len(valves)
+    if n == 0 or len(seeds) != n:
+        raise ValueError("one seed per valve, and at least one valve")
+    design = ControllerDesign.from_variant(variant)
+    T, ticks = design.period_s, design.ticks
+    plant = _VectorPlant(variant, valves, stiction, T)
+    lvdt = variant.sensors.lvdt
+    noise = _Noise(seeds, lvdt.noise_sd if sensor_noise else 0.0)
+    resolution = lvdt.resolution if sensor_noise else 1e-9
+    offset = lvdt.offset if sensor_noise else 0.0
+
+    def read(true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
+        return np.round((true_mm + offset + noise_mm) / resolution) * resolution
+
+    def sample() -> np.ndarray:
+        return read(plant.x, noise.next())
+
+    # the coil current, read with each sample (at the tick, before its drive applies) from a noise stream of its own
+    current = variant.sensors.current
+    current_noise = _Noise([s + 7_919 for s in seeds], current.noise_sd if sensor_noise else 0.0)
+    current_step = current.resolution if sensor_noise else 1e-9
+    current_offset = current.offset if sensor_noise else 0.0
+
+    def read_current() -> np.ndarray:
+        return np.round((plant.i + current_offset + current_noise.next()) / current_step) * current_step
+
+    r_ref = variant.coil.resistance_ohm
+    coil = CoilEstimator(design.amplifier_gain, np.full(n, r_ref), T)
+    window = design.coil_window_ticks
+    coil_ring = np.zeros((window, n))
+    coil_sum = np.zeros(n)
+    coil_mean = np.full(n, r_ref)
+    pending_current: np.ndarray | None = None  # sampled at the last tick, used from this one (as the loop does)
+    u_before = u_last = np.zeros(n)  # the drive in effect while that current came about; the last tick's drive
+
+    # the reference is affine in its start position: tabulate it for start 0 and start 1
+    ref0, ref1 = design.reference(0.0), design.reference(1.0)
+    t_ticks = np.arange(ticks) * T
+    mid0 = ref0.tabulate(t_ticks + 0.5 * T)
+    mid_slope = ref1.tabulate(t_ticks + 0.5 * T) - mid0
+    now0 = ref0.tabulate(t_ticks)[0]
+    now_slope = ref1.tabulate(t_ticks)[0] - now0
+    mid0_rows, mid_slope_rows = mid0.T.tolist(), mid_slope.T.tolist()
+    start = sample()  # the SAFE reply before the first tick
+    nominal = np.array(design.nominal)
+    scales = np.array(design.scales)
+    est_idx, fixed_idx = list(design.estimated), list(design.fixed)
+    # valves along the last axis: every update is a contiguous pass over n values
+    theta = np.tile(np.array(design.theta0)[:, None], (1, n))
+    rls = design.estimator_kind == "rls"
+    lam = design.forgetting_factor
+    P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
+    gain_vec = np.array(design.gradient_gains_per_s) * T
+    gains = design.pid_gains
+    d_a, d_b = design.derivative_filter
+    limit = design.drive_limit_v
+    integral = np.zeros(n)
+    deriv = np.zeros(n)
+    last_err = np.full(n, np.nan)
+    sat = np.zeros(n)
+    adapt_from = design.adapt_from_s
+    reversal = design.reversal_speed_mm_s
+    r_prev = start.copy()  # reference at the previous tick (r(0) = start)
+    x_meas = start
+    history = np.zeros((ticks // HISTORY_EVERY + 1, 2, n))
+    h_af, h_a1 = est_idx.index(PARAMETER_NAMES.index("af")), est_idx.index(PARAMETER_NAMES.index("a1"))
+    hist_rows = 0
+    inv_w_est_scale = 1.0 / scales[est_idx]
+    w_est_t = np.empty((len(est_idx), n))  # the estimator's regressors, one row per parameter
+    ones = np.ones(n)
+
+    def reference_mm(ticks: np.ndarray, valves: np.ndarray) -> np.ndarray:
+        at = np.maximum(ticks, 0)  # tick -1's reference is r(0), the start
+        return np.where(ticks >= 0, now0[at] + start[valves] * now_slope[at], start[valves])
+
+    link = None if adapter is None or adapter.is_instant else BatchLink(
+        adapter, seeds, T, QUANTA_PER_PERIOD, max_reply_age_ticks(variant), reference_mm)
+    usable = None
+    u2 = np.zeros(n)
+    # the identification the verdict rests on: the period fit, fed the same rows as the loop's trace gives it
+    setup = FitSetup.from_variant(variant)
+    blocks = setup.blocks_in(ticks)
+    fit_acc = BlockAccumulator(setup, max(blocks, 1), n)
+    lag = 0 if link is None else RING - 2  # through an adapter, command j's sample is read from the link later
+    feeder = _RowFeeder(setup, fit_acc, n, lag)
+    # the tick after which a loop's trace holds b whole periods (and the half window that smooths their end)
+    block_end_ticks = {setup.end_tick(b): b for b in range(1, blocks + 1)}
+    coil_at_blocks = np.full((max(blocks, 1) + 1, n), r_ref)
+
+    for k in range(ticks):
+        t = k * T
+        if pending_current is not None:
+            coil.update(u_before, pending_current)
+        r_now = coil.resistance_ohm
+        slot = k % window
+        coil_sum += r_now - coil_ring[slot]
+        coil_ring[slot] = r_now
+        coil_mean = coil_sum / min(k + 1, window)
+        rho = coil_mean / r_ref
+        if link is None:
+            err = r_prev - x_meas  # PID on the error at the sample's time
+        else:
+            # the samples that came back, each against the reference at its command's tick; none: the last error
+            # again while the newest is young enough, else the PID holds
+            fresh_err, fresh, newest_usable = link.fresh_error(k)
+            err = np.where(fresh, fresh_err, last_err)
+            usable = fresh | newest_usable
+        prop = gains.kp_v_per_mm * err
+        step = gains.ki_v_per_mm_s * err * T
+        blocked = sat * step > 0.0  # the drive saturated the way the integrator pushes
+        new_integral = _clip(np.where(blocked, integral, integral + step), limit)
+        new_deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
+        new_u2 = _clip(prop + new_integral + new_deriv, limit)
+        if usable is None:
+            integral, deriv, last_err, u2 = new_integral, new_deriv, err, new_u2
+        else:  # no sample young enough: the PID holds its output and its state
+            integral, deriv = np.where(usable, new_integral, integral), np.where(usable, new_deriv, deriv)
+            last_err, u2 = np.where(usable, err, last_err), np.where(usable, new_u2, u2)
+        # regressor at mid-interval, per valve (only r and its derivatives depend on the start)
+        at_start0, slope = mid0_rows[k], mid_slope_rows[k]
+        r3, r2, r1, r = (at_start0[3] + start * slope[3], at_start0[2] + start * slope[2],
+                         at_start0[1] + start * slope[1], at_start0[0] + start * slope[0])
+        sgn = np.sign(r1)
+        w_all = (r3, r2, r1, r, ones, sgn)
+        for j, i in enumerate(est_idx):
+            np.multiply(w_all[i], inv_w_est_scale[j], out=w_est_t[j])
+        w_est = w_est_t
+        fixed_part = sum(nominal[i] * w_all[i] for i in fixed_idx) if fixed_idx else np.zeros(n)
+        u1 = (np.einsum("jn,jn->n", theta, w_est) + fixed_part) * rho
+        u = u1 + u2
+        sat = (u >= limit) * 1.0 - (u <= -limit)
+        u = _clip(u, limit)
+        adapting = (sat == 0) & (t >= adapt_from) & (np.abs(r1) >= reversal)
+        if adapting.any():
+            y = u / rho - fixed_part
+            e = y - np.einsum("jn,jn->n", theta, w_est)
+            if rls:
+                pw = np.einsum("ijn,jn->in", P, w_est)
+                denom = lam + np.einsum("jn,jn->n", w_est, pw)
+                gain = pw / denom
+                if adapting.all():  # the common case: update in place, no copies
+                    theta += gain * e
+                    P -= gain[:, None, :] * pw[None, :, :]
+                    P *= 1.0 / lam
+                else:
+                    theta = np.where(adapting, theta + gain * e, theta)
+                    P_new = (P - gain[:, None, :] * pw[None, :, :]) / lam
+                    P = np.where(adapting, P_new, P)
+            else:
+                norm = 1.0 + np.einsum("jn,jn->n", w_est, w_est)
+                theta = np.where(adapting, theta + gain_vec[:, None] * w_est * (e / norm), theta)
+        # the coil current at this tick, before this drive (through an adapter too: the coil's figure is an
+        # average over seconds, where the adapter's milliseconds do not count)
+        if k > 0:  # the first tick's current came under no drive of the test's (as in the loop: left out)
+            pending_current, u_before = read_current(), u_last
+        u_last = u
+        feeder.tick(k, u, rho, r1)
+        if k in block_end_ticks:  # a loop stopped here would refer its parameters to this coil figure
+            coil_at_blocks[block_end_ticks[k]] = coil_mean
+        if link is None:
+            # the rig: sample, then apply the drive, then one period passes
+            x_meas = sample()
+            feeder.sample(k, x_meas)
+            plant.advance_period(u)
+            r_prev = now0[k] + start * now_slope[k]
+        else:
+            link.send(k, u, noise.next())
+            link.advance_period(k, plant.advance_quanta, lambda: plant.x, read)
+            if k >= lag:
+                feeder.sample(k - lag, *link.delivered_sample(k - lag))
+        plant.add_heat(T)
+        if k % HISTORY_EVERY == 0:
+            history[hist_rows, 0] = theta[h_af]
+            history[hist_rows, 1] = theta[h_a1]
+            hist_rows += 1
+
+    if link is not None:  # the last commands' samples, as far as they reached the rig
+        for j in range(max(0, ticks - lag), ticks):
+            feeder.sample(j, *link.delivered_sample(j))
+    feeder.finish(ticks - 1)
+    coil_at_blocks[blocks if blocks else 0] = coil_mean
+    history = history[:hist_rows]
+    t_hist = np.arange(hist_rows) * HISTORY_EVERY * T
+    acc = variant.acceptance
+    settle = {name: settle_times_s(t_hist, history[:, row, :], adapt_from, acc.settle_band_rel)
+              for name, row in (("af", 0), ("a1", 1))}
+    truth = np.array([list(feedforward_truth(replace(p, resistance_ohm=r_ref))) for p in plant.params])
+    periods = PeriodResults(variant, setup, fit_acc, blocks, coil_at_blocks, nominal, r_ref)
+    at_end = periods.at(blocks)
+    return BatchResult(at_end.parameters, truth, at_end.converged, settle, at_end.condition_number,
+                       list(valves), list(seeds), dict(sorted(link.ages.items())) if link is not None else {},
+                       coil_mean.copy(), plant.resistance_ohm.copy(), model_fits=at_end.model_fits,
+                       periods=periods, problems=at_end.problems)
+
+
+@dataclass
+class BatchIdentification:
+    """The batch's identification as a test stopped after some periods would have it (arrays over valves)."""
+
+    parameters: np.ndarray
+    converged: np.ndarray
+    model_fits: np.ndarray
+    fit: PeriodFit | None
+    condition_number: float
+    problems: np.ndarray  # (N,) the trust rule's problems per test (Problem bits; 0: trusted)
+
+    @property
+    def trusted(self) -> np.ndarray:
+        """(N,) the trust rule finds nothing wrong with the test."""
+        return self.problems == 0
+
+
+class PeriodResults:
+    """The period fit of every valve, at any number of periods: a test that stopped then would give these."""
+
+    def __init__(self, variant: Variant, setup: FitSetup, acc: BlockAccumulator, blocks: int,
+                 coil_at_blocks: np.ndarray, nominal: np.ndarray, r_ref: float) -> None:
+        self.variant, self.setup, self.acc, self.blocks = variant, setup, acc, blocks
+        self.coil_at_blocks, self.nominal, self.r_ref = coil_at_blocks, nominal, r_ref
+        self.n = acc.A.shape[1]
+        self.reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
+        self.noise_v = expected_drive_noise_v(variant)
+
+    def stop_time_s(self, periods: int) -> float:
+        """When a test has ``periods`` whole periods (and the half smoothing window after them)."""
+        return self.setup.end_s(periods)
+
+    def at(self, periods: int) -> BatchIdentification:
+        """Parameters (referred to the reference coil), converged and model-fit flags after ``periods`` periods."""
+        from edc_bench.identification.analysis import model_fits
+
+        acc = self.variant.acceptance
+        fit = solve(self.acc, periods, acc.settle_band_rel)
+        final = np.tile(self.nominal, (self.n, 1))
+        if fit is None:
+            nan = np.full(self.n, False)
+            final[:, [PARAMETER_NAMES.index(c) for c in ("af", "a1")]] = np.nan
+            return BatchIdentification(final, nan, nan, None, math.inf,
+                                       np.full(self.n, int(Problem.TOO_FEW_PERIODS | Problem.POORLY_CONDITIONED)))
+        inductive = inductive_shares(self.variant)
+        coil = self.coil_at_blocks[periods]
+        for name in fit.columns:
+            if name in PARAMETER_NAMES:
+                i = PARAMETER_NAMES.index(name)
+                final[:, i] = referred_from_estimate(inductive[i], fit.value(name), self.r_ref, coil)
+        enough = periods >= acc.min_periods
+        fits = (not enough) | model_fits(self.variant, fit, self.noise_v)
+        converged = fit.settled & enough
+        problems = trust_problems(acc, periods=periods, settled=fit.settled, misfit=~fits,
+                                  condition_number=judged_condition_number(self.reference_condition,
+                                                                           fit.condition_number))
+        return BatchIdentification(final, converged, fits, fit, max(self.reference_condition,
+                                                                    float(np.median(fit.condition_number))),
+                                   problems)

@@ -1,0 +1,306 @@
+"""Stop a test as soon as its verdict is known: after each whole excitation period, is it?
+
+A test may stop once, after at least ``acceptance.min_periods`` whole periods
+(:mod:`edc_bench.identification.period_fit`):
+
+- **the verdict is certain**: the fit has settled, its regression is well
+  conditioned, the model fits, and the verdict at af and a1 is the same at
+  every corner of their ``verdict_confidence`` interval (relative to the
+  baseline, standard errors of the mean over the periods); or
+- **the model does not fit**: a longer test will not help.
+
+Otherwise the test runs on, up to the variant's duration. Before each period
+ends, :attr:`EarlyStop.expected_end_s` says when the test is expected to end:
+the first period at which the interval, shrinking as 1/sqrt(periods) (and as
+Student's t quantile falls with the periods' degrees of freedom), would
+leave the verdict unchanged.
+
+The loop calls :meth:`EarlyStop.check` at the ticks in
+:attr:`EarlyStop.check_ticks` (bench layer: :func:`edc_bench.bench.run_bench_test`).
+The work is spread so that no call costs more than a tick or two, however
+long the test and its variant (steps 0.2-0.6 ms, the period-end decision
+1-3 ms on a 2-core VM):
+
+- every :data:`STEP_TICKS` ticks the rows completed since the last step are
+  fed (their replies in: the feed lags by the oldest reply the loop accepts);
+- at a period's end the fit is solved with the period's last rows as they
+  stand (fed for good by the next steps, their replies in) and the stop rule
+  asked (one classifier call, five points);
+- the expected end is searched a candidate period per step (more if the
+  test has more periods left than a period has steps), half a step after
+  each feed, until found (the live view shows the earliest it can be
+  meanwhile).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from statistics import NormalDist
+from typing import Any
+
+import numpy as np
+
+from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control.design import ControllerDesign
+from edc_bench.engine.outcome import StopReason
+from edc_bench.engine.replies import max_reply_age_ticks
+from edc_bench.identification.analysis import model_fit_problems, model_fits
+from edc_bench.identification.period_fit import (
+    BlockAccumulator,
+    FitSetup,
+    PeriodFit,
+    accumulate,
+    expected_drive_noise_v,
+    reference_condition_number,
+    solve,
+    trace_rows,
+)
+from edc_bench.identification.trust import judged_condition_number, trust_problems
+from edc_bench.physics.coil import inductive_shares, referred_from_estimate
+from edc_bench.verdict.baseline import Baseline
+from edc_bench.verdict.classifier import ValveClassifier
+
+#: Ticks between two feeds of rows (and between two steps of the expected-end search): 0.2-0.6 ms each.
+STEP_TICKS = 100
+
+
+
+class EarlyStop:
+    """Decides after each excitation period whether the test may end.
+
+    Parameters
+    ----------
+    variant : Variant
+        The variant as the test runs it.
+    baseline : Baseline
+        What af and a1 are judged against.
+    classifier : ValveClassifier
+        What judges them.
+    """
+
+    def __init__(self, variant: Variant, baseline: Baseline, classifier: ValveClassifier) -> None:
+        self.variant, self.baseline, self.classifier = variant, baseline, classifier
+        self.setup = setup = FitSetup.from_variant(variant)
+        ticks = int(round(variant.excitation.duration_s / setup.period_s))
+        self.max_periods = setup.blocks_in(ticks)
+        self.acc = BlockAccumulator(setup, max(self.max_periods, 1))
+        #: tick -> whole periods the trace holds once that tick has its sample: where the stop rule is asked
+        self.period_ends = {setup.end_tick(b): b for b in range(1, self.max_periods + 1)}
+        #: a row is fed once every sample its smoothing reaches is in, replies as old as the loop accepts included
+        self.feed_lag_ticks = setup.window // 2 + max_reply_age_ticks(variant) + 1
+        # counted back from each period's end, so that the end has only the last few rows left to feed
+        self.feed_ticks = {end - 1 - j * STEP_TICKS for end in self.period_ends
+                           for j in range(-(-setup.block_ticks // STEP_TICKS))}
+        self.search_ticks = {k - STEP_TICKS // 2 for k in self.feed_ticks} - set(self.period_ends) - self.feed_ticks
+        #: every tick after which :meth:`check` wants to be called
+        self.check_ticks = set(self.period_ends) | self.feed_ticks | self.search_ticks
+        #: candidate periods each search step tries: enough to finish between two period ends (the fewest steps)
+        ends = sorted(self.period_ends)
+        steps = min((sum(1 for t in self.search_ticks if a < t < b) for a, b in zip(ends, ends[1:])), default=1)
+        self.search_per_step = max(1, -(-self.max_periods // max(steps, 1)))
+        self.duration_s = ticks * setup.period_s
+        self.expected_end_s = setup.end_s(min(variant.acceptance.min_periods, self.max_periods))
+        #: True while :attr:`expected_end_s` is only the earliest the test can end (before the first decision, a
+        #: fit not trusted yet, a search not finished): the live view says "at least"
+        self.expected_end_is_earliest = True
+        #: the last period-end decision, for the live view: periods, af and a1 relative to the baseline, the
+        #: half widths of their interval, the verdict at the centre ("" while not trusted); None before the first
+        self.latest: dict[str, Any] | None = None
+        self.fed_to_tick = setup.first_tick  # rows of ticks before this one are in the accumulator
+        self._search: tuple[np.ndarray, np.ndarray, int, int] | None = None  # centre, half width, periods, next
+        self._r_ref = variant.coil.resistance_ohm
+        self._inductive = inductive_shares(variant)
+        self._noise_v = expected_drive_noise_v(variant)
+        self._reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
+        self.interval = Interval.of(variant, self.max_periods)
+        self._base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+        # the classifier's first call costs several times a later one: paid now, before the loop's first tick
+        certain_verdicts(classifier, np.ones((1, 2)), np.full((1, 2), 0.01))
+
+    def _feed(self, to_tick: int, columns: dict[str, np.ndarray]) -> None:
+        """Add the rows of ticks ``fed_to_tick .. to_tick - 1`` from the trace's columns."""
+        start, half = self.fed_to_tick, self.setup.window // 2
+        if to_tick <= start:
+            return
+        # the smoothing of a row reaches half a window either side, and the next sample: rows() leaves the span's
+        # edges out, so the span reaches that far beyond the rows fed
+        lo = start - half
+        span = slice(lo, to_tick + half + 1)
+        accumulate(self.setup, self.acc, lo, *trace_rows(self.setup, columns, self._r_ref, span))
+        self.fed_to_tick = to_tick
+
+    def _solve_with_pending(self, periods: int, columns: dict[str, np.ndarray]) -> PeriodFit | None:
+        """The fit over ``periods`` blocks with the last block's rows not yet fed for good added as they stand now
+        (a reply still on its way counts as missing, as in a test stopped here), then taken out again: the later
+        steps feed them with their replies."""
+        block = periods - 1
+        saved = self.acc.snapshot(block)
+        fed_to = self.fed_to_tick
+        self._feed(self.setup.first_tick + periods * self.setup.block_ticks, columns)
+        try:
+            return solve(self.acc, periods, self.variant.acceptance.settle_band_rel)
+        finally:
+            self.acc.restore(block, saved)
+            self.fed_to_tick = fed_to
+
+    def _search_step(self) -> None:
+        """One candidate period of the expected-end search: would the interval, shrunk to it, leave the verdict
+        alone? (one classifier call, five points)"""
+        if self._search is None:
+            return
+        centre, half_width, periods, more = self._search
+        if more > self.max_periods:
+            self.expected_end_s, self._search = self.duration_s, None
+            self.expected_end_is_earliest = False
+            return
+        # enough candidates per step to finish before the next period's end (one, unless the test is long)
+        candidates = np.arange(more, min(more + self.search_per_step, self.max_periods + 1))
+        boxes = certain_verdicts(self.classifier, np.repeat(centre, len(candidates), axis=0),
+                                 half_width * self.interval.shrink(periods, candidates)[:, None])
+        if boxes.any():
+            self.expected_end_s, self._search = self.setup.end_s(int(candidates[np.argmax(boxes)])), None
+            self.expected_end_is_earliest = False
+        else:  # not before the next candidate, at the earliest
+            after = int(candidates[-1]) + 1
+            self.expected_end_s = self.setup.end_s(min(after, self.max_periods))
+            self._search = (centre, half_width, periods, after)
+
+    def check(self, k: int, columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
+        """At tick ``k`` (one of :attr:`check_ticks`): the reason to stop now, with its figures, or None."""
+        periods = self.period_ends.get(k)
+        if periods is None:
+            if k in self.feed_ticks:
+                self._feed(k - self.feed_lag_ticks, columns)
+            else:
+                self._search_step()
+            return None
+        self._search = None  # the new period's figures replace an unfinished search
+        self.expected_end_is_earliest = True
+        acc, setup = self.variant.acceptance, self.setup
+        # rows whose samples are final for good; the period's last few wait for replies still on their way
+        self._feed(k - self.feed_lag_ticks, columns)
+        if periods < acc.min_periods:
+            self.expected_end_s = setup.end_s(min(acc.min_periods, self.max_periods))
+            return None
+        fit = self._solve_with_pending(periods, columns)
+        if fit is None:
+            self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
+            return None
+        parameters = np.array([[referred_from_estimate(self._inductive[PARAMETER_NAMES.index(name)],
+                                                       float(fit.value(name)[0]), self._r_ref,
+                                                       float(columns["coil_resistance_ohm"][k]))
+                                for name in ("af", "a1")]])
+        centre, half_width = relative_box(parameters, fit, self._base, self.interval)
+        misfit, trusted, certain, verdicts = stop_flags(self.variant, self.classifier, fit, periods, centre,
+                                                        half_width, self._noise_v, self._reference_condition)
+        self.latest = {"periods": periods, "af_rel": float(centre[0, 0]), "a1_rel": float(centre[0, 1]),
+                       "af_half_width_rel": float(half_width[0, 0]), "a1_half_width_rel": float(half_width[0, 1]),
+                       "verdict": str(verdicts[0])}
+        time_s = setup.end_s(periods)
+        if misfit[0]:
+            return {"reason": StopReason.MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods,
+                    "problems": model_fit_problems(self.variant, fit, self._noise_v)}
+        if certain[0]:
+            return {"reason": StopReason.VERDICT_CERTAIN, "time_s": time_s, "periods": periods, "verdict": str(verdicts[0]),
+                    "confidence": acc.verdict_confidence,
+                    "features_rel": {"af": float(centre[0, 0]), "a1": float(centre[0, 1])},
+                    "half_width_rel": {"af": float(half_width[0, 0]), "a1": float(half_width[0, 1])}}
+        if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
+            self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
+            return None
+        # when would the interval, shrinking with more periods (Interval.shrink), leave the verdict alone? Searched
+        # a period at a time over the next steps (all at once would cost a classifier call per remaining period in
+        # this tick)
+        self._search = (centre, half_width, periods, periods + 1)
+        self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))  # the earliest it can be, meanwhile
+        return None
+
+
+@dataclass(frozen=True)
+class Interval:
+    """How many standard errors either side of an estimate make the variant's ``verdict_confidence`` interval.
+
+    The standard error from the periods' spread rests on few periods (two degrees of freedom from three), so it
+    takes Student's t quantile for them; the least-squares one, on thousands of rows, the normal quantile.
+
+    Attributes
+    ----------
+    z : float
+        Normal quantile.
+    t : numpy.ndarray
+        Student's t quantile by degrees of freedom (index 0: NaN).
+    """
+
+    z: float
+    t: np.ndarray
+
+    @classmethod
+    def of(cls, variant: Variant, max_periods: int) -> Interval:
+        """The quantiles for ``variant``'s confidence, up to ``max_periods`` periods."""
+        from scipy.stats import t as student_t
+
+        q = 0.5 + variant.acceptance.verdict_confidence / 2.0
+        dof = np.arange(max(max_periods, 2))
+        return cls(NormalDist().inv_cdf(q), np.where(dof > 0, student_t.ppf(q, np.maximum(dof, 1)), np.nan))
+
+    def shrink(self, periods: int, more: np.ndarray) -> np.ndarray:
+        """How a half width after ``periods`` periods would shrink after ``more`` (1/sqrt(periods), and the spread's
+        quantile with its degrees of freedom)."""
+        more = np.asarray(more)
+        t_now = self.t[min(periods - 1, len(self.t) - 1)]
+        t_then = self.t[np.minimum(more - 1, len(self.t) - 1)]
+        return np.sqrt(periods / more) * t_then / t_now
+
+
+def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray,
+                 interval: Interval) -> tuple[np.ndarray, np.ndarray]:
+    """af and a1 relative to the baseline, and the half width of their interval: (N, 2) each.
+
+    ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1. The half
+    width is the larger of t standard errors from the periods' spread and z least-squares ones (NaN, no box, with
+    fewer than two periods).
+    """
+    t = interval.t[np.clip(fit.periods_used - 1, 0, len(interval.t) - 1)][:, None]
+    columns = [fit.columns.index("af"), fit.columns.index("a1")]
+    half = np.maximum(t * fit.spread_se[:, columns], interval.z * fit.ls_std[:, columns])
+    return parameters / base, half / np.abs(base)
+
+
+def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, periods: int, centres: np.ndarray,
+               half_widths: np.ndarray, noise_v: float,
+               reference_condition: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The stop rule per test, vectorised (the loop's :class:`EarlyStop` and the batch study use it alike).
+
+    Returns
+    -------
+    (misfit, trusted, certain, verdicts)
+        The model does not fit (stop: INVALID); the fit is settled, conditioned and fitting after enough periods
+        (the judgement would trust it); and, trusted, the verdict is the same over the whole box (stop); the
+        verdict at each box's centre ("" where no test was trusted: the classifier is not asked then).
+    """
+    enough = periods >= variant.acceptance.min_periods
+    misfit = enough & ~model_fits(variant, fit, noise_v)
+    problems = trust_problems(variant.acceptance, periods=periods, settled=fit.settled, misfit=misfit,
+                              condition_number=judged_condition_number(reference_condition, fit.condition_number))
+    trusted = problems == 0
+    if not trusted.any():  # the loop's check before the fit settles: no classifier call in that tick
+        return misfit, trusted, trusted.copy(), np.full(len(centres), "", dtype=object)
+    same, verdicts = certain_verdicts(classifier, centres, half_widths, with_verdicts=True)
+    return misfit, trusted, trusted & same, verdicts
+
+
+def certain_verdicts(classifier: ValveClassifier, centres: np.ndarray, half_widths: np.ndarray, *,
+                     with_verdicts: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """For N boxes of relative features (centres and half-widths (N, 2)): the same verdict at centre and corners.
+
+    The batch path's form of :meth:`EarlyStop.check`'s test (one classifier call for all valves). With
+    ``with_verdicts``, also the verdict at each centre.
+    """
+    signs = np.array([[0, 0], [-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)
+    points = centres[:, None, :] + signs[None, :, :] * half_widths[:, None, :]
+    finite = np.all(np.isfinite(points), axis=(1, 2))
+    points = np.where(np.isfinite(points), points, 1.0)
+    verdicts = classifier.verdicts(points.reshape(-1, 2))
+    verdicts = verdicts.reshape(len(centres), 5)
+    same = finite & np.all(verdicts == verdicts[:, :1], axis=1)
+    return (same, verdicts[:, 0]) if with_verdicts else same

@@ -1,0 +1,122 @@
+"""The one trust rule: its problems as bits, the same function behind the judgement, the early stop and the
+batch path, and no code that decides by reading a sentence."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import edc_bench
+from edc_bench.config import Variant
+from edc_bench.identification import trust
+from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, judged_condition_number, trust_problems
+from edc_bench.population import batch
+from edc_bench.verdict import early_stop, judgement
+
+
+def test_the_rule_says_each_problem_by_its_bit_vectorised(variant: Variant) -> None:
+    acc = variant.acceptance
+    enough, few = acc.min_periods, acc.min_periods - 1
+    flags = trust_problems(
+        acc,
+        periods=np.array([enough, few, enough, enough, enough, enough, enough, few]),
+        settled=np.array([True, True, False, True, True, True, True, True]),
+        misfit=np.array([False, False, False, True, False, False, False, True]),
+        condition_number=np.array([10.0, 10.0, 10.0, 10.0, 1e9, np.nan, 10.0, 10.0]),
+        aborted=np.array([False, False, False, False, False, False, True, False]))
+    assert [Problem(int(f)) for f in flags] == [
+        Problem.NONE, Problem.TOO_FEW_PERIODS, Problem.DRIFTING, Problem.MODEL_DOES_NOT_FIT,
+        Problem.POORLY_CONDITIONED, Problem.POORLY_CONDITIONED,  # an unknown condition is no good one
+        Problem.ABORTED,  # an aborted test is judged on its abort, not on what it identified before it
+        Problem.TOO_FEW_PERIODS]  # the model fit is judged only with enough periods
+
+
+def test_timing_and_missing_replies_count_against_the_ticks_that_ran(variant: Variant) -> None:
+    acc = variant.acceptance
+    ticks = 10_000
+    just_over = int(acc.max_overrun_fraction * ticks) + 1
+    flags = trust_problems(acc, periods=acc.min_periods, settled=True, misfit=False, condition_number=10.0,
+                           ticks=ticks, ticks_late_or_lost=np.array([0, just_over]),
+                           missed_replies=np.array([int(acc.max_missed_reply_fraction * ticks) + 1, 0]))
+    assert [Problem(int(f)) for f in flags] == [Problem.REPLIES_MISSING, Problem.TIMING]
+
+
+def test_one_condition_number_the_worse_of_the_excitation_and_the_fit() -> None:
+    np.testing.assert_array_equal(judged_condition_number(65.0, np.array([10.0, 100.0])), [65.0, 100.0])
+
+
+def test_problems_read_back_from_the_record_by_name() -> None:
+    problems = Problem.ABORTED | Problem.NOT_CALIBRATED | Problem.COIL_OUT_OF_SPEC
+    assert problems.names == ["aborted", "not calibrated", "coil out of spec"]
+    assert Problem.from_names(problems.names) == problems
+    assert not (Problem.NOT_CALIBRATED | Problem.COIL_OUT_OF_SPEC) & TRUST_PROBLEMS
+
+
+def test_the_judgement_the_early_stop_and_the_batch_path_share_the_rule() -> None:
+    """One function, not three copies: changing it changes the judgement, the early stop and the batch path."""
+    for module in (judgement, early_stop, batch):
+        assert module.trust_problems is trust.trust_problems, module.__name__
+    for module in (early_stop, batch, edc_bench.identification.analysis):
+        assert module.judged_condition_number is trust.judged_condition_number, module.__name__
+
+
+def _sentence_decisions(tree: ast.AST) -> list[int]:
+    """Lines that test a reason's or a source's text: ``x_reason.startswith(...)``, ``reason == "..."``."""
+    def talks(node: ast.AST) -> bool:
+        text = ast.unparse(node).lower()
+        return "reason" in text or "source" in text or "sentence" in text
+
+    lines = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                and node.func.attr in ("startswith", "endswith") and talks(node.func.value):
+            lines.append(node.lineno)
+        elif isinstance(node, ast.Compare) and any(isinstance(op, (ast.Eq, ast.NotEq, ast.In)) for op in node.ops):
+            sides = [node.left, *node.comparators]
+            if any(isinstance(s, ast.Constant) and isinstance(s.value, str) and len(s.value) > 12 for s in sides) \
+                    and any(talks(s) for s in sides):
+                lines.append(node.lineno)
+    return lines
+
+
+def test_no_code_decides_by_matching_a_sentence() -> None:
+    """Outcomes are values; only the record reader's upgrade of older records reads their old wording."""
+    package = Path(edc_bench.__file__).parent
+    found = {}
+    for path in package.rglob("*.py"):
+        if path.relative_to(package).as_posix() == "records/reader.py":
+            continue
+        lines = _sentence_decisions(ast.parse(path.read_text(encoding="utf-8")))
+        if lines:
+            found[path.relative_to(package).as_posix()] = lines
+    assert found == {}
+
+
+def test_the_guard_finds_a_decision_by_text() -> None:
+    tree = ast.parse('if outcome.abort_reason.startswith("internal error"):\n    pass\n'
+                     'if stop["reason"] == "verdict certain":\n    pass\n')
+    assert _sentence_decisions(tree) == [1, 3]
+
+
+@pytest.mark.parametrize("legacy", ["variant not calibrated: p-edc-x has no measured new-valve baseline", None])
+def test_an_older_record_is_read_in_todays_form(legacy: str | None) -> None:
+    from edc_bench.engine.outcome import AbortKind, abort_from_record
+    from edc_bench.records.reader import upgraded
+
+    old = {"schema": 3, "verdict": "INVALID", "reasons": [legacy] if legacy else ["aborted: rig fault: over-current"],
+           "coil": {"temp_source": "given (--coil-temp-c)", "temp_start_c": 45.0},
+           "timing": {"ticks": 100, "overruns": 3},
+           "loop": {"abort_reason": None if legacy else "rig fault: over-current", "abort_time_s": 1.5}}
+    new = upgraded(old)
+    assert new["problems"] == (["not calibrated"] if legacy else [])
+    assert new["coil"]["temp_given"] is True and new["timing"]["ticks_late"] == 3
+    abort = abort_from_record(new["loop"])
+    if legacy:
+        assert abort is None
+    else:
+        assert abort.kind is AbortKind.RECORDED and abort.sentence == "rig fault: over-current"
+        assert abort.time_s == 1.5
+    assert "problems" not in old  # the record read is not changed

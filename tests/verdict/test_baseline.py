@@ -1,0 +1,90 @@
+"""Baselines: every shipped variant has one, bad files are refused, `edc-bench calibrate` measures one."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from helpers import edc_bench
+
+from edc_bench.config import load_variant
+from edc_bench.errors import ConfigError
+from edc_bench.verdict.baseline import load_baseline, read_baseline
+
+
+@pytest.mark.parametrize("name", ["p-edc-default", "p-edc-long", "paper"])
+def test_every_shipped_variant_has_a_calibrated_baseline(name: str) -> None:
+    baseline = load_baseline(load_variant(name))
+    assert baseline.calibrated and baseline.af_v > 0 and baseline.a1_v_s_per_mm > 0
+    assert baseline.relative(baseline.af_v, baseline.a1_v_s_per_mm) == (1.0, 1.0)
+
+
+def test_paper_baseline_is_valve_v1() -> None:
+    baseline = load_baseline(load_variant("paper"))
+    assert (baseline.af_v, baseline.a1_v_s_per_mm) == (0.0469, 0.0118)
+
+
+def test_bad_baseline_file(tmp_path: Path) -> None:
+    path = tmp_path / "b.toml"
+    path.write_text('variant = "x"\naf_v = "lots"\n')
+    with pytest.raises(ConfigError, match="needs af_v and a1_v_s_per_mm as numbers"):
+        read_baseline(path)
+    with pytest.raises(ConfigError, match="baseline is for variant 'x', not 'y'"):
+        read_baseline(path, "y")
+
+
+@pytest.mark.slow  # a population run (8 simulated tests), rarely touched
+def test_calibrate_command_writes_a_baseline_near_the_nominal_one(tmp_path: Path) -> None:
+    out = tmp_path / "baseline.toml"
+    proc = edc_bench("calibrate", "--tests", "8", "--seed", "5", "--baseline-file", str(out), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    baseline = read_baseline(out, "p-edc-default")
+    assert baseline.tests == 8 == len(baseline.test_list)
+    assert baseline.source == "simulated population" and baseline.software.startswith("edc-bench ")
+    shipped = load_baseline(load_variant())
+    assert baseline.af_v == pytest.approx(shipped.af_v, rel=0.1)
+    assert baseline.a1_v_s_per_mm == pytest.approx(shipped.a1_v_s_per_mm, rel=0.1)
+
+
+def test_shipped_baselines_list_their_tests_and_state_their_uncertainty() -> None:
+    for name in ("p-edc-default", "p-edc-long"):
+        baseline = load_baseline(load_variant(name))
+        assert baseline.tests == len(baseline.test_list) == 20
+        assert baseline.af_v == pytest.approx(sum(t.af_v for t in baseline.test_list) / 20, rel=1e-12)
+        assert 0 < baseline.af_uncertainty_v < 0.03 * baseline.af_v
+        assert baseline.a1_uncertainty_v_s_per_mm == pytest.approx(baseline.a1_sd_v_s_per_mm / 20 ** 0.5)
+
+
+def test_a_station_baseline_comes_before_the_library_one_and_an_earlier_one_is_kept(tmp_path, monkeypatch) -> None:
+    from edc_bench.verdict.baseline import BaselineTest, baseline_from_tests, station_baseline_path, write_baseline
+
+    monkeypatch.setenv("EDC_BENCH_VARIANTS_DIR", str(tmp_path / "variants"))
+    variant = load_variant("p-edc-default")
+    shipped = load_baseline(variant)
+    first = baseline_from_tests([BaselineTest(0.08, 0.004, "A", "rig"), BaselineTest(0.09, 0.005, "B", "rig")],
+                                station="bench 2")
+    path = station_baseline_path(variant.name)
+    assert write_baseline(path, first.to_toml(variant.name)) is None
+    own = load_baseline(variant)
+    assert (own.af_v, own.a1_v_s_per_mm) == pytest.approx((0.085, 0.0045), rel=1e-12)
+    assert (own.tests, own.station, own.source) == (2, "bench 2", "rig")
+    assert load_baseline(variant, station=False).af_v == shipped.af_v  # training keeps the simulated one
+    kept = write_baseline(path, baseline_from_tests([BaselineTest(0.07, 0.003, "C", "rig")]).to_toml(variant.name))
+    assert kept is not None and kept.parent.name == "earlier"
+    assert read_baseline(kept, variant.name).tests == 2 and load_baseline(variant).tests == 1
+    assert math.isnan(load_baseline(variant).af_uncertainty_v)  # one test: no uncertainty to state
+
+
+def test_baseline_file_with_a_broken_test_entry(tmp_path: Path) -> None:
+    path = tmp_path / "b.toml"
+    path.write_text('variant = "x"\naf_v = 0.1\na1_v_s_per_mm = 0.01\n[[test]]\naf_v = "?"\n')
+    with pytest.raises(ConfigError, match="numbers in each \\[\\[test\\]\\]"):
+        read_baseline(path)
+
+
+def test_a_test_entry_that_is_not_a_positive_number_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "b.toml"
+    path.write_text('variant = "x"\naf_v = 0.1\na1_v_s_per_mm = 0.01\n[[test]]\naf_v = nan\na1_v_s_per_mm = 0.01\n')
+    with pytest.raises(ConfigError, match="and those of every \\[\\[test\\]\\], must be positive numbers"):
+        read_baseline(path)
