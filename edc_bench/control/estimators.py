@@ -10,9 +10,10 @@ and ``y`` is the drive actually applied (feedback-error learning: when
 - :class:`NormalisedGradient`: the paper's gradient law (eq. 14), with a gain
   per parameter and normalisation by ``1 + |w|^2``.
 
-Pure Python floats: for five or six parameters this is faster than numpy
-calls and allocates next to nothing per tick. Non-finite input is refused
-(the update is skipped and counted), so the estimate never becomes NaN.
+The arithmetic is :mod:`edc_bench.control.law`'s, shared with the batch
+path; here in plain Python floats (for five or six parameters faster than
+numpy calls). Non-finite input is refused (the update is skipped and
+counted), so the estimate never becomes NaN.
 """
 
 from __future__ import annotations
@@ -20,6 +21,11 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
+
+from edc_bench.control import law
+
+#: Bound on the RLS covariance's trace: guards against wind-up while the excitation is poor.
+MAX_COVARIANCE_TRACE = 1e6
 
 
 class Estimator(ABC):
@@ -47,13 +53,8 @@ class Estimator(ABC):
         float
             The a-priori error ``y - w . theta`` (0 if the sample was refused).
         """
-        err = y
-        for wi, ti in zip(w, self.theta, strict=True):
-            err -= wi * ti
-        if not math.isfinite(err):
-            self.rejected += 1
-            return 0.0
-        if not self._update(w, err):
+        err, ok = self._update(w, y)
+        if not ok:
             self.rejected += 1
             return 0.0
         self.updates += 1
@@ -63,8 +64,8 @@ class Estimator(ABC):
         return err
 
     @abstractmethod
-    def _update(self, w: Sequence[float], err: float) -> bool:
-        """Apply one update for a-priori error ``err``; False if refused."""
+    def _update(self, w: Sequence[float], y: float) -> tuple[float, bool]:
+        """Apply one update (:mod:`edc_bench.control.law`); the a-priori error and whether it applied."""
 
     def std(self) -> list[float] | None:
         """Standard deviation of each (normalised) parameter, if the method knows it."""
@@ -72,7 +73,7 @@ class Estimator(ABC):
 
 
 class RecursiveLeastSquares(Estimator):
-    """RLS with exponential forgetting.
+    """RLS with exponential forgetting (:func:`edc_bench.control.law.rls_update`).
 
     Parameters
     ----------
@@ -87,48 +88,16 @@ class RecursiveLeastSquares(Estimator):
     """
 
     def __init__(self, theta0: Sequence[float], initial_std: Sequence[float], forgetting_factor: float,
-                 max_trace: float = 1e6) -> None:
+                 max_trace: float = MAX_COVARIANCE_TRACE) -> None:
         super().__init__(theta0)
         if not 0.0 < forgetting_factor <= 1.0:
             raise ValueError("forgetting_factor must be in (0, 1]")
         self.lam = forgetting_factor
         self.max_trace = max_trace
         self.P = [[(s * s if i == j else 0.0) for j, s in enumerate(initial_std)] for i in range(len(initial_std))]
-        self._pw = [0.0] * self.n
 
-    def _update(self, w: Sequence[float], err: float) -> bool:
-        n, P, pw = self.n, self.P, self._pw
-        for i in range(n):
-            row = P[i]
-            acc = 0.0
-            for j in range(n):
-                acc += row[j] * w[j]
-            pw[i] = acc
-        denom = self.lam
-        for i in range(n):
-            denom += w[i] * pw[i]
-        if not (denom > 0.0 and math.isfinite(denom)):
-            return False
-        inv = 1.0 / denom
-        theta = self.theta
-        for i in range(n):
-            theta[i] += pw[i] * inv * err
-        inv_lam = 1.0 / self.lam
-        trace = 0.0
-        for i in range(n):
-            row = P[i]
-            ki = pw[i] * inv
-            for j in range(i, n):
-                v = (row[j] - ki * pw[j]) * inv_lam
-                row[j] = v
-                P[j][i] = v  # keep P symmetric
-            trace += row[i]
-        if trace > self.max_trace:
-            scale = self.max_trace / trace
-            for row in P:
-                for j in range(n):
-                    row[j] *= scale
-        return True
+    def _update(self, w: Sequence[float], y: float) -> tuple[float, bool]:
+        return law.rls_update(law.SCALAR, self.theta, self.P, w, y, self.lam, self.max_trace)
 
     def std(self) -> list[float]:
         """Parameter standard deviations: sqrt(sigma^2 P_ii), sigma^2 from the residuals."""
@@ -137,7 +106,8 @@ class RecursiveLeastSquares(Estimator):
 
 
 class NormalisedGradient(Estimator):
-    """The paper's gradient law (eq. 14), normalised, one gain per parameter.
+    """The paper's gradient law (eq. 14), normalised, one gain per parameter
+    (:func:`edc_bench.control.law.gradient_update`).
 
     ``theta += T * gamma_i * w_i * err / (1 + |w|^2)``
 
@@ -157,12 +127,5 @@ class NormalisedGradient(Estimator):
             raise ValueError("one gain per parameter")
         self.gains = [float(g) * period_s for g in gains]
 
-    def _update(self, w: Sequence[float], err: float) -> bool:
-        norm = 1.0
-        for wi in w:
-            norm += wi * wi
-        step = err / norm
-        theta, gains = self.theta, self.gains
-        for i in range(self.n):
-            theta[i] += gains[i] * w[i] * step
-        return True
+    def _update(self, w: Sequence[float], y: float) -> tuple[float, bool]:
+        return law.gradient_update(law.SCALAR, self.theta, self.gains, w, y)

@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from edc_bench.control import law
 from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.estimators import Estimator
 from edc_bench.control.pid import Pid
@@ -122,6 +123,7 @@ class FelController:
         self.reversal_speed_mm_s = design.reversal_speed_mm_s
         self._w = [0.0] * len(design.nominal)
         self._w_est = [0.0] * len(self.estimated)
+        self._inv_scales = [1.0 / design.scales[i] for i in self.estimated]
         self._saturated = 0
         self.table = reference_table(reference, design.period_s, design.ticks)
         self.reference_mm = reference.at(0.0)[0]
@@ -137,11 +139,7 @@ class FelController:
         self.reference_resistance_ohm = design.reference_resistance_ohm
         self.coil_resistance_ohm = design.reference_resistance_ohm
         self._drives = [math.nan] * design.ticks  # the drive sent at each tick (NaN: not sent, a gap)
-        # the estimate used is averaged over the excitation's longest period: the estimate itself wobbles
-        # +/-0.05 % with the motion, and that wobble, in the target, moved a1 by -0.6 %
-        self._coil_window = design.coil_window_ticks
-        self._coil_history = [math.nan] * design.ticks
-        self._coil_sum, self._coil_count = 0.0, 0
+        self._coil_average = law.CoilAverage(design.coil_window_ticks, design.reference_resistance_ohm)
 
     def resync(self) -> None:
         """Ticks were lost to a host stall: take no derivative across the gap (the estimator skips it anyway)."""
@@ -216,14 +214,14 @@ class FelController:
         t = k * T
         if measured_mm is not None:
             self.add_sample(k - 1 if sample_tick is None else sample_tick, measured_mm)
-        if self._errors:
+        if self._errors:  # the samples that came since the last step, averaged
             error = self._error_sum_mm if self._errors == 1 else self._error_sum_mm / self._errors
             self._error_sum_mm, self._errors, self._last_error_mm = 0.0, 0, error
             u2 = self.pid.update(error, self._saturated)
-        elif newest_usable and self._last_error_mm is not None:
-            u2 = self.pid.update(self._last_error_mm, self._saturated)
-        else:
-            u2 = self.pid.output_v
+        else:  # none: the last error again while its sample is young enough, else the PID holds
+            last = self._last_error_mm
+            usable = newest_usable and last is not None
+            u2 = self.pid.update(last if usable else math.nan, self._saturated, usable)
 
         if k < len(self.table):
             r, r1, r2, r3, r_now = self.table[k]
@@ -233,45 +231,21 @@ class FelController:
         w = self._w
         w[0], w[1], w[2], w[3], w[4] = r3, r2, r1, r, 1.0
         w[5] = 1.0 if r1 > 0.0 else (-1.0 if r1 < 0.0 else 0.0)
-
-        params = self.estimator.theta
-        scales = self.scales
-        u1 = 0.0
+        w_est = self._w_est
         for j, i in enumerate(self.estimated):
-            u1 += params[j] * w[i] / scales[i]
+            w_est[j] = w[i] * self._inv_scales[j]
         fixed_part = 0.0
         for i in self.fixed:
             fixed_part += self.nominal[i] * w[i]
         # the parameters are the reference coil's; this coil needs rho times the drive
-        if k < len(self._coil_history):
-            coil_ohm = self.coil.resistance_ohm
-            self._coil_history[k] = coil_ohm
-            self._coil_sum += coil_ohm
-            self._coil_count += 1
-            dropped = self._coil_history[k - self._coil_window] if k >= self._coil_window else math.nan
-            if dropped == dropped:
-                self._coil_sum -= dropped
-                self._coil_count -= 1
-            self.coil_resistance_ohm = self._coil_sum / self._coil_count
+        if k < len(self._drives):
+            self.coil_resistance_ohm = self._coil_average.add(self.coil.resistance_ohm)
         rho = self.coil_resistance_ohm / self.reference_resistance_ohm
-        u1 = (u1 + fixed_part) * rho
-
-        u = u1 + u2
-        limit = self.drive_limit_v
-        if u >= limit:
-            u, self._saturated = limit, 1
-        elif u <= -limit:
-            u, self._saturated = -limit, -1
-        else:
-            self._saturated = 0
-
-        self.adapting = (
-            self._saturated == 0 and t >= self.adapt_from_s and abs(r1) >= self.reversal_speed_mm_s
-        )
+        ops = law.SCALAR
+        u1 = law.feedforward_v(ops, self.estimator.theta, w_est, fixed_part, rho)
+        u, self._saturated = law.saturate(ops, u1 + u2, self.drive_limit_v)
+        self.adapting = law.adapting(self._saturated, t, r1, self.adapt_from_s, self.reversal_speed_mm_s)
         if self.adapting:
-            w_est = self._w_est
-            for j, i in enumerate(self.estimated):
-                w_est[j] = w[i] / scales[i]
             self.estimator.update(w_est, u / rho - fixed_part)
 
         if k < len(self._drives):

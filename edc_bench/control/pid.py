@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from edc_bench.control import law
+
 
 @dataclass(frozen=True)
 class PidGains:
@@ -44,7 +46,8 @@ class Pid:
 
     The integrator is held (conditional integration) whenever the total drive
     saturates in the direction the integrator would push it further, so it
-    never winds up while the amplifier is at its limit.
+    never winds up while the amplifier is at its limit. The arithmetic is
+    :func:`edc_bench.control.law.pid_update`'s, shared with the batch path.
 
     Parameters
     ----------
@@ -60,18 +63,34 @@ class Pid:
         self.gains = gains
         self.period_s = period_s
         self.output_limit_v = output_limit_v
-        self._a, self._b = derivative_filter_coefficients(gains, period_s)
-        self.integral_v = 0.0
-        self.derivative_v = 0.0
-        self._last_error: float | None = None
-        self.proportional_v = 0.0
-        self.output_v = 0.0
+        self.coefficients = law.PidCoefficients.of(gains, period_s, output_limit_v)
+        self.state = law.PidState()
+
+    @property
+    def integral_v(self) -> float:
+        """The integrator's share of the output."""
+        return self.state.integral_v
+
+    @property
+    def derivative_v(self) -> float:
+        """The filtered derivative's share."""
+        return self.state.derivative_v
+
+    @property
+    def proportional_v(self) -> float:
+        """The proportional share at the last update."""
+        return self.state.proportional_v
+
+    @property
+    def output_v(self) -> float:
+        """The last output."""
+        return self.state.output_v
 
     def restart_derivative(self) -> None:
         """Forget the last error, so the next update takes no derivative across a gap in the samples."""
-        self._last_error = None
+        self.state.last_error_mm = math.nan
 
-    def update(self, error_mm: float, saturated_sign: int = 0) -> float:
+    def update(self, error_mm: float, saturated_sign: int = 0, usable: bool = True) -> float:
         """One PID step.
 
         Parameters
@@ -81,27 +100,12 @@ class Pid:
         saturated_sign : int, optional
             +1 if the previous total drive was at its upper limit, -1 at its
             lower limit, 0 otherwise (for anti-windup).
+        usable : bool, optional
+            False when no sample is young enough to be used: the PID holds its output and its state.
 
         Returns
         -------
         float
             PID output in V, within +/- ``output_limit_v``.
         """
-        g = self.gains
-        self.proportional_v = g.kp_v_per_mm * error_mm
-        step = g.ki_v_per_mm_s * error_mm * self.period_s
-        if not (saturated_sign > 0 and step > 0.0) and not (saturated_sign < 0 and step < 0.0):
-            self.integral_v += step
-        last = self._last_error
-        if last is not None:
-            self.derivative_v = self._a * self.derivative_v + self._b * (error_mm - last)
-        self._last_error = error_mm
-        limit = self.output_limit_v
-        # the integrator alone never exceeds the limit either
-        if self.integral_v > limit:
-            self.integral_v = limit
-        elif self.integral_v < -limit:
-            self.integral_v = -limit
-        u = self.proportional_v + self.integral_v + self.derivative_v
-        self.output_v = limit if u > limit else (-limit if u < -limit else u)
-        return self.output_v
+        return law.pid_update(law.SCALAR, self.coefficients, self.state, error_mm, saturated_sign, usable)

@@ -1,16 +1,16 @@
 """Per-tick compute and per-frame codec cost, each next to its floor.
 
-The floors are the same work in the leanest Python I could write: the
-controller tick with every attribute and method call inlined into one
-closure over local lists, and the frames packed with :mod:`struct` (same
-layout, same scaling, same CRC). Each call is timed on its own with
+The floors are the same work with nothing around it: the controller's
+shared arithmetic (:mod:`edc_bench.control.law`, the loop's and the batch
+path's) called from one closure over local lists, so the tick's figure
+beside it is what the loop's design costs beyond that arithmetic; and the
+frames packed with :mod:`struct` (same layout, same scaling, same CRC). Each call is timed on its own with
 ``perf_counter_ns``, so the figures are per-call percentiles, not averages
 that hide the tail.
 """
 
 from __future__ import annotations
 
-import math
 import struct
 import time
 from collections.abc import Callable
@@ -18,7 +18,10 @@ from collections.abc import Callable
 import numpy as np
 
 from edc_bench.config.models import Variant
+from edc_bench.control import law
+from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.design import ControllerDesign
+from edc_bench.control.estimators import MAX_COVARIANCE_TRACE
 from edc_bench.control.fel import FelController, reference_table
 from edc_bench.perf.figures import percentiles
 from edc_bench.protocol import Icd, Mode
@@ -45,95 +48,56 @@ def _measured_positions(ctl: FelController, count: int, seed: int = 1) -> list[f
 
 
 def lean_tick(design: ControllerDesign, start_mm: float) -> Callable[[int, float], float]:
-    """The floor: :meth:`FelController.step` inlined into one closure.
+    """The floor: the controller's shared arithmetic (:mod:`edc_bench.control.law`) in one closure, and nothing else.
 
-    Built from the same :class:`ControllerDesign` as the loop's controller
-    (reference table, PID coefficients, starting estimates and prior), with
-    no attribute lookups or method calls left in the tick.
+    Built from the same :class:`ControllerDesign` as the loop's controller (reference table, PID coefficients,
+    starting estimates and prior), it calls the same law functions for the PID, the feedforward, the saturation,
+    the adaptation gate, the estimator and the coil average, with the one sample each tick brings; what
+    :class:`FelController` costs beyond it (samples by tick, averaging several, holding, the trace's figures) is
+    the loop design's cost. No coil current comes here: the coil stays at its prior, as in the loop without one.
     """
     reference = design.reference(start_mm)
     table = reference_table(reference, design.period_s, design.ticks)
-    gains = design.pid_gains
-    kp, ki_t = gains.kp_v_per_mm, gains.ki_v_per_mm_s * design.period_s
-    d_a, d_b = design.derivative_filter
-    limit_pid = limit = design.drive_limit_v
+    ops = law.SCALAR
+    pid_c = law.PidCoefficients.of(design.pid_gains, design.period_s, design.drive_limit_v)
+    pid = law.PidState()
+    limit = design.drive_limit_v
     rls = design.estimator_kind == "rls"
     theta = list(design.theta0)
     P = [[s * s if i == j else 0.0 for j, s in enumerate(design.prior_std)] for i in range(len(theta))]
-    lam = design.forgetting_factor if rls else 1.0
-    inv_lam = 1.0 / lam
+    lam = design.forgetting_factor
     gains_t = [g * design.period_s for g in design.gradient_gains_per_s]
     idx = design.estimated
-    n = len(idx)
     inv_scale = [1.0 / design.scales[i] for i in idx]
     fixed = [(i, design.nominal[i]) for i in design.fixed]
-    adapt_from_k = int(math.ceil(design.adapt_from_s / design.period_s - 1e-9))
-    reversal = design.reversal_speed_mm_s
-    state = [0.0, 0.0, None, 0, reference.at(0.0)[0]]  # integral, derivative, last error, saturated, reference
+    coil = CoilEstimator(design.amplifier_gain, design.reference_resistance_ohm, design.period_s)
+    coil_average = law.CoilAverage(design.coil_window_ticks, design.reference_resistance_ohm)
+    r_ref = design.reference_resistance_ohm
+    T, adapt_from_s, reversal = design.period_s, design.adapt_from_s, design.reversal_speed_mm_s
+    state = [0, reference.at(0.0)[0]]  # saturated, the reference the next sample is compared with
     w = [0.0] * 6
-    we = [0.0] * n
-    pw = [0.0] * n
-    rng_n = range(n)
-    residual = [0.0, 0.0]  # weight and variance of the a-priori errors, as the estimator keeps them
+    we = [0.0] * len(idx)
 
     def tick(k: int, measured_mm: float) -> float:
-        integral, deriv, last, sat, r_prev = state
-        e = r_prev - measured_mm
-        step = ki_t * e
-        if not (sat > 0 and step > 0.0) and not (sat < 0 and step < 0.0):
-            integral += step
-        if last is not None:
-            deriv = d_a * deriv + d_b * (e - last)
-        integral = limit_pid if integral > limit_pid else (-limit_pid if integral < -limit_pid else integral)
-        u2 = kp * e + integral + deriv
-        u2 = limit_pid if u2 > limit_pid else (-limit_pid if u2 < -limit_pid else u2)
+        saturated, r_prev = state
+        u2 = law.pid_update(ops, pid_c, pid, r_prev - measured_mm, saturated)
         r, r1, r2, r3, r_now = table[k]
         w[0], w[1], w[2], w[3], w[4] = r3, r2, r1, r, 1.0
         w[5] = 1.0 if r1 > 0.0 else (-1.0 if r1 < 0.0 else 0.0)
-        u1 = 0.0
-        for j in rng_n:
-            wj = w[idx[j]] * inv_scale[j]
-            we[j] = wj
-            u1 += theta[j] * wj
+        for j, i in enumerate(idx):
+            we[j] = w[i] * inv_scale[j]
         fixed_part = 0.0
         for i, a in fixed:
             fixed_part += a * w[i]
-        u1 += fixed_part
-        u = u1 + u2
-        sat = 1 if u >= limit else (-1 if u <= -limit else 0)
-        u = limit if sat > 0 else (-limit if sat < 0 else u)
-        if sat == 0 and k >= adapt_from_k and abs(r1) >= reversal:
-            err = u - u1  # a-priori error of the estimator: y - w . theta with y = u - fixed part
-            if not math.isfinite(err):
-                err = 0.0
-            residual[0] = 0.9995 * residual[0] + 1.0
-            residual[1] += (err * err - residual[1]) / residual[0]
+        rho = coil_average.add(coil.resistance_ohm) / r_ref
+        u1 = law.feedforward_v(ops, theta, we, fixed_part, rho)
+        u, saturated = law.saturate(ops, u1 + u2, limit)
+        if law.adapting(saturated, k * T, r1, adapt_from_s, reversal):
             if rls:
-                denom = lam
-                for i in rng_n:
-                    row = P[i]
-                    acc = 0.0
-                    for j in rng_n:
-                        acc += row[j] * we[j]
-                    pw[i] = acc
-                    denom += we[i] * acc
-                inv = 1.0 / denom
-                for i in rng_n:
-                    theta[i] += pw[i] * inv * err
-                    row = P[i]
-                    ki = pw[i] * inv
-                    for j in range(i, n):
-                        v = (row[j] - ki * pw[j]) * inv_lam
-                        row[j] = v
-                        P[j][i] = v
+                law.rls_update(ops, theta, P, we, u / rho - fixed_part, lam, MAX_COVARIANCE_TRACE)
             else:
-                norm = 1.0
-                for j in rng_n:
-                    norm += we[j] * we[j]
-                s = err / norm
-                for j in rng_n:
-                    theta[j] += gains_t[j] * we[j] * s
-        state[0], state[1], state[2], state[3], state[4] = integral, deriv, e, sat, r_now
+                law.gradient_update(ops, theta, gains_t, we, u / rho - fixed_part)
+        state[0], state[1] = saturated, r_now
         return u
 
     return tick

@@ -25,8 +25,10 @@ import numpy as np
 from scipy.linalg import expm
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.control import law
 from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.design import ControllerDesign
+from edc_bench.control.estimators import MAX_COVARIANCE_TRACE
 from edc_bench.engine.replies import max_reply_age_ticks
 from edc_bench.identification.analysis import settle_times_s
 from edc_bench.identification.period_fit import (
@@ -393,10 +395,8 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
 
     r_ref = variant.coil.resistance_ohm
     coil = CoilEstimator(design.amplifier_gain, np.full(n, r_ref), T)
-    window = design.coil_window_ticks
-    coil_ring = np.zeros((window, n))
-    coil_sum = np.zeros(n)
-    coil_mean = np.full(n, r_ref)
+    coil_average = law.CoilAverage(design.coil_window_ticks, np.full(n, r_ref))
+    coil_mean = coil_average.mean
     pending_current: np.ndarray | None = None  # sampled at the last tick, used from this one (as the loop does)
     u_before = u_last = np.zeros(n)  # the drive in effect while that current came about; the last tick's drive
 
@@ -417,13 +417,10 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     rls = design.estimator_kind == "rls"
     lam = design.forgetting_factor
     P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
-    gain_vec = np.array(design.gradient_gains_per_s) * T
-    gains = design.pid_gains
-    d_a, d_b = design.derivative_filter
+    gain_vec = (np.array(design.gradient_gains_per_s) * T)[:, None]
+    pid_c = law.PidCoefficients.of(design.pid_gains, T, design.drive_limit_v)
+    pid = law.PidState(np.zeros(n))
     limit = design.drive_limit_v
-    integral = np.zeros(n)
-    deriv = np.zeros(n)
-    last_err = np.full(n, np.nan)
     sat = np.zeros(n)
     adapt_from = design.adapt_from_s
     reversal = design.reversal_speed_mm_s
@@ -442,8 +439,8 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
 
     link = None if adapter is None or adapter.is_instant else BatchLink(
         adapter, seeds, T, QUANTA_PER_PERIOD, max_reply_age_ticks(variant), reference_mm)
-    usable = None
-    u2 = np.zeros(n)
+    usable = True
+    ops = law.ARRAYS  # the controller's arithmetic, the loop's, over arrays of valves
     # the identification the verdict rests on: the period fit, fed the same rows as the loop's trace gives it
     setup = FitSetup.from_variant(variant)
     blocks = setup.blocks_in(ticks)
@@ -458,11 +455,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         t = k * T
         if pending_current is not None:
             coil.update(u_before, pending_current)
-        r_now = coil.resistance_ohm
-        slot = k % window
-        coil_sum += r_now - coil_ring[slot]
-        coil_ring[slot] = r_now
-        coil_mean = coil_sum / min(k + 1, window)
+        coil_mean = coil_average.add(coil.resistance_ohm)
         rho = coil_mean / r_ref
         if link is None:
             err = r_prev - x_meas  # PID on the error at the sample's time
@@ -470,19 +463,9 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
             # the samples that came back, each against the reference at its command's tick; none: the last error
             # again while the newest is young enough, else the PID holds
             fresh_err, fresh, newest_usable = link.fresh_error(k)
-            err = np.where(fresh, fresh_err, last_err)
+            err = np.where(fresh, fresh_err, pid.last_error_mm)
             usable = fresh | newest_usable
-        prop = gains.kp_v_per_mm * err
-        step = gains.ki_v_per_mm_s * err * T
-        blocked = sat * step > 0.0  # the drive saturated the way the integrator pushes
-        new_integral = _clip(np.where(blocked, integral, integral + step), limit)
-        new_deriv = np.where(np.isnan(last_err), deriv, d_a * deriv + d_b * (err - last_err))
-        new_u2 = _clip(prop + new_integral + new_deriv, limit)
-        if usable is None:
-            integral, deriv, last_err, u2 = new_integral, new_deriv, err, new_u2
-        else:  # no sample young enough: the PID holds its output and its state
-            integral, deriv = np.where(usable, new_integral, integral), np.where(usable, new_deriv, deriv)
-            last_err, u2 = np.where(usable, err, last_err), np.where(usable, new_u2, u2)
+        u2 = law.pid_update(ops, pid_c, pid, err, sat, usable)
         # regressor at mid-interval, per valve (only r and its derivatives depend on the start)
         at_start0, slope = mid0_rows[k], mid_slope_rows[k]
         r3, r2, r1, r = (at_start0[3] + start * slope[3], at_start0[2] + start * slope[2],
@@ -493,29 +476,15 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
             np.multiply(w_all[i], inv_w_est_scale[j], out=w_est_t[j])
         w_est = w_est_t
         fixed_part = sum(nominal[i] * w_all[i] for i in fixed_idx) if fixed_idx else np.zeros(n)
-        u1 = (np.einsum("jn,jn->n", theta, w_est) + fixed_part) * rho
-        u = u1 + u2
-        sat = (u >= limit) * 1.0 - (u <= -limit)
-        u = _clip(u, limit)
-        adapting = (sat == 0) & (t >= adapt_from) & (np.abs(r1) >= reversal)
+        u1 = law.feedforward_v(ops, theta, w_est, fixed_part, rho)
+        u, sat = law.saturate(ops, u1 + u2, limit)
+        adapting = law.adapting(sat, t, r1, adapt_from, reversal)
         if adapting.any():
             y = u / rho - fixed_part
-            e = y - np.einsum("jn,jn->n", theta, w_est)
             if rls:
-                pw = np.einsum("ijn,jn->in", P, w_est)
-                denom = lam + np.einsum("jn,jn->n", w_est, pw)
-                gain = pw / denom
-                if adapting.all():  # the common case: update in place, no copies
-                    theta += gain * e
-                    P -= gain[:, None, :] * pw[None, :, :]
-                    P *= 1.0 / lam
-                else:
-                    theta = np.where(adapting, theta + gain * e, theta)
-                    P_new = (P - gain[:, None, :] * pw[None, :, :]) / lam
-                    P = np.where(adapting, P_new, P)
+                law.rls_update(ops, theta, P, w_est, y, lam, MAX_COVARIANCE_TRACE, adapting)
             else:
-                norm = 1.0 + np.einsum("jn,jn->n", w_est, w_est)
-                theta = np.where(adapting, theta + gain_vec[:, None] * w_est * (e / norm), theta)
+                law.gradient_update(ops, theta, gain_vec, w_est, y, adapting)
         # the coil current at this tick, before this drive (through an adapter too: the coil's figure is an
         # average over seconds, where the adapter's milliseconds do not count)
         if k > 0:  # the first tick's current came under no drive of the test's (as in the loop: left out)

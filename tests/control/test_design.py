@@ -32,7 +32,9 @@ def test_the_loops_controller_starts_from_the_design(variant: Variant) -> None:
     assert ctl.estimator.theta == list(design.theta0)
     assert [ctl.estimator.P[j][j] for j in range(len(design.theta0))] == pytest.approx(
         [s * s for s in design.prior_std])
-    assert (ctl.pid._a, ctl.pid._b) == derivative_filter_coefficients(design.pid_gains, design.period_s)
+    coefficients = ctl.pid.coefficients
+    assert (coefficients.derivative_a, coefficients.derivative_b) == derivative_filter_coefficients(
+        design.pid_gains, design.period_s)
     assert ctl.reversal_speed_mm_s == pytest.approx(design.reversal_speed_mm_s)
     assert len(ctl.table) == design.ticks
     assert ctl.reference.start_mm == 1.5

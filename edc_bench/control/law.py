@@ -1,0 +1,321 @@
+"""The controller's arithmetic, written once, for one test (floats) or thousands at once (numpy arrays).
+
+Every tick the bench computes the PID's share of the drive, the
+feedforward's, the saturated drive, whether the estimator may learn from
+it, and the estimator's update. This module is the one place that says
+how. Three callers run it:
+
+- the loop's controller (:class:`~edc_bench.control.fel.FelController`, via
+  :class:`~edc_bench.control.pid.Pid` and :mod:`~edc_bench.control.estimators`),
+  with :data:`SCALAR`: plain Python floats and lists, the fastest for one test;
+- the batch path (:mod:`edc_bench.population.batch`), with :data:`ARRAYS`:
+  each value an array over valves, each vector a (n, N) array;
+- the benchmark's floor (:func:`edc_bench.perf.compute.lean_tick`), with
+  :data:`SCALAR` and nothing else around it.
+
+The functions are written in a few primitives (:class:`Ops`); each
+backend implements the primitives (a dot product is a Python loop for five
+floats, one ``einsum`` for five arrays), never the controller. Callers
+reach the functions through this module (``law.pid_update(...)``), so a
+change here is a change everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+class Ops:
+    """The primitives the law is written in, for Python floats and lists (one test).
+
+    A vector is a list of floats; a matrix a list of lists. ``ok`` masks say for which tests an update applies
+    (a bool here).
+    """
+
+    @staticmethod
+    def where(condition: Any, a: Any, b: Any) -> Any:
+        """``a`` where ``condition`` holds, else ``b``."""
+        return a if condition else b
+
+    @staticmethod
+    def clip(x: float, limit: float) -> float:
+        """``x`` within +/- ``limit``."""
+        return limit if x > limit else (-limit if x < -limit else x)
+
+    @staticmethod
+    def isnan(x: float) -> bool:
+        """NaN (here: no previous error)."""
+        return x != x
+
+    @staticmethod
+    def isfinite(x: float) -> bool:
+        """Neither NaN nor infinite."""
+        return math.isfinite(x)
+
+    @staticmethod
+    def any(x: Any) -> bool:
+        """Whether any test has ``x``."""
+        return bool(x)
+
+    @staticmethod
+    def dot(a: list[float], b: list[float]) -> float:
+        """``sum(a_j b_j)``."""
+        out = 0.0
+        for x, y in zip(a, b):
+            out += x * y
+        return out
+
+    @staticmethod
+    def matvec(m: list[list[float]], v: list[float]) -> list[float]:
+        """``m v``."""
+        dot = Ops.dot
+        return [dot(row, v) for row in m]
+
+    @staticmethod
+    def divide(v: list[float], d: float) -> list[float]:
+        """``v / d``."""
+        return [x / d for x in v]
+
+    @staticmethod
+    def multiply(a: list[float], b: list[float]) -> list[float]:
+        """Element by element."""
+        return [x * y for x, y in zip(a, b)]
+
+    @staticmethod
+    def add_scaled(v: list[float], g: list[float], s: float, ok: bool) -> None:
+        """``v += g s`` in place, where ``ok``."""
+        if ok:
+            for i, gi in enumerate(g):
+                v[i] += gi * s
+
+    @staticmethod
+    def rank_one_down(m: list[list[float]], g: list[float], h: list[float], scale: float, ok: bool) -> None:
+        """``m = (m - g h^T) scale`` in place, where ``ok``; ``m`` symmetric and ``g`` parallel to ``h`` (the RLS
+        covariance), so the upper triangle is computed and mirrored, which keeps ``m`` exactly symmetric."""
+        if ok:
+            n = len(h)
+            for i in range(n):
+                row, gi = m[i], g[i]
+                for j in range(i, n):
+                    v = (row[j] - gi * h[j]) * scale
+                    row[j] = v
+                    m[j][i] = v
+
+    @staticmethod
+    def bound_trace(m: list[list[float]], max_trace: float) -> None:
+        """Scale ``m`` down to ``trace(m) = max_trace`` where it is more."""
+        trace = 0.0
+        for i, row in enumerate(m):
+            trace += row[i]
+        if trace > max_trace:
+            scale = max_trace / trace
+            for row in m:
+                for j in range(len(row)):
+                    row[j] *= scale
+
+
+class ArrayOps(Ops):
+    """The primitives for N tests at once: a value is an (N,) array, a vector (n, N), a matrix (n, n, N)."""
+
+    where = staticmethod(np.where)
+    isnan = staticmethod(np.isnan)
+    isfinite = staticmethod(np.isfinite)
+
+    @staticmethod
+    def clip(x: np.ndarray, limit: float) -> np.ndarray:
+        # np.clip's Python wrapper costs several microseconds a call; this is the same for finite limits
+        return np.minimum(np.maximum(x, -limit), limit)
+
+    @staticmethod
+    def any(x: np.ndarray) -> bool:
+        return bool(np.any(x))
+
+    @staticmethod
+    def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.einsum("jn,jn->n", a, b)
+
+    @staticmethod
+    def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return np.einsum("ijn,jn->in", m, v)
+
+    @staticmethod
+    def divide(v: np.ndarray, d: np.ndarray) -> np.ndarray:
+        return v / d
+
+    @staticmethod
+    def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return a * b
+
+    @staticmethod
+    def add_scaled(v: np.ndarray, g: np.ndarray, s: np.ndarray, ok: np.ndarray) -> None:
+        if ok.all():  # the common case: in place, no copies
+            v += g * s
+        else:
+            v[...] = np.where(ok, v + g * s, v)
+
+    @staticmethod
+    def rank_one_down(m: np.ndarray, g: np.ndarray, h: np.ndarray, scale: float, ok: np.ndarray) -> None:
+        if ok.all():
+            m -= g[:, None, :] * h[None, :, :]
+            m *= scale
+        else:
+            m[...] = np.where(ok, (m - g[:, None, :] * h[None, :, :]) * scale, m)
+
+    @staticmethod
+    def bound_trace(m: np.ndarray, max_trace: float) -> None:
+        trace = np.einsum("iin->n", m)
+        if np.any(trace > max_trace):
+            m *= np.where(trace > max_trace, max_trace / trace, 1.0)
+
+
+#: One test, in Python floats.
+SCALAR = Ops()
+#: Many tests, in numpy arrays (valves along the last axis).
+ARRAYS = ArrayOps()
+
+
+# -- the PID -------------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class PidCoefficients:
+    """The PID's numbers for one period: gains, the derivative filter's coefficients, the output limit."""
+
+    kp_v_per_mm: float
+    ki_v_per_mm_s: float
+    period_s: float
+    derivative_a: float
+    derivative_b: float
+    limit_v: float
+
+    @classmethod
+    def of(cls, gains: Any, period_s: float, limit_v: float) -> PidCoefficients:
+        """From the gains (:class:`~edc_bench.control.pid.PidGains`), the period and the drive limit."""
+        from edc_bench.control.pid import derivative_filter_coefficients
+
+        a, b = derivative_filter_coefficients(gains, period_s)
+        return cls(gains.kp_v_per_mm, gains.ki_v_per_mm_s, period_s, a, b, limit_v)
+
+
+class PidState:
+    """The PID's memory: integral, filtered derivative, the error it last took (NaN: none), its output.
+
+    Each a float for one test, an (N,) array for N tests.
+    """
+
+    def __init__(self, zero: Any = 0.0) -> None:
+        self.integral_v = zero * 1.0
+        self.derivative_v = zero * 1.0
+        self.last_error_mm = zero * math.nan
+        self.proportional_v = zero * 1.0
+        self.output_v = zero * 1.0
+
+
+def pid_update(ops: Ops, c: PidCoefficients, s: PidState, error_mm: Any, saturated: Any, usable: Any = True) -> Any:
+    """One PID step on ``error_mm`` (reference minus measured); the output, within +/- the limit.
+
+    The integrator is held while the last drive saturated the way it pushes (``saturated``: +1, -1 or 0), and
+    never exceeds the limit itself; the derivative is filtered and not taken across a missing previous error.
+    Where ``usable`` is false (no sample young enough) the PID holds its output and its state.
+    """
+    proportional = c.kp_v_per_mm * error_mm
+    step = c.ki_v_per_mm_s * error_mm * c.period_s
+    integral = ops.clip(ops.where(saturated * step > 0.0, s.integral_v, s.integral_v + step), c.limit_v)
+    last = s.last_error_mm
+    derivative = ops.where(ops.isnan(last), s.derivative_v,
+                           c.derivative_a * s.derivative_v + c.derivative_b * (error_mm - last))
+    output = ops.clip(proportional + integral + derivative, c.limit_v)
+    if usable is True:
+        s.integral_v, s.derivative_v, s.last_error_mm = integral, derivative, error_mm
+        s.proportional_v, s.output_v = proportional, output
+    else:
+        s.integral_v = ops.where(usable, integral, s.integral_v)
+        s.derivative_v = ops.where(usable, derivative, s.derivative_v)
+        s.last_error_mm = ops.where(usable, error_mm, last)
+        s.proportional_v = ops.where(usable, proportional, s.proportional_v)
+        s.output_v = ops.where(usable, output, s.output_v)
+    return s.output_v
+
+
+# -- feedforward, drive, adaptation ----------------------------------------------------------------------------
+
+def feedforward_v(ops: Ops, theta: Any, w_est: Any, fixed_part: Any, rho: Any) -> Any:
+    """u1: the estimated parameters times their normalised regressors, plus the fixed parameters' part, for this
+    coil (``rho``: its resistance over the reference coil's, whose parameters these are)."""
+    return (ops.dot(theta, w_est) + fixed_part) * rho
+
+
+def saturate(ops: Ops, drive_v: Any, limit_v: float) -> tuple[Any, Any]:
+    """The drive within +/- the limit, and which way it saturated (+1, -1, 0)."""
+    saturated = (drive_v >= limit_v) * 1 - (drive_v <= -limit_v) * 1
+    return ops.clip(drive_v, limit_v), saturated
+
+
+def adapting(saturated: Any, t_s: float, reference_velocity_mm_s: Any, adapt_from_s: float,
+             reversal_speed_mm_s: float) -> Any:
+    """Whether the estimator learns from this tick: the plant got the drive (no saturation), the excitation is
+    running, and the rack slides (not near a reversal, where it sticks and sgn(r') explains nothing)."""
+    return (saturated == 0) & (t_s >= adapt_from_s) & (abs(reference_velocity_mm_s) >= reversal_speed_mm_s)
+
+
+# -- the estimators --------------------------------------------------------------------------------------------
+
+def rls_update(ops: Ops, theta: Any, P: Any, w: Any, y: Any, forgetting: float, max_trace: float,
+               ok: Any = True) -> tuple[Any, Any]:
+    """Recursive least squares with forgetting, in place: ``theta`` moves to explain ``y`` by ``w``.
+
+    Returns the a-priori error ``y - w . theta`` and where the update applied (``ok``, a finite error and a
+    positive gain denominator). ``P`` is bounded to ``trace(P) <= max_trace`` against covariance wind-up.
+    """
+    err = y - ops.dot(theta, w)
+    pw = ops.matvec(P, w)
+    denom = forgetting + ops.dot(w, pw)
+    ok = ok & ops.isfinite(err) & (denom > 0.0) & ops.isfinite(denom)
+    if ops.any(ok):
+        gain = ops.divide(pw, denom)
+        ops.add_scaled(theta, gain, err, ok)
+        ops.rank_one_down(P, gain, pw, 1.0 / forgetting, ok)
+        ops.bound_trace(P, max_trace)
+    return err, ok
+
+
+def gradient_update(ops: Ops, theta: Any, gains_per_tick: Any, w: Any, y: Any, ok: Any = True) -> tuple[Any, Any]:
+    """The paper's gradient law (eq. 14), normalised: ``theta += T gamma w err / (1 + |w|^2)``, in place."""
+    err = y - ops.dot(theta, w)
+    ok = ok & ops.isfinite(err)
+    if ops.any(ok):
+        ops.add_scaled(theta, ops.multiply(gains_per_tick, w), err / (1.0 + ops.dot(w, w)), ok)
+    return err, ok
+
+
+# -- the coil figure the drive is scaled by --------------------------------------------------------------------
+
+class CoilAverage:
+    """The coil's resistance estimate averaged over the last ``window`` ticks (the excitation's longest period):
+    the estimate itself wobbles with the motion, and that wobble, in the drive, moved a1 by -0.6 %.
+
+    ``first`` is the value before any tick (a float, or an (N,) array).
+    """
+
+    def __init__(self, window: int, first: Any) -> None:
+        self.window = window
+        self._ring = [first * 0.0] * window if isinstance(first, float) else np.zeros((window, *np.shape(first)))
+        self._sum = first * 0.0
+        self._added = 0
+        self.mean = first
+
+    def add(self, resistance_ohm: Any) -> Any:
+        """This tick's estimate in; the average out."""
+        slot = self._added % self.window
+        self._sum = self._sum + (resistance_ohm - self._ring[slot])
+        self._ring[slot] = resistance_ohm
+        self._added += 1
+        self.mean = self._sum / min(self._added, self.window)
+        return self.mean
+
+
+__all__ = ["ARRAYS", "SCALAR", "ArrayOps", "CoilAverage", "Ops", "PidCoefficients", "PidState", "adapting",
+           "feedforward_v", "gradient_update", "pid_update", "rls_update", "saturate"]

@@ -1,0 +1,91 @@
+"""The controller's arithmetic is written once (edc_bench.control.law): the loop, replay, the batch path and the
+benchmark's floor all run it, so changing one detail of it changes all four."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from edc_bench.bench import run_simulated_test
+from edc_bench.config import Variant, with_changes
+from edc_bench.control import law
+from edc_bench.control.design import ControllerDesign
+from edc_bench.errors import ConfigError
+from edc_bench.perf.compute import lean_tick
+from edc_bench.population.batch import run_batch
+from edc_bench.population.valves import new_valves
+from edc_bench.records.record import write_record
+from edc_bench.replay import replay_record
+
+
+@pytest.fixture(scope="module")
+def short(variant: Variant) -> Variant:
+    return with_changes(variant, {"excitation": {"duration_s": 8.0}}, "test: 8 s")
+
+
+def _drives(variant: Variant) -> dict[str, np.ndarray]:
+    """The drives of the loop, the batch path and the floor on the same short test."""
+    loop = run_simulated_test(variant, "new", 1, classify=False, check_gains=False)
+    batch = run_batch(variant, new_valves(variant, 2, 5), [5, 6])
+    design = ControllerDesign.from_variant(variant)
+    floor = lean_tick(design, 10.0)
+    positions = np.asarray(loop.trace["position_mm"])
+    floor_drives = np.array([floor(k, float(positions[max(k - 1, 0)])) for k in range(1000)])
+    return {"loop": loop.trace["drive_v"], "batch": batch.parameters, "floor": floor_drives, "result": loop}
+
+
+def test_one_pid_detail_changed_in_one_place_changes_the_loop_replay_the_batch_and_the_floor(
+        short: Variant, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    before = _drives(short)
+    folder = write_record(before["result"], tmp_path / "before", figure=False)
+    original = law.pid_update
+
+    def with_a_bias(*args: object, **kwargs: object) -> object:  # one PID detail: 20 mV more feedback
+        return original(*args, **kwargs) + 0.02
+
+    monkeypatch.setattr(law, "pid_update", with_a_bias)
+    after = _drives(short)
+    for part in ("loop", "batch", "floor"):
+        assert not np.array_equal(before[part], after[part]), part
+    # replay runs the same law: a record made under it replays to the bit, one made before does not
+    changed = write_record(after["result"], tmp_path / "after", figure=False)
+    assert replay_record(changed).reproduced
+    with pytest.raises(ConfigError, match="replayed drives differ"):
+        replay_record(folder)
+
+
+def test_floats_and_arrays_give_the_same_pid(variant: Variant) -> None:
+    """The two backends run one definition: the same errors give the same outputs, test by test."""
+    design = ControllerDesign.from_variant(variant)
+    c = law.PidCoefficients.of(design.pid_gains, design.period_s, design.drive_limit_v)
+    rng = np.random.default_rng(3)
+    errors = rng.normal(0.0, 0.5, (200, 3))
+    saturated = rng.integers(-1, 2, (200, 3))
+    usable = rng.random((200, 3)) > 0.2
+    arrays = law.PidState(np.zeros(3))
+    scalars = [law.PidState() for _ in range(3)]
+    for k in range(200):
+        out = law.pid_update(law.ARRAYS, c, arrays, errors[k], saturated[k], usable[k])
+        for n in range(3):
+            assert law.pid_update(law.SCALAR, c, scalars[n], float(errors[k, n]), int(saturated[k, n]),
+                                  bool(usable[k, n])) == out[n]
+
+
+def test_floats_and_arrays_give_the_same_estimates(variant: Variant) -> None:
+    design = ControllerDesign.from_variant(variant)
+    n = len(design.theta0)
+    rng = np.random.default_rng(4)
+    theta_a = np.tile(np.array(design.theta0)[:, None], (1, 2))
+    P_a = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, 2))
+    theta_s = [list(design.theta0) for _ in range(2)]
+    P_s = [[[s * s if i == j else 0.0 for j, s in enumerate(design.prior_std)] for i in range(n)] for _ in range(2)]
+    for _ in range(300):
+        w = rng.normal(0.0, 1.0, (n, 2))
+        y = rng.normal(0.0, 1.0, 2)
+        law.rls_update(law.ARRAYS, theta_a, P_a, w, y, 0.999, 1e6, np.array([True, True]))
+        for v in range(2):
+            law.rls_update(law.SCALAR, theta_s[v], P_s[v], w[:, v].tolist(), float(y[v]), 0.999, 1e6)
+    for v in range(2):  # the primitives sum in their own order: the same to rounding
+        np.testing.assert_allclose(theta_a[:, v], theta_s[v], rtol=1e-9)
