@@ -51,15 +51,10 @@ class Ops:
         """NaN (here: no previous error)."""
         return x != x
 
-    @staticmethod
-    def isfinite(x: float) -> bool:
-        """Neither NaN nor infinite."""
-        return math.isfinite(x)
-
-    @staticmethod
-    def any(x: Any) -> bool:
-        """Whether any test has ``x``."""
-        return bool(x)
+    #: Neither NaN nor infinite.
+    isfinite = staticmethod(math.isfinite)
+    #: Whether any test has it.
+    any = staticmethod(bool)
 
     @staticmethod
     def dot(a: list[float], b: list[float]) -> float:
@@ -72,8 +67,13 @@ class Ops:
     @staticmethod
     def matvec(m: list[list[float]], v: list[float]) -> list[float]:
         """``m v``."""
-        dot = Ops.dot
-        return [dot(row, v) for row in m]
+        out = []
+        for row in m:
+            acc = 0.0
+            for x, y in zip(row, v):
+                acc += x * y
+            out.append(acc)
+        return out
 
     @staticmethod
     def divide(v: list[float], d: float) -> list[float]:
