@@ -66,8 +66,7 @@ def main() -> None:
 
     title = f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve V-1187, simulated rig, simulated time"
     capture = Capture()
-    new = run_simulated_test(variant, "new", 3, valve_id="V-1187", observer=capture)
-    new.identity = identity
+    new = run_simulated_test(variant, "new", 3, valve_id="V-1187", observer=capture, identity=identity)
     new_dir = write_record(new, scratch / "records")
     index_record_dir(new_dir)
     console = _console()
@@ -80,8 +79,7 @@ def main() -> None:
     # the same valve wearing out over three visits: the last one fails
     worn_dir = None
     for n, clearance in enumerate((0.12, 0.17, 0.25)):
-        result = run_simulated_test(variant, f"clearance={clearance}", 10 + n, valve_id="V-2040")
-        result.identity = identity
+        result = run_simulated_test(variant, f"clearance={clearance}", 10 + n, valve_id="V-2040", identity=identity)
         worn_dir = write_record(result, scratch / "records")
         index_record_dir(worn_dir)
     console = _console()

@@ -18,7 +18,7 @@ On any python-can bus (a real rig, or ``edc-bench rig`` over slcan)::
 
     with can.Bus(interface="slcan", channel="socket://127.0.0.1:5000", bitrate=500000,
                  sleep_after_open=0) as bus:
-        result = run_bench_test(bus, RealTimeClock(), load_variant(), valve_id="V-0042")
+        result = run_bench_test(bus, RealTimeClock(), load_variant(), BenchOptions(valve_id="V-0042"))
 """
 
 from __future__ import annotations
@@ -26,40 +26,91 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import can
 
 from edc_bench.config.models import Variant
 from edc_bench.physics.feedforward import FeedforwardParameters
 from edc_bench.physics.valve import ValveSpec, parse_valve_spec
-from edc_bench.verdict.baseline import load_baseline
+from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.judgement import judge_run
 
 if TYPE_CHECKING:
     from edc_bench.sim.adapter import AdapterModel
+    from edc_bench.sim.rig import SimulatedRig
 from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.gain_check import check_variant_gains
-from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase
+from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase, StopRule
 from edc_bench.runtime.signals import interrupt_guard, stop_requested
 from edc_bench.runtime.timing import timing_summary
 
-__all__ = ["BenchResult", "run_bench_test", "run_simulated_test"]
+__all__ = ["BenchResult", "BenchOptions", "run_bench_test", "run_simulated_test"]
 
 
-def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id: str = "",
-                   icd: Icd | None = None, observer: LoopObserver | None = None,
-                   truth: FeedforwardParameters | None = None, check_gains: bool = True,
-                   classify: bool = True, classifier_path: Path | None = None,
-                   stream_can_log: Callable[[], Path] | None = None,
-                   coil_temp_c: float | None = None, nominal_baseline: bool = False,
-                   calibrate_command: str | None = None, full_length: bool = False) -> BenchResult:
+@dataclass(frozen=True)
+class BenchOptions:
+    """How to run one bench test: everything but the bus, the clock and the variant, in one typed value.
+
+    Attributes
+    ----------
+    valve_id : str
+        Identity of the valve under test, for the record.
+    identity : Mapping
+        Who and where (``pump_serial``, ``station``, ``operator``), for the record and the history.
+    classify : bool
+        Judge a trustworthy test with the classifier (default); off for baseline calibration.
+    classifier_path : pathlib.Path or None
+        ONNX model to judge with; the packaged (or adopted) one by default.
+    check_gains : bool
+        Check the PID gains' margins with python-control first (default).
+    coil_temp_c : float or None
+        The coil's temperature at the start, to refer its measured resistance to 20 degC (20 degC if not given).
+    nominal_baseline : bool
+        Judge a variant that has no measured baseline against the nominal one (``--nominal-baseline``);
+        by default such a test ends INVALID, "variant not calibrated".
+    calibrate_command : str or None
+        The command that calibrates the variant on this rig, quoted in that reason.
+    full_length : bool
+        Run the variant's whole duration; by default a classified test stops as soon as its verdict is certain
+        or its model is known not to fit (:mod:`edc_bench.verdict.early_stop`).
+    observer : LoopObserver or None
+        Told the phases and shown the loop as it runs (live view, log lines).
+    stream_can_log : callable or None
+        Returns the file to stream the raw CAN log to while the test runs (called once the test is about to
+        start), so that a killed process leaves a readable log.
+    truth : FeedforwardParameters or None
+        True parameters, when the rig is simulated.
+    describe_rig : callable or None
+        Called once the loop has ended: what the record says of a simulated rig (``simulation``).
+    icd : Icd or None
+        Compiled ICD (the packaged one by default).
+    """
+
+    valve_id: str = ""
+    identity: Mapping[str, str] = field(default_factory=dict)
+    classify: bool = True
+    classifier_path: Path | None = None
+    check_gains: bool = True
+    coil_temp_c: float | None = None
+    nominal_baseline: bool = False
+    calibrate_command: str | None = None
+    full_length: bool = False
+    observer: LoopObserver | None = None
+    stream_can_log: Callable[[], Path] | None = None
+    truth: FeedforwardParameters | None = None
+    describe_rig: Callable[[], dict[str, Any]] | None = None
+    icd: Icd | None = None
+
+
+def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: BenchOptions | None = None) -> BenchResult:
     """Run one bench test on ``bus``.
 
     Parameters
@@ -71,60 +122,73 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
         in-process rig) or :class:`~edc_bench.runtime.clock.RealTimeClock`.
     variant : Variant
         Pump variant.
-    valve_id : str, optional
-        Identity of the valve under test, for the record.
-    icd : Icd, optional
-        Compiled ICD (the packaged one by default).
-    observer : LoopObserver, optional
-        Told the phases and shown the loop as it runs (live view, log lines).
-    truth : FeedforwardParameters, optional
-        True parameters, when the rig is simulated.
-    check_gains : bool, optional
-        Check the PID gains' margins with python-control first (default).
-    classify : bool, optional
-        Judge a trustworthy test with the classifier (default); off for
-        baseline calibration.
-    classifier_path : pathlib.Path, optional
-        ONNX model to judge with; the packaged one by default.
-    coil_temp_c : float, optional
-        The coil's temperature at the start, to refer its measured resistance to 20 degC (20 degC if not given).
-    stream_can_log : callable, optional
-        Returns the file to stream the raw CAN log to while the test runs
-        (called once the test is about to start), so that a killed process
-        leaves a readable log.
-    nominal_baseline : bool, optional
-        Judge a variant that has no measured baseline against the nominal one (``--nominal-baseline``);
-        by default such a test ends INVALID, "variant not calibrated".
-    calibrate_command : str, optional
-        The command that calibrates the variant on this rig, quoted in that reason.
-    full_length : bool, optional
-        Run the variant's whole duration; by default a classified test stops as soon as its verdict is certain
-        or its model is known not to fit (:mod:`edc_bench.verdict.early_stop`).
+    options : BenchOptions, optional
+        Everything else (the valve's identity, judging, the live view...); the defaults otherwise.
 
     Returns
     -------
     BenchResult
-        Also when the test was aborted: then the verdict is INVALID and the
-        trace holds what was measured.
+        Complete, built once: also when the test was aborted (then the verdict is INVALID and the trace holds
+        what was measured).
 
     Raises
     ------
     ConfigError
         If the variant's gains are unstable or marginal on its nominal plant.
     """
-    margins = check_variant_gains(variant) if check_gains else None
+    o = options or BenchOptions()
+    margins = check_variant_gains(variant) if o.check_gains else None
     # loaded before the test: a damaged baseline file is refused now, not after it
-    baseline = load_baseline(variant) if classify else None
+    baseline = load_baseline(variant) if o.classify else None
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    stop_rule = None
-    if classify and not full_length and baseline is not None and (baseline.calibrated or nominal_baseline):
-        from edc_bench.verdict.classifier import default_classifier
-        from edc_bench.verdict.early_stop import EarlyStop
-
-        stop_rule = EarlyStop(variant, baseline, default_classifier(str(classifier_path) if classifier_path else None))
-    loop = BenchLoop(bus, clock, variant, icd or default_icd(), observer, stop_requested=stop_requested,
+    stop_rule = _stop_rule(variant, o, baseline)
+    loop = BenchLoop(bus, clock, variant, o.icd or default_icd(), o.observer, stop_requested=stop_requested,
                      stop_rule=stop_rule)
-    can_log_path = None
+    outcome, can_log_path = _run_loop(loop, o.stream_can_log)
+    trace = loop.trace.view()
+    timing = timing_summary(trace, variant.controller.period_s)
+    timing["missed_replies"] = outcome.missed_replies
+    timing["cpu_steal_s"] = outcome.cpu_steal_s
+    timing["first_tick_unix_s"] = outcome.first_tick_unix_s
+    if stop_rule is not None:  # the early stop's longest call, which a real-time tick had to wait for
+        timing["stop_check_max_us"] = outcome.stop_check_max_s * 1e6
+    if o.observer is not None:
+        o.observer.phase(Phase.CLASSIFY)
+    judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=o.truth, classify=o.classify,
+                          classifier_path=o.classifier_path, coil_temp_c=o.coil_temp_c,
+                          nominal_baseline=o.nominal_baseline, calibrate_command=o.calibrate_command,
+                          baseline=baseline, real_rig=not isinstance(clock, SimulatedClock))
+    return BenchResult(
+        stop=stop_summary(variant, outcome, o.full_length, stop_rule is not None),
+        judgement=judgement,
+        timing=timing,
+        outcome=outcome,
+        margins=margins,
+        variant=variant,
+        valve_id=o.valve_id,
+        started_at=started,
+        clock="simulated" if isinstance(clock, SimulatedClock) else "real-time",
+        trace=trace,
+        frames=loop.frames,
+        truth=o.truth,
+        can_log_path=can_log_path,
+        identity=dict(o.identity),
+        simulation=o.describe_rig() if o.describe_rig is not None else None,
+    )
+
+
+def _stop_rule(variant: Variant, o: BenchOptions, baseline: Baseline | None) -> StopRule | None:
+    """The early stop, for a classified test against a calibrated (or deliberately nominal) baseline."""
+    if not o.classify or o.full_length or baseline is None or not (baseline.calibrated or o.nominal_baseline):
+        return None
+    from edc_bench.verdict.classifier import default_classifier
+    from edc_bench.verdict.early_stop import EarlyStop
+
+    return EarlyStop(variant, baseline, default_classifier(str(o.classifier_path) if o.classifier_path else None))
+
+
+def _run_loop(loop: BenchLoop, stream_can_log: Callable[[], Path] | None) -> tuple[LoopOutcome, Path | None]:
+    """Run the loop, streaming the CAN log where asked; the outcome, and where the log was streamed completely."""
     stream = None
     if stream_can_log is not None:
         try:
@@ -133,43 +197,14 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, *, valve_id:
             loop.outcome.events.append(f"can.log could not be opened for streaming ({type(exc).__name__}: {exc}); "
                                        "every frame is kept in memory and written with the record")
     with interrupt_guard():
-        if stream is not None:
-            with stream:
-                outcome = loop.run()
-            can_log_path = stream.path if stream.complete else None
-            if stream.error is not None:
-                outcome.events.append(f"can.log could not be streamed during the test ({stream.error}); every frame "
-                                      "is kept in memory and written with the record")
-        else:
+        if stream is None:
+            return loop.run(), None
+        with stream:
             outcome = loop.run()
-    trace = loop.trace.view()
-    timing = timing_summary(trace, variant.controller.period_s)
-    timing["missed_replies"] = outcome.missed_replies
-    timing["cpu_steal_s"] = outcome.cpu_steal_s
-    timing["first_tick_unix_s"] = outcome.first_tick_unix_s
-    if stop_rule is not None:  # the early stop's longest call, which a real-time tick had to wait for
-        timing["stop_check_max_us"] = outcome.stop_check_max_s * 1e6
-    if observer is not None:
-        observer.phase(Phase.CLASSIFY)
-    judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=truth, classify=classify,
-                          classifier_path=classifier_path, coil_temp_c=coil_temp_c,
-                          nominal_baseline=nominal_baseline, calibrate_command=calibrate_command,
-                          baseline=baseline, real_rig=not isinstance(clock, SimulatedClock))
-    return BenchResult(
-        stop=stop_summary(variant, outcome, full_length, stop_rule is not None),
-        judgement=judgement,
-        timing=timing,
-        outcome=outcome,
-        margins=margins,
-        variant=variant,
-        valve_id=valve_id,
-        started_at=started,
-        clock="simulated" if isinstance(clock, SimulatedClock) else "real-time",
-        trace=trace,
-        frames=loop.frames,
-        truth=truth,
-        can_log_path=can_log_path,
-    )
+    if stream.error is not None:
+        outcome.events.append(f"can.log could not be streamed during the test ({stream.error}); every frame "
+                              "is kept in memory and written with the record")
+    return outcome, stream.path if stream.complete else None
 
 
 def stop_summary(variant: Variant, outcome: LoopOutcome, full_length: bool, early_stop: bool) -> dict:
@@ -193,12 +228,9 @@ _channels = itertools.count()
 
 
 def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
-                       valve_id: str = "", stiction: bool = True, sensor_noise: bool = True,
-                       observer: LoopObserver | None = None, check_gains: bool = True,
-                       classify: bool = True, stream_can_log: Callable[[], Path] | None = None,
-                       adapter: AdapterModel | str | None = None, clock_wrapper: Callable[[Clock], Clock] | None = None,
-                       coil_temp_c: float | None = None, nominal_baseline: bool = False,
-                       calibrate_command: str | None = None, full_length: bool = False) -> BenchResult:
+                       stiction: bool = True, sensor_noise: bool = True, adapter: AdapterModel | str | None = None,
+                       clock_wrapper: Callable[[Clock], Clock] | None = None, options: BenchOptions | None = None,
+                       **option_fields: Any) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -216,20 +248,18 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     adapter : AdapterModel or str, optional
         The CAN adapter's timing between bench and rig (a preset name such as
         ``usb-fs``, see :func:`~edc_bench.sim.adapter.parse_adapter`); instant by default.
-    coil_temp_c : float, optional
-        What the technician states as the coil's temperature at the start (``--coil-temp-c``); not taken
-        from the simulated valve, which the bench does not know.
     clock_wrapper : callable, optional
         Wraps the simulated clock (e.g. :class:`~edc_bench.testing.stalls.StallingClock` to inject host stalls).
-    nominal_baseline, calibrate_command, full_length
-        As :func:`run_bench_test`.
+    options : BenchOptions, optional
+        As :func:`run_bench_test`; single fields may be given by name instead (``full_length=True``). The
+        valve id defaults to the valve's spec; ``coil_temp_c`` is what the technician states, not taken from
+        the simulated valve, which the bench does not know.
 
     Returns
     -------
     BenchResult
-        With ``truth`` set to the simulated plant's parameters.
+        With ``truth`` set to the simulated plant's parameters and ``simulation`` describing the rig.
     """
-    from edc_bench.physics.wear import is_faulty, resisting_force_n
     from edc_bench.sim.adapter import AdapterModel, parse_adapter
     from edc_bench.sim.inprocess import InProcessRig
     from edc_bench.sim.lockstep_bus import lockstep_pair
@@ -238,17 +268,23 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
     link = parse_adapter(adapter) if isinstance(adapter, str) else (adapter or AdapterModel())
     rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise))
+    o = dataclasses.replace(options or BenchOptions(), **option_fields)
+    o = dataclasses.replace(o, valve_id=o.valve_id or spec.label, truth=rig.truth,
+                            describe_rig=lambda: _simulation(variant, spec, rig, link, seed, stiction, sensor_noise))
     bench_bus, rig_bus = lockstep_pair(f"edc-bench-sim-{next(_channels)}")
     with bench_bus, rig_bus:
         clock: Clock = SimulatedClock(InProcessRig(rig_bus, rig, link, seed))
         if clock_wrapper is not None:
             clock = clock_wrapper(clock)
-        result = run_bench_test(bench_bus, clock, variant, valve_id=valve_id or spec.label, observer=observer,
-                                truth=rig.truth, check_gains=check_gains, classify=classify,
-                                stream_can_log=stream_can_log, coil_temp_c=coil_temp_c,
-                                nominal_baseline=nominal_baseline, calibrate_command=calibrate_command,
-                                full_length=full_length)
-    result.simulation = {
+        return run_bench_test(bench_bus, clock, variant, o)
+
+
+def _simulation(variant: Variant, spec: ValveSpec, rig: SimulatedRig, link: AdapterModel, seed: int,
+                stiction: bool, sensor_noise: bool) -> dict[str, Any]:
+    """What the record says of the simulated rig after a test: the valve, its coil, the link and the counters."""
+    from edc_bench.physics.wear import is_faulty, resisting_force_n
+
+    return {
         "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
                   "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},
         "coil": {"resistance_20c_ohm": rig.plant_params.resistance_20c_ohm,
@@ -265,4 +301,3 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
                          "bad_mode": rig.firmware.counters.bad_mode,
                          "watchdog_trips": rig.firmware.counters.watchdog_trips},
     }
-    return result

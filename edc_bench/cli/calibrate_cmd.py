@@ -207,7 +207,7 @@ def _next_valve_command(argv: list[str]) -> str:
 
 def _rig_tests(args: argparse.Namespace, config: dict[str, Any], variant: Any, tests: int) -> list[Any]:
     """Real-time tests on the rig's mounted valve, on the bus ``config`` (checked: :func:`bus_settings`)."""
-    from edc_bench.bench import run_bench_test
+    from edc_bench.bench import BenchOptions, run_bench_test
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import ClosingBus, open_bus
     from edc_bench.runtime.clock import RealTimeClock
@@ -216,8 +216,8 @@ def _rig_tests(args: argparse.Namespace, config: dict[str, Any], variant: Any, t
     out = []
     with ClosingBus(open_bus(config, default_icd().bitrate)) as bus:  # a dead connection must not cost the baseline
         for n in range(tests):
-            result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id or "calibration",
-                                    classify=False)
+            result = run_bench_test(bus, RealTimeClock(), variant, BenchOptions(
+                valve_id=args.valve_id or "calibration", identity=_identity(args), classify=False))
             out.extend(_keep(args, result, n, tests, "rig"))
             if stop_requested():  # Ctrl-C ended this test (INVALID, recorded): run no more
                 raise KeyboardInterrupt
@@ -234,23 +234,28 @@ def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, see
     out = []
     for n in range(tests):
         result = run_simulated_test(variant, valve, seed + n, valve_id=args.valve_id or f"{args.valve} (simulated)",
-                                    classify=False)
+                                    identity=_identity(args), classify=False)
         out.extend(_keep(args, result, n, tests, "simulated rig"))
         if stop_requested():
             raise KeyboardInterrupt
     return out
 
 
+def _identity(args: argparse.Namespace) -> dict[str, str]:
+    """Who and where, for a calibration test's record."""
+    import socket
+
+    return {"station": args.station or socket.gethostname(), "purpose": "calibration"}
+
+
 def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str) -> list[Any]:
     """Write the test's record and print its line; the test as a baseline entry if it converged."""
-    import socket
 
     from edc_bench.errors import RecordNotWrittenError
     from edc_bench.records.record import write_record
     from edc_bench.verdict.baseline import BaselineTest
     from edc_bench.verdict.verdicts import Verdict
 
-    result.identity = {"station": args.station or socket.gethostname(), "purpose": "calibration"}
     try:
         record = write_record(result, args.out, figure=False)
     except OSError as exc:  # the baseline names each test's record: without it, no baseline

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -211,24 +212,39 @@ def _observer(args: argparse.Namespace, title: str) -> Any:
 
 
 def _run_guarded(args: argparse.Namespace) -> int:
-    from edc_bench.bench import run_bench_test, run_simulated_test
     from edc_bench.cli.common import check_output_folder
-    from edc_bench.physics.valve import parse_valve_spec
-    from edc_bench.protocol import default_icd
-    from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
-    from edc_bench.runtime.bus import ClosingBus, open_bus
-    from edc_bench.runtime.clock import RealTimeClock
 
     check_output_folder(args.out, "--out")  # before the test, not after it
     variant = _variant(args)
     bus_config = _bus_config(args)
-    identity = _identity(args)
+    _check_rig_flags(args, variant, bus_config)
+    simulated = bus_config is None and not args.realtime
+    # a simulated valve is named by its spec; a valve on a bus is named only by the technician
+    valve_id = args.valve_id or (args.valve if simulated else "")
+    if not valve_id:
+        print("edc-bench test: warning: no --valve-id: the record and the history name no valve (the bench cannot "
+              "read it off the valve); give --valve-id ID to follow this valve in 'edc-bench history --trend' "
+              "and 'edc-bench label'", file=sys.stderr)
     folder: list[Path] = []
+    options = _options(args, variant, bus_config, valve_id, folder)
+    where = ("simulated rig, simulated time" if simulated else
+             "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
+    title = f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve {valve_id or '?'}, {where}"
+    with _observer(args, title) as observer:
+        if observer is not None:
+            observer.phase("connect")
+        result, notes = _run(args, variant, bus_config, dataclasses.replace(options, observer=observer))
+    return _finish(args, result, folder[0] if folder else None, notes)
+
+
+def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None) -> None:
+    """Refuse a bad --adapter or --valve before any work; warn about flags that do not apply to a real bus."""
+    from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.sim.adapter import parse_adapter
 
-    parse_adapter(args.adapter)  # refuse a bad --adapter before any work
+    parse_adapter(args.adapter)
     if bus_config is None:
-        parse_valve_spec(args.valve, variant)  # and a bad --valve before the panel or the rig starts
+        parse_valve_spec(args.valve, variant)  # before the panel or the rig starts
     if args.adapter != "none" and bus_config is not None:
         print("edc-bench test: warning: --adapter simulates an adapter for the simulated rig; a real bus has its "
               "own timing", file=sys.stderr)
@@ -238,6 +254,13 @@ def _run_guarded(args: argparse.Namespace) -> int:
         print(f"edc-bench test: warning: {', '.join(simulated_only)} describe the simulated rig; on a real bus the "
               "valve mounted is what is tested", file=sys.stderr)
 
+
+def _options(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None, valve_id: str,
+             folder: list[Path]) -> Any:
+    """The test's options from the command line; ``folder`` receives the record folder once the CAN log starts."""
+    from edc_bench.bench import BenchOptions
+    from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
+
     def stream_target() -> Path:
         # the record folder exists from the first frame on: a killed test leaves its CAN log
         import datetime
@@ -246,62 +269,59 @@ def _run_guarded(args: argparse.Namespace) -> int:
         folder.append(new_record_dir(args.out, valve_id, variant.name, started))
         return folder[0] / CAN_LOG_FILE
 
-    simulated = bus_config is None and not args.realtime
-    # a simulated valve is named by its spec; a valve on a bus is named only by the technician
-    valve_id = args.valve_id or (args.valve if simulated else "")
-    if not valve_id:
-        print("edc-bench test: warning: no --valve-id: the record and the history name no valve (the bench cannot "
-              "read it off the valve); give --valve-id ID to follow this valve in 'edc-bench history --trend' "
-              "and 'edc-bench label'", file=sys.stderr)
-    baseline_options = {"nominal_baseline": args.nominal_baseline, "full_length": args.full_length,
-                        "calibrate_command": _calibrate_command(variant, bus_config)}
-    where = ("simulated rig, simulated time" if simulated else
-             "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
-    valve_name = valve_id or "?"
-    title = f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve {valve_name}, {where}"
+    return BenchOptions(valve_id=valve_id, identity=_identity(args), coil_temp_c=args.coil_temp_c,
+                        nominal_baseline=args.nominal_baseline, full_length=args.full_length,
+                        calibrate_command=_calibrate_command(variant, bus_config), stream_can_log=stream_target)
+
+
+def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None,
+         options: Any) -> tuple[Any, list[str]]:
+    """Run the test on the rig the flags name; the result, and what the record should note of the bus after it."""
+    from edc_bench.bench import run_bench_test, run_simulated_test
+    from edc_bench.physics.valve import parse_valve_spec
+    from edc_bench.protocol import default_icd
+    from edc_bench.runtime.bus import ClosingBus, open_bus
+    from edc_bench.runtime.clock import RealTimeClock
+
     # the panel's title says it all; a line on stderr would only tear the panel
     quiet = args.json or _live(args)
     log = (lambda line: None) if quiet else (lambda line: print(line, file=sys.stderr, flush=True))
-    with _observer(args, title) as observer:
-        if observer is not None:
-            observer.phase("connect")
-        if simulated:
-            valve = parse_valve_spec(args.valve, variant)
-            log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
-                f"simulated time, at most {variant.excitation.duration_s:g} s")
-            result = run_simulated_test(variant, valve, args.seed, valve_id=valve_id,
-                                        stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
-                                        observer=observer, stream_can_log=stream_target, adapter=args.adapter,
-                                        coil_temp_c=args.coil_temp_c, **baseline_options)
-        else:
-            icd = default_icd()
-            if bus_config is None:
-                from edc_bench.sim.process import rig_process
+    if bus_config is None and not args.realtime:
+        log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
+            f"simulated time, at most {variant.excitation.duration_s:g} s")
+        return run_simulated_test(variant, parse_valve_spec(args.valve, variant), args.seed,
+                                  stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
+                                  adapter=args.adapter, options=options), []
+    icd = default_icd()
+    if bus_config is not None:
+        log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
+        session = ClosingBus(open_bus(bus_config, icd.bitrate))
+        with session as bus:
+            result = run_bench_test(bus, RealTimeClock(), variant, options)
+        return result, _closing_notes(session)
+    from edc_bench.sim.process import rig_process
 
-                parse_valve_spec(args.valve, variant)  # refuse a bad spec before starting anything
-                rig_status: dict[str, float] = {}
-                with rig_process(args.variant, args.valve, args.seed, args.adapter, rig_status) as channel:
-                    log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
-                    session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
-                    with session as bus:
-                        result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
-                                                observer=observer, stream_can_log=stream_target,
-                                                coil_temp_c=args.coil_temp_c, **baseline_options)
-                # the rig process's side of the timing: how long it once went without serving (a disturbed rig)
-                result.simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter,
-                                                     **rig_status}}
-            else:
-                log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
-                session = ClosingBus(open_bus(bus_config, icd.bitrate))
-                with session as bus:
-                    result = run_bench_test(bus, RealTimeClock(), variant, valve_id=args.valve_id,
-                                            observer=observer, stream_can_log=stream_target,
-                                            coil_temp_c=args.coil_temp_c, **baseline_options)
-            if session.close_error:  # a connection that died with the test: noted, the record is what matters
-                result.outcome.events.append(f"closing the bus failed: {session.close_error}")
-    result.identity = identity
+    rig_status: dict[str, float] = {}
+    with rig_process(args.variant, args.valve, args.seed, args.adapter, rig_status) as channel:
+        log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
+        session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
+        with session as bus:
+            result = run_bench_test(bus, RealTimeClock(), variant, options)
+    # the rig process's side of the timing (how long it once went without serving: a disturbed rig), known once it
+    # has stopped
+    simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter, **rig_status}}
+    return dataclasses.replace(result, simulation=simulation), _closing_notes(session)
 
-    record_dir, record_error = _write_record(result, args, folder[0] if folder else None)
+
+def _closing_notes(session: Any) -> list[str]:
+    """A connection that died with the test (:class:`~edc_bench.runtime.bus.ClosingBus`): noted in the record,
+    which is what matters."""
+    return [f"closing the bus failed: {session.close_error}"] if session.close_error else []
+
+
+def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: list[str]) -> int:
+    """Write the record, add it to the history, report the verdict; the exit code."""
+    record_dir, record_error = _write_record(result, args, folder, notes)
     if record_dir is None:
         _report(args, result, None)
         print(f"edc-bench test: error: the record could not be written ({record_error}). The verdict above was "
@@ -338,7 +358,8 @@ def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> N
         print_quietly_if_closed(lambda: _print_report(result, record_dir))
 
 
-def _write_record(result: Any, args: argparse.Namespace, folder: Path | None) -> tuple[Path | None, str | None]:
+def _write_record(result: Any, args: argparse.Namespace, folder: Path | None,
+                  notes: list[str]) -> tuple[Path | None, str | None]:
     """Write the record under ``--out``; if its record.json cannot be written (a full disk), into a new folder in
     the temp folder.
 
@@ -349,21 +370,21 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None) ->
     """
     import tempfile
 
-    from edc_bench.records.record import write_record
+    from edc_bench.records.record import missing_files, write_record
 
     try:
-        written = write_record(result, args.out, figure=not args.no_figure, folder=folder)
-        missing = {k: v for k, v in result.record_files.items() if k.endswith("_error") and k != "figure_error"}
+        written = write_record(result, args.out, figure=not args.no_figure, folder=folder, notes=notes)
+        missing = missing_files(written)
         if not missing:
             return written, None
-        return written, "the record is incomplete: " + "; ".join(f"{k[:-6]}: {v}" for k, v in missing.items())
+        return written, "the record is incomplete: " + "; ".join(f"{k}: {v}" for k, v in missing.items())
     except OSError as exc:
         first = f"{type(exc).__name__}: {exc}"
     where = f" (what was written is in {folder})" if folder is not None else ""
-    result.outcome.events.append(f"the record could not be written under {args.out} ({first}){where}")
+    notes = [*notes, f"the record could not be written under {args.out} ({first}){where}"]
     try:
         fallback = Path(tempfile.mkdtemp(prefix="edc-bench-record-"))
-        written = write_record(result, fallback, figure=False, folder=fallback)
+        written = write_record(result, fallback, figure=False, folder=fallback, notes=notes)
     except OSError as exc:
         return None, f"under {args.out}: {first}; in the temp folder: {type(exc).__name__}: {exc}"
     return written, (f"the record could not be written under {args.out} ({first}); it was saved to {written} "

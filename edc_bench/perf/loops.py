@@ -156,7 +156,7 @@ def _loop_figures(late_s: np.ndarray, times_ns: np.ndarray, steal: np.ndarray, p
 
 def realtime(variant_name: str | None, period_s: float, duration_s: float) -> dict[str, LoopFigures]:
     """The bench loop against the rig process, and a bare loop, at ``period_s`` for ``duration_s`` each."""
-    from edc_bench.bench import run_bench_test
+    from edc_bench.bench import BenchOptions, run_bench_test
     from edc_bench.config import load_variant
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import open_bus
@@ -171,7 +171,7 @@ def realtime(variant_name: str | None, period_s: float, duration_s: float) -> di
         with rig_process(variant_name, "new", 0) as channel, open_bus({"interface": "slcan", "channel": channel},
                                                                       icd.bitrate) as bus:
             clock = RealTimeClock()
-            result = run_bench_test(bus, clock, variant, classify=False)
+            result = run_bench_test(bus, clock, variant, BenchOptions(classify=False))
         steal = sampler.samples()
     bare = _loop_figures(late, deadlines, steal, period_s, bare_steal)
     trace = result.trace
@@ -211,7 +211,7 @@ def link_test(variant_name: str | None, duration_s: float, *, adapter: str = "no
     The variant's own acceptance applies (nothing loosened): this is what a
     technician would get.
     """
-    from edc_bench.bench import run_bench_test
+    from edc_bench.bench import BenchOptions, run_bench_test
     from edc_bench.config import load_variant
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import open_bus
@@ -225,7 +225,7 @@ def link_test(variant_name: str | None, duration_s: float, *, adapter: str = "no
         clock = StallingClock(clock, stall_s=stall_s, every_s=1.0, first_s=min(2.5, duration_s / 2))
     with rig_process(variant_name, "new", 0, adapter, status) as channel, \
             open_bus({"interface": "slcan", "channel": channel}, default_icd().bitrate) as bus:
-        result = run_bench_test(bus, clock, variant, classify=True)
+        result = run_bench_test(bus, clock, variant, BenchOptions(classify=True))
     outcome, trace = result.outcome, result.trace
     gap = trace["gap"].astype(bool)
     after = np.flatnonzero(gap[:-1] & ~gap[1:]) + 1  # first tick run after each gap

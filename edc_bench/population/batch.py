@@ -344,6 +344,113 @@ class _RowFeeder:
         self._feed(last_tick - self.half - self.p)
 
 
+class _Sensors:
+    """The rig's LVDT and current sensor for N valves: the plant's true values, noise from a stream per valve,
+    offset and resolution, as the simulated rig's sensors give them."""
+
+    def __init__(self, variant: Variant, plant: _VectorPlant, seeds: Sequence[int], sensor_noise: bool) -> None:
+        lvdt, current = variant.sensors.lvdt, variant.sensors.current
+        self.plant = plant
+        self.noise = _Noise(seeds, lvdt.noise_sd if sensor_noise else 0.0)
+        self._resolution = lvdt.resolution if sensor_noise else 1e-9
+        self._offset = lvdt.offset if sensor_noise else 0.0
+        # the coil current, read with each sample (at the tick, before its drive applies), noise of its own
+        self._current_noise = _Noise([s + 7_919 for s in seeds], current.noise_sd if sensor_noise else 0.0)
+        self._current_step = current.resolution if sensor_noise else 1e-9
+        self._current_offset = current.offset if sensor_noise else 0.0
+
+    def read(self, true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
+        """The LVDT's reading of rack positions ``true_mm`` with the given noise."""
+        return np.round((true_mm + self._offset + noise_mm) / self._resolution) * self._resolution
+
+    def sample(self) -> np.ndarray:
+        """The rack position now, as the LVDT reads it."""
+        return self.read(self.plant.x, self.noise.next())
+
+    def current(self) -> np.ndarray:
+        """The coil current now, as the current sensor reads it."""
+        step = self._current_step
+        return np.round((self.plant.i + self._current_offset + self._current_noise.next()) / step) * step
+
+
+class _Reference:
+    """Each valve's reference, tabulated: it is affine in its start position, so two tables (start 0 and 1) hold
+    every valve's."""
+
+    def __init__(self, design: ControllerDesign, start: np.ndarray) -> None:
+        T = design.period_s
+        ref0, ref1 = design.reference(0.0), design.reference(1.0)
+        t_ticks = np.arange(design.ticks) * T
+        mid0 = ref0.tabulate(t_ticks + 0.5 * T)
+        self.mid0_rows, self.mid_slope_rows = mid0.T.tolist(), (ref1.tabulate(t_ticks + 0.5 * T) - mid0).T.tolist()
+        self.now0 = ref0.tabulate(t_ticks)[0]
+        self.now_slope = ref1.tabulate(t_ticks)[0] - self.now0
+        self.start = start
+
+    def at_mid_tick(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The third, second and first derivatives and the reference itself in the middle of tick ``k``'s
+        interval (where the drive is held), per valve."""
+        at_start0, slope, start = self.mid0_rows[k], self.mid_slope_rows[k], self.start
+        return (at_start0[3] + start * slope[3], at_start0[2] + start * slope[2],
+                at_start0[1] + start * slope[1], at_start0[0] + start * slope[0])
+
+    def now(self, k: int) -> np.ndarray:
+        """The reference at tick ``k``'s time, per valve."""
+        return self.now0[k] + self.start * self.now_slope[k]
+
+    def of_ticks(self, ticks: np.ndarray, valves: np.ndarray) -> np.ndarray:
+        """The reference at the given ticks for the given valves (tick -1: the start)."""
+        at = np.maximum(ticks, 0)
+        return np.where(ticks >= 0, self.now0[at] + self.start[valves] * self.now_slope[at], self.start[valves])
+
+
+class _Controller:
+    """The bench controller of N valves: :class:`~edc_bench.control.fel.FelController`'s tick over arrays, by the
+    same arithmetic (:mod:`edc_bench.control.law` with :data:`~edc_bench.control.law.ARRAYS`)."""
+
+    def __init__(self, design: ControllerDesign, reference: _Reference, n: int, r_ref: float) -> None:
+        self.design, self.reference, self.r_ref = design, reference, r_ref
+        self.est_idx, self.fixed_idx = list(design.estimated), list(design.fixed)
+        self.nominal = np.array(design.nominal)
+        self.inv_w_est_scale = 1.0 / np.array(design.scales)[self.est_idx]
+        # valves along the last axis: every update is a contiguous pass over n values
+        self.theta = np.tile(np.array(design.theta0)[:, None], (1, n))
+        self.P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
+        self.gain_vec = (np.array(design.gradient_gains_per_s) * design.period_s)[:, None]
+        self.pid_c = law.PidCoefficients.of(design.pid_gains, design.period_s, design.drive_limit_v)
+        self.pid = law.PidState(np.zeros(n))
+        self.saturated = np.zeros(n)
+        self.coil = CoilEstimator(design.amplifier_gain, np.full(n, r_ref), design.period_s)
+        self.coil_average = law.CoilAverage(design.coil_window_ticks, np.full(n, r_ref))
+        self._w_est = np.empty((len(self.est_idx), n))  # the estimator's regressors, one row per parameter
+        self._ones = np.ones(n)
+
+    def step(self, k: int, error_mm: np.ndarray,
+             usable: np.ndarray | bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Tick ``k``: the drive per valve, the coil ratio it was scaled by, and r' (for the fit's rows)."""
+        ops, design = law.ARRAYS, self.design
+        rho = self.coil_average.add(self.coil.resistance_ohm) / self.r_ref
+        u2 = law.pid_update(ops, self.pid_c, self.pid, error_mm, self.saturated, usable)
+        r3, r2, r1, r = self.reference.at_mid_tick(k)
+        w_all = (r3, r2, r1, r, self._ones, np.sign(r1))
+        for j, i in enumerate(self.est_idx):
+            np.multiply(w_all[i], self.inv_w_est_scale[j], out=self._w_est[j])
+        w_est, nominal = self._w_est, self.nominal
+        fixed_part = sum(nominal[i] * w_all[i] for i in self.fixed_idx) if self.fixed_idx else np.zeros(len(r))
+        u1 = law.feedforward_v(ops, self.theta, w_est, fixed_part, rho)
+        u, self.saturated = law.saturate(ops, u1 + u2, design.drive_limit_v)
+        adapting = law.adapting(self.saturated, k * design.period_s, r1, design.adapt_from_s,
+                                design.reversal_speed_mm_s)
+        if adapting.any():
+            y = u / rho - fixed_part
+            if design.estimator_kind == "rls":
+                law.rls_update(ops, self.theta, self.P, w_est, y, design.forgetting_factor, MAX_COVARIANCE_TRACE,
+                               adapting)
+            else:
+                law.gradient_update(ops, self.theta, self.gain_vec, w_est, y, adapting)
+        return u, rho, r1
+
+
 def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
               sensor_noise: bool = True, adapter: AdapterModel | None = None) -> BatchResult:
     """Run one simulated bench test per valve, vectorised.
@@ -371,162 +478,119 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     if n == 0 or len(seeds) != n:
         raise ValueError("one seed per valve, and at least one valve")
     design = ControllerDesign.from_variant(variant)
-    T, ticks = design.period_s, design.ticks
-    plant = _VectorPlant(variant, valves, stiction, T)
-    lvdt = variant.sensors.lvdt
-    noise = _Noise(seeds, lvdt.noise_sd if sensor_noise else 0.0)
-    resolution = lvdt.resolution if sensor_noise else 1e-9
-    offset = lvdt.offset if sensor_noise else 0.0
-
-    def read(true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
-        return np.round((true_mm + offset + noise_mm) / resolution) * resolution
-
-    def sample() -> np.ndarray:
-        return read(plant.x, noise.next())
-
-    # the coil current, read with each sample (at the tick, before its drive applies) from a noise stream of its own
-    current = variant.sensors.current
-    current_noise = _Noise([s + 7_919 for s in seeds], current.noise_sd if sensor_noise else 0.0)
-    current_step = current.resolution if sensor_noise else 1e-9
-    current_offset = current.offset if sensor_noise else 0.0
-
-    def read_current() -> np.ndarray:
-        return np.round((plant.i + current_offset + current_noise.next()) / current_step) * current_step
-
-    r_ref = variant.coil.resistance_ohm
-    coil = CoilEstimator(design.amplifier_gain, np.full(n, r_ref), T)
-    coil_average = law.CoilAverage(design.coil_window_ticks, np.full(n, r_ref))
-    coil_mean = coil_average.mean
-    pending_current: np.ndarray | None = None  # sampled at the last tick, used from this one (as the loop does)
-    u_before = u_last = np.zeros(n)  # the drive in effect while that current came about; the last tick's drive
-
-    # the reference is affine in its start position: tabulate it for start 0 and start 1
-    ref0, ref1 = design.reference(0.0), design.reference(1.0)
-    t_ticks = np.arange(ticks) * T
-    mid0 = ref0.tabulate(t_ticks + 0.5 * T)
-    mid_slope = ref1.tabulate(t_ticks + 0.5 * T) - mid0
-    now0 = ref0.tabulate(t_ticks)[0]
-    now_slope = ref1.tabulate(t_ticks)[0] - now0
-    mid0_rows, mid_slope_rows = mid0.T.tolist(), mid_slope.T.tolist()
-    start = sample()  # the SAFE reply before the first tick
-    nominal = np.array(design.nominal)
-    scales = np.array(design.scales)
-    est_idx, fixed_idx = list(design.estimated), list(design.fixed)
-    # valves along the last axis: every update is a contiguous pass over n values
-    theta = np.tile(np.array(design.theta0)[:, None], (1, n))
-    rls = design.estimator_kind == "rls"
-    lam = design.forgetting_factor
-    P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
-    gain_vec = (np.array(design.gradient_gains_per_s) * T)[:, None]
-    pid_c = law.PidCoefficients.of(design.pid_gains, T, design.drive_limit_v)
-    pid = law.PidState(np.zeros(n))
-    limit = design.drive_limit_v
-    sat = np.zeros(n)
-    adapt_from = design.adapt_from_s
-    reversal = design.reversal_speed_mm_s
-    r_prev = start.copy()  # reference at the previous tick (r(0) = start)
-    x_meas = start
-    history = np.zeros((ticks // HISTORY_EVERY + 1, 2, n))
-    h_af, h_a1 = est_idx.index(PARAMETER_NAMES.index("af")), est_idx.index(PARAMETER_NAMES.index("a1"))
-    hist_rows = 0
-    inv_w_est_scale = 1.0 / scales[est_idx]
-    w_est_t = np.empty((len(est_idx), n))  # the estimator's regressors, one row per parameter
-    ones = np.ones(n)
-
-    def reference_mm(ticks: np.ndarray, valves: np.ndarray) -> np.ndarray:
-        at = np.maximum(ticks, 0)  # tick -1's reference is r(0), the start
-        return np.where(ticks >= 0, now0[at] + start[valves] * now_slope[at], start[valves])
-
+    plant = _VectorPlant(variant, valves, stiction, design.period_s)
+    sensors = _Sensors(variant, plant, seeds, sensor_noise)
+    reference = _Reference(design, sensors.sample())  # the SAFE reply before the first tick
+    controller = _Controller(design, reference, n, variant.coil.resistance_ohm)
     link = None if adapter is None or adapter.is_instant else BatchLink(
-        adapter, seeds, T, QUANTA_PER_PERIOD, max_reply_age_ticks(variant), reference_mm)
-    usable = True
-    ops = law.ARRAYS  # the controller's arithmetic, the loop's, over arrays of valves
+        adapter, seeds, design.period_s, QUANTA_PER_PERIOD, max_reply_age_ticks(variant), reference.of_ticks)
     # the identification the verdict rests on: the period fit, fed the same rows as the loop's trace gives it
     setup = FitSetup.from_variant(variant)
-    blocks = setup.blocks_in(ticks)
-    fit_acc = BlockAccumulator(setup, max(blocks, 1), n)
+    fit_acc = BlockAccumulator(setup, max(setup.blocks_in(design.ticks), 1), n)
     lag = 0 if link is None else RING - 2  # through an adapter, command j's sample is read from the link later
-    feeder = _RowFeeder(setup, fit_acc, n, lag)
-    # the tick after which a loop's trace holds b whole periods (and the half window that smooths their end)
-    block_end_ticks = {setup.end_tick(b): b for b in range(1, blocks + 1)}
-    coil_at_blocks = np.full((max(blocks, 1) + 1, n), r_ref)
+    run = _BatchRun(design, plant, sensors, controller, link, _RowFeeder(setup, fit_acc, n, lag), lag)
+    run.all_ticks(setup)
+    return run.result(variant, valves, seeds, setup, fit_acc)
 
-    for k in range(ticks):
-        t = k * T
-        if pending_current is not None:
-            coil.update(u_before, pending_current)
-        coil_mean = coil_average.add(coil.resistance_ohm)
-        rho = coil_mean / r_ref
+
+class _BatchRun:
+    """The ticks of a batch: the controller's step, the rig's reply and period, what the fit and the history keep."""
+
+    def __init__(self, design: ControllerDesign, plant: _VectorPlant, sensors: _Sensors, controller: _Controller,
+                 link: BatchLink | None, feeder: _RowFeeder, lag: int) -> None:
+        self.design, self.plant, self.sensors, self.controller = design, plant, sensors, controller
+        self.reference = controller.reference
+        self.link, self.feeder, self.lag = link, feeder, lag
+        n = len(self.reference.start)
+        self.history = np.zeros((design.ticks // HISTORY_EVERY + 1, 2, n))
+        self.hist_rows = 0
+        est_idx = controller.est_idx
+        self._h_af = est_idx.index(PARAMETER_NAMES.index("af"))
+        self._h_a1 = est_idx.index(PARAMETER_NAMES.index("a1"))
+        self.coil_at_blocks = np.zeros((0, n))
+        self._r_prev = self.reference.start.copy()  # the reference at the previous tick (r(0) = start)
+        self._x_meas = self.reference.start  # the newest sample (instant link)
+
+    def all_ticks(self, setup: FitSetup) -> None:
+        """Run every tick of the test, then feed the fit what is left."""
+        design, controller, link, feeder = self.design, self.controller, self.link, self.feeder
+        ticks, lag = design.ticks, self.lag
+        blocks = setup.blocks_in(ticks)
+        # the tick after which a loop's trace holds b whole periods (and the half window that smooths their end)
+        block_end_ticks = {setup.end_tick(b): b for b in range(1, blocks + 1)}
+        self.coil_at_blocks = np.full((max(blocks, 1) + 1, len(self.reference.start)), controller.r_ref)
+        pending_current: np.ndarray | None = None  # sampled at the last tick, used from this one (as the loop does)
+        u_before = u_last = np.zeros(len(self.reference.start))  # the drive in effect while it came; the last one
+        for k in range(ticks):
+            if pending_current is not None:
+                controller.coil.update(u_before, pending_current)
+            u, rho, r1 = controller.step(k, *self._error(k))
+            # the coil current at this tick, before this drive (through an adapter too: the coil's figure is an
+            # average over seconds, where the adapter's milliseconds do not count)
+            if k > 0:  # the first tick's current came under no drive of the test's (as in the loop: left out)
+                pending_current, u_before = self.sensors.current(), u_last
+            u_last = u
+            feeder.tick(k, u, rho, r1)
+            if k in block_end_ticks:  # a loop stopped here would refer its parameters to this coil figure
+                self.coil_at_blocks[block_end_ticks[k]] = controller.coil_average.mean
+            self._rig_period(k, u)
+            if k % HISTORY_EVERY == 0:
+                self._keep_history()
+        if link is not None:  # the last commands' samples, as far as they reached the rig
+            for j in range(max(0, ticks - lag), ticks):
+                feeder.sample(j, *link.delivered_sample(j))
+        feeder.finish(ticks - 1)
+        self.coil_at_blocks[blocks if blocks else 0] = controller.coil_average.mean
+
+    def _error(self, k: int) -> tuple[np.ndarray, np.ndarray | bool]:
+        """The PID's error at tick ``k`` per valve, and where a sample young enough backs it."""
+        if self.link is None:
+            return self._r_prev - self._x_meas, True  # the error at the sample's time
+        # the samples that came back, each against the reference at its command's tick; none: the last error again
+        # while the newest is young enough, else the PID holds
+        fresh_err, fresh, newest_usable = self.link.fresh_error(k)
+        return np.where(fresh, fresh_err, self.controller.pid.last_error_mm), fresh | newest_usable
+
+    def _rig_period(self, k: int, u: np.ndarray) -> None:
+        """The rig takes tick ``k``'s drive: it samples, applies it, and one period passes (through the link, when
+        it delivers them)."""
+        plant, sensors, link, feeder = self.plant, self.sensors, self.link, self.feeder
         if link is None:
-            err = r_prev - x_meas  # PID on the error at the sample's time
-        else:
-            # the samples that came back, each against the reference at its command's tick; none: the last error
-            # again while the newest is young enough, else the PID holds
-            fresh_err, fresh, newest_usable = link.fresh_error(k)
-            err = np.where(fresh, fresh_err, pid.last_error_mm)
-            usable = fresh | newest_usable
-        u2 = law.pid_update(ops, pid_c, pid, err, sat, usable)
-        # regressor at mid-interval, per valve (only r and its derivatives depend on the start)
-        at_start0, slope = mid0_rows[k], mid_slope_rows[k]
-        r3, r2, r1, r = (at_start0[3] + start * slope[3], at_start0[2] + start * slope[2],
-                         at_start0[1] + start * slope[1], at_start0[0] + start * slope[0])
-        sgn = np.sign(r1)
-        w_all = (r3, r2, r1, r, ones, sgn)
-        for j, i in enumerate(est_idx):
-            np.multiply(w_all[i], inv_w_est_scale[j], out=w_est_t[j])
-        w_est = w_est_t
-        fixed_part = sum(nominal[i] * w_all[i] for i in fixed_idx) if fixed_idx else np.zeros(n)
-        u1 = law.feedforward_v(ops, theta, w_est, fixed_part, rho)
-        u, sat = law.saturate(ops, u1 + u2, limit)
-        adapting = law.adapting(sat, t, r1, adapt_from, reversal)
-        if adapting.any():
-            y = u / rho - fixed_part
-            if rls:
-                law.rls_update(ops, theta, P, w_est, y, lam, MAX_COVARIANCE_TRACE, adapting)
-            else:
-                law.gradient_update(ops, theta, gain_vec, w_est, y, adapting)
-        # the coil current at this tick, before this drive (through an adapter too: the coil's figure is an
-        # average over seconds, where the adapter's milliseconds do not count)
-        if k > 0:  # the first tick's current came under no drive of the test's (as in the loop: left out)
-            pending_current, u_before = read_current(), u_last
-        u_last = u
-        feeder.tick(k, u, rho, r1)
-        if k in block_end_ticks:  # a loop stopped here would refer its parameters to this coil figure
-            coil_at_blocks[block_end_ticks[k]] = coil_mean
-        if link is None:
-            # the rig: sample, then apply the drive, then one period passes
-            x_meas = sample()
-            feeder.sample(k, x_meas)
+            self._x_meas = sensors.sample()
+            feeder.sample(k, self._x_meas)
             plant.advance_period(u)
-            r_prev = now0[k] + start * now_slope[k]
+            self._r_prev = self.reference.now(k)
         else:
-            link.send(k, u, noise.next())
-            link.advance_period(k, plant.advance_quanta, lambda: plant.x, read)
-            if k >= lag:
-                feeder.sample(k - lag, *link.delivered_sample(k - lag))
-        plant.add_heat(T)
-        if k % HISTORY_EVERY == 0:
-            history[hist_rows, 0] = theta[h_af]
-            history[hist_rows, 1] = theta[h_a1]
-            hist_rows += 1
+            link.send(k, u, sensors.noise.next())
+            link.advance_period(k, plant.advance_quanta, lambda: plant.x, sensors.read)
+            if k >= self.lag:
+                feeder.sample(k - self.lag, *link.delivered_sample(k - self.lag))
+        plant.add_heat(self.design.period_s)
 
-    if link is not None:  # the last commands' samples, as far as they reached the rig
-        for j in range(max(0, ticks - lag), ticks):
-            feeder.sample(j, *link.delivered_sample(j))
-    feeder.finish(ticks - 1)
-    coil_at_blocks[blocks if blocks else 0] = coil_mean
-    history = history[:hist_rows]
-    t_hist = np.arange(hist_rows) * HISTORY_EVERY * T
-    acc = variant.acceptance
-    settle = {name: settle_times_s(t_hist, history[:, row, :], adapt_from, acc.settle_band_rel)
-              for name, row in (("af", 0), ("a1", 1))}
-    truth = np.array([list(feedforward_truth(replace(p, resistance_ohm=r_ref))) for p in plant.params])
-    periods = PeriodResults(variant, setup, fit_acc, blocks, coil_at_blocks, nominal, r_ref)
-    at_end = periods.at(blocks)
-    return BatchResult(at_end.parameters, truth, at_end.converged, settle, at_end.condition_number,
-                       list(valves), list(seeds), dict(sorted(link.ages.items())) if link is not None else {},
-                       coil_mean.copy(), plant.resistance_ohm.copy(), model_fits=at_end.model_fits,
-                       periods=periods, problems=at_end.problems)
+    def _keep_history(self) -> None:
+        theta = self.controller.theta
+        self.history[self.hist_rows, 0] = theta[self._h_af]
+        self.history[self.hist_rows, 1] = theta[self._h_a1]
+        self.hist_rows += 1
+
+    def result(self, variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], setup: FitSetup,
+               fit_acc: BlockAccumulator) -> BatchResult:
+        """What the batch found, as a :class:`BatchResult`."""
+        design, plant, controller, link = self.design, self.plant, self.controller, self.link
+        history = self.history[:self.hist_rows]
+        t_hist = np.arange(self.hist_rows) * HISTORY_EVERY * design.period_s
+        settle = {name: settle_times_s(t_hist, history[:, row, :], design.adapt_from_s,
+                                       variant.acceptance.settle_band_rel)
+                  for name, row in (("af", 0), ("a1", 1))}
+        r_ref = controller.r_ref
+        truth = np.array([list(feedforward_truth(replace(p, resistance_ohm=r_ref))) for p in plant.params])
+        periods = PeriodResults(variant, setup, fit_acc, setup.blocks_in(design.ticks), self.coil_at_blocks,
+                                controller.nominal, r_ref)
+        at_end = periods.at(periods.blocks)
+        return BatchResult(at_end.parameters, truth, at_end.converged, settle, at_end.condition_number,
+                           list(valves), list(seeds), dict(sorted(link.ages.items())) if link is not None else {},
+                           controller.coil_average.mean.copy(), plant.resistance_ohm.copy(),
+                           model_fits=at_end.model_fits, periods=periods, problems=at_end.problems)
 
 
 @dataclass

@@ -12,6 +12,7 @@ plane), so the report reads the folder alone.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,7 +42,7 @@ from edc_bench.verdict.judgement import Judgement
 from edc_bench.verdict.verdicts import Verdict
 
 
-@dataclass
+@dataclass(frozen=True)
 class BenchResult:
     """Everything one bench test produced.
 
@@ -74,10 +75,9 @@ class BenchResult:
         Why and when the test ended: ``reason`` (``verdict certain``, ``model does not fit``, ``full length``,
         ``aborted``), ``time_s``, ``full_length`` (the fixed length was asked for), ``max_s``.
     identity : dict
-        Who and where: ``pump_serial``, ``station``, ``operator`` (set by the caller).
-    record_files : dict
-        What :func:`write_record` wrote (record.json's ``files``), with ``*_error`` entries for files it
-        could not write.
+        Who and where: ``pump_serial``, ``station``, ``operator``.
+
+    Built once, complete, by :func:`edc_bench.bench.run_bench_test`; :func:`write_record` writes it as it is.
     """
 
     judgement: Judgement
@@ -96,7 +96,6 @@ class BenchResult:
     stop: dict[str, Any] | None = None
     software_version: str = __version__
     identity: dict[str, str] = field(default_factory=dict)
-    record_files: dict[str, str | None] = field(default_factory=dict)
 
     @property
     def verdict(self) -> Verdict:
@@ -191,7 +190,8 @@ def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, 
     }
 
 
-def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder: Path | None = None) -> Path:
+def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder: Path | None = None,
+                 notes: Sequence[str] = ()) -> Path:
     """Write the record folder of ``result`` under ``out_dir``.
 
     Parameters
@@ -205,6 +205,9 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     folder : pathlib.Path, optional
         An existing folder for this test (e.g. the one the CAN log was
         streamed into); a new one under ``out_dir`` otherwise.
+    notes : sequence of str, optional
+        What happened after the test that the record should say (a bus that failed to close, a first folder
+        that could not be written), added to the loop's events in record.json; ``result`` is not changed.
 
     Each file is written on its own: one that cannot be written (a full disk) is named with its error in
     record.json's ``files`` (``trace_error``, ``can_log_error``, ``figure_error``), and record.json, the
@@ -249,6 +252,15 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
             files["figure"] = FIGURE_FILE
         except Exception as exc:  # noqa: BLE001 - a figure is never worth losing the record
             files["figure_error"] = f"{type(exc).__name__}: {exc}"
-    result.record_files = files
-    write_json(folder / RECORD_FILE, record_dict(result, files))
+    doc = record_dict(result, files)
+    doc["loop"]["events"] = [*doc["loop"]["events"], *notes]
+    write_json(folder / RECORD_FILE, doc)
     return folder
+
+
+def missing_files(folder: Path) -> dict[str, str]:
+    """The files a written record could not hold, with why (record.json's ``files``, the figure aside)."""
+    from edc_bench.records.reader import load_record
+
+    files = load_record(folder).get("files") or {}
+    return {k[: -len("_error")]: v for k, v in files.items() if k.endswith("_error") and k != "figure_error"}

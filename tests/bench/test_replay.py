@@ -11,7 +11,7 @@ from pathlib import Path
 import can
 import pytest
 
-from edc_bench.bench import run_bench_test, run_simulated_test
+from edc_bench.bench import BenchOptions, run_bench_test, run_simulated_test
 from edc_bench.config import load_variant, parse_variant
 from edc_bench.errors import ConfigError
 from edc_bench.records.record import write_record
@@ -49,7 +49,7 @@ def test_a_record_of_an_older_edc_bench_replays_under_today_s_rules(tmp_path: Pa
 def _run_with_lost_replies(simulated_bench, rule: Rule):
     variant = load_variant()
     bench, clock, _ = simulated_bench(variant, "worn", 2)
-    return run_bench_test(FaultyBus(bench, clock.now_s, [rule]), clock, variant, check_gains=False)
+    return run_bench_test(FaultyBus(bench, clock.now_s, [rule]), clock, variant, BenchOptions(check_gains=False))
 
 
 def test_replay_follows_missing_replies_and_aborts(tmp_path: Path, simulated_bench) -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from edc_bench.bench import run_bench_test, run_simulated_test
+from edc_bench.bench import BenchOptions, run_bench_test, run_simulated_test
 from edc_bench.config import load_variant
 from edc_bench.records.record import write_record
 from edc_bench.testing.faults import FaultyBus, Rule
@@ -17,7 +17,8 @@ from edc_bench.testing.faults import FaultyBus, Rule
 def _aborted_record(tmp_path: Path, simulated_bench) -> Path:
     variant = load_variant()
     bench, clock, _ = simulated_bench(variant, "new", 3)
-    result = run_bench_test(FaultyBus(bench, clock.now_s, [Rule("cut", 4.0)]), clock, variant, check_gains=False)
+    result = run_bench_test(FaultyBus(bench, clock.now_s, [Rule("cut", 4.0)]), clock, variant,
+                            BenchOptions(check_gains=False))
     assert result.verdict == "INVALID"
     return write_record(result, tmp_path / "aborted", figure=False)
 
@@ -25,8 +26,8 @@ def _aborted_record(tmp_path: Path, simulated_bench) -> Path:
 @pytest.mark.parametrize("kind", ["fail", "invalid"])
 def test_report_is_one_pdf_page_and_a_png(tmp_path: Path, kind: str, simulated_bench) -> None:
     if kind == "fail":
-        result = run_simulated_test(load_variant(), "worn", 2)
-        result.identity = {"pump_serial": "P-9", "station": "bench-1", "operator": "jo"}
+        result = run_simulated_test(load_variant(), "worn", 2,
+                                    identity={"pump_serial": "P-9", "station": "bench-1", "operator": "jo"})
         folder = write_record(result, tmp_path, figure=False)
     else:
         folder = _aborted_record(tmp_path, simulated_bench)

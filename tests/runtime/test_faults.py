@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from helpers import check_safe_and_complete
 
-from edc_bench.bench import BenchResult, run_bench_test
+from edc_bench.bench import BenchResult, BenchOptions, run_bench_test
 from edc_bench.config import load_variant
 from edc_bench.records.record import write_record
 from edc_bench.runtime.clock import SimulatedClock
@@ -61,7 +61,7 @@ def run_with(simulated_bench, rule: Rule | None = None,
         schedule_rig_fault(rig, rig_fault, FAULT_AT_S)
     bus = FaultyBus(bench, clock.now_s, [rule] if rule else [])
     try:
-        result = run_bench_test(bus, clock, variant, check_gains=False)
+        result = run_bench_test(bus, clock, variant, BenchOptions(check_gains=False))
     finally:
         bus.shutdown()
     clock.wait_until(clock.now_s() + 0.025)  # 25 ms after the bench's last word
@@ -119,7 +119,7 @@ def test_rig_never_ready_is_one_clear_line(tmp_path: Path, simulated_bench) -> N
     variant = load_variant()
     bench, clock, rig = simulated_bench(variant, "new", 1, interface="virtual")
     rig.firmware.heartbeat_enabled = False
-    result = run_bench_test(bench, clock, variant, check_gains=False)
+    result = run_bench_test(bench, clock, variant, BenchOptions(check_gains=False))
     assert result.verdict == Verdict.INVALID
     assert result.reasons == ["aborted: rig not READY within 3 s (no heartbeat)"]
 
@@ -167,7 +167,7 @@ class FailingBus(can.BusABC):
 def test_bus_error_mid_test_ends_invalid_with_the_data_so_far(tmp_path: Path, simulated_bench) -> None:
     variant = load_variant()
     bench, clock, _ = simulated_bench(variant, "worn", 1, interface="virtual")
-    result = run_bench_test(FailingBus(bench, 3000), clock, variant, check_gains=False)
+    result = run_bench_test(FailingBus(bench, 3000), clock, variant, BenchOptions(check_gains=False))
     assert result.verdict == "INVALID"
     assert any("bus error: CanOperationError" in r for r in result.reasons)
     assert 2900 < result.timing["ticks"] < 3000  # what was measured before the fault is kept
@@ -184,7 +184,7 @@ def test_a_stuck_sensor_ends_the_test_100_ticks_after_the_rack_reads_2_mm_off(si
     variant = load_variant(name)
     bench, clock, rig = simulated_bench(variant, "worn", 1, interface="virtual")
     schedule_rig_fault(rig, "lvdt_stuck", FAULT_AT_S)
-    result = run_bench_test(bench, clock, variant, check_gains=False)
+    result = run_bench_test(bench, clock, variant, BenchOptions(check_gains=False))
     reason = result.outcome.abort_reason
     assert reason.startswith("rack does not follow its reference: more than 2 mm off for 100 ticks, moving 0.00 mm")
     assert reason.endswith("(stuck rack or sensor)")

@@ -21,7 +21,7 @@ import can
 import pytest
 from helpers import check_safe_and_complete
 
-from edc_bench.bench import BenchResult, run_bench_test
+from edc_bench.bench import BenchResult, BenchOptions, run_bench_test
 from edc_bench.config import load_variant, with_changes
 from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.trace import FRAME_EXTENDED, FRAME_REMOTE, FRAME_TRUNCATED, CanFrameLog
@@ -54,7 +54,7 @@ def run_over_slcan(link_action, duration_s: float = 30.0, valve: str = "worn") -
         link.accept()
         link_action(link)
         clock = SimulatedClock(link)
-        result = run_bench_test(bus, clock, variant, check_gains=False)
+        result = run_bench_test(bus, clock, variant, BenchOptions(check_gains=False))
     rig.advance_to(clock.now_s() + 0.025)  # 25 ms after the bench's last word: the watchdog has acted
     return result, rig, session
 
@@ -191,7 +191,8 @@ def test_an_interface_echoing_our_own_commands_is_not_another_host() -> None:
     EchoBus._echo = []
     with ClosingBus(EchoBus(link.channel, bitrate=500000, sleep_after_open=0)) as bus:
         link.accept()
-        result = run_bench_test(bus, SimulatedClock(link), variant, check_gains=False, classify=False)
+        result = run_bench_test(bus, SimulatedClock(link), variant, BenchOptions(check_gains=False,
+                                                                                classify=False))
     assert result.outcome.abort_reason is None, result.outcome.abort_reason
 
 
@@ -224,7 +225,8 @@ def test_a_full_disk_while_streaming_costs_neither_the_verdict_nor_the_log(tmp_p
     folder = tmp_path / "rec"
     folder.mkdir()
     # the streamer writes every 0.1 s of wall-clock time, and once more at the end: past FAULT_AT_S either fails
-    result = run_bench_test(bench, clock, variant, check_gains=False, stream_can_log=lambda: folder / "can.log")
+    result = run_bench_test(bench, clock, variant,
+                            BenchOptions(check_gains=False, stream_can_log=lambda: folder / "can.log"))
     assert disk_full_after[0] >= 1
     assert ran_to_the_end(result) and result.can_log_path is None
     assert any("can.log could not be streamed" in e and "No space left" in e for e in result.outcome.events)
@@ -262,7 +264,7 @@ def test_frames_beyond_the_log_maximum_are_reported(tmp_path: Path, monkeypatch:
     monkeypatch.setattr(loop_module, "CanFrameLog", lambda capacity: CanFrameLog(3000))
     variant = _variant(SHORT_S)
     bench, clock, _ = simulated_bench(variant, "worn", 1)
-    result = run_bench_test(bench, clock, variant, check_gains=False)
+    result = run_bench_test(bench, clock, variant, BenchOptions(check_gains=False))
     assert result.frames.count == 3000 and result.outcome.frames_dropped > 10000
     doc, _ = _record(result, tmp_path)
     assert doc["loop"]["frames_dropped"] == result.outcome.frames_dropped
@@ -324,7 +326,7 @@ def test_sent_frames_carry_the_time_they_were_sent(simulated_bench) -> None:
     variant = _variant(SHORT_S)
     bench, inner, _ = simulated_bench(variant, "new", 1)
     clock = SlowSendClock(inner)
-    result = run_bench_test(SlowBus(bench, inner), clock, variant, check_gains=False, classify=False)
+    result = run_bench_test(SlowBus(bench, inner), clock, variant, BenchOptions(check_gains=False, classify=False))
     frames, start = result.frames, result.outcome.ticks_start_s
     icd = default_icd()
     run_times = [float(frames.t_s[k]) for k in range(frames.count) if not frames.rx[k]
@@ -389,7 +391,7 @@ def test_a_hostile_second_host_on_the_rig_server_does_not_disturb_the_test(tmp_p
     session = ClosingBus(open_bus({"interface": "slcan", "channel": f"socket://127.0.0.1:{port}"}, icd.bitrate))
     with session as bus:
         clock = SimulatedClock(Watching(server, now))
-        result = run_bench_test(bus, clock, variant, check_gains=False)
+        result = run_bench_test(bus, clock, variant, BenchOptions(check_gains=False))
     assert ran_to_the_end(result), result.outcome
     assert result.outcome.bus_bad_lines == 0  # no malformed line reached the bench
     assert result.outcome.other_frames == 1  # the remote frame, forwarded as a remote frame

@@ -8,7 +8,7 @@ import can
 import numpy as np
 import pytest
 
-from edc_bench.bench import run_bench_test, run_simulated_test
+from edc_bench.bench import BenchOptions, run_bench_test, run_simulated_test
 from edc_bench.config import Variant, load_variant, with_changes
 from edc_bench.engine.replies import ReplyMatcher
 from edc_bench.errors import ConfigError
@@ -164,7 +164,7 @@ def test_replies_late_but_within_the_age_limit_are_used_with_their_age(simulated
     variant = load_variant()
     bench, clock, _ = simulated_bench(variant, "worn", 1, interface="virtual")
     bus = FaultyBus(bench, clock.now_s, [Rule("delay", 2.5, delay_s=0.0015, direction="rx")])
-    result = run_bench_test(bus, clock, variant, check_gains=False)
+    result = run_bench_test(bus, clock, variant, BenchOptions(check_gains=False))
     assert result.verdict == Verdict.FAIL and result.outcome.missed_replies == 0
     late = result.trace["t_s"] > 2.6
     assert set(np.unique(result.trace["sample_age_ticks"][late])) == {2}
@@ -174,7 +174,7 @@ def test_reordered_replies_are_matched_by_counter(simulated_bench) -> None:
     variant = load_variant()
     bench, clock, _ = simulated_bench(variant, "worn", 1, interface="virtual")
     bus = FaultyBus(bench, clock.now_s, [Rule("reorder", 2.5, direction="rx", can_id=0x121)])
-    result = run_bench_test(bus, clock, variant, check_gains=False)
+    result = run_bench_test(bus, clock, variant, BenchOptions(check_gains=False))
     assert result.verdict == Verdict.FAIL and result.outcome.missed_replies == 0
 
 
@@ -229,7 +229,7 @@ def test_a_flooding_bus_ends_the_test_with_safe_at_once(simulated_bench) -> None
     variant = load_variant()
     bench, clock, rig = simulated_bench(variant, "new", 1)
     bus = FloodingBus(bench, clock.now_s, 3.0)
-    result = run_bench_test(bus, clock, variant, check_gains=False)
+    result = run_bench_test(bus, clock, variant, BenchOptions(check_gains=False))
     o = result.outcome
     assert "bus flooded" in o.abort_reason and result.verdict == Verdict.INVALID
     frames = result.frames

@@ -156,7 +156,7 @@ def test_realtime_host_stall_of_5_ms_every_second_leaves_the_test_valid() -> Non
     """A bench PC that stalls 5 ms once a second (really: the process sleeps): each stall is a gap of about five
     ticks, the loop resynchronises, and the test completes valid (PASS on a new valve). Full length (15 s here), so
     every run sees at least 12 stalls."""
-    from edc_bench.bench import run_bench_test
+    from edc_bench.bench import BenchOptions, run_bench_test
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import open_bus
     from edc_bench.runtime.clock import RealTimeClock
@@ -171,7 +171,7 @@ def test_realtime_host_stall_of_5_ms_every_second_leaves_the_test_valid() -> Non
         with rig_process(None, "new", 0, "none", status) as channel, \
                 open_bus({"interface": "slcan", "channel": channel}, default_icd().bitrate) as bus:
             clock = StallingClock(RealTimeClock(), stall_s=0.005, every_s=1.0, first_s=2.5)
-            result = run_bench_test(bus, clock, variant, full_length=True)
+            result = run_bench_test(bus, clock, variant, BenchOptions(full_length=True))
         outcome = result.outcome
         description = (f"{result.verdict} {result.reasons}, {clock.stalls} stalls injected, {outcome.gaps} gaps, "
                        f"{outcome.ticks_lost} ticks lost, reply ages {outcome.reply_age_ticks}")
