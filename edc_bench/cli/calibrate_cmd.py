@@ -65,22 +65,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    import datetime
-    import shlex
-    import socket
-
-    from edc_bench import __version__
-    from edc_bench.cli.common import bus_settings, check_output_folder
+    from edc_bench.cli.common import bus_settings
     from edc_bench.config import load_variant
     from edc_bench.errors import ConfigError
-    from edc_bench.records.baseline_text import baseline_line
-    from edc_bench.verdict.baseline import (
-        RECOMMENDED_TESTS,
-        baseline_from_tests,
-        read_baseline,
-        station_baseline_path,
-        write_baseline,
-    )
 
     bus = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False)
     rig = bus is not None
@@ -92,29 +79,9 @@ def _run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out {args.out}: --out is the folder for the tests' records, as in 'edc-bench test'; "
                           "write the baseline to a file with --baseline-file FILE")
     variant = load_variant(args.variant)
-    station = args.station or socket.gethostname()
-    target = args.baseline_file or (station_baseline_path(variant.name) if args.write or args.append else None)
-    check_output_folder(args.out, "--out")
-    if target is not None:
-        _check_writable(target)  # before minutes of tests, not after
-        if target.is_file():
-            try:
-                read_baseline(target)
-            except ConfigError:
-                raise ConfigError(f"--baseline-file {target}: the file there is not a baseline (is it the variant "
-                                  "file?); refusing to replace it: give another file") from None
-    if args.valve is not None:
-        _refuse_worn_valve(args.valve, variant)
-    earlier: list[Any] = []
-    if args.append and target is not None and target.is_file():
-        pool = read_baseline(target, variant.name)
-        if pool.tests and not pool.test_list:
-            raise ConfigError(f"{target}: this baseline does not list its tests (an older edc-bench wrote it), so "
-                              "tests cannot be added to it: calibrate anew with --write")
-        earlier = list(pool.test_list)
+    target, earlier = _target_and_earlier(args, variant)
     # each appended run of a simulated valve gets fresh noise unless a seed is given
     seed = args.seed if args.seed is not None else 100 + len(earlier)
-
     if rig:
         measured = _rig_tests(args, bus, variant, tests)
     elif args.valve is not None:
@@ -130,13 +97,56 @@ def _run(args: argparse.Namespace) -> int:
         print(f"edc-bench calibrate: no converged new-valve test{unchanged} (the reasons are above); check the "
               f"valve is new and mounted, then run again", file=sys.stderr)
         return ExitCode.INVALID
+    _write_baseline(args, variant, target, earlier, measured)
+    return ExitCode.OK
+
+
+def _target_and_earlier(args: argparse.Namespace, variant: Any) -> tuple[Path | None, list[Any]]:
+    """Where the baseline goes (checked before minutes of tests, not after), and the tests it holds already."""
+    from edc_bench.cli.common import check_output_folder
+    from edc_bench.errors import ConfigError
+    from edc_bench.verdict.baseline import read_baseline, station_baseline_path
+
+    target = args.baseline_file or (station_baseline_path(variant.name) if args.write or args.append else None)
+    check_output_folder(args.out, "--out")
+    if target is not None:
+        _check_writable(target)
+        if target.is_file():
+            try:
+                read_baseline(target)
+            except ConfigError:
+                raise ConfigError(f"--baseline-file {target}: the file there is not a baseline (is it the variant "
+                                  "file?); refusing to replace it: give another file") from None
+    if args.valve is not None:
+        _refuse_worn_valve(args.valve, variant)
+    if not (args.append and target is not None and target.is_file()):
+        return target, []
+    pool = read_baseline(target, variant.name)
+    if pool.tests and not pool.test_list:
+        raise ConfigError(f"{target}: this baseline does not list its tests (an older edc-bench wrote it), so "
+                          "tests cannot be added to it: calibrate anew with --write")
+    return target, list(pool.test_list)
+
+
+def _write_baseline(args: argparse.Namespace, variant: Any, target: Path | None, earlier: list[Any],
+                    measured: list[Any]) -> None:
+    """Pool the tests into the baseline, print it with what to do next, and write it where asked."""
+    import datetime
+    import shlex
+    import socket
+
+    from edc_bench import __version__
+    from edc_bench.records.baseline_text import baseline_line
+    from edc_bench.verdict.baseline import RECOMMENDED_TESTS, baseline_from_tests, write_baseline
+
     sources = {t.source for t in earlier} | {t.source for t in measured}
     if len(sources) > 1:
         print(f"edc-bench calibrate: warning: the baseline mixes tests from {' and '.join(sorted(sources))}",
               file=sys.stderr)
     baseline = baseline_from_tests(
         earlier + measured, written_at=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        station=station, software=f"edc-bench {__version__}", command=shlex.join(["edc-bench", *sys.argv[1:]]))
+        station=args.station or socket.gethostname(), software=f"edc-bench {__version__}",
+        command=shlex.join(["edc-bench", *sys.argv[1:]]))
     text = baseline.to_toml(variant.name, f"{len(earlier)} earlier and {len(measured)} new tests"
                             if args.append else "")
     print(text, end="")
@@ -154,7 +164,6 @@ def _run(args: argparse.Namespace) -> int:
         kept = write_baseline(target, text)
         print(f"baseline of {variant.name} written to {target}" + (f" (the earlier one kept as {kept})" if kept
                                                                     else ""), file=sys.stderr)
-    return ExitCode.OK
 
 
 def _refuse_worn_valve(spec: str, variant: Any) -> None:
