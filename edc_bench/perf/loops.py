@@ -43,19 +43,21 @@ def with_timing(variant: Variant, period_s: float | None = None, duration_s: flo
     return with_changes(variant, changes, "a benchmark's timing")
 
 
-def simulated_test(variant: Variant, repeats: int) -> dict[str, float]:
-    """Wall time of a whole simulated test (everything in the loop), best and median of ``repeats``."""
+def simulated_test(variant: Variant, repeats: int, full_length: bool) -> dict[str, float]:
+    """Wall time of a whole simulated test of a new valve (everything in the loop, and its judgement), best and
+    median of ``repeats``; ``simulated_s`` is the test time it covered (the early stop's, unless ``full_length``)."""
     from edc_bench.bench import run_simulated_test
 
-    walls = []
+    walls, covered = [], []
     for n in range(repeats):
         t0 = time.perf_counter()
-        result = run_simulated_test(variant, "new", seed=n)
+        result = run_simulated_test(variant, "new", seed=n, full_length=full_length)
         walls.append(time.perf_counter() - t0)
-    duration = variant.excitation.duration_s
-    best = min(walls)
-    return {"best_s": best, "median_s": float(np.median(walls)), "simulated_s": duration,
-            "speed_x_real_time": duration / best, "repeats": repeats, "verdict": result.verdict}
+        covered.append(result.outcome.ticks_run * variant.controller.period_s)
+    best = int(np.argmin(walls))
+    return {"best_s": walls[best], "median_s": float(np.median(walls)), "simulated_s": covered[best],
+            "speed_x_real_time": covered[best] / walls[best], "repeats": repeats, "verdict": result.verdict,
+            "stop": str(result.stop["reason"])}
 
 
 class StealSampler:

@@ -63,12 +63,15 @@ def _simulated(variant_name: str | None, sizes: Sizes) -> list[Figure]:
     from edc_bench.perf.loops import simulated_test
 
     variant = load_variant(variant_name)
-    m = simulated_test(variant, sizes.simulated_repeats)
-    return [Figure("simulated", f"simulated {m['simulated_s']:g} s test, wall (best)", m["best_s"], "s",
-                   m["simulated_s"] / 50.0, "50x faster than real time", ">= 50x real time",
-                   m["speed_x_real_time"] >= 50.0,
-                   f"{m['speed_x_real_time']:.0f}x real time; median {m['median_s']:.2f} s of {m['repeats']}; "
-                   f"codec, lockstep bus, rig firmware, plant, controller, recording, analysis")]
+    out = []
+    for full_length, name in ((True, "full-length"), (False, "early-stopped (the technician's)")):
+        m = simulated_test(variant, sizes.simulated_repeats, full_length)
+        out.append(Figure(
+            "simulated", f"simulated {name} test of {m['simulated_s']:g} s, wall (best)", m["best_s"], "s",
+            m["simulated_s"] / 50.0, "50x faster than real time", ">= 50x real time", m["speed_x_real_time"] >= 50.0,
+            f"{m['speed_x_real_time']:.0f}x real time; median {m['median_s']:.2f} s of {m['repeats']}; ended: "
+            f"{m['stop']}; codec, lockstep bus, rig firmware, plant, controller, recording, analysis"))
+    return out
 
 
 def _realtime(variant_name: str | None, sizes: Sizes) -> list[Figure]:

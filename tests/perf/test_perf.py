@@ -27,7 +27,8 @@ def test_perf_quick_prints_all_five_groups() -> None:
     figures = report["figures"]
     assert {f["group"] for f in figures} == set(GROUPS)
     names = " | ".join(f["name"] for f in figures)
-    for expected in ("rls", "gradient", "BENCH_CMD encode", "RIG_FEEDBACK decode", "simulated 30 s test",
+    for expected in ("rls", "gradient", "BENCH_CMD encode", "RIG_FEEDBACK decode", "simulated full-length test of 30 s",
+                     "simulated early-stopped (the technician's) test",
                      "1 kHz", "2 kHz", "batch path", "--help", "first tick"):
         assert expected in names
     for f in figures:
