@@ -33,6 +33,8 @@ from edc_bench.population.valves import draw_population
 from edc_bench.verdict.baseline import load_baseline
 
 GENERATOR_VERSION = 1
+#: The significant digits a value counts with in :meth:`Dataset.content_hash`.
+HASH_SIGNIFICANT_DIGITS = 6
 CHUNK = 500
 COLUMNS = ("af", "a1", "af_rel", "a1_rel", "faulty", "converged", "resisting_force_n", "clearance_mm",
            "roughness", "variant_index", "seed")
@@ -59,11 +61,21 @@ class Dataset:
         return self.columns["faulty"].astype(int)
 
     def content_hash(self) -> str:
-        """SHA-256 of the columns (order and values)."""
+        """SHA-256 of the columns (order and values), each value to :data:`HASH_SIGNIFICANT_DIGITS` digits.
+
+        The same simulation on another CPU or BLAS differs in the last bits (about 1e-13 relative); a changed
+        simulation moves the features by far more than a millionth. Hashing the values as text to six
+        significant digits names the data, not the machine that computed it.
+        """
         digest = hashlib.sha256()
         for name in COLUMNS:
             digest.update(name.encode())
-            digest.update(np.ascontiguousarray(self.columns[name]).tobytes())
+            column = np.asarray(self.columns[name])
+            if np.issubdtype(column.dtype, np.floating):
+                text = np.char.mod(f"%.{HASH_SIGNIFICANT_DIGITS - 1}e", column)
+            else:
+                text = column.astype(np.int64).astype(str)
+            digest.update(",".join(text.tolist()).encode())
         return digest.hexdigest()
 
     def save(self, path: Path) -> None:
