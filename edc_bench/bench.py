@@ -13,7 +13,8 @@ On the simulated rig, in simulated time::
 On any python-can bus (a real rig, or ``edc-bench rig`` over slcan)::
 
     import can
-    from edc_bench.bench import run_bench_test
+    from edc_bench.bench import BenchOptions, run_bench_test
+    from edc_bench.config import load_variant
     from edc_bench.runtime.clock import RealTimeClock
 
     with can.Bus(interface="slcan", channel="socket://127.0.0.1:5000", bitrate=500000,

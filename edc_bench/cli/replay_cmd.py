@@ -72,7 +72,7 @@ def _summary(report: Any) -> dict[str, Any]:
         "missed_replies": report.run.missed_replies,
         "max_drive_deviation_v": report.run.max_drive_deviation_v,
         "compared_with_record": report.compared, "reproduced": report.reproduced if report.compared else None,
-        "differences": report.differences,
+        "differences": report.differences, "notes": report.notes,
     })
 
 
@@ -87,7 +87,10 @@ def _print(out: dict[str, Any], as_json: bool) -> None:
         print(f"  - {reason}")
     print(f"features: af = {out['features']['af']:.6g} V, a1 = {out['features']['a1']:.6g} V s/mm")
     if out["compared_with_record"]:
-        if out["reproduced"]:
+        if out["reproduced"] and out["notes"]:
+            print("reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are the "
+                  "recorded ones; " + "; ".join(out["notes"]))
+        elif out["reproduced"]:
             print("reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are exactly "
                   "the recorded ones")
         else:

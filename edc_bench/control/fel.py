@@ -32,7 +32,7 @@ estimator's target is ``u / rho``. A coil that warms during the test (its
 drive rises 3 % in 30 s on the default variant) then leaves the regression
 alone; without this the drift leaked into af as a +/-2 % wobble. The
 inductive shares of a3, a2 and a1, which do not scale with R, are put right
-after the test (:func:`edc_bench.physics.coil.refer_to_reference_coil`).
+after the test (:func:`edc_bench.physics.coil.referred_from_estimate`).
 R_hat is averaged over the excitation's longest period before use.
 """
 

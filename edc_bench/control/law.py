@@ -295,7 +295,7 @@ def gradient_update(ops: Ops, theta: Any, gains_per_tick: Any, w: Any, y: Any, o
 
 class CoilAverage:
     """The coil's resistance estimate averaged over the last ``window`` ticks (the excitation's longest period):
-    the estimate itself wobbles with the motion, and that wobble, in the drive, moved a1 by -0.6 %.
+    the estimate itself wobbles with the motion, and that wobble, in the drive, would move a1.
 
     ``first`` is the value before any tick (a float, or an (N,) array).
     """

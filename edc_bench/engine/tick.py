@@ -18,7 +18,7 @@ One tick, in order::
 
     receive(...)*          what came since the last tick (replies matched for use from ``next_tick``)
     skip(k, lost)          only after a host stall: the lost ticks, as gap rows
-    command(k)             controller step -> BENCH_CMD payload
+    command(k)             controller step -> BENCH_CMD payload (sent by the driver)
     sent(k, ...)           the command went out: its counter in flight, its trace row
     receive(...)*          what comes until the next deadline
     check(k)               abort checks -> Abort or None
@@ -138,7 +138,7 @@ class TickEngine:
 
     # -- frames in -------------------------------------------------------------------------------------------
     def receive(self, can_id: int, data: bytes | bytearray, now_s: float, *, other: bool = False,
-                is_rx: bool = True) -> RigFeedback | None:
+                is_rx: bool = True, replies_expected: bool = True) -> RigFeedback | None:
         """Take one frame read from the bus at ``now_s``.
 
         Parameters
@@ -151,6 +151,8 @@ class TickEngine:
             An extended, remote or error frame: no ICD message.
         is_rx : bool
             False for an interface's echo of a frame this bench sent.
+        replies_expected : bool
+            False while the bench waits for READY and has sent nothing: a reply then is no one's, and not read.
 
         Returns
         -------
@@ -162,6 +164,8 @@ class TickEngine:
             outcome.other_frames += 1
             return None
         if can_id == RIG_FEEDBACK_ID:
+            if not replies_expected:
+                return None
             try:
                 reply = self.icd.parse_rig_feedback(data)
             except ProtocolError:

@@ -547,8 +547,9 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
 
 
 def reference_condition_number(design: ControllerDesign) -> float:
-    """Condition number of the reference's regressors over the steady excitation where it slides: identifiability is
-    the excitation's (:func:`edc_bench.identification.analysis.analyse` takes it over a trace's own reference)."""
+    """Condition number of the reference's regressors over the steady excitation where it slides, for the variant's
+    whole duration: identifiability is the excitation's (the trust rule judges the worse of this and the fit's,
+    :func:`edc_bench.identification.trust.judged_condition_number`)."""
     from edc_bench.control.fel import condition_number, regressor_matrix
 
     T = design.period_s

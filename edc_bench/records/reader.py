@@ -46,7 +46,9 @@ def upgraded(record: dict[str, Any]) -> dict[str, Any]:
     Schema 4 gave as values what older records held only as sentences: the verdict's ``problems``, whether
     the coil's temperature was given (``coil.temp_given``), the abort's kind (``loop.abort``; an older one
     becomes kind ``recorded``, its sentence kept), and the timing's ``ticks_late`` (formerly ``overruns``).
-    Reading those sentences is this function's alone: it is the one place that knows the old wording.
+    Reading those sentences is this function's alone: it is the one place that knows the old wording. An older
+    record's ``problems`` hold ``aborted`` and ``not calibrated``, what its values and that wording show; the trust
+    rule's other problems stay in its reasons only.
     """
     if int(record.get("schema") or 0) >= 4:
         return record
@@ -54,8 +56,9 @@ def upgraded(record: dict[str, Any]) -> dict[str, Any]:
 
     record = dict(record)
     reasons = [str(r) for r in record.get("reasons") or []]
-    record.setdefault("problems", ["not calibrated"] if any(r.startswith("variant not calibrated")
-                                                            for r in reasons) else [])
+    aborted = bool((record.get("loop") or {}).get("abort_reason"))
+    not_calibrated = any(r.startswith("variant not calibrated") for r in reasons)
+    record.setdefault("problems", ["aborted"] * aborted + ["not calibrated"] * not_calibrated)
     if isinstance(record.get("coil"), dict):
         coil = dict(record["coil"])
         coil.setdefault("temp_given", str(coil.get("temp_source", "")).startswith("given"))

@@ -149,9 +149,9 @@ class BenchLoop:
         self.frames.add(self.clock.now_s() if self.clock.waits_for_replies else self._t_s, BENCH_CMD_ID, data, False)
         self.clock.after_send(self._t_s)
 
-    def _read(self, until_s: float) -> RigFeedback | None:
+    def _read(self, until_s: float, replies_expected: bool = True) -> tuple[bool, RigFeedback | None]:
         """Read the next frame, waiting at most until ``until_s`` (never, in lockstep), log it and hand it to the
-        engine. Returns the reply it held, if any; raises StopIteration at the end of what there is."""
+        engine: whether a frame came, and the reply it held, if any."""
         clock = self.clock
         if clock.waits_for_replies:
             timeout = until_s - clock.now_s()
@@ -160,24 +160,27 @@ class BenchLoop:
         else:
             msg, now = self.bus.recv(0.0), self._t_s
         if msg is None:
-            raise StopIteration
+            return False, None
         self.frames.add(now, msg.arbitration_id, msg.data, True, frame_flags(msg), msg.dlc)
-        return self.engine.receive(msg.arbitration_id, msg.data, now, is_rx=msg.is_rx,
-                                   other=msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame)
+        return True, self.engine.receive(msg.arbitration_id, msg.data, now, is_rx=msg.is_rx,
+                                         other=msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame,
+                                         replies_expected=replies_expected)
 
     def _receive(self, counter: int | None, deadline_s: float) -> RigFeedback | None:
-        """Outside the ticks: read until the reply to ``counter`` or the deadline, at most a tick's frame budget."""
-        for _ in range(self.max_frames_per_tick):
-            try:
-                reply = self._read(deadline_s)
-            except StopIteration:
+        """Outside the ticks: read until the reply to ``counter`` (none: only heartbeats are wanted) or the deadline,
+        at most a tick's frame budget of frames."""
+        frames = 0
+        while frames < self.max_frames_per_tick:
+            came, reply = self._read(deadline_s, replies_expected=counter is not None)
+            if not came:
                 if counter is None or self.clock.waits_for_replies or self._t_s >= deadline_s:
                     return None
                 # simulated time: let it pass in small steps, so a reply on its way through an adapter arrives
                 self._t_s = min(deadline_s, self._t_s + 0.25 * self.period_s)
                 self.clock.wait_until(self._t_s)
                 continue
-            if reply is not None and counter is not None and reply.counter == counter:
+            frames += 1
+            if reply is not None and reply.counter == counter:
                 return reply
         self.outcome.events.append(f"more than {self.max_frames_per_tick} frames while waiting for a reply")
         return None
@@ -192,9 +195,8 @@ class BenchLoop:
         """
         engine = self.engine
         for _ in range(self.max_frames_per_tick):
-            try:
-                self._read(until_s)
-            except StopIteration:
+            came, _ = self._read(until_s)
+            if not came:
                 return
             if engine.foreign_command:
                 raise _AbortTest(Abort(AbortKind.FOREIGN_COMMAND))
@@ -312,7 +314,6 @@ class BenchLoop:
         engine, T = self.engine, self.period_s
         self._t_s += T
         self.clock.wait_until(self._t_s)
-        sync_s = self._t_s
         self._send(engine.safe_command())
         # not time-critical: frames queued since connecting may come first
         first = self._receive(engine.counter, self._t_s + 0.1)
@@ -320,27 +321,21 @@ class BenchLoop:
             raise _AbortTest(Abort(AbortKind.FOREIGN_COMMAND))
         if first is None:
             return False
-        engine.start(first, engine.counter, max(self._t_s, self.clock.now_s()) + T, sync_s)
+        engine.start(first, engine.counter, max(self._t_s, self.clock.now_s()) + T, self._t_s)
         return True
 
-    def _wait_tick(self, k: int) -> tuple[int, float]:
-        """Wait for tick ``k``'s deadline: the tick to run (later after a host stall) and its lateness (s)."""
+    def _skip_stall(self, k: int, lateness_s: float) -> tuple[int, float]:
+        """Tick ``k`` woke ``lateness_s`` late, a period or more: a host stall cost whole periods. Skip them (a gap),
+        never send them late in a burst; the tick to run next and its lateness."""
         clock, engine, T = self.clock, self.engine, self.period_s
-        t_k = engine.tick_time_s(k)
-        self._t_s = t_k
-        lateness = clock.wait_until(t_k)
-        if lateness < T:
-            return k, lateness
-        # a host stall cost whole periods: skip them (a gap), never send them late in a burst; counted from now,
-        # not from the wake-up, so the tick after the gap is on time even if the stall went on
+        # counted from now, not from the wake-up, so the tick after the gap is on time even if the stall went on
         if clock.waits_for_replies:
-            lateness = max(lateness, clock.now_s() - t_k)
-        lost = min(int(lateness // T), self.ticks - k)
+            lateness_s = max(lateness_s, clock.now_s() - engine.tick_time_s(k))
+        lost = min(int(lateness_s // T), self.ticks - k)
         engine.skip(k, lost)
         k += lost
-        t_k = engine.tick_time_s(k)
-        self._t_s = t_k
-        return k, (max(0.0, clock.now_s() - t_k) if clock.waits_for_replies else 0.0)
+        self._t_s = engine.tick_time_s(k)
+        return k, (max(0.0, clock.now_s() - self._t_s) if clock.waits_for_replies else 0.0)
 
     def _run_ticks(self) -> Abort | None:
         """The ticks, each on its deadline; the abort that ended them, if any (an early stop is no abort)."""
@@ -355,18 +350,22 @@ class BenchLoop:
         while k < self.ticks:
             if stop_requested():
                 return Abort(AbortKind.INTERRUPTED, time_s=k * T)
-            k, lateness = self._wait_tick(k)
-            if k >= self.ticks:
-                return None
-            if k == 0:
-                self.outcome.first_tick_unix_s = time.time()
-            t_k = engine.tick_time_s(k)
+            t_k = self._t_s = engine.tick_time_s(k)
+            lateness = clock.wait_until(t_k)
             try:
-                # what came while waiting for this deadline (matched as the last drain did: replay sees the
-                # same frames between the same two commands); the sample is used only if young enough at tick k
+                # what came while waiting for this deadline, handed over before anything else as replay does
+                # (the same frames between the same two commands); a sample is used only if young enough at tick k
                 self._drain(clock.now_s())
+                if lateness >= T:
+                    k, lateness = self._skip_stall(k, lateness)
+                    if k >= self.ticks:
+                        return None
+                    t_k = engine.tick_time_s(k)
+                if k == 0:
+                    self.outcome.first_tick_unix_s = time.time()
+                data = engine.command(k)
                 sent_s = clock.now_s()
-                self._send(engine.command(k))
+                self._send(data)
                 engine.sent(k, sent_s, lateness)
                 self._drain(t_k + T - read_margin_s)
             except _AbortTest as stop:

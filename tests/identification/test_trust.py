@@ -111,7 +111,7 @@ def test_an_older_record_is_read_in_todays_form(legacy: str | None) -> None:
            "timing": {"ticks": 100, "overruns": 3},
            "loop": {"abort_reason": None if legacy else "rig fault: over-current", "abort_time_s": 1.5}}
     new = upgraded(old)
-    assert new["problems"] == (["not calibrated"] if legacy else [])
+    assert new["problems"] == (["not calibrated"] if legacy else ["aborted"])
     assert new["coil"]["temp_given"] is True and new["timing"]["ticks_late"] == 3
     abort = abort_from_record(new["loop"])
     if legacy:

@@ -251,3 +251,22 @@ def test_the_slow_link_limit_names_where_it_comes_from(variant: Variant) -> None
     patient = with_changes(variant, {"acceptance": {"max_missed_replies_in_row": 30}}, "patient")
     result = run_simulated_test(patient, "new", seed=1, adapter="latency_ms=2.5,jitter_ms=0.5")
     assert "ticks in a row (limit 30, acceptance.max_missed_replies_in_row)" in result.reasons[0], result.reasons
+
+
+@pytest.mark.parametrize(("latency_ms", "frame_budget"), [(18.0, None), (3.0, 4)])
+def test_the_wait_for_a_reply_outside_the_ticks_counts_frames_not_empty_reads(variant: Variant, latency_ms: float,
+                                                                               frame_budget: int | None) -> None:
+    """Waiting for the synchronising SAFE's reply (and the safe stop's), simulated time passes in quarter ticks
+    while nothing comes: those empty reads are no frames, and must not use up the frame budget (they did, and
+    ended the wait after 16 ms: a link slower than that never synchronised)."""
+    changes: dict = {"excitation": {"duration_s": 8.0}}
+    if frame_budget is not None:
+        changes["acceptance"] = {"max_frames_per_tick": frame_budget}
+    short = with_changes(variant, changes, "test: a slow link")
+    result = run_simulated_test(short, "new", 1, adapter=f"latency_ms={latency_ms},jitter_ms=0,usb_frame_ms=0",
+                                check_gains=False, classify=False)
+    assert result.outcome.ticks_run > 0, result.outcome.abort_reason
+    if frame_budget is None:  # nothing but empty reads before the synchronising reply
+        assert not any("frames while waiting for a reply" in event for event in result.outcome.events)
+    else:  # the safe stop waits out the last commands' replies, four frames at a time, and gets SAFE's
+        assert result.outcome.safe_confirmed
