@@ -64,7 +64,6 @@ from edc_bench.verdict.classifier import ValveClassifier
 STEP_TICKS = 100
 
 
-
 class EarlyStop:
     """Decides after each excitation period whether the test may end.
 
