@@ -172,8 +172,8 @@ class LiveView:
     The panel is drawn by a child process. Drawing in the loop's process,
     even from another thread, cost a real-time test its timing: the drawing
     thread takes the interpreter lock while the loop spins towards its
-    deadline or waits for its reply (in one-off runs at 1 kHz against the rig
-    process: p99 lateness 1.3-1.6 ms and an abort after 1,000 ticks). The
+    deadline or waits for its reply (at 1 kHz against the rig process, p99
+    lateness above a tick, and aborts). The
     loop writes a few hundred bytes every 100 ticks into a non-blocking
     pipe; if the drawing process falls behind or dies, updates are dropped,
     never waited for.
@@ -267,9 +267,8 @@ def _step_aside() -> None:
     """Run the panel only on CPU time nobody else wants (Linux SCHED_IDLE; else the lowest nice).
 
     Woken four times a second, a normal process would preempt the loop (or,
-    in simulation, the rig process) for the few milliseconds a redraw takes:
-    in one-off runs at 1 kHz, 3.6-4.9 % of ticks overran with the panel at
-    normal priority.
+    in simulation, the rig process) for the few milliseconds a redraw takes,
+    and ticks overrun.
     """
     try:
         os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))

@@ -18,8 +18,8 @@ leave the verdict unchanged.
 The loop calls :meth:`EarlyStop.check` at the ticks in
 :attr:`EarlyStop.check_ticks` (bench layer: :func:`edc_bench.bench.run_bench_test`).
 The work is spread so that no call costs more than a tick or two, however
-long the test and its variant (steps 0.2-0.6 ms, the period-end decision
-1-3 ms on a 2-core VM):
+long the test and its variant (the record's ``timing.stop_check_max_us``
+gives each test's longest call; docs/bench-test.md the measured range):
 
 - every :data:`STEP_TICKS` ticks the rows completed since the last step are
   fed (their replies in: the feed lags by the oldest reply the loop accepts);
@@ -60,7 +60,7 @@ from edc_bench.physics.coil import inductive_shares, referred_from_estimate
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.classifier import ValveClassifier
 
-#: Ticks between two feeds of rows (and between two steps of the expected-end search): 0.2-0.6 ms each.
+#: Ticks between two feeds of rows (and between two steps of the expected-end search): each a fraction of a tick.
 STEP_TICKS = 100
 
 
