@@ -302,7 +302,8 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     """
     x = np.asarray(position_mm, dtype=float)
     kernels = _smoothing_kernels(setup.window, setup.period_s)
-    raw = np.broadcast_to(np.asarray(drive_v, dtype=float) / np.asarray(rho, dtype=float), x.shape)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a gap's row before any tick holds 0 / 0: not usable
+        raw = np.broadcast_to(np.asarray(drive_v, dtype=float) / np.asarray(rho, dtype=float), x.shape)
     # x and its three derivatives, and the drive smoothed as the trajectory is (below), in one pass
     smoothed = _smooth(np.stack([x, x, x, x, raw]), np.concatenate([kernels, kernels[:1]]))
     smooth = list(smoothed[:4])
