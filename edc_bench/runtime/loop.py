@@ -17,8 +17,9 @@ whatever the replies do. A host stall that costs whole periods is a gap:
 the lost ticks are marked in the trace and skipped, never sent late in a
 burst.
 
-Per tick nothing is allocated beyond what python-can and the codec must:
-the trace and the frame log are preallocated arrays.
+Per tick little is allocated beyond what python-can and the codec must (the
+estimator's two five-element vectors; the garbage collector is off during
+the loop): the trace and the frame log are preallocated arrays.
 """
 
 from __future__ import annotations
