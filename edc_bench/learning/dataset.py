@@ -40,6 +40,19 @@ COLUMNS = ("af", "a1", "af_rel", "a1_rel", "faulty", "converged", "resisting_for
            "roughness", "variant_index", "seed")
 
 
+def update_digest(digest: "hashlib._Hash", name: str, values: np.ndarray) -> None:
+    """Add a named column to a content hash: floats as text to :data:`HASH_SIGNIFICANT_DIGITS` significant
+    digits (so that the last bits of another CPU's or BLAS's arithmetic do not change it), integers and
+    booleans as integers."""
+    digest.update(name.encode())
+    column = np.asarray(values)
+    if np.issubdtype(column.dtype, np.floating):
+        text = np.char.mod(f"%.{HASH_SIGNIFICANT_DIGITS - 1}e", column)
+    else:
+        text = column.astype(np.int64).astype(str)
+    digest.update(",".join(text.ravel().tolist()).encode())
+
+
 @dataclass
 class Dataset:
     """Columns of one dataset (one row per simulated bench test)."""
@@ -69,13 +82,7 @@ class Dataset:
         """
         digest = hashlib.sha256()
         for name in COLUMNS:
-            digest.update(name.encode())
-            column = np.asarray(self.columns[name])
-            if np.issubdtype(column.dtype, np.floating):
-                text = np.char.mod(f"%.{HASH_SIGNIFICANT_DIGITS - 1}e", column)
-            else:
-                text = column.astype(np.int64).astype(str)
-            digest.update(",".join(text.tolist()).encode())
+            update_digest(digest, name, self.columns[name])
         return digest.hexdigest()
 
     def save(self, path: Path) -> None:

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.errors import ConfigError
-from edc_bench.learning.dataset import COLUMNS, Dataset
+from edc_bench.learning.dataset import COLUMNS, Dataset, update_digest
 from edc_bench.learning.evaluation import verdict_counts
 from edc_bench.learning.train import TrainedModel, fit_and_export
 from edc_bench.verdict.classifier import ValveClassifier
@@ -66,11 +66,11 @@ class LabelledTests:
         return len(self.labels)
 
     def content_hash(self) -> str:
-        """SHA-256 of the features and labels (which data a candidate learnt from)."""
+        """SHA-256 of the features and labels (which data a candidate learnt from), counted as
+        :meth:`Dataset.content_hash` counts its values, so another machine's last bits do not rename it."""
         digest = hashlib.sha256()
-        for array in (np.ascontiguousarray(self.features_rel, dtype=np.float64),
-                      np.ascontiguousarray(self.labels, dtype=np.int64)):
-            digest.update(array.tobytes())
+        update_digest(digest, "features_rel", self.features_rel)
+        update_digest(digest, "labels", self.labels)
         return digest.hexdigest()
 
     def as_dataset(self, provenance: dict[str, Any]) -> Dataset:
