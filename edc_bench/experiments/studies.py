@@ -1,16 +1,16 @@
 """Studies on simulated populations: held-out evaluation, the paper's
-experiment (Tsai & Tseng 2010, section 5) and the decision-boundary trade-off."""
+experiment (Tsai & Tseng 2010, section 5), the decision-boundary trade-off and coils across their spec."""
 
 from __future__ import annotations
 
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from edc_bench.config import Variant, load_variant, parse_variant
+from edc_bench.config import Variant, load_variant, parse_variant, with_changes
 from edc_bench.learning.dataset import COLUMNS, Dataset
 from edc_bench.learning.evaluation import verdict_counts
 from edc_bench.physics.valve import ValveSpec, sample_valve
@@ -392,3 +392,62 @@ def draw_tradeoff(curve: dict[str, np.ndarray], path: Path, title: str) -> None:
     ax.grid(alpha=0.3)
     atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=110))
     plt.close(fig)
+
+
+# --------------------------------------------------------------------------- coils across their spec
+
+
+@dataclass(frozen=True)
+class CoilStudy:
+    """The same valves judged with coils across their spec and warm, and with the nominal coil at 20 degC.
+
+    Attributes
+    ----------
+    coil_ohm, coil_temp_c : numpy.ndarray
+        Each valve's simulated coil resistance at 20 degC and temperature at the start.
+    converged : numpy.ndarray
+        Valves whose test converged both ways (the arrays below are over these).
+    outside_band : numpy.ndarray
+        With the nominal coil, farther from the decision boundary than the marginal band.
+    same_verdict : numpy.ndarray
+        The verdict with the valve's own coil is the nominal coil's.
+    af_change_rel, a1_change_rel : numpy.ndarray
+        The referred features with the valve's own coil against the nominal coil's, relative.
+    coil_error_rel : numpy.ndarray
+        The coil resistance the bench measured against the simulated one at the test's end, relative (all valves).
+    """
+
+    coil_ohm: np.ndarray
+    coil_temp_c: np.ndarray
+    converged: np.ndarray
+    outside_band: np.ndarray
+    same_verdict: np.ndarray
+    af_change_rel: np.ndarray
+    a1_change_rel: np.ndarray
+    coil_error_rel: np.ndarray
+
+
+def coil_population_study(variant: Variant, classifier: ValveClassifier, count: int = 300, seed: int = 17,
+                          coil_temp_c: tuple[float, float] = (20.0, 80.0)) -> CoilStudy:
+    """Run ``count`` valves of the variant's population with coils across their spec starting at
+    ``coil_temp_c`` (batch path), and the same valves with the nominal coil at 20 degC and the same noise, and
+    compare their judgements against the variant's shipped baseline."""
+    population = {**variant.diagnosis.population.model_dump(), "coil_temp_min_c": coil_temp_c[0],
+                  "coil_temp_max_c": coil_temp_c[1]}
+    variant = with_changes(variant, {"diagnosis": {"population": population}}, "coils across their spec")
+    valves = draw_population(variant, count, seed=seed)
+    nominal = [replace(v, coil_ohm=None, coil_temp_c=None) for v in valves]
+    seeds = list(range(count))
+    coils, plain = run_batch(variant, valves, seeds), run_batch(variant, nominal, seeds)
+    baseline = load_baseline(variant, station=False)
+    ok = coils.converged & plain.converged
+    scale = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+    v_coil, _, _ = classifier.classify_many(np.column_stack([coils.feature("af"), coils.feature("a1")])[ok] / scale)
+    v_plain, _, d_plain = classifier.classify_many(np.column_stack([plain.feature("af"),
+                                                                    plain.feature("a1")])[ok] / scale)
+    return CoilStudy(
+        coil_ohm=np.array([v.coil_ohm for v in valves]), coil_temp_c=np.array([v.coil_temp_c for v in valves]),
+        converged=ok, outside_band=np.abs(d_plain) > classifier.marginal_band, same_verdict=v_coil == v_plain,
+        af_change_rel=coils.feature("af")[ok] / plain.feature("af")[ok] - 1,
+        a1_change_rel=coils.feature("a1")[ok] / plain.feature("a1")[ok] - 1,
+        coil_error_rel=coils.coil_ohm / coils.coil_end_ohm - 1)

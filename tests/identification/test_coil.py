@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,9 +12,6 @@ from edc_bench.bench import run_simulated_test
 from edc_bench.config import load_variant, with_changes
 from edc_bench.errors import ConfigError
 from edc_bench.physics.valve import parse_valve_spec
-from edc_bench.population.batch import run_batch
-from edc_bench.population.valves import draw_population
-from edc_bench.verdict.judgement import classify_features
 from edc_bench.verdict.verdicts import Verdict
 
 #: The coils of the issue's table: the spec's ends and the paper's 0.7 ohm, and a coil warm from earlier tests.
@@ -117,28 +113,17 @@ def test_population_verdicts_do_not_depend_on_the_coil(variant) -> None:
     """300 valves with coils over 0.6-0.9 ohm starting at 20-80 degC, against the same valves with the nominal
     coil at 20 degC (batch path, same noise): the verdicts agree for at least 99 % of the valves outside the
     marginal band, and the features of each valve move little."""
-    population = {**variant.diagnosis.population.model_dump(), "coil_temp_min_c": 20.0, "coil_temp_max_c": 80.0}
-    variant = with_changes(variant, {"diagnosis": {"population": population}}, "test: coils from 20 to 80 degC")
-    valves = draw_population(variant, 300, seed=17)
-    nominal = [replace(v, coil_ohm=None, coil_temp_c=None) for v in valves]
-    seeds = list(range(300))
-    with_coils, without = run_batch(variant, valves, seeds), run_batch(variant, nominal, seeds)
-    ohms = np.array([v.coil_ohm for v in valves])
-    temps = np.array([v.coil_temp_c for v in valves])
+    from edc_bench.experiments.studies import coil_population_study
+    from edc_bench.verdict.classifier import ValveClassifier, packaged_model_path
+
+    study = coil_population_study(variant, ValveClassifier(packaged_model_path()), 300, seed=17)
+    ohms, temps, ok = study.coil_ohm, study.coil_temp_c, study.converged
     assert ohms.min() < 0.62 and ohms.max() > 0.88 and temps.min() < 23 and temps.max() > 77
-    ok = with_coils.converged & without.converged
-    judged = {name: [classify_features(variant, af, a1) for af, a1 in
-                     zip(result.feature("af")[ok], result.feature("a1")[ok], strict=True)]
-              for name, result in (("coils", with_coils), ("nominal", without))}
-    band = judged["nominal"][0][2].marginal_band
-    outside = [abs(j.distance) > band for j, _, _ in judged["nominal"]]
-    same = [c.verdict == n.verdict for (c, _, _), (n, _, _) in zip(judged["coils"], judged["nominal"], strict=True)]
-    agree = sum(s for s, o in zip(same, outside, strict=True) if o) / max(sum(outside), 1)
-    d_af = with_coils.feature("af")[ok] / without.feature("af")[ok] - 1
-    d_a1 = with_coils.feature("a1")[ok] / without.feature("a1")[ok] - 1
-    r_err = with_coils.coil_ohm / with_coils.coil_end_ohm - 1
-    print(f"{ok.sum()} of 300 converged both ways; {sum(outside)} outside the marginal band; verdicts agree for "
-          f"{agree:.2%} of those ({sum(same)} of {len(same)} in all); af moved {np.mean(d_af):+.3%} mean, "
+    outside, same = study.outside_band, study.same_verdict
+    agree = same[outside].sum() / max(outside.sum(), 1)
+    d_af, d_a1, r_err = study.af_change_rel, study.a1_change_rel, study.coil_error_rel
+    print(f"{ok.sum()} of 300 converged both ways; {outside.sum()} outside the marginal band; verdicts agree for "
+          f"{agree:.2%} of those ({same.sum()} of {len(same)} in all); af moved {np.mean(d_af):+.3%} mean, "
           f"{np.max(np.abs(d_af)):.2%} max; a1 {np.mean(d_a1):+.3%} mean, {np.max(np.abs(d_a1)):.2%} max; "
           f"coil measured vs simulated at the end {np.mean(r_err):+.3%} mean, {np.max(np.abs(r_err)):.2%} worst")
     assert ok.sum() >= 290
