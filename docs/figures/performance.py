@@ -1,0 +1,104 @@
+"""docs/performance.md's figures: one full run of ``edc-bench perf``, and where a simulated test's time goes."""
+
+from __future__ import annotations
+
+import cProfile
+import json
+import pstats
+import subprocess
+import sys
+from collections import defaultdict
+
+from figures.common import measured_on, measurement, stored, stored_record, table, wrap
+
+
+@measurement("performance-perf", minutes=7, timing=True)
+def perf_run() -> dict:
+    """``edc-bench perf --json``, the full run, as it printed it (figures and environment)."""
+    done = subprocess.run([sys.executable, "-m", "edc_bench", "perf", "--json"], capture_output=True, text=True,
+                          check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"edc-bench perf failed ({done.returncode}):\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout)
+
+
+def _value(value: float | None, unit: str) -> str:
+    if value is None:
+        return ""
+    if value != value:  # NaN: the group failed
+        return "failed"
+    digits = 0 if abs(value) >= 100 else 1 if abs(value) >= 10 else 2
+    return f"{value:,.{digits}f} {unit}".strip()
+
+
+def perf_table() -> str:
+    """The stored run's figures, each beside its reference and target, and whether it met it."""
+    run = stored("performance-perf")
+    rows = []
+    for f in run["figures"]:
+        reference = _value(f["reference"], f["unit"]) + (f" ({f['reference_name']})" if f["reference_name"] else "")
+        met = "" if f["met"] is None else "yes" if f["met"] else "**no**"
+        rows.append((f["group"], f["name"], _value(f["value"], f["unit"]), reference, f["target"], met,
+                     f["note"].replace("|", "/")))
+    return table(("group", "figure", "measured", "reference, same run", "target", "met", "notes"), rows)
+
+
+def perf_environment() -> str:
+    """When and where the stored run was made, and how much CPU the hypervisor took meanwhile."""
+    env = stored("performance-perf")["environment"]
+    return wrap(f"{measured_on('performance-perf')} edc-bench {env['edc_bench']}; `{env['command']}` started at "
+                f"{env['date']}; the hypervisor took {env['cpu_steal_s']:.1f} s of CPU during the run (CPU steal, "
+                f"as /proc/stat counts it).")
+
+
+#: Where a simulated test's time goes, by the code's job (the first match of a function's file wins).
+PROFILE_PARTS = (
+    ("the simulated rig: firmware prototype", "firmware_proto/"),
+    ("the simulated rig: plant, sensors, adapter, runner", "edc_bench/sim/"),
+    ("the controller (PID, feedforward, estimator)", "edc_bench/control/"),
+    ("the tick engine (reply matching, trace, checks)", "edc_bench/engine/"),
+    ("the loop's shell and clock", "edc_bench/runtime/"),
+    ("frame codec and CRC", "edc_bench/protocol/"),
+    ("identification, judgement, early stop", "edc_bench/identification/"),
+    ("identification, judgement, early stop", "edc_bench/verdict/"),
+    ("python-can (messages, bus base class)", "/can/"),
+    ("numpy and scipy", "/numpy/"),
+    ("numpy and scipy", "/scipy/"),
+)
+
+
+@measurement("performance-profile", minutes=0.5, timing=True)
+def profile_simulated_test() -> dict:
+    """Share of a full-length default simulated test's own time (cProfile's tottime) by the code's job."""
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant
+
+    variant = load_variant("p-edc-default")
+    run_simulated_test(variant, "new", 1, full_length=True)  # warm: imports, the gain check's cache
+    profiler = cProfile.Profile()
+    profiler.enable()
+    run_simulated_test(variant, "new", 1, full_length=True)
+    profiler.disable()
+    shares: dict[str, float] = defaultdict(float)
+    stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
+    for (path, _, _), (_, _, tottime_s, _, _) in stats.items():
+        part = next((name for name, piece in PROFILE_PARTS if piece in path.replace("\\", "/")), "Python built-ins and the rest")
+        shares[part] += tottime_s
+    total_s = sum(shares.values())
+    return {"total_s": round(total_s, 2),
+            "shares": {part: round(seconds / total_s, 3) for part, seconds in sorted(shares.items())}}
+
+
+def profile_table() -> str:
+    """The profile's shares, largest first."""
+    result = stored("performance-profile")
+    rows = sorted(result["shares"].items(), key=lambda item: -item[1])
+    return "\n".join([table(("part of the code", "share of the test's time"),
+                            [(part, f"{share:.0%}") for part, share in rows]), "",
+                      wrap(f"{measured_on('performance-profile')} Total {result['total_s']:.2f} s under the "
+                           f"profiler, which slows Python calls more than numpy's.")])
+
+
+def recorded_command() -> str:
+    """The command line the stored run was made with (for the text)."""
+    return stored_record("performance-perf")["command"]

@@ -1,0 +1,55 @@
+"""README.md's figures: the test suite's size and how long its default run takes."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from figures.common import measurement, stored, when_and_where, wrap
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _collected(marker: str) -> int:
+    """How many tests ``pytest -m MARKER`` selects (collected only, nothing run)."""
+    done = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
+                           "-n", "0", "-m", marker], cwd=ROOT, capture_output=True, text=True, check=False)
+    found = re.search(r"(\d+)(?:/\d+)? tests? collected", done.stdout)
+    if found is None:
+        raise RuntimeError(f"pytest collected nothing for -m {marker!r}:\n{done.stdout[-2000:]}{done.stderr[-2000:]}")
+    return int(found.group(1))
+
+
+@measurement("readme-suite-minutes", minutes=4, timing=True)
+def suite_minutes() -> dict[str, float]:
+    """Wall time of the README's test command (the default suite, two workers) on this machine.
+
+    The suite includes the check of these pages, which fails while this very figure is being measured (its
+    stored result is what is missing or changing); any other failure means the time is not a figure.
+    """
+    start_s = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-rf"], cwd=ROOT,
+                          capture_output=True, text=True, check=False)
+    minutes = round((time.perf_counter() - start_s) / 60.0, 1)
+    failed = [line for line in done.stdout.splitlines() if line.startswith("FAILED ")]
+    if done.returncode not in (0, 1) or any("tests/docs/test_figures.py" not in line for line in failed):
+        raise RuntimeError(f"the default suite failed; its time is not a figure:\n{done.stdout[-3000:]}")
+    return {"default_suite_min": minutes}
+
+
+def test_suite_paragraph() -> str:
+    """The paragraph after the quick start: what the README's second command runs, and how long it takes."""
+    minutes = stored("readme-suite-minutes")["default_suite_min"]
+    slow = _collected("slow")
+    return wrap(f"The second runs the default suite on two workers (pytest-xdist; `-n 0` for one): "
+            f"{minutes:.1f} minutes ({when_and_where('readme-suite-minutes')}; "
+            f"`python docs/regenerate.py --measure readme-suite-minutes` measures it again). It leaves out the {slow} slow tests (the paper's "
+            f"experiment, model rebuilds, population runs, the docs' measurements, the benchmark, long "
+            f"real-time runs; the two-worker summary does not count them): run them with `pytest -m slow -n 0`, "
+            f"one at a time, since the real-time ones want the machine to themselves. CI runs both, the slow "
+            f"tests in simulated time on two workers and the real-time ones and the benchmark alone "
+            f"(`.ci/run`). Both commands may share one virtual environment (re-running `venv` on it keeps what "
+            f"is installed). The history and caches go under your home folder (\"Where files go\" below).")

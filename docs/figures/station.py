@@ -1,0 +1,39 @@
+"""The figures of docs/station.md that are not in its images (docs/make_images.py draws those).
+
+``station-online-vs-period-fit`` measures how far the feedforward's online af and a1 end from the period fit's
+(the features the verdict uses), which the report's convergence plot shows side by side.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from figures.common import measurement, percent, stored
+
+#: Variants compared: one the linear model fits, one it fits only roughly.
+VARIANTS = ("p-edc-default", "p-edc-hard")
+
+
+def _online_against_period_fit(variant_name: str, seed: int = 0) -> dict[str, float]:
+    """Relative difference of the online af and a1 at the end of a new valve's test from the period fit's."""
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant
+
+    result = run_simulated_test(load_variant(variant_name), "new", seed, classify=False)
+    return {name: round(float(result.trace[f"{name}_hat"][-1] / result.parameters[name]["value"] - 1), 4)
+            for name in ("af", "a1")}
+
+
+@measurement("station-online-vs-period-fit", minutes=0.1)
+def online_vs_period_fit() -> dict[str, Any]:
+    """For a new valve (seed 0) on each of :data:`VARIANTS`: online af and a1 at the end against the period fit."""
+    return {name: _online_against_period_fit(name) for name in VARIANTS}
+
+
+def convergence_sentence() -> str:
+    """How far the online estimates end from the period fit on each compared variant (a new valve's test)."""
+    data = stored("station-online-vs-period-fit")
+    parts = [f"by {percent(d['af'], 0, sign=True)} and {percent(d['a1'], 0, sign=True)} on `{name}`"
+             for name, d in data.items()]
+    return ("At the end of a new valve's simulated test the online af and a1 differ from the period fit's "
+            + ", and ".join(parts) + " (`python docs/regenerate.py --measure station-online-vs-period-fit`).")
