@@ -365,7 +365,7 @@ class AcceptanceSection(_Section):
     max_residual_ratio: Annotated[float, Field(gt=1, le=1000, allow_inf_nan=False)] = Field(
         default=5.0, description="the model does not fit when what it leaves unexplained of the smoothed drive the "
         "same way in every excitation period exceeds this multiple of the noise the position sensor leaves in it "
-        "(fitting pumps: 0.6-2.9, through a USB adapter too)")
+        "(docs/method.md, section 15, prints what fitting pumps reach, through a USB adapter too)")
     max_gain_variation_rel: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
         default=0.25, description="the model does not fit when the solenoid's force constant varies more than this "
         "(+/-, relative) over the excitation's swing: its first-order correction no longer holds")

@@ -193,8 +193,8 @@ def drift_statistic(per_period: np.ndarray) -> np.ndarray:
     outlying period aside.
 
     The period farthest from the median is left out of both halves and of the noise: a CAN adapter's timing
-    scatters the periods' estimates with heavier tails than a normal distribution's (a1 of one `p-edc-hard`
-    valve 5.8 % off in one period of 13 through usb-fs, where the others scatter 1 %), and a drift moves many
+    scatters the periods' estimates with heavier tails than a normal distribution's (docs/method.md, section 7,
+    prints the worst single period of 200 `p-edc-hard` valves through usb-fs), and a drift moves many
     periods, not one. The noise is taken from the differences between successive periods, the largest left out
     (von Neumann, trimmed): a drift hardly inflates it (a steady drift of b per period adds about b^2 / 2 to the
     variance, a step nothing), where the scatter about each half's own mean would grow with any drift inside a

@@ -88,7 +88,7 @@ class AdapterModel:
 PRESETS: dict[str, AdapterModel] = {
     "none": AdapterModel(),
     # USB full-speed: 1 ms frames each way, 0.25-0.75 ms of driver, scheduling and bus latency, frames drifting
-    # against the ticks at 100 ppm: 1.3-2.9 ms round trip (replies 2-3 ticks old), 1.5-3.5 ms as a host measures it
+    # against the ticks at 100 ppm (docs/simulation.md prints the round trip this gives and the replies' age)
     "usb-fs": AdapterModel(latency_s=0.25e-3, jitter_s=0.5e-3, usb_frame_s=1e-3, usb_phase_s=0.37e-3,
                            usb_drift_ppm=100.0, name="usb-fs"),
 }

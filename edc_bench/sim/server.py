@@ -44,8 +44,8 @@ from edc_bench.sim.rig import SimulatedRig
 from edc_bench.sim.slcan import SlcanDevice
 
 _MAX_WAIT_S = 0.05
-#: Bytes queued for a host that does not read before lines for it are dropped: 0.7-1.4 s of a 1 kHz test's
-#: traffic to one host (one or two lines of some 22 bytes a tick), longer than a bench's 300 ms heartbeat rule
+#: Bytes queued for a host that does not read before lines for it are dropped: about a second of a 1 kHz test's
+#: traffic to one host (one or two lines of some 22 bytes a tick; docs/simulation.md prints the span), longer than a bench's 300 ms heartbeat rule
 #: tolerates; the kernel's socket buffer comes on top. A USB adapter buffers far less.
 HOST_QUEUE_BYTES = 32768
 #: A rig READY whose owner has sent no BENCH_CMD for this long (s) is free for another host's test.
