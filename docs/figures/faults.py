@@ -280,7 +280,7 @@ def stuck_sensor_sentence() -> str:
     currents = data["stuck_sensor_max_current_a"].values()
     trip_a = data["runs"]["lvdt_stuck"]["over_current_a"]
     return (f"A stuck sensor is caught before the PID winds the coil up to the rig's over-current trip: the coil "
-            f"reaches at most {min(currents):.1f}-{max(currents):.1f} A on the shipped variants "
+            f"reaches {min(currents):.1f}-{max(currents):.1f} A at the most (by variant) on the test variants "
             f"({', '.join(f'`{n}`' for n in data['stuck_sensor_max_current_a'])}) before the bench stops the test, "
             f"against the rig's trip at `[rig].over_current_a` ({trip_a:g} A on `p-edc-default`).")
 

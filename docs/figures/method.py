@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from figures.common import measurement, percent, span, stored, table
+from figures.common import measurement, percent, shipped_classifier, span, stored, table
 
 DEFAULT = "p-edc-default"
 #: The shipped pump variants (configs/*.toml; `edc-bench variants`).
@@ -117,11 +117,13 @@ def _scales(variant_name: str = DEFAULT) -> tuple[float, ...]:
 
 
 def scales_block() -> str:
-    """Section 5's scales, symbolic and for the default variant, as an indented code block."""
+    """Section 5's scales, symbolic and for the default variant, as a code block (cog strips a block's common
+    indentation, so it is fenced)."""
     s = _scales()
-    return ("    s = [ sum A_j w_j^3,  sum A_j w_j^2,  sum A_j w_j,  r_mid,  1,  1 ]\n"
-            f"      = [ {s[0]:.0f} mm/s^3,    {s[1]:.0f} mm/s^2,     {s[2]:.1f} mm/s,    {s[3]:g} mm,  1,  1 ]"
-            "   (default)")
+    return ("```text\n"
+            "s = [ sum A_j w_j^3,  sum A_j w_j^2,  sum A_j w_j,  r_mid,  1,  1 ]\n"
+            f"  = [ {s[0]:.0f} mm/s^3,    {s[1]:.0f} mm/s^2,     {s[2]:.1f} mm/s,    {s[3]:g} mm,  1,  1 ]"
+            "   (default)\n```")
 
 
 def fixed_a3_paragraph() -> str:
@@ -398,7 +400,7 @@ def stick_windows_table() -> str:
     text = table(["no updates while abs(r') below", "a2 error", "a1 error", "af error",
                   f"repeating part / noise (limit {limit:g})", "verdict"],
                  [(f"{percent(float(key), 0)} of its peak", percent(row["a2"], sign=True),
-                   percent(row["a1"], 2, sign=True), percent(row["af"], 2, sign=True),
+                   percent(row["a1"], sign=True), percent(row["af"], sign=True),
                    f"{row['systematic_ratio']:.1f}", row["verdict"]) for key, row in data.items()])
     least = data[f"{EXCLUSIONS[0]:g}"]
     if least["verdict"] == "INVALID":
@@ -567,8 +569,6 @@ def _latency_figures(variant: Any, instant: Any, delayed: Any) -> dict[str, Any]
     """af and a1 through the link against the same valves without it, and how many verdicts changed."""
     from edc_bench.config.models import PARAMETER_NAMES
     from edc_bench.verdict.baseline import load_baseline
-    from edc_bench.verdict.classifier import ValveClassifier
-
     out: dict[str, Any] = {}
     for name in ("af", "a1"):
         j = PARAMETER_NAMES.index(name)
@@ -580,7 +580,7 @@ def _latency_figures(variant: Any, instant: Any, delayed: Any) -> dict[str, Any]
     for result in (instant, delayed):
         rel = np.column_stack([result.parameters[:, PARAMETER_NAMES.index("af")] / baseline.af_v,
                                result.parameters[:, PARAMETER_NAMES.index("a1")] / baseline.a1_v_s_per_mm])
-        verdicts.append(ValveClassifier().classify_many(rel)[0])
+        verdicts.append(shipped_classifier().classify_many(rel)[0])
     out["verdicts_changed"] = int((np.asarray(verdicts[0]) != np.asarray(verdicts[1])).sum())
     out["converged"] = int(delayed.converged.sum())
     return out
@@ -718,7 +718,7 @@ def scatter_paragraph() -> str:
     return ("On the link's real scatter (`method-fitting-pumps`: "
             f"{s['valves']} `p-edc-hard` valves through `usb-fs`,\n{s['periods']} periods) one valve's a1 is "
             f"{percent(s['a1_period_max'])} off its median in one period where its others\nscatter "
-            f"{percent(s['a1_worst_valve_others_rms'], 1)} rms; the halves of a1 lie up to {percent(s['a1_halves_max'])} "
+            f"{percent(s['a1_worst_valve_others_rms'], 0)} rms; the halves of a1 lie up to {percent(s['a1_halves_max'])} "
             f"apart ({s['a1_halves_beyond_band']} of {s['valves']} beyond the\n2 % band); the ratio's 99th "
             f"percentile is {s['af_p99']:.2f} for af and {s['a1_p99']:.2f} for a1, against\n{s['limit']:.2f}, and "
             f"{s['converged']} of {s['valves']} converge.")

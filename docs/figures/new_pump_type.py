@@ -97,6 +97,9 @@ def not_calibrated_transcript() -> str:
         not_calibrated_reason,
     )
 
+    before = stored("new-pump-type-walkthrough")["before"]
+    if before["verdict"] != "INVALID":  # the walkthrough's own test before calibrating must agree with the page
+        raise RuntimeError(f"the new pump's test before calibration gave {before['verdict']}, not INVALID")
     with new_pump_station():
         variant = load_variant(NAME)
         reason = not_calibrated_reason(variant, default_calibrate_command(variant, RIG))
@@ -167,17 +170,15 @@ def baseline_sentence() -> str:
     return (f"`tests/cli/test_new_pump_type.py` calibrates {count} such runs (one simulated new valve; calibrate "
             f"gives each run its own noise seed). The baseline's af came out {off_by(b['af_error'])} the simulated "
             f"plant's, its a1 {off_by(b['a1_error'])} the plant's, with a stated uncertainty of "
-            f"{percent(b['af_u'], 2)} and {percent(b['a1_u'], 2)}.")
+            f"{percent(b['af_u'], 2)} (af) and {percent(b['a1_u'], 2)} (a1).")
 
 
 def verify_sentence() -> str:
     """The new and the worn valve after calibration."""
-    from edc_bench.config import parse_variant
-
     v = stored("new-pump-type-walkthrough")["valves"]
     new, worn = v["new"], v["worn"]
-    duration_s = parse_variant(tomllib.loads(variant_text())).excitation.duration_s
     return (f"On the simulated rig (`--valve new`, `--valve worn`) the new pump type gave {new['verdict']} with af "
             f"x{new['af']:.2f}, a1 x{new['a1']:.2f}, and {worn['verdict']} with af x{worn['af']:.2f}, a1 "
-            f"x{worn['a1']:.2f}. In both tests af and a1 settled within "
-            f"{math.ceil(max(new['settle_s'], worn['settle_s']) * 10 - 1e-6) / 10:.1f} s of the {duration_s:g} s test.")
+            f"x{worn['a1']:.2f}. In both tests the online estimates of af and a1 settled within "
+            f"{math.ceil(max(new['settle_s'], worn['settle_s']) * 10 - 1e-6) / 10:.1f} s of the move to mid-stroke "
+            f"(the record's `online_settle_s`).")

@@ -27,6 +27,8 @@ def _value(value: float | None, unit: str) -> str:
         return ""
     if value != value:  # NaN: the group failed
         return "failed"
+    if 0 < abs(value) < 0.1:  # a small share: its first figures, not "0.00"
+        return f"{value:.2g} {unit}".strip()
     digits = 0 if abs(value) >= 100 else 1 if abs(value) >= 10 else 2
     return f"{value:,.{digits}f} {unit}".strip()
 

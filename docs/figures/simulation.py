@@ -183,8 +183,6 @@ def coil_heating_sentence() -> str:
 
 def batch_sentence() -> str:
     """How closely the batch path's af and a1 follow the full loop's through ``usb-fs``."""
-    from edc_bench.population.batch import run_batch  # noqa: F401  (the path the sentence is about)
-
     data = stored("simulation-batch-usb-fs")
     worst = max(abs(v) for valve in data["relative_deviation"].values() for v in valve.values())
     valves = ", ".join(data["valves"])

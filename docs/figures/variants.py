@@ -136,5 +136,6 @@ def mistaken_default(old: str, new: str) -> str:
 
 
 def error_examples() -> str:
-    """What ``load_variant`` says about :data:`MISTAKES` in a copy of the default variant (indented: a code block)."""
-    return "\n".join(f"    {load_error(mistaken_default(old, new))}" for old, new in MISTAKES)
+    """What ``load_variant`` says about :data:`MISTAKES` in a copy of the default variant, as a fenced code block
+    (cog strips a block's common indentation, so an indented block would not survive)."""
+    return "\n".join(["```text", *(load_error(mistaken_default(old, new)) for old, new in MISTAKES), "```"])
