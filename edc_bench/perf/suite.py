@@ -114,13 +114,14 @@ def _links(variant_name: str | None, sizes: Sizes) -> list[Figure]:
                f"{usb.gaps} host stalls lost {usb.ticks_lost} ticks")
     recovered = stalls.late_after_gap_us < 1e3
     return [
-        Figure("realtime", f"usb-fs adapter, {duration_s:g} s test: reply age p99", age_percentile(usb.reply_age_ticks, 99),
+        Figure("realtime", f"usb-fs adapter, a test of up to {duration_s:g} s: reply age p99", age_percentile(usb.reply_age_ticks, 99),
                "ticks", age_percentile(usb.reply_age_ticks, 50), "reply age p50", "test valid (PASS on a new valve)",
                usb.verdict == "PASS",
                f"{usb.verdict} {'; '.join(usb.reasons)}; ended: {usb.stop_reason} after {usb.ticks_run} ticks, the "
                f"early stop's longest check {usb.stop_check_max_us:.0f} us; ages {usb.reply_age_ticks}; "
                f"{usb.replies_too_old} too old (never used); {machine}"),
-        Figure("realtime", f"5 ms host stall every second, {duration_s:g} s test: ticks lost per stall",
+        Figure("realtime", f"5 ms host stall every second, a test of up to {duration_s:g} s: ticks lost per gap "
+               "(the machine's own gaps too)",
                stalls.ticks_lost / max(stalls.gaps, 1), "ticks", 5.0, "ticks in 5 ms",
                "test valid, back on time after each gap", stalls.verdict == "PASS" and recovered,
                f"{stalls.verdict} {'; '.join(stalls.reasons)}; {stalls.stalls_injected} stalls injected, "
