@@ -132,7 +132,8 @@ def identity(limit: int = MAX_ID_CHARS) -> Callable[[str], str]:
     def parse(text: str) -> str:
         problem = text_problem(text, limit)
         if problem:
-            raise argparse.ArgumentTypeError(f"{printable(repr(text))[:80]} {problem}")
+            shown = text if len(text) <= 60 else f"{text[:57]}..."  # a long one cut before quoting: quotes closed
+            raise argparse.ArgumentTypeError(f"{printable(repr(shown))} {problem}")
         return text
     return parse
 

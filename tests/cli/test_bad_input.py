@@ -105,7 +105,8 @@ CORPUS: dict[str, Case] = {
     "test-out-dev-null": case("test --out /dev/null", BAD, "--out", "/dev/null", "device"),
     "test-out-cannot-make": case("test --out /sys/edc-records", BAD, "--out", "cannot make", "writable"),
     "test-out-not-writable": case("test --out /proc", BAD, "--out", "/proc", "not writable"),
-    "test-valve-id-long": case(("test", "--valve-id", LONG_ID), BAD, "--valve-id", "101 characters", "at most 100"),
+    "test-valve-id-long": case(("test", "--valve-id", LONG_ID), BAD, "--valve-id", "101 characters", "at most 100",
+                               "...' is"),  # the id shown cut short, its quotes closed
     "test-valve-id-not-utf8": case(("test", "--valve-id", NOT_UTF8), BAD, "--valve-id", "UTF-8"),
     "test-valve-id-line-break": case(("test", "--valve-id", "V-1\nV-2"), BAD, "--valve-id", "control character"),
     "test-pump-serial-long": case(("test", "--pump-serial", "P" * 300), BAD, "--pump-serial", "at most 100"),
