@@ -14,7 +14,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from cogapp import Cog
+try:
+    from cogapp import Cog
+except ImportError:  # the test extra brings it
+    sys.exit("docs/regenerate.py needs cogapp, which comes with the test extra: pip install \".[test]\"")
 
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
@@ -62,7 +65,11 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"no measurement is named {name!r}; `--list` names them")
     for name in dict.fromkeys(names):
         print(f"measuring {name} (about {registry[name].minutes:g} min) ...", flush=True)
-        print(f"  wrote {measure(name)}", flush=True)
+        try:
+            print(f"  wrote {measure(name)}", flush=True)
+        except (RuntimeError, OSError) as exc:  # a command the measurement ran failed: its figures are not figures
+            print(f"measurement {name} failed, nothing stored: {exc}", file=sys.stderr)
+            return 1
     for page in args.page:
         if not page.is_file():
             parser.error(f"--page {page}: no such file")
@@ -70,4 +77,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except BrokenPipeError:  # the reader (head, a pager) closed the pipe: nothing more to say
+        sys.stderr.close()
+        sys.exit(0)
