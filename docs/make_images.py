@@ -37,7 +37,7 @@ def main() -> None:
     from edc_bench.bench import run_simulated_test
     from edc_bench.cli.history_cmd import history_table, trend_table
     from edc_bench.config import load_variant
-    from edc_bench.history import HistoryStore, index_record_dir
+    from edc_bench.history.store import HistoryStore, index_record_dir
     from edc_bench.history.store import Filters
     from edc_bench.records.record import write_record
     from edc_bench.records.report import draw_report

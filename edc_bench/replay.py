@@ -26,7 +26,7 @@ from edc_bench.config import parse_variant
 from edc_bench.config.loader import without_retired_keys
 from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
-from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, abort_from_record
+from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome
 from edc_bench.engine.tick import TickEngine
 from edc_bench.errors import ConfigError
 from edc_bench.identification.trust import Problem
@@ -34,6 +34,7 @@ from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
+from edc_bench.records.schema import Record
 from edc_bench.records.writer import RECORD_SCHEMA
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.judgement import Judgement, judge_run
@@ -174,32 +175,32 @@ def _same(a: Any, b: Any, rel_tol: float = 0.0) -> bool:
     return a == b
 
 
-def compare_with_record(judged: Judgement, record: dict[str, Any], rel_tol: float = 0.0) -> list[str]:
+def compare_with_record(judged: Judgement, record: Record, rel_tol: float = 0.0) -> list[str]:
     """Every recorded figure the replay did not reproduce (exactly, or within ``rel_tol``), as readable lines."""
     diffs = []
-    if judged.verdict != record.get("verdict"):
-        diffs.append(f"verdict: recorded {record.get('verdict')}, replayed {judged.verdict}")
+    if judged.verdict != record.verdict:
+        diffs.append(f"verdict: recorded {record.verdict}, replayed {judged.verdict}")
     for name, entry in judged.parameters.items():
-        rec = (record.get("parameters") or {}).get(name, {})
+        rec = record.parameters.get(name)
         for key in ("value", "std"):
-            got, want = entry[key], rec.get(key)
+            got, want = entry[key], None if rec is None else getattr(rec, key)
             want = math.nan if want is None else want
             if not _same(float(got), float(want), rel_tol):
                 diffs.append(f"{name} {key}: recorded {want!r}, replayed {got!r}")
-    rec_cls, cls = record.get("classification"), judged.classification
+    rec_cls, cls = record.classification, judged.classification
     if (rec_cls is None) != (cls is None):
         diffs.append("classification: present in one, absent in the other")
-    elif cls is not None:
+    elif cls is not None and rec_cls is not None:
         for key in ("probability_faulty", "distance"):
-            if not _same(cls[key], rec_cls.get(key), rel_tol):
-                diffs.append(f"{key}: recorded {rec_cls.get(key)!r}, replayed {cls[key]!r}")
+            if not _same(cls[key], getattr(rec_cls, key), rel_tol):
+                diffs.append(f"{key}: recorded {getattr(rec_cls, key)!r}, replayed {cls[key]!r}")
     return diffs
 
 
-def record_variant(record: dict[str, Any], source: str) -> Variant:
+def record_variant(record: Record, source: str) -> Variant:
     """The variant exactly as the recorded test ran it (with its command-line overrides)."""
-    config = record.get("config")
-    if not isinstance(config, dict):
+    config = record.config
+    if config is None:
         raise ConfigError(f"{source}: the record holds no variant configuration")
     # a record of an older edc-bench may hold settings since retired; it replays under today's rules
     return parse_variant(without_retired_keys(config), f"{source} (recorded variant)")
@@ -219,44 +220,45 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     folder = Path(folder)
     record = load_record(folder)
     variant = record_variant(record, str(folder))
-    loop = record.get("loop") or {}
+    loop = record.loop
     frames = read_can_log(Path(can_log) if can_log is not None else folder / CAN_LOG_FILE)
     notes = []
-    judged_by = (record.get("classification") or {}).get("model_sha256")
-    if classifier_path is None and judged_by:
+    judged_by = record.classification.model_sha256 if record.classification is not None else None
+    if classifier_path is None and judged_by and record.classification is not None:
         from edc_bench.verdict.classifier import find_model
 
         # judged by the model that judged it, whatever the station adopted since
         classifier_path = find_model(judged_by)
         if classifier_path is None:
-            name = (record.get("classification") or {}).get("model_name")
+            name = record.classification.model_name
             notes.append(f"the model that judged this test ({name}, sha256 {judged_by[:16]}...) is not on this "
                          "station: judged with the station's model")
-    run = replay_frames(frames, variant, ticks_start_s=loop.get("ticks_start_s", 0.0))
-    outcome = LoopOutcome(ticks_planned=loop.get("ticks_planned", run.ticks), ticks_run=run.ticks,
-                          missed_replies=run.missed_replies, abort=abort_from_record(loop),
-                          gaps=run.gaps, ticks_lost=run.ticks_lost)
-    if loop.get("missed_replies", run.missed_replies) != run.missed_replies:
-        run.notes.append(f"missed replies: recorded {loop.get('missed_replies')}, found {run.missed_replies} in the log")
-    timing = dict(record.get("timing") or {})
-    classify = record.get("verdict") != Verdict.UNCLASSIFIED
-    coil = record.get("coil") or {}
-    given = coil.get("temp_start_c") if coil.get("temp_given") else None
+    run = replay_frames(frames, variant, ticks_start_s=loop.ticks_start_s)
+    planned = run.ticks if loop.ticks_planned is None else loop.ticks_planned
+    abort = None if loop.abort is None else Abort.from_dict(loop.abort.model_dump())
+    outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
+                          abort=abort, gaps=run.gaps, ticks_lost=run.ticks_lost)
+    if "missed_replies" in loop.model_fields_set and loop.missed_replies != run.missed_replies:
+        run.notes.append(f"missed replies: recorded {loop.missed_replies}, found {run.missed_replies} in the log")
+    timing = dict(record.timing)
+    classify = record.verdict != Verdict.UNCLASSIFIED
+    coil = record.coil
+    given = coil.temp_start_c if coil is not None and coil.temp_given else None
     # a record judged against the nominal baseline (--nominal-baseline) is replayed the same way
-    nominal = (record.get("baseline") or {}).get("calibrated") is False
+    recorded = record.baseline
+    nominal = recorded is not None and recorded.calibrated is False
     # judged against the baseline the record was judged against, whatever the station holds now
-    recorded = record.get("baseline")
-    baseline = Baseline.from_summary(recorded) if recorded and recorded.get("af_v") else None
-    if Problem.NOT_CALIBRATED in Problem.from_names(record["problems"]):
+    baseline = Baseline.from_summary(recorded.model_dump()) if recorded is not None and recorded.af_v else None
+    if Problem.NOT_CALIBRATED in Problem.from_names(record.problems):
         nominal_figures = nominal_parameters(variant)  # refused then: refused again, even if calibrated since
         baseline = Baseline(nominal_figures.af, nominal_figures.a1)
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
                        classifier_path=classifier_path, coil_temp_c=given, nominal_baseline=nominal,
-                       baseline=baseline, real_rig=record.get("clock") == "real-time")
+                       baseline=baseline, real_rig=record.real_time)
     rel_tol = 0.0
-    if int(record.get("schema") or 0) < RECORD_SCHEMA:
+    if record.schema_version < RECORD_SCHEMA:
         rel_tol = OLDER_RECORD_REL_TOL
-        notes_after = [f"recorded by an older edc-bench (record schema {record.get('schema')}): its figures are "
+        notes_after = [f"recorded by an older edc-bench (record schema {record.schema_version}): its figures are "
                        f"compared to {rel_tol:g} relative, not to the last bit (the controller's sums have been "
                        "reordered since)"]
     else:

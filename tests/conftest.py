@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Iterator
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager
 from typing import NamedTuple
 
 import can
@@ -74,6 +74,13 @@ _channels = itertools.count()
 
 @pytest.fixture()
 def simulated_bench() -> Iterator[Callable[..., SimBench]]:
+    """A factory for the simulated rig on a bus pair (:func:`simulated_bench_factory`), for one test."""
+    with simulated_bench_factory() as make:
+        yield make
+
+
+@contextmanager
+def simulated_bench_factory() -> Iterator[Callable[..., SimBench]]:
     """A factory for the simulated rig on a bus pair, as ``run_simulated_test`` builds it.
 
     ``simulated_bench(variant, valve="new", seed=0, *, options=None, interface="lockstep")``

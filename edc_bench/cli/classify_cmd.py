@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from edc_bench.cli.common import positive_float, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 
 if TYPE_CHECKING:
+    from edc_bench.records.schema import Record
     from edc_bench.verdict.baseline import Baseline
 
 
@@ -49,11 +50,11 @@ def run(args: argparse.Namespace) -> int:
         if args.af is not None or args.a1 is not None:
             raise ConfigError("give either a record folder or --af and --a1, not both")
         record = load_record(args.record_dir)
-        if record.get("verdict") == Verdict.INVALID:
-            out = {"verdict": Verdict.INVALID, "reasons": record.get("reasons", []), "record_dir": str(args.record_dir)}
+        if record.verdict == Verdict.INVALID:
+            out = {"verdict": Verdict.INVALID, "reasons": record.reasons, "record_dir": str(args.record_dir)}
             print_quietly_if_closed(lambda: _report(out, args.json))
             return ExitCode.INVALID
-        recorded = str(record.get("variant", ""))
+        recorded = record.variant
         variant = load_variant(args.variant or recorded or None)
         if args.variant and recorded and variant.name != recorded:
             raise ConfigError(f"the record was measured on variant {recorded}; --variant {args.variant} is "
@@ -88,17 +89,15 @@ def run(args: argparse.Namespace) -> int:
 MAX_RATIO = 100.0
 
 
-def _recorded_features(record: dict[str, Any], folder: Path) -> tuple[float, float]:
+def _recorded_features(record: Record, folder: Path) -> tuple[float, float]:
     """af and a1 of a record: positive finite numbers, or a ConfigError naming the record."""
     import math
 
     from edc_bench.errors import ConfigError
 
-    features = record.get("features")
-    try:
-        af, a1 = float(features["af"]), float(features["a1"])
-    except (TypeError, KeyError, ValueError):
-        raise ConfigError(f"{folder}: the record holds no features af and a1 (not a finished test's record)") from None
+    af, a1 = record.features.get("af"), record.features.get("a1")
+    if af is None or a1 is None:
+        raise ConfigError(f"{folder}: the record holds no features af and a1 (not a finished test's record)")
     if not (math.isfinite(af) and math.isfinite(a1) and af > 0 and a1 > 0):
         raise ConfigError(f"{folder}: the record's features af={af}, a1={a1} cannot be judged (they must be "
                           "positive numbers); replay the test: edc-bench replay " + str(folder))

@@ -325,8 +325,7 @@ def bus_settings(interface: str | None, channel: str | None, bitrate: int | None
     """
     import os
 
-    import can
-
+    from edc_bench.canlib import can
     from edc_bench.errors import ConfigError
 
     flags = {k: v for k, v in (("interface", interface), ("channel", channel), ("bitrate", bitrate)) if v is not None}
@@ -366,8 +365,8 @@ def bus_settings(interface: str | None, channel: str | None, bitrate: int | None
 
 
 def check_history_url(url: str | None) -> None:
-    """Refuse a history database that cannot be right before any work (see :func:`edc_bench.history.store.check_url`)."""
-    from edc_bench.history.store import check_url
+    """Refuse a history database that cannot be right before any work (see :func:`edc_bench.history.url.check_url`)."""
+    from edc_bench.history.url import check_url
 
     check_url(url)
 

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from edc_bench.records.schema import Record
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -37,24 +41,28 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_text(record: object, folder: Path, key: str = "record") -> None:
+def _check_text(record: Record, folder: Path) -> None:
     """Refuse a record holding text that is not valid Unicode (hand-edited, or bytes an older edc-bench kept).
 
     The report draws the record's text; such text cannot be drawn, and the
     one fix is in record.json itself.
     """
+    _check_text_in(record.model_dump(by_alias=True), folder, "record")
+
+
+def _check_text_in(value: object, folder: Path, key: str) -> None:
     from edc_bench.errors import ConfigError
 
-    if isinstance(record, dict):
-        for name, value in record.items():
-            _check_text(value, folder, f"{key}.{name}" if key != "record" else str(name))
-    elif isinstance(record, list):
-        for value in record:
-            _check_text(value, folder, key)
-    elif isinstance(record, str):
+    if isinstance(value, dict):
+        for name, item in value.items():
+            _check_text_in(item, folder, f"{key}.{name}" if key != "record" else str(name))
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            _check_text_in(item, folder, key)
+    elif isinstance(value, str):
         try:
-            record.encode("utf-8")
+            value.encode("utf-8")
         except UnicodeEncodeError:
-            shown = record.encode("utf-8", "backslashreplace").decode("utf-8")
+            shown = value.encode("utf-8", "backslashreplace").decode("utf-8")
             raise ConfigError(f"{folder}/record.json: {key} {shown!r} is not valid text (bytes that are not "
                               "UTF-8); correct it in record.json, then draw the report again") from None

@@ -395,7 +395,7 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None,
 def _index(record_dir: Path, url: str | None) -> str | None:
     """Add the record to the station's history; the reason if that failed (the record is safe either way)."""
     from edc_bench.errors import EdcBenchError
-    from edc_bench.history import index_record_dir
+    from edc_bench.history.store import index_record_dir
 
     try:
         index_record_dir(record_dir, url)

@@ -1,5 +1,5 @@
-"""The station's history of bench tests (see :mod:`edc_bench.history.store`)."""
+"""The station's history of bench tests: the store (:mod:`edc_bench.history.store`), its URL
+(:mod:`edc_bench.history.url`), the shop's teardown labels (:mod:`edc_bench.history.labels`).
 
-from edc_bench.history.store import Filters, HistoryStore, default_url, index_record_dir
-
-__all__ = ["Filters", "HistoryStore", "default_url", "index_record_dir"]
+Nothing is imported here: checking a history URL before a test does not import the database layer.
+"""

@@ -18,16 +18,20 @@ from __future__ import annotations
 
 import csv
 import datetime as dt
-import os
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import sqlalchemy as sa
 
 from edc_bench.errors import ConfigError
+from edc_bench.history.url import check_url, default_url
 from edc_bench.verdict.verdicts import Verdict
+
+if TYPE_CHECKING:
+    from edc_bench.records.schema import Record
 
 metadata = sa.MetaData()
 
@@ -85,159 +89,49 @@ TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns)
 COLUMNS = tuple(c.name for c in tests.columns if c.name != "id")
 
 
-def default_url() -> str:
-    """``EDC_BENCH_HISTORY_URL`` if set, else SQLite in the station's data folder."""
-    configured = os.environ.get("EDC_BENCH_HISTORY_URL")
-    if configured:
-        return configured
-    from edc_bench.paths import data_dir
-
-    return f"sqlite:///{data_dir() / 'history.sqlite'}"
-
-
-#: The first bytes of every SQLite database file.
-SQLITE_HEADER = b"SQLite format 3\x00"
-
-
-def check_url(url: str | None, must_exist: bool = False) -> sa.engine.URL:
-    """Check a history URL without connecting: its form, its driver, and for SQLite the file and its folder.
-
-    The default (the station's data folder) is made if missing; a folder
-    named in a URL is never made, so a mistyped URL cannot start a second,
-    empty history beside the shop's.
-
-    Parameters
-    ----------
-    url : str, optional
-        ``--db``; default :func:`default_url` (``EDC_BENCH_HISTORY_URL``, else the data folder's SQLite file).
-    must_exist : bool, optional
-        For commands that only read or label what is there: a SQLite file named by ``--db`` or
-        ``EDC_BENCH_HISTORY_URL`` must exist (a mistyped name would show an empty history, or keep a
-        finding where no one looks for it).
-
-    Returns
-    -------
-    sqlalchemy.engine.URL
-        The parsed URL.
-
-    Raises
-    ------
-    ConfigError
-        Naming the URL, where it came from, what is wrong and what to give instead.
-    """
-    given = url or os.environ.get("EDC_BENCH_HISTORY_URL")
-    text = url or default_url()
-    where = "" if url or not given else " (from EDC_BENCH_HISTORY_URL)"
-    fix = "give another with --db URL" + (" or EDC_BENCH_HISTORY_URL" if where else "")
-    try:
-        parsed = sa.engine.make_url(text)
-    except sa.exc.ArgumentError:
-        hint = f" (a file: sqlite:///{text})" if "://" not in text else ""
-        raise ConfigError(f"history database {text!r}{where} is not a database URL: use sqlite:///FILE{hint} or "
-                          "postgresql+psycopg://USER@HOST/DB") from None
-    try:
-        parsed.get_dialect()
-    except (sa.exc.NoSuchModuleError, ImportError) as exc:
-        raise ConfigError(f"history database {text!r}{where}: {exc}; use sqlite:///FILE or "
-                          "postgresql+psycopg://USER@HOST/DB (PostgreSQL needs edc-bench[postgres])") from None
-    if parsed.get_backend_name() == "sqlite":
-        if parsed.database in (None, "", ":memory:"):
-            raise ConfigError(f"history database {text!r}{where} is in memory and keeps nothing: give a file, "
-                              "sqlite:///FILE")
-        if parsed.query:
-            raise ConfigError(f"history database {text!r}{where}: options after '?' are not used; give the file "
-                              "alone, sqlite:///FILE")
-        path = Path(parsed.database)
-        _check_sqlite_file(path, f"history database {text}{where}", fix, default=not given)
-        if must_exist and given and not path.exists():
-            raise ConfigError(f"history database {text}{where}: there is no history at {path}; check the URL "
-                              "(nothing was created). A new history is started by 'edc-bench test' or "
-                              "'edc-bench history --add' with this URL")
-    return parsed
-
-
-def _check_sqlite_file(path: Path, what: str, fix: str, default: bool) -> None:
-    """Refuse a SQLite target that is a folder, a device, another kind of file, or in a missing folder."""
-    if path.is_dir():
-        raise ConfigError(f"{what}: {path} is a folder; name a file in it, e.g. sqlite:///{path / 'history.sqlite'}")
-    if path.exists() and not path.is_file():
-        raise ConfigError(f"{what}: {path} is a device or other special file, not a database file; {fix}")
-    if path.is_file() and path.stat().st_size > 0:
-        try:
-            with path.open("rb") as handle:
-                header = handle.read(len(SQLITE_HEADER))
-        except OSError as exc:
-            raise ConfigError(f"{what}: cannot read {path} ({exc.strerror}); {fix}") from None
-        if header != SQLITE_HEADER:
-            raise ConfigError(f"{what}: {path} is not a SQLite database (it holds other data); refusing to touch it: "
-                              f"{fix}")
-    if not path.parent.is_dir():
-        if default:
-            path.parent.mkdir(parents=True, exist_ok=True)  # the station's own data folder, on a fresh station
-        else:
-            raise ConfigError(f"{what}: the folder {path.parent} does not exist; make it first (mkdir -p "
-                              f"{path.parent}) or {fix}")
-
-
 def _text(value: Any) -> str:
     """``value`` as text any database stores: text that is not valid Unicode (a hand-edited record) escaped."""
     return str(value).encode("utf-8", "backslashreplace").decode("utf-8")
 
 
-def _finite(value: Any) -> float | None:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return None
-    return number if number == number and abs(number) != float("inf") else None
+def _finite(value: float | None) -> float | None:
+    return value if value is not None and math.isfinite(value) else None
 
 
-def _flag(value: Any) -> bool | None:
-    return value if isinstance(value, bool) else None
-
-
-def _mapping(value: Any) -> dict[str, Any]:
-    """``value`` if a record section is a mapping, else empty (a hand-edited record, or one written before it)."""
-    return value if isinstance(value, dict) else {}
-
-
-def row_from_record(record: dict[str, Any], record_dir: Path) -> dict[str, Any]:
-    """The history row of a record (record.json's content)."""
-    features = record.get("features") or {}
-    cls = record.get("classification") or {}
-    rel = cls.get("features_rel") or {}
-    identity = record.get("identity") or {}
-    loop = record.get("loop") or {}
-    reasons = record.get("reasons") or []
-    coil = _mapping(record.get("coil"))
-    model_fit = _mapping(_mapping(record.get("identification")).get("model_fit"))
-    stop = _mapping(record.get("stop"))
+def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
+    """The history row of a record (record.json's content, typed)."""
+    cls, identity, coil, stop = record.classification, record.identity, record.coil, record.stop
+    rel = cls.features_rel if cls is not None else {}
+    fit = record.identification.model_fit if record.identification is not None else None
+    model_name = None
+    if cls is not None:
+        model_name = cls.model_name or (Path(cls.model_file).stem if cls.model_file else None)
     return {
         "record_dir": _text(Path(record_dir).resolve()),
-        "started_at": _text(record.get("started_at", "")),
-        "valve_id": _text(record.get("valve_id", "")),
-        "pump_serial": _text(identity.get("pump_serial", "")),
-        "variant": _text(record.get("variant", "")),
-        "part_number": _text(record.get("part_number", "")),
-        "verdict": _text(record.get("verdict", "")),
-        "af_v": _finite(features.get("af")),
-        "a1_v_s_per_mm": _finite(features.get("a1")),
+        "started_at": _text(record.started_at),
+        "valve_id": _text(record.valve_id),
+        "pump_serial": _text(identity.pump_serial),
+        "variant": _text(record.variant),
+        "part_number": _text(record.part_number),
+        "verdict": _text(record.verdict),
+        "af_v": _finite(record.features.get("af")),
+        "a1_v_s_per_mm": _finite(record.features.get("a1")),
         "af_rel": _finite(rel.get("af")),
         "a1_rel": _finite(rel.get("a1")),
-        "probability_faulty": _finite(cls.get("probability_faulty")),
-        "distance": _finite(cls.get("distance")),
-        "station": _text(identity.get("station", "")),
-        "operator": _text(identity.get("operator", "")),
-        "clock": _text(record.get("clock", "")),
-        "software_version": _text(record.get("software_version", "")),
-        "reason": _text(loop.get("abort_reason") or (reasons[0] if reasons else "")),
-        "model_name": cls.get("model_name") or (Path(cls["model_file"]).stem if cls.get("model_file") else None),
-        "model_sha256": cls.get("model_sha256"),
-        "coil_r20_ohm": _finite(coil.get("resistance_20c_ohm")),
-        "coil_in_spec": _flag(coil.get("in_spec")),
-        "model_fits": _flag(model_fit.get("fits")),
-        "stop_reason": _text(stop["reason"])[:40] if stop.get("reason") else None,
-        "test_s": _finite(stop.get("time_s")),
+        "probability_faulty": None if cls is None else _finite(cls.probability_faulty),
+        "distance": None if cls is None else _finite(cls.distance),
+        "station": _text(identity.station),
+        "operator": _text(identity.operator),
+        "clock": _text(record.clock),
+        "software_version": _text(record.software_version),
+        "reason": _text(record.loop.abort_reason or (record.reasons[0] if record.reasons else "")),
+        "model_name": model_name,
+        "model_sha256": None if cls is None else cls.model_sha256,
+        "coil_r20_ohm": None if coil is None else _finite(coil.resistance_20c_ohm),
+        "coil_in_spec": None if coil is None else coil.in_spec,
+        "model_fits": None if fit is None else fit.fits,
+        "stop_reason": _text(stop.reason)[:40] if stop is not None and stop.reason else None,
+        "test_s": None if stop is None else _finite(stop.time_s),
     }
 
 
@@ -276,8 +170,9 @@ class HistoryStore:
     """
 
     def __init__(self, url: str | None = None, must_exist: bool = False) -> None:
-        parsed = check_url(url, must_exist)
+        check_url(url, must_exist)
         self.url = url or default_url()
+        parsed = sa.engine.make_url(self.url)
         self.is_sqlite = parsed.get_backend_name() == "sqlite"
         kwargs: dict[str, Any] = {}
         if self.is_sqlite:
@@ -325,7 +220,7 @@ class HistoryStore:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def add(self, record: dict[str, Any], record_dir: Path) -> None:
+    def add(self, record: Record, record_dir: Path) -> None:
         """Index one record folder (again: its row is replaced)."""
         self.add_row(row_from_record(record, record_dir))
 

@@ -10,19 +10,21 @@ import numpy as np
 
 from edc_bench.errors import ConfigError
 from edc_bench.protocol.icd import BENCH_CMD_ID
+from edc_bench.records.schema import Record
 from edc_bench.records.writer import CAN_LOG_FILE, LEGACY_TRACE_FILE, RECORD_FILE, TRACE_FILE
 
 #: A frame read back from a CAN log: time (s), CAN id, payload.
 LoggedFrame = tuple[float, int, bytes]
 
 
-def load_record(folder: Path) -> dict[str, Any]:
-    """The parsed record.json of ``folder``.
+def load_record(folder: Path) -> Record:
+    """The record.json of ``folder``, typed (an older schema read in today's form).
 
     Raises
     ------
     ConfigError
-        If the folder or its record.json is missing or unreadable, saying what to do.
+        If the folder or its record.json is missing or unreadable, or a field holds what it cannot (naming the
+        field and what it holds), saying what to do.
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -37,7 +39,24 @@ def load_record(folder: Path) -> dict[str, Any]:
         raise ConfigError(f"{path}: not a readable record ({exc})") from None
     if not isinstance(record, dict) or "verdict" not in record:
         raise ConfigError(f"{path}: not an edc-bench record (no verdict)")
-    return upgraded(record)
+    return typed_record(upgraded(record), path)
+
+
+def typed_record(record: dict[str, Any], source: Path | str) -> Record:
+    """``record`` (record.json's content, today's schema) as a :class:`Record`, or a ConfigError naming the field."""
+    from pydantic import ValidationError
+
+    try:
+        return Record.model_validate(record)
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        where = ".".join(str(part) for part in error["loc"]) or "record"
+        shown = repr(error.get("input"))
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+        raise ConfigError(f"{source}: not a readable edc-bench record: {where} holds {shown}: {error['msg']}{more}; "
+                          "a record is written whole by 'edc-bench test': correct the hand-edited field, or "
+                          "replay the test from its can.log") from None
 
 
 def upgraded(record: dict[str, Any]) -> dict[str, Any]:
@@ -111,7 +130,7 @@ def read_can_log(path: Path) -> list[LoggedFrame]:
     ConfigError
         If the file is missing, its suffix is not a CAN log format, or it cannot be read as one.
     """
-    import can
+    from edc_bench.canlib import can, mf4_module
 
     path = Path(path)
     if not path.is_file():
@@ -121,6 +140,8 @@ def read_can_log(path: Path) -> list[LoggedFrame]:
         known = ", ".join(f"{s} ({name})" for s, name in CAN_LOG_FORMATS.items())
         raise ConfigError(f"{path}: {suffix or 'no suffix'} is not a CAN log format edc-bench reads; "
                           f"the suffix names the format: {known}")
+    if suffix == ".mf4":
+        mf4_module()  # python-can's MF4 reader, with asammdf
     if suffix == ".mf4" and path.suffix.lower() == ".mf4":
         from edc_bench.records.mdf import looks_like_mdf4
 

@@ -262,5 +262,4 @@ def missing_files(folder: Path) -> dict[str, str]:
     """The files a written record could not hold, with why (record.json's ``files``, the figure aside)."""
     from edc_bench.records.reader import load_record
 
-    files = load_record(folder).get("files") or {}
-    return {k[: -len("_error")]: v for k, v in files.items() if k.endswith("_error") and k != "figure_error"}
+    return load_record(folder).files.missing()

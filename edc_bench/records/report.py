@@ -22,6 +22,7 @@ import numpy as np
 from edc_bench.paths import atomic_write
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.records.reader import load_record, load_trace
+from edc_bench.records.schema import Record
 from edc_bench.verdict.verdicts import Verdict
 
 REPORT_PDF = "report.pdf"
@@ -36,31 +37,31 @@ _ID_COLUMN_CHARS = 40  # characters of 7.5 pt text in the identity block's value
 _UNITS = {"a3": "V s^3/mm", "a2": "V s^2/mm", "a1": "V s/mm", "a0": "V/mm", "b": "V", "af": "V"}
 
 
-def _reference_values(record: dict[str, Any]) -> dict[str, tuple[float, str]]:
+def _reference_values(record: Record) -> dict[str, tuple[float, str]]:
     """Per parameter: the value it is compared with, and where that comes from, as the test recorded them."""
-    return {name: (float(entry["value"]), str(entry.get("source", "")))
-            for name, entry in (record.get("reference_values") or {}).items() if entry.get("value") is not None}
+    return {name: (entry.value, entry.source) for name, entry in record.reference_values.items()
+            if entry.value is not None}
 
 
-def _identity_lines(record: dict[str, Any], folder: Path) -> list[tuple[str, str]]:
-    identity = record.get("identity") or {}
-    cls = record.get("classification") or {}
-    config = record.get("config") or {}
-    pump = config.get("pump") or {}
-    model = cls.get("model")
-    model_file = cls.get("model_file") or "?"
-    sha = (cls.get("model_sha256") or "")[:12] or "not recorded"
+def _identity_lines(record: Record, folder: Path) -> list[tuple[str, str]]:
+    identity, cls = record.identity, record.classification
+    pump = (record.config or {}).get("pump")
+    description = str(pump.get("description", "")) if isinstance(pump, dict) else ""
+    if cls is not None and cls.model:
+        model = f"{cls.model} classifier {cls.model_file or '?'}, sha256 {(cls.model_sha256 or '')[:12] or 'not recorded'}"
+    else:
+        model = "not classified"
     return [
-        ("Pump", f"{record.get('variant', '?')}, part number {record.get('part_number', '?')}"),
-        ("", str(pump.get("description", ""))[:60]),
-        ("Pump serial", identity.get("pump_serial") or "-"),
-        ("Valve", record.get("valve_id") or "-"),
-        ("Date", str(record.get("started_at", "?")).replace("T", " ").replace("+00:00", " UTC")),
-        ("Station / operator", f"{identity.get('station') or '-'} / {identity.get('operator') or '-'}"),
-        ("Software", f"edc-bench {record.get('software_version', '?')}, ICD {record.get('icd_version', '?')}, "
-                     f"rig firmware {record.get('firmware_version') or '?'}"),
-        ("Model", f"{model} classifier {model_file}, sha256 {sha}" if model else "not classified"),
-        ("Rig / clock", f"{'simulated rig' if record.get('simulation') else 'bench rig'}, {record.get('clock', '?')}"),
+        ("Pump", f"{record.variant or '?'}, part number {record.part_number or '?'}"),
+        ("", description[:60]),
+        ("Pump serial", identity.pump_serial or "-"),
+        ("Valve", record.valve_id or "-"),
+        ("Date", (record.started_at or "?").replace("T", " ").replace("+00:00", " UTC")),
+        ("Station / operator", f"{identity.station or '-'} / {identity.operator or '-'}"),
+        ("Software", f"edc-bench {record.software_version or '?'}, ICD {record.icd_version or '?'}, "
+                     f"rig firmware {record.firmware_version or '?'}"),
+        ("Model", model),
+        ("Rig / clock", f"{'simulated rig' if record.simulated_rig else 'bench rig'}, {record.clock or '?'}"),
         ("Record", folder.name),
     ]
 
@@ -93,7 +94,7 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
 
     fig = plt.figure(figsize=(8.27, 11.69))  # A4 portrait
     grid = fig.add_gridspec(24, 2, left=0.09, right=0.95, top=0.95, bottom=0.05, hspace=1.4, wspace=0.3)
-    verdict = record.get("verdict", "?")
+    verdict = record.verdict
     fig.text(0.08, 0.965, "Solenoid valve diagnosis (edc-bench)", fontsize=15, weight="bold")
     fig.text(0.95, 0.965, f" {verdict} ", fontsize=15, weight="bold", color="white", ha="right",
              bbox={"facecolor": _VERDICT_COLOURS.get(verdict, "grey"), "edgecolor": "none", "pad": 4})
@@ -134,64 +135,63 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
     return pdf, png
 
 
-def _verdict_block(ax: Any, record: dict[str, Any]) -> None:
-    cls = record.get("classification")
-    lines = []
-    if cls:
-        rel = cls["features_rel"]
+def _verdict_block(ax: Any, record: Record) -> None:
+    cls = record.classification
+    lines = [_VERDICT_MEANINGS.get(record.verdict, "")]
+    if cls is not None:
+        rel = cls.features_rel
         lines += [
-            f"P(faulty) = {cls['probability_faulty']:.3f}",
-            f"distance to the boundary {cls['distance']:+.3f}",
-            f"(marginal band +/- {cls['marginal_band']:g}; positive: worn side)",
-            f"af {rel['af'] - 1:+.1%}, a1 {rel['a1'] - 1:+.1%} against a new valve",
+            f"P(faulty) = {cls.probability_faulty:.3f}",
+            f"distance to the boundary {cls.distance:+.3f}",
+            f"(marginal band +/- {cls.marginal_band or 0:g}; positive: worn side)",
+            f"af {rel.get('af', math.nan) - 1:+.1%}, a1 {rel.get('a1', math.nan) - 1:+.1%} against a new valve",
         ]
-    lines.insert(0, _VERDICT_MEANINGS.get(record.get("verdict", ""), ""))
-    coil = record.get("coil")
-    if coil:
-        lines.append(f"coil {coil['resistance_20c_ohm']:.3f} ohm at 20 degC "
-                     + ("(no spec)" if coil.get("in_spec") is None else
-                        f"(spec {coil['spec_ohm'][0]:g}-{coil['spec_ohm'][1]:g}: "
-                        f"{'in spec' if coil['in_spec'] else 'OUT OF SPEC'})"))
-    baseline = record.get("baseline")
-    if baseline and baseline.get("calibrated") is False:
+    coil = record.coil
+    if coil is not None and coil.resistance_20c_ohm is not None:
+        low, high = coil.spec_ohm
+        spec = f"<= {high:g}" if low is None else (f">= {low:g}" if high is None else f"{low:g}-{high:g}")
+        lines.append(f"coil {coil.resistance_20c_ohm:.3f} ohm at 20 degC "
+                     + ("(no spec)" if coil.in_spec is None else
+                        f"(spec {spec}: {'in spec' if coil.in_spec else 'OUT OF SPEC'})"))
+    baseline = record.baseline
+    if baseline is not None and baseline.calibrated is False:
         lines += ["baseline NOMINAL: the variant is not calibrated; af and a1",
                   "were compared with data-sheet figures, not new valves:",
                   "this verdict may be wrong (edc-bench calibrate --append)"]
-    elif baseline:
-        lines.append("baseline " + baseline_line(baseline).split(", station")[0])
-    fit = (record.get("identification") or {}).get("model_fit") or {}
-    if fit.get("fits") is False:  # what to do matters more than the figures, which the record holds
+    elif baseline is not None:
+        lines.append("baseline " + baseline_line(baseline.model_dump()).split(", station")[0])
+    fit = record.identification.model_fit if record.identification is not None else None
+    if fit is not None and fit.fits is False:  # what to do matters more than the figures, which the record holds
         lines += ["THE MODEL DOES NOT FIT THIS PUMP: a longer test will",
                   "not help. Check the variant is this pump's, the rack",
                   "moves freely, the solenoid's armature and wiring; a",
                   "pump like this needs its own variant (docs/faults.md)."]
         # each problem whole, wrapped to the block's width (record.json holds the figures with their limits)
-        for problem in fit.get("problems", [])[:3]:
+        for problem in fit.problems[:3]:
             lines += textwrap.wrap(problem.split(" (limit")[0] + ";", 54)
-    elif not cls or (coil and coil.get("in_spec") is False):  # with a classification the reasons repeat the above
-        for reason in record.get("reasons") or []:
+    elif cls is None or (coil is not None and coil.in_spec is False):  # a classification's reasons repeat the above
+        for reason in record.reasons:
             lines.append(reason if len(reason) < 60 else reason[:57] + "...")
-    stop = record.get("stop")
-    if stop and stop.get("time_s") is not None:
-        lines.append(f"ended after {stop['time_s']:.1f} s of at most {stop.get('max_s', 0):g} s: {stop['reason']}")
+    stop = record.stop
+    if stop is not None and stop.time_s is not None:
+        lines.append(f"ended after {stop.time_s:.1f} s of at most {stop.max_s or 0:g} s: {stop.reason}")
     for n, line in enumerate(lines):
         ax.text(0.0, 1.0 - n * 0.12, line, fontsize=8, va="top", transform=ax.transAxes,
                 weight="bold" if n == 0 else "normal", parse_math=False)  # reasons quote ids and paths
 
 
-def _parameter_table(ax: Any, record: dict[str, Any]) -> None:
-    params = record.get("parameters") or {}
+def _parameter_table(ax: Any, record: Record) -> None:
     refs = _reference_values(record)
     rows = []
     for name in ("af", "a1", "a0", "a2", "b", "a3"):
-        p = params.get(name)
+        p = record.parameters.get(name)
         if p is None:
             continue
-        value, std = p.get("value"), p.get("std")
+        value, std = p.value, p.std
         ref, source = refs.get(name, (math.nan, ""))
         change = f"{value / ref - 1:+.1%}" if value is not None and ref else ""
         rows.append([f"{name} ({_UNITS[name]})", f"{value:.5g}" if value is not None else "-",
-                     f"{std:.2g}" if std is not None and p.get("estimated") else "fixed",
+                     f"{std:.2g}" if std is not None and p.estimated else "fixed",
                      f"{ref:.5g}" if math.isfinite(ref) else "-", source or "not recorded", change])
     if not rows:
         ax.text(0.0, 0.5, "No parameters: the test stopped before identifying any.", fontsize=9)
@@ -220,7 +220,7 @@ def _tracking(ax: Any, ax_error: Any, trace: dict[str, np.ndarray]) -> None:
     ax_error.tick_params(labelsize=7)
 
 
-def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any]) -> None:
+def _convergence(ax: Any, trace: dict[str, np.ndarray], record: Record) -> None:
     t = trace["t_s"]
     refs = _reference_values(record)
     ceiling = 2.5
@@ -233,7 +233,7 @@ def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any]) 
         ax.plot(t, ratio, colour, lw=0.9, label=f"{name} / {source}, online")
         _period_fit_span(ax, record, name, ref, colour, float(t[-1]) if len(t) else math.nan)
     ax.axhline(1.0, color="grey", lw=0.6)
-    start_s = (record.get("identification") or {}).get("excitation_start_s")
+    start_s = record.identification.excitation_start_s if record.identification is not None else None
     if start_s is not None:
         ax.axvline(start_s, color="grey", lw=0.5, ls=":")
     ax.set_ylim(0.0, ceiling)
@@ -244,13 +244,13 @@ def _convergence(ax: Any, trace: dict[str, np.ndarray], record: dict[str, Any]) 
     ax.legend(fontsize=6.5, loc="lower right")  # the estimates sit at 1-2.5 once the excitation runs
 
 
-def _period_fit_span(ax: Any, record: dict[str, Any], name: str, ref: float, colour: str, end_s: float) -> None:
+def _period_fit_span(ax: Any, record: Record, name: str, ref: float, colour: str, end_s: float) -> None:
     """The period fit's value (the feature) over the whole periods it used, with its 2-sigma band."""
-    param = (record.get("parameters") or {}).get(name) or {}
-    ident = record.get("identification") or {}
-    value, std = param.get("value"), param.get("std")
-    periods, period_s = ident.get("periods"), ident.get("period_s")
-    if not (isinstance(value, float) and isinstance(std, float) and periods and period_s and math.isfinite(end_s)):
+    param, ident = record.parameters.get(name), record.identification
+    if param is None or ident is None:
+        return
+    value, std, periods, period_s = param.value, param.std, ident.periods, ident.period_s
+    if value is None or std is None or not (periods and period_s and math.isfinite(end_s)):
         return
     start_s = max(0.0, end_s - periods * period_s)
     ax.hlines(value / ref, start_s, end_s, colors=colour, lw=2.2, linestyles="--",
@@ -277,28 +277,27 @@ def boundary_distance(af_rel: np.ndarray, a1_rel: np.ndarray, p_faulty: np.ndarr
     return np.where(p_faulty.ravel() >= threshold, nearest, -nearest).reshape(p_faulty.shape)
 
 
-def _decision_plane(ax: Any, record: dict[str, Any]) -> None:
-    cls = record.get("classification")
-    plane = record.get("decision_plane")
+def _decision_plane(ax: Any, record: Record) -> None:
+    cls, plane = record.classification, record.decision_plane
     ax.set_title("Decision plane (Fig. 7): the valve against the boundary", fontsize=9)
-    if not cls or not plane:
+    if cls is None or plane is None:
         ax.text(0.5, 0.5, "not classified" if not cls else "decision plane not in this record",
                 ha="center", va="center", fontsize=10, transform=ax.transAxes)
         ax.set_xticks([])
         ax.set_yticks([])
         return
-    p = np.asarray(plane["p_faulty"], dtype=float)
-    A, B = np.meshgrid(np.linspace(*plane["af_rel_range"], p.shape[1]), np.linspace(*plane["a1_rel_range"], p.shape[0]))
-    dist = boundary_distance(A, B, p, plane["threshold"])
-    band = plane["marginal_band"]
-    point = np.array([cls["features_rel"]["af"], cls["features_rel"]["a1"]])
+    p = np.asarray(plane.p_faulty, dtype=float)
+    A, B = np.meshgrid(np.linspace(*plane.af_rel_range, p.shape[1]), np.linspace(*plane.a1_rel_range, p.shape[0]))
+    dist = boundary_distance(A, B, p, plane.threshold)
+    band = plane.marginal_band
+    point = np.array([cls.features_rel.get("af", math.nan), cls.features_rel.get("a1", math.nan)])
     ax.contourf(A, B, dist, levels=[-np.inf, -band], colors=["#e8f5e9"])
     ax.contourf(A, B, dist, levels=[band, np.inf], colors=["#ffebee"])
     ax.contourf(A, B, dist, levels=[-band, band], colors=["0.85"])
-    ax.contour(A, B, p, levels=[plane["threshold"]], colors="k", linewidths=1.2)
+    ax.contour(A, B, p, levels=[plane.threshold], colors="k", linewidths=1.2)
     ax.scatter([1.0], [1.0], marker="s", color="C0", s=40, label="new-valve baseline")
-    ax.scatter([point[0]], [point[1]], marker="*", s=220, color=_VERDICT_COLOURS.get(cls["verdict"], "k"),
-               edgecolor="k", zorder=5, label=f"this valve: {cls['verdict']}")
+    ax.scatter([point[0]], [point[1]], marker="*", s=220, color=_VERDICT_COLOURS.get(cls.verdict, "k"),
+               edgecolor="k", zorder=5, label=f"this valve: {cls.verdict}")
     ax.plot([], [], "k-", label="decision boundary")
     ax.fill([], [], color="0.85", label=f"marginal band +/- {band:g}")
     ax.set_xlabel("af / baseline", fontsize=8)

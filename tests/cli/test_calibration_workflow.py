@@ -10,6 +10,7 @@ from pathlib import Path
 from helpers import REPO, edc_bench
 
 from edc_bench.cli.exit_codes import ExitCode
+from edc_bench.records.reader import load_record
 
 
 def _station(tmp_path: Path, name: str = "p-edc-uncal", extra: str = "", duration_s: float = 30.0) -> dict[str, str]:
@@ -42,9 +43,9 @@ def test_a_test_on_an_uncalibrated_variant_is_invalid_with_the_calibrate_command
     record_dir = Path(judged.stdout.split("record: ")[1].splitlines()[0])
     if not record_dir.is_absolute():
         record_dir = tmp_path / record_dir
-    record = json.loads((record_dir / "record.json").read_text(encoding="utf-8"))
-    assert record["baseline"]["calibrated"] is False
-    assert record["reference_values"]["af"]["source"] == "NOMINAL baseline (not calibrated)"
+    record = load_record(record_dir)
+    assert record.baseline is not None and record.baseline.calibrated is False
+    assert record.reference_values["af"].source == "NOMINAL baseline (not calibrated)"
     replayed = edc_bench("replay", str(record_dir), cwd=tmp_path, env=env)  # judged again the same way
     assert replayed.returncode == ExitCode.OK, replayed.stdout + replayed.stderr
     from edc_bench.records.report import _verdict_block

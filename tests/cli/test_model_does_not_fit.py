@@ -42,5 +42,6 @@ def test_a_pump_the_model_does_not_fit_says_so_in_json_and_report(tmp_path: Path
     text = " ".join(t.get_text() for t in ax.texts)
     plt.close(fig)
     assert "THE MODEL DOES NOT FIT THIS PUMP" in text and "needs its own variant" in text
-    for problem in record["identification"]["model_fit"]["problems"][:3]:
+    assert record.identification is not None and record.identification.model_fit is not None
+    for problem in record.identification.model_fit.problems[:3]:
         assert " ".join(problem.split(" (limit")[0].split()) in " ".join(text.split()), problem  # whole, wrapped

@@ -19,6 +19,8 @@ from pathlib import Path
 import pytest
 
 from edc_bench.history.store import Filters, HistoryStore, write_csv
+from edc_bench.records.reader import typed_record
+from edc_bench.records.schema import Record
 
 # --- a PostgreSQL server of the tests' own, where the machine has one ------------------------------------------
 
@@ -83,16 +85,17 @@ def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
 
 
 def _record(valve: str, started: str, verdict: str = "PASS", af: float = 0.07, a1: float = 0.0038,
-            serial: str = "S-1", variant: str = "p-edc-default") -> dict:
-    return {
+            serial: str = "S-1", variant: str = "p-edc-default") -> Record:
+    return typed_record({
         "verdict": verdict, "reasons": ["why"], "valve_id": valve, "variant": variant, "part_number": "PE-EDC-0001",
         "started_at": started, "clock": "simulated", "software_version": "0.1.0",
         "identity": {"pump_serial": serial, "station": "bench-3", "operator": "ana"},
         "features": {"af": af, "a1": a1},
         "classification": None if verdict == "INVALID" else {
-            "features_rel": {"af": af / 0.07, "a1": a1 / 0.0038}, "probability_faulty": 0.2, "distance": -0.3},
+            "verdict": verdict, "features_rel": {"af": af / 0.07, "a1": a1 / 0.0038}, "probability_faulty": 0.2,
+            "distance": -0.3},
         "loop": {"abort_reason": "interrupted by the operator" if verdict == "INVALID" else None},
-    }
+    }, "a test's record")
 
 
 def test_filters_trend_and_csv(db_url: str, tmp_path: Path) -> None:
@@ -252,7 +255,7 @@ def test_a_pump_the_model_does_not_fit_is_kept_as_such(tmp_path: Path) -> None:
     assert row["stop_reason"] == "model does not fit" and row["test_s"] < 30.0
     assert row["reason"].startswith("the feedforward model does not fit this pump")
     # a record without those sections (hand-edited, or older) leaves them empty
-    bare = row_from_record({"verdict": "PASS", "coil": "?", "identification": {"model_fit": None}}, folder)
+    bare = row_from_record(typed_record({"verdict": "PASS", "identification": {"model_fit": None}}, "bare"), folder)
     assert [bare[k] for k in ("coil_r20_ohm", "coil_in_spec", "model_fits", "stop_reason", "test_s")] == [None] * 5
 
 

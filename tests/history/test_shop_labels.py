@@ -12,6 +12,7 @@ from helpers import edc_bench
 
 from edc_bench.errors import ConfigError
 from edc_bench.history.store import COLUMNS, HistoryStore
+from edc_bench.records.reader import load_record
 from edc_bench.learning.shop_training import LabelledTests, train_from_labels
 from edc_bench.verdict.classifier import ValveClassifier, default_classifier, packaged_model_path
 
@@ -205,7 +206,7 @@ def test_a_record_names_its_model_and_replays_with_it_after_the_station_changed_
     assert test.classification["model_sha256"] == adoption["sha256"]
     folder = write_record(test, tmp_path / "records", figure=False)
     with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
-        store.add(json.loads((folder / "record.json").read_text()), folder)
+        store.add(load_record(folder), folder)
         row = store.list()[-1]
     assert (row["model_name"], row["model_sha256"]) == (result.name, adoption["sha256"])
     adopt_shipped()  # the station goes back; the record still replays with the model that judged it

@@ -68,7 +68,7 @@ def test_the_convergence_plot_shows_the_period_fit_the_verdict_comes_from(tmp_pa
         (segment,) = spans.pop(f"{name}, period fit over 3 periods (the feature)").get_segments()
         (t0, y0), (t1, y1) = segment
         assert t1 == pytest.approx(trace["t_s"][-1]) and t1 - t0 == pytest.approx(6.0)  # 3 periods of 2 s
-        assert y0 == y1 == pytest.approx(record["parameters"][name]["value"] / _reference_values(record)[name][0])
+        assert y0 == y1 == pytest.approx(record.parameters[name].value / _reference_values(record)[name][0])
         online = lines[f"{name} / baseline, online"].get_ydata()[-1]
         assert abs(online - y0) > 0.05 * y0, (name, online, y0)  # it is not the online estimate
     assert not spans

@@ -1,0 +1,293 @@
+"""record.json as typed values: the one form in which the report, the history, replay and classify read a record.
+
+:func:`edc_bench.records.reader.load_record` parses a record folder's
+record.json into a :class:`Record` (an older schema brought to today's form
+first), so no reader looks a figure up by a string key or guards against a
+section that is missing or of the wrong type: a record that does not fit
+is refused once, with the field and what is wrong with it.
+
+Every section accepts keys it does not know (``extra="allow"``): a record a
+newer edc-bench wrote is still read by this one. The other way round, every
+key :func:`edc_bench.records.record.record_dict` writes is declared here
+(a test holds that for every kind of record), so the schema and the writer
+cannot drift apart silently. Sections nobody reads field by field (the
+variant as run, the simulation's ground truth, the loop's timing) are kept
+as the mappings they are.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from edc_bench.engine.outcome import AbortKind
+from edc_bench.verdict.verdicts import Verdict
+
+
+class Section(BaseModel):
+    """A part of a record: read-only once read; unknown keys (a newer record's) kept, not refused."""
+
+    model_config = ConfigDict(frozen=True, extra="allow")
+
+
+class Identity(Section):
+    """Who and where: the pump's serial, the station, the operator."""
+
+    pump_serial: str = ""
+    station: str = ""
+    operator: str = ""
+
+
+class CoilFinding(Section):
+    """The coil's resistance as the test measured it and its verdict against the spec (None: no spec)."""
+
+    resistance_ohm: float | None = None
+    resistance_start_ohm: float | None = None
+    resistance_20c_ohm: float | None = None
+    temp_start_c: float | None = None
+    temp_given: bool = False
+    temp_source: str = ""
+    warming_k: float | None = None
+    spec_ohm: tuple[float | None, float | None] = (None, None)
+    in_spec: bool | None = None
+    reference_ohm: float | None = None
+    inductance_mh: float | None = None
+    inductance_source: str = ""
+
+
+class Classification(Section):
+    """The classifier's judgement of the features, naming the model exactly."""
+
+    verdict: Verdict
+    probability_faulty: float
+    distance: float
+    features_rel: dict[str, float]
+    model: str = ""
+    model_name: str | None = None
+    model_file: str | None = None
+    model_sha256: str | None = None
+    threshold: float | None = None
+    marginal_band: float | None = None
+    training_data_sha256: str | None = None
+
+
+class BaselineSummary(Section):
+    """The new-valve baseline the features were compared with (figures and provenance)."""
+
+    af_v: float | None = None
+    a1_v_s_per_mm: float | None = None
+    af_sd_v: float | None = None
+    a1_sd_v_s_per_mm: float | None = None
+    af_uncertainty_v: float | None = None
+    a1_uncertainty_v_s_per_mm: float | None = None
+    tests: int = 0
+    source: str = ""
+    calibrated: bool | None = None
+    written_at: str | None = None
+    station: str | None = None
+    software: str | None = None
+    path: str | None = None
+
+
+class ReferenceValue(Section):
+    """The figure a parameter is compared with, and where it comes from (baseline or data sheet)."""
+
+    value: float | None = None
+    source: str = ""
+
+
+class ParameterEstimate(Section):
+    """One identified parameter: value, standard error, whether it was estimated; truth on a simulated rig."""
+
+    value: float | None = None
+    std: float | None = None
+    estimated: bool = False
+    truth: float | None = None
+    error_rel: float | None = None
+
+
+class ModelFit(Section):
+    """How well the pump model fits the measurement (and, when it does not, why)."""
+
+    residual_rms_v: float | None = None
+    expected_noise_v: float | None = None
+    residual_ratio: float | None = None
+    systematic_rms_v: float | None = None
+    systematic_ratio: float | None = None
+    spread_rel: dict[str, float | None] | None = None
+    gain_variation_rel: float | None = None
+    fits: bool | None = None
+    problems: list[str] = Field(default_factory=list)
+
+
+class IdentificationSummary(Section):
+    """The period fit's figures: periods used, conditioning, residual, model fit; the online settle times."""
+
+    estimator: str = ""
+    excitation_start_s: float | None = None
+    method: str = ""
+    periods: int = 0
+    period_s: float | None = None
+    settled: bool | None = None
+    samples_used: int | None = None
+    condition_number: float | None = None
+    residual_rms_v: float | None = None
+    model_fit: ModelFit | None = None
+    gain_terms: dict[str, float | None] | None = None
+    online_settle_s: dict[str, float | None] | None = None
+
+
+class StopSummary(Section):
+    """Why and when the test ended, and the longest it could have run."""
+
+    reason: str = ""
+    time_s: float | None = None
+    max_s: float | None = None
+    full_length: bool = False
+    early_stop: bool | None = None
+    why_full_length: str | None = None
+    periods: int | None = None
+    verdict: Verdict | None = None
+    features_rel: dict[str, float | None] | None = None
+    half_width_rel: dict[str, float | None] | None = None
+    confidence: float | None = None
+    problems: list[str] = Field(default_factory=list)
+
+
+class DecisionPlane(Section):
+    """P(faulty) on a grid of relative features, for the report to draw the boundary without the model."""
+
+    af_rel_range: tuple[float, float]
+    a1_rel_range: tuple[float, float]
+    p_faulty: list[list[float]]
+    threshold: float
+    marginal_band: float
+
+
+class AbortSummary(Section):
+    """An abort as a kind and its figures (:class:`edc_bench.engine.outcome.Abort`)."""
+
+    kind: AbortKind
+    figures: dict[str, Any] = Field(default_factory=dict)
+    time_s: float | None = None
+
+
+class LoopSummary(Section):
+    """What happened in the loop (:class:`edc_bench.engine.outcome.LoopOutcome`): ticks, replies, the abort."""
+
+    ticks_planned: int | None = None
+    ticks_run: int = 0
+    missed_replies: int = 0
+    max_missed_in_row: int = 0
+    max_unanswered_in_row: int = 0
+    bad_replies: int = 0
+    rig_state_at_start: str | None = None
+    fw_version: str | None = None
+    safe_confirmed: bool | None = None
+    heartbeats: int = 0
+    cpu_steal_s: float = 0.0
+    ticks_start_s: float = 0.0
+    first_tick_unix_s: float | None = None
+    clock_origin_unix_s: float | None = None
+    replies_too_old: int = 0
+    gaps: int = 0
+    ticks_lost: int = 0
+    ticks_late: int = 0
+    reply_age_ticks: dict[str, int] = Field(default_factory=dict)
+    other_frames: int = 0
+    bus_bad_lines: int = 0
+    bus_bad_line_samples: list[str] = Field(default_factory=list)
+    bus_device_errors: int = 0
+    frames_dropped: int = 0
+    events: list[str] = Field(default_factory=list)
+    stop: dict[str, Any] | None = None
+    stop_check_max_s: float = 0.0
+    abort: AbortSummary | None = None
+    abort_reason: str | None = None
+    abort_time_s: float | None = None
+
+
+class RecordFiles(Section):
+    """The record folder's files (None: not written); ``<name>_error`` keys say why one could not be."""
+
+    trace: str | None = None
+    can_log: str | None = None
+    figure: str | None = None
+
+    def missing(self) -> dict[str, str]:
+        """The data files the folder could not hold, with why (the figure aside: it is redrawn from the data)."""
+        return {key[: -len("_error")]: str(value) for key, value in (self.model_extra or {}).items()
+                if key.endswith("_error") and key != "figure_error"}
+
+
+class Record(Section):
+    """A bench test's record.json.
+
+    Only ``verdict`` is required: a record cut short (or written before a
+    section existed) reads with that section empty, and what it lacks is
+    for each reader to say.
+    """
+
+    schema_version: int = Field(0, alias="schema")
+    verdict: Verdict
+    reasons: list[str] = Field(default_factory=list)
+    problems: list[str] = Field(default_factory=list)
+    valve_id: str = ""
+    identity: Identity = Identity()
+    variant: str = ""
+    part_number: str = ""
+    started_at: str = ""
+    clock: str = ""
+    software_version: str = ""
+    firmware_version: str | None = None
+    icd_version: str = ""
+    features: dict[str, float | None] = Field(default_factory=dict)
+    features_volt: dict[str, float | None] = Field(default_factory=dict)
+    coil: CoilFinding | None = None
+    classification: Classification | None = None
+    baseline: BaselineSummary | None = None
+    reference_values: dict[str, ReferenceValue] = Field(default_factory=dict)
+    decision_plane: DecisionPlane | None = None
+    parameters: dict[str, ParameterEstimate] = Field(default_factory=dict)
+    converged: bool | None = None
+    identification: IdentificationSummary | None = None
+    stop: StopSummary | None = None
+    timing: dict[str, Any] = Field(default_factory=dict)
+    loop: LoopSummary = LoopSummary()
+    stability_margins: dict[str, Any] | None = None
+    truth: dict[str, float] | None = None
+    simulation: dict[str, Any] | None = None
+    config: dict[str, Any] | None = None
+    files: RecordFiles = RecordFiles()
+
+    model_config = ConfigDict(frozen=True, extra="allow", populate_by_name=True)
+
+    @property
+    def simulated_rig(self) -> bool:
+        """The test ran against the simulated rig (its record holds the simulated valve)."""
+        return bool(self.simulation)
+
+    @property
+    def real_time(self) -> bool:
+        """The test ran on the wall clock (a rig on a bus), not in simulated time."""
+        return self.clock == "real-time"
+
+
+def undeclared_keys(record: Record) -> list[str]:
+    """Every key of ``record`` the schema does not declare, as dotted paths (a test holds the writer to none)."""
+    found: list[str] = []
+
+    def walk(value: Any, path: str) -> None:
+        if isinstance(value, BaseModel):
+            found.extend(f"{path}{key}" for key in (value.model_extra or {})
+                         if not (isinstance(value, RecordFiles) and key.endswith("_error")))
+            for name in type(value).model_fields:
+                walk(getattr(value, name), f"{path}{name}.")
+        elif isinstance(value, dict):
+            for key, item in value.items():
+                if isinstance(item, BaseModel):
+                    walk(item, f"{path}{key}.")
+
+    walk(record, "")
+    return found
