@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import can
+from edc_bench.canlib import can
 
 from edc_bench.config.models import Variant
 from edc_bench.physics.feedforward import FeedforwardParameters

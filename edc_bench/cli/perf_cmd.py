@@ -15,7 +15,7 @@ from edc_bench.cli.common import print_quietly_if_closed
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
-    from edc_bench.perf.suite import GROUPS
+    from edc_bench.perf import GROUPS
 
     p = sub.add_parser(
         "perf",

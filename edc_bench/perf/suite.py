@@ -6,6 +6,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from edc_bench.perf import GROUPS
 from edc_bench.perf.figures import Figure
 
 
@@ -23,8 +24,6 @@ class Sizes:
 
 FULL = Sizes(ticks=30_000, frames=50_000, simulated_repeats=3, realtime_s=60.0, valves=1000, startup_repeats=5)
 QUICK = Sizes(ticks=30_000, frames=3_000, simulated_repeats=1, realtime_s=3.0, valves=40, startup_repeats=1)
-
-GROUPS = ("tick", "codec", "simulated", "realtime", "throughput")
 
 
 def _tick(variant_name: str | None, sizes: Sizes) -> list[Figure]:

@@ -66,7 +66,9 @@ FLAG_CHANNELS = frozenset({"adapting", "reply_ok", "gap"})
 
 
 def _can_frames(frames: CanFrameLog, time_zero_s: float) -> tuple[np.ndarray, np.ndarray]:
-    from can.io.mf4 import STD_DTYPE
+    from edc_bench.canlib import mf4_module
+
+    STD_DTYPE = mf4_module().STD_DTYPE
 
     n = frames.count
     # data frames only (bits 1 and 2 of the flags: remote, error): can.log keeps those, with their kind

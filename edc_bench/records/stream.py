@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-import can
+from edc_bench.canlib import can
 
 if TYPE_CHECKING:  # only a type: the CAN log writer needs nothing of the runtime
     from edc_bench.engine.trace import CanFrameLog

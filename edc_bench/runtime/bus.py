@@ -19,7 +19,7 @@ import time
 from collections import deque
 from typing import Any
 
-import can
+from edc_bench.canlib import can  # isort: skip - first: python-can without its MF4 support (see canlib)
 from can.interfaces.slcan import slcanBus
 
 from edc_bench.errors import RigError

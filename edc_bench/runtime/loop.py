@@ -31,8 +31,7 @@ import traceback
 from collections.abc import Callable
 from typing import Protocol
 
-import can
-
+from edc_bench.canlib import can
 from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
 from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome

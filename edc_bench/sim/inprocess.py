@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-import can
+from edc_bench.canlib import can
 import numpy as np
 
 from edc_bench.sim.adapter import AdapterModel

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections import deque
 
-import can
+from edc_bench.canlib import can
 
 
 class LockstepBus(can.BusABC):

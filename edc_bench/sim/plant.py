@@ -39,9 +39,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import expm
 
 from edc_bench.physics.coil import resistance_at_ohm, temperature_after_c
+from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.parameters import PlantParameters
 
 DEFAULT_QUANTUM_S = 1e-4

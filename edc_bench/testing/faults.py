@@ -15,7 +15,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import can
+from edc_bench.canlib import can
 
 from edc_bench.protocol import BENCH_CMD_ID, FaultCode
 

@@ -34,6 +34,7 @@ gives each test's longest call; docs/bench-test.md the measured range):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from statistics import NormalDist
 from typing import Any
@@ -55,6 +56,7 @@ from edc_bench.identification.period_fit import (
     solve,
     trace_rows,
 )
+from edc_bench.identification.student_t import t_quantile
 from edc_bench.identification.trust import judged_condition_number, trust_problems
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate
 from edc_bench.verdict.baseline import Baseline
@@ -236,13 +238,9 @@ class Interval:
     @classmethod
     def of(cls, variant: Variant, max_periods: int) -> Interval:
         """The quantiles for ``variant``'s confidence, up to ``max_periods`` periods."""
-        # scipy.special's inverse of Student's t, not scipy.stats's (the same figures; importing scipy.stats costs
-        # a test a third of a second before its first tick)
-        from scipy.special import stdtrit
-
         q = 0.5 + variant.acceptance.verdict_confidence / 2.0
-        dof = np.arange(max(max_periods, 2))
-        return cls(NormalDist().inv_cdf(q), np.where(dof > 0, stdtrit(np.maximum(dof, 1), q), np.nan))
+        t = [math.nan] + [t_quantile(q, dof) for dof in range(1, max(max_periods, 2))]
+        return cls(NormalDist().inv_cdf(q), np.array(t))
 
     def shrink(self, periods: int, more: np.ndarray) -> np.ndarray:
         """How a half width after ``periods`` periods would shrink after ``more`` (1/sqrt(periods), and the spread's
