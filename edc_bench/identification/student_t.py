@@ -13,6 +13,7 @@ place for the early stop's confidences).
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 
 def _central_probability(theta: float, nu: int) -> float:
@@ -53,7 +54,7 @@ def t_quantile(q: float, nu: int) -> float:
     # d/dtheta of the central probability: its density in theta, 2 Gamma((nu+1)/2) / (sqrt(pi) Gamma(nu/2)) cos^(nu-1)
     scale = 2.0 * math.exp(math.lgamma((nu + 1) / 2.0) - math.lgamma(nu / 2.0)) / math.sqrt(math.pi)
     lo, hi = 0.0, math.pi / 2.0
-    theta = math.atan(_normal_quantile(q) / math.sqrt(nu))
+    theta = math.atan(NormalDist().inv_cdf(q) / math.sqrt(nu))
     for _ in range(100):
         error = _central_probability(theta, nu) - target
         if error > 0.0:
@@ -68,12 +69,6 @@ def t_quantile(q: float, nu: int) -> float:
             break
         theta = nxt
     return math.sqrt(nu) * math.tan(theta)
-
-
-def _normal_quantile(q: float) -> float:
-    from statistics import NormalDist
-
-    return NormalDist().inv_cdf(q)
 
 
 __all__ = ["t_quantile"]

@@ -268,3 +268,22 @@ def test_csv_export_never_hands_a_spreadsheet_a_formula(tmp_path: Path) -> None:
     (read,) = csv.DictReader(io.StringIO(out.getvalue()))
     assert read == {"valve_id": '\'=HYPERLINK("http://x","open")', "pump_serial": "'+41", "operator": "'@ana",
                     "station": "'-bay 2", "af_rel": "-0.25", "distance": "-0.6", "reason": "plain text"}
+
+
+@pytest.mark.parametrize("text", ["sqlite:///h.sqlite", "sqlite:////abs/h.sqlite", "sqlite:///a b.sqlite",
+                                  "sqlite:///./x/../h.db", "sqlite:///~/h.db", "sqlite:///a@b.db",
+                                  "sqlite:///u:p@h.db", "sqlite:///a:b.db", "sqlite:///a+b;c=d.db",
+                                  "sqlite:///a%20b.db", "sqlite:///h.db?mode=ro", "sqlite:///h.db#x",
+                                  "sqlite:///:memory:", "sqlite://", "postgresql+psycopg://u@h/db"])
+def test_a_plain_sqlite_url_names_the_file_sqlalchemy_would_open(text: str) -> None:
+    """The check before a test reads sqlite:///FILE without SQLAlchemy: it must name SQLAlchemy's file, or leave
+    the URL to SQLAlchemy (escapes, options, memory, other databases)."""
+    import sqlalchemy as sa
+
+    from edc_bench.history.url import plain_sqlite_path
+
+    path, url = plain_sqlite_path(text), sa.engine.make_url(text)
+    if url.get_backend_name() != "sqlite" or set("%?#") & set(text) or url.database in (None, "", ":memory:"):
+        assert path is None
+    else:
+        assert path == Path(url.database)

@@ -10,6 +10,7 @@ this test fails when one comes back.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -38,10 +39,7 @@ print("MODULES " + json.dumps(seen[0]), file=sys.stderr)
 
 
 def test_the_test_command_reaches_its_first_tick_without_what_it_needs_only_later(tmp_path: Path) -> None:
-    env_cache = tmp_path / "cache"
-    import os
-
-    env = {**os.environ, "EDC_BENCH_CACHE_DIR": str(env_cache), "EDC_BENCH_HISTORY_URL": f"sqlite:///{tmp_path}/h.db"}
+    env = {**os.environ, "EDC_BENCH_CACHE_DIR": str(tmp_path / "cache"), "EDC_BENCH_HISTORY_URL": f"sqlite:///{tmp_path}/h.db"}
     for _ in range(2):  # the second run finds the gain check cached, as a station's every test after its first
         proc = subprocess.run([sys.executable, "-c", _PROBE, "test", "--json", "--no-figure", "--duration-s", "8",
                                "--out", str(tmp_path / "rec")], capture_output=True, text=True, env=env, timeout=120)
