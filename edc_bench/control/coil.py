@@ -74,6 +74,10 @@ class CoilEstimator(Generic[Number]):
         self.sum_ui = lam * self.sum_ui + drive_v * current_a
         self.sum_ii = lam * self.sum_ii + current_a * current_a
 
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the tests ``keep`` (indices) of an (N,) estimate: a batch whose other tests have stopped."""
+        self.sum_ui, self.sum_ii = self.sum_ui[keep], self.sum_ii[keep]
+
     @property
     def resistance_ohm(self) -> Number:
         """The present estimate (the prior until samples have come)."""

@@ -213,6 +213,11 @@ class PidState:
         self.proportional_v = zero * 1.0
         self.output_v = zero * 1.0
 
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the tests ``keep`` (indices) of an (N,) state: a batch whose other tests have stopped."""
+        for name in ("integral_v", "derivative_v", "last_error_mm", "proportional_v", "output_v"):
+            setattr(self, name, getattr(self, name)[keep])
+
 
 def pid_update(ops: Ops, c: PidCoefficients, s: PidState, error_mm: Any, saturated: Any, usable: Any = True) -> Any:
     """One PID step on ``error_mm`` (reference minus measured); the output, within +/- the limit.
@@ -315,6 +320,11 @@ class CoilAverage:
         self._added += 1
         self.mean = self._sum / min(self._added, self.window)
         return self.mean
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the tests ``keep`` (indices) of an (N,) average: a batch whose other tests have stopped."""
+        self._ring = self._ring[:, keep]
+        self._sum, self.mean = self._sum[keep], self.mean[keep]
 
 
 __all__ = ["ARRAYS", "SCALAR", "ArrayOps", "CoilAverage", "Ops", "PidCoefficients", "PidState", "adapting",

@@ -12,6 +12,7 @@ import numpy as np
 
 from edc_bench.config import Variant, load_variant, parse_variant, with_changes
 from edc_bench.learning.dataset import COLUMNS, Dataset
+from edc_bench.identification.period_fit import expected_drive_noise_v
 from edc_bench.learning.evaluation import verdict_counts
 from edc_bench.physics.valve import ValveSpec, sample_valve
 from edc_bench.physics.wear import (
@@ -20,6 +21,7 @@ from edc_bench.physics.wear import (
     resisting_force_n,
 )
 from edc_bench.population.batch import BatchResult, run_batch
+from edc_bench.population.batch_stop import StopOutcome, StopRule
 from edc_bench.population.valves import draw_population, new_valves
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.classifier import ValveClassifier
@@ -30,11 +32,12 @@ from edc_bench.verdict.verdicts import Verdict
 
 def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassifier,
                   baseline: Baseline) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Where the bench's stop rule would have ended each test of a batch run, and with what.
+    """Where the bench's stop rule would have ended each test of a full-length batch run, and with what.
 
     The period fit after each number of whole periods is what a test stopped then would have found
-    (:class:`~edc_bench.population.batch.PeriodResults`), so the rule of
-    :class:`~edc_bench.verdict.early_stop.EarlyStop` is applied period by period.
+    (:class:`~edc_bench.population.batch.PeriodResults`), so the rule
+    (:class:`~edc_bench.population.batch_stop.StopRule`, the loop's) is applied period by period. A batch run with
+    that rule (``run_batch(..., stop=...)``) stops each test there itself and finds the same.
 
     Returns
     -------
@@ -42,31 +45,19 @@ def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassi
         Per test: the periods the test ran, whether its numbers were trusted then (else INVALID), af and a1 over
         the baseline then, and whether it stopped because the model does not fit.
     """
-    from edc_bench.verdict.early_stop import Interval, relative_box, stop_flags
-
     periods = result.periods
+    rule = StopRule.of(variant, classifier, baseline)
     n = len(result.parameters)
-    interval = Interval.of(variant, periods.blocks)
-    base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
-    stop_p = np.full(n, periods.blocks)
-    decided = np.zeros(n, dtype=bool)
-    features = np.full((n, 2), np.nan)
-    trusted_at_stop = np.zeros(n, dtype=bool)
-    misfit_at_stop = np.zeros(n, dtype=bool)
+    stopped = StopOutcome(n)
+    running = np.ones(n, dtype=bool)
     for p in range(min(variant.acceptance.min_periods, periods.blocks), periods.blocks + 1):
         at = periods.at(p)
-        if at.fit is None:
-            continue
-        centre, width = relative_box(at.parameters[:, [5, 2]], at.fit, base, interval)
-        misfit, trusted, certain, _ = stop_flags(variant, classifier, at.fit, p, centre, width, periods.noise_v,
-                                                 periods.reference_condition)
-        stop_now = ~decided & (certain | misfit | (p == periods.blocks))
-        stop_p[stop_now] = p
-        features[stop_now] = centre[stop_now]
-        trusted_at_stop[stop_now] = trusted[stop_now]
-        misfit_at_stop[stop_now] = misfit[stop_now]
-        decided |= stop_now
-    return stop_p, trusted_at_stop, features, misfit_at_stop
+        decision = rule.decide(p, p == periods.blocks, at, periods.noise_v, periods.reference_condition)
+        stop = decision.stop & running
+        stopped.record(np.arange(n), stop, p, periods.stop_time_s(p), decision, at, periods.coil_at_blocks[p],
+                       result.coil_end_ohm)
+        running &= ~stop
+    return stopped.periods, stopped.trusted, stopped.features_rel, stopped.misfit
 
 
 def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count_per_variant: int,
@@ -160,16 +151,13 @@ def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: 
     rows = []
     for variation in variations_rel:
         variant = with_gain_variation(base_variant, variation)
-        result = run_batch(variant, valves, seeds)
-        stop_p, trusted, features, misfit = early_outcome(variant, result, classifier, baseline)
-        estimate = np.zeros((len(valves), 2))
-        gain, repeating = np.zeros(len(valves)), np.zeros(len(valves))
-        for p in np.unique(stop_p):  # each test's figures where it stopped
-            at, here = result.periods.at(int(p)), stop_p == p
-            estimate[here] = at.parameters[here][:, [5, 2]]
-            gain[here] = at.fit.gain_variation_rel[here]
-            repeating[here] = at.fit.systematic_rms_v[here] / result.periods.noise_v
-        errors = np.abs(estimate / result.truth[:, [5, 2]] - 1)
+        # each test stops where the bench's would, with its figures then
+        result = run_batch(variant, valves, seeds, stop=StopRule.of(variant, classifier, baseline))
+        stopped = result.stop
+        trusted, features, misfit = stopped.trusted, stopped.features_rel, stopped.misfit
+        gain = stopped.gain_variation_rel
+        repeating = stopped.systematic_rms_v / expected_drive_noise_v(variant)
+        errors = np.abs(result.parameters[:, [5, 2]] / result.truth[:, [5, 2]] - 1)
         verdicts = np.full(len(valves), "", dtype=object)
         if trusted.any():
             judged_verdicts, _, _ = classifier.classify_many(features[trusted])

@@ -29,6 +29,7 @@ from edc_bench.paths import atomic_write
 from edc_bench.physics.valve import ValveSpec
 from edc_bench.physics.wear import is_faulty, resisting_force_n
 from edc_bench.population.batch import run_batch
+from edc_bench.population.batch_stop import StopRule
 from edc_bench.population.valves import draw_population
 from edc_bench.verdict.baseline import load_baseline
 
@@ -106,22 +107,26 @@ class Dataset:
         return dataset
 
 
-def _chunk_worker(args: tuple[Variant, list[ValveSpec], list[int]]) -> tuple[np.ndarray, np.ndarray]:
-    variant, valves, seeds = args
-    result = run_batch(variant, valves, seeds)
+def _chunk_worker(args: tuple[Variant, list[ValveSpec], list[int], bool]) -> tuple[np.ndarray, np.ndarray]:
+    variant, valves, seeds, early_stop = args
+    result = run_batch(variant, valves, seeds, stop=StopRule.shipped(variant) if early_stop else None)
     return result.parameters[:, [5, 2]], result.trusted
 
 
-def run_population(variant: Variant, valves: list[ValveSpec], seeds: list[int],
-                   workers: int) -> tuple[np.ndarray, np.ndarray]:
-    """Batch tests of ``valves`` in chunks of :data:`CHUNK`, over ``workers`` processes.
+def run_population(variant: Variant, valves: list[ValveSpec], seeds: list[int], workers: int, *,
+                   early_stop: bool = False, chunk: int = CHUNK) -> tuple[np.ndarray, np.ndarray]:
+    """Batch tests of ``valves`` in chunks of ``chunk`` valves, over ``workers`` processes.
+
+    With ``early_stop``, each test stops where the bench's would (the packaged classifier and baseline,
+    :class:`~edc_bench.population.batch_stop.StopRule`), with its figures then; by default every test runs its
+    full length (training data: the classifier is what decides a stop).
 
     Returns
     -------
     (numpy.ndarray, numpy.ndarray)
         Features ``[af, a1]`` per valve, and whether each converged.
     """
-    jobs = [(variant, valves[i:i + CHUNK], seeds[i:i + CHUNK]) for i in range(0, len(valves), CHUNK)]
+    jobs = [(variant, valves[i:i + chunk], seeds[i:i + chunk], early_stop) for i in range(0, len(valves), chunk)]
     if workers > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
             parts = list(pool.map(_chunk_worker, jobs))

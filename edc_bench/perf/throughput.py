@@ -14,23 +14,34 @@ import numpy as np
 
 
 def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, float]:
-    """Valve tests per minute in the batch path: one process, and ``workers`` processes as ``train`` runs it."""
+    """Valve tests per minute in the batch path, each test stopped where the bench's early stop ends it (the
+    packaged classifier and baseline): one process, and ``workers`` processes with ``valves`` each; and one process
+    running every test its full length (as training data are made), for comparison."""
     from edc_bench.config import load_variant
     from edc_bench.learning.dataset import run_population
     from edc_bench.population.batch import run_batch
+    from edc_bench.population.batch_stop import StopRule
     from edc_bench.population.valves import draw_population
 
     variant = load_variant(variant_name)
     population = draw_population(variant, valves, 7)
     seeds = list(range(valves))
+    rule = StopRule.shipped(variant)
     t0 = time.perf_counter()
-    run_batch(variant, population, seeds)
+    stopped = run_batch(variant, population, seeds, stop=rule)
     one = time.perf_counter() - t0
     t0 = time.perf_counter()
-    run_population(variant, population + population, seeds + [s + valves for s in seeds], workers)
+    run_population(variant, population + population, seeds + [s + valves for s in seeds], workers, early_stop=True,
+                   chunk=valves)
     many = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    run_batch(variant, population, seeds)
+    full = time.perf_counter() - t0
     return {"valves": valves, "per_minute_one_process": valves / one * 60.0,
-            "per_minute_pool": 2 * valves / many * 60.0, "workers": workers}
+            "per_minute_pool": 2 * valves / many * 60.0, "workers": workers,
+            "per_minute_full_length": valves / full * 60.0,
+            "median_stop_s": float(np.median(stopped.stop.time_s)), "mean_stop_s": float(stopped.stop.time_s.mean()),
+            "full_length_s": float(variant.excitation.duration_s)}
 
 
 def _command(*args: str) -> list[str]:

@@ -31,34 +31,65 @@ _THETA = {3: 1.495585217958292e-2, 5: 2.539398330063230e-1, 7: 9.504178996162932
 
 
 def expm(a: np.ndarray) -> np.ndarray:
-    """exp(``a``) of a square matrix.
+    """exp(``a``) of a square matrix, or of each matrix in a stack.
 
     Parameters
     ----------
     a : numpy.ndarray
-        (n, n) float matrix.
+        (n, n) float matrix, or (..., n, n) matrices.
 
     Returns
     -------
     numpy.ndarray
-        (n, n) matrix exponential.
+        The matrix exponential(s), shaped as ``a``.
+
+    Each matrix gets the degree and the squarings its own 1-norm calls for; matrices that call for the same are
+    computed together (the batch path's valves mostly do), so a stack costs a few numpy operations, not one
+    Python pass per matrix.
     """
     a = np.asarray(a, dtype=float)
-    norm = float(np.abs(a).sum(axis=0).max()) if a.size else 0.0
-    for degree in (3, 5, 7, 9):
-        if norm <= _THETA[degree]:
-            return _pade(a, degree)
-    squarings = max(0, math.ceil(math.log2(norm / _THETA[13])))
-    result = _pade(a / 2.0**squarings, 13)
+    if a.ndim == 2:
+        return _scaled_pade(a, *_plan(float(np.abs(a).sum(axis=0).max()) if a.size else 0.0))
+    stack = a.reshape((-1,) + a.shape[-2:])
+    norms = np.abs(stack).sum(axis=-2).max(axis=-1) if stack.size else np.zeros(len(stack))
+    # as _plan, over the stack: the degree's index in _DEGREES, and the squarings (degree 13 only)
+    choice = np.searchsorted(_LIMITS, norms)  # norm <= _THETA[d]: the first such degree
+    with np.errstate(divide="ignore"):
+        squarings = np.where(choice == len(_DEGREES) - 1,
+                             np.maximum(0, np.ceil(np.log2(norms / _THETA[13]))), 0).astype(int)
+    plans = choice * 10_000 + squarings
+    out = np.empty_like(stack)
+    for plan in np.unique(plans):
+        members = plans == plan
+        out[members] = _scaled_pade(stack[members], _DEGREES[plan // 10_000], int(plan % 10_000))
+    return out.reshape(a.shape)
+
+
+def _scaled_pade(a: np.ndarray, degree: int, squarings: int) -> np.ndarray:
+    """exp(a) as the Pade approximant of a / 2^squarings, squared back."""
+    result = _pade(a / 2.0**squarings, degree)
     for _ in range(squarings):
         result = result @ result
     return result
 
 
+_DEGREES = (3, 5, 7, 9, 13)
+_LIMITS = np.array([_THETA[d] for d in _DEGREES[:-1]])
+
+
+def _plan(norm: float) -> tuple[int, int]:
+    """The Pade degree and the number of squarings for a matrix of 1-norm ``norm``."""
+    for degree in (3, 5, 7, 9):
+        if norm <= _THETA[degree]:
+            return degree, 0
+    return 13, max(0, math.ceil(math.log2(norm / _THETA[13])))
+
+
 def _pade(a: np.ndarray, degree: int) -> np.ndarray:
-    """The [degree/degree] Pade approximant of exp(a): (V - U)^-1 (V + U), U the odd part, V the even."""
+    """The [degree/degree] Pade approximant of exp(a), a (n, n) or (k, n, n): (V - U)^-1 (V + U), U the odd part,
+    V the even."""
     b = _PADE[degree]
-    eye = np.eye(a.shape[0])
+    eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
     a2 = a @ a
     if degree == 13:
         a4 = a2 @ a2

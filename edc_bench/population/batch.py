@@ -22,7 +22,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.linalg import expm
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control import law
@@ -49,8 +48,11 @@ from edc_bench.physics.coil import (
     temperature_after_c,
 )
 from edc_bench.physics.feedforward import feedforward_truth
+from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink
+from edc_bench.population.batch_stop import StopOutcome, StopRule
+from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
 
@@ -86,6 +88,9 @@ class BatchResult:
         The period fit after any number of periods (what an early-stopped test would have found).
     problems : numpy.ndarray
         (N,) the trust rule's problems per test (:class:`~edc_bench.identification.trust.Problem` bits; 0: trusted).
+    stop : StopOutcome or None
+        With a stop rule: where each test stopped and what it had found then (the fields above are those figures;
+        ``periods`` is None, as a stopped test's later periods do not exist).
 
     ``parameters`` and ``truth`` are referred to the reference coil, as the full loop's are.
     """
@@ -103,6 +108,7 @@ class BatchResult:
     model_fits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     periods: PeriodResults | None = None
     problems: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    stop: StopOutcome | None = None
 
     @property
     def trusted(self) -> np.ndarray:
@@ -148,6 +154,15 @@ class _VectorPlant:
         self._r20 = np.array([p.resistance_20c_ohm for p in params])
         self._heat_j = np.zeros(n)
         self._heat_s = 0.0
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the valves ``keep`` (indices) only: the others' tests have stopped."""
+        self.params = [self.params[j] for j in keep]
+        take_last_axis(self, keep, ("fc", "fs", "phi", "gam", "phi_q", "gam_q", "x", "v", "i", "stuck", "temp_c",
+                                    "resistance_ohm", "_r20", "_heat_j"))
+        self._aug = self._aug[keep]
+        if self._tables is not None:
+            self._tables = (self._tables[0][..., keep], self._tables[1][..., keep])
 
     def add_heat(self, dt_s: float) -> None:
         """The coils dissipated R i^2 for ``dt_s``; every THERMAL_STEP_S, step their temperature and resistance."""
@@ -279,6 +294,11 @@ class _Noise:
         self._buf = np.zeros((0, len(seeds)))
         self._row = 0
 
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the valves ``keep`` (indices) only: each keeps its own stream."""
+        self.rngs = [self.rngs[j] for j in keep]
+        self._buf = self._buf[:, keep]
+
     def next(self) -> np.ndarray:
         if self._row >= len(self._buf):
             self._buf = np.column_stack([r.standard_normal(self.block) for r in self.rngs]) * self.sd
@@ -293,7 +313,8 @@ class _RowFeeder:
 
     The loop's trace holds every tick; a batch of hundreds of valves cannot, so the ticks are kept only until the
     span they belong to has been turned into rows, with half a smoothing window on either side. The rows are
-    computed by the same function as the loop's, so the identification is the same.
+    computed by the same function as the loop's, so the identification is the same. A span never crosses a
+    period's end: the period is whole in the fit as soon as its last sample is in (the early stop's moment).
     """
 
     SPAN = 500
@@ -305,6 +326,7 @@ class _RowFeeder:
         self.valid = np.zeros((cap, n), dtype=bool)
         self.base = setup.first_tick - self.half  # the tick of row 0
         self.p = setup.first_tick  # the first tick of the next span
+        self._cut = self._next_cut()  # the tick after the next span
 
     def tick(self, k: int, drive_v: np.ndarray, rho: np.ndarray, r1: np.ndarray) -> None:
         """What tick ``k`` sent and used."""
@@ -312,14 +334,32 @@ class _RowFeeder:
         if 0 <= row:
             self.u[row], self.rho[row], self.r1[row] = drive_v, rho, r1
 
-    def sample(self, j: int, position_mm: np.ndarray, valid: np.ndarray | bool = True) -> None:
-        """The sample of tick ``j``'s command (taken before its drive applied); a span is fed once its last is in."""
+    def sample(self, j: int, position_mm: np.ndarray, valid: np.ndarray | bool = True) -> int:
+        """The sample of tick ``j``'s command (taken before its drive applied); a span is fed once its last is in.
+
+        Returns the number of whole periods in the fit when this sample completed one, else 0.
+        """
         row = j - self.base
         if row < 0:
-            return
+            return 0
         self.x[row], self.valid[row] = position_mm, valid
-        if j == self.p + self.SPAN + self.half:
-            self._feed(self.SPAN)
+        if j != self._cut + self.half:
+            return 0
+        self._feed(self._cut - self.p)
+        self._cut = self._next_cut()
+        setup = self.setup
+        whole, within = divmod(self.p - setup.first_tick, setup.block_ticks)
+        return whole if within == 0 else 0
+
+    def _next_cut(self) -> int:
+        """Where the next span ends: :attr:`SPAN` ticks on, or the end of the period it is in."""
+        setup = self.setup
+        period_end = setup.first_tick + ((self.p - setup.first_tick) // setup.block_ticks + 1) * setup.block_ticks
+        return min(self.p + self.SPAN, period_end)
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the valves ``keep`` (indices) only."""
+        take_last_axis(self, keep, ("x", "u", "rho", "r1", "valid"))
 
     def _feed(self, span: int) -> None:
         if span <= 0:
@@ -354,6 +394,11 @@ class _Sensors:
         self._current_step = current.resolution if sensor_noise else 1e-9
         self._current_offset = current.offset if sensor_noise else 0.0
 
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the valves ``keep`` (indices) only."""
+        self.noise.take(keep)
+        self._current_noise.take(keep)
+
     def read(self, true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
         """The LVDT's reading of rack positions ``true_mm`` with the given noise."""
         return np.round((true_mm + self._offset + noise_mm) / self._resolution) * self._resolution
@@ -381,6 +426,10 @@ class _Reference:
         self.now0 = ref0.tabulate(t_ticks)[0]
         self.now_slope = ref1.tabulate(t_ticks)[0] - self.now0
         self.start = start
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the valves ``keep`` (indices) only."""
+        self.start = self.start[keep]
 
     def at_mid_tick(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The third, second and first derivatives and the reference itself in the middle of tick ``k``'s
@@ -420,6 +469,14 @@ class _Controller:
         self._w_est = np.empty((len(self.est_idx), n))  # the estimator's regressors, one row per parameter
         self._ones = np.ones(n)
 
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the valves ``keep`` (indices) only."""
+        take_last_axis(self, keep, ("theta", "P", "saturated", "_w_est", "_ones"))
+        self.pid.take(keep)
+        self.coil.take(keep)
+        self.coil_average.take(keep)
+        self.reference.take(keep)
+
     def step(self, k: int, error_mm: np.ndarray,
              usable: np.ndarray | bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Tick ``k``: the drive per valve, the coil ratio it was scaled by, and r' (for the fit's rows)."""
@@ -447,7 +504,8 @@ class _Controller:
 
 
 def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
-              sensor_noise: bool = True, adapter: AdapterModel | None = None) -> BatchResult:
+              sensor_noise: bool = True, adapter: AdapterModel | None = None,
+              stop: StopRule | None = None) -> BatchResult:
     """Run one simulated bench test per valve, vectorised.
 
     Parameters
@@ -464,6 +522,10 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         A CAN adapter between bench and rig (:mod:`edc_bench.population.batch_link`): commands take effect and
         samples are taken when it delivers them, and the PID uses the newest sample young enough
         (``acceptance.max_reply_age_ms``), holding its output otherwise. Instant by default.
+    stop : StopRule, optional
+        The bench's early stop (:mod:`edc_bench.population.batch_stop`): each test ends after the period where the
+        loop's would, and the result holds what it had found then (``BatchResult.stop``; no ``periods``). By
+        default every test runs its full length.
 
     Returns
     -------
@@ -481,61 +543,79 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         adapter, seeds, design.period_s, QUANTA_PER_PERIOD, max_reply_age_ticks(variant), reference.of_ticks)
     # the identification the verdict rests on: the period fit, fed the same rows as the loop's trace gives it
     setup = FitSetup.from_variant(variant)
-    fit_acc = BlockAccumulator(setup, max(setup.blocks_in(design.ticks), 1), n)
+    blocks = setup.blocks_in(design.ticks)
+    fit_acc = BlockAccumulator(setup, max(blocks, 1), n)
     lag = 0 if link is None else RING - 2  # through an adapter, command j's sample is read from the link later
-    run = _BatchRun(design, plant, sensors, controller, link, _RowFeeder(setup, fit_acc, n, lag), lag)
+    coil_at_blocks = np.full((max(blocks, 1) + 1, n), controller.r_ref)
+    periods = PeriodResults(variant, setup, fit_acc, blocks, coil_at_blocks, controller.nominal, controller.r_ref)
+    run = _BatchRun(design, plant, sensors, controller, link, _RowFeeder(setup, fit_acc, n, lag), lag, periods,
+                    stop)
     run.all_ticks(setup)
-    return run.result(variant, valves, seeds, setup, fit_acc)
+    return run.result(variant, valves, seeds)
 
 
 class _BatchRun:
-    """The ticks of a batch: the controller's step, the rig's reply and period, what the fit and the history keep."""
+    """The ticks of a batch: the controller's step, the rig's reply and period, what the fit and the history keep,
+    and (with a stop rule) the valves whose tests end."""
 
     def __init__(self, design: ControllerDesign, plant: _VectorPlant, sensors: _Sensors, controller: _Controller,
-                 link: BatchLink | None, feeder: _RowFeeder, lag: int) -> None:
+                 link: BatchLink | None, feeder: _RowFeeder, lag: int, periods: PeriodResults,
+                 stop: StopRule | None) -> None:
         self.design, self.plant, self.sensors, self.controller = design, plant, sensors, controller
         self.reference = controller.reference
-        self.link, self.feeder, self.lag = link, feeder, lag
+        self.link, self.feeder, self.lag, self.periods = link, feeder, lag, periods
+        self.valve_plants = list(plant.params)  # every valve's, as the plant drops those that stop
         n = len(self.reference.start)
         self.history = np.zeros((design.ticks // HISTORY_EVERY + 1, 2, n))
         self.hist_rows = 0
         est_idx = controller.est_idx
         self._h_af = est_idx.index(PARAMETER_NAMES.index("af"))
         self._h_a1 = est_idx.index(PARAMETER_NAMES.index("a1"))
-        self.coil_at_blocks = np.zeros((0, n))
         self._r_prev = self.reference.start.copy()  # the reference at the previous tick (r(0) = start)
         self._x_meas = self.reference.start  # the newest sample (instant link)
+        # the coil current sampled at the last tick, used from this one (as the loop does); the drive in effect
+        # while it came; the last drive
+        self._pending_current: np.ndarray | None = None
+        self._u_before = self._u_last = np.zeros(n)
+        self.alive = np.arange(n)  # the valves still running, by their place in the batch
+        self.stop_rule, self.stopped = stop, StopOutcome(n) if stop is not None else None
+        self._settle = {name: np.full(n, np.nan) for name in ("af", "a1")}
 
     def all_ticks(self, setup: FitSetup) -> None:
-        """Run every tick of the test, then feed the fit what is left."""
-        design, controller, link, feeder = self.design, self.controller, self.link, self.feeder
-        ticks, lag = design.ticks, self.lag
-        blocks = setup.blocks_in(ticks)
+        """Run every tick of the test (or until every valve has stopped), then feed the fit what is left."""
+        design, controller, link, feeder, periods = self.design, self.controller, self.link, self.feeder, self.periods
+        ticks, lag, blocks = design.ticks, self.lag, periods.blocks
         # the tick after which a loop's trace holds b whole periods (and the half window that smooths their end)
         block_end_ticks = {setup.end_tick(b): b for b in range(1, blocks + 1)}
-        self.coil_at_blocks = np.full((max(blocks, 1) + 1, len(self.reference.start)), controller.r_ref)
-        pending_current: np.ndarray | None = None  # sampled at the last tick, used from this one (as the loop does)
-        u_before = u_last = np.zeros(len(self.reference.start))  # the drive in effect while it came; the last one
         for k in range(ticks):
-            if pending_current is not None:
-                controller.coil.update(u_before, pending_current)
+            if not len(self.alive):
+                return
+            if self._pending_current is not None:
+                controller.coil.update(self._u_before, self._pending_current)
             u, rho, r1 = controller.step(k, *self._error(k))
             # the coil current at this tick, before this drive (through an adapter too: the coil's figure is an
             # average over seconds, where the adapter's milliseconds do not count)
             if k > 0:  # the first tick's current came under no drive of the test's (as in the loop: left out)
-                pending_current, u_before = self.sensors.current(), u_last
-            u_last = u
+                self._pending_current, self._u_before = self.sensors.current(), self._u_last
+            self._u_last = u
             feeder.tick(k, u, rho, r1)
             if k in block_end_ticks:  # a loop stopped here would refer its parameters to this coil figure
-                self.coil_at_blocks[block_end_ticks[k]] = controller.coil_average.mean
-            self._rig_period(k, u)
+                periods.coil_at_blocks[block_end_ticks[k]] = controller.coil_average.mean
+            whole = self._rig_period(k, u)
             if k % HISTORY_EVERY == 0:
                 self._keep_history()
+            if whole:
+                self._periods_done(whole)
         if link is not None:  # the last commands' samples, as far as they reached the rig
             for j in range(max(0, ticks - lag), ticks):
-                feeder.sample(j, *link.delivered_sample(j))
+                if len(self.alive):
+                    self._periods_done(feeder.sample(j, *link.delivered_sample(j)))
+        if not len(self.alive):
+            return
         feeder.finish(ticks - 1)
-        self.coil_at_blocks[blocks if blocks else 0] = controller.coil_average.mean
+        periods.coil_at_blocks[blocks if blocks else 0] = controller.coil_average.mean
+        if self.stop_rule is not None:  # the test's full length without a fit to judge: ends all the same
+            self._periods_done(blocks, last=True)
 
     def _error(self, k: int) -> tuple[np.ndarray, np.ndarray | bool]:
         """The PID's error at tick ``k`` per valve, and where a sample young enough backs it."""
@@ -546,21 +626,23 @@ class _BatchRun:
         fresh_err, fresh, newest_usable = self.link.fresh_error(k)
         return np.where(fresh, fresh_err, self.controller.pid.last_error_mm), fresh | newest_usable
 
-    def _rig_period(self, k: int, u: np.ndarray) -> None:
+    def _rig_period(self, k: int, u: np.ndarray) -> int:
         """The rig takes tick ``k``'s drive: it samples, applies it, and one period passes (through the link, when
-        it delivers them)."""
+        it delivers them). Returns the whole periods in the fit when a sample completed one, else 0."""
         plant, sensors, link, feeder = self.plant, self.sensors, self.link, self.feeder
+        whole = 0
         if link is None:
             self._x_meas = sensors.sample()
-            feeder.sample(k, self._x_meas)
+            whole = feeder.sample(k, self._x_meas)
             plant.advance_period(u)
             self._r_prev = self.reference.now(k)
         else:
             link.send(k, u, sensors.noise.next())
             link.advance_period(k, plant.advance_quanta, lambda: plant.x, sensors.read)
             if k >= self.lag:
-                feeder.sample(k - self.lag, *link.delivered_sample(k - self.lag))
+                whole = feeder.sample(k - self.lag, *link.delivered_sample(k - self.lag))
         plant.add_heat(self.design.period_s)
+        return whole
 
     def _keep_history(self) -> None:
         theta = self.controller.theta
@@ -568,22 +650,59 @@ class _BatchRun:
         self.history[self.hist_rows, 1] = theta[self._h_a1]
         self.hist_rows += 1
 
-    def result(self, variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], setup: FitSetup,
-               fit_acc: BlockAccumulator) -> BatchResult:
-        """What the batch found, as a :class:`BatchResult`."""
-        design, plant, controller, link = self.design, self.plant, self.controller, self.link
+    def _settle_times_s(self, which: np.ndarray | slice) -> dict[str, np.ndarray]:
+        """Settle times of af and a1 in the history so far, for the running valves ``which``."""
+        variant, design = self.periods.variant, self.design
         history = self.history[:self.hist_rows]
         t_hist = np.arange(self.hist_rows) * HISTORY_EVERY * design.period_s
-        settle = {name: settle_times_s(t_hist, history[:, row, :], design.adapt_from_s,
-                                       variant.acceptance.settle_band_rel)
-                  for name, row in (("af", 0), ("a1", 1))}
+        return {name: settle_times_s(t_hist, history[:, row, which], design.adapt_from_s,
+                                     variant.acceptance.settle_band_rel)
+                for name, row in (("af", 0), ("a1", 1))}
+
+    def _periods_done(self, whole: int, last: bool = False) -> None:
+        """``whole`` periods are in the fit: the stop rule decides which tests end here (all, at the last)."""
+        periods, rule = self.periods, self.stop_rule
+        if rule is None or not whole and not last or whole < min(periods.variant.acceptance.min_periods,
+                                                                  periods.blocks):
+            return
+        at = periods.at(whole)
+        decision = rule.decide(whole, last or whole >= periods.blocks, at, periods.noise_v,
+                               periods.reference_condition)
+        if not decision.stop.any():
+            return
+        self.stopped.record(self.alive, decision.stop, whole, periods.stop_time_s(whole), decision, at,
+                            periods.coil_at_blocks[whole], self.plant.resistance_ohm)
+        for name, times in self._settle_times_s(decision.stop).items():
+            self._settle[name][self.alive[decision.stop]] = times
+        self._take(np.nonzero(~decision.stop)[0])
+
+    def _take(self, keep: np.ndarray) -> None:
+        """Run on with the valves ``keep`` (indices among the running ones) only."""
+        for part in (self.plant, self.sensors, self.controller, self.feeder, self.periods.acc):
+            part.take(keep)
+        if self.link is not None:
+            self.link.take(keep)
+        take_last_axis(self, keep, ("history", "_r_prev", "_x_meas", "_u_before", "_u_last", "alive"))
+        self.periods.coil_at_blocks = np.ascontiguousarray(self.periods.coil_at_blocks[:, keep])
+        if self._pending_current is not None:
+            self._pending_current = self._pending_current[keep]
+
+    def result(self, variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int]) -> BatchResult:
+        """What the batch found, as a :class:`BatchResult`."""
+        plant, controller, link, periods = self.plant, self.controller, self.link, self.periods
         r_ref = controller.r_ref
-        truth = np.array([list(feedforward_truth(replace(p, resistance_ohm=r_ref))) for p in plant.params])
-        periods = PeriodResults(variant, setup, fit_acc, setup.blocks_in(design.ticks), self.coil_at_blocks,
-                                controller.nominal, r_ref)
+        truth = np.array([list(feedforward_truth(replace(p, resistance_ohm=r_ref))) for p in self.valve_plants])
+        ages = dict(sorted(link.ages.items())) if link is not None else {}
+        stopped = self.stopped
+        if stopped is not None:
+            condition = max(periods.reference_condition, float(np.nanmedian(stopped.condition_number))
+                            if np.isfinite(stopped.condition_number).any() else math.inf)
+            return BatchResult(stopped.parameters, truth, stopped.converged, self._settle, condition, list(valves),
+                               list(seeds), ages, stopped.coil_ohm, stopped.coil_end_ohm,
+                               model_fits=stopped.model_fits, problems=stopped.problems, stop=stopped)
         at_end = periods.at(periods.blocks)
-        return BatchResult(at_end.parameters, truth, at_end.converged, settle, at_end.condition_number,
-                           list(valves), list(seeds), dict(sorted(link.ages.items())) if link is not None else {},
+        return BatchResult(at_end.parameters, truth, at_end.converged, self._settle_times_s(slice(None)),
+                           at_end.condition_number, list(valves), list(seeds), ages,
                            controller.coil_average.mean.copy(), plant.resistance_ohm.copy(),
                            model_fits=at_end.model_fits, periods=periods, problems=at_end.problems)
 
@@ -612,9 +731,13 @@ class PeriodResults:
                  coil_at_blocks: np.ndarray, nominal: np.ndarray, r_ref: float) -> None:
         self.variant, self.setup, self.acc, self.blocks = variant, setup, acc, blocks
         self.coil_at_blocks, self.nominal, self.r_ref = coil_at_blocks, nominal, r_ref
-        self.n = acc.A.shape[1]
         self.reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
         self.noise_v = expected_drive_noise_v(variant)
+
+    @property
+    def n(self) -> int:
+        """The tests the fit holds (fewer once some have stopped)."""
+        return self.acc.A.shape[1]
 
     def stop_time_s(self, periods: int) -> float:
         """When a test has ``periods`` whole periods (and the half smoothing window after them)."""

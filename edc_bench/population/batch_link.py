@@ -24,10 +24,12 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
 
 #: Commands (and replies) that may be in flight at once, per valve.
 RING = 64
+JITTER_BLOCK = 1000  # jitter draws per valve made at a time
 
 
 class BatchLink:
@@ -61,8 +63,9 @@ class BatchLink:
         self._rngs = [np.random.default_rng([s, 0xADA]) for s in seeds]
         self._phase_s = np.array([r.random() * adapter.usb_frame_s for r in self._rngs])
         self._frame_s = adapter.usb_frame_s * (1.0 + 1e-6 * adapter.usb_drift_ppm)
-        self._jitter = np.zeros((0, n))
-        self._jitter_row = 0
+        # each valve's jitter draws, a block at a time, and the next to use per valve (none drawn yet)
+        self._jitter = np.zeros((JITTER_BLOCK, n))
+        self._jitter_row = np.full(n, JITTER_BLOCK, dtype=np.int64)
         self._cols = np.arange(n)
         self._last_down = np.full(n, -math.inf)
         self._last_up = np.full(n, -math.inf)
@@ -83,22 +86,30 @@ class BatchLink:
         self.applied_v = np.zeros(n)  # the drive the rig holds now
         self.ages: dict[int, int] = {}
 
-    def _jitter_s(self) -> np.ndarray:
-        """One uniform jitter draw per valve."""
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the valves ``keep`` (indices) only: the others' tests have stopped."""
+        self._rngs = [self._rngs[j] for j in keep]
+        take_last_axis(self, keep, ("_phase_s", "_jitter", "_jitter_row", "_last_down", "_last_up", "_down_s", "_down_q", "_drive",
+                                    "_noise", "_sample", "_use_tick", "_next_delivery", "_next_reply", "newest_tick",
+                                    "_error_sum", "_errors", "applied_v"))
+        self._cols = np.arange(len(keep))
+
+    def _jitter_s(self, idx: np.ndarray) -> np.ndarray | float:
+        """The next uniform jitter draw of each of the valves ``idx``, from each valve's own stream: a valve's
+        draws do not depend on which other valves share its batch (or have left it)."""
         if self.adapter.jitter_s <= 0.0:
             return 0.0
-        if self._jitter_row >= len(self._jitter):
-            self._jitter = np.column_stack([r.random(1000) for r in self._rngs]) * self.adapter.jitter_s
-            self._jitter_row = 0
-        row = self._jitter[self._jitter_row]
-        self._jitter_row += 1
-        return row
+        used_up = idx[self._jitter_row[idx] >= JITTER_BLOCK]
+        for j in used_up.tolist():
+            self._jitter[:, j] = self._rngs[j].random(JITTER_BLOCK) * self.adapter.jitter_s
+        self._jitter_row[used_up] = 0
+        draws = self._jitter[self._jitter_row[idx], idx]
+        self._jitter_row[idx] += 1
+        return draws
 
     def _deliver(self, idx: np.ndarray, sent_s: np.ndarray, previous_s: np.ndarray) -> np.ndarray:
         """Frames of valves ``idx`` sent at ``sent_s``: when they come out, by :meth:`AdapterModel.release_s`."""
-        jitter = self._jitter_s()
-        return self.adapter.release_s(sent_s, jitter if np.isscalar(jitter) else jitter[idx], previous_s,
-                                      self._phase_s[idx])
+        return self.adapter.release_s(sent_s, self._jitter_s(idx), previous_s, self._phase_s[idx])
 
     def fresh_error(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Before tick ``k``, per valve: the mean error of the samples that came since the last tick, whether

@@ -29,3 +29,17 @@ def test_every_pade_degree_and_the_squarings_agree_with_scipy() -> None:
             m *= norm / np.abs(m).sum(axis=0).max()
             want = scipy.linalg.expm(m)
             assert np.abs(expm(m) - want).max() <= 1e-12 * np.abs(want).max(), (norm, n)
+
+
+def test_a_stack_is_each_matrix_on_its_own() -> None:
+    """The batch path exponentiates hundreds of valves' matrices at once: each must be what it is alone, whatever
+    degree and squarings its norm calls for (a stack mixing them all)."""
+    rng = np.random.default_rng(11)
+    norms = np.array([1e-3, 0.1, 0.5, 1.5, 4.0, 40.0, 0.2, 40.0])
+    stack = rng.normal(size=(len(norms), 5, 5))
+    stack *= (norms / np.abs(stack).sum(axis=-2).max(axis=-1))[:, None, None]
+    together = expm(stack.reshape(2, 4, 5, 5)).reshape(stack.shape)
+    for m, got in zip(stack, together):
+        want = scipy.linalg.expm(m)
+        assert np.abs(got - want).max() <= 1e-12 * np.abs(want).max()
+        assert np.abs(got - expm(m)).max() <= 1e-14 * np.abs(want).max()
