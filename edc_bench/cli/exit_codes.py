@@ -21,6 +21,7 @@ class ExitCode(enum.IntEnum):
     INVALID = 12
     NOT_REPRODUCED = 13  # edc-bench replay: the log does not give the recorded result
     STATION_NOT_READY = 14  # edc-bench check-station: NO-GO
+    RIG_NOT_CONFORMING = 15  # edc-bench rig-check: NO-GO
     BAD_INPUT = 2
     RIG_ERROR = 3
     INTERRUPTED = 130
@@ -42,6 +43,7 @@ MEANINGS: dict[int, str] = {
     ExitCode.INVALID: "INVALID: the test is not to be trusted (the reasons are printed)",
     ExitCode.NOT_REPRODUCED: "replay: the log does not give the recorded result",
     ExitCode.STATION_NOT_READY: "check-station: NO-GO (the advice is printed)",
+    ExitCode.RIG_NOT_CONFORMING: "rig-check: NO-GO, the rig breaks an ICD rule (the failed checks are printed)",
     ExitCode.BAD_INPUT: "bad input: the message names what was wrong and how to fix it; nothing was done",
     ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
     ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
@@ -55,6 +57,7 @@ SUCCESS: dict[str, str] = {
     "classify": "PASS: the valve is reusable",
     "replay": "the record is reproduced exactly (a raw log: PASS)",
     "check-station": "GO: this PC holds the loop rate",
+    "rig-check": "GO: the rig kept every ICD rule checked",
     "rig": "the rig was stopped (Ctrl-C or SIGTERM)",
 }
 
@@ -77,6 +80,7 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "label": (ExitCode.OK,),
     "report": (ExitCode.OK,),
     "check-station": (ExitCode.OK, ExitCode.STATION_NOT_READY),
+    "rig-check": (ExitCode.OK, ExitCode.RIG_NOT_CONFORMING, ExitCode.RIG_ERROR),
 }
 
 #: Codes any command can return: bad input (argparse too), a bug, Ctrl-C.
@@ -86,6 +90,7 @@ ALWAYS = (ExitCode.BAD_INPUT, ExitCode.INTERNAL_ERROR, ExitCode.INTERRUPTED)
 SHORT_NAMES: dict[int, str] = {
     ExitCode.PASS: "PASS", ExitCode.MARGINAL: "MARGINAL", ExitCode.FAIL: "FAIL", ExitCode.INVALID: "INVALID",
     ExitCode.NOT_REPRODUCED: "replay not reproduced", ExitCode.STATION_NOT_READY: "station NO-GO",
+    ExitCode.RIG_NOT_CONFORMING: "rig NO-GO",
     ExitCode.BAD_INPUT: "bad input", ExitCode.RIG_ERROR: "rig or bus error", ExitCode.INTERNAL_ERROR: "internal error",
     ExitCode.INTERRUPTED: "interrupted", ExitCode.RECORD_NOT_WRITTEN: "record not written",
 }

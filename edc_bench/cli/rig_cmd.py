@@ -27,6 +27,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--adapter", default="none", metavar="SPEC",
                    help="hold frames back as a CAN adapter would: usb-fs (a USB full-speed adapter, 1.5-3.5 ms "
                         "round trip), or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] (default: none)")
+    p.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
+                   help="break this ICD rule, for trying 'edc-bench rig-check' on a rig that fails it (repeatable): "
+                        "answers-bad-crc, wrong-counter-echo, slow-watchdog, no-watchdog, no-heartbeat, "
+                        "slow-heartbeat, drives-after-safe, samples-after-drive")
     p.set_defaults(run=run)
 
 
@@ -36,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.errors import ConfigError
     from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.sim.adapter import parse_adapter
-    from edc_bench.sim.rig import SimulatedRig
+    from edc_bench.sim.rig import RigOptions, SimulatedRig
     from edc_bench.sim.server import SlcanRigServer
 
     if args.listen is not None:
@@ -44,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     variant = load_variant(args.variant)
     valve = parse_valve_spec(args.valve, variant)
     adapter = parse_adapter(args.adapter)
-    rig = SimulatedRig(variant, valve, seed=args.seed)
+    rig = SimulatedRig(variant, valve, seed=args.seed, options=RigOptions(breaks=_breaks(args.breaks)))
     server = SlcanRigServer(rig, log=lambda line: print(f"rig: {line}", flush=True), adapter=adapter)
     if args.pty:
         where = server.open_pty()
@@ -58,12 +62,24 @@ def run(args: argparse.Namespace) -> int:
         where = f"socket://{host}:{port}"
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())
-    print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}, serving slcan at {where}",
+    broken = f", breaking {', '.join(args.breaks)}" if args.breaks else ""
+    print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}{broken}, serving slcan at {where}",
           flush=True)
     server.serve_forever()
     # the longest the rig went without serving while a host was connected: a test can tell a disturbed rig
     print(f"rig: stopped; worst serve gap {server.worst_gap_s * 1e3:.2f} ms", flush=True)
     return 0
+
+
+def _breaks(names: list[str]) -> frozenset:
+    """``--break`` names as ICD breaks; a ConfigError naming the choices for an unknown one."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.sim.broken_rigs import IcdBreak
+
+    try:
+        return frozenset(IcdBreak.parse(name) for name in names)
+    except ValueError as exc:
+        raise ConfigError(f"--break: {exc}") from None
 
 
 def check_listen_address(host: str, port: int) -> None:

@@ -13,7 +13,7 @@ from edc_bench.errors import RigError
 
 @contextmanager
 def rig_process(variant: str | None, valve: str, seed: int, adapter: str = "none",
-                status: dict[str, float] | None = None) -> Iterator[str]:
+                status: dict[str, float] | None = None, extra: list[str] | None = None) -> Iterator[str]:
     """Run the simulated rig in its own process for the duration of a ``with``.
 
     Parameters
@@ -25,6 +25,8 @@ def rig_process(variant: str | None, valve: str, seed: int, adapter: str = "none
     status : dict, optional
         Filled when the process has stopped: ``worst_gap_ms``, the longest the
         rig went without serving while a host was connected (a disturbed rig).
+    extra : list of str, optional
+        More ``edc-bench rig`` arguments (``--break RULE``).
 
     Yields
     ------
@@ -36,6 +38,7 @@ def rig_process(variant: str | None, valve: str, seed: int, adapter: str = "none
            "--seed", str(seed), "--adapter", adapter]
     if variant:
         cmd += ["--variant", variant]
+    cmd += extra or []
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert proc.stdout is not None

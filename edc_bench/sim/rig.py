@@ -17,6 +17,7 @@ import numpy as np
 from edc_bench.config.models import Variant
 from edc_bench.physics.feedforward import FeedforwardParameters, feedforward_truth
 from edc_bench.physics.valve import ValveSpec, plant_parameters
+from edc_bench.sim.broken_rigs import BrokenFirmware, IcdBreak
 from edc_bench.sim.plant import DEFAULT_QUANTUM_S, Plant
 from edc_bench.sim.sensors import NoisySensor
 from firmware_proto.firmware import FirmwareLimits, Frame, RigFirmware
@@ -90,11 +91,14 @@ class RigOptions:
         readings.
     quantum_s : float
         Plant time quantum.
+    breaks : frozenset of IcdBreak
+        ICD rules the rig's firmware breaks (:mod:`edc_bench.sim.broken_rigs`): none by default.
     """
 
     stiction: bool = True
     sensor_noise: bool = True
     quantum_s: float = DEFAULT_QUANTUM_S
+    breaks: frozenset[IcdBreak] = frozenset()
 
 
 class SimulatedRig:
@@ -131,8 +135,13 @@ class SimulatedRig:
             NoisySensor(current_model, rng.spawn(1)[0]),
             variant.rig.supply_voltage_v,
         )
-        self.firmware = RigFirmware(self.hardware, firmware_limits(variant), start_s=0.0)
         self._quanta_per_s = 1.0 / self.options.quantum_s
+        if self.options.breaks:
+            self.firmware: RigFirmware = BrokenFirmware(
+                self.hardware, firmware_limits(variant), 0.0, self.options.breaks,
+                let_time_pass=lambda dt_s: self.plant.advance(int(round(dt_s * self._quanta_per_s))))
+        else:
+            self.firmware = RigFirmware(self.hardware, firmware_limits(variant), start_s=0.0)
         self._scheduled: list[tuple[float, Callable[[SimulatedRig], list[Frame] | None]]] = []
         self._reached_s = -math.inf  # latest time advance_to has completed
 

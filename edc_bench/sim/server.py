@@ -240,6 +240,8 @@ class SlcanRigServer:
         self._log(f"host connected: {name}")
 
     def _add(self, host: _Host) -> None:
+        if not self._hosts:  # the serve gap counts while a host is connected: from now, not from the idle wait
+            self._last_s = self._now()
         self._hosts[host.fd] = host
         self._selector.register(host.fileobj, selectors.EVENT_READ, ("host", host))
 

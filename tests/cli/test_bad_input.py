@@ -277,6 +277,14 @@ CORPUS: dict[str, Case] = {
     "check-station-duration-zero": case("check-station --duration-s 0", BAD, "--duration-s", "0.5 and 600"),
     "check-station-duration-nan": case("check-station --duration-s nan", BAD, "--duration-s"),
     "check-station-variant-utf16": case("check-station --variant utf16.toml", BAD, "UTF-16"),
+    # -- rig-check --------------------------------------------------------------------------------------------------
+    "rig-check-break-unknown": case("rig-check --break late-replies", BAD, "--break", "no-watchdog"),
+    "rig-check-break-on-a-bus": case("rig-check --break no-watchdog --interface virtual --channel x", BAD,
+                                     "simulated rig only"),
+    "rig-check-commands-few": case("rig-check --commands 5", BAD, "--commands", "100 to 100000"),
+    "rig-check-out-is-a-file": case("rig-check --out afile", BAD, "--out", "a file is there"),
+    "rig-check-variant-utf16": case("rig-check --variant utf16.toml", BAD, "UTF-16"),
+    "rig-check-no-such-bus": case("rig-check --interface nosuchbus --channel x", BAD, "nosuchbus"),
     # -- a second corpus, a newcomer's: what the system refuses, absurd counts, look-alike ids, mistyped URLs ----------
     "test-out-name-too-long": case(("test", "--out", "a" * 300), BAD, "too long", "shorter"),
     "test-variant-name-too-long": case(("test", "--variant", "a" * 300 + ".toml"), BAD, "too long", "shorter"),
