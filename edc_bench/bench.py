@@ -231,7 +231,7 @@ _channels = itertools.count()
 def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
                        stiction: bool = True, sensor_noise: bool = True, adapter: AdapterModel | str | None = None,
                        clock_wrapper: Callable[[Clock], Clock] | None = None, options: BenchOptions | None = None,
-                       **option_fields: Any) -> BenchResult:
+                       firmware: str = "python", **option_fields: Any) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -251,6 +251,8 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         ``usb-fs``, see :func:`~edc_bench.sim.adapter.parse_adapter`); instant by default.
     clock_wrapper : callable, optional
         Wraps the simulated clock (e.g. :class:`~edc_bench.testing.stalls.StallingClock` to inject host stalls).
+    firmware : str, optional
+        The rig's firmware: ``python`` (the prototype) or ``c`` (the C core, :mod:`firmware_proto.c_firmware`).
     options : BenchOptions, optional
         As :func:`run_bench_test`; single fields may be given by name instead (``full_length=True``). The
         valve id defaults to the valve's spec; ``coil_temp_c`` is what the technician states, not taken from
@@ -268,7 +270,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
 
     spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
     link = parse_adapter(adapter) if isinstance(adapter, str) else (adapter or AdapterModel())
-    rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise))
+    rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise, firmware=firmware))
     o = dataclasses.replace(options or BenchOptions(), **option_fields)
     o = dataclasses.replace(o, valve_id=o.valve_id or spec.label, truth=rig.truth,
                             describe_rig=lambda: _simulation(variant, spec, rig, link, seed, stiction, sensor_noise))
@@ -292,7 +294,7 @@ def _simulation(variant: Variant, spec: ValveSpec, rig: SimulatedRig, link: Adap
                  "temp_start_c": rig.plant_params.coil_temp_c, "temp_end_c": rig.plant.coil_temp_c,
                  "resistance_start_ohm": rig.plant_params.resistance_ohm,
                  "resistance_end_ohm": rig.plant.resistance_ohm},
-        "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise,
+        "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise, "firmware": rig.options.firmware,
         "adapter": dataclasses.asdict(link),
         "faulty_by_physics": is_faulty(variant, spec),
         "resisting_force_n": resisting_force_n(variant, spec),

@@ -33,6 +33,34 @@ from edc_bench.sim.lockstep_bus import lockstep_pair
 from edc_bench.sim.rig import RigOptions, SimulatedRig
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    build_c_firmware()
+
+
+def build_c_firmware() -> None:
+    """Build the C firmware core once per test process where make and a C compiler are (CI has gcc), so that its
+    tests run against it; without them they skip, saying how to build it. A build that fails is kept in
+    ``EDC_BENCH_C_FIRMWARE_BUILD_ERROR`` for tests/firmware/test_c_firmware.py to report."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    from firmware_proto.c_firmware import C_DIR, LIBRARY_ENV, library_path
+
+    if os.environ.get(LIBRARY_ENV) or library_path().is_file() or not (shutil.which("make") and shutil.which("cc")):
+        return
+    build = Path(tempfile.mkdtemp(prefix="edc-bench-c-firmware-"))
+    proc = subprocess.run(["make", "-C", str(C_DIR), f"BUILD={build}", f"PYTHON={sys.executable}"],
+                          capture_output=True, text=True)
+    if proc.returncode == 0:
+        os.environ[LIBRARY_ENV] = str(build / "libedcrig.so")
+    else:
+        os.environ["EDC_BENCH_C_FIRMWARE_BUILD_ERROR"] = (proc.stdout + proc.stderr)[-2000:]
+
+
 @pytest.fixture(scope="session")
 def icd() -> Icd:
     return default_icd()

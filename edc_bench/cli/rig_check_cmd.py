@@ -34,6 +34,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
                    help="the simulated rig only: break this ICD rule, to see the check catch it (repeatable): "
                         + ", ".join(_break_names()))
+    p.add_argument("--firmware", choices=("python", "c"), default="python",
+                   help="the simulated rig only: its firmware, python (the prototype, default) or c (the C core)")
+    p.add_argument("--provoke-trips", action="store_true",
+                   help="also provoke the over-current and travel-limit trips: drives the rack to its stop and the "
+                        "coil beyond its rating for a millisecond; only on a rig built for it")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="where rig-check.json and rig-check.pdf go (default: rig-checks/<date-time>)")
     p.add_argument("--json", action="store_true", help="print only JSON")
@@ -64,8 +69,9 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.rigcheck.report import as_json, print_table, write_files
 
     bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False)
-    if bus_config is not None and args.breaks:
-        raise ConfigError("--break applies to the simulated rig only: leave out --interface/--channel, or --break")
+    if bus_config is not None and (args.breaks or args.firmware != "python"):
+        raise ConfigError("--break and --firmware apply to the simulated rig only: leave out --interface/--channel, "
+                          "or them")
     breaks = _parse_breaks(args.breaks)
     variant = load_variant(args.variant)
     folder = args.out or Path("rig-checks") / datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -113,17 +119,19 @@ def _check(bus_config: dict[str, Any] | None, variant: Any, args: argparse.Names
 
         where = ", ".join(f"{k}={v}" for k, v in bus_config.items())
         with ClosingBus(open_bus(bus_config, default_icd().bitrate)) as bus:
-            return run_rig_check(bus, RealTimeClock(), variant, where=where, commands=args.commands, when=when)
+            return run_rig_check(bus, RealTimeClock(), variant, where=where, commands=args.commands, when=when,
+                                 provoke_trips=args.provoke_trips)
     from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.runtime.clock import SimulatedClock
     from edc_bench.sim.inprocess import InProcessRig
     from edc_bench.sim.lockstep_bus import lockstep_pair
     from edc_bench.sim.rig import RigOptions, SimulatedRig
 
-    rig = SimulatedRig(variant, parse_valve_spec(args.valve, variant), options=RigOptions(breaks=breaks))
+    rig = SimulatedRig(variant, parse_valve_spec(args.valve, variant),
+                       options=RigOptions(breaks=breaks, firmware=args.firmware))
     bench_end, rig_end = lockstep_pair()
     with ClosingBus(bench_end) as bus, ClosingBus(rig_end):
-        where = "simulated rig, simulated time" + (f", breaking {', '.join(sorted(b.value for b in breaks))}"
+        where = f"simulated rig ({args.firmware} firmware), simulated time" + (f", breaking {', '.join(sorted(b.value for b in breaks))}"
                                                    if breaks else "")
         return run_rig_check(bus, SimulatedClock(InProcessRig(rig_end, rig)), variant, where=where,
-                             commands=args.commands, when=when)
+                             commands=args.commands, when=when, provoke_trips=args.provoke_trips)

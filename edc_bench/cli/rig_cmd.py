@@ -27,6 +27,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--adapter", default="none", metavar="SPEC",
                    help="hold frames back as a CAN adapter would: usb-fs (a USB full-speed adapter, 1.5-3.5 ms "
                         "round trip), or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] (default: none)")
+    p.add_argument("--firmware", choices=("python", "c"), default="python",
+                   help="the rig's firmware: python (the prototype, default) or c (the C core; build it with "
+                        "'make -C firmware_proto/c')")
     p.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
                    help="break this ICD rule, for trying 'edc-bench rig-check' on a rig that fails it (repeatable): "
                         "answers-bad-crc, wrong-counter-echo, slow-watchdog, no-watchdog, no-heartbeat, "
@@ -48,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     variant = load_variant(args.variant)
     valve = parse_valve_spec(args.valve, variant)
     adapter = parse_adapter(args.adapter)
-    rig = SimulatedRig(variant, valve, seed=args.seed, options=RigOptions(breaks=_breaks(args.breaks)))
+    rig = SimulatedRig(variant, valve, seed=args.seed,
+                       options=RigOptions(breaks=_breaks(args.breaks), firmware=args.firmware))
     server = SlcanRigServer(rig, log=lambda line: print(f"rig: {line}", flush=True), adapter=adapter)
     if args.pty:
         where = server.open_pty()
@@ -63,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())
     broken = f", breaking {', '.join(args.breaks)}" if args.breaks else ""
-    print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}{broken}, serving slcan at {where}",
-          flush=True)
+    print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}, {args.firmware} firmware{broken}, "
+          f"serving slcan at {where}", flush=True)
     server.serve_forever()
     # the longest the rig went without serving while a host was connected: a test can tell a disturbed rig
     print(f"rig: stopped; worst serve gap {server.worst_gap_s * 1e3:.2f} ms", flush=True)

@@ -61,6 +61,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="simulated rig: the CAN adapter's timing between bench and rig: usb-fs (USB full-speed, "
                         "1.5-3.5 ms round trip) or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] "
                         "(default: none)")
+    p.add_argument("--firmware", choices=("python", "c"), default="python",
+                   help="simulated rig: its firmware, python (the prototype, default) or c (the C core; build it "
+                        "with 'make -C firmware_proto/c')")
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
     p.add_argument("--pump-serial", type=identity(), default="", metavar="SERIAL",
                    help="serial number of the pump, for the record")
@@ -245,11 +248,20 @@ def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: dict[st
     parse_adapter(args.adapter)
     if bus_config is None:
         parse_valve_spec(args.valve, variant)  # before the panel or the rig starts
+        if args.firmware == "c":
+            from edc_bench.errors import ConfigError
+            from firmware_proto.c_firmware import CFirmwareMissing, load_library
+
+            try:
+                load_library()
+            except CFirmwareMissing as exc:
+                raise ConfigError(str(exc)) from None
     if args.adapter != "none" and bus_config is not None:
         print("edc-bench test: warning: --adapter simulates an adapter for the simulated rig; a real bus has its "
               "own timing", file=sys.stderr)
     simulated_only = [flag for flag, given in (("--no-stiction", args.no_stiction),
-                                               ("--no-sensor-noise", args.no_sensor_noise)) if given]
+                                               ("--no-sensor-noise", args.no_sensor_noise),
+                                               ("--firmware", args.firmware != "python")) if given]
     if bus_config is not None and simulated_only:
         print(f"edc-bench test: warning: {', '.join(simulated_only)} describe the simulated rig; on a real bus the "
               "valve mounted is what is tested", file=sys.stderr)
@@ -291,7 +303,7 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
             f"simulated time, at most {variant.excitation.duration_s:g} s")
         return run_simulated_test(variant, parse_valve_spec(args.valve, variant), args.seed,
                                   stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
-                                  adapter=args.adapter, options=options), []
+                                  adapter=args.adapter, options=options, firmware=args.firmware), []
     icd = default_icd()
     if bus_config is not None:
         log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
@@ -302,14 +314,16 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     from edc_bench.sim.process import rig_process
 
     rig_status: dict[str, float] = {}
-    with rig_process(args.variant, args.valve, args.seed, args.adapter, rig_status) as channel:
+    with rig_process(args.variant, args.valve, args.seed, args.adapter, rig_status,
+                     extra=["--firmware", args.firmware]) as channel:
         log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
         session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
         with session as bus:
             result = run_bench_test(bus, RealTimeClock(), variant, options)
     # the rig process's side of the timing (how long it once went without serving: a disturbed rig), known once it
     # has stopped
-    simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter, **rig_status}}
+    simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter,
+                                  "firmware": args.firmware, **rig_status}}
     return dataclasses.replace(result, simulation=simulation), _closing_notes(session)
 
 

@@ -75,7 +75,8 @@ class RigCheckReport:
 
 
 def run_rig_check(bus: can.BusABC, clock: Clock, variant: Variant, *, where: str = "", commands: int = 2000,
-                  icd: Icd | None = None, on_result: Any = None, when: str = "") -> RigCheckReport:
+                  icd: Icd | None = None, on_result: Any = None, when: str = "",
+                  provoke_trips: bool = False) -> RigCheckReport:
     """Run the conformance checks against the rig on ``bus``.
 
     Parameters
@@ -96,6 +97,9 @@ def run_rig_check(bus: can.BusABC, clock: Clock, variant: Variant, *, where: str
         Called with each CheckResult as soon as it is known.
     when : str, optional
         When it runs, for the report.
+    provoke_trips : bool, optional
+        Also provoke the over-current and travel-limit trips (the rack to its stop, the coil beyond its rating
+        for a millisecond): only on a rig built for it.
 
     Returns
     -------
@@ -122,7 +126,7 @@ def run_rig_check(bus: can.BusABC, clock: Clock, variant: Variant, *, where: str
         keep(watchdog(session, exp, slack_ms))
         keep(safe_applies_zero(session, exp))
         keep(samples_before_drive(session, exp))
-        keep(fault_flags(session, exp))
+        keep(fault_flags(session, exp, provoke_trips))
     finally:
         try:  # whatever happened: the amplifier off
             session.command(Mode.SAFE)

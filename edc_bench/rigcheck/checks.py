@@ -47,6 +47,11 @@ class Expectations:
         The coil current it gives (the variant's nominal coil).
     commands : int
         Commands in the reply-latency run (at 1 kHz).
+    drive_limit_v, over_current_a, travel_max_mm : float
+        The rig section's limits (the provoked trips).
+    travel_drive_v : float
+        A drive whose steady force takes the rack past ``travel_max_mm`` with a fifth to spare (the provoked
+        travel trip).
     """
 
     watchdog_ms: float
@@ -57,15 +62,23 @@ class Expectations:
     hold_drive_v: float
     hold_current_a: float
     commands: int = 2000
+    drive_limit_v: float = 24.0
+    over_current_a: float = 15.0
+    travel_max_mm: float = 19.5
+    travel_drive_v: float = 0.0
 
     @classmethod
     def of(cls, variant: Variant, commands: int = 2000) -> Expectations:
         """From ``variant``'s rig section, acceptance and nominal plant."""
         plant, rig = nominal_plant(variant), variant.rig
         hold_current_a = 0.5 * plant.preload_n / plant.force_constant_n_per_a
+        volts_per_amp = plant.resistance_ohm / plant.amplifier_gain
+        travel_a = 1.2 * (plant.preload_n + plant.net_stiffness_n_per_mm * rig.travel_max_mm) / \
+            plant.force_constant_n_per_a
         return cls(rig.watchdog_ms, rig.heartbeat_period_ms, rig.supply_min_v, rig.supply_voltage_v,
-                   variant.acceptance.max_reply_age_ms,
-                   hold_current_a * plant.resistance_ohm / plant.amplifier_gain, hold_current_a, commands)
+                   variant.acceptance.max_reply_age_ms, hold_current_a * volts_per_amp, hold_current_a, commands,
+                   rig.drive_limit_v, rig.over_current_a, rig.travel_max_mm,
+                   min(travel_a * volts_per_amp, rig.drive_limit_v))
 
 
 @dataclass(frozen=True)
@@ -374,14 +387,45 @@ def _mean_current(replies: list[Any]) -> float:
     return float(np.mean(currents)) if currents else 0.0
 
 
-def fault_flags(session: RigSession, exp: Expectations) -> list[CheckResult]:
-    """Travel limit and over-current are not provoked: on a real rig that takes the rack to its stop or the coil
-    beyond its rating. Listed, so that a report says what was not checked."""
-    return [CheckResult("trip_flags", "travel-limit and over-current trips",
-                        "a sample beyond the travel or the current limit trips FAULT with its flag (PROTOCOL.md, "
-                        "Trips and fault codes)",
-                        "not checked: provoking them drives the rack to its stop or the coil beyond its rating",
-                        None)]
+def fault_flags(session: RigSession, exp: Expectations, provoke: bool = False) -> list[CheckResult]:
+    """The travel-limit and over-current trips. Provoked only when asked (``provoke``): on a real rig that drives
+    the rack to its stop and the coil beyond its rating for a millisecond. Otherwise listed as not checked, so that
+    a report says what was not."""
+    rule = ("a sample beyond the travel or the current limit trips FAULT with its flag and its fault code, the "
+            "drive at 0 V (PROTOCOL.md, Trips and fault codes)")
+    if not provoke:
+        return [CheckResult("trip_flags", "travel-limit and over-current trips", rule,
+                            "not checked: provoking them drives the rack to its stop or the coil beyond its rating "
+                            "(--provoke-trips on a rig built for it)", None)]
+    return [_provoked(session, "over_current", "over-current trip", rule, exp.drive_limit_v, 10, "over_current",
+                      FaultCode.OVER_CURRENT),
+            _provoked(session, "travel_limit", "travel-limit trip", rule, exp.travel_drive_v, 400, "travel_limit",
+                      FaultCode.TRAVEL_LIMIT)]
+
+
+def _provoked(session: RigSession, key: str, title: str, rule: str, drive_v: float, ticks: int, flag: str,
+              code: FaultCode) -> CheckResult:
+    """RUN at ``drive_v`` for up to ``ticks`` ms: the rig must trip with ``flag`` and ``code``, its drive off."""
+    to_ready(session)
+    start = session.now_s()
+    sent = run_at_1khz(session, Mode.RUN, drive_v, ticks)
+    session.wait(REPLY_WINDOW_S)
+    replies = [(t, fb) for t, fb in session.feedback(sent[0].t_s) if fb is not None]
+    beats = [(t, hb) for t, hb in session.heartbeats(start) if hb is not None and hb.state is RigState.FAULT]
+    to_ready(session)
+    flagged = [(t, fb) for t, fb in replies if getattr(fb, flag)]
+    if not flagged:
+        return CheckResult(key, title, rule, f"no reply in {ticks} ms at {drive_v:.2f} V showed the flag", False,
+                           {"drive_v": drive_v})
+    t_flag, first = flagged[0]
+    coded = [hb.fault_code.name for _, hb in beats]
+    held_off = not replies[-1][1].amp_enabled
+    ok = code.name in coded[:1] and held_off if beats else held_off
+    return CheckResult(key, title, rule,
+                       f"flagged {(t_flag - sent[0].t_s) * 1e3:.0f} ms into a RUN at {drive_v:.2f} V (rack "
+                       f"{first.position_mm:.2f} mm, coil {first.current_a:.2f} A); fault code "
+                       f"{coded[0] if coded else 'not announced'}; amplifier {'off' if held_off else 'on'} after",
+                       ok, {"drive_v": drive_v, "fault_codes": coded, "after_ms": (t_flag - sent[0].t_s) * 1e3})
 
 
 __all__ = ["CheckResult", "Expectations", "fault_flags", "heartbeat", "invalid_frames", "replies_and_latency",

@@ -10,17 +10,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from edc_bench.config.models import Variant
+from edc_bench.errors import ConfigError
 from edc_bench.physics.feedforward import FeedforwardParameters, feedforward_truth
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.sim.broken_rigs import BrokenFirmware, IcdBreak
 from edc_bench.sim.plant import DEFAULT_QUANTUM_S, Plant
 from edc_bench.sim.sensors import NoisySensor
 from firmware_proto.firmware import FirmwareLimits, Frame, RigFirmware
+
+#: The rig firmwares the simulated rig can run.
+FIRMWARES = ("python", "c")
 
 
 class SimulatedRigHardware:
@@ -93,12 +98,16 @@ class RigOptions:
         Plant time quantum.
     breaks : frozenset of IcdBreak
         ICD rules the rig's firmware breaks (:mod:`edc_bench.sim.broken_rigs`): none by default.
+    firmware : str
+        ``python``: the prototype (firmware_proto/firmware.py); ``c``: the C core (firmware_proto/c), built with
+        ``make -C firmware_proto/c``.
     """
 
     stiction: bool = True
     sensor_noise: bool = True
     quantum_s: float = DEFAULT_QUANTUM_S
     breaks: frozenset[IcdBreak] = frozenset()
+    firmware: str = "python"
 
 
 class SimulatedRig:
@@ -136,8 +145,19 @@ class SimulatedRig:
             variant.rig.supply_voltage_v,
         )
         self._quanta_per_s = 1.0 / self.options.quantum_s
-        if self.options.breaks:
-            self.firmware: RigFirmware = BrokenFirmware(
+        if self.options.firmware not in FIRMWARES:
+            raise ConfigError(f"firmware {self.options.firmware!r}: one of {', '.join(FIRMWARES)}")
+        if self.options.firmware == "c":
+            if self.options.breaks:
+                raise ConfigError("the ICD breaks are built on the Python firmware: leave out --firmware c or --break")
+            from firmware_proto.c_firmware import CFirmwareMissing, CRigFirmware  # ctypes only where used
+
+            try:
+                self.firmware: Any = CRigFirmware(self.hardware, firmware_limits(variant), start_s=0.0)
+            except CFirmwareMissing as exc:
+                raise ConfigError(str(exc)) from None
+        elif self.options.breaks:
+            self.firmware = BrokenFirmware(
                 self.hardware, firmware_limits(variant), 0.0, self.options.breaks,
                 let_time_pass=lambda dt_s: self.plant.advance(int(round(dt_s * self._quanta_per_s))))
         else:

@@ -281,6 +281,7 @@ CORPUS: dict[str, Case] = {
     "rig-check-break-unknown": case("rig-check --break late-replies", BAD, "--break", "no-watchdog"),
     "rig-check-break-on-a-bus": case("rig-check --break no-watchdog --interface virtual --channel x", BAD,
                                      "simulated rig only"),
+    "rig-check-c-with-a-break": case("rig-check --firmware c --break no-watchdog", BAD, "Python firmware"),
     "rig-check-commands-few": case("rig-check --commands 5", BAD, "--commands", "100 to 100000"),
     "rig-check-out-is-a-file": case("rig-check --out afile", BAD, "--out", "a file is there"),
     "rig-check-variant-utf16": case("rig-check --variant utf16.toml", BAD, "UTF-16"),

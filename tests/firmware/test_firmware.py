@@ -1,4 +1,6 @@
-"""The rig firmware prototype as a state machine, on fake hardware."""
+"""The rig firmware as a state machine, on fake hardware: the Python prototype and the C core, the same tests.
+
+The C core's tests skip, saying how to build it, where its library is not built (CI builds it)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import math
 import pytest
 
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState, e2e_crc
+from firmware_proto.c_firmware import CRigFirmware, c_firmware_available, library_path
 from firmware_proto.firmware import FirmwareLimits, RigFirmware
 
 
@@ -42,10 +45,11 @@ LIMITS = FirmwareLimits(drive_limit_v=12.0, over_current_a=8.0, travel_min_mm=-0
 
 
 class Harness:
-    def __init__(self, icd: Icd) -> None:
+    def __init__(self, icd: Icd, firmware: str = "python") -> None:
         self.icd = icd
         self.hw = FakeHardware()
-        self.fw = RigFirmware(self.hw, LIMITS, start_s=0.0, icd=icd)
+        kind = CRigFirmware if firmware == "c" else RigFirmware
+        self.fw = kind(self.hw, LIMITS, start_s=0.0, icd=icd)
         self.t = 0.0
         self.counter = 0
 
@@ -72,9 +76,11 @@ class Harness:
         return [self.icd.parse_heartbeat(d).state for i, d in frames if i == RIG_HEARTBEAT_ID]
 
 
-@pytest.fixture()
-def rig(icd: Icd) -> Harness:
-    return Harness(icd)
+@pytest.fixture(params=["python", "c"])
+def rig(icd: Icd, request: pytest.FixtureRequest) -> Harness:
+    if request.param == "c" and not c_firmware_available():
+        pytest.skip(f"the C firmware is not built ({library_path()}): make -C firmware_proto/c")
+    return Harness(icd, request.param)
 
 
 def ready(rig: Harness) -> Harness:

@@ -39,13 +39,14 @@ FAILS = {
 
 
 def check_simulated(breaks: frozenset[IcdBreak] = frozenset(), adapter: str | None = None,
-                    commands: int = 400) -> tuple[RigCheckReport, SimulatedRig]:
+                    commands: int = 400, provoke_trips: bool = False) -> tuple[RigCheckReport, SimulatedRig]:
     variant = load_variant()
     rig = SimulatedRig(variant, parse_valve_spec("new", variant), options=RigOptions(breaks=breaks))
     bench_end, rig_end = lockstep_pair()
     with ClosingBus(bench_end) as bus, ClosingBus(rig_end):
         link = InProcessRig(rig_end, rig, adapter=parse_adapter(adapter) if adapter else None)
-        return run_rig_check(bus, SimulatedClock(link), variant, commands=commands), rig
+        return run_rig_check(bus, SimulatedClock(link), variant, commands=commands,
+                             provoke_trips=provoke_trips), rig
 
 
 @pytest.mark.parametrize("adapter", [None, "usb-fs"])
@@ -102,7 +103,7 @@ def test_a_broken_rig_exits_15_and_names_the_rule(tmp_path: Path, capsys: pytest
 
 @pytest.mark.parametrize(("argv", "says"), [
     (["--break", "late-replies"], "no such ICD break 'late-replies': one of answers-bad-crc"),
-    (["--break", "no-watchdog", "--interface", "virtual", "--channel", "x"], "--break applies to the simulated rig"),
+    (["--break", "no-watchdog", "--interface", "virtual", "--channel", "x"], "apply to the simulated rig only"),
     (["--commands", "5"], "give a whole number of commands from 100 to 100000"),
 ])
 def test_bad_input_is_one_line(argv: list[str], says: str, tmp_path: Path,
@@ -128,3 +129,14 @@ def test_a_bus_where_nothing_answers_says_so_and_leaves_nothing_running() -> Non
     assert last is not None and last.data[2] == 0  # byte 2: Mode, 0 SAFE
     assert not report.go and report.frames_received == 0
     assert "no frame came from the rig" in verdict_line(report)
+
+
+def test_provoked_trips_are_checked_only_when_asked_and_leave_the_rig_safe() -> None:
+    report, rig = check_simulated(provoke_trips=True)
+    results = {r.key: r for r in report.results}
+    assert "trip_flags" not in results
+    for key, code in (("over_current", "OVER_CURRENT"), ("travel_limit", "TRAVEL_LIMIT")):
+        assert results[key].passed, results[key].measured
+        assert results[key].figures["fault_codes"][0] == code
+    assert report.go
+    assert rig.firmware.state.name == "READY" and rig.plant.drive_v == 0.0

@@ -15,6 +15,7 @@ from edc_bench.rigcheck import run_rig_check
 from edc_bench.runtime.bus import ClosingBus, open_bus
 from edc_bench.runtime.clock import RealTimeClock, cpu_steal_s
 from edc_bench.sim.process import rig_process
+from firmware_proto.c_firmware import c_firmware_available, library_path
 
 # slow: CI runs these alone (-n 0), where a real-time check measures the rig and not the other tests' load
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
@@ -24,10 +25,11 @@ LATE_LIMIT_MS = 5.0  # the bench side woken this late: a timing check cannot tel
 RIG_GAP_LIMIT_MS = 5.0  # the rig process did not serve for this long
 
 
-def _check(adapter: str = "none", breaks: tuple[str, ...] = ()):
+def _check(adapter: str = "none", breaks: tuple[str, ...] = (), firmware: str = "python"):
     status: dict[str, float] = {}
     steal_before = cpu_steal_s()
-    with rig_process(None, "new", 3, adapter, status, extra=[a for b in breaks for a in ("--break", b)]) as channel:
+    extra = [a for b in breaks for a in ("--break", b)] + ["--firmware", firmware]
+    with rig_process(None, "new", 3, adapter, status, extra=extra) as channel:
         with ClosingBus(open_bus({"interface": "slcan", "channel": channel}, default_icd().bitrate)) as bus:
             report = run_rig_check(bus, RealTimeClock(), load_variant(), where=channel, commands=500)
     steal = cpu_steal_s() - steal_before
@@ -39,9 +41,11 @@ def _check(adapter: str = "none", breaks: tuple[str, ...] = ()):
     return report, disturbed, figures
 
 
-@pytest.mark.parametrize("adapter", ["none", "usb-fs"])
-def test_the_rig_process_is_go_in_real_time(adapter: str) -> None:
-    report, disturbed, figures = _check(adapter)
+@pytest.mark.parametrize(("adapter", "firmware"), [("none", "python"), ("usb-fs", "python"), ("none", "c")])
+def test_the_rig_process_is_go_in_real_time(adapter: str, firmware: str) -> None:
+    if firmware == "c" and not c_firmware_available():
+        pytest.skip(f"the C firmware is not built ({library_path()}): make -C firmware_proto/c")
+    report, disturbed, figures = _check(adapter, firmware=firmware)
     if not report.go and disturbed:
         pytest.skip(f"the machine got in the way: {figures}")
     assert report.go, figures
