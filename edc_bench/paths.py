@@ -46,6 +46,20 @@ def cache_dir() -> Path:
     return Path(user_cache_dir("edc-bench", appauthor=False))
 
 
+def umask() -> int:
+    """The process's file-creation mask, read without changing it where Linux says it (/proc/self/status)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)  # elsewhere: set and put back at once
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path: Path, write: Callable[[Any], None], mode: str = "wb") -> None:
     """Write ``path`` through ``write(fileobj)`` atomically.
 
@@ -61,6 +75,9 @@ def atomic_write(path: Path, write: Callable[[Any], None], mode: str = "wb") -> 
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
+        # mkstemp makes the file 0600; the shop's records, reports and exports get the mode any new file gets
+        # (0644 under umask 022), so that the shop's other accounts can read them
+        os.fchmod(fd, 0o666 & ~umask())
         with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as handle:
             write(handle)
             handle.flush()

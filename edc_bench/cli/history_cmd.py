@@ -65,12 +65,16 @@ def run(args: argparse.Namespace) -> int:
     if args.add:  # every record read before any is added: one bad folder adds nothing
         from edc_bench.records.reader import load_record
 
-        records = [(load_record(folder), folder) for folder in args.add]
+        folders = list(dict.fromkeys(Path(folder).resolve() for folder in args.add))  # each folder once
+        records = [(load_record(folder), folder) for folder in folders]
     with HistoryStore(args.db, must_exist=not args.add) as store:
         if args.add:
-            for record, folder in records:
-                store.add(record, folder)
-            print(f"indexed {len(args.add)} record folder(s) in {store.url}", file=sys.stderr)
+            new = sum(store.add(record, folder) for record, folder in records)
+            again = len(records) - new
+            print(f"indexed {new} new record folder(s) in {store.url}"
+                  + (f"; {again} already indexed, updated" if again else "")
+                  + (f" ({len(args.add) - len(records)} given more than once)" if len(args.add) > len(records)
+                     else ""), file=sys.stderr)
             return 0
         if args.trend is not None:
             return _trend(store, args)

@@ -40,6 +40,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="when the valve was opened: YYYY-MM-DD (the whole day: a test that day counts) or "
                         "YYYY-MM-DDTHH:MM (UTC unless an offset is given) (default: now)")
     add_history_db_argument(p)
+    p.add_argument("--new-valve", action="store_true",
+                   help="record the finding although the history has no test of this valve (tested elsewhere, or "
+                        "its test to be added later with 'edc-bench history --add')")
     p.add_argument("--list", action="store_true", help="list the findings (of VALVE_ID if given)")
     p.add_argument("--delete", type=positive_int, default=None, metavar="ID",
                    help="remove a finding recorded by mistake (its id from --list), then record the right one")
@@ -53,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
     from edc_bench.cli.common import text_problem
     from edc_bench.errors import ConfigError
-    from edc_bench.history.store import HistoryStore
+    from edc_bench.history.store import Filters, HistoryStore
 
     if args.delete is not None:
         if args.finding is not None or args.list:
@@ -90,6 +93,9 @@ def run(args: argparse.Namespace) -> int:
     if problem:
         raise ConfigError(f"--by {args.by!r} {problem}; give who opened the valve")
     with HistoryStore(args.db, must_exist=True) as store:
+        if not args.new_valve and not store.list(Filters(valve_id=valve_id), 1):
+            raise ConfigError(f"no test of valve {valve_id!r} in {store.url}: check the id ('edc-bench history' "
+                              "lists the tests), or give --new-valve to record the finding all the same")
         store.add_teardown(valve_id, args.finding, labelled_by=by, labelled_at=when, clearance_mm=clearance,
                            note=args.note)
         row = next(r for r in reversed(_listing(store, valve_id)) if r["labelled_at"] == when)

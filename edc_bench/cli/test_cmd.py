@@ -327,6 +327,15 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     return dataclasses.replace(result, simulation=simulation), _closing_notes(session)
 
 
+def _value_and_spread(value: float, std: float) -> str:
+    """``0.0696 +/- 0.0004``; a figure not identified says so (an aborted test), never "nan"."""
+    import math
+
+    if not math.isfinite(value):
+        return "not identified"
+    return f"{value:.6g}" + (f" +/- {std:.2g}" if math.isfinite(std) else " (no spread: too few periods)")
+
+
 def _closing_notes(session: Any) -> list[str]:
     """A connection that died with the test (:class:`~edc_bench.runtime.bus.ClosingBus`): noted in the record,
     which is what matters."""
@@ -442,7 +451,7 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
         if "truth" in p:
             tail = f"   truth {p['truth']:.6g} ({p['error_rel']:+.1%})"
         kind = "" if p["estimated"] else "   (fixed at nominal)"
-        print(f"  {name:>2} = {p['value']:.6g} +/- {p['std']:.2g}{tail}{kind}")
+        print(f"  {name:>2} = {_value_and_spread(p['value'], p['std'])}{tail}{kind}")
     ident = result.identification
     if ident is not None:
         print(f"converged: {result.converged} ({ident.periods} excitation periods of {ident.period_s:g} s; "

@@ -220,15 +220,17 @@ class HistoryStore:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def add(self, record: Record, record_dir: Path) -> None:
-        """Index one record folder (again: its row is replaced)."""
-        self.add_row(row_from_record(record, record_dir))
+    def add(self, record: Record, record_dir: Path) -> bool:
+        """Index one record folder (again: its row is replaced). True if the folder was not indexed before."""
+        return self.add_row(row_from_record(record, record_dir))
 
-    def add_row(self, row: dict[str, Any]) -> None:
-        """Store one test's row (:func:`row_from_record`), replacing a row of the same ``record_dir``."""
+    def add_row(self, row: dict[str, Any]) -> bool:
+        """Store one test's row (:func:`row_from_record`), replacing a row of the same ``record_dir``; True if there
+        was none."""
         with self.engine.begin() as conn:  # one transaction: all of the row or nothing
-            conn.execute(tests.delete().where(tests.c.record_dir == row["record_dir"]))
+            replaced = conn.execute(tests.delete().where(tests.c.record_dir == row["record_dir"])).rowcount
             conn.execute(tests.insert().values(**row))
+        return not replaced
 
     def list(self, filters: Filters = Filters(), limit: int | None = None) -> list[dict[str, Any]]:
         """Rows matching ``filters``, oldest first (the newest ``limit`` if given)."""

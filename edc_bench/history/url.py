@@ -9,6 +9,9 @@ any other URL is parsed by SQLAlchemy.
 from __future__ import annotations
 
 import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from edc_bench.errors import ConfigError
@@ -22,6 +25,24 @@ def default_url() -> str:
     from edc_bench.paths import data_dir
 
     return f"sqlite:///{data_dir() / 'history.sqlite'}"
+
+
+@contextmanager
+def scratch_history() -> Iterator[str]:
+    """For runs that are no shop's tests (the benchmark's): the history URL pointed at a throw-away SQLite file for
+    the ``with`` block, in this process and every process it starts, so that nothing they run reaches the
+    station's history (nor a shop's PostgreSQL named by ``EDC_BENCH_HISTORY_URL``). Yields the URL."""
+    saved = os.environ.get("EDC_BENCH_HISTORY_URL")
+    with tempfile.TemporaryDirectory(prefix="edc-bench-scratch-") as folder:
+        url = f"sqlite:///{Path(folder) / 'history.sqlite'}"
+        os.environ["EDC_BENCH_HISTORY_URL"] = url
+        try:
+            yield url
+        finally:
+            if saved is None:
+                os.environ.pop("EDC_BENCH_HISTORY_URL", None)
+            else:
+                os.environ["EDC_BENCH_HISTORY_URL"] = saved
 
 
 #: The first bytes of every SQLite database file.
@@ -94,11 +115,16 @@ def _parsed_sqlite_path(text: str, where: str) -> Path | None:
         hint = f" (a file: sqlite:///{text})" if "://" not in text else ""
         raise ConfigError(f"history database {text!r}{where} is not a database URL: use sqlite:///FILE{hint} or "
                           "postgresql+psycopg://USER@HOST/DB") from None
+    shown = parsed.render_as_string(hide_password=True)
+    if parsed.get_backend_name() not in ("sqlite", "postgresql"):
+        raise ConfigError(f"history database {shown!r}{where}: {parsed.get_backend_name()!r} is not a database "
+                          "edc-bench keeps its history in; use SQLite (sqlite:///FILE) or PostgreSQL "
+                          "(postgresql+psycopg://USER@HOST/DB)") from None
     try:
         parsed.get_dialect()
     except (sa.exc.NoSuchModuleError, ImportError) as exc:
-        raise ConfigError(f"history database {text!r}{where}: {exc}; use sqlite:///FILE or "
-                          "postgresql+psycopg://USER@HOST/DB (PostgreSQL needs edc-bench[postgres])") from None
+        raise ConfigError(f"history database {shown!r}{where}: its driver is not installed ({exc}); for "
+                          "PostgreSQL install edc-bench[postgres] (psycopg), or use sqlite:///FILE") from None
     if parsed.get_backend_name() != "sqlite":
         return None
     if parsed.database in (None, "", ":memory:"):

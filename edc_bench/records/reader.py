@@ -118,6 +118,20 @@ def _log_suffix(path: Path) -> str:
     return suffixes[-2] if len(suffixes) >= 2 and suffixes[-1] == ".gz" else (suffixes[-1] if suffixes else "")
 
 
+def _unreadable(path: Path, kind: str, read: int, exc: Exception) -> str:
+    """Why a CAN log could not be read, for people: a candump log cut short names its last line and "truncated"."""
+    if path.suffix.lower() == ".log":
+        lines = path.read_bytes().splitlines(keepends=True)
+        data_lines = [i for i, line in enumerate(lines, 1) if line.strip() and not line.lstrip().startswith(b"#")]
+        if read < len(data_lines):
+            number = data_lines[read]
+            if number == len(lines) and not lines[-1].endswith(b"\n"):
+                return (f"{path}: line {number} is cut short: the log is truncated (a copy that stopped early, or a "
+                        f"full disk); the {read} frames before it read fine")
+            return f"{path}: line {number} is not a {kind} line ({lines[number - 1][:60]!r})"
+    return f"{path}: not a readable {kind} CAN log ({type(exc).__name__}: {exc})"
+
+
 def read_can_log(path: Path) -> list[LoggedFrame]:
     """Frames of a CAN log in any format python-can reads, in file order; error frames left out.
 
@@ -147,16 +161,20 @@ def read_can_log(path: Path) -> list[LoggedFrame]:
 
         if not looks_like_mdf4(path):
             raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log (not an MDF 4 file)")
+    read = 0  # messages the reader gave before any error
     try:
+        messages = []
         with can.LogReader(str(path)) as reader:
-            # the ICD's frames are standard data frames: extended, remote and error frames are other traffic
-            messages = [m for m in reader if not (m.is_error_frame or m.is_remote_frame or m.is_extended_id)]
+            for m in reader:
+                read += 1
+                # the ICD's frames are standard data frames: extended, remote and error frames are other traffic
+                if not (m.is_error_frame or m.is_remote_frame or m.is_extended_id):
+                    messages.append(m)
         if any(not m.is_rx for m in messages):  # a log that records directions: a BENCH_CMD read is another host's
             messages = [m for m in messages if not (m.is_rx and m.arbitration_id == BENCH_CMD_ID)]
         frames = [(float(m.timestamp), int(m.arbitration_id), bytes(m.data)) for m in messages]
     except Exception as exc:  # noqa: BLE001 - each format's reader raises its own error types on a bad file
-        raise ConfigError(f"{path}: not a readable {CAN_LOG_FORMATS[suffix]} CAN log "
-                          f"({type(exc).__name__}: {exc})") from None
+        raise ConfigError(_unreadable(path, CAN_LOG_FORMATS[suffix], read, exc)) from None
     if not frames and path.stat().st_size > 0:
         raise ConfigError(f"{path}: holds no CAN data frames ({CAN_LOG_FORMATS[suffix]}); a damaged file, or a "
                           "log of no bench test")

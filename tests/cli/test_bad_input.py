@@ -251,12 +251,16 @@ CORPUS: dict[str, Case] = {
     "history-add-missing": case("history --add nodir", BAD, "nodir", "no such record folder"),
     "history-add-garbage": case("history --add rec", BAD, "not an edc-bench record", files=GARBAGE_RECORD),
     # a record an older edc-bench wrote with bytes that are not UTF-8: indexed (escaped), never a crash
-    "history-add-not-utf8-record": case("history --add rec", ExitCode.OK, "indexed 1 record folder",
+    "history-add-not-utf8-record": case("history --add rec", ExitCode.OK, "indexed 1 new record folder",
                                         files={"rec/record.json": record_json(valve_id=NOT_UTF8)}),
     # -- label ---------------------------------------------------------------------------------------------------
     "label-db-missing-folder": case("label V-1 --finding worn --db sqlite:///nodir/h.sqlite", BAD, "nodir",
                                     "does not exist"),
     "label-no-finding": case("label V-1", BAD, "--finding"),
+    "label-valve-never-tested": case("label V-9999 --finding reusable", BAD, "no test of valve 'V-9999'",
+                                     "--new-valve"),
+    "history-db-unknown-dialect-named": case("history --db foo://bar", BAD, "'foo' is not a database", "sqlite:///FILE",
+                                       "postgresql+psycopg"),
     "label-finding-unknown": case("label V-1 --finding broken", BAD, "--finding", "broken"),
     "label-clearance-negative": case("label V-1 --finding worn --clearance-mm -0.1", BAD, "--clearance-mm"),
     "label-date-future": case("label V-1 --finding worn --date 2999-01-01", BAD, "--date", "future"),

@@ -100,7 +100,10 @@ def test_label_command_records_lists_and_refuses_bad_input(tmp_path: Path) -> No
         store.add_row(_row("V/9", "2026-05-02T09:00:00+00:00", 1.1, 1.1))
     early = edc_bench("label", "V/9", "--finding", "reusable", "--date", "2026-05-02T10:00+02:00", "--db", url)
     assert early.returncode == 0 and "labels nothing" in early.stderr, early.stderr
-    lonely = edc_bench("label", "V/8", "--finding", "reusable", "--db", url)
+    # a valve the history never saw: a mistyped id is refused; --new-valve records it all the same
+    mistyped = edc_bench("label", "V/8", "--finding", "reusable", "--db", url)
+    assert mistyped.returncode == 2 and "no test of valve 'V/8'" in mistyped.stderr, mistyped.stderr
+    lonely = edc_bench("label", "V/8", "--finding", "reusable", "--new-valve", "--db", url)
     assert lonely.returncode == 0 and "labels nothing" in lonely.stderr
     for args, message in ((("V/7", "--finding", "worn", "--clearance-mm", "-0.1"), "--clearance-mm -0.1"),
                           (("V/7", "--finding", "worn", "--clearance-mm", "nan"), "--clearance-mm nan"),

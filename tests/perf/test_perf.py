@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,10 +21,15 @@ from edc_bench.protocol import Icd, Mode
 
 
 @pytest.mark.slow  # the benchmark itself, about 30 s
-def test_perf_quick_prints_all_five_groups() -> None:
+def test_perf_quick_prints_all_five_groups_and_leaves_the_history_alone(tmp_path: Path) -> None:
+    station = tmp_path / "station"
+    env = {**os.environ, "EDC_BENCH_DATA_DIR": str(station)}
+    env.pop("EDC_BENCH_HISTORY_URL", None)
     proc = subprocess.run([sys.executable, "-m", "edc_bench", "perf", "--quick", "--json"],
-                          capture_output=True, text=True, timeout=600)
+                          capture_output=True, text=True, timeout=600, env=env)
     assert proc.returncode == 0, proc.stderr
+    # its simulated tests (the first-tick runs of `edc-bench test`) went to a scratch history, not the station's
+    assert not (station / "history.sqlite").exists()
     report = json.loads(proc.stdout)
     figures = report["figures"]
     assert {f["group"] for f in figures} == set(GROUPS)
