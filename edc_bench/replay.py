@@ -35,7 +35,6 @@ from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
 from edc_bench.records.schema import Record
-from edc_bench.records.writer import RECORD_SCHEMA
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.judgement import Judgement, judge_run
 from edc_bench.verdict.verdicts import Verdict
@@ -164,6 +163,8 @@ class ReplayReport:
 
 #: How close a record of an older schema must come (its controller summed in another order: the last bits differ).
 OLDER_RECORD_REL_TOL = 1e-9
+#: The first record schema whose figures replay must give to the bit (the controller's sums in today's order).
+EXACT_SCHEMA = 4
 
 
 def _same(a: Any, b: Any, rel_tol: float = 0.0) -> bool:
@@ -214,11 +215,12 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     """
     from pathlib import Path
 
-    from edc_bench.records.reader import load_record, read_can_log
+    from edc_bench.records.reader import changed_since_written, load_record, read_can_log
     from edc_bench.records.writer import CAN_LOG_FILE
 
     folder = Path(folder)
-    record = load_record(folder)
+    record = load_record(folder, check_integrity=False)  # replay compares; an altered record is one difference
+    altered = changed_since_written(folder)
     variant = record_variant(record, str(folder))
     loop = record.loop
     frames = read_can_log(Path(can_log) if can_log is not None else folder / CAN_LOG_FILE)
@@ -256,7 +258,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                        classifier_path=classifier_path, coil_temp_c=given, nominal_baseline=nominal,
                        baseline=baseline, real_rig=record.real_time)
     rel_tol = 0.0
-    if record.schema_version < RECORD_SCHEMA:
+    if record.schema_version < EXACT_SCHEMA:
         rel_tol = OLDER_RECORD_REL_TOL
         notes_after = [f"recorded by an older edc-bench (record schema {record.schema_version}): its figures are "
                        f"compared to {rel_tol:g} relative, not to the last bit (the controller's sums have been "
@@ -264,6 +266,8 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     else:
         notes_after = []
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
+    if altered:
+        differences.insert(0, f"changed after the test (its integrity manifest): {', '.join(altered)}")
     return ReplayReport(judged, run, differences, compared=True, notes=notes_after)
 
 

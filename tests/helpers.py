@@ -66,3 +66,18 @@ def check_safe_and_complete(result: Any, rig: Any, tmp_path: Path) -> None:
     if outcome.abort_time_s is not None:  # the last tick recorded is the one that decided, or the one before it
         period_s = result.variant.controller.period_s
         assert outcome.abort_time_s - period_s - 1e-9 <= trace["t_s"][-1] <= outcome.abort_time_s + 1e-9
+
+
+def rewrite_record_json(folder: Path, doc: dict[str, Any]) -> None:
+    """Write ``doc`` as ``folder``'s record.json with its integrity manifest made anew: a record written so by a
+    writer (another tool, another version), for tests of what readers make of its content; a record edited by hand
+    keeps its old manifest and is refused as changed (tests/records/test_integrity.py)."""
+    import json
+
+    from edc_bench.records.integrity import manifest
+
+    if "integrity" in doc:
+        files = list(doc["integrity"]["files"])
+        doc = {key: value for key, value in doc.items() if key != "integrity"}
+        doc["integrity"] = manifest(doc, folder, files)
+    (folder / "record.json").write_text(json.dumps(doc), encoding="utf-8")

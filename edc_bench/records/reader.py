@@ -11,20 +11,24 @@ import numpy as np
 from edc_bench.errors import ConfigError
 from edc_bench.protocol.icd import BENCH_CMD_ID
 from edc_bench.records.schema import Record
+from edc_bench.records.integrity import altered
 from edc_bench.records.writer import CAN_LOG_FILE, LEGACY_TRACE_FILE, RECORD_FILE, TRACE_FILE
 
 #: A frame read back from a CAN log: time (s), CAN id, payload.
 LoggedFrame = tuple[float, int, bytes]
 
 
-def load_record(folder: Path) -> Record:
+def load_record(folder: Path, *, check_integrity: bool = True) -> Record:
     """The record.json of ``folder``, typed (an older schema read in today's form).
+
+    With ``check_integrity`` (the default), a record changed since its test wrote it is refused
+    (:mod:`~edc_bench.records.integrity`); replay reads it all the same and reports the change as a difference.
 
     Raises
     ------
     ConfigError
-        If the folder or its record.json is missing or unreadable, or a field holds what it cannot (naming the
-        field and what it holds), saying what to do.
+        If the folder or its record.json is missing or unreadable, changed after the test (naming what changed),
+        or a field holds what it cannot (naming the field and what it holds), saying what to do.
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -39,7 +43,22 @@ def load_record(folder: Path) -> Record:
         raise ConfigError(f"{path}: not a readable record ({exc})") from None
     if not isinstance(record, dict) or "verdict" not in record:
         raise ConfigError(f"{path}: not an edc-bench record (no verdict)")
+    if check_integrity:
+        changes = altered(record, folder)
+        if changes:
+            raise ConfigError(f"{folder}: changed after its test wrote it ({', '.join(changes)}): not read. 'edc-bench "
+                              "replay' of the folder shows what the test's own CAN log gives")
     return typed_record(upgraded(record), path)
+
+
+def changed_since_written(folder: Path) -> list[str]:
+    """What in the record folder changed since its test wrote it (:func:`~edc_bench.records.integrity.altered`;
+    empty for a record too old to say)."""
+    try:
+        record = json.loads((Path(folder) / RECORD_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []  # load_record says why it cannot be read
+    return altered(record, Path(folder)) if isinstance(record, dict) else []
 
 
 def typed_record(record: dict[str, Any], source: Path | str) -> Record:

@@ -34,10 +34,12 @@ from edc_bench.records.writer import (
     RECORD_FILE,
     RECORD_SCHEMA,
     TRACE_FILE,
+    json_safe,
     new_record_dir,
     write_can_log,
     write_json,
 )
+from edc_bench.records.integrity import manifest
 from edc_bench.verdict.judgement import Judgement
 from edc_bench.verdict.verdicts import Verdict
 
@@ -254,6 +256,9 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
             files["figure_error"] = f"{type(exc).__name__}: {exc}"
     doc = record_dict(result, files)
     doc["loop"]["events"] = [*doc["loop"]["events"], *notes]
+    doc = json_safe(doc)
+    # what the test wrote, as it wrote it: every reader checks it (records.integrity)
+    doc["integrity"] = manifest(doc, folder, [files[key] for key in ("trace", "can_log", "figure") if files.get(key)])
     write_json(folder / RECORD_FILE, doc)
     return folder
 

@@ -230,6 +230,7 @@ class Record(Section):
     """
 
     schema_version: int = Field(0, alias="schema")
+    integrity: dict[str, Any] | None = None  # the digests of what the test wrote (records.integrity)
     verdict: Verdict
     reasons: list[str] = Field(default_factory=list)
     problems: list[str] = Field(default_factory=list)

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
-from helpers import edc_bench
+from helpers import edc_bench, rewrite_record_json
 
 from edc_bench.bench import BenchOptions, run_bench_test, run_simulated_test
 from edc_bench.config import load_variant, parse_variant
@@ -92,7 +92,7 @@ def test_a_hand_edited_field_is_refused_by_every_reader_in_one_line(records: dic
     shutil.copytree(records["judged"], folder)
     doc = json.loads((folder / "record.json").read_text(encoding="utf-8"))
     doc["classification"]["probability_faulty"] = "high"
-    (folder / "record.json").write_text(json.dumps(doc), encoding="utf-8")
+    rewrite_record_json(folder, doc)  # as another writer would have written it, manifest and all
     proc = edc_bench(*argv, cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     assert "classification.probability_faulty holds 'high'" in proc.stderr and "Traceback" not in proc.stderr
@@ -108,7 +108,7 @@ def test_a_record_of_a_newer_edc_bench_is_read(records: dict[str, Path], tmp_pat
     doc = json.loads((folder / "record.json").read_text(encoding="utf-8"))
     doc["schema"] = 99
     doc["coil"]["inductance_measured_mh"] = 1.1
-    (folder / "record.json").write_text(json.dumps(doc), encoding="utf-8")
+    rewrite_record_json(folder, doc)
     record = load_record(folder)
     assert record.schema_version == 99 and record.coil is not None
     assert record.coil.model_extra == {"inductance_measured_mh": 1.1}
