@@ -32,6 +32,9 @@ from edc_bench.sim.inprocess import InProcessRig
 from edc_bench.sim.lockstep_bus import lockstep_pair
 from edc_bench.sim.rig import RigOptions, SimulatedRig
 
+#: the history tests' PostgreSQL server and databases (tests/pg_server.py)
+pytest_plugins = ["pg_server"]
+
 
 def pytest_configure(config: pytest.Config) -> None:
     build_c_firmware()

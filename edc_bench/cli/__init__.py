@@ -47,6 +47,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    _hide_history_password(args)
     try:
         return int(args.run(args))
     except RigError as exc:
@@ -75,6 +76,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return ExitCode.RECORD_NOT_WRITTEN if exc.errno in _NO_ROOM else ExitCode.BAD_INPUT
     except Exception as exc:  # noqa: BLE001 - the last line of defence for the technician
         return _internal_error(args.command, exc)
+
+
+def _hide_history_password(args: argparse.Namespace) -> None:
+    """While a history password is known (``--db`` or ``EDC_BENCH_HISTORY_URL``), nothing this process prints can
+    show it: every URL edc-bench prints is masked where it is made, and standard output and error are scrubbed too,
+    for what a library prints (a driver's message, a traceback)."""
+    from edc_bench.history.secrets import RedactingStream, known_secrets
+
+    secrets = known_secrets(getattr(args, "db", None), getattr(args, "history_db", None))
+    if secrets:
+        sys.stdout = RedactingStream(sys.stdout, secrets)  # type: ignore[assignment]
+        sys.stderr = RedactingStream(sys.stderr, secrets)  # type: ignore[assignment]
 
 
 _NO_ROOM = (errno.ENOSPC, errno.EDQUOT)

@@ -22,6 +22,7 @@ class ExitCode(enum.IntEnum):
     NOT_REPRODUCED = 13  # edc-bench replay: the log does not give the recorded result
     STATION_NOT_READY = 14  # edc-bench check-station: NO-GO
     RIG_NOT_CONFORMING = 15  # edc-bench rig-check: NO-GO
+    HISTORY_NOT_AS_INDEXED = 16  # edc-bench history --verify: a record folder missing or altered since indexed
     BAD_INPUT = 2
     RIG_ERROR = 3
     INTERRUPTED = 130
@@ -44,6 +45,8 @@ MEANINGS: dict[int, str] = {
     ExitCode.NOT_REPRODUCED: "replay: the log does not give the recorded result",
     ExitCode.STATION_NOT_READY: "check-station: NO-GO (the advice is printed)",
     ExitCode.RIG_NOT_CONFORMING: "rig-check: NO-GO, the rig breaks an ICD rule (the failed checks are printed)",
+    ExitCode.HISTORY_NOT_AS_INDEXED: "history --verify: a record folder is missing or changed since it was indexed "
+                                     "(each is listed)",
     ExitCode.BAD_INPUT: "bad input: the message names what was wrong and how to fix it; nothing was done",
     ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
     ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
@@ -76,7 +79,7 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "study-boundary": (ExitCode.OK,),
     "perf": (ExitCode.OK,),
     "replay": (ExitCode.OK, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID, ExitCode.NOT_REPRODUCED),
-    "history": (ExitCode.OK,),
+    "history": (ExitCode.OK, ExitCode.HISTORY_NOT_AS_INDEXED),
     "label": (ExitCode.OK,),
     "report": (ExitCode.OK,),
     "check-station": (ExitCode.OK, ExitCode.STATION_NOT_READY),
@@ -90,7 +93,7 @@ ALWAYS = (ExitCode.BAD_INPUT, ExitCode.INTERNAL_ERROR, ExitCode.INTERRUPTED)
 SHORT_NAMES: dict[int, str] = {
     ExitCode.PASS: "PASS", ExitCode.MARGINAL: "MARGINAL", ExitCode.FAIL: "FAIL", ExitCode.INVALID: "INVALID",
     ExitCode.NOT_REPRODUCED: "replay not reproduced", ExitCode.STATION_NOT_READY: "station NO-GO",
-    ExitCode.RIG_NOT_CONFORMING: "rig NO-GO",
+    ExitCode.RIG_NOT_CONFORMING: "rig NO-GO", ExitCode.HISTORY_NOT_AS_INDEXED: "history not as indexed",
     ExitCode.BAD_INPUT: "bad input", ExitCode.RIG_ERROR: "rig or bus error", ExitCode.INTERNAL_ERROR: "internal error",
     ExitCode.INTERRUPTED: "interrupted", ExitCode.RECORD_NOT_WRITTEN: "record not written",
 }

@@ -1,4 +1,5 @@
-"""``edc-bench history``: list and filter the station's tests, one valve's trend, CSV export."""
+"""``edc-bench history``: list and filter the station's tests, one valve's trend, CSV export; and the chain's
+side (:mod:`edc_bench.cli.history_chain`): withdrawals, the audit trail, ``--verify``, the schema and roles."""
 
 from __future__ import annotations
 
@@ -43,14 +44,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--add", nargs="+", type=Path, default=None, metavar="RECORD_DIR",
                    help="index record folders (after a test ran with --no-history, or to rebuild the history)")
     p.add_argument("--json", action="store_true", help="print only JSON")
+    from edc_bench.cli.history_chain import add_chain_arguments
+
+    add_chain_arguments(p)
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """List, trend, export or add."""
+    """List, trend, export or add (or one of the chain's actions)."""
     from edc_bench.cli.common import check_output_file
+    from edc_bench.cli.history_chain import chain_action
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import Filters, HistoryStore, parse_day
+
+    action = chain_action(args)
+    if action is not None:
+        return action(args)
 
     if args.plot is not None and args.trend is None:
         raise ConfigError("--plot draws a valve's trend: give --trend VALVE_ID too")
@@ -69,10 +78,13 @@ def run(args: argparse.Namespace) -> int:
         records = [(load_record(folder), folder) for folder in folders]
     with HistoryStore(args.db, must_exist=not args.add) as store:
         if args.add:
-            new = sum(store.add(record, folder) for record, folder in records)
-            again = len(records) - new
-            print(f"indexed {new} new record folder(s) in {store.url}"
-                  + (f"; {again} already indexed, updated" if again else "")
+            outcomes = [store.add(record, folder) for record, folder in records]
+            new, changed = outcomes.count("new"), outcomes.count("changed")
+            same = outcomes.count("unchanged")
+            print(f"indexed {new} new record folder(s) in {store.shown_url}"
+                  + (f"; {changed} indexed before and changed since: added again (the earlier row is kept, "
+                     "'history --audit' shows both)" if changed else "")
+                  + (f"; {same} already indexed as they are" if same else "")
                   + (f" ({len(args.add) - len(records)} given more than once)" if len(args.add) > len(records)
                      else ""), file=sys.stderr)
             return 0
@@ -87,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_quietly_if_closed(lambda: print(json.dumps(rows, indent=2)))
     else:
-        print_quietly_if_closed(lambda: history_table(rows, store.url))
+        print_quietly_if_closed(lambda: history_table(rows, store.shown_url))
     return 0
 
 
@@ -118,11 +130,11 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
 
     # ids and names are the technicians' text, kept as given: rich Text, never read as markup ("V[/1]" is an id)
     table = Table(title=Text(f"{len(rows)} test(s) in {url} (times in UTC)"))
-    for col in ("started", "valve", "pump serial", "variant", "verdict", "af V", "a1 V s/mm", "P(faulty)",
+    for col in ("id", "started", "valve", "pump serial", "variant", "verdict", "af V", "a1 V s/mm", "P(faulty)",
                 "station", "operator"):
         table.add_column(col, no_wrap=col not in ("station", "operator"))
     for r in rows:
-        table.add_row(_when(r["started_at"]), Text(r["valve_id"]), Text(r["pump_serial"]), Text(r["variant"]),
+        table.add_row(str(r["id"]), _when(r["started_at"]), Text(r["valve_id"]), Text(r["pump_serial"]), Text(r["variant"]),
                       Text(r["verdict"], style=VERDICT_STYLES.get(r["verdict"], "")), _fmt(r["af_v"], ".5f"),
                       _fmt(r["a1_v_s_per_mm"], ".6f"), _fmt(r["probability_faulty"], ".3f"), Text(r["station"]),
                       Text(r["operator"]))

@@ -10,6 +10,7 @@ from typing import Any
 
 from edc_bench.cli.common import (
     MAX_ID_CHARS,
+    add_hidden_alias,
     add_history_db_argument,
     positive_int,
     print_quietly_if_closed,
@@ -44,8 +45,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="record the finding although the history has no test of this valve (tested elsewhere, or "
                         "its test to be added later with 'edc-bench history --add')")
     p.add_argument("--list", action="store_true", help="list the findings (of VALVE_ID if given)")
-    p.add_argument("--delete", type=positive_int, default=None, metavar="ID",
-                   help="remove a finding recorded by mistake (its id from --list), then record the right one")
+    p.add_argument("--corrects", type=positive_int, default=None, metavar="ID",
+                   help="with --finding: this finding replaces finding ID of the same valve (recorded by mistake); "
+                        "both stay in 'edc-bench history --audit'")
+    p.add_argument("--withdraw", type=positive_int, default=None, metavar="ID",
+                   help="withdraw finding ID (from --list) with --why: it labels nothing any more; nothing is deleted")
+    add_hidden_alias(p, "--delete", "withdraw", type=positive_int)  # what withdrawing was called before
+    p.add_argument("--why", default=None, metavar="TEXT", help="with --withdraw: why (kept in the audit trail)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
@@ -58,13 +64,10 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import Filters, HistoryStore
 
-    if args.delete is not None:
-        if args.finding is not None or args.list:
-            raise ConfigError("--delete removes one finding; record the right one in a second command")
-        with HistoryStore(args.db, must_exist=True) as store:
-            gone = store.delete_teardown(args.delete)
-        print(f"removed finding {args.delete}: valve {gone['valve_id']}, {gone['finding']}, {gone['labelled_at']}")
-        return 0
+    if args.withdraw is not None:
+        return _withdraw(args)
+    if args.why is not None:
+        raise ConfigError("--why goes with --withdraw ID")
     if args.list:
         if args.finding is not None:
             raise ConfigError("--list shows findings; record one without --list")
@@ -94,10 +97,10 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--by {args.by!r} {problem}; give who opened the valve")
     with HistoryStore(args.db, must_exist=True) as store:
         if not args.new_valve and not store.list(Filters(valve_id=valve_id), 1):
-            raise ConfigError(f"no test of valve {valve_id!r} in {store.url}: check the id ('edc-bench history' "
+            raise ConfigError(f"no test of valve {valve_id!r} in {store.shown_url}: check the id ('edc-bench history' "
                               "lists the tests), or give --new-valve to record the finding all the same")
         store.add_teardown(valve_id, args.finding, labelled_by=by, labelled_at=when, clearance_mm=clearance,
-                           note=args.note)
+                           note=args.note, corrects=args.corrects)
         row = next(r for r in reversed(_listing(store, valve_id)) if r["labelled_at"] == when)
     if args.json:
         print(json.dumps(row, indent=2))
@@ -107,9 +110,29 @@ def run(args: argparse.Namespace) -> int:
               f"({row['verdict']}, {row['record_dir']})")
     else:
         print(f"valve {valve_id}: {args.finding} recorded", file=sys.stderr)
-        print(f"note: no judged test of valve {valve_id!r} before {when} in {store.url}; the finding labels nothing "
+        print(f"note: no judged test of valve {valve_id!r} before {when} in {store.shown_url}; the finding labels nothing "
               "until one is there (a test added later with 'edc-bench history --add' counts if it ran before the "
               "teardown)", file=sys.stderr)
+    return 0
+
+
+def _withdraw(args: argparse.Namespace) -> int:
+    """Withdraw one finding, saying why."""
+    from edc_bench.cli.common import text_problem
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.store import HistoryStore
+
+    if args.finding is not None or args.list or args.valve_id is not None:
+        raise ConfigError("--withdraw ID withdraws one finding; record the right one in a second command (or give "
+                          "the right one with --corrects ID in one)")
+    why = (args.why or "recorded by mistake").strip()
+    problem = text_problem(why, MAX_NOTE_CHARS)
+    if problem:
+        raise ConfigError(f"--why {problem}")
+    with HistoryStore(args.db, must_exist=True) as store:
+        gone = store.withdraw_teardown(args.withdraw, why, args.by)
+    print(f"withdrew finding {args.withdraw}: valve {gone['valve_id']}, {gone['finding']}, {gone['labelled_at']} "
+          f"({why}); it labels nothing now")
     return 0
 
 

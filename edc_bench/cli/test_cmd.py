@@ -418,14 +418,15 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None,
 def _index(record_dir: Path, url: str | None) -> str | None:
     """Add the record to the station's history; the reason if that failed (the record is safe either way)."""
     from edc_bench.errors import EdcBenchError
+    from edc_bench.history.secrets import known_secrets, redact
     from edc_bench.history.store import index_record_dir
 
     try:
         index_record_dir(record_dir, url)
     except EdcBenchError as exc:
-        return str(exc)
+        return redact(str(exc), known_secrets(url))
     except Exception as exc:  # noqa: BLE001 - a database problem must not cost the verdict's report
-        return f"{type(exc).__name__}: {exc}"
+        return redact(f"{type(exc).__name__}: {exc}", known_secrets(url))
     return None
 
 

@@ -55,7 +55,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     shop = p.add_argument_group("the shop's data")
     shop.add_argument("--from-history", action="store_true",
                       help="train a candidate on the history's labelled tests, the simulated population as prior")
-    add_history_db_argument(shop, "with --from-history: ")
+    add_history_db_argument(shop, "with --from-history, or --adopt (where the adoption is recorded): ")
     shop.add_argument("--prior-weight", type=float, default=None, metavar="TESTS",
                       help="how many labelled tests the whole simulated population counts as (default: 50; 0: the "
                            "labels alone)")
@@ -136,24 +136,37 @@ def _check_training_inputs(args: argparse.Namespace) -> None:
 
 def _adopt(args: argparse.Namespace) -> int:
     import getpass
+    import socket
 
     from edc_bench.errors import ConfigError
+    from edc_bench.history.store import HistoryStore
     from edc_bench.learning.adoption import adopt, adopt_shipped
+    from edc_bench.verdict.classifier import ValveClassifier, packaged_model_path
 
     if args.from_history:
         raise ConfigError("--adopt and --from-history are separate steps: train, read the figures, then adopt")
-    for flag, value in (("--db", args.db), ("--prior-weight", args.prior_weight), ("--name", args.name),
+    for flag, value in (("--prior-weight", args.prior_weight), ("--name", args.name),
                         ("--candidate-file", args.candidate_file), ("--json", args.json or None),
                         ("--dataset", args.dataset)):
         if value is not None:
             raise ConfigError(f"{flag} does not go with --adopt (it adopts a model file, or 'shipped')")
+    if args.adopt != "shipped" and not Path(args.adopt).is_file():
+        raise ConfigError(f"--adopt {args.adopt}: no such model file (give the .onnx 'train --from-history' wrote, "
+                          "or 'shipped')")
+    model = ValveClassifier(packaged_model_path() if args.adopt == "shipped" else Path(args.adopt))
+    by = args.by or getpass.getuser()
+    # recorded in the history first: a login that may not adopt (a station's) changes nothing on the station
+    with HistoryStore(args.db) as store:
+        store.add_adoption(model.name, model.sha256, socket.gethostname(), by)
+        where = store.shown_url
     if args.adopt == "shipped":
         path = adopt_shipped()
-        print(f"this station judges with the shipped model again ({path.name})")
+        print(f"this station judges with the shipped model again ({path.name}); recorded in {where}")
         return 0
-    adoption = adopt(Path(args.adopt), args.by or getpass.getuser())
+    adoption = adopt(Path(args.adopt), by)
     print(f"this station now judges with {adoption['name']} (sha256 {adoption['sha256'][:16]}...), adopted by "
-          f"{adoption['adopted_by']}; every record names it. Go back with: edc-bench train --adopt shipped")
+          f"{adoption['adopted_by']}; every record names it; recorded in {where}. Go back with: edc-bench train "
+          "--adopt shipped")
     return 0
 
 

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.config import load_variant
+from edc_bench.history.secrets import shown_url
 from edc_bench.history.store import HistoryStore
 from edc_bench.learning.dataset import run_population
 from edc_bench.physics.wear import resisting_force_n
@@ -117,7 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"simulated_shop: error: {exc}", file=sys.stderr)
         return 2
     print(f"{counts['tests']} tests, {counts['labelled']} torn down and labelled ({counts['worn_by_shop']} worn by "
-          f"the shop's limit, {counts['worn_by_variant']} by the variant's), {counts['invalid']} INVALID, in {args.db}")
+          f"the shop's limit, {counts['worn_by_variant']} by the variant's), {counts['invalid']} INVALID, in {shown_url(args.db)}")
     return 0
 
 

@@ -1,11 +1,16 @@
-"""The station's test history: one row per record folder, in SQLite or PostgreSQL.
+"""The station's test history, in SQLite or PostgreSQL: tests as indexed, teardown findings, withdrawals, adoptions.
 
 SQLAlchemy Core speaks to both. SQLite (the default, in the station's data
 folder) runs in WAL mode with a busy timeout, so two tests finishing at
 once both land and readers never block writers; a shop shares one history
-by giving every station the same PostgreSQL URL. Each record is added in
-one transaction keyed by its folder, so adding it twice changes nothing and
-a writer killed half-way leaves no partial row.
+by giving every station the same PostgreSQL URL (docs/shop-network.md).
+Each row is written in one transaction, so a writer killed half-way leaves
+no partial row.
+
+Nothing stored is changed or deleted (:mod:`edc_bench.history.schema`): a
+record folder indexed again with other content is a new row, a withdrawal
+or a corrected finding is a row naming the row it concerns. Readers show
+the current state; :meth:`HistoryStore.audit` the whole chain.
 
 The records stay the source of truth for tests: the tests table is an
 index, and ``edc-bench history --add FOLDER...`` rebuilds it from them.
@@ -18,8 +23,10 @@ from __future__ import annotations
 
 import csv
 import datetime as dt
+import json
 import math
 from collections.abc import Iterable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -27,66 +34,20 @@ from typing import IO, TYPE_CHECKING, Any
 import sqlalchemy as sa
 
 from edc_bench.errors import ConfigError
+from edc_bench.history import migrate
+from edc_bench.history.guard import database_errors
+from edc_bench.history.schema import COLUMNS, TEARDOWN_COLUMNS, adoptions, amendments, teardowns, tests
+from edc_bench.history.secrets import redact, secrets_of, shown_url
 from edc_bench.history.url import check_url, default_url
+from edc_bench.records.integrity import file_digest
+from edc_bench.records.writer import RECORD_FILE
 from edc_bench.verdict.verdicts import Verdict
 
 if TYPE_CHECKING:
     from edc_bench.records.schema import Record
 
-metadata = sa.MetaData()
-
-tests = sa.Table(
-    "tests", metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("record_dir", sa.String(1024), nullable=False, unique=True),
-    sa.Column("started_at", sa.String(40), nullable=False, index=True),
-    sa.Column("valve_id", sa.String(200), nullable=False, index=True),
-    sa.Column("pump_serial", sa.String(200), nullable=False, index=True),
-    sa.Column("variant", sa.String(200), nullable=False),
-    sa.Column("part_number", sa.String(100), nullable=False),
-    sa.Column("verdict", sa.String(20), nullable=False),
-    sa.Column("af_v", sa.Float),
-    sa.Column("a1_v_s_per_mm", sa.Float),
-    sa.Column("af_rel", sa.Float),
-    sa.Column("a1_rel", sa.Float),
-    sa.Column("probability_faulty", sa.Float),
-    sa.Column("distance", sa.Float),
-    sa.Column("station", sa.String(200), nullable=False),
-    sa.Column("operator", sa.String(200), nullable=False),
-    sa.Column("clock", sa.String(20), nullable=False),
-    sa.Column("software_version", sa.String(40), nullable=False),
-    sa.Column("reason", sa.Text, nullable=False),
-    sa.Column("model_name", sa.String(200)),  # the classifier that judged (None: not classified)
-    sa.Column("model_sha256", sa.String(64)),
-    # how the test went: the coil (referred to 20 degC; in its spec?), whether the model fitted the pump, when and
-    # why it stopped (None in rows of an older edc-bench, and where the record does not say)
-    sa.Column("coil_r20_ohm", sa.Float),
-    sa.Column("coil_in_spec", sa.Boolean),
-    sa.Column("model_fits", sa.Boolean),
-    sa.Column("stop_reason", sa.String(40)),
-    sa.Column("test_s", sa.Float),
-)
-
-teardowns = sa.Table(
-    "teardowns", metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("valve_id", sa.String(200), nullable=False, index=True),
-    sa.Column("finding", sa.String(20), nullable=False),
-    sa.Column("clearance_mm", sa.Float),
-    sa.Column("note", sa.Text, nullable=False),
-    sa.Column("labelled_by", sa.String(200), nullable=False),
-    sa.Column("labelled_at", sa.String(40), nullable=False),  # ISO date or date-time (UTC) of the teardown
-    sa.Column("recorded_at", sa.String(40), nullable=False),
-)
-
 #: Teardown findings and the class each teaches the classifier (1: the valve must be replaced).
 FINDINGS: dict[str, int] = {"reusable": 0, "worn": 1, "faulty": 1}
-
-#: Teardown columns in listings, in order (the id: to delete a finding recorded by mistake).
-TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns)
-
-#: Columns in listings and CSV exports, in order.
-COLUMNS = tuple(c.name for c in tests.columns if c.name != "id")
 
 
 def _text(value: Any) -> str:
@@ -167,48 +128,47 @@ class HistoryStore:
         (default: :func:`default_url`).
     must_exist : bool, optional
         Refuse a SQLite file named by the URL that does not exist (see :func:`check_url`).
+
+    A station's SQLite file is brought to this edc-bench's schema revision when opened; a PostgreSQL history must
+    be at it already (its owner runs ``edc-bench history --upgrade``).
     """
 
     def __init__(self, url: str | None = None, must_exist: bool = False) -> None:
         check_url(url, must_exist)
         self.url = url or default_url()
+        #: the URL as people may see it: its password masked
+        self.shown_url = shown_url(self.url)
+        self._secrets = secrets_of(self.url)
         parsed = sa.engine.make_url(self.url)
         self.is_sqlite = parsed.get_backend_name() == "sqlite"
-        kwargs: dict[str, Any] = {}
+        kwargs: dict[str, Any] = {"hide_parameters": True}  # a driver's error never quotes the row's values
         if self.is_sqlite:
             kwargs["connect_args"] = {"timeout": 30.0}
         try:
             self.engine = sa.create_engine(parsed, **kwargs)
         except (sa.exc.ArgumentError, ImportError, sa.exc.NoSuchModuleError) as exc:
-            raise ConfigError(f"history database {self.url!r}: {exc} (PostgreSQL needs edc-bench[postgres])") from None
+            raise ConfigError(redact(f"history database {self.shown_url!r}: {exc} (PostgreSQL needs "
+                                     "edc-bench[postgres])", self._secrets)) from None
         if self.is_sqlite:
             sa.event.listen(self.engine, "connect", _sqlite_pragmas)
-        self._create_tables()
-
-    def _create_tables(self) -> None:
-        # Two stations (or two tests) opening a new database at once may both try to create
-        # the table; the loser sees "already exists" and simply finds it on the next look.
-        for attempt in range(3):
-            try:
-                metadata.create_all(self.engine)
-                self._add_missing_columns()
+        #: the database login writing rows (PostgreSQL), None on SQLite
+        self.login: str | None = None
+        with self._guard("read"):
+            with self.engine.connect() as conn:
+                revision = migrate.current(conn)
+                if not self.is_sqlite:
+                    self.login = conn.execute(sa.text("SELECT current_user")).scalar()
+            if revision == migrate.head():
                 return
-            except (sa.exc.OperationalError, sa.exc.ProgrammingError, sa.exc.IntegrityError) as exc:
-                # ... or both add a new column to an older history ("duplicate column" in SQLite's words)
-                if ("already exists" in str(exc.orig) or "duplicate column" in str(exc.orig)) and attempt < 2:
-                    continue
-                raise ConfigError(f"history database {self.url!r} cannot be opened: {exc.orig}") from None
+            if self.is_sqlite and (revision is None or migrate.is_known(revision)):
+                migrate.upgrade(self.engine)  # a station's own file: brought up to date as it is opened
+                return
+            with self.engine.connect() as conn:
+                migrate.require_head(conn, self.shown_url)
 
-    def _add_missing_columns(self) -> None:
-        """Bring a history made by an older edc-bench up to date: columns added since are added (empty)."""
-        inspector = sa.inspect(self.engine)
-        for table in (tests, teardowns):
-            present = {c["name"] for c in inspector.get_columns(table.name)}
-            for column in table.columns:
-                if column.name not in present:
-                    kind = column.type.compile(dialect=self.engine.dialect)
-                    with self.engine.begin() as conn:
-                        conn.execute(sa.text(f'ALTER TABLE {table.name} ADD COLUMN "{column.name}" {kind}'))
+    def _guard(self, action: str) -> AbstractContextManager[None]:
+        """Database errors as one line a person can act on: a refused right names whose login has it."""
+        return database_errors(action, self.shown_url, self._secrets, self.login)
 
     def close(self) -> None:
         """Release connections."""
@@ -220,21 +180,41 @@ class HistoryStore:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def add(self, record: Record, record_dir: Path) -> bool:
-        """Index one record folder (again: its row is replaced). True if the folder was not indexed before."""
-        return self.add_row(row_from_record(record, record_dir))
+    # -- tests -------------------------------------------------------------------------------------------------
 
-    def add_row(self, row: dict[str, Any]) -> bool:
-        """Store one test's row (:func:`row_from_record`), replacing a row of the same ``record_dir``; True if there
-        was none."""
-        with self.engine.begin() as conn:  # one transaction: all of the row or nothing
-            replaced = conn.execute(tests.delete().where(tests.c.record_dir == row["record_dir"])).rowcount
+    def add(self, record: Record, record_dir: Path, indexed_by: str | None = None) -> str:
+        """Index one record folder; returns ``new``, ``changed`` (indexed before with other content: a new row) or
+        ``unchanged`` (indexed before as it is: nothing written).
+
+        The row keeps the SHA-256 of the folder's record.json as read and its integrity manifest (``--verify``).
+        """
+        row = row_from_record(record, record_dir)
+        path = Path(record_dir) / RECORD_FILE
+        row["record_sha256"] = file_digest(path) if path.is_file() else None
+        row["record_manifest"] = json.dumps(record.integrity, sort_keys=True) if record.integrity else None
+        return self.add_row(row, indexed_by)
+
+    def add_row(self, row: dict[str, Any], indexed_by: str | None = None) -> str:
+        """Store one test's row (:func:`row_from_record`); see :meth:`add`."""
+        row = {**row, "indexed_at": _now(), "indexed_by": indexed_by or _login_name(), "db_login": self.login}
+        with self._guard("add-test"), self.engine.begin() as conn:  # one transaction: all of the row or nothing
+            before = conn.execute(sa.select(tests.c.record_sha256).where(tests.c.record_dir == row["record_dir"])
+                                  .order_by(tests.c.id.desc()).limit(1)).first()
+            if before is not None and row.get("record_sha256") is not None \
+                    and before.record_sha256 == row["record_sha256"]:
+                return "unchanged"
             conn.execute(tests.insert().values(**row))
-        return not replaced
+        return "new" if before is None else "changed"
+
+    def _current_tests(self) -> sa.ColumnElement[bool]:
+        """The rows that are tests as they stand: each folder's newest row, unless the test was withdrawn."""
+        newest = sa.select(sa.func.max(tests.c.id)).group_by(tests.c.record_dir)
+        withdrawn = sa.select(tests.c.record_dir).where(tests.c.id.in_(_withdrawn("tests")))
+        return sa.and_(tests.c.id.in_(newest), tests.c.record_dir.not_in(withdrawn))
 
     def list(self, filters: Filters = Filters(), limit: int | None = None) -> list[dict[str, Any]]:
-        """Rows matching ``filters``, oldest first (the newest ``limit`` if given)."""
-        query = sa.select(*(tests.c[name] for name in COLUMNS))
+        """Tests as they stand matching ``filters``, oldest first (the newest ``limit`` if given)."""
+        query = sa.select(*(tests.c[name] for name in COLUMNS)).where(self._current_tests())
         f = filters
         for column, value in ((tests.c.valve_id, f.valve_id), (tests.c.pump_serial, f.pump_serial),
                               (tests.c.verdict, f.verdict)):
@@ -251,12 +231,34 @@ class HistoryStore:
         query = query.order_by(tests.c.started_at.desc(), tests.c.id.desc())
         if limit is not None:
             query = query.limit(limit)
-        with self.engine.connect() as conn:
-            rows = [dict(r._mapping) for r in conn.execute(query)]
-        return rows[::-1]
+        return self._rows(query)[::-1]
+
+    def indexed(self) -> list[dict[str, Any]]:
+        """Every test as it stands with how it was indexed (record hash and manifest), for ``--verify``."""
+        return self._rows(sa.select(tests).where(self._current_tests()).order_by(tests.c.id))
+
+    def withdraw_test(self, test_id: int, reason: str, by: str | None = None) -> dict[str, Any]:
+        """Withdraw a test (its id from ``history``): it leaves listings, trends and training; ``--audit`` keeps it.
+        Returns the test's row."""
+        with self._guard("withdraw"), self.engine.begin() as conn:
+            found = conn.execute(sa.select(tests).where(tests.c.id == test_id)).first()
+            if found is None:
+                raise ConfigError(f"no test with id {test_id} in {self.shown_url} (see 'edc-bench history')")
+            if conn.execute(sa.select(amendments.c.id).where(
+                    amendments.c.target == "tests",
+                    amendments.c.target_id.in_(sa.select(tests.c.id).where(
+                        tests.c.record_dir == found.record_dir)))).first() is not None:
+                raise ConfigError(f"test {test_id} (valve {found.valve_id!r}) is withdrawn already "
+                                  f"(see 'edc-bench history --audit {found.valve_id}')")
+            conn.execute(amendments.insert().values(target="tests", target_id=test_id, action="withdraw",
+                                                    reason=reason, amended_by=by or _login_name(), amended_at=_now(),
+                                                    db_login=self.login))
+        return dict(found._mapping)
+
+    # -- teardowns ---------------------------------------------------------------------------------------------
 
     def add_teardown(self, valve_id: str, finding: str, *, labelled_by: str, labelled_at: str,
-                     clearance_mm: float | None = None, note: str = "") -> dict[str, Any]:
+                     clearance_mm: float | None = None, note: str = "", corrects: int | None = None) -> dict[str, Any]:
         """Record what a teardown of ``valve_id`` found; returns the stored row.
 
         Parameters
@@ -273,33 +275,55 @@ class HistoryStore:
             The plunger clearance measured.
         note : str
             Anything else found.
+        corrects : int, optional
+            The id of a finding of this valve that this one replaces (recorded by mistake).
         """
         if finding not in FINDINGS:
             raise ConfigError(f"teardown finding {finding!r}: use one of {', '.join(FINDINGS)}")
         row = {"valve_id": valve_id, "finding": finding, "clearance_mm": clearance_mm, "note": note,
-               "labelled_by": labelled_by, "labelled_at": labelled_at,
-               "recorded_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds")}
-        with self.engine.begin() as conn:
-            conn.execute(teardowns.insert().values(**row))
+               "labelled_by": labelled_by, "labelled_at": labelled_at, "recorded_at": _now(),
+               "corrects_id": corrects, "db_login": self.login}
+        with self._guard("label"), self.engine.begin() as conn:
+            if corrects is not None:
+                self._current_teardown(conn, corrects, valve_id)
+            row["id"] = conn.execute(teardowns.insert().values(**row)).inserted_primary_key[0]
         return row
 
-    def delete_teardown(self, teardown_id: int) -> dict[str, Any]:
-        """Remove a finding recorded by mistake; returns it."""
-        with self.engine.begin() as conn:
-            found = conn.execute(sa.select(teardowns).where(teardowns.c.id == teardown_id)).first()
-            if found is None:
-                raise ConfigError(f"no teardown finding with id {teardown_id} (see 'edc-bench label --list')")
-            conn.execute(teardowns.delete().where(teardowns.c.id == teardown_id))
+    def _current_teardown(self, conn: sa.Connection, teardown_id: int, valve_id: str | None = None) -> Any:
+        """The finding ``teardown_id`` if it stands (not withdrawn nor corrected); a ConfigError saying why not."""
+        found = conn.execute(sa.select(teardowns).where(teardowns.c.id == teardown_id)).first()
+        if found is None or (valve_id is not None and found.valve_id != valve_id):
+            of = f" of valve {valve_id!r}" if valve_id is not None else ""
+            raise ConfigError(f"no teardown finding with id {teardown_id}{of} (see 'edc-bench label --list')")
+        if teardown_id not in {r["id"] for r in self._standing_teardowns(conn)}:
+            raise ConfigError(f"teardown finding {teardown_id} is withdrawn or corrected already (see 'edc-bench "
+                              f"history --audit {found.valve_id}')")
+        return found
+
+    def withdraw_teardown(self, teardown_id: int, reason: str, by: str | None = None) -> dict[str, Any]:
+        """Withdraw a finding recorded by mistake (its id from ``label --list``); returns it."""
+        with self._guard("withdraw"), self.engine.begin() as conn:
+            found = self._current_teardown(conn, teardown_id)
+            conn.execute(amendments.insert().values(target="teardowns", target_id=teardown_id, action="withdraw",
+                                                    reason=reason, amended_by=by or _login_name(), amended_at=_now(),
+                                                    db_login=self.login))
         return dict(found._mapping)
 
-    def teardowns(self, valve_id: str | None = None) -> list[dict[str, Any]]:
-        """Teardown findings (of one valve if given), in the order of the teardowns."""
+    def _standing_teardowns(self, conn: sa.Connection, valve_id: str | None = None) -> list[dict[str, Any]]:
         query = sa.select(*(teardowns.c[name] for name in TEARDOWN_COLUMNS))
         if valve_id is not None:
             query = query.where(teardowns.c.valve_id == valve_id)
-        query = query.order_by(teardowns.c.labelled_at, teardowns.c.id)
-        with self.engine.connect() as conn:
-            return [dict(r._mapping) for r in conn.execute(query)]
+        rows = [dict(r._mapping) for r in conn.execute(query.order_by(teardowns.c.labelled_at, teardowns.c.id))]
+        withdrawn = {r[0] for r in conn.execute(_withdrawn("teardowns"))}
+        every = rows if valve_id is None else [dict(r._mapping) for r in conn.execute(
+            sa.select(teardowns.c.id, teardowns.c.corrects_id))]
+        corrected = {r["corrects_id"] for r in every if r["corrects_id"] is not None and r["id"] not in withdrawn}
+        return [r for r in rows if r["id"] not in withdrawn and r["id"] not in corrected]
+
+    def teardowns(self, valve_id: str | None = None) -> list[dict[str, Any]]:
+        """Teardown findings as they stand (of one valve if given), in the order of the teardowns."""
+        with self._guard("read"), self.engine.connect() as conn:
+            return self._standing_teardowns(conn, valve_id)
 
     def labelled_tests(self) -> list[dict[str, Any]]:
         """Every teardown with the test it labels, oldest first.
@@ -311,7 +335,8 @@ class HistoryStore:
         only a test after the first. Each row is the test's history row plus
         ``finding``, ``label`` (1: replace), ``teardown_clearance_mm``,
         ``labelled_by`` and ``labelled_at``; teardowns with no such test are
-        left out (:meth:`unmatched_teardowns` lists them).
+        left out (:meth:`unmatched_teardowns` lists them). Withdrawn tests and
+        findings, and findings corrected since, count for nothing.
         """
         return [row for row in self.teardown_matches() if row.get("record_dir")]
 
@@ -324,13 +349,11 @@ class HistoryStore:
         found = self.teardowns()
         valves = sorted({t["valve_id"] for t in found})
         query = sa.select(*(tests.c[name] for name in COLUMNS)).where(
-            tests.c.valve_id.in_(valves), tests.c.af_rel.is_not(None), tests.c.a1_rel.is_not(None),
-            tests.c.verdict != Verdict.INVALID).order_by(tests.c.started_at, tests.c.id)
+            self._current_tests(), tests.c.valve_id.in_(valves), tests.c.af_rel.is_not(None),
+            tests.c.a1_rel.is_not(None), tests.c.verdict != Verdict.INVALID).order_by(tests.c.started_at, tests.c.id)
         by_valve: dict[str, list[dict[str, Any]]] = {}
-        if valves:
-            with self.engine.connect() as conn:
-                for r in conn.execute(query):
-                    by_valve.setdefault(r.valve_id, []).append(dict(r._mapping))
+        for test in (self._rows(query) if valves else []):
+            by_valve.setdefault(test["valve_id"], []).append(test)
         rows = []
         previous: dict[str, str] = {}  # valve -> bound of its previous teardown
         for teardown in found:
@@ -351,6 +374,83 @@ class HistoryStore:
     def trend(self, valve_id: str) -> list[dict[str, Any]]:
         """Every trustworthy visit of one valve, oldest first."""
         return [r for r in self.list(Filters(valve_id=valve_id)) if r["verdict"] != Verdict.INVALID]
+
+    # -- the whole chain ---------------------------------------------------------------------------------------
+
+    def audit(self, valve_id: str) -> list[dict[str, Any]]:
+        """Everything the history holds of one valve, in the order it was written: each indexing of its tests,
+        each finding, each correction and withdrawal, with who and when (``when``, ``event``, ``id``, ``what``,
+        ``by``, ``db_login``)."""
+        with self._guard("read"), self.engine.connect() as conn:
+            rows = [dict(r._mapping) for r in conn.execute(
+                sa.select(tests).where(tests.c.valve_id == valve_id).order_by(tests.c.id))]
+            found = [dict(r._mapping) for r in conn.execute(
+                sa.select(teardowns).where(teardowns.c.valve_id == valve_id).order_by(teardowns.c.id))]
+            changes = [dict(r._mapping) for r in conn.execute(sa.select(amendments).where(sa.or_(
+                sa.and_(amendments.c.target == "tests", amendments.c.target_id.in_([r["id"] for r in rows])),
+                sa.and_(amendments.c.target == "teardowns", amendments.c.target_id.in_([t["id"] for t in found])),
+            )).order_by(amendments.c.id))]
+        return audit_events(rows, found, changes)
+
+    def add_adoption(self, model_name: str, model_sha256: str, station: str, adopted_by: str) -> dict[str, Any]:
+        """Record that ``station`` now judges with a model (``edc-bench train --adopt``); returns the row."""
+        row = {"station": station, "model_name": model_name, "model_sha256": model_sha256, "adopted_by": adopted_by,
+               "adopted_at": _now(), "db_login": self.login}
+        with self._guard("adopt"), self.engine.begin() as conn:
+            conn.execute(adoptions.insert().values(**row))
+        return row
+
+    def adoptions(self) -> list[dict[str, Any]]:
+        """Every model adoption recorded, oldest first."""
+        return self._rows(sa.select(adoptions).order_by(adoptions.c.id))
+
+    def _rows(self, query: sa.Select[Any]) -> list[dict[str, Any]]:
+        with self._guard("read"), self.engine.connect() as conn:
+            return [dict(r._mapping) for r in conn.execute(query)]
+
+
+def _withdrawn(target: str) -> sa.Select[Any]:
+    """The ids of ``target``'s rows that a withdrawal names."""
+    return sa.select(amendments.c.target_id).where(amendments.c.target == target, amendments.c.action == "withdraw")
+
+
+def audit_events(test_rows: list[dict[str, Any]], teardown_rows: list[dict[str, Any]],
+                 amendment_rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The audit trail of one valve from its rows (:meth:`HistoryStore.audit`), in the order written."""
+    events = []
+    seen: set[str] = set()
+    for t in test_rows:
+        again = t["record_dir"] in seen
+        seen.add(t["record_dir"])
+        events.append({"when": t["indexed_at"] or t["started_at"], "event": "test re-indexed (record changed)"
+                       if again else "test indexed", "id": t["id"],
+                       "what": f"{t['verdict']}, tested {t['started_at'][:16]}, {t['record_dir']}",
+                       "by": t["indexed_by"] or t["operator"], "db_login": t["db_login"], "order": (0, t["id"])})
+    for f in teardown_rows:
+        corrects = f" (corrects finding {f['corrects_id']})" if f["corrects_id"] is not None else ""
+        events.append({"when": f["recorded_at"], "event": "finding recorded", "id": f["id"],
+                       "what": f"{f['finding']}, opened {f['labelled_at'][:16]}{corrects}", "by": f["labelled_by"],
+                       "db_login": f["db_login"], "order": (1, f["id"])})
+    for a in amendment_rows:
+        kind = "test" if a["target"] == "tests" else "finding"
+        events.append({"when": a["amended_at"], "event": f"{kind} {a['target_id']} withdrawn", "id": a["id"],
+                       "what": a["reason"], "by": a["amended_by"], "db_login": a["db_login"], "order": (2, a["id"])})
+    events.sort(key=lambda e: (e["when"], e.pop("order")))
+    return events
+
+
+def _now() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+
+
+def _login_name() -> str:
+    """Who runs this program (the operating system's login name), for rows whose person was not given."""
+    import getpass
+
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):  # a container's user with no name
+        return "unknown"
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
@@ -392,4 +492,4 @@ def index_record_dir(folder: Path, url: str | None = None) -> None:
 
     record = load_record(folder)
     with HistoryStore(url) as store:
-        store.add(record, folder)
+        store.add(record, folder, indexed_by=record.identity.operator or None)

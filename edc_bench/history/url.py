@@ -15,6 +15,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from edc_bench.errors import ConfigError
+from edc_bench.history.secrets import shown_url
 
 
 def default_url() -> str:
@@ -79,9 +80,9 @@ def check_url(url: str | None, must_exist: bool = False) -> None:
         path = _parsed_sqlite_path(text, where)
         if path is None:
             return  # another database: its server says the rest when connected
-    _check_sqlite_file(path, f"history database {text}{where}", fix, default=not given)
+    _check_sqlite_file(path, f"history database {shown_url(text)}{where}", fix, default=not given)
     if must_exist and given and not path.exists():
-        raise ConfigError(f"history database {text}{where}: there is no history at {path}; check the URL "
+        raise ConfigError(f"history database {shown_url(text)}{where}: there is no history at {path}; check the URL "
                           "(nothing was created). A new history is started by 'edc-bench test' or "
                           "'edc-bench history --add' with this URL")
 
@@ -113,7 +114,7 @@ def _parsed_sqlite_path(text: str, where: str) -> Path | None:
         parsed = sa.engine.make_url(text)
     except sa.exc.ArgumentError:
         hint = f" (a file: sqlite:///{text})" if "://" not in text else ""
-        raise ConfigError(f"history database {text!r}{where} is not a database URL: use sqlite:///FILE{hint} or "
+        raise ConfigError(f"history database {shown_url(text)!r}{where} is not a database URL: use sqlite:///FILE{hint} or "
                           "postgresql+psycopg://USER@HOST/DB") from None
     shown = parsed.render_as_string(hide_password=True)
     if parsed.get_backend_name() not in ("sqlite", "postgresql"):
@@ -128,10 +129,10 @@ def _parsed_sqlite_path(text: str, where: str) -> Path | None:
     if parsed.get_backend_name() != "sqlite":
         return None
     if parsed.database in (None, "", ":memory:"):
-        raise ConfigError(f"history database {text!r}{where} is in memory and keeps nothing: give a file, "
+        raise ConfigError(f"history database {shown_url(text)!r}{where} is in memory and keeps nothing: give a file, "
                           "sqlite:///FILE")
     if parsed.query:
-        raise ConfigError(f"history database {text!r}{where}: options after '?' are not used; give the file "
+        raise ConfigError(f"history database {shown_url(text)!r}{where}: options after '?' are not used; give the file "
                           "alone, sqlite:///FILE")
     return Path(parsed.database)
 

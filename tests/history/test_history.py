@@ -7,13 +7,9 @@ import io
 import json
 import multiprocessing
 import os
-import shutil
-import socket
 import subprocess
 import sys
-import tempfile
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -21,67 +17,6 @@ import pytest
 from edc_bench.history.store import Filters, HistoryStore, write_csv
 from edc_bench.records.reader import typed_record
 from edc_bench.records.schema import Record
-
-# --- a PostgreSQL server of the tests' own, where the machine has one ------------------------------------------
-
-
-def _pg_bin(name: str) -> str | None:
-    found = shutil.which(name)
-    if found:
-        return found
-    for base in sorted(Path("/usr/lib/postgresql").glob("*/bin"), reverse=True):
-        if (base / name).exists():
-            return str(base / name)
-    return None
-
-
-def _as_postgres_user(cmd: list[str]) -> list[str]:
-    # the server refuses to run as root; CI and this machine run tests as root
-    if os.geteuid() == 0:
-        return ["runuser", "-u", "postgres", "--", *cmd]
-    return cmd
-
-
-@pytest.fixture(scope="session")
-def postgres_url() -> Iterator[str]:
-    initdb, pg_ctl = _pg_bin("initdb"), _pg_bin("pg_ctl")
-    if not (initdb and pg_ctl):
-        pytest.skip("PostgreSQL server programs (initdb, pg_ctl) are not installed on this machine")
-    if os.geteuid() == 0 and subprocess.run(["id", "postgres"], capture_output=True).returncode != 0:
-        pytest.skip("running as root and there is no 'postgres' user to run the server as")
-    # not under pytest's temp folder: its parents are private to this user, and the server runs as another
-    base = Path(tempfile.mkdtemp(prefix="edc-bench-pg-"))
-    data = base / "data"
-    if os.geteuid() == 0:
-        shutil.chown(base, "postgres")
-    init = subprocess.run(_as_postgres_user([initdb, "-D", str(data), "-A", "trust", "-U", "postgres"]),
-                          capture_output=True, text=True)
-    if init.returncode != 0:
-        pytest.skip(f"initdb failed here: {init.stderr.strip()[-300:]}")
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    opts = f"-p {port} -k {base} -c listen_addresses=127.0.0.1"
-    start = subprocess.run(_as_postgres_user([pg_ctl, "-D", str(data), "-o", opts, "-l", str(base / "log"), "-w",
-                                              "start"]), capture_output=True, text=True)
-    if start.returncode != 0:
-        pytest.skip(f"the PostgreSQL server did not start here: {start.stderr.strip()[-300:]}")
-    try:
-        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/postgres"
-    finally:
-        subprocess.run(_as_postgres_user([pg_ctl, "-D", str(data), "-m", "immediate", "stop"]), capture_output=True)
-        shutil.rmtree(base, ignore_errors=True)
-
-
-@pytest.fixture(params=["sqlite", "postgresql"])
-def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
-    if request.param == "sqlite":
-        yield f"sqlite:///{tmp_path / 'history.sqlite'}"
-        return
-    url = request.getfixturevalue("postgres_url")
-    with HistoryStore(url) as store, store.engine.begin() as conn:
-        conn.exec_driver_sql("DELETE FROM tests")  # one server for the session: start each test empty
-    yield url
 
 
 def _record(valve: str, started: str, verdict: str = "PASS", af: float = 0.07, a1: float = 0.0038,
@@ -104,7 +39,7 @@ def test_filters_trend_and_csv(db_url: str, tmp_path: Path) -> None:
         store.add(_record("V1", "2026-11-15T08:00:00+00:00", "FAIL", af=0.11, a1=0.007), tmp_path / "b")
         store.add(_record("V1", "2026-11-16T08:00:00+00:00", "INVALID"), tmp_path / "c")
         store.add(_record("V2", "2026-11-20T09:30:00+00:00", serial="S-2", variant="p-edc-long"), tmp_path / "d")
-        # indexing a folder again replaces its row
+        # indexing a folder again: a new row, and the folder's newest row is the test as it stands
         store.add(_record("V2", "2026-11-20T09:30:00+00:00", serial="S-2", variant="p-edc-long"), tmp_path / "d")
         assert len(store.list()) == 4
         assert [r["verdict"] for r in store.list(Filters(valve_id="V1"))] == ["PASS", "FAIL", "INVALID"]
@@ -153,7 +88,8 @@ def _dies_in_transaction(url: str, folder: str) -> None:
     store = HistoryStore(url)
     conn = store.engine.connect()
     trans = conn.begin()
-    from edc_bench.history.store import row_from_record, tests
+    from edc_bench.history.schema import tests
+    from edc_bench.history.store import row_from_record
 
     conn.execute(tests.insert().values(**row_from_record(_record("ghost", "2026-11-22T11:00:00+00:00"),
                                                          Path(folder) / "ghost")))

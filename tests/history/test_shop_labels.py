@@ -11,6 +11,7 @@ import pytest
 from helpers import edc_bench
 
 from edc_bench.errors import ConfigError
+from edc_bench.history import migrate
 from edc_bench.history.store import COLUMNS, HistoryStore
 from edc_bench.records.reader import load_record
 from edc_bench.learning.shop_training import LabelledTests, train_from_labels
@@ -19,7 +20,7 @@ from edc_bench.verdict.classifier import ValveClassifier, default_classifier, pa
 
 def _row(valve: str, started: str, af_rel: float | None, a1_rel: float | None, verdict: str = "PASS",
          n: int = 0) -> dict:
-    row = {name: "" for name in COLUMNS}
+    row = {name: "" for name in COLUMNS if name not in ("id", "record_sha256", "indexed_at", "indexed_by")}
     row.update(record_dir=f"/records/{valve}-{started}-{n}", started_at=started, valve_id=valve, verdict=verdict,
                af_v=None, a1_v_s_per_mm=None, af_rel=af_rel, a1_rel=a1_rel, probability_faulty=None, distance=None,
                model_name=None, model_sha256=None, coil_r20_ohm=None, coil_in_spec=None, model_fits=None,
@@ -56,31 +57,44 @@ def test_a_teardown_labels_the_valves_last_judged_test_before_it(tmp_path: Path)
         # opened again a week later with no test between: that teardown labels nothing (a test labels once)
         store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-08")
         assert [(r["af_rel"], r["finding"]) for r in store.labelled_tests()] == [(1.3, "worn")]
-        # the finding was a typing error: deleted, the right one labels the test
+        # the finding was a typing error: withdrawn, and the second corrected; the right one labels the test
         first = store.teardowns("V1")[0]
-        store.delete_teardown(first["id"])
-        store.delete_teardown(store.teardowns("V1")[0]["id"])
-        store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-03")
+        store.withdraw_teardown(first["id"], "typed worn for reusable")
+        second = store.teardowns("V1")[0]
+        store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-03", corrects=second["id"])
         assert [(r["af_rel"], r["finding"]) for r in store.labelled_tests()] == [(1.3, "reusable")]
         with pytest.raises(ConfigError, match="no teardown finding with id 999"):
-            store.delete_teardown(999)
+            store.withdraw_teardown(999, "no such")
+        with pytest.raises(ConfigError, match=f"finding {first['id']} is withdrawn or corrected already"):
+            store.withdraw_teardown(first["id"], "twice")
+        # nothing was deleted: the audit trail holds all three findings and the withdrawal
+        events = [e["event"] for e in store.audit("V1")]
+        assert events.count("finding recorded") == 3 and f"finding {first['id']} withdrawn" in events
 
 
 def test_an_older_history_gets_the_new_columns_and_keeps_its_rows(tmp_path: Path) -> None:
     path = tmp_path / "old.sqlite"
-    with HistoryStore(f"sqlite:///{path}") as store:
-        store.add_row(_row("V1", "2026-05-01T08:00:00+00:00", 1.1, 1.2))
-    with sqlite3.connect(path) as conn:  # as the previous version made it: no model columns, no teardowns
-        conn.execute("ALTER TABLE tests DROP COLUMN model_name")
-        conn.execute("ALTER TABLE tests DROP COLUMN model_sha256")
-        for name in ("coil_r20_ohm", "coil_in_spec", "model_fits", "stop_reason", "test_s"):  # and none of these
-            conn.execute(f"ALTER TABLE tests DROP COLUMN {name}")
-        conn.execute("DROP TABLE teardowns")
+    with sqlite3.connect(path) as conn:  # as an edc-bench before schema revisions made it: no model columns,
+        conn.execute("CREATE TABLE tests (id INTEGER NOT NULL PRIMARY KEY, record_dir VARCHAR(1024) NOT NULL "
+                     "UNIQUE, started_at VARCHAR(40) NOT NULL, valve_id VARCHAR(200) NOT NULL, pump_serial "
+                     "VARCHAR(200) NOT NULL, variant VARCHAR(200) NOT NULL, part_number VARCHAR(100) NOT NULL, "
+                     "verdict VARCHAR(20) NOT NULL, af_v FLOAT, a1_v_s_per_mm FLOAT, af_rel FLOAT, a1_rel FLOAT, "
+                     "probability_faulty FLOAT, distance FLOAT, station VARCHAR(200) NOT NULL, operator "
+                     "VARCHAR(200) NOT NULL, clock VARCHAR(20) NOT NULL, software_version VARCHAR(40) NOT NULL, "
+                     "reason TEXT NOT NULL)")  # no teardowns table either
+        conn.execute("INSERT INTO tests VALUES (1, '/records/a', '2026-05-01T08:00:00+00:00', 'V1', 'S', "
+                     "'p-edc-default', 'PE', 'PASS', 0.07, 0.004, 1.1, 1.2, 0.1, -0.2, 'st', 'ana', 'simulated', "
+                     "'0.1.0', '')")
     with HistoryStore(f"sqlite:///{path}") as store:
         rows = store.list()
-        assert len(rows) == 1 and rows[0]["model_name"] is None and rows[0]["model_fits"] is None
+        assert len(rows) == 1 and rows[0]["af_rel"] == 1.1 and rows[0]["model_name"] is None
+        assert rows[0]["model_fits"] is None and rows[0]["record_sha256"] is None
         store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-02")
         assert store.labelled_tests()[0]["label"] == 0
+        with store.engine.connect() as conn:
+            assert migrate.current(conn) == migrate.head()
+    with sqlite3.connect(path) as conn, pytest.raises(sqlite3.IntegrityError, match="append-only"):
+        conn.execute("DELETE FROM tests")
 
 
 def test_label_command_records_lists_and_refuses_bad_input(tmp_path: Path) -> None:

@@ -1,0 +1,196 @@
+"""``edc-bench history``'s chain actions: withdraw a test, a valve's audit trail, verify the indexed records, and
+the owner's schema revisions and roles (docs/shop-network.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from contextlib import AbstractContextManager
+from typing import Any
+
+from edc_bench.cli.common import identity, positive_int, print_quietly_if_closed
+
+#: The longest reason kept with a withdrawal.
+MAX_WHY_CHARS = 2000
+
+
+def add_chain_arguments(p: argparse.ArgumentParser) -> None:
+    """The chain's flags, in a group of their own."""
+    chain = p.add_argument_group("a shop's chain (docs/shop-network.md)")
+    chain.add_argument("--withdraw", type=positive_int, default=None, metavar="TEST_ID",
+                       help="withdraw a test (its id from the listing) with --why: it leaves listings, trends and "
+                            "training; nothing is deleted (an engineer's login)")
+    chain.add_argument("--why", default=None, metavar="TEXT", help="with --withdraw: why (kept in the audit trail)")
+    chain.add_argument("--by", type=identity(), default=None, metavar="NAME",
+                       help="with --withdraw: who withdraws (default: the login name)")
+    chain.add_argument("--audit", type=identity(), default=None, metavar="VALVE_ID",
+                       help="everything the history holds of one valve, in the order written: tests indexed, "
+                            "findings, corrections and withdrawals, with who and when")
+    chain.add_argument("--verify", action="store_true",
+                       help="read every indexed record folder again: list the missing and those changed since they "
+                            f"were indexed (exit 16 if any)")
+    chain.add_argument("--schema", action="store_true",
+                       help="the database's schema revision and the changes --upgrade would make")
+    chain.add_argument("--upgrade", action="store_true",
+                       help="apply this edc-bench's schema changes (the owner's login; a station's SQLite file is "
+                            "upgraded when opened)")
+    chain.add_argument("--setup-roles", action="store_true",
+                       help="PostgreSQL: create the roles edc_station, edc_engineer, edc_owner and grant their "
+                            "rights (the database owner's login)")
+
+
+def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int] | None:
+    """The chain action the flags ask for (None: a listing, trend, export or --add), its flags checked."""
+    from edc_bench.errors import ConfigError
+
+    chosen = [name for name, flag in (("--withdraw", args.withdraw is not None), ("--audit", args.audit is not None),
+                                      ("--verify", args.verify), ("--schema", args.schema),
+                                      ("--upgrade", args.upgrade), ("--setup-roles", args.setup_roles),
+                                      ("--add", bool(args.add)), ("--trend", args.trend is not None),
+                                      ("--csv", args.csv is not None)) if flag]
+    if len(chosen) > 1:
+        raise ConfigError(f"{' and '.join(chosen)} are separate actions: give one at a time")
+    if args.withdraw is None and (args.why is not None or args.by is not None):
+        raise ConfigError("--why and --by go with --withdraw TEST_ID")
+    if args.withdraw is not None:
+        from edc_bench.cli.common import text_problem
+
+        why = (args.why or "").strip()
+        problem = "is missing" if not why else text_problem(why, MAX_WHY_CHARS)
+        if problem:
+            raise ConfigError(f"--why {problem}: say why the test is withdrawn (kept with it for good), e.g. "
+                              "--why 'valve id typed wrong; retested as V-1043'")
+        return _withdraw
+    return {"--audit": _audit, "--verify": _verify, "--schema": _schema, "--upgrade": _upgrade,
+            "--setup-roles": _setup_roles}.get(chosen[0] if chosen else "")
+
+
+def _withdraw(args: argparse.Namespace) -> int:
+    from edc_bench.history.store import HistoryStore
+
+    with HistoryStore(args.db, must_exist=True) as store:
+        row = store.withdraw_test(args.withdraw, args.why.strip(), args.by)
+    print(f"withdrew test {args.withdraw} (valve {row['valve_id']}, {row['verdict']}, tested "
+          f"{row['started_at'][:16].replace('T', ' ')}): it no longer counts; 'edc-bench history --audit "
+          f"{row['valve_id']}' shows it and why")
+    return 0
+
+
+def _audit(args: argparse.Namespace) -> int:
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.store import HistoryStore
+
+    with HistoryStore(args.db, must_exist=True) as store:
+        events = store.audit(args.audit)
+    if not events:
+        raise ConfigError(f"the history holds nothing of valve {args.audit!r} (see 'edc-bench history')")
+    if args.json:
+        print_quietly_if_closed(lambda: print(json.dumps(events, indent=2)))
+    else:
+        print_quietly_if_closed(lambda: _audit_table(events, args.audit))
+    return 0
+
+
+def _audit_table(events: list[dict[str, Any]], valve: str) -> None:
+    from rich.console import Console
+    from rich.table import Table
+    from rich.text import Text
+
+    table = Table(title=Text(f"valve {valve}: {len(events)} entries, in the order written (times in UTC)"))
+    for col in ("written", "what happened", "id", "details", "by", "database login"):
+        table.add_column(col)
+    for e in events:  # the technicians' text as typed: rich Text, never read as markup
+        table.add_row(e["when"][:19].replace("T", " "), e["event"], str(e["id"]), Text(e["what"]), Text(e["by"]),
+                      Text(e["db_login"] or ""))
+    Console(width=None if sys.stdout.isatty() else 160).print(table)
+
+
+def _verify(args: argparse.Namespace) -> int:
+    from edc_bench.cli.exit_codes import ExitCode
+    from edc_bench.history.store import HistoryStore
+    from edc_bench.history.verify import verify
+
+    with HistoryStore(args.db, must_exist=True) as store:
+        rows = store.indexed()
+        where = store.shown_url
+    found = verify(rows)
+    if args.json:
+        print(json.dumps({"checked": len(rows), "findings": [f.__dict__ for f in found]}, indent=2))
+    else:
+        for f in found:
+            print(f"{f.problem}: test {f.test_id} (valve {f.valve_id}) {f.record_dir}: {f.detail}")
+        missing = sum(f.problem == "missing" for f in found)
+        print(f"checked {len(rows)} indexed record folder(s) in {where}: {missing} missing, "
+              f"{len(found) - missing} altered since indexed", file=sys.stderr)
+    return ExitCode.HISTORY_NOT_AS_INDEXED if found else ExitCode.OK
+
+
+def _schema_engine(args: argparse.Namespace) -> tuple[Any, str]:
+    """An engine on the database without the store's revision check (the owner's actions work on any revision)."""
+    import sqlalchemy as sa
+
+    from edc_bench.history.secrets import shown_url
+    from edc_bench.history.url import check_url, default_url
+
+    check_url(args.db)
+    url = args.db or default_url()
+    return sa.create_engine(url, hide_parameters=True), shown_url(url)
+
+
+def _schema(args: argparse.Namespace) -> int:
+    from edc_bench.history import migrate
+
+    engine, where = _schema_engine(args)
+    with _owner_errors("read", where, engine), engine.connect() as conn:
+        revision = migrate.current(conn)
+    steps = migrate.pending(revision)
+    print(f"history database {where}: schema revision {revision or '(none)'}; this edc-bench's: {migrate.head()}")
+    for step in steps:
+        print(f"  to apply: {step.id}  {step.summary}")
+    if not steps:
+        print("  nothing to apply")
+    return 0
+
+
+def _upgrade(args: argparse.Namespace) -> int:
+    from edc_bench.history import migrate
+
+    engine, where = _schema_engine(args)
+    with _owner_errors("upgrade", where, engine):
+        done = migrate.upgrade(engine)
+    for step in done:
+        print(f"applied {step.id}  {step.summary}")
+    print(f"history database {where} is at schema revision {migrate.head()}"
+          + ("" if done else " (nothing to apply)"))
+    return 0
+
+
+def _setup_roles(args: argparse.Namespace) -> int:
+    from edc_bench.errors import ConfigError
+    from edc_bench.history import migrate
+    from edc_bench.history.roles import ENGINEER, OWNER, STATION, setup_roles
+
+    engine, where = _schema_engine(args)
+    if engine.dialect.name != "postgresql":
+        raise ConfigError(f"--setup-roles is for a shop's PostgreSQL history; {where} is a station's SQLite file, "
+                          "whose file permissions say who may write it")
+    with _owner_errors("setup-roles", where, engine), engine.begin() as conn:
+        migrate.require_head(conn, where)
+        created = setup_roles(conn)
+    print(f"roles in {where}: {STATION} (add tests, read), {ENGINEER} (also findings, withdrawals, adoptions), "
+          f"{OWNER} (owns the tables: schema changes)" + (f"; created {', '.join(created)}" if created else
+                                                          "; all there already, rights granted again"))
+    print(f"give each login one: CREATE ROLE bench3 LOGIN IN ROLE {STATION}; (docs/shop-network.md)")
+    return 0
+
+
+def _owner_errors(action: str, where: str, engine: Any) -> AbstractContextManager[None]:
+    from edc_bench.history.guard import database_errors
+    from edc_bench.history.secrets import known_secrets
+
+    return database_errors(action, where, known_secrets(), engine.url.username)
+
+
+__all__ = ["add_chain_arguments", "chain_action"]

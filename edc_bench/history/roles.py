@@ -1,0 +1,95 @@
+"""Who may do what in a shop's shared history: PostgreSQL roles, their privileges, and the words for a refusal.
+
+Three group roles, made by ``edc-bench history --setup-roles`` (as the database's owner or a superuser); each
+person's or station's login is made a member of one (docs/shop-network.md):
+
+- ``edc_station``: read everything, add tests;
+- ``edc_engineer``: a station's rights, and record teardown findings, withdrawals and model adoptions;
+- ``edc_owner``: owns the tables, so it alone changes the schema (``history --upgrade``).
+
+No role may update or delete a stored row: the privileges are never granted, and the append-only triggers
+(:mod:`edc_bench.history.schema`) refuse it to the owner too. SQLite has no logins: a single station's file
+is protected by its file permissions and the same triggers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sqlalchemy as sa
+
+STATION, ENGINEER, OWNER = "edc_station", "edc_engineer", "edc_owner"
+ROLES = (STATION, ENGINEER, OWNER)
+
+#: The tables each role may add rows to (every role reads every table).
+INSERTS = {STATION: ("tests",), ENGINEER: ("teardowns", "amendments", "adoptions")}
+#: Every table of the history, the migrations' bookkeeping included.
+ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "alembic_version")
+
+
+@dataclass(frozen=True)
+class Right:
+    """What an action needs: its words for a person, and the role that grants it."""
+
+    words: str
+    role: str
+
+
+#: Actions of the program, the words a refusal uses and the role to ask for.
+RIGHTS = {
+    "read": Right("read the history", STATION),
+    "add-test": Right("add tests", STATION),
+    "label": Right("record teardown findings", ENGINEER),
+    "withdraw": Right("withdraw tests or findings", ENGINEER),
+    "adopt": Right("record model adoptions", ENGINEER),
+    "upgrade": Right("change the history's schema", OWNER),
+    "setup-roles": Right("create the history's roles", OWNER),
+}
+
+_WHO = {STATION: "a station's", ENGINEER: "the engineer's", OWNER: "the database owner's"}
+
+
+def refusal(action: str, login: str | None) -> str:
+    """One line for a login refused ``action``: what it may not do and whose login may."""
+    right = RIGHTS[action]
+    who = f"this station's database login {login!r}" if login else "this station's database login"
+    return f"{who} may not {right.words}: ask {_WHO[right.role]} login (a member of {right.role})"
+
+
+def _exists(connection: sa.Connection, role: str) -> bool:
+    return connection.execute(sa.text("SELECT 1 FROM pg_roles WHERE rolname = :r"), {"r": role}).first() is not None
+
+
+def setup_roles(connection: sa.Connection) -> list[str]:
+    """Create the roles that are missing and grant each its rights on the tables; returns the roles created."""
+    created = []
+    for role in ROLES:
+        if not _exists(connection, role):
+            connection.exec_driver_sql(f"CREATE ROLE {role} NOLOGIN")
+            created.append(role)
+    connection.exec_driver_sql(f"GRANT {STATION} TO {ENGINEER}")
+    connection.exec_driver_sql(f"GRANT {OWNER} TO CURRENT_USER")  # so this login may hand the tables to the role
+    apply_grants(connection)
+    return created
+
+
+def apply_grants(connection: sa.Connection) -> None:
+    """Give the roles their rights on every table there is, and the tables to ``edc_owner`` (a no-op where the roles
+    were not set up). Run by ``--setup-roles`` and after every upgrade, so a table a revision adds is covered."""
+    if not all(_exists(connection, role) for role in ROLES):
+        return
+    present = [t for t in ALL_TABLES if sa.inspect(connection).has_table(t)]
+    for table in present:
+        connection.exec_driver_sql(f"REVOKE ALL ON {table} FROM PUBLIC")
+        connection.exec_driver_sql(f"GRANT SELECT ON {table} TO {STATION}")
+        connection.exec_driver_sql(f"ALTER TABLE {table} OWNER TO {OWNER}")
+    for role, tables in INSERTS.items():
+        for table in (t for t in tables if t in present):
+            connection.exec_driver_sql(f"GRANT INSERT ON {table} TO {role}")
+            sequence = connection.execute(sa.text("SELECT pg_get_serial_sequence(:t, 'id')"), {"t": table}).scalar()
+            if sequence:
+                connection.exec_driver_sql(f"GRANT USAGE ON SEQUENCE {sequence} TO {role}")
+    connection.exec_driver_sql(f"GRANT USAGE ON SCHEMA public TO {STATION}")
+    connection.exec_driver_sql(f"GRANT USAGE, CREATE ON SCHEMA public TO {OWNER}")
+    if connection.execute(sa.text("SELECT 1 FROM pg_proc WHERE proname = 'edc_bench_append_only'")).first():
+        connection.exec_driver_sql(f"ALTER FUNCTION edc_bench_append_only() OWNER TO {OWNER}")

@@ -1,0 +1,109 @@
+"""The history's tables, as the newest migration leaves them (:mod:`edc_bench.history.migrations`).
+
+Every table is append-only: a row, once stored, is never updated or deleted
+(the database refuses it: triggers on SQLite and PostgreSQL, and on
+PostgreSQL the roles' privileges, :mod:`edc_bench.history.roles`). What
+changes is said by a new row naming the row it concerns:
+
+- ``tests``: one row each time a record folder is indexed; indexing a folder
+  again whose record changed adds a row, and the newest row of a folder is
+  the test as it stands. Each row keeps the SHA-256 of record.json as it was
+  read and the record's own integrity manifest, for ``history --verify``.
+- ``teardowns``: what a valve's teardown found; ``corrects_id`` names a finding
+  this one replaces.
+- ``amendments``: a withdrawal of a test or of a finding, with who, when and why.
+- ``adoptions``: a model a station was given to judge with, who adopted it and when.
+
+Who: ``*_by`` is the person (``--by``, or the operating-system login), ``db_login`` the database login that
+wrote the row (on PostgreSQL; None on SQLite, where the file's permissions say who may write).
+"""
+
+from __future__ import annotations
+
+import sqlalchemy as sa
+
+metadata = sa.MetaData()
+
+tests = sa.Table(
+    "tests", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("record_dir", sa.String(1024), nullable=False, index=True),
+    sa.Column("started_at", sa.String(40), nullable=False, index=True),
+    sa.Column("valve_id", sa.String(200), nullable=False, index=True),
+    sa.Column("pump_serial", sa.String(200), nullable=False, index=True),
+    sa.Column("variant", sa.String(200), nullable=False),
+    sa.Column("part_number", sa.String(100), nullable=False),
+    sa.Column("verdict", sa.String(20), nullable=False),
+    sa.Column("af_v", sa.Float),
+    sa.Column("a1_v_s_per_mm", sa.Float),
+    sa.Column("af_rel", sa.Float),
+    sa.Column("a1_rel", sa.Float),
+    sa.Column("probability_faulty", sa.Float),
+    sa.Column("distance", sa.Float),
+    sa.Column("station", sa.String(200), nullable=False),
+    sa.Column("operator", sa.String(200), nullable=False),
+    sa.Column("clock", sa.String(20), nullable=False),
+    sa.Column("software_version", sa.String(40), nullable=False),
+    sa.Column("reason", sa.Text, nullable=False),
+    sa.Column("model_name", sa.String(200)),  # the classifier that judged (None: not classified)
+    sa.Column("model_sha256", sa.String(64)),
+    # how the test went: the coil (referred to 20 degC; in its spec?), whether the model fitted the pump, when and
+    # why it stopped (None in rows of an older edc-bench, and where the record does not say)
+    sa.Column("coil_r20_ohm", sa.Float),
+    sa.Column("coil_in_spec", sa.Boolean),
+    sa.Column("model_fits", sa.Boolean),
+    sa.Column("stop_reason", sa.String(40)),
+    sa.Column("test_s", sa.Float),
+    # the record as it was indexed (None in rows indexed before the history kept it)
+    sa.Column("record_sha256", sa.String(64)),
+    sa.Column("record_manifest", sa.Text),  # record.json's integrity section as JSON (records of schema 5 on)
+    sa.Column("indexed_at", sa.String(40)),
+    sa.Column("indexed_by", sa.String(200)),
+    sa.Column("db_login", sa.String(200)),
+)
+
+teardowns = sa.Table(
+    "teardowns", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("valve_id", sa.String(200), nullable=False, index=True),
+    sa.Column("finding", sa.String(20), nullable=False),
+    sa.Column("clearance_mm", sa.Float),
+    sa.Column("note", sa.Text, nullable=False),
+    sa.Column("labelled_by", sa.String(200), nullable=False),
+    sa.Column("labelled_at", sa.String(40), nullable=False),  # ISO date or date-time (UTC) of the teardown
+    sa.Column("recorded_at", sa.String(40), nullable=False),
+    sa.Column("corrects_id", sa.Integer),  # the finding this one replaces
+    sa.Column("db_login", sa.String(200)),
+)
+
+amendments = sa.Table(
+    "amendments", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("target", sa.String(20), nullable=False),  # 'tests' or 'teardowns'
+    sa.Column("target_id", sa.Integer, nullable=False),
+    sa.Column("action", sa.String(20), nullable=False),  # 'withdraw'
+    sa.Column("reason", sa.Text, nullable=False),
+    sa.Column("amended_by", sa.String(200), nullable=False),
+    sa.Column("amended_at", sa.String(40), nullable=False),
+    sa.Column("db_login", sa.String(200)),
+)
+
+adoptions = sa.Table(
+    "adoptions", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("station", sa.String(200), nullable=False),
+    sa.Column("model_name", sa.String(200), nullable=False),
+    sa.Column("model_sha256", sa.String(64), nullable=False),
+    sa.Column("adopted_by", sa.String(200), nullable=False),
+    sa.Column("adopted_at", sa.String(40), nullable=False),
+    sa.Column("db_login", sa.String(200)),
+)
+
+#: The append-only tables, in the order they were made.
+TABLES = (tests, teardowns, amendments, adoptions)
+
+#: Columns of a test in listings and CSV exports, in order (what a test is; how it was indexed is in --audit).
+COLUMNS = tuple(c.name for c in tests.columns if c.name not in ("record_manifest", "db_login"))
+
+#: Teardown columns in listings, in order (the id: to withdraw or correct a finding recorded by mistake).
+TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name != "db_login")

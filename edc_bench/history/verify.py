@@ -1,0 +1,61 @@
+"""``history --verify``: every indexed record folder read again and held to what the history kept of it.
+
+When a record is indexed the history keeps the SHA-256 of its record.json and the record's own integrity
+manifest (records of schema 5 on: the digests of the trace, the CAN log and the figure). A folder is *missing*
+when it or its record.json is gone, *altered* when record.json's bytes differ from those indexed, or a file its
+manifest names changed. Rows indexed before the history kept a hash can only be found missing.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from edc_bench.records.integrity import altered, file_digest
+from edc_bench.records.writer import RECORD_FILE
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One indexed test whose folder is not as it was indexed."""
+
+    test_id: int
+    valve_id: str
+    record_dir: str
+    problem: str  # 'missing' or 'altered'
+    detail: str
+
+
+def check_row(row: dict[str, Any]) -> Finding | None:
+    """What is wrong with one indexed test's folder (None: as indexed, as far as the history can tell)."""
+    folder = Path(row["record_dir"])
+    path = folder / RECORD_FILE
+
+    def finding(problem: str, detail: str) -> Finding:
+        return Finding(row["id"], row["valve_id"], row["record_dir"], problem, detail)
+
+    if not folder.is_dir():
+        return finding("missing", "the record folder is gone")
+    if not path.is_file():
+        return finding("missing", f"{RECORD_FILE} is gone")
+    changes: list[str] = []
+    if row.get("record_manifest"):
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            doc = None
+        # held to the manifest kept when it was indexed, not to the one in the folder now (which may be rewritten)
+        manifest = json.loads(row["record_manifest"])
+        changes = altered({**doc, "integrity": manifest}, folder) if isinstance(doc, dict) else \
+            [f"{RECORD_FILE} (not readable)"]
+    if row.get("record_sha256") and file_digest(path) != row["record_sha256"] \
+            and not any(change.startswith(RECORD_FILE) for change in changes):
+        changes.insert(0, f"{RECORD_FILE} (not the file indexed)")
+    return finding("altered", "; ".join(changes)) if changes else None
+
+
+def verify(rows: list[dict[str, Any]]) -> list[Finding]:
+    """The findings over every indexed test (:meth:`~edc_bench.history.store.HistoryStore.indexed`)."""
+    return [found for found in map(check_row, rows) if found is not None]
