@@ -95,7 +95,7 @@ def main() -> None:
         history_table(store.list(Filters()), "the station's history", console)
         _save(console, "history.svg", "edc-bench history")
         console = _console()
-        trend_table(store.trend("V-2040"), "V-2040", console)
+        trend_table(store.trend("V-2040", include_simulated=True), "V-2040", console)
         _save(console, "history-trend.svg", "edc-bench history --trend V-2040")
 
     report = replay_record(worn_dir)

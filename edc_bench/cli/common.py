@@ -388,18 +388,39 @@ def add_history_label_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use the history's labelled tests (teardown findings, 'edc-bench label') instead of "
                              "simulating a population")
     add_history_db_argument(parser, "with --from-history: ")
+    add_include_simulated_argument(parser)
 
 
-def history_label_dataset(url: str | None) -> tuple[object, str]:
+def add_include_simulated_argument(parser: Any, what: str = "with --from-history: learn from") -> None:
+    """``--include-simulated``: count the tests run on the simulated rig, which the history leaves out of trends
+    and training."""
+    parser.add_argument("--include-simulated", action="store_true",
+                        help=f"{what} tests run on the simulated rig too (left out by default)")
+
+
+def history_label_dataset(url: str | None, include_simulated: bool = False) -> tuple[object, str]:
     """The history's labelled tests as a dataset, and a description of where they came from."""
     from edc_bench.errors import ConfigError
     from edc_bench.history.labels import labelled_tests
     from edc_bench.history.store import HistoryStore
 
     with HistoryStore(url, must_exist=True) as store:
-        labelled = labelled_tests(store)
-        where = store.engine.url.render_as_string(hide_password=True)
+        labelled = labelled_tests(store, include_simulated)
+        where = store.shown_url
     if len(labelled) == 0:
         raise ConfigError(f"no labelled test in {where}: record teardown findings with 'edc-bench label' first")
     dataset = labelled.as_dataset({"history": where, "labels": len(labelled)})
     return dataset, f"{len(labelled)} labelled tests in {where}"
+
+
+def person_name(given: str | None, what: str) -> str:
+    """``--by``, checked (default: the login name)."""
+    import getpass
+
+    from edc_bench.errors import ConfigError
+
+    by = (given if given is not None else getpass.getuser()).strip()
+    problem = "is empty" if not by else text_problem(by, MAX_ID_CHARS)
+    if problem:
+        raise ConfigError(f"--by {given!r} {problem}; give {what}")
+    return by

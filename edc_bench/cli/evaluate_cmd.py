@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     if args.from_history:
         from edc_bench.cli.common import history_label_dataset
 
-        dataset, where = history_label_dataset(args.db)
+        dataset, where = history_label_dataset(args.db, args.include_simulated)
         report = evaluate(classifier, dataset)
         report["model"] = classifier.name
         if args.json:

@@ -57,6 +57,14 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
     if args.withdraw is not None:
         from edc_bench.cli.common import text_problem
 
+        extra = [flag for flag, value in (("--valve-id", args.valve_id), ("--pump-serial", args.pump_serial),
+                                          ("--variant", args.variant), ("--verdict", args.verdict),
+                                          ("--since", args.since), ("--until", args.until), ("--limit", args.limit),
+                                          ("--json", args.json or None)) if value is not None]
+        if extra:
+            raise ConfigError(f"--withdraw TEST_ID withdraws one test (its id from the listing): {', '.join(extra)} "
+                              "does not go with it")
+
         why = (args.why or "").strip()
         problem = "is missing" if not why else text_problem(why, MAX_WHY_CHARS)
         if problem:
@@ -70,8 +78,11 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
 def _withdraw(args: argparse.Namespace) -> int:
     from edc_bench.history.store import HistoryStore
 
+    from edc_bench.cli.common import person_name
+
+    by = person_name(args.by, "who withdraws the test")
     with HistoryStore(args.db, must_exist=True) as store:
-        row = store.withdraw_test(args.withdraw, args.why.strip(), args.by)
+        row = store.withdraw_test(args.withdraw, args.why.strip(), by)
     print(f"withdrew test {args.withdraw} (valve {row['valve_id']}, {row['verdict']}, tested "
           f"{row['started_at'][:16].replace('T', ' ')}): it no longer counts; 'edc-bench history --audit "
           f"{row['valve_id']}' shows it and why")
@@ -134,7 +145,7 @@ def _schema_engine(args: argparse.Namespace) -> tuple[Any, str]:
     from edc_bench.history.secrets import shown_url
     from edc_bench.history.url import check_url, default_url
 
-    check_url(args.db)
+    check_url(args.db, must_exist=True)  # a mistyped file is not created by looking at it
     url = args.db or default_url()
     return sa.create_engine(url, hide_parameters=True), shown_url(url)
 

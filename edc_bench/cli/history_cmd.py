@@ -12,6 +12,7 @@ from typing import Any
 from edc_bench.cli.common import (
     add_hidden_alias,
     add_history_db_argument,
+    add_include_simulated_argument,
     identity,
     positive_int,
     print_quietly_if_closed,
@@ -39,6 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--limit", type=positive_int, default=None, metavar="N", help="only the newest N")
     p.add_argument("--trend", type=identity(), default=None, metavar="VALVE_ID",
                    help="one valve's af and a1 over its visits")
+    add_include_simulated_argument(p, "with --trend: show")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG", help="with --trend: also draw it (a .png file)")
     p.add_argument("--csv", default=None, metavar="FILE", help="write the listed tests as CSV ('-': stdout)")
     p.add_argument("--add", nargs="+", type=Path, default=None, metavar="RECORD_DIR",
@@ -80,11 +82,13 @@ def run(args: argparse.Namespace) -> int:
         if args.add:
             outcomes = [store.add(record, folder) for record, folder in records]
             new, changed = outcomes.count("new"), outcomes.count("changed")
-            same = outcomes.count("unchanged")
+            same, withdrawn = outcomes.count("unchanged"), outcomes.count("withdrawn")
             print(f"indexed {new} new record folder(s) in {store.shown_url}"
                   + (f"; {changed} indexed before and changed since: added again (the earlier row is kept, "
                      "'history --audit' shows both)" if changed else "")
                   + (f"; {same} already indexed as they are" if same else "")
+                  + (f"; {withdrawn} withdrawn before, and not indexed again (see 'history --audit')" if withdrawn
+                     else "")
                   + (f" ({len(args.add) - len(records)} given more than once)" if len(args.add) > len(records)
                      else ""), file=sys.stderr)
             return 0
@@ -129,24 +133,32 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
     from edc_bench.ui.live import VERDICT_STYLES
 
     # ids and names are the technicians' text, kept as given: rich Text, never read as markup ("V[/1]" is an id)
-    table = Table(title=Text(f"{len(rows)} test(s) in {url} (times in UTC)"))
-    for col in ("id", "started", "valve", "pump serial", "variant", "verdict", "af V", "a1 V s/mm", "P(faulty)",
-                "station", "operator"):
+    simulated = sum(bool(r.get("simulated")) for r in rows)
+    table = Table(title=Text(f"{len(rows)} test(s) in {url} (times in UTC)"
+                             + (f"; sim: {simulated} on the simulated rig, out of trends and training" if simulated
+                                else "")))
+    # the classifier's figures (P(faulty), distance) are the engineer's: in --json and --csv, not on this screen
+    for col in ("id", "started", "valve", "pump serial", "variant", "sim", "verdict", "af V", "a1 V s/mm", "station",
+                "operator"):
         table.add_column(col, no_wrap=col not in ("station", "operator"))
     for r in rows:
-        table.add_row(str(r["id"]), _when(r["started_at"]), Text(r["valve_id"]), Text(r["pump_serial"]), Text(r["variant"]),
+        table.add_row(str(r["id"]), _when(r["started_at"]), Text(r["valve_id"]), Text(r["pump_serial"]),
+                      Text(r["variant"]), "yes" if r.get("simulated") else "",
                       Text(r["verdict"], style=VERDICT_STYLES.get(r["verdict"], "")), _fmt(r["af_v"], ".5f"),
-                      _fmt(r["a1_v_s_per_mm"], ".6f"), _fmt(r["probability_faulty"], ".3f"), Text(r["station"]),
+                      _fmt(r["a1_v_s_per_mm"], ".6f"), Text(r["station"]),
                       Text(r["operator"]))
     (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
 
 
 def _trend(store: Any, args: argparse.Namespace) -> int:
-    rows = store.trend(args.trend)
+    rows = store.trend(args.trend, args.include_simulated)
     if not rows:
         from edc_bench.errors import ConfigError
 
-        raise ConfigError(f"no trustworthy test of valve {args.trend!r} in the history (see 'edc-bench history')")
+        simulated = store.trend(args.trend, include_simulated=True) if not args.include_simulated else []
+        raise ConfigError(f"no trustworthy test of valve {args.trend!r} on a rig in the history (see 'edc-bench "
+                          "history')" + (f"; {len(simulated)} on the simulated rig: add --include-simulated to see "
+                                         "them" if simulated else ""))
     if args.plot is not None:
         _plot(rows, args.trend, args.plot)
     if args.json:

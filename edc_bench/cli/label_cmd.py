@@ -12,6 +12,7 @@ from edc_bench.cli.common import (
     MAX_ID_CHARS,
     add_hidden_alias,
     add_history_db_argument,
+    person_name,
     positive_int,
     print_quietly_if_closed,
 )
@@ -50,7 +51,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "both stay in 'edc-bench history --audit'")
     p.add_argument("--withdraw", type=positive_int, default=None, metavar="ID",
                    help="withdraw finding ID (from --list) with --why: it labels nothing any more; nothing is deleted")
-    add_hidden_alias(p, "--delete", "withdraw", type=positive_int)  # what withdrawing was called before
+    # what withdrawing was called before (the finding was removed then): withdrawn 'recorded by mistake'
+    add_hidden_alias(p, "--delete", "delete", type=positive_int)
     p.add_argument("--why", default=None, metavar="TEXT", help="with --withdraw: why (kept in the audit trail)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
@@ -58,16 +60,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record or list."""
-    import getpass
-
     from edc_bench.cli.common import text_problem
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import Filters, HistoryStore
 
-    if args.withdraw is not None:
-        return _withdraw(args)
+    delete = getattr(args, "delete", None)
+    if args.withdraw is not None or delete is not None:
+        return _withdraw(args, delete)
     if args.why is not None:
         raise ConfigError("--why goes with --withdraw ID")
+    if args.corrects is not None and args.finding is None:
+        raise ConfigError("--corrects ID goes with the finding that replaces it: edc-bench label VALVE_ID --finding "
+                          "reusable|worn|faulty --corrects ID")
     if args.list:
         if args.finding is not None:
             raise ConfigError("--list shows findings; record one without --list")
@@ -91,10 +95,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--clearance-mm {clearance}: a plunger clearance is above 0 and at most "
                           f"{MAX_CLEARANCE_MM} mm (e.g. 0.19)")
     when = _teardown_time(args.date)
-    by = (args.by if args.by is not None else getpass.getuser()).strip()
-    problem = "is empty" if not by else text_problem(by, MAX_ID_CHARS)
-    if problem:
-        raise ConfigError(f"--by {args.by!r} {problem}; give who opened the valve")
+    by = person_name(args.by, "who opened the valve")
     with HistoryStore(args.db, must_exist=True) as store:
         if not args.new_valve and not store.list(Filters(valve_id=valve_id), 1):
             raise ConfigError(f"no test of valve {valve_id!r} in {store.shown_url}: check the id ('edc-bench history' "
@@ -107,7 +108,9 @@ def run(args: argparse.Namespace) -> int:
     elif row.get("record_dir"):
         tested = row["started_at"][:16].replace("T", " ")
         print(f"valve {valve_id}: {args.finding} recorded; it labels the test of {tested} "
-              f"({row['verdict']}, {row['record_dir']})")
+              f"({row['verdict']}, {row['record_dir']})"
+              + ("; that test ran on the simulated rig: training leaves it out unless --include-simulated"
+                 if row.get("simulated") else ""))
     else:
         print(f"valve {valve_id}: {args.finding} recorded", file=sys.stderr)
         print(f"note: no judged test of valve {valve_id!r} before {when} in {store.shown_url}; the finding labels nothing "
@@ -116,22 +119,30 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _withdraw(args: argparse.Namespace) -> int:
-    """Withdraw one finding, saying why."""
+def _withdraw(args: argparse.Namespace, delete: int | None) -> int:
+    """Withdraw one finding, saying why (``--delete ID``, its old spelling: 'recorded by mistake')."""
     from edc_bench.cli.common import text_problem
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import HistoryStore
 
-    if args.finding is not None or args.list or args.valve_id is not None:
-        raise ConfigError("--withdraw ID withdraws one finding; record the right one in a second command (or give "
-                          "the right one with --corrects ID in one)")
-    why = (args.why or "recorded by mistake").strip()
-    problem = text_problem(why, MAX_NOTE_CHARS)
+    given = [flag for flag, value in (("VALVE_ID", args.valve_id), ("--finding", args.finding),
+                                      ("--clearance-mm", args.clearance_mm), ("--note", args.note or None),
+                                      ("--date", args.date), ("--corrects", args.corrects),
+                                      ("--list", args.list or None), ("--new-valve", args.new_valve or None))
+             if value is not None]
+    if given or (args.withdraw is not None and delete is not None):
+        raise ConfigError(f"--withdraw ID withdraws one finding, with --why (and --by): "
+                          f"{', '.join(given) or '--delete'} does not go with it; record the right finding in a second "
+                          "command, or in one with --finding ... --corrects ID")
+    why = (args.why or ("recorded by mistake" if delete is not None else "")).strip()
+    problem = "is missing" if not why else text_problem(why, MAX_NOTE_CHARS)
     if problem:
-        raise ConfigError(f"--why {problem}")
+        raise ConfigError(f"--why {problem}: say why the finding is withdrawn (kept with it for good), e.g. "
+                          "--why 'typed worn for reusable'")
+    by = person_name(args.by, "who withdraws it")
     with HistoryStore(args.db, must_exist=True) as store:
-        gone = store.withdraw_teardown(args.withdraw, why, args.by)
-    print(f"withdrew finding {args.withdraw}: valve {gone['valve_id']}, {gone['finding']}, {gone['labelled_at']} "
+        gone = store.withdraw_teardown(args.withdraw if args.withdraw is not None else delete, why, by)
+    print(f"withdrew finding {gone['id']}: valve {gone['valve_id']}, {gone['finding']}, {gone['labelled_at']} "
           f"({why}); it labels nothing now")
     return 0
 
@@ -162,7 +173,8 @@ def _teardown_time(text: str | None) -> str:
 
 
 def _listing(store: Any, valve_id: str | None) -> list[dict[str, Any]]:
-    return [r for r in store.teardown_matches() if valve_id is None or r["valve_id"] == valve_id]
+    """The findings and the tests they label, on the simulated rig too (training leaves those out unless asked)."""
+    return [r for r in store.teardown_matches(include_simulated=True) if valve_id is None or r["valve_id"] == valve_id]
 
 
 def _print_list(rows: list[dict[str, Any]], as_json: bool) -> None:

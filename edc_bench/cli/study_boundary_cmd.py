@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     if args.from_history:
         from edc_bench.cli.common import history_label_dataset
 
-        dataset, title = history_label_dataset(args.db)
+        dataset, title = history_label_dataset(args.db, args.include_simulated)
         if len(set(dataset.labels.tolist())) < 2:
             from edc_bench.errors import ConfigError
 

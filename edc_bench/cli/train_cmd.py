@@ -6,11 +6,13 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from edc_bench.cli.common import (
     MAX_POPULATION,
     add_hidden_alias,
     add_history_db_argument,
+    add_include_simulated_argument,
     check_output_file,
     check_output_folder,
     count_up_to,
@@ -56,6 +58,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     shop.add_argument("--from-history", action="store_true",
                       help="train a candidate on the history's labelled tests, the simulated population as prior")
     add_history_db_argument(shop, "with --from-history, or --adopt (where the adoption is recorded): ")
+    add_include_simulated_argument(shop)
     shop.add_argument("--prior-weight", type=float, default=None, metavar="TESTS",
                       help="how many labelled tests the whole simulated population counts as (default: 50; 0: the "
                            "labels alone)")
@@ -140,30 +143,30 @@ def _adopt(args: argparse.Namespace) -> int:
 
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import HistoryStore
-    from edc_bench.learning.adoption import adopt, adopt_shipped
-    from edc_bench.verdict.classifier import ValveClassifier, packaged_model_path
+    from edc_bench.learning.adoption import adopt, adopt_shipped, load_candidate
+    from edc_bench.verdict.classifier import packaged_model_path
 
     if args.from_history:
         raise ConfigError("--adopt and --from-history are separate steps: train, read the figures, then adopt")
     for flag, value in (("--prior-weight", args.prior_weight), ("--name", args.name),
                         ("--candidate-file", args.candidate_file), ("--json", args.json or None),
-                        ("--dataset", args.dataset)):
+                        ("--dataset", args.dataset), ("--include-simulated", args.include_simulated or None)):
         if value is not None:
             raise ConfigError(f"{flag} does not go with --adopt (it adopts a model file, or 'shipped')")
-    if args.adopt != "shipped" and not Path(args.adopt).is_file():
-        raise ConfigError(f"--adopt {args.adopt}: no such model file (give the .onnx 'train --from-history' wrote, "
-                          "or 'shipped')")
-    model = ValveClassifier(packaged_model_path() if args.adopt == "shipped" else Path(args.adopt))
+    shipped = args.adopt == "shipped"
+    model = load_candidate(packaged_model_path() if shipped else Path(args.adopt))
     by = args.by or getpass.getuser()
-    # recorded in the history first: a login that may not adopt (a station's) changes nothing on the station
+    adopted: list[Any] = []
+    # recorded in the history around the station's change: a login that may not adopt changes nothing here
     with HistoryStore(args.db) as store:
-        store.add_adoption(model.name, model.sha256, socket.gethostname(), by)
+        store.add_adoption(model.name, model.sha256, socket.gethostname(), by,
+                           then=lambda: adopted.append(adopt_shipped() if shipped else adopt(Path(args.adopt), by,
+                                                                                             model)))
         where = store.shown_url
-    if args.adopt == "shipped":
-        path = adopt_shipped()
-        print(f"this station judges with the shipped model again ({path.name}); recorded in {where}")
+    if shipped:
+        print(f"this station judges with the shipped model again ({adopted[0].name}); recorded in {where}")
         return 0
-    adoption = adopt(Path(args.adopt), by)
+    adoption = adopted[0]
     print(f"this station now judges with {adoption['name']} (sha256 {adoption['sha256'][:16]}...), adopted by "
           f"{adoption['adopted_by']}; every record names it; recorded in {where}. Go back with: edc-bench train "
           "--adopt shipped")
@@ -191,8 +194,8 @@ def _from_history(args: argparse.Namespace) -> int:
         raise ConfigError(f"--prior-weight {args.prior_weight}: give how many labelled tests the simulated "
                           "population counts as, 0 or more (default 50)")
     with HistoryStore(args.db, must_exist=True) as store:  # checked (check_url) before it is opened
-        labelled = labelled_tests(store)
-        url = store.engine.url.render_as_string(hide_password=True)
+        labelled = labelled_tests(store, args.include_simulated)
+        url = store.shown_url
     check_enough(labelled.labels, labelled.valves)  # before a simulation of the prior
     prior_weight = DEFAULT_PRIOR_WEIGHT if args.prior_weight is None else args.prior_weight
     prior = None

@@ -20,7 +20,10 @@ MIGRATIONS = Path(__file__).with_name("migrations")
 
 #: The newest revision in ``migrations/versions`` (a test holds it to Alembic's own reading): opening a history
 #: that is up to date costs neither Alembic's import nor a scan of the revisions.
-HEAD = "0002"
+HEAD = "0003"
+
+#: PostgreSQL advisory lock taken by an upgrade (here and in migrations/env.py): two owners upgrading take turns.
+UPGRADE_LOCK = 724051
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,16 @@ def current(connection: sa.Connection) -> str | None:
 
 
 def pending(revision: str | None) -> list[Revision]:
-    """The changes from ``revision`` (None: from nothing) to :func:`head`, oldest first."""
+    """The changes from ``revision`` (None: from nothing) to :func:`head`, oldest first.
+
+    Raises
+    ------
+    ConfigError
+        For a revision this edc-bench does not have (a newer edc-bench made the database).
+    """
+    if revision is not None and not is_known(revision):
+        raise ConfigError(f"the history is at schema revision {revision}, made by a newer edc-bench than this one "
+                          f"(revision {HEAD}): update edc-bench here; nothing was changed")
     scripts = _scripts()
     steps = list(scripts.iterate_revisions(head(), revision))  # newest first
     return [Revision(step.revision, (step.doc or "").strip().splitlines()[0]) for step in reversed(steps)]
@@ -98,6 +110,7 @@ def upgrade(engine: sa.Engine) -> list[Revision]:
         from edc_bench.history.roles import apply_grants
 
         with connection.begin():
+            connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({UPGRADE_LOCK})")  # what is left, once ours
             done = pending(current(connection))
             command.upgrade(_config(connection), "head")
             apply_grants(connection)  # a table a revision added gets the roles' rights at once
@@ -109,15 +122,15 @@ def require_head(connection: sa.Connection, shown_url: str) -> None:
     revision, wanted = current(connection), head()
     if revision == wanted:
         return
-    upgrade_cmd = f"edc-bench history --upgrade --db '{shown_url}'"
+    upgrade_cmd = "edc-bench history --upgrade"
     if revision is None:
         has_tests = sa.inspect(connection).has_table("tests")
         raise ConfigError(f"history database {shown_url} "
                           + ("was made by an edc-bench before schema revisions" if has_tests
                              else "holds no edc-bench history yet")
-                          + f": its owner's login runs '{upgrade_cmd}' first (see 'edc-bench history --schema')")
+                          + f": its owner's login runs '{upgrade_cmd}' on it first (see 'edc-bench history --schema')")
     if not is_known(revision):
         raise ConfigError(f"history database {shown_url} is at schema revision {revision}, made by a newer "
                           f"edc-bench than this one (revision {wanted}): update edc-bench on this station")
     raise ConfigError(f"history database {shown_url} is at schema revision {revision}; this edc-bench needs "
-                      f"{wanted}: its owner's login runs '{upgrade_cmd}' (see 'edc-bench history --schema')")
+                      f"{wanted}: its owner's login runs '{upgrade_cmd}' on it (see 'edc-bench history --schema')")

@@ -29,10 +29,12 @@ ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "alembic_version"
 
 @dataclass(frozen=True)
 class Right:
-    """What an action needs: its words for a person, and the role that grants it."""
+    """What an action needs: its words for a person, the role that grants it, and whom to ask if not a role's
+    member."""
 
     words: str
     role: str
+    ask: str = ""
 
 
 #: Actions of the program, the words a refusal uses and the role to ask for.
@@ -43,7 +45,8 @@ RIGHTS = {
     "withdraw": Right("withdraw tests or findings", ENGINEER),
     "adopt": Right("record model adoptions", ENGINEER),
     "upgrade": Right("change the history's schema", OWNER),
-    "setup-roles": Right("create the history's roles", OWNER),
+    "setup-roles": Right("create the history's roles", OWNER,
+                         "ask the database's owner with the CREATEROLE right, or the server's administrator"),
 }
 
 _WHO = {STATION: "a station's", ENGINEER: "the engineer's", OWNER: "the database owner's"}
@@ -53,7 +56,7 @@ def refusal(action: str, login: str | None) -> str:
     """One line for a login refused ``action``: what it may not do and whose login may."""
     right = RIGHTS[action]
     who = f"this station's database login {login!r}" if login else "this station's database login"
-    return f"{who} may not {right.words}: ask {_WHO[right.role]} login (a member of {right.role})"
+    return f"{who} may not {right.words}: " + (right.ask or f"ask {_WHO[right.role]} login (a member of {right.role})")
 
 
 def _exists(connection: sa.Connection, role: str) -> bool:
@@ -74,11 +77,18 @@ def setup_roles(connection: sa.Connection) -> list[str]:
 
 
 def apply_grants(connection: sa.Connection) -> None:
-    """Give the roles their rights on every table there is, and the tables to ``edc_owner`` (a no-op where the roles
-    were not set up). Run by ``--setup-roles`` and after every upgrade, so a table a revision adds is covered."""
+    """Give the roles their rights on every table there is, and the tables to ``edc_owner``. Run by ``--setup-roles``
+    and after every upgrade, so a table a revision adds is covered; a no-op where the roles were not set up, or the
+    login is not a member of ``edc_owner`` (the roles belong to the server: another database's owner set them up)."""
     if not all(_exists(connection, role) for role in ROLES):
         return
+    may = connection.execute(sa.text("SELECT pg_has_role(current_user, :r, 'MEMBER')"), {"r": OWNER}).scalar()
+    if not may:  # the roles are the server's, this database is another's: its owner runs --setup-roles
+        return
     present = [t for t in ALL_TABLES if sa.inspect(connection).has_table(t)]
+    # first: PostgreSQL hands a table only to a role that may create in its schema
+    connection.exec_driver_sql(f"GRANT USAGE ON SCHEMA public TO {STATION}")
+    connection.exec_driver_sql(f"GRANT USAGE, CREATE ON SCHEMA public TO {OWNER}")
     for table in present:
         connection.exec_driver_sql(f"REVOKE ALL ON {table} FROM PUBLIC")
         connection.exec_driver_sql(f"GRANT SELECT ON {table} TO {STATION}")
@@ -89,7 +99,5 @@ def apply_grants(connection: sa.Connection) -> None:
             sequence = connection.execute(sa.text("SELECT pg_get_serial_sequence(:t, 'id')"), {"t": table}).scalar()
             if sequence:
                 connection.exec_driver_sql(f"GRANT USAGE ON SEQUENCE {sequence} TO {role}")
-    connection.exec_driver_sql(f"GRANT USAGE ON SCHEMA public TO {STATION}")
-    connection.exec_driver_sql(f"GRANT USAGE, CREATE ON SCHEMA public TO {OWNER}")
     if connection.execute(sa.text("SELECT 1 FROM pg_proc WHERE proname = 'edc_bench_append_only'")).first():
         connection.exec_driver_sql(f"ALTER FUNCTION edc_bench_append_only() OWNER TO {OWNER}")

@@ -54,6 +54,7 @@ tests = sa.Table(
     sa.Column("model_fits", sa.Boolean),
     sa.Column("stop_reason", sa.String(40)),
     sa.Column("test_s", sa.Float),
+    sa.Column("simulated", sa.Boolean),  # on the simulated rig: out of trends and training unless asked for
     # the record as it was indexed (None in rows indexed before the history kept it)
     sa.Column("record_sha256", sa.String(64)),
     sa.Column("record_manifest", sa.Text),  # record.json's integrity section as JSON (records of schema 5 on)

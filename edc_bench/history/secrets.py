@@ -19,8 +19,9 @@ from urllib.parse import unquote
 #: What stands in for a password.
 MASK = "***"
 
-# scheme://user:PASSWORD@ (a password holds no '@' or '/': SQLAlchemy wants those percent-escaped)
-_USERINFO = re.compile(r"(?P<head>\b[A-Za-z][A-Za-z0-9+.\-]*://[^:/@?#\s'\"]*):(?P<secret>[^@/\s'\"]*)@")
+# scheme://user:PASSWORD@ as SQLAlchemy reads it: the user holds no ':' or '/', the password anything up to the first
+# '@' ('/' and quotes included), on one line
+_USERINFO = re.compile(r"(?P<head>\b[A-Za-z][A-Za-z0-9+.\-]*://[^:/@\s]*):(?P<secret>[^@\n]*)@")
 # ?password=PASSWORD or &password=PASSWORD (libpq's keyword, which psycopg takes from the URL's query)
 _QUERY_PASSWORD = re.compile(r"(?i)(?P<head>[?&]password=)(?P<secret>[^&#\s'\"]*)")
 
@@ -46,11 +47,16 @@ def known_secrets(*urls: str | None) -> list[str]:
     return sorted(found, key=len, reverse=True)
 
 
+#: Secrets shorter than this are masked inside URLs only: replacing 'ab' wherever it stands would garble the text.
+MIN_SCRUBBED_CHARS = 4
+
+
 def redact(text: str, secrets: Iterable[str]) -> str:
     """``text`` with URLs masked (:func:`shown_url`) and each of ``secrets`` replaced by ``***`` wherever it is."""
     text = shown_url(text)
     for secret in secrets:
-        text = text.replace(secret, MASK)
+        if len(secret) >= MIN_SCRUBBED_CHARS:
+            text = text.replace(secret, MASK)
     return text
 
 

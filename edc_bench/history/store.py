@@ -25,7 +25,7 @@ import csv
 import datetime as dt
 import json
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,6 +93,7 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "model_fits": None if fit is None else fit.fits,
         "stop_reason": _text(stop.reason)[:40] if stop is not None and stop.reason else None,
         "test_s": None if stop is None else _finite(stop.time_s),
+        "simulated": record.simulated_rig,
     }
 
 
@@ -106,6 +107,8 @@ class Filters:
     verdict: str | None = None
     since: str | None = None
     until: str | None = None
+    #: None: every test; False: only tests on a rig (the simulated rig's left out, as trends and training do)
+    simulated: bool | None = None
 
 
 def parse_day(text: str | None, name: str) -> str | None:
@@ -183,8 +186,9 @@ class HistoryStore:
     # -- tests -------------------------------------------------------------------------------------------------
 
     def add(self, record: Record, record_dir: Path, indexed_by: str | None = None) -> str:
-        """Index one record folder; returns ``new``, ``changed`` (indexed before with other content: a new row) or
-        ``unchanged`` (indexed before as it is: nothing written).
+        """Index one record folder; returns ``new``, ``changed`` (indexed before with other content: a new row),
+        ``unchanged`` (indexed before as it is: nothing written) or ``withdrawn`` (its test was withdrawn, and stays
+        so: nothing written).
 
         The row keeps the SHA-256 of the folder's record.json as read and its integrity manifest (``--verify``).
         """
@@ -198,11 +202,14 @@ class HistoryStore:
         """Store one test's row (:func:`row_from_record`); see :meth:`add`."""
         row = {**row, "indexed_at": _now(), "indexed_by": indexed_by or _login_name(), "db_login": self.login}
         with self._guard("add-test"), self.engine.begin() as conn:  # one transaction: all of the row or nothing
-            before = conn.execute(sa.select(tests.c.record_sha256).where(tests.c.record_dir == row["record_dir"])
+            before = conn.execute(sa.select(tests).where(tests.c.record_dir == row["record_dir"])
                                   .order_by(tests.c.id.desc()).limit(1)).first()
-            if before is not None and row.get("record_sha256") is not None \
-                    and before.record_sha256 == row["record_sha256"]:
-                return "unchanged"
+            if before is not None:
+                if conn.execute(sa.select(tests.c.id).where(tests.c.record_dir == row["record_dir"],
+                                                            tests.c.id.in_(_withdrawn("tests")))).first():
+                    return "withdrawn"
+                if _same_test(dict(before._mapping), row):
+                    return "unchanged"
             conn.execute(tests.insert().values(**row))
         return "new" if before is None else "changed"
 
@@ -222,6 +229,8 @@ class HistoryStore:
                 query = query.where(column == value)
         if f.variant is not None:
             query = query.where(sa.or_(tests.c.variant == f.variant, tests.c.part_number == f.variant))
+        if f.simulated is not None:
+            query = query.where(_simulated(f.simulated))
         if f.since is not None:
             query = query.where(tests.c.started_at >= f.since)
         if f.until is not None:
@@ -325,7 +334,7 @@ class HistoryStore:
         with self._guard("read"), self.engine.connect() as conn:
             return self._standing_teardowns(conn, valve_id)
 
-    def labelled_tests(self) -> list[dict[str, Any]]:
+    def labelled_tests(self, include_simulated: bool = False) -> list[dict[str, Any]]:
         """Every teardown with the test it labels, oldest first.
 
         A teardown labels the valve's last test before it that was judged on
@@ -336,21 +345,24 @@ class HistoryStore:
         ``finding``, ``label`` (1: replace), ``teardown_clearance_mm``,
         ``labelled_by`` and ``labelled_at``; teardowns with no such test are
         left out (:meth:`unmatched_teardowns` lists them). Withdrawn tests and
-        findings, and findings corrected since, count for nothing.
+        findings, and findings corrected since, count for nothing; tests on
+        the simulated rig neither, unless ``include_simulated``.
         """
-        return [row for row in self.teardown_matches() if row.get("record_dir")]
+        return [row for row in self.teardown_matches(include_simulated) if row.get("record_dir")]
 
-    def unmatched_teardowns(self) -> list[dict[str, Any]]:
+    def unmatched_teardowns(self, include_simulated: bool = False) -> list[dict[str, Any]]:
         """Teardowns of valves with no test judged before them (nothing to learn from yet)."""
-        return [row for row in self.teardown_matches() if not row.get("record_dir")]
+        return [row for row in self.teardown_matches(include_simulated) if not row.get("record_dir")]
 
-    def teardown_matches(self) -> list[dict[str, Any]]:
+    def teardown_matches(self, include_simulated: bool = False) -> list[dict[str, Any]]:
         """Every teardown in order, with the test it labels (:meth:`labelled_tests`) or only its valve if none."""
         found = self.teardowns()
         valves = sorted({t["valve_id"] for t in found})
         query = sa.select(*(tests.c[name] for name in COLUMNS)).where(
             self._current_tests(), tests.c.valve_id.in_(valves), tests.c.af_rel.is_not(None),
             tests.c.a1_rel.is_not(None), tests.c.verdict != Verdict.INVALID).order_by(tests.c.started_at, tests.c.id)
+        if not include_simulated:
+            query = query.where(_simulated(False))
         by_valve: dict[str, list[dict[str, Any]]] = {}
         for test in (self._rows(query) if valves else []):
             by_valve.setdefault(test["valve_id"], []).append(test)
@@ -371,9 +383,10 @@ class HistoryStore:
                          "note": teardown["note"]})
         return rows
 
-    def trend(self, valve_id: str) -> list[dict[str, Any]]:
-        """Every trustworthy visit of one valve, oldest first."""
-        return [r for r in self.list(Filters(valve_id=valve_id)) if r["verdict"] != Verdict.INVALID]
+    def trend(self, valve_id: str, include_simulated: bool = False) -> list[dict[str, Any]]:
+        """Every trustworthy visit of one valve, oldest first (on a rig; the simulated rig's too if asked)."""
+        filters = Filters(valve_id=valve_id, simulated=None if include_simulated else False)
+        return [r for r in self.list(filters) if r["verdict"] != Verdict.INVALID]
 
     # -- the whole chain ---------------------------------------------------------------------------------------
 
@@ -392,12 +405,19 @@ class HistoryStore:
             )).order_by(amendments.c.id))]
         return audit_events(rows, found, changes)
 
-    def add_adoption(self, model_name: str, model_sha256: str, station: str, adopted_by: str) -> dict[str, Any]:
-        """Record that ``station`` now judges with a model (``edc-bench train --adopt``); returns the row."""
+    def add_adoption(self, model_name: str, model_sha256: str, station: str, adopted_by: str,
+                     then: Callable[[], object] | None = None) -> dict[str, Any]:
+        """Record that ``station`` now judges with a model (``edc-bench train --adopt``); returns the row.
+
+        ``then`` (the station's own change) runs after the row is written and before it is committed: a login that
+        may not adopt is refused before the station changes, and a station change that fails leaves no row.
+        """
         row = {"station": station, "model_name": model_name, "model_sha256": model_sha256, "adopted_by": adopted_by,
                "adopted_at": _now(), "db_login": self.login}
         with self._guard("adopt"), self.engine.begin() as conn:
             conn.execute(adoptions.insert().values(**row))
+            if then is not None:
+                then()
         return row
 
     def adoptions(self) -> list[dict[str, Any]]:
@@ -407,6 +427,25 @@ class HistoryStore:
     def _rows(self, query: sa.Select[Any]) -> list[dict[str, Any]]:
         with self._guard("read"), self.engine.connect() as conn:
             return [dict(r._mapping) for r in conn.execute(query)]
+
+
+#: The columns that say how a row was indexed, not what the test was.
+_INDEXING = ("id", "record_manifest", "indexed_at", "indexed_by", "db_login")
+
+
+def _same_test(stored: dict[str, Any], row: dict[str, Any]) -> bool:
+    """Whether ``row`` indexes the record ``stored`` indexed: the same record.json (its hash), or for a row kept
+    before the history held hashes (or a folder without record.json) the same values."""
+    if stored.get("record_sha256") and row.get("record_sha256"):
+        return bool(stored["record_sha256"] == row["record_sha256"])
+    return all(stored.get(key) == value for key, value in row.items()
+               if key not in _INDEXING and key != "record_sha256" and stored.get(key) is not None)
+
+
+def _simulated(simulated: bool) -> sa.ColumnElement[bool]:
+    """Tests on the simulated rig (True), or on a rig (False: rows that do not say count as a rig's)."""
+    return tests.c.simulated.is_(True) if simulated else sa.or_(tests.c.simulated.is_(None),
+                                                                   tests.c.simulated.is_(False))
 
 
 def _withdrawn(target: str) -> sa.Select[Any]:
@@ -435,8 +474,8 @@ def audit_events(test_rows: list[dict[str, Any]], teardown_rows: list[dict[str, 
         kind = "test" if a["target"] == "tests" else "finding"
         events.append({"when": a["amended_at"], "event": f"{kind} {a['target_id']} withdrawn", "id": a["id"],
                        "what": a["reason"], "by": a["amended_by"], "db_login": a["db_login"], "order": (2, a["id"])})
-    events.sort(key=lambda e: (e["when"], e.pop("order")))
-    return events
+    events.sort(key=lambda e: (e["when"], e["order"]))
+    return [{key: value for key, value in e.items() if key != "order"} for e in events]
 
 
 def _now() -> str:

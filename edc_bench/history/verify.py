@@ -57,5 +57,18 @@ def check_row(row: dict[str, Any]) -> Finding | None:
 
 
 def verify(rows: list[dict[str, Any]]) -> list[Finding]:
-    """The findings over every indexed test (:meth:`~edc_bench.history.store.HistoryStore.indexed`)."""
-    return [found for found in map(check_row, rows) if found is not None]
+    """The findings over every indexed test as it stands (:meth:`~edc_bench.history.store.HistoryStore.indexed`).
+
+    A folder that cannot be read (a file the system refuses, record.json damaged beyond reading) is a finding of
+    its own: one bad folder never stops the check of the others.
+    """
+    found = []
+    for row in rows:
+        try:
+            problem = check_row(row)
+        except (OSError, ValueError, TypeError, AttributeError) as exc:
+            problem = Finding(row["id"], row["valve_id"], row["record_dir"], "altered",
+                              f"not readable ({type(exc).__name__}: {exc})")
+        if problem is not None:
+            found.append(problem)
+    return found

@@ -26,18 +26,24 @@ from edc_bench.verdict.classifier import (
 )
 
 
-def adopt(candidate: Path, adopted_by: str) -> dict[str, Any]:
-    """Make ``candidate`` the station's model; returns the adoption written.
-
-    The file is checked (it loads, it carries edc-bench's metadata), copied
-    into the station's models folder as ``NAME-SHA8.onnx`` and recorded with
-    its SHA-256, who adopted it and when.
-    """
+def load_candidate(candidate: Path) -> ValveClassifier:
+    """The model file ``candidate``, checked: it exists, loads and carries edc-bench's metadata (a ConfigError
+    saying why not)."""
     candidate = Path(candidate)
     if not candidate.is_file():
         raise ConfigError(f"--adopt {candidate}: no such model file (give the .onnx 'train --from-history' wrote, "
                           "or 'shipped')")
-    model = ValveClassifier(candidate)  # refuses a file that is not an edc-bench model, saying why
+    return ValveClassifier(candidate)  # refuses a file that is not an edc-bench model, saying why
+
+
+def adopt(candidate: Path, adopted_by: str, model: ValveClassifier | None = None) -> dict[str, Any]:
+    """Make ``candidate`` the station's model; returns the adoption written.
+
+    The file is checked (:func:`load_candidate`, unless its ``model`` is given already loaded), copied into the
+    station's models folder as ``NAME-SHA8.onnx`` and recorded with its SHA-256, who adopted it and when.
+    """
+    candidate = Path(candidate)
+    model = model or load_candidate(candidate)
     folder = station_models_dir()
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -51,7 +51,11 @@ def altered(doc: dict[str, Any], folder: Path) -> list[str]:
 
     ``doc`` is record.json's content as read, before any upgrade.
     """
-    if int(doc.get("schema") or 0) < INTEGRITY_SCHEMA and "integrity" not in doc:
+    try:
+        schema = int(doc.get("schema") or 0)
+    except (TypeError, ValueError):
+        schema = INTEGRITY_SCHEMA  # a damaged schema field: held to its manifest like any new record
+    if schema < INTEGRITY_SCHEMA and "integrity" not in doc:
         return []  # an older record: nothing to check it against (a lowered schema with a manifest is checked)
     kept = doc.get("integrity")
     if not isinstance(kept, dict) or not isinstance(kept.get("sections"), dict) \

@@ -539,7 +539,7 @@ def test_an_odd_valve_id_is_kept_intact_from_the_test_to_the_report(real_station
     assert re.fullmatch(r"[0-9T]+-p-edc-default-[A-Za-z0-9_.-]+", folder.name)  # the folder's name is cleaned
     steps = {
         "listed": ["history", "--db", url, "--valve-id", ODD_ID],
-        "trend": ["history", "--db", url, "--trend", ODD_ID, "--plot", "trend.png"],
+        "trend": ["history", "--db", url, "--trend", ODD_ID, "--include-simulated", "--plot", "trend.png"],
         "added again": ["history", "--db", f"sqlite:///{real_station / 'rebuilt.sqlite'}", "--add", str(folder)],
         "labelled": ["label", ODD_ID, "--finding", "worn", "--db", url],
         "findings": ["label", "--list", "--db", url],

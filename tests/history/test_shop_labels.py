@@ -24,7 +24,7 @@ def _row(valve: str, started: str, af_rel: float | None, a1_rel: float | None, v
     row.update(record_dir=f"/records/{valve}-{started}-{n}", started_at=started, valve_id=valve, verdict=verdict,
                af_v=None, a1_v_s_per_mm=None, af_rel=af_rel, a1_rel=a1_rel, probability_faulty=None, distance=None,
                model_name=None, model_sha256=None, coil_r20_ohm=None, coil_in_spec=None, model_fits=None,
-               stop_reason=None, test_s=None)
+               stop_reason=None, test_s=None, simulated=None)
     return row
 
 

@@ -13,5 +13,5 @@ context.configure(connection=connection, target_metadata=None, render_as_batch=T
 with context.begin_transaction():
     if connection.dialect.name == "postgresql":
         # two owners upgrading at once: the second waits, then finds the work done
-        connection.exec_driver_sql("SELECT pg_advisory_xact_lock(724051)")
+        connection.exec_driver_sql("SELECT pg_advisory_xact_lock(724051)")  # history.migrate.UPGRADE_LOCK
     context.run_migrations()
