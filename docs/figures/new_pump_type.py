@@ -103,7 +103,11 @@ def not_calibrated_transcript() -> str:
     with new_pump_station():
         variant = load_variant(NAME)
         reason = not_calibrated_reason(variant, default_calibrate_command(variant, RIG))
-    return (f"```text\n$ edc-bench test --variant {NAME} {' '.join(RIG)}\nverdict: INVALID\n"
+    from edc_bench.engine.problems import Problem
+    from edc_bench.records.advice import advice
+
+    words = advice("INVALID", Problem.NOT_CALIBRATED).words  # the first line, as test_cmd prints it
+    return (f"```text\n$ edc-bench test --variant {NAME} {' '.join(RIG)}\nverdict: INVALID, {words}\n"
             f"{_wrapped('  - ' + reason, '    ')}\n...\n```")
 
 

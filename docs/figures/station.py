@@ -37,3 +37,25 @@ def convergence_sentence() -> str:
              for name, d in data.items()]
     return ("At the end of a new valve's simulated test the online af and a1 differ from the period fit's "
             + ", and ".join(parts) + " (`python docs/regenerate.py --measure station-online-vs-period-fit`).")
+
+
+def advice_table() -> str:
+    """The technician's line for each outcome (edc_bench.records.advice), as the code gives it."""
+    from edc_bench.engine.outcome import AbortKind
+    from edc_bench.engine.problems import Problem
+    from edc_bench.records.advice import advice
+
+    cases = [("PASS", Problem.NONE, None, "a reusable valve"), ("FAIL", Problem.NONE, None, "a worn valve"),
+             ("FAIL", Problem.COIL_OUT_OF_SPEC, None, "a coil out of its spec"),
+             ("MARGINAL", Problem.NONE, None, "near the boundary"),
+             ("INVALID", Problem.ABORTED, AbortKind.SILENCE, "the rig stopped answering"),
+             ("INVALID", Problem.ABORTED, AbortKind.OFF_REFERENCE, "the rack did not follow"),
+             ("INVALID", Problem.ABORTED, AbortKind.FOREIGN_COMMAND, "another host on the bus"),
+             ("INVALID", Problem.TIMING, None, "the PC held the loop up"),
+             ("INVALID", Problem.MODEL_DOES_NOT_FIT, None, "the pump does not fit its variant"),
+             ("INVALID", Problem.DRIFTING, None, "af and a1 still drifting"),
+             ("INVALID", Problem.NOT_CALIBRATED, None, "no new-valve baseline")]
+    rows = ["| verdict | when | what to do |", "|---|---|---|"]
+    rows += [f"| {verdict} | {when} | {advice(verdict, problems, kind).words} |"
+             for verdict, problems, kind, when in cases]
+    return "\n".join(rows)

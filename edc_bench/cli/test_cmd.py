@@ -143,6 +143,7 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
 
     out = {
         "verdict": result.verdict,
+        "advice": {"action": result.advice.action, "words": result.advice.words},
         "reasons": result.reasons,
         "valve_id": result.valve_id,
         "variant": result.variant.name,
@@ -434,7 +435,7 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
     from edc_bench.identification.coil_check import coil_line
     from edc_bench.records.baseline_text import baseline_line
 
-    print(f"verdict: {result.verdict}")
+    print(f"verdict: {result.verdict}, {result.advice.words}")
     for reason in result.reasons:
         print(f"  - {reason}")
     print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm "

@@ -14,50 +14,10 @@ what the reference makes the plant do) and the period fit's.
 
 from __future__ import annotations
 
-import enum
-
 import numpy as np
 
 from edc_bench.config.models import AcceptanceSection
-
-
-class Problem(enum.IntFlag):
-    """What stands between a test and a verdict on the valve's wear. The first eight are the trust rule's."""
-
-    NONE = 0
-    #: the loop was cut short (the abort says why)
-    ABORTED = enum.auto()
-    #: nothing was identified (the test ended before its first tick)
-    NOT_IDENTIFIED = enum.auto()
-    #: the feedforward model does not fit the pump (a longer test will not help)
-    MODEL_DOES_NOT_FIT = enum.auto()
-    #: fewer whole excitation periods than the variant needs
-    TOO_FEW_PERIODS = enum.auto()
-    #: af and a1 still drifting between the first and second half of the periods
-    DRIFTING = enum.auto()
-    #: the excitation does not make af and a1 identifiable
-    POORLY_CONDITIONED = enum.auto()
-    #: too many ticks late or lost to host stalls
-    TIMING = enum.auto()
-    #: too many replies missing
-    REPLIES_MISSING = enum.auto()
-    #: the variant has no measured new-valve baseline to judge against (not a trust problem: the verdict's)
-    NOT_CALIBRATED = enum.auto()
-    #: the coil's resistance is out of its spec (not a trust problem: the valve FAILs whatever its wear)
-    COIL_OUT_OF_SPEC = enum.auto()
-
-    @property
-    def names(self) -> list[str]:
-        """The problems set, by name, lowercase with spaces (the record's ``problems``)."""
-        return [p.name.lower().replace("_", " ") for p in Problem if p and p in self]
-
-    @classmethod
-    def from_names(cls, names: list[str]) -> Problem:
-        """The problems a record lists (:attr:`names`)."""
-        out = cls.NONE
-        for name in names:
-            out |= cls[name.upper().replace(" ", "_")]
-        return out
+from edc_bench.engine.problems import Problem
 
 
 #: The trust rule's problems: a test with none of them is trusted.

@@ -40,6 +40,7 @@ from edc_bench.records.writer import (
     write_json,
 )
 from edc_bench.records.integrity import manifest
+from edc_bench.records.advice import Advice, advice
 from edc_bench.verdict.judgement import Judgement
 from edc_bench.verdict.verdicts import Verdict
 
@@ -108,6 +109,12 @@ class BenchResult:
     def reasons(self) -> list[str]:
         """Why the verdict is what it is."""
         return self.judgement.reasons
+
+    @property
+    def advice(self) -> Advice:
+        """What the technician does next (:func:`~edc_bench.records.advice.advice`)."""
+        abort = self.outcome.abort
+        return advice(self.verdict, self.judgement.problems, abort.kind if abort is not None else None)
 
     @property
     def parameters(self) -> dict[str, dict[str, Any]]:

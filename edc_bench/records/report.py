@@ -29,9 +29,6 @@ REPORT_PDF = "report.pdf"
 REPORT_PNG = "report-page.png"
 _VERDICT_COLOURS = {Verdict.PASS: "#2e7d32", Verdict.MARGINAL: "#f9a825", Verdict.FAIL: "#c62828",
                     Verdict.INVALID: "#6a1b9a"}
-_VERDICT_MEANINGS = {Verdict.PASS: "The valve can be reused.", Verdict.MARGINAL: "Near the limit: test again.",
-                     Verdict.FAIL: "Worn: replace the valve.",
-                     Verdict.INVALID: "The test is not to be trusted; nothing was judged."}
 _ID_COLUMN_CHARS = 40  # characters of 7.5 pt text in the identity block's value column (two lines at most: the
 # row's room; record.json holds the whole value)
 _UNITS = {"a3": "V s^3/mm", "a2": "V s^2/mm", "a1": "V s/mm", "a0": "V/mm", "b": "V", "af": "V"}
@@ -137,7 +134,8 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
 
 def _verdict_block(ax: Any, record: Record) -> None:
     cls = record.classification
-    lines = [_VERDICT_MEANINGS.get(record.verdict, "")]
+    words = record.advice.words  # the technician's line, as the test's own output gives it
+    lines = textwrap.wrap(words[:1].upper() + words[1:] + ".", 54)
     if cls is not None:
         rel = cls.features_rel
         lines += [

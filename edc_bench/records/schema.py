@@ -22,6 +22,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from edc_bench.engine.outcome import AbortKind
+from edc_bench.engine.problems import Problem
+from edc_bench.records.advice import Advice, advice
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -263,6 +265,14 @@ class Record(Section):
     files: RecordFiles = RecordFiles()
 
     model_config = ConfigDict(frozen=True, extra="allow", populate_by_name=True)
+
+    @property
+    def advice(self) -> Advice:
+        """What the technician does next (:func:`~edc_bench.records.advice.advice`), from the verdict, the problems
+        and the abort's kind as recorded."""
+        abort = self.loop.abort
+        known = [name for name in self.problems if name.upper().replace(" ", "_") in Problem.__members__]
+        return advice(self.verdict, Problem.from_names(known), abort.kind if abort is not None else None)
 
     @property
     def simulated_rig(self) -> bool:

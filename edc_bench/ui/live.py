@@ -126,7 +126,8 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     body = Table.grid(padding=(0, 2))
     body.add_column(style="bold", justify="right")
     body.add_column()
-    body.add_row("verdict", Text.assemble((f" {result.verdict} ", VERDICT_STYLES.get(result.verdict, "bold"))))
+    body.add_row("verdict", Text.assemble((f" {result.verdict} ", VERDICT_STYLES.get(result.verdict, "bold")),
+                                          ("  " + result.advice.words, "bold")))
     for n, reason in enumerate(result.reasons):
         body.add_row("why" if n == 0 else "", reason)
     f = result.features
@@ -137,7 +138,8 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
             line += f"   ({rel['af'] - 1:+.0%} and {rel['a1'] - 1:+.0%} against a new valve)"
         body.add_row("valve", line)
         body.add_row("", "af and a1 referred to the reference coil "
-                         f"({result.variant.coil.resistance_ohm:g} ohm at 20 degC): the coil's own resistance is out")
+                         f"({result.variant.coil.resistance_ohm:g} ohm at 20 degC): this coil's resistance is "
+                         "taken out of them")
     if result.judgement.coil is not None:
         body.add_row("coil", coil_line(result.judgement.coil))
     if result.judgement.baseline is not None:

@@ -86,6 +86,7 @@ def read_tick(k: int, loop: Any) -> dict[str, Any]:
     """The figures of tick ``k`` of a running loop, as plain numbers (a few microseconds; picklable)."""
     cols = loop.trace.columns
     recent = cols["lateness_s"][max(0, k - 99): k + 1]
+    recent = recent[np.isfinite(recent)]  # ticks lost in a host stall have no lateness (NaN): counted, not shown
     outcome = loop.outcome
     rule = getattr(loop, "stop_rule", None)
     return {

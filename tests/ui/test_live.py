@@ -111,3 +111,26 @@ def test_the_live_panel_shows_what_the_verdict_rests_on_and_whether_the_time_lef
     assert f"af {latest['af_rel'] - 1:+.1%} +/-{latest['af_half_width_rel']:.1%}" in text
     assert f"{latest['periods']} periods: {latest['verdict']} so far" in text
     assert "af online" in text and "a1 online" in text
+
+
+def test_the_live_panel_shows_no_nan_when_ticks_were_lost() -> None:
+    """Ticks lost in a host stall have no lateness (NaN in the trace): the panel shows the worst of the others,
+    and a figure, never 'nan' (seen as 'worst lateness nan us' on a stalled real-time test)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from edc_bench.ui.snapshot import read_tick
+
+    names = ("t_s", "reference_mm", "position_mm", "current_a", "drive_v", "feedforward_v", "feedback_v", "af_hat",
+             "a1_hat")
+    columns = {name: np.zeros(200) for name in names}
+    columns["lateness_s"] = np.full(200, 20e-6)
+    columns["lateness_s"][150:] = np.nan  # lost
+    columns["lateness_s"][120] = 80e-6
+    outcome = SimpleNamespace(ticks_late=0, ticks_lost=50, missed_replies=0, bad_replies=0, heartbeats=1)
+    loop = SimpleNamespace(trace=SimpleNamespace(columns=columns), outcome=outcome, ticks=200, period_s=1e-3)
+    assert read_tick(199, loop)["worst_lateness_recent_us"] == 80.0
+    columns["lateness_s"][100:] = np.nan
+    assert read_tick(199, loop)["worst_lateness_recent_us"] == 0.0  # nothing measured lately: 0, not nan
+    assert read_tick(199, loop)["ticks_late_or_lost"] == 50  # the summary's figure

@@ -1,0 +1,62 @@
+"""The technician's line: what to do after a test, from typed values, the same in the output, the record and the
+report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from helpers import edc_bench
+
+from edc_bench.engine.outcome import AbortKind
+from edc_bench.engine.problems import Problem
+from edc_bench.records.advice import Action, advice
+from edc_bench.verdict.verdicts import Verdict
+
+
+@pytest.mark.parametrize(("verdict", "problems", "kind", "action", "words"), [
+    (Verdict.PASS, Problem.NONE, None, Action.REFIT, "reusable: refit the valve"),
+    (Verdict.FAIL, Problem.NONE, None, Action.REPLACE, "worn: replace the valve"),
+    (Verdict.FAIL, Problem.COIL_OUT_OF_SPEC, None, Action.REPLACE, "coil out of spec: replace the valve"),
+    (Verdict.MARGINAL, Problem.NONE, None, Action.RETEST, "near the limit: retest"),
+    (Verdict.INVALID, Problem.ABORTED, AbortKind.SILENCE, Action.CHECK, "not judged: check the rig"),
+    (Verdict.INVALID, Problem.ABORTED, AbortKind.OFF_REFERENCE, Action.CHECK, "not judged: check the mounting"),
+    (Verdict.INVALID, Problem.ABORTED, AbortKind.FOREIGN_COMMAND, Action.CHECK, "not judged: check the bus"),
+    (Verdict.INVALID, Problem.TIMING, None, Action.CHECK, "not judged: check the PC"),
+    (Verdict.INVALID, Problem.MODEL_DOES_NOT_FIT, None, Action.CHECK, "not judged: check the pump's part number"),
+    (Verdict.INVALID, Problem.NOT_CALIBRATED, None, Action.CALIBRATE, "not judged: this pump type has no"),
+    (Verdict.INVALID, Problem.DRIFTING | Problem.TIMING, None, Action.CHECK, "not judged: check the PC"),
+])
+def test_each_outcome_says_what_to_do(verdict: Verdict, problems: Problem, kind: AbortKind | None, action: Action,
+                                      words: str) -> None:
+    said = advice(verdict, problems, kind)
+    assert said.action == action and said.words.startswith(words), said
+
+
+@pytest.mark.parametrize(("valve", "code", "words"), [("worn", 11, "worn: replace the valve"),
+                                                      ("new", 0, "reusable: refit the valve")])
+def test_the_test_command_and_its_record_say_it(tmp_path: Path, valve: str, code: int, words: str) -> None:
+    from edc_bench.records.reader import load_record
+
+    if valve == "worn":  # the plain output's first line
+        plain = edc_bench("test", "--valve", valve, "--no-figure", "--plain", "--no-history", "--out", "rec",
+                          cwd=tmp_path)
+        assert plain.returncode == code, plain.stderr
+        first = plain.stdout.splitlines()[0]
+        assert first == f"verdict: FAIL, {words}", first
+        return
+    as_json = edc_bench("test", "--valve", valve, "--no-figure", "--json", "--no-history", "--out", "rec",
+                        cwd=tmp_path)
+    assert as_json.returncode == code, as_json.stderr
+    summary = json.loads(as_json.stdout)
+    assert summary["advice"] == {"action": "refit", "words": words}
+    assert load_record(tmp_path / summary["record_dir"]).advice.words == words  # the report's line is the same
+
+
+def test_an_invalid_test_says_what_to_check(tmp_path: Path) -> None:
+    # a rig that never answers: INVALID, with the rig to check
+    proc = edc_bench("test", "--interface", "virtual", "--channel", "edc-bench-nobody-here", "--plain",
+                     "--no-history", "--out", "rec", "--valve-id", "V-1", cwd=tmp_path)
+    assert proc.returncode == 12, proc.stderr
+    assert proc.stdout.splitlines()[0].startswith("verdict: INVALID, not judged: check the rig"), proc.stdout
