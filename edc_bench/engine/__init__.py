@@ -4,6 +4,8 @@
   tick (reply matching, controller step, command bytes, trace row, abort checks, the stop rule's hook);
 - :mod:`~edc_bench.engine.outcome`: how a test ended, as values (:class:`~edc_bench.engine.outcome.Abort`,
   :class:`~edc_bench.engine.outcome.StopReason`), and the one place their sentences are made;
+- :mod:`~edc_bench.engine.problems`: what stands between a test and a verdict, as bits
+  (:class:`~edc_bench.engine.problems.Problem`), a leaf every layer may name;
 - :mod:`~edc_bench.engine.replies`, :mod:`~edc_bench.engine.trace`, :mod:`~edc_bench.engine.tracking`: the
   bookkeeping it keeps (replies in flight, the preallocated trace and frame log, the rack off its reference).
 
