@@ -7,6 +7,7 @@ import os
 import tomllib
 from pathlib import Path
 
+import pytest
 from helpers import REPO, edc_bench
 
 from edc_bench.cli.exit_codes import ExitCode
@@ -62,6 +63,7 @@ def test_a_test_on_an_uncalibrated_variant_is_invalid_with_the_calibrate_command
     assert "baseline NOMINAL: the variant is not calibrated; af and a1" in axes.lines
 
 
+@pytest.mark.slow  # 10-16 s: the default suite stays under 5 minutes; CI's slow pass runs it
 def test_calibrate_append_valve_by_valve_keeps_every_test_and_its_record(tmp_path) -> None:
     env = _station(tmp_path, duration_s=15.0)
     base = ("calibrate", "--variant", "p-edc-uncal", "--valve", "new", "--append", "--station", "bench 7",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import tomllib
 
+import pytest
 from helpers import edc_bench, write_new_pump_type
 
 from edc_bench.cli.exit_codes import ExitCode
@@ -15,6 +16,7 @@ def _comments(text: str) -> list[str]:
     return [line[line.index("#"):] for line in text.splitlines() if "#" in line]
 
 
+@pytest.mark.slow  # 10-16 s: the default suite stays under 5 minutes; CI's slow pass runs it
 def test_refusal_names_tune_and_tune_write_fixes_the_gains(tmp_path) -> None:
     path = write_new_pump_type(tmp_path / "variants")
     before = path.read_text(encoding="utf-8")

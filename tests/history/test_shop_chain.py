@@ -233,7 +233,8 @@ def _free_port() -> int:
 
 @pytest.mark.parametrize(("form", "every_command"), [
     pytest.param("userinfo", True, marks=pytest.mark.slow),  # 30 processes: CI's slow pass; the others every run
-    ("userinfo", False), ("query", False), ("slash", False)])
+    ("userinfo", False), pytest.param("query", False, marks=pytest.mark.slow),
+    pytest.param("slash", False, marks=pytest.mark.slow)])
 def test_no_command_shows_the_database_password(record_dir: Path, tmp_path: Path, form: str,
                                                 every_command: bool) -> None:
     """Every command that reaches the history, the password given in the URL (as user:PASSWORD@, and for a few

@@ -59,6 +59,7 @@ def test_a_stopped_batch_is_the_full_batch_stopped_afterwards(variant_name: str,
         assert out.misfit.any(), "the gain sweep's pump is meant to stop some tests as not fitting"
 
 
+@pytest.mark.slow  # 10-16 s: the default suite stays under 5 minutes; CI's slow pass runs it
 def test_a_batch_whose_tests_all_run_full_length_is_the_full_batch() -> None:
     """A rule that never finds a verdict certain (a band nothing leaves) ends every test at its full length with
     the full run's figures, to the bit."""
