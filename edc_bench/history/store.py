@@ -420,10 +420,6 @@ class HistoryStore:
                 then()
         return row
 
-    def adoptions(self) -> list[dict[str, Any]]:
-        """Every model adoption recorded, oldest first."""
-        return self._rows(sa.select(adoptions).order_by(adoptions.c.id))
-
     def _rows(self, query: sa.Select[Any]) -> list[dict[str, Any]]:
         with self._guard("read"), self.engine.connect() as conn:
             return [dict(r._mapping) for r in conn.execute(query)]
