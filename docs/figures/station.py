@@ -59,3 +59,16 @@ def advice_table() -> str:
     rows += [f"| {verdict} | {when} | {advice(verdict, problems, kind).words} |"
              for verdict, problems, kind, when in cases]
     return "\n".join(rows)
+
+
+def retest_table() -> str:
+    """What a MARGINAL and its retest decide under the default ``[retest]`` rule (edc_bench.verdict.retest)."""
+    from edc_bench.config.models import RetestSection
+    from edc_bench.verdict.retest import decide
+
+    rule = RetestSection()
+    rows = ["| first test | retest | decision | what to do |", "|---|---|---|---|"]
+    for second in ("PASS", "MARGINAL", "FAIL", "INVALID"):
+        decision = decide(second, rule, "not judged: check the mounting" if second == "INVALID" else "")
+        rows.append(f"| MARGINAL | {second} | {decision.verdict} | {decision.words} |")
+    return "\n".join(rows)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from edc_bench.cli.common import (
+    MAX_SEED,
     add_history_db_argument,
     add_variant_arguments,
     bit_rate,
@@ -78,6 +79,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="judge a variant that has no measured new-valve baseline against the nominal one from its "
                         "physics (bring-up only: the verdict may be wrong, and the record, panel and report say "
                         "so); without it such a test is INVALID, 'variant not calibrated'")
+    p.add_argument("--no-retest", action="store_true",
+                   help="after a MARGINAL, do not test the valve again (by default the bench retests it at once and "
+                        "the variant's [retest] rule says what the two tests decide)")
     p.add_argument("--full-length", action="store_true",
                    help="run the variant's whole excitation.duration_s; by default the test stops as soon as af and "
                         "a1 are known well enough that the verdict cannot change (or the model is known not to fit)")
@@ -137,8 +141,8 @@ def _coil_temp(text: str) -> float:
     return value
 
 
-def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
-    """The JSON summary of a test."""
+def summary(result: Any, record_dir: Path | None, decision: Any = None) -> dict[str, Any]:
+    """The JSON summary of a test (``decision``: a retest's, what it and the MARGINAL before it decide)."""
     from edc_bench.records.writer import json_safe
 
     out = {
@@ -164,6 +168,8 @@ def summary(result: Any, record_dir: Path | None) -> dict[str, Any]:
     }
     if result.truth is not None:
         out["truth"] = result.truth._asdict()
+    if decision is not None:
+        out["decision"] = decision.as_dict()
     return json_safe(out)
 
 
@@ -217,6 +223,8 @@ def _observer(args: argparse.Namespace, title: str) -> Any:
 
 def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.cli.common import check_output_folder
+    from edc_bench.runtime.signals import stop_requested
+    from edc_bench.verdict.retest import retest_wanted
 
     check_output_folder(args.out, "--out")  # before the test, not after it
     variant = _variant(args)
@@ -229,16 +237,74 @@ def _run_guarded(args: argparse.Namespace) -> int:
         print("edc-bench test: warning: no --valve-id: the record and the history name no valve (the bench cannot "
               "read it off the valve); give --valve-id ID to follow this valve in 'edc-bench history --trend' "
               "and 'edc-bench label'", file=sys.stderr)
+    first = _test_once(args, variant, bus_config, valve_id, args.seed, retest_of=None)
+    if (first.record_dir is None or first.code in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN)
+            or stop_requested() or args.no_retest or not retest_wanted(first.result.verdict, variant.retest)):
+        if args.json:
+            print_quietly_if_closed(lambda: print(json.dumps(summary(first.result, first.record_dir), indent=2)))
+        return first.code
+    # the MARGINAL procedure: the valve stays mounted and is tested again; on the simulated rig with new noise
+    retest_seed = (args.seed + 1) % (MAX_SEED + 1)
+    if not args.json:
+        print(f"\nretest: MARGINAL is near the limit; the bench tests the valve again now"
+              + (f" (simulated rig: noise seed {retest_seed})" if bus_config is None else "")
+              + ". Leave the valve mounted.", flush=True)
+    second = _test_once(args, variant, bus_config, valve_id, retest_seed, retest_of=first)
+    if second.decision is None:  # not written, or a bug: said already
+        return second.code
+    if args.json:
+        out = summary(second.result, second.record_dir, second.decision)
+        out["first_test"] = summary(first.result, first.record_dir)
+        print_quietly_if_closed(lambda: print(json.dumps(out, indent=2)))
+    elif _live(args):
+        from rich.console import Console
+
+        from edc_bench.ui.live import decision_panel
+
+        Console().print(decision_panel(second.decision, first.result.verdict, second.result.verdict))
+    else:
+        print_quietly_if_closed(lambda: print(f"\ndecision: {second.decision.verdict}, {second.decision.words} "
+                                              f"(first test MARGINAL, retest {second.result.verdict}; "
+                                              f"rule {second.decision.rule})"))
+    if stop_requested():
+        return second.code
+    return exit_code_for(second.decision.verdict)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Tested:
+    """One test run, stored and shown: its result, record folder, exit code, and (a retest) what the pair decided."""
+
+    result: Any
+    record_dir: Path | None
+    code: int
+    decision: Any = None
+
+
+def _test_once(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None, valve_id: str, seed: int,
+               retest_of: _Tested | None) -> _Tested:
+    """Run one test on the rig the flags name, write its record, add it to the history and show its verdict."""
     folder: list[Path] = []
     options = _options(args, variant, bus_config, valve_id, folder)
+    simulated = bus_config is None and not args.realtime
     where = ("simulated rig, simulated time" if simulated else
              "simulated rig process, real time" if bus_config is None else f"bus {bus_config}, real time")
-    title = f"edc-bench test: {variant.name} ({variant.pump.part_number}), valve {valve_id or '?'}, {where}"
+    which = "retest of " if retest_of is not None else ""
+    title = (f"edc-bench test: {which}{variant.name} ({variant.pump.part_number}), valve {valve_id or '?'}, "
+             f"{where}")
     with _observer(args, title) as observer:
         if observer is not None:
             observer.phase("connect")
-        result, notes = _run(args, variant, bus_config, dataclasses.replace(options, observer=observer))
-    return _finish(args, result, folder[0] if folder else None, notes)
+        result, notes = _run(args, variant, bus_config, dataclasses.replace(options, observer=observer), seed)
+    decision = retest = None
+    if retest_of is not None:
+        from edc_bench.verdict.retest import decide
+
+        decision = decide(result.verdict, variant.retest, result.advice.words)
+        retest = {"of_record": retest_of.record_dir.name, "of_verdict": str(retest_of.result.verdict),
+                  "decision": str(decision.verdict), "words": decision.words, "rule": decision.rule}
+    record_dir, code = _finish(args, result, folder[0] if folder else None, notes, retest)
+    return _Tested(result, record_dir, code, decision if record_dir is not None else None)
 
 
 def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None) -> None:
@@ -288,7 +354,7 @@ def _options(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] 
 
 
 def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None,
-         options: Any) -> tuple[Any, list[str]]:
+         options: Any, seed: int) -> tuple[Any, list[str]]:
     """Run the test on the rig the flags name; the result, and what the record should note of the bus after it."""
     from edc_bench.bench import run_bench_test, run_simulated_test
     from edc_bench.physics.valve import parse_valve_spec
@@ -300,9 +366,9 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     quiet = args.json or _live(args)
     log = (lambda line: None) if quiet else (lambda line: print(line, file=sys.stderr, flush=True))
     if bus_config is None and not args.realtime:
-        log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {args.seed}), "
+        log(f"edc-bench test: variant {variant.name}, simulated rig (valve {args.valve}, seed {seed}), "
             f"simulated time, at most {variant.excitation.duration_s:g} s")
-        return run_simulated_test(variant, parse_valve_spec(args.valve, variant), args.seed,
+        return run_simulated_test(variant, parse_valve_spec(args.valve, variant), seed,
                                   stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
                                   adapter=args.adapter, options=options, firmware=args.firmware), []
     icd = default_icd()
@@ -315,7 +381,7 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     from edc_bench.sim.process import rig_process
 
     rig_status: dict[str, float] = {}
-    with rig_process(args.variant, args.valve, args.seed, args.adapter, rig_status,
+    with rig_process(args.variant, args.valve, seed, args.adapter, rig_status,
                      extra=["--firmware", args.firmware]) as channel:
         log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
         session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
@@ -323,7 +389,7 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
             result = run_bench_test(bus, RealTimeClock(), variant, options)
     # the rig process's side of the timing (how long it once went without serving: a disturbed rig), known once it
     # has stopped
-    simulation = {"rig_process": {"valve": args.valve, "seed": args.seed, "adapter": args.adapter,
+    simulation = {"rig_process": {"valve": args.valve, "seed": seed, "adapter": args.adapter,
                                   "firmware": args.firmware, **rig_status}}
     return dataclasses.replace(result, simulation=simulation), _closing_notes(session)
 
@@ -343,15 +409,17 @@ def _closing_notes(session: Any) -> list[str]:
     return [f"closing the bus failed: {session.close_error}"] if session.close_error else []
 
 
-def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: list[str]) -> int:
-    """Write the record, add it to the history, report the verdict; the exit code."""
-    record_dir, record_error = _write_record(result, args, folder, notes)
+def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: list[str],
+            retest: dict[str, str] | None = None) -> tuple[Path | None, int]:
+    """Write the record, add it to the history, show the verdict (``--json``: the caller prints the summary); the
+    record folder and the exit code."""
+    record_dir, record_error = _write_record(result, args, folder, notes, retest)
     if record_dir is None:
         _report(args, result, None)
         print(f"edc-bench test: error: the record could not be written ({record_error}). The verdict above was "
               "not saved: free space on the disk or give a writable --out, then test the valve again.",
               file=sys.stderr)
-        return ExitCode.RECORD_NOT_WRITTEN
+        return None, ExitCode.RECORD_NOT_WRITTEN
     if record_error:
         print(f"edc-bench test: warning: {record_error}", file=sys.stderr)
     saved_elsewhere = not record_dir.resolve().is_relative_to(Path(args.out).resolve())  # moved later, added then
@@ -360,19 +428,19 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
     if abort is not None and abort.kind is AbortKind.INTERNAL_ERROR:
         print(f"edc-bench test: {result.outcome.abort_reason}\nThis is a bug in edc-bench; the rig was sent SAFE and "
               f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
-        return ExitCode.INTERNAL_ERROR
+        return record_dir, ExitCode.INTERNAL_ERROR
     if history_error:
         print(f"edc-bench test: warning: the history was not updated ({history_error}); the record is complete. "
               f"Add it later with: edc-bench history --add {record_dir}", file=sys.stderr)
     _report(args, result, record_dir)
-    return exit_code_for(result.verdict)
+    return record_dir, exit_code_for(result.verdict)
 
 
 def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> None:
     """The verdict for the technician: JSON, the verdict panel, or plain lines."""
     if args.json:
-        print_quietly_if_closed(lambda: print(json.dumps(summary(result, record_dir), indent=2)))
-    elif _live(args):
+        return  # one summary for the whole run, printed by the caller (a retest's holds its first test's)
+    if _live(args):
         from rich.console import Console
 
         from edc_bench.ui.live import verdict_panel
@@ -382,8 +450,8 @@ def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> N
         print_quietly_if_closed(lambda: _print_report(result, record_dir))
 
 
-def _write_record(result: Any, args: argparse.Namespace, folder: Path | None,
-                  notes: list[str]) -> tuple[Path | None, str | None]:
+def _write_record(result: Any, args: argparse.Namespace, folder: Path | None, notes: list[str],
+                  retest: dict[str, str] | None = None) -> tuple[Path | None, str | None]:
     """Write the record under ``--out``; if its record.json cannot be written (a full disk), into a new folder in
     the temp folder.
 
@@ -397,7 +465,8 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None,
     from edc_bench.records.record import missing_files, write_record
 
     try:
-        written = write_record(result, args.out, figure=not args.no_figure, folder=folder, notes=notes)
+        written = write_record(result, args.out, figure=not args.no_figure, folder=folder, notes=notes,
+                               retest=retest)
         missing = missing_files(written)
         if not missing:
             return written, None
@@ -408,7 +477,7 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None,
     notes = [*notes, f"the record could not be written under {args.out} ({first}){where}"]
     try:
         fallback = Path(tempfile.mkdtemp(prefix="edc-bench-record-"))
-        written = write_record(result, fallback, figure=False, folder=fallback, notes=notes)
+        written = write_record(result, fallback, figure=False, folder=fallback, notes=notes, retest=retest)
     except OSError as exc:
         return None, f"under {args.out}: {first}; in the temp folder: {type(exc).__name__}: {exc}"
     return written, (f"the record could not be written under {args.out} ({first}); it was saved to {written} "

@@ -399,6 +399,37 @@ class AcceptanceSection(_Section):
     ready_timeout_s: PositiveFloat = 3.0
 
 
+VerdictName = Literal["PASS", "MARGINAL", "FAIL", "INVALID"]
+
+
+class RetestSection(_Section):
+    """What the bench does after a MARGINAL: it tests the valve again at once, and the two tests decide together.
+
+    ``decide`` maps the retest's verdict to what the pair decides: PASS (refit the valve), FAIL (replace it) or
+    INVALID (the retest was not judged: check what it names, then test again). A second MARGINAL must decide
+    PASS or FAIL: a valve is never left near the limit.
+    """
+
+    after_marginal: bool = Field(
+        default=True, description="test a MARGINAL valve again at once (false: the technician decides)")
+    decide: dict[VerdictName, Literal["PASS", "FAIL", "INVALID"]] = Field(
+        default={"PASS": "PASS", "MARGINAL": "FAIL", "FAIL": "FAIL", "INVALID": "INVALID"},
+        description="the retest's verdict -> what the two tests decide (default: a FAIL or a second MARGINAL "
+                    "replaces the valve, a PASS refits it)")
+
+    @model_validator(mode="after")
+    def _whole(self) -> RetestSection:
+        missing = [v for v in ("PASS", "MARGINAL", "FAIL", "INVALID") if v not in self.decide]
+        if missing:
+            raise ValueError(f"decide needs what every retest verdict decides; missing {', '.join(missing)} "
+                             '(e.g. MARGINAL = "FAIL")')
+        if self.decide["MARGINAL"] == "INVALID":
+            raise ValueError('decide.MARGINAL must be "PASS" or "FAIL": two judged tests decide the valve')
+        if self.decide["INVALID"] != "INVALID":
+            raise ValueError('decide.INVALID must be "INVALID": a retest that was not judged decides nothing')
+        return self
+
+
 class PopulationSection(_Section):
     """How the simulated population of used valves is drawn."""
 
@@ -460,6 +491,7 @@ class Variant(_Section):
     controller: ControllerSection
     estimator: EstimatorSection = EstimatorSection()
     acceptance: AcceptanceSection = AcceptanceSection()
+    retest: RetestSection = RetestSection()
     diagnosis: DiagnosisSection
     _source_file: str | None = PrivateAttr(default=None)
 

@@ -55,6 +55,10 @@ tests = sa.Table(
     sa.Column("stop_reason", sa.String(40)),
     sa.Column("test_s", sa.Float),
     sa.Column("simulated", sa.Boolean),  # on the simulated rig: out of trends and training unless asked for
+    # a retest of a MARGINAL: the record folder of the test it repeats, and what the two decided (PASS, FAIL or
+    # INVALID; None for a test that repeats none)
+    sa.Column("retest_of", sa.String(1024)),
+    sa.Column("decision", sa.String(20)),
     # the record as it was indexed (None in rows indexed before the history kept it)
     sa.Column("record_sha256", sa.String(64)),
     sa.Column("record_manifest", sa.Text),  # record.json's integrity section as JSON (records of schema 5 on)

@@ -94,7 +94,17 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "stop_reason": _text(stop.reason)[:40] if stop is not None and stop.reason else None,
         "test_s": None if stop is None else _finite(stop.time_s),
         "simulated": record.simulated_rig,
+        "retest_of": _retest_of(record, record_dir),
+        "decision": None if record.retest is None else _text(record.retest.decision)[:20] or None,
     }
+
+
+def _retest_of(record: Record, record_dir: Path) -> str | None:
+    """The record folder of the test a retest repeats (it sits beside the retest's folder), as the history names
+    folders."""
+    if record.retest is None or not record.retest.of_record:
+        return None
+    return _text(Path(record_dir).resolve().parent / Path(record.retest.of_record).name)
 
 
 @dataclass(frozen=True)

@@ -147,8 +147,9 @@ class BenchResult:
         return self.judgement.baseline
 
 
-def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, Any]:
-    """The content of record.json."""
+def record_dict(result: BenchResult, files: dict[str, str | None],
+                retest: dict[str, str] | None = None) -> dict[str, Any]:
+    """The content of record.json (``retest``: this test repeats a MARGINAL, :class:`~.schema.RetestSummary`)."""
     ident = result.identification
     outcome = result.outcome.as_dict()
     return {
@@ -195,12 +196,13 @@ def record_dict(result: BenchResult, files: dict[str, str | None]) -> dict[str, 
         "truth": None if result.truth is None else result.truth._asdict(),
         "simulation": result.simulation,
         "config": result.variant.model_dump(mode="json"),
+        "retest": retest,
         "files": files,
     }
 
 
 def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder: Path | None = None,
-                 notes: Sequence[str] = ()) -> Path:
+                 notes: Sequence[str] = (), retest: dict[str, str] | None = None) -> Path:
     """Write the record folder of ``result`` under ``out_dir``.
 
     Parameters
@@ -217,6 +219,9 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     notes : sequence of str, optional
         What happened after the test that the record should say (a bus that failed to close, a first folder
         that could not be written), added to the loop's events in record.json; ``result`` is not changed.
+    retest : dict, optional
+        This test repeats a MARGINAL: the first test's folder and verdict and what the two decide
+        (:class:`~edc_bench.records.schema.RetestSummary`'s fields).
 
     Each file is written on its own: one that cannot be written (a full disk) is named with its error in
     record.json's ``files`` (``trace_error``, ``can_log_error``, ``figure_error``), and record.json, the
@@ -261,7 +266,7 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
             files["figure"] = FIGURE_FILE
         except Exception as exc:  # noqa: BLE001 - a figure is never worth losing the record
             files["figure_error"] = f"{type(exc).__name__}: {exc}"
-    doc = record_dict(result, files)
+    doc = record_dict(result, files, retest)
     doc["loop"]["events"] = [*doc["loop"]["events"], *notes]
     doc = json_safe(doc)
     # what the test wrote, as it wrote it: every reader checks it (records.integrity)

@@ -210,6 +210,16 @@ class LoopSummary(Section):
     abort_time_s: float | None = None
 
 
+class RetestSummary(Section):
+    """A retest's record: the test it repeats and what the two decide (:mod:`edc_bench.verdict.retest`)."""
+
+    of_record: str = ""  # the first test's record folder (its name: the two sit side by side)
+    of_verdict: str = ""  # the first test's verdict (MARGINAL)
+    decision: str = ""  # what the pair decides: PASS, FAIL or INVALID
+    words: str = ""  # the technician's line for the pair
+    rule: str = ""  # the variant's rule that decided, e.g. "retest.decide.MARGINAL = FAIL"
+
+
 class RecordFiles(Section):
     """The record folder's files (None: not written); ``<name>_error`` keys say why one could not be."""
 
@@ -262,6 +272,7 @@ class Record(Section):
     truth: dict[str, float] | None = None
     simulation: dict[str, Any] | None = None
     config: dict[str, Any] | None = None
+    retest: RetestSummary | None = None  # this test repeats a MARGINAL
     files: RecordFiles = RecordFiles()
 
     model_config = ConfigDict(frozen=True, extra="allow", populate_by_name=True)

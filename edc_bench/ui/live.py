@@ -168,6 +168,15 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     return Panel(body, title=Text(f"valve {result.valve_id or '?'} on {result.variant.name}"), border_style=style)
 
 
+def decision_panel(decision: Any, first_verdict: str, retest_verdict: str) -> Panel:
+    """What a MARGINAL and its retest decide together (:class:`~edc_bench.verdict.retest.Decision`), big."""
+    body = Text.assemble((f" {decision.verdict} ", VERDICT_STYLES.get(decision.verdict, "bold")),
+                         ("  " + decision.words, "bold"),
+                         f"\nfirst test {first_verdict}, retest {retest_verdict}; the variant's rule {decision.rule}")
+    style = {Verdict.PASS: "green", Verdict.FAIL: "red"}.get(decision.verdict, "magenta")
+    return Panel(body, title="decision", border_style=style)
+
+
 class LiveView:
     """The live panel as a :class:`~edc_bench.runtime.loop.LoopObserver`; use as a context manager.
 

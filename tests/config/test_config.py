@@ -65,7 +65,7 @@ def test_written_copy_round_trips(tmp_path: Path) -> None:
         (lambda d: d["rack"].update(strok_mm=20.0), r"\[rack\]\.strok_mm: unknown key; expected one of: .*stroke_mm"),
         (lambda d: d["coil"].pop("resistance_ohm"), r"\[coil\]\.resistance_ohm: required key is missing"),
         (lambda d: d["coil"].update(inductance_mh="1 mH"), r"\[coil\]\.inductance_mh = '1 mH': Input should be a valid number"),
-        (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: acceptance, coil, controller, diagnosis, estimator, excitation, pump, rack, rig"),
+        (lambda d: d.update(extra={"a": 1}), r"\[extra\]: unknown key; expected one of: acceptance, coil, controller, diagnosis, estimator, excitation, pump, rack, retest, rig"),
         # retired (#11): the spread between periods is noise; the file says what replaced it
         (lambda d: d.setdefault("acceptance", {}).update(max_period_spread_rel=0.02),
          r"\[acceptance\]\.max_period_spread_rel: no longer a setting: .*max_residual_ratio.*Delete the line"),
