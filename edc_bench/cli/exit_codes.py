@@ -84,6 +84,7 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "report": (ExitCode.OK,),
     "check-station": (ExitCode.OK, ExitCode.STATION_NOT_READY),
     "rig-check": (ExitCode.OK, ExitCode.RIG_NOT_CONFORMING, ExitCode.RIG_ERROR),
+    "session": (ExitCode.OK,),
 }
 
 #: Codes any command can return: bad input (argparse too), a bug, Ctrl-C.

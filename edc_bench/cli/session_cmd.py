@@ -1,0 +1,107 @@
+"""``edc-bench session``: a shift at the bench, full screen (edc_bench.session)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from edc_bench.cli.common import add_history_db_argument, bit_rate, identity, seed_number
+from edc_bench.cli.exit_codes import ExitCode
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "session",
+        help="a shift at the bench, full screen: scan, mount, test, verdict with what to do, report",
+        description="A full-screen session for a shift: it asks the operator's name once (remembered for this "
+                    "station), checks the rig with its reference valve, then for each valve asks, always in this "
+                    "order, the valve id, the pump serial and 'mount the valve, then Enter' (a barcode scanner "
+                    "types and ends with Enter); it tests the valve, retests a MARGINAL, shows the verdict with "
+                    "what to do until the next scan, and makes the report (PDF and PNG) in every record. A pump "
+                    "part number scanned at any prompt switches the pump type. Ctrl+Q ends the shift and writes "
+                    "its summary. Without bus arguments the simulated rig runs in process (a valve id that names "
+                    "a simulated valve, such as worn or clearance=0.185, gets that valve; any other id a used "
+                    "valve drawn from it). 'edc-bench test' stays for scripts.",
+    )
+    p.add_argument("--variant", default=None, metavar="NAME|PART|PATH",
+                   help="the pump type tested until a part number is scanned (default: p-edc-default)")
+    p.add_argument("--interface", default=None, help="python-can interface of a real rig, e.g. slcan, socketcan")
+    p.add_argument("--channel", default=None, help="python-can channel, e.g. can0 or socket://127.0.0.1:5000")
+    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    p.add_argument("--seed", type=seed_number, default=0,
+                   help="simulated rig: the first test's noise seed; each later test takes the next (default: 0)")
+    p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
+                   help="folder for record folders and the shift summary (default: ./records)")
+    p.add_argument("--station", type=identity(), default=None, help="this bench station's name (default: host name)")
+    p.add_argument("--operator", type=identity(), default=None,
+                   help="who works the shift (default: the name given at this station last time; asked if none)")
+    add_history_db_argument(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the session; print the shift's summary when it ends."""
+    import socket
+
+    from edc_bench.cli.common import bus_settings, check_history_url, check_output_folder
+    from edc_bench.config import load_variant
+    from edc_bench.session.app import SessionApp
+    from edc_bench.session.operator import remember_operator, remembered_operator
+    from edc_bench.session.runner import RigChoice, SessionRunner
+
+    check_output_folder(args.out, "--out")
+    check_history_url(args.db)
+    variant = load_variant(args.variant)  # a bad --variant is refused before the screen opens
+    if not sys.stdin.isatty() or not sys.stdout.isatty():
+        print("edc-bench session: needs a terminal (it is a full-screen app); for scripts use 'edc-bench test'",
+              file=sys.stderr)
+        return ExitCode.BAD_INPUT
+    bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True)
+    rig = RigChoice(bus_config=bus_config, first_seed=args.seed)
+    operator = args.operator or remembered_operator()
+    runner = SessionRunner(rig, args.out, args.db, args.station or socket.gethostname(), operator)
+    app = SessionApp(runner, load_variant, variant.name, library_part_numbers(), operator, remember_operator,
+                     history_lines(args.db), args.out)
+    app.run()
+    for line in app.shift.summary_lines():
+        print(line)
+    if app.summary_file is not None:
+        print(f"shift summary: {app.summary_file}")
+    return ExitCode.OK
+
+
+def library_part_numbers() -> dict[str, str]:
+    """Part number -> variant name, of every variant this station has (unreadable files left out)."""
+    from edc_bench.config import load_variant
+    from edc_bench.config.loader import available_variants
+    from edc_bench.errors import ConfigError
+    from edc_bench.session.scan import part_number_index
+
+    names: dict[str, str] = {}
+    for name in available_variants():
+        try:
+            names[name] = load_variant(name).pump.part_number
+        except ConfigError:
+            continue
+    return part_number_index(names)
+
+
+def history_lines(url: str | None) -> Any:
+    """Valve id -> its last tests at this shop, newest first, as lines for the screen."""
+
+    def lines(valve_id: str) -> list[str]:
+        from edc_bench.history.store import Filters, HistoryStore
+
+        try:
+            with HistoryStore(url) as store:
+                rows = store.list(Filters(valve_id=valve_id), limit=5)[::-1]  # newest first
+        except Exception as exc:  # noqa: BLE001 - the history is a help here, never a stop
+            return [f"(the history could not be read: {type(exc).__name__})"]
+        return [f"{row['started_at'][:16].replace('T', ' ')}  {row['verdict']}"
+                + (f" -> {row['decision']}" if row.get("decision") else "")
+                + f"  pump {row['pump_serial'] or '-'}, {row['variant']}" for row in rows]
+
+    return lines

@@ -1,0 +1,391 @@
+"""The session's screen (Textual): operator, prompts, the live test, the verdict with what to do, the shift summary.
+
+The screen only shows and asks; :mod:`.scan` says what a line means, :mod:`.runner` runs the tests and keeps
+their records, :mod:`.shift` counts the shift. A test runs in a worker thread and the screen reads its figures
+four times a second from a :class:`~edc_bench.ui.snapshot.Snapshot`; the verdict stays on screen until the next
+valve id is scanned.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rich.text import Text
+from textual import work
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Footer, Input, Label, Static
+
+from edc_bench.session.runner import SessionRunner, ValveDone
+from edc_bench.session.scan import PROMPTS, Scan, Step, read_line
+from edc_bench.session.shift import RigCheckEntry, ShiftLog, ValveEntry, _now
+from edc_bench.ui.snapshot import Snapshot
+
+#: Colours of each verdict's block (white text on them).
+VERDICT_COLOURS = {"PASS": "green", "MARGINAL": "#b58900", "FAIL": "red", "INVALID": "magenta"}
+
+
+class SnapshotObserver:
+    """A :class:`~edc_bench.runtime.loop.LoopObserver` that copies the running test into a snapshot the screen
+    reads (a lock keeps the screen from reading half a tick)."""
+
+    def __init__(self) -> None:
+        self.snapshot = Snapshot()
+        self.lock = threading.Lock()
+
+    def phase(self, name: str) -> None:
+        """A new phase began."""
+        with self.lock:
+            self.snapshot.enter(name)
+
+    def tick(self, k: int, loop: Any) -> None:
+        """Copy tick ``k``'s figures."""
+        from edc_bench.ui.snapshot import read_tick
+
+        figures = read_tick(k, loop)
+        with self.lock:
+            self.snapshot.apply(figures)
+
+
+@dataclass(frozen=True)
+class SelfCheckWords:
+    """A rig self-check as the session shows it: GO (True), NO-GO (False) or not run (None), and its words."""
+
+    go: bool | None
+    words: str
+
+
+class OperatorScreen(ModalScreen[str]):
+    """Asks the operator's name (once per station; F2 changes it)."""
+
+    def __init__(self, current: str) -> None:
+        super().__init__()
+        self.current = current
+
+    def compose(self) -> ComposeResult:
+        with Vertical(id="operator-box"):
+            yield Label("Who is working at this bench? Type your NAME, then Enter")
+            yield Input(value=self.current, placeholder="your name", id="operator-name")
+            yield Label("", id="operator-message")
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        name = event.value.strip()
+        if not name or len(name) > 100 or not name.isprintable():
+            self.query_one("#operator-message", Label).update("a name of 1 to 100 printable characters, please")
+            return
+        self.dismiss(name)
+
+
+class SessionApp(App[None]):
+    """A shift at the bench.
+
+    Parameters
+    ----------
+    runner : SessionRunner
+        Runs the tests and keeps their records.
+    variant_loader : callable
+        Variant name -> :class:`~edc_bench.config.models.Variant`.
+    variant_name : str
+        The session's pump type until a part number is scanned.
+    part_numbers : Mapping[str, str]
+        Part number -> variant name, of the variant library.
+    operator : str
+        The operator remembered for this station ("" asks).
+    remember_operator : callable
+        Keeps a newly named operator for the next session.
+    history_of : callable
+        Valve id -> its earlier tests (newest first), lines for the screen.
+    rig_selfcheck : callable, optional
+        Runs the rig self-check with the reference valve (None: the session has none to run).
+    selfcheck_due : callable, optional
+        (tests since the last check, hours since) -> why a check is due now, or None.
+    shift_folder : pathlib.Path
+        Where the shift summary is written.
+    """
+
+    TITLE = "edc-bench session"
+    CSS = """
+    Screen { layout: vertical; }
+    #status { height: 1; background: $boost; padding: 0 1; }
+    #prompt { height: 1; margin: 1 1 0 1; text-style: bold; }
+    #entry { margin: 0 1; }
+    #message { height: auto; margin: 0 1; color: $warning; }
+    #verdict { height: 5; content-align: center middle; text-style: bold; margin: 1 1 0 1; }
+    #words { height: auto; margin: 0 1; text-style: bold; }
+    #body { height: 1fr; }
+    #live { width: 2fr; }
+    #side { width: 1fr; padding: 0 1; border-left: solid $panel; }
+    #operator-box { width: 70; height: auto; border: thick $accent; padding: 1 2; background: $surface; }
+    OperatorScreen { align: center middle; }
+    """
+    BINDINGS = [
+        Binding("f2", "change_operator", "Operator"),
+        Binding("f5", "print_report", "Print report"),
+        Binding("f6", "rig_selfcheck", "Rig self-check"),
+        Binding("escape", "back", "Back to valve id"),
+        Binding("ctrl+q", "end_shift", "End shift", priority=True),
+    ]
+
+    def __init__(self, runner: SessionRunner, variant_loader: Callable[[str], Any], variant_name: str,
+                 part_numbers: Mapping[str, str], operator: str, remember_operator: Callable[[str], None],
+                 history_of: Callable[[str], list[str]], shift_folder: Path,
+                 rig_selfcheck: Callable[[], SelfCheckWords] | None = None,
+                 selfcheck_due: Callable[[int, float], str | None] | None = None) -> None:
+        super().__init__()
+        self.runner, self.variant_loader, self.part_numbers = runner, variant_loader, part_numbers
+        self.remember, self.history_of, self.shift_folder = remember_operator, history_of, shift_folder
+        self.rig_selfcheck_fn, self.selfcheck_due = rig_selfcheck, selfcheck_due
+        self.variant = variant_loader(variant_name)
+        self.scan = Scan(variant=self.variant.name)
+        self.shift = ShiftLog(operator=operator, station=runner.station, rig=runner.rig.describe())
+        self.observer: SnapshotObserver | None = None
+        self.testing = False
+        self.last: ValveDone | None = None
+        self.tests_since_check, self.last_check_at = 0, _monotonic()
+        self.summary_file: Path | None = None
+
+    # -- layout --------------------------------------------------------------------------------------------------
+
+    def compose(self) -> ComposeResult:
+        yield Static("", id="status")
+        yield Label(PROMPTS[Step.VALVE_ID], id="prompt")
+        yield Input(placeholder="scan or type, then Enter", id="entry")
+        yield Static("", id="message")
+        yield Static("", id="verdict")
+        yield Static("", id="words")
+        with Horizontal(id="body"):
+            yield Static("", id="live")
+            yield Static("", id="side")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.set_interval(0.25, self._draw_live)
+        self._show_status()
+        if not self.shift.operator:
+            self.push_screen(OperatorScreen(""), self._operator_named)
+        else:
+            self._start_of_shift()
+
+    def _operator_named(self, name: str | None) -> None:
+        if name:
+            first = not self.shift.operator
+            self.shift.operator = self.runner.operator = name
+            self.remember(name)
+            self._show_status()
+            if first:
+                self._start_of_shift()
+        self.query_one("#entry", Input).focus()
+
+    def _start_of_shift(self) -> None:
+        self.query_one("#entry", Input).focus()
+        if self.rig_selfcheck_fn is not None:
+            self.action_rig_selfcheck()
+
+    def _show_status(self) -> None:
+        variant = self.variant
+        self.query_one("#status", Static).update(
+            f"operator {self.shift.operator or '?'} | station {self.runner.station} | {self.runner.rig.describe()} | "
+            f"pump type {variant.name} ({variant.pump.part_number}) | valves {len(self.shift.valves)}, tests "
+            f"{self.shift.tests}")
+
+    def _say(self, message: str) -> None:
+        self.query_one("#message", Static).update(Text(message))
+
+    # -- the prompts ---------------------------------------------------------------------------------------------
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        if event.input.id != "entry":
+            return
+        if self.testing:
+            self._say("a test is running: wait for its verdict")
+            return
+        answer = read_line(self.scan, event.value, self.part_numbers)
+        event.input.value = ""
+        self._say(answer.message)
+        if answer.switched_variant:
+            self.variant = self.variant_loader(answer.scan.variant)
+            self._show_status()
+        self.scan = answer.scan
+        if answer.refused or answer.switched_variant:
+            return
+        if self.scan.step is Step.PUMP_SERIAL:  # a new valve: the last verdict gives way to it
+            self._clear_verdict()
+            self._show_history(self.scan.valve_id)
+        self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
+        if answer.start_test:
+            self._test(self.scan.valve_id, self.scan.pump_serial)
+
+    def action_back(self) -> None:
+        if self.testing:
+            return
+        self.scan = Scan(variant=self.variant.name)
+        self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
+        self._say("back to the valve id")
+
+    def _show_history(self, valve_id: str) -> None:
+        lines = self.history_of(valve_id)
+        side = self.query_one("#side", Static)
+        if lines:
+            side.update(Text("\n".join([f"valve {valve_id}, tested before:", *lines])))
+        else:
+            side.update(Text(f"valve {valve_id}: not tested before at this shop"))
+
+    def _clear_verdict(self) -> None:
+        verdict = self.query_one("#verdict", Static)
+        verdict.update("")
+        verdict.styles.background = None
+        self.query_one("#words", Static).update("")
+        self.query_one("#live", Static).update("")
+
+    # -- a test --------------------------------------------------------------------------------------------------
+
+    def _test(self, valve_id: str, pump_serial: str) -> None:
+        self.testing = True
+        self.query_one("#prompt", Label).update(f"Testing valve {valve_id} ... (Ctrl+Q ends the shift after it)")
+        self._run_valve(valve_id, pump_serial, self.variant)
+
+    def _new_observer(self, which: str) -> SnapshotObserver:
+        self.observer = SnapshotObserver()
+        self.observer_title = f"{which} of valve {self.scan.valve_id or self.last_valve_id}"
+        if which == "retest":
+            self.call_from_thread(self._say, "MARGINAL: near the limit. The bench tests the valve again now: "
+                                             "leave it mounted.")
+        return self.observer
+
+    @work(thread=True, exclusive=True)
+    def _run_valve(self, valve_id: str, pump_serial: str, variant: Any) -> None:
+        self.last_valve_id = valve_id
+        try:
+            done = self.runner.run_valve(variant, valve_id, pump_serial, observer=self._new_observer)
+        except Exception as exc:  # noqa: BLE001 - the shift goes on; what failed is said on the screen
+            self.call_from_thread(self._test_failed, valve_id, f"{type(exc).__name__}: {exc}")
+            return
+        self.call_from_thread(self._show_done, done)
+
+    def _draw_live(self) -> None:
+        observer = self.observer
+        if observer is None or not self.testing:
+            return
+        from edc_bench.ui.live import render_snapshot
+
+        with observer.lock:
+            panel = render_snapshot(observer.snapshot, self.observer_title)
+        self.query_one("#live", Static).update(panel)
+
+    def _test_failed(self, valve_id: str, why: str) -> None:
+        self.testing = False
+        self._say(f"the test of valve {valve_id} could not run: {why}. Check the rig and its cable, then scan "
+                  "the valve again.")
+        self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
+
+    def _show_done(self, done: ValveDone) -> None:
+        self.testing = False
+        self.last = done
+        self.tests_since_check += len(done.tests)
+        final = done.final
+        verdict = self.query_one("#verdict", Static)
+        what = final if done.decision is None else f"{final}  (MARGINAL, retest {done.tests[-1].verdict})"
+        verdict.update(Text(what, style="bold white"))
+        verdict.styles.background = VERDICT_COLOURS.get(final, "magenta")
+        self.query_one("#words", Static).update(Text(done.words.upper() if final != "INVALID" else done.words))
+        self.query_one("#live", Static).update(self._details(done))
+        problems = [p for t in done.tests for p in t.problems]
+        self._say("; ".join(problems))
+        self.shift.valves.append(ValveEntry(
+            done.valve_id, done.pump_serial, done.variant, tuple(t.verdict for t in done.tests), final, done.words,
+            tuple(str(t.record_dir) for t in done.tests if t.record_dir is not None), _now()))
+        self._show_status()
+        self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
+        self.query_one("#entry", Input).focus()
+        self._check_due()
+
+    def _details(self, done: ValveDone) -> Text:
+        lines = []
+        for n, test in enumerate(done.tests):
+            label = "test" if n == 0 else "retest"
+            lines.append(f"{label}: {test.verdict}, {test.result.advice.words}")
+            if test.record_dir is not None:
+                lines.append(f"  record {test.record_dir}")
+            if test.report_pdf is not None:
+                lines.append(f"  report {test.report_pdf} (F5 prints it)")
+        if done.decision is not None:
+            lines.append(f"decision: {done.decision.verdict} by the pump type's rule {done.decision.rule}")
+        return Text("\n".join(lines))
+
+    # -- the rig self-check --------------------------------------------------------------------------------------
+
+    def _check_due(self) -> None:
+        if self.selfcheck_due is None or self.rig_selfcheck_fn is None:
+            return
+        why = self.selfcheck_due(self.tests_since_check, (_monotonic() - self.last_check_at) / 3600.0)
+        if why:
+            self._say(f"rig self-check due ({why}): it runs now; the reference valve must be mounted")
+            self.action_rig_selfcheck()
+
+    def action_rig_selfcheck(self) -> None:
+        if self.testing or self.rig_selfcheck_fn is None:
+            return
+        self.testing = True
+        self.query_one("#prompt", Label).update("Rig self-check with the reference valve ...")
+        self._run_selfcheck()
+
+    @work(thread=True, exclusive=True)
+    def _run_selfcheck(self) -> None:
+        try:
+            words = self.rig_selfcheck_fn()
+        except Exception as exc:  # noqa: BLE001 - said on the screen; the shift goes on
+            words = SelfCheckWords(False, f"the rig self-check could not run ({type(exc).__name__}: {exc})")
+        self.call_from_thread(self._selfcheck_done, words)
+
+    def _selfcheck_done(self, words: SelfCheckWords) -> None:
+        self.testing = False
+        self.tests_since_check, self.last_check_at = 0, _monotonic()
+        self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, _now()))
+        style = {True: "green", False: "red"}.get(words.go, "yellow")
+        self.query_one("#side", Static).update(Text(f"rig self-check: {words.words}", style=f"bold {style}"))
+        self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
+        self.query_one("#entry", Input).focus()
+
+    # -- keys ----------------------------------------------------------------------------------------------------
+
+    def action_change_operator(self) -> None:
+        if not self.testing:
+            self.push_screen(OperatorScreen(self.shift.operator), self._operator_named)
+
+    def action_print_report(self) -> None:
+        done = self.last
+        pdfs = [t.report_pdf for t in done.tests if t.report_pdf is not None] if done is not None else []
+        if not pdfs:
+            self._say("no report to print yet: test a valve first")
+            return
+        lp = shutil.which("lp")
+        if lp is None:
+            self._say(f"no printer command (lp) on this station: the report is {pdfs[-1]}")
+            return
+        result = subprocess.run([lp, str(pdfs[-1])], capture_output=True, text=True, timeout=30, check=False)
+        self._say(f"sent to the printer: {pdfs[-1].name}" if result.returncode == 0 else
+                  f"the printer refused the report ({(result.stderr or result.stdout).strip()}): it is {pdfs[-1]}")
+
+    def action_end_shift(self) -> None:
+        if self.testing:
+            self._say("a test is running: the shift ends after its verdict (press Ctrl+Q again then)")
+            return
+        try:
+            self.summary_file = self.shift.write(self.shift_folder)
+        except OSError as exc:
+            self._say(f"the shift summary could not be written ({exc}); it is shown below")
+        self.exit()
+
+
+def _monotonic() -> float:
+    import time
+
+    return time.monotonic()

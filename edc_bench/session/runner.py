@@ -1,0 +1,214 @@
+"""One valve of a shift: its test, a MARGINAL's retest, and for each test the record, the report and the history row.
+
+The session's screen shows what this returns; nothing here draws on it. A test runs in the caller's thread (the
+app runs it in a worker thread); what a person must know of a failure on the way (a report or the history that
+could not be written) comes back as words, never as an exception, so the shift goes on and the record is safe.
+"""
+
+from __future__ import annotations
+
+import datetime
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from edc_bench.config.models import Variant
+from edc_bench.verdict.retest import Decision, decide, retest_wanted
+
+
+@dataclass(frozen=True)
+class RigChoice:
+    """Where the session's tests run.
+
+    Attributes
+    ----------
+    bus_config : dict or None
+        A real rig's bus (python-can settings), or None for the simulated rig (in process, simulated time).
+    first_seed : int
+        The simulated rig's first noise seed; each test of the session takes the next, so a retest sees new noise.
+    rig_drift : str
+        The simulated rig's sensor drift (as ``--rig-drift``), for trying the rig self-check; "" none.
+    """
+
+    bus_config: dict[str, Any] | None = None
+    first_seed: int = 0
+    rig_drift: str = ""
+
+    @property
+    def simulated(self) -> bool:
+        """The simulated rig."""
+        return self.bus_config is None
+
+    def describe(self) -> str:
+        """The rig in a few words, for the screen and the shift summary."""
+        if self.simulated:
+            return "simulated rig" + (f" (drift {self.rig_drift})" if self.rig_drift else "")
+        return f"rig on {self.bus_config.get('interface')} {self.bus_config.get('channel') or ''}".strip()
+
+
+@dataclass(frozen=True)
+class TestDone:
+    """One test as the session shows it."""
+
+    result: Any  # the BenchResult
+    record_dir: Path | None
+    report_pdf: Path | None
+    problems: tuple[str, ...]  # what went wrong on the way (record, report, history), in words
+
+    @property
+    def verdict(self) -> str:
+        """The test's verdict."""
+        return str(self.result.verdict)
+
+
+@dataclass(frozen=True)
+class ValveDone:
+    """A valve's tests and what the technician does."""
+
+    valve_id: str
+    pump_serial: str
+    variant: str
+    tests: tuple[TestDone, ...]
+    decision: Decision | None  # a retested MARGINAL's
+
+    @property
+    def final(self) -> str:
+        """The verdict the technician acts on."""
+        return str(self.decision.verdict) if self.decision is not None else self.tests[-1].verdict
+
+    @property
+    def words(self) -> str:
+        """What to do."""
+        return self.decision.words if self.decision is not None else self.tests[-1].result.advice.words
+
+
+def simulated_valve(variant: Variant, valve_id: str) -> Any:
+    """The valve the simulated rig holds for ``valve_id``: the spec the id names (``new``, ``worn``,
+    ``clearance=0.185``), else a used valve of the variant's population drawn from the id (the same id, the same
+    valve)."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.physics.valve import parse_valve_spec
+    from edc_bench.population.valves import draw_population
+
+    try:
+        return parse_valve_spec(valve_id, variant)
+    except (ConfigError, ValueError):
+        return draw_population(variant, 1, zlib.crc32(valve_id.encode("utf-8")))[0]
+
+
+class SessionRunner:
+    """Runs a shift's tests and keeps each one's record, report and history row.
+
+    Parameters
+    ----------
+    rig : RigChoice
+        Where the tests run.
+    out_dir : pathlib.Path
+        The records folder.
+    history_url : str or None
+        The history database (None: the station's).
+    station, operator : str
+        Who and where, for every record.
+    report : bool
+        Draw each test's report (PDF and PNG) into its record folder (default).
+    """
+
+    def __init__(self, rig: RigChoice, out_dir: Path, history_url: str | None, station: str, operator: str,
+                 report: bool = True) -> None:
+        self.rig, self.out_dir, self.history_url = rig, Path(out_dir), history_url
+        self.station, self.operator, self.report = station, operator, report
+        self.tests_run = 0
+
+    def run_valve(self, variant: Variant, valve_id: str, pump_serial: str,
+                  observer: Callable[[str], Any] | None = None) -> ValveDone:
+        """Test a mounted valve; a MARGINAL is tested again at once and the variant's rule decides the pair.
+
+        Parameters
+        ----------
+        observer : callable, optional
+            Called with ``"test"`` or ``"retest"`` before each test; returns the test's
+            :class:`~edc_bench.runtime.loop.LoopObserver` (or None).
+        """
+        first = self.run_test(variant, valve_id, pump_serial, observer("test") if observer else None)
+        if first.record_dir is None or not retest_wanted(first.result.verdict, variant.retest):
+            return ValveDone(valve_id, pump_serial, variant.name, (first,), None)
+        second = self.run_test(variant, valve_id, pump_serial, observer("retest") if observer else None,
+                               retest_of=first)
+        decision = decide(second.result.verdict, variant.retest, second.result.advice.words)
+        return ValveDone(valve_id, pump_serial, variant.name, (first, second), decision)
+
+    def run_test(self, variant: Variant, valve_id: str, pump_serial: str, observer: Any = None,
+                 retest_of: TestDone | None = None) -> TestDone:
+        """One test: run it, write its record (and report), add it to the history."""
+        from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
+
+        folder: list[Path] = []
+
+        def stream_target() -> Path:  # the record folder exists from the first frame on
+            started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+            folder.append(new_record_dir(self.out_dir, valve_id, variant.name, started))
+            return folder[0] / CAN_LOG_FILE
+
+        from edc_bench.bench import BenchOptions
+        from edc_bench.verdict.judgement import default_calibrate_command
+
+        options = BenchOptions(
+            valve_id=valve_id, identity={"pump_serial": pump_serial, "station": self.station,
+                                         "operator": self.operator},
+            calibrate_command=default_calibrate_command(variant, ["--valve", "new"] if self.rig.simulated else []),
+            stream_can_log=stream_target, observer=observer)
+        seed = self.rig.first_seed + self.tests_run
+        self.tests_run += 1
+        result = self._run(variant, valve_id, options, seed)
+        retest = None
+        if retest_of is not None and retest_of.record_dir is not None:
+            decision = decide(result.verdict, variant.retest, result.advice.words)
+            retest = {"of_record": retest_of.record_dir.name, "of_verdict": retest_of.verdict,
+                      "decision": str(decision.verdict), "words": decision.words, "rule": decision.rule}
+        return self._store(result, folder[0] if folder else None, retest)
+
+    def _run(self, variant: Variant, valve_id: str, options: Any, seed: int) -> Any:
+        from edc_bench.bench import run_bench_test, run_simulated_test
+
+        if self.rig.simulated:
+            extra = {"rig_drift": self.rig.rig_drift} if self.rig.rig_drift else {}
+            return run_simulated_test(variant, simulated_valve(variant, valve_id), seed, options=options, **extra)
+        from edc_bench.protocol import default_icd
+        from edc_bench.runtime.bus import ClosingBus, open_bus
+        from edc_bench.runtime.clock import RealTimeClock
+
+        with ClosingBus(open_bus(self.rig.bus_config, default_icd().bitrate)) as bus:
+            return run_bench_test(bus, RealTimeClock(), variant, options)
+
+    def _store(self, result: Any, folder: Path | None, retest: dict[str, str] | None) -> TestDone:
+        from edc_bench.history.store import index_record_dir
+        from edc_bench.records.record import write_record
+
+        problems: list[str] = []
+        try:
+            record_dir = write_record(result, self.out_dir, figure=False, folder=folder, retest=retest)
+        except OSError as exc:
+            return TestDone(result, None, None, (f"the record could not be written ({exc}): free space on the disk, "
+                                                 "then test the valve again",))
+        report_pdf = None
+        if self.report:
+            try:
+                from edc_bench.records.report import draw_report
+
+                report_pdf, _ = draw_report(record_dir)
+            except Exception as exc:  # noqa: BLE001 - a report is redrawn later from the record; never lose the test
+                problems.append(f"the report could not be drawn ({type(exc).__name__}: {exc}); draw it with: "
+                                f"edc-bench report {record_dir}")
+        try:
+            index_record_dir(record_dir, self.history_url)
+        except Exception as exc:  # noqa: BLE001 - the record is safe; the history can take it later
+            from edc_bench.history.secrets import known_secrets, redact
+
+            problems.append(redact(f"the history was not updated ({type(exc).__name__}: {exc}); add it later with: "
+                                   f"edc-bench history --add {record_dir}", known_secrets(self.history_url)))
+        return TestDone(result, record_dir, report_pdf, tuple(problems))
+
+
+__all__ = ["RigChoice", "SessionRunner", "TestDone", "ValveDone", "simulated_valve"]

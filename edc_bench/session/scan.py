@@ -1,0 +1,100 @@
+"""The prompts of a shift, always in one order, and what a line typed or scanned at them means.
+
+A barcode scanner is a keyboard that types a line and Enter, so the order is fixed and every prompt ends with
+Enter: the valve id, then the pump serial, then "mount the valve, then Enter". A pump part number of the variant
+library, scanned at any prompt, switches the pump type instead of answering the prompt. Pure: lines in, steps
+out.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+#: The longest identity kept (as ``edc-bench test --valve-id`` takes it).
+MAX_ID_CHARS = 100
+
+
+class Step(enum.Enum):
+    """Where the shift is: which prompt is on screen."""
+
+    VALVE_ID = "valve id"
+    PUMP_SERIAL = "pump serial"
+    MOUNT = "mount"
+
+
+#: The words of each prompt.
+PROMPTS = {
+    Step.VALVE_ID: "Scan or type the VALVE ID, then Enter",
+    Step.PUMP_SERIAL: "Scan or type the PUMP SERIAL, then Enter",
+    Step.MOUNT: "Mount the valve on the rig, then press Enter to test it",
+}
+
+
+@dataclass(frozen=True)
+class Scan:
+    """The answers so far for the next valve, and the pump type the session tests."""
+
+    step: Step = Step.VALVE_ID
+    valve_id: str = ""
+    pump_serial: str = ""
+    variant: str = ""  # the variant's name
+
+
+@dataclass(frozen=True)
+class Answer:
+    """What a line did: the new state, what to say about it, and whether the valve is ready to test."""
+
+    scan: Scan
+    message: str = ""
+    start_test: bool = False
+    switched_variant: bool = False
+    refused: bool = False
+
+
+def read_line(scan: Scan, line: str, part_numbers: Mapping[str, str]) -> Answer:
+    """What ``line``, typed or scanned at the current prompt, does.
+
+    Parameters
+    ----------
+    scan : Scan
+        The state before the line.
+    line : str
+        The line as typed (without its Enter).
+    part_numbers : Mapping[str, str]
+        Pump part number -> variant name, of the variant library.
+
+    Returns
+    -------
+    Answer
+    """
+    text = line.strip()
+    if text in part_numbers:
+        variant = part_numbers[text]
+        return Answer(replace(scan, variant=variant), f"pump type switched to {variant} (part number {text})",
+                      switched_variant=True)
+    if scan.step is Step.MOUNT:
+        if text:
+            return Answer(scan, f"{text!r} is not a pump part number: mount the valve and press Enter alone "
+                                "(Esc goes back to the valve id)", refused=True)
+        return Answer(replace(scan, step=Step.VALVE_ID), start_test=True)
+    if not text:
+        return Answer(scan, f"the {scan.step.value} is empty: scan or type it", refused=True)
+    if len(text) > MAX_ID_CHARS or not text.isprintable():
+        return Answer(scan, f"the {scan.step.value} must be at most {MAX_ID_CHARS} printable characters",
+                      refused=True)
+    if scan.step is Step.VALVE_ID:
+        return Answer(replace(scan, step=Step.PUMP_SERIAL, valve_id=text, pump_serial=""))
+    return Answer(replace(scan, step=Step.MOUNT, pump_serial=text))
+
+
+def part_number_index(variants: Mapping[str, str]) -> dict[str, str]:
+    """Part number -> variant name, from variant name -> part number (a part number used twice names neither)."""
+    index: dict[str, str] = {}
+    twice: set[str] = set()
+    for name, part in variants.items():
+        if part in index:
+            twice.add(part)
+        index[part] = name
+    return {part: name for part, name in index.items() if part not in twice}

@@ -1,0 +1,88 @@
+"""What a shift did: each valve's tests and decision, each rig self-check, and the summary kept as a file."""
+
+from __future__ import annotations
+
+import datetime
+import json
+from collections import Counter
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from edc_bench.paths import atomic_write
+
+
+@dataclass(frozen=True)
+class ValveEntry:
+    """One valve of the shift."""
+
+    valve_id: str
+    pump_serial: str
+    variant: str
+    verdicts: tuple[str, ...]  # each test's verdict, the retest's last
+    final: str  # the verdict the technician acts on (a retested MARGINAL's decision)
+    words: str  # what to do
+    records: tuple[str, ...]  # the record folders
+    at: str  # local time, ISO
+
+
+@dataclass(frozen=True)
+class RigCheckEntry:
+    """One rig self-check of the shift."""
+
+    go: bool | None  # None: not run (no reference valve registered)
+    words: str
+    at: str
+
+
+@dataclass
+class ShiftLog:
+    """The shift so far."""
+
+    operator: str
+    station: str
+    rig: str
+    started: str = field(default_factory=lambda: _now())
+    valves: list[ValveEntry] = field(default_factory=list)
+    rig_checks: list[RigCheckEntry] = field(default_factory=list)
+
+    @property
+    def tests(self) -> int:
+        """Tests run (a retest counts)."""
+        return sum(len(v.verdicts) for v in self.valves)
+
+    @property
+    def retests(self) -> int:
+        """Valves tested a second time (a MARGINAL's retest)."""
+        return sum(1 for v in self.valves if len(v.verdicts) > 1)
+
+    def summary_lines(self) -> list[str]:
+        """The shift in a few lines, for the screen and the file."""
+        finals = Counter(v.final for v in self.valves)
+        counted = ", ".join(f"{finals[name]} {name}" for name in ("PASS", "FAIL", "MARGINAL", "INVALID")
+                            if finals[name]) or "none"
+        checks = Counter("GO" if c.go else "NO-GO" if c.go is False else "not run" for c in self.rig_checks)
+        check_words = ", ".join(f"{n} {what}" for what, n in checks.items()) or "none"
+        return [f"shift of {self.operator or '?'} at {self.station}, {self.rig}, from {self.started} to {_now()}",
+                f"valves: {len(self.valves)} ({counted}); tests: {self.tests}; retests: {self.retests}",
+                f"rig self-checks: {check_words}"]
+
+    def write(self, folder: Path) -> Path:
+        """Write the summary (text, with every valve) and its data (JSON) into ``folder``; the text file."""
+        stamp = self.started.replace(":", "").replace("-", "")[:15]
+        text_path = folder / f"shift-{stamp}.txt"
+        lines = [*self.summary_lines(), ""]
+        lines += [f"{v.at}  {v.valve_id}  pump {v.pump_serial}  {v.variant}  {' then '.join(v.verdicts)}  ->  "
+                  f"{v.final}: {v.words}  ({', '.join(Path(r).name for r in v.records)})" for v in self.valves]
+        lines += [f"{c.at}  rig self-check: {c.words}" for c in self.rig_checks]
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write(text_path, lambda f: f.write("\n".join(lines) + "\n"), mode="w")
+        data = {"operator": self.operator, "station": self.station, "rig": self.rig, "started": self.started,
+                "ended": _now(), "valves": [asdict(v) for v in self.valves],
+                "rig_checks": [asdict(c) for c in self.rig_checks]}
+        atomic_write(text_path.with_suffix(".json"), lambda f: json.dump(data, f, indent=2), mode="w")
+        return text_path
+
+
+def _now() -> str:
+    """Local time with its UTC offset, to the second."""
+    return datetime.datetime.now().astimezone().isoformat(timespec="seconds")
