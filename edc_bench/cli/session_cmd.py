@@ -48,29 +48,38 @@ def run(args: argparse.Namespace) -> int:
 
     from edc_bench.cli.common import bus_settings, check_history_url, check_output_folder
     from edc_bench.config import load_variant
-    from edc_bench.session.app import SessionApp
-    from edc_bench.session.operator import remember_operator, remembered_operator
-    from edc_bench.session.runner import RigChoice, SessionRunner
+    from edc_bench.session.operator import remembered_operator
+    from edc_bench.session.runner import RigChoice
 
     check_output_folder(args.out, "--out")
     check_history_url(args.db)
-    variant = load_variant(args.variant)  # a bad --variant is refused before the screen opens
+    load_variant(args.variant)  # a bad --variant is refused before the screen opens
     if not sys.stdin.isatty() or not sys.stdout.isatty():
         print("edc-bench session: needs a terminal (it is a full-screen app); for scripts use 'edc-bench test'",
               file=sys.stderr)
         return ExitCode.BAD_INPUT
     bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True)
-    rig = RigChoice(bus_config=bus_config, first_seed=args.seed)
-    operator = args.operator or remembered_operator()
-    runner = SessionRunner(rig, args.out, args.db, args.station or socket.gethostname(), operator)
-    app = SessionApp(runner, load_variant, variant.name, library_part_numbers(), operator, remember_operator,
-                     history_lines(args.db), args.out)
+    app = make_app(args.variant, RigChoice(bus_config=bus_config, first_seed=args.seed), args.out, args.db,
+                   args.station or socket.gethostname(), args.operator or remembered_operator())
     app.run()
     for line in app.shift.summary_lines():
         print(line)
     if app.summary_file is not None:
         print(f"shift summary: {app.summary_file}")
     return ExitCode.OK
+
+
+def make_app(variant_name: str | None, rig: Any, out_dir: Path, history_url: str | None, station: str,
+             operator: str) -> Any:
+    """The session's app on ``rig`` (a :class:`~edc_bench.session.runner.RigChoice`), as the command runs it."""
+    from edc_bench.config import load_variant
+    from edc_bench.session.app import SessionApp
+    from edc_bench.session.operator import remember_operator
+    from edc_bench.session.runner import SessionRunner
+
+    runner = SessionRunner(rig, out_dir, history_url, station, operator)
+    return SessionApp(runner, load_variant, variant_name, library_part_numbers(), operator, remember_operator,
+                      history_lines(history_url), out_dir)
 
 
 def library_part_numbers() -> dict[str, str]:

@@ -134,7 +134,7 @@ class SessionApp(App[None]):
         Binding("ctrl+q", "end_shift", "End shift", priority=True),
     ]
 
-    def __init__(self, runner: SessionRunner, variant_loader: Callable[[str], Any], variant_name: str,
+    def __init__(self, runner: SessionRunner, variant_loader: Callable[[str | None], Any], variant_name: str | None,
                  part_numbers: Mapping[str, str], operator: str, remember_operator: Callable[[str], None],
                  history_of: Callable[[str], list[str]], shift_folder: Path,
                  rig_selfcheck: Callable[[], SelfCheckWords] | None = None,

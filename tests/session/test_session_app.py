@@ -1,0 +1,119 @@
+"""`edc-bench session` driven headless with Textual's pilot, as a technician works a shift: name, scan, mount,
+verdict with what to do, a MARGINAL's automatic retest, a part number switching the pump type, the next valve,
+the shift's end."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+
+from edc_bench.cli.session_cmd import make_app
+from edc_bench.history.store import HistoryStore
+from edc_bench.records.reader import load_record
+from edc_bench.session.operator import remembered_operator
+from edc_bench.session.runner import RigChoice
+
+
+def _screen_text(app) -> str:
+    """Every widget's text on the screen (what a person reads)."""
+    parts = []
+    for widget in app.screen.query("*"):
+        render = getattr(widget, "render", None)
+        if widget.id in ("status", "prompt", "message", "verdict", "words", "live", "side") and render:
+            parts.append(str(widget.render()))
+    return "\n".join(parts)
+
+
+async def _type(pilot, text: str) -> None:
+    await pilot.press(*list(text), "enter") if text else await pilot.press("enter")
+    await pilot.pause()
+
+
+async def _wait_for_verdict(app, pilot) -> None:
+    await app.workers.wait_for_complete()
+    await pilot.pause()
+    await pilot.pause()
+
+
+def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    out = tmp_path / "records"
+
+    async def shift() -> tuple[str, ...]:
+        app = make_app(None, RigChoice(), out, db, "bench-3", "")
+        seen = []
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            assert "Type your NAME" in str(app.screen.query_one("Label").render())  # asked once: nobody remembered
+            await _type(pilot, "Anna Schmidt")
+            # a worn valve: valve id, pump serial, mount + Enter
+            await _type(pilot, "worn")
+            await _type(pilot, "PS-4471")
+            assert "Mount the valve" in _screen_text(app)
+            await _type(pilot, "")
+            await _wait_for_verdict(app, pilot)
+            seen.append(_screen_text(app))
+            # a valve near the limit: retested at once, the pair decides
+            await _type(pilot, "clearance=0.185")
+            await _type(pilot, "PS-4472")
+            await _type(pilot, "")
+            await _wait_for_verdict(app, pilot)
+            seen.append(_screen_text(app))
+            # a part number scanned at the serial's prompt switches the pump type; the worn valve again
+            await _type(pilot, "worn")
+            await _type(pilot, "PE-EDC-0002")
+            seen.append(_screen_text(app))
+            await _type(pilot, "PS-4473")
+            await _type(pilot, "")
+            await _wait_for_verdict(app, pilot)
+            seen.append(_screen_text(app))
+            await pilot.press("ctrl+q")
+            await pilot.pause()
+        return tuple(seen), app
+
+    (worn, marginal, switched, again), app = asyncio.run(shift())
+    assert "FAIL" in worn and "WORN: REPLACE THE VALVE" in worn and "report.pdf" in worn
+    assert "FAIL  (MARGINAL, retest MARGINAL)" in marginal and "NEAR THE LIMIT TWICE: REPLACE THE VALVE" in marginal
+    assert "retest: MARGINAL" in marginal and "retest.decide.MARGINAL = FAIL" in marginal
+    assert "pump type switched to p-edc-long" in switched and "valve worn, tested before" in switched
+    assert "p-edc-long (PE-EDC-0002)" in again and "WORN: REPLACE THE VALVE" in again
+    # what was kept: the operator for the next session, every test with its report in the history
+    assert remembered_operator() == "Anna Schmidt"
+    with HistoryStore(db) as store:
+        rows = store.list()
+    assert [(r["valve_id"], r["pump_serial"], r["verdict"], r["decision"]) for r in rows] == [
+        ("worn", "PS-4471", "FAIL", None), ("clearance=0.185", "PS-4472", "MARGINAL", None),
+        ("clearance=0.185", "PS-4472", "MARGINAL", "FAIL"), ("worn", "PS-4473", "FAIL", None)]
+    assert {r["operator"] for r in rows} == {"Anna Schmidt"} and {r["station"] for r in rows} == {"bench-3"}
+    for row in rows:
+        folder = Path(row["record_dir"])
+        assert load_record(folder).identity.operator == "Anna Schmidt"
+        assert (folder / "report.pdf").is_file() and (folder / "report-page.png").is_file()
+    # the shift's summary, as a file
+    summary = app.summary_file.read_text()
+    assert "valves: 3 (3 FAIL); tests: 4; retests: 1" in summary
+    data = json.loads(app.summary_file.with_suffix(".json").read_text())
+    assert [v["final"] for v in data["valves"]] == ["FAIL", "FAIL", "FAIL"]
+
+
+def test_the_operator_is_remembered_and_a_mount_prompt_refuses_a_stray_scan(tmp_path: Path) -> None:
+    from edc_bench.session.operator import remember_operator
+
+    remember_operator("Jo")
+    out = tmp_path / "records"
+
+    async def session() -> str:
+        app = make_app(None, RigChoice(), out, f"sqlite:///{tmp_path / 'h.sqlite'}", "bench-1", remembered_operator())
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            await _type(pilot, "V-1")
+            await _type(pilot, "PS-1")
+            await _type(pilot, "V-2")  # a second valve's id scanned before Enter: not a test start
+            text = _screen_text(app)
+            await pilot.press("ctrl+q")
+        return text
+
+    text = asyncio.run(session())
+    assert "operator Jo" in text and "press Enter alone" in text and "Mount the valve" in text
+    assert not out.exists() or not any(p.is_dir() for p in out.iterdir())  # nothing was tested
