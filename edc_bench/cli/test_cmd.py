@@ -507,9 +507,14 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
     print(f"verdict: {result.verdict}, {result.advice.words}")
     for reason in result.reasons:
         print(f"  - {reason}")
-    print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm "
-          f"(referred to the reference coil, {result.variant.coil.resistance_ohm:g} ohm at 20 degC; with this "
-          f"coil: af {result.judgement.features_volt['af']:.5f} V, a1 {result.judgement.features_volt['a1']:.6f})")
+    import math
+
+    if all(math.isfinite(result.features.get(name, math.nan)) for name in ("af", "a1")):
+        print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm "
+              f"(referred to the reference coil, {result.variant.coil.resistance_ohm:g} ohm at 20 degC; with this "
+              f"coil: af {result.judgement.features_volt['af']:.5f} V, a1 {result.judgement.features_volt['a1']:.6f})")
+    else:
+        print("features: af and a1 not identified (the test ended before they could be)")
     print(f"coil: {coil_line(result.judgement.coil)}")
     if result.judgement.baseline is not None:
         print(f"baseline: {baseline_line(result.judgement.baseline)}")

@@ -40,6 +40,7 @@ def rig_process(variant: str | None, valve: str, seed: int, adapter: str = "none
         cmd += ["--variant", variant]
     cmd += extra or []
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    above_the_bench(proc.pid)
     try:
         assert proc.stdout is not None
         line = proc.stdout.readline()
@@ -58,3 +59,26 @@ def rig_process(variant: str | None, valve: str, seed: int, adapter: str = "none
         gap = re.search(r"worst serve gap ([0-9.]+) ms", out or "")
         if status is not None and gap:
             status["worst_gap_ms"] = float(gap.group(1))
+
+
+def above_the_bench(pid: int) -> int | None:
+    """Give the rig process ``pid`` a real-time priority one above this (bench) process's, when the bench runs
+    under one (``chrt -f 50 edc-bench test --realtime``, as check-station advises).
+
+    The rig inherits the bench's policy and priority; under SCHED_FIFO a process of equal priority is never
+    preempted, so the bench's spinning loop and the rig took turns only when one blocked: the rig went unserved
+    for milliseconds and the test aborted, "replies missing". The rig is the hardware's side: it sleeps until a
+    frame comes and must then answer at once, so it runs above the bench. Returns the rig's priority (None: the
+    bench is not real-time, or the OS refused, and the rig keeps what it inherited).
+    """
+    import os
+
+    try:
+        policy = os.sched_getscheduler(0)
+        if policy not in (os.SCHED_FIFO, os.SCHED_RR):
+            return None
+        priority = min(os.sched_getparam(0).sched_priority + 1, os.sched_get_priority_max(policy))
+        os.sched_setscheduler(pid, policy, os.sched_param(priority))
+    except (AttributeError, OSError):  # not Linux, or not permitted: the rig keeps the bench's priority
+        return None
+    return priority

@@ -180,9 +180,13 @@ class SlcanRigServer:
         self._owner: _Host | None = None  # the host whose BENCH_CMDs reach the rig
         self._t0 = 0.0
         self._last_s: float | None = None  # when the last pass began
+        self._asleep_s = 0.0  # how long the last pass slept in select, within the wait it asked for
         self._stop = False
-        #: Busy-poll while a host is connected (real-time fidelity at the cost of a core).
-        self.poll_while_connected = True
+        #: Busy-poll while a host is connected (real-time fidelity at the cost of a core): a sleeping process
+        #: on a VM can wake milliseconds late. Not under a real-time policy, where a wake-up preempts at once and
+        #: a spinning rig would only take the core from the bench's loop (and hit the kernel's real-time
+        #: throttling, which then stops the rig for 50 ms in every second).
+        self.poll_while_connected = not running_realtime()
 
     def stop(self) -> None:
         """Ask :meth:`serve_forever` to return (safe to call from a signal handler)."""
@@ -404,7 +408,8 @@ class SlcanRigServer:
         rig = self.rig
         now = self._now()
         if self._hosts and self._last_s is not None:
-            self.worst_gap_s = max(self.worst_gap_s, now - self._last_s)
+            # time not serving, less what the rig chose to sleep waiting for a frame (none while polling)
+            self.worst_gap_s = max(self.worst_gap_s, now - self._last_s - self._asleep_s)
         self._last_s = now
         # a loop that was held up is a rig that was: one heartbeat on resuming, not a burst of the missed ones
         rig.firmware.skip_missed_heartbeats(now)
@@ -415,7 +420,10 @@ class SlcanRigServer:
                 wait_s = 0.0  # poll: a sleeping process on a VM can wake milliseconds late
             else:
                 wait_s = min(_MAX_WAIT_S, max(0.0, rig.firmware.next_deadline_s() - self._now()))
-        for key, events in self._selector.select(timeout=wait_s):
+        asleep_from = self._now()
+        ready = self._selector.select(timeout=wait_s)
+        self._asleep_s = min(self._now() - asleep_from, wait_s)
+        for key, events in ready:
             kind, obj = key.data
             if kind == "listen":
                 self._accept(obj)
@@ -424,3 +432,13 @@ class SlcanRigServer:
                 self._flush(obj)
             if events & selectors.EVENT_READ and obj.fd in self._hosts:
                 self._read(obj)
+
+
+def running_realtime() -> bool:
+    """True when this process runs under a real-time scheduling policy (SCHED_FIFO or SCHED_RR)."""
+    import os
+
+    try:
+        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
+    except (AttributeError, OSError):
+        return False

@@ -50,6 +50,7 @@ def test_interrupts_abort_safely_and_keep_the_record(tmp_path: Path, signals: li
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err  # interrupted (README); the record says INVALID
     assert "aborted: interrupted by the operator" in out
+    assert not re.search(r"\bnan\b", out, re.IGNORECASE), out  # a figure not identified says so, never "nan"
     doc = json.loads((folder / "record.json").read_text())
     assert doc["verdict"] == Verdict.INVALID and doc["loop"]["safe_confirmed"] is True
     # the CAN log holds every tick that ran: one RUN command each
