@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from datetime import datetime, timedelta, timezone
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -88,8 +89,10 @@ class _Interpreter(PDFPageInterpreter):
         super().do_BT()
 
 
+@lru_cache(maxsize=8)
 def pdf_words(path: Path) -> tuple[list[Word], list[tuple[float, float, float, float]]]:
-    """Every word of the PDF (characters of one text object between spaces) and each page's box."""
+    """Every word of the PDF (characters of one text object between spaces) and each page's box (read once per
+    file: the tests below read the same reports)."""
     words: list[Word] = []
     pages = []
     with path.open("rb") as file:
