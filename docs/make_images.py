@@ -13,6 +13,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 IMAGES = Path(__file__).resolve().parent / "images"
@@ -86,9 +87,12 @@ def main() -> None:
     console.print(verdict_panel(result, Path("records") / worn_dir.name))
     _save(console, "verdict-fail.svg", "edc-bench test --valve worn: FAIL")
 
-    _, png = draw_report(worn_dir, scratch / "report")
-    shutil.copyfile(png, IMAGES / "report-page.png")
-    print("wrote docs/images/report-page.png")
+    os.environ["TZ"] = "CET-1CEST,M3.5.0,M10.5.0/3"  # drawn in a shop in central Europe: its date shows an offset
+    time.tzset()
+    _, pngs = draw_report(worn_dir, scratch / "report")
+    for png in pngs:  # report-page.png (page 1, the customer's) and report-page-2.png (the engineer's)
+        shutil.copyfile(png, IMAGES / png.name)
+        print(f"wrote docs/images/{png.name}")
 
     with HistoryStore() as store:
         console = _console()

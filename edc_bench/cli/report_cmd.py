@@ -1,4 +1,4 @@
-"""``edc-bench report``: the one-page printable report of a test."""
+"""``edc-bench report``: the two-page printable report of a test (the customer's page and the engineer's)."""
 
 from __future__ import annotations
 
@@ -13,11 +13,13 @@ if TYPE_CHECKING:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
     p = sub.add_parser(
-        "report", help="one-page report of a test (PDF and PNG)",
-        description="Draw the customer report of a record folder: identity and versions, the verdict with its "
-                    "probability and distance to the boundary, the parameter table against the baseline, the "
-                    "tracking and convergence plots and the valve on the decision plane. Writes report.pdf and "
-                    "report-page.png into the record folder (or --out).",
+        "report", help="two-page report of a test (PDF, and a PNG per page)",
+        description="Draw the report of a record folder. Page 1, for the customer: station, operator, pump, "
+                    "valve, date, the verdict and what to do, the tracking plot and the valve against the "
+                    "boundary. Page 2, for the engineer: the parameter table against the baseline, the classifier "
+                    "(model, file, SHA-256, P(faulty), distance), baseline, coil, timing, model fit, versions and "
+                    "the convergence and tracking-error plots. Writes report.pdf (both pages), report-page.png "
+                    "(page 1) and report-page-2.png into the record folder (or --out).",
     )
     p.add_argument("record_dir", type=Path, help="a record folder written by 'edc-bench test'")
     p.add_argument("--out", type=Path, default=None, metavar="DIR", help="folder for the report (default: the record's)")
@@ -36,8 +38,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         probe_writable(args.record_dir, f"{args.record_dir}: the record folder is not writable; write the report "
                                         "elsewhere with --out DIR")
-    pdf, png = draw_report(args.record_dir, args.out)
-    print(f"report: {pdf}\npage image: {png}")
+    pdf, pngs = draw_report(args.record_dir, args.out)
+    print(f"report: {pdf}\npage images: {', '.join(map(str, pngs))}")
     return 0
 
 

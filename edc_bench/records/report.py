@@ -1,69 +1,69 @@
-"""The one-page customer report of a test: PDF for printing, PNG for screens and mail.
+"""The report of a test: two A4 pages in one PDF for printing, and each page as a PNG for screens and mail.
 
-Drawn with matplotlib on an A4 page from the record folder alone (record.json
-and the trace; no variant file, no model, no recomputation): identity
-and versions, the verdict with its probability and distance to the
-boundary, the parameter table with uncertainties and the change against
-the reference (the new-valve baseline for af and a1, the data-sheet
-nominal for the others, as the paper's Table 1 compares valves), the
-tracking and convergence plots (paper Figs. 3-5) and the valve's point on
-the decision plane (Fig. 7).
+Page 1 is for the customer and the shop: who tested (station, operator),
+what (pump type, part number, pump serial, valve), when (local time with
+its offset from UTC), the verdict in large type with what to do, the
+rack's tracking of the test command and the valve's point against the
+boundary between reusable and worn valves, all in plain words. Page 2 is
+for the engineer: the parameter table with uncertainties and references
+(the new-valve baseline for af and a1, the data-sheet nominal for the
+others, as the paper's Table 1 compares valves), the classifier (model,
+file, SHA-256, P(faulty), distance), baseline, coil, test and timing,
+model fit, versions, the record's folder, and the convergence and
+tracking-error plots.
+
+Drawn with matplotlib from the record folder alone (record.json and the
+trace; no variant file, no model, no recomputation). Every text is fitted
+to its box by measured width (:mod:`~edc_bench.records.report_layout`).
 """
 
 from __future__ import annotations
 
-import math
-import textwrap
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.backends.backend_pdf import PdfPages
 
 from edc_bench.paths import atomic_write
-from edc_bench.records.baseline_text import baseline_line
+from edc_bench.records import report_content as content
+from edc_bench.records import report_plots as plots
 from edc_bench.records.reader import load_record, load_trace
+from edc_bench.records.report_layout import (
+    CONTENT_WIDTH_PT,
+    GREY,
+    MARGIN_PT,
+    PAGE_HEIGHT_PT,
+    PAGE_WIDTH_PT,
+    Page,
+    Rows,
+    block_height_pt,
+    fit_rows,
+    fit_text,
+    key_value_rows,
+    line_pitch_pt,
+)
 from edc_bench.records.schema import Record
 from edc_bench.verdict.verdicts import Verdict
 
 REPORT_PDF = "report.pdf"
-REPORT_PNG = "report-page.png"
-_VERDICT_COLOURS = {Verdict.PASS: "#2e7d32", Verdict.MARGINAL: "#f9a825", Verdict.FAIL: "#c62828",
-                    Verdict.INVALID: "#6a1b9a"}
-_ID_COLUMN_CHARS = 40  # characters of 7.5 pt text in the identity block's value column (two lines at most: the
-# row's room; record.json holds the whole value)
-_UNITS = {"a3": "V s^3/mm", "a2": "V s^2/mm", "a1": "V s/mm", "a0": "V/mm", "b": "V", "af": "V"}
+REPORT_PNG = "report-page.png"  # page 1, the customer's page (the name the docs and older scripts use)
+REPORT_PNG_PAGE_2 = "report-page-2.png"
+REPORT_PNGS = (REPORT_PNG, REPORT_PNG_PAGE_2)
+PNG_DPI = 110
+_RIGHT_PT = PAGE_WIDTH_PT - MARGIN_PT
+_TOP_PT = 40.0
+_FOOTER_BASELINE_PT = PAGE_HEIGHT_PT - 34.0
+_PLOT_LEFT_PT = MARGIN_PT + 44.0  # room for the y tick labels and the axis label
+_PLOT_BELOW_PT = 34.0  # the x tick labels and the axis label under a plot
+_BADGE_TEXT = {Verdict.MARGINAL: "black"}  # dark words on the amber badge; white on the others
+_IDENTITY_PT, _IDENTITY_MIN_PT = 9.0, 6.5  # identities shrink before they are shortened: 100 characters fit whole
+_DETAIL_SIZES_PT = (7.5, 7.0, 6.5)  # page 2's text, set smaller while it leaves the plots too little room
+_DETAIL_MIN_PT = 6.5  # the smallest a long value on page 2 is set before it is shortened
+_MIN_PLOT_PT = 110.0
 
 
-def _reference_values(record: Record) -> dict[str, tuple[float, str]]:
-    """Per parameter: the value it is compared with, and where that comes from, as the test recorded them."""
-    return {name: (entry.value, entry.source) for name, entry in record.reference_values.items()
-            if entry.value is not None}
-
-
-def _identity_lines(record: Record, folder: Path) -> list[tuple[str, str]]:
-    identity, cls = record.identity, record.classification
-    pump = (record.config or {}).get("pump")
-    description = str(pump.get("description", "")) if isinstance(pump, dict) else ""
-    if cls is not None and cls.model:
-        model = f"{cls.model} classifier {cls.model_file or '?'}, sha256 {(cls.model_sha256 or '')[:12] or 'not recorded'}"
-    else:
-        model = "not classified"
-    return [
-        ("Pump", f"{record.variant or '?'}, part number {record.part_number or '?'}"),
-        ("", description[:60]),
-        ("Pump serial", identity.pump_serial or "-"),
-        ("Valve", record.valve_id or "-"),
-        ("Date", (record.started_at or "?").replace("T", " ").replace("+00:00", " UTC")),
-        ("Station / operator", f"{identity.station or '-'} / {identity.operator or '-'}"),
-        ("Software", f"edc-bench {record.software_version or '?'}, ICD {record.icd_version or '?'}, "
-                     f"rig firmware {record.firmware_version or '?'}"),
-        ("Model", model),
-        ("Rig / clock", f"{'simulated rig' if record.simulated_rig else 'bench rig'}, {record.clock or '?'}"),
-        ("Record", folder.name),
-    ]
-
-
-def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
+def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, tuple[Path, ...]]:
     """Draw the report of the record in ``folder``.
 
     Parameters
@@ -75,231 +75,289 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, Path]:
 
     Returns
     -------
-    (pathlib.Path, pathlib.Path)
-        The PDF and the PNG.
+    (pathlib.Path, tuple of pathlib.Path)
+        The two-page PDF, and one PNG per page (page 1 first: ``report-page.png``).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     folder = Path(folder)
     record = load_record(folder)
     trace = load_trace(folder)
     out_dir = Path(out_dir) if out_dir is not None else folder
     out_dir.mkdir(parents=True, exist_ok=True)
-
-    fig = plt.figure(figsize=(8.27, 11.69))  # A4 portrait
-    grid = fig.add_gridspec(24, 2, left=0.09, right=0.95, top=0.95, bottom=0.05, hspace=1.4, wspace=0.3)
-    verdict = record.verdict
-    fig.text(0.08, 0.965, "Solenoid valve diagnosis (edc-bench)", fontsize=15, weight="bold")
-    fig.text(0.95, 0.965, f" {verdict} ", fontsize=15, weight="bold", color="white", ha="right",
-             bbox={"facecolor": _VERDICT_COLOURS.get(verdict, "grey"), "edgecolor": "none", "pad": 4})
-
-    ax_id = fig.add_subplot(grid[0:6, 0])
-    ax_id.axis("off")
-    for n, (key, value) in enumerate(_identity_lines(record, folder)):
-        y = 1.0 - n * 0.1
-        ax_id.text(0.0, y, key, fontsize=7.5, weight="bold", va="top", transform=ax_id.transAxes)
-        # ids as typed: a '$' in them is no formula; wrapped here, as matplotlib's own wrapping measures text
-        # with two '$' as a formula whatever parse_math says
-        ax_id.text(0.34, y, textwrap.fill(value, _ID_COLUMN_CHARS, max_lines=2, placeholder=" ...",
-                                          break_on_hyphens=False), fontsize=7.5,
-                   va="top", transform=ax_id.transAxes, parse_math=False)
-
-    ax_v = fig.add_subplot(grid[0:6, 1])
-    ax_v.axis("off")
-    _verdict_block(ax_v, record)
-
-    ax_t = fig.add_subplot(grid[6:10, :])
-    ax_t.axis("off")
-    _parameter_table(ax_t, record)
-
-    t = trace["t_s"]
-    ax_track = fig.add_subplot(grid[11:14, 0])
-    ax_error = fig.add_subplot(grid[14:16, 0])
-    ax_conv = fig.add_subplot(grid[11:16, 1])
-    ax_plane = fig.add_subplot(grid[17:24, :])
-    if len(t):
-        _tracking(ax_track, ax_error, trace)
-        _convergence(ax_conv, trace, record)
-    _decision_plane(ax_plane, record)
-
-    pdf, png = out_dir / REPORT_PDF, out_dir / REPORT_PNG
-    atomic_write(pdf, lambda f: fig.savefig(f, format="pdf"))
-    atomic_write(png, lambda f: fig.savefig(f, format="png", dpi=110))
-    plt.close(fig)
-    return pdf, png
+    pages = report_pages(record, trace, folder.name)
+    pdf = write_pdf(pages, record, out_dir / REPORT_PDF)
+    pngs = tuple(out_dir / name for name in REPORT_PNGS)
+    for page, png in zip(pages, pngs, strict=True):
+        atomic_write(png, lambda f, page=page: page.figure.savefig(f, format="png", dpi=PNG_DPI))
+    return pdf, pngs
 
 
-def _verdict_block(ax: Any, record: Record) -> None:
-    cls = record.classification
-    words = record.advice.words  # the technician's line, as the test's own output gives it
-    lines = textwrap.wrap(words[:1].upper() + words[1:] + ".", 54)
-    if cls is not None:
-        rel = cls.features_rel
-        lines += [
-            f"P(faulty) = {cls.probability_faulty:.3f}",
-            f"distance to the boundary {cls.distance:+.3f}",
-            f"(marginal band +/- {cls.marginal_band or 0:g}; positive: worn side)",
-            f"af {rel.get('af', math.nan) - 1:+.1%}, a1 {rel.get('a1', math.nan) - 1:+.1%} against a new valve",
-        ]
-    coil = record.coil
-    if coil is not None and coil.resistance_20c_ohm is not None:
-        low, high = coil.spec_ohm
-        spec = f"<= {high:g}" if low is None else (f">= {low:g}" if high is None else f"{low:g}-{high:g}")
-        lines.append(f"coil {coil.resistance_20c_ohm:.3f} ohm at 20 degC "
-                     + ("(no spec)" if coil.in_spec is None else
-                        f"(spec {spec}: {'in spec' if coil.in_spec else 'OUT OF SPEC'})"))
-    baseline = record.baseline
-    if baseline is not None and baseline.calibrated is False:
-        lines += ["baseline NOMINAL: the variant is not calibrated; af and a1",
-                  "were compared with data-sheet figures, not new valves:",
-                  "this verdict may be wrong (edc-bench calibrate --append)"]
-    elif baseline is not None:
-        lines.append("baseline " + baseline_line(baseline.model_dump()).split(", station")[0])
-    fit = record.identification.model_fit if record.identification is not None else None
-    if fit is not None and fit.fits is False:  # what to do matters more than the figures, which the record holds
-        lines += ["THE MODEL DOES NOT FIT THIS PUMP: a longer test will",
-                  "not help. Check the variant is this pump's, the rack",
-                  "moves freely, the solenoid's armature and wiring; a",
-                  "pump like this needs its own variant (docs/faults.md)."]
-        # each problem whole, wrapped to the block's width (record.json holds the figures with their limits)
-        for problem in fit.problems[:3]:
-            lines += textwrap.wrap(problem.split(" (limit")[0] + ";", 54)
-    elif cls is None or (coil is not None and coil.in_spec is False):  # a classification's reasons repeat the above
-        for reason in record.reasons:
-            lines.append(reason if len(reason) < 60 else reason[:57] + "...")
-    stop = record.stop
-    if stop is not None and stop.time_s is not None:
-        lines.append(f"ended after {stop.time_s:.1f} s of at most {stop.max_s or 0:g} s: {stop.reason}")
-    for n, line in enumerate(lines):
-        ax.text(0.0, 1.0 - n * 0.12, line, fontsize=8, va="top", transform=ax.transAxes,
-                weight="bold" if n == 0 else "normal", parse_math=False)  # reasons quote ids and paths
+def report_pages(record: Record, trace: dict[str, np.ndarray], folder_name: str) -> list[Page]:
+    """The two pages, drawn and not yet written: the customer's and the engineer's."""
+    return [customer_page(record, trace, folder_name), engineer_page(record, trace, folder_name)]
 
 
-def _parameter_table(ax: Any, record: Record) -> None:
-    refs = _reference_values(record)
-    rows = []
-    for name in ("af", "a1", "a0", "a2", "b", "a3"):
-        p = record.parameters.get(name)
-        if p is None:
-            continue
-        value, std = p.value, p.std
-        ref, source = refs.get(name, (math.nan, ""))
-        change = f"{value / ref - 1:+.1%}" if value is not None and ref else ""
-        rows.append([f"{name} ({_UNITS[name]})", f"{value:.5g}" if value is not None else "-",
-                     f"{std:.2g}" if std is not None and p.estimated else "fixed",
-                     f"{ref:.5g}" if math.isfinite(ref) else "-", source or "not recorded", change])
-    if not rows:
-        ax.text(0.0, 0.5, "No parameters: the test stopped before identifying any.", fontsize=9)
+def write_pdf(pages: list[Page], record: Record, path: Path) -> Path:
+    """Write ``pages`` as one PDF at ``path`` (atomically) and return it."""
+    import matplotlib
+
+    metadata = {"Title": f"Solenoid valve test report: {record.valve_id or 'valve'}, {record.verdict}",
+                "Creator": f"edc-bench {record.software_version or ''}".strip()}
+
+    def write(file: Any) -> None:
+        with PdfPages(file, metadata=metadata) as pdf:
+            for page in pages:
+                pdf.savefig(page.figure)
+
+    with matplotlib.rc_context({"pdf.fonttype": 42}):  # TrueType: the words are text a reader can select and search
+        atomic_write(path, write)
+    return path
+
+
+# --- page 1: the customer's ---------------------------------------------------------------------------------------
+
+
+def customer_page(record: Record, trace: dict[str, np.ndarray], folder_name: str) -> Page:
+    """Who, what, when, the verdict and what to do, the tracking plot and the valve against the boundary."""
+    page = Page()
+    y = _header(page, "Solenoid valve test report", 1)
+    y = _identity(page, record, y + 10.0)
+    page.rule(y + 9.0)
+    y = _verdict(page, record, y + 18.0)
+    page.rule(y + 9.0)
+    tracking_pt, decision_pt = _plot_heights(record, y + 18.0)
+    y = _tracking(page, trace, y + 18.0, tracking_pt)
+    _decision(page, record, y + 14.0, decision_pt)
+    _footer(page, f"Technical details on page 2  \u00b7  edc-bench {record.software_version or '?'}  \u00b7  "
+                  f"record {folder_name}")
+    return page
+
+
+def _plot_heights(record: Record, top_pt: float) -> tuple[float, float]:
+    """The tracking plot's and the decision plot's heights: the page's room below the verdict shared out, the
+    decision plot square up to where its legend still fits beside it, the tracking plot taking the rest."""
+    titles_and_labels_pt = 2 * (10.0 + 7.0 + _PLOT_BELOW_PT) + 14.0
+    room_pt = _FOOTER_BASELINE_PT - 12.0 - top_pt - titles_and_labels_pt
+    if record.classification is None or record.decision_plane is None:
+        return float(np.clip(room_pt - 70.0, 100.0, 200.0)), 70.0
+    decision_pt = float(np.clip(room_pt - 112.0, 120.0, 285.0))
+    return float(np.clip(room_pt - decision_pt, 100.0, 170.0)), decision_pt
+
+
+def _header(page: Page, title: str, number: int) -> float:
+    """The page's title and number; returns the y of the rule under them."""
+    size = 17.0 if number == 1 else 14.0
+    fitted = fit_text(title, CONTENT_WIDTH_PT - 60.0, size, bold=True, min_size_pt=11.0)
+    bottom = page.lines(MARGIN_PT, _TOP_PT, fitted, bold=True)
+    page.text(_RIGHT_PT, _TOP_PT + 0.74 * fitted.size_pt, f"page {number} of 2", 8.0, colour=GREY, align="right")
+    page.rule(bottom + 6.0, colour="0.3")
+    return bottom + 6.0
+
+
+def _footer(page: Page, text: str) -> None:
+    fitted = fit_text(text, CONTENT_WIDTH_PT, 7.0, min_size_pt=6.0)
+    page.text(MARGIN_PT, _FOOTER_BASELINE_PT, fitted.lines[0], fitted.size_pt, colour=GREY)
+
+
+def _identity(page: Page, record: Record, top_pt: float) -> float:
+    """Two columns: the test (date, station, operator) and the pump and valve; returns their bottom."""
+    column_pt = (CONTENT_WIDTH_PT - 14.0) / 2
+    common = {"size_pt": _IDENTITY_PT, "max_lines": 4, "min_size_pt": _IDENTITY_MIN_PT}
+    left = key_value_rows(page, MARGIN_PT, top_pt, content.test_rows(record), label_width_pt=62.0,
+                          value_width_pt=column_pt - 62.0, **common)
+    right = key_value_rows(page, MARGIN_PT + column_pt + 14.0, top_pt, content.pump_rows(record),
+                           label_width_pt=74.0, value_width_pt=column_pt - 74.0, **common)
+    return max(left, right)
+
+
+def _verdict(page: Page, record: Record, top_pt: float) -> float:
+    """The verdict on a coloured badge, what to do beside it in large type, the findings under that."""
+    badge_pt, gap_pt = 150.0, 16.0
+    word = fit_text(str(record.verdict), badge_pt - 16.0, 30.0, min_size_pt=12.0, bold=True)
+    text_x, text_width = MARGIN_PT + badge_pt + gap_pt, CONTENT_WIDTH_PT - badge_pt - gap_pt
+    y = page.lines(text_x, top_pt, fit_text(content.advice_sentence(record), text_width, 15.0, max_lines=3,
+                                             min_size_pt=9.0, bold=True), bold=True)
+    for line in content.findings(record):
+        y = page.lines(text_x, y + 7.0, fit_text(line, text_width, 9.0, max_lines=4, min_size_pt=8.0))
+    height = max(y - top_pt, 58.0)
+    page.box(MARGIN_PT, top_pt, badge_pt, height, plots.VERDICT_COLOURS.get(record.verdict, "0.45"))
+    word_top = top_pt + (height - word.height_pt) / 2
+    page.lines(MARGIN_PT + badge_pt / 2, word_top, word, bold=True,
+               colour=_BADGE_TEXT.get(record.verdict, "white"), align="center")
+    return top_pt + height
+
+
+def _plot_title(page: Page, x_pt: float, top_pt: float, title: str, width_pt: float, size_pt: float = 10.0) -> float:
+    """A plot's title, fitted to the plot's width; returns where the plot may start."""
+    return page.lines(x_pt, top_pt, fit_text(title, width_pt, size_pt, min_size_pt=8.0), bold=True) + 7.0
+
+
+def _tracking(page: Page, trace: dict[str, np.ndarray], top_pt: float, height_pt: float) -> float:
+    """The tracking plot across the page; returns the bottom of its axis labels."""
+    y = _plot_title(page, MARGIN_PT, top_pt, plots.tracking_title(trace), CONTENT_WIDTH_PT)
+    plots.draw_tracking(page.axes(_PLOT_LEFT_PT, y, _RIGHT_PT - _PLOT_LEFT_PT, height_pt), trace)
+    return y + height_pt + _PLOT_BELOW_PT
+
+
+def _decision(page: Page, record: Record, top_pt: float, height_pt: float) -> None:
+    """The valve against the boundary, its legend and a few plain sentences beside it (or why there is none)."""
+    y = _plot_title(page, MARGIN_PT, top_pt, "This valve compared with new valves and worn valves", CONTENT_WIDTH_PT)
+    bottom_pt = _FOOTER_BASELINE_PT - 12.0 - _PLOT_BELOW_PT
+    if record.classification is None or record.decision_plane is None:
+        plots.draw_decision(page.axes(MARGIN_PT, y, CONTENT_WIDTH_PT, min(height_pt, bottom_pt - y)), record)
         return
-    table = ax.table(cellText=rows, colLabels=["parameter", "identified", "+/- (1 sd)", "reference", "source",
-                                               "change"], loc="center", cellLoc="center")
-    table.auto_set_font_size(False)
-    table.set_fontsize(8)
-    table.scale(1.0, 1.3)
-    ax.set_title("Identified parameters, referred to the reference coil (af, a1: the diagnosis features)",
-                 fontsize=9, loc="left")
+    size_pt = max(min(bottom_pt - y, height_pt), 120.0)
+    ax = page.axes(_PLOT_LEFT_PT, y, size_pt, size_pt)
+    entries = plots.draw_decision(ax, record)
+    side_x = _PLOT_LEFT_PT + size_pt + 18.0
+    side_width = _RIGHT_PT - side_x
+    legend = page.figure.legend([h for h, _ in entries], [w for _, w in entries], loc="upper left",
+                                bbox_to_anchor=(side_x / PAGE_WIDTH_PT, 1.0 - y / PAGE_HEIGHT_PT), frameon=False,
+                                fontsize=plots.LEGEND_PT, borderaxespad=0.0, borderpad=0.0, handlelength=1.8,
+                                labelspacing=0.7)
+    legend.set_in_layout(False)
+    legend_height_pt = len(entries) * plots.LEGEND_PT * 1.7 + 6.0  # rows of text and spacing, with room to spare
+    caption = ("The test measures the valve's friction (af) and damping (a1) and divides them by a new valve's. "
+               "A valve on the green side of the line is fit to use again; on the red side it is worn. In the grey "
+               "band the two cannot be told apart with certainty: test the valve again.")
+    room = _FOOTER_BASELINE_PT - 12.0 - (y + legend_height_pt + 10.0)
+    lines = max(int((room - 8.0) // line_pitch_pt(8.0)), 1)
+    page.paragraph(side_x, y + legend_height_pt + 10.0, caption, side_width, 8.0, max_lines=lines, colour=GREY)
 
 
-def _tracking(ax: Any, ax_error: Any, trace: dict[str, np.ndarray]) -> None:
-    t = trace["t_s"]
-    window = t >= max(t[-1] - 2.0, 0.0)
-    ax.plot(t[window], trace["reference_mm"][window], "k--", lw=0.8, label="reference")
-    ax.plot(t[window], trace["position_mm"][window], "C0", lw=0.8, label="rack")
-    ax.set_title("Tracking, last 2 s (Fig. 3)", fontsize=9)
-    ax.set_ylabel("rack (mm)", fontsize=8)
-    ax.tick_params(labelsize=7)
-    ax.legend(fontsize=7, loc="upper right")
-    ax_error.plot(t, (trace["reference_mm"] - trace["position_mm"]) * 1e3, lw=0.4, color="C3")
-    ax_error.set_ylabel("error (um)", fontsize=8)
-    ax_error.set_xlabel("time (s), whole test", fontsize=8)
-    ax_error.tick_params(labelsize=7)
+# --- page 2: the engineer's ---------------------------------------------------------------------------------------
 
 
-def _convergence(ax: Any, trace: dict[str, np.ndarray], record: Record) -> None:
-    t = trace["t_s"]
-    refs = _reference_values(record)
-    ceiling = 2.5
-    for name, colour in (("af", "C1"), ("a1", "C2")):
-        ref, source = refs.get(name, (math.nan, ""))
-        if not (math.isfinite(ref) and ref):
-            continue
-        ratio = trace[f"{name}_hat"] / ref
-        ceiling = max(ceiling, float(np.nanmax(ratio)) * 1.1)
-        ax.plot(t, ratio, colour, lw=0.9, label=f"{name} / {source}, online")
-        _period_fit_span(ax, record, name, ref, colour, float(t[-1]) if len(t) else math.nan)
-    ax.axhline(1.0, color="grey", lw=0.6)
-    start_s = record.identification.excitation_start_s if record.identification is not None else None
-    if start_s is not None:
-        ax.axvline(start_s, color="grey", lw=0.5, ls=":")
-    ax.set_ylim(0.0, ceiling)
-    ax.set_title("Convergence of af and a1 (Figs. 4-5)", fontsize=9)
-    ax.set_xlabel("time (s)", fontsize=8)
-    ax.set_ylabel("estimate / reference", fontsize=8)
-    ax.tick_params(labelsize=7)
-    ax.legend(fontsize=6.5, loc="lower right")  # the estimates sit at 1-2.5 once the excitation runs
+def engineer_page(record: Record, trace: dict[str, np.ndarray], folder_name: str) -> Page:
+    """Every figure behind the verdict, as record.json holds it, and the convergence and tracking-error plots.
 
-
-def _period_fit_span(ax: Any, record: Record, name: str, ref: float, colour: str, end_s: float) -> None:
-    """The period fit's value (the feature) over the whole periods it used, with its 2-sigma band."""
-    param, ident = record.parameters.get(name), record.identification
-    if param is None or ident is None:
-        return
-    value, std, periods, period_s = param.value, param.std, ident.periods, ident.period_s
-    if value is None or std is None or not (periods and period_s and math.isfinite(end_s)):
-        return
-    start_s = max(0.0, end_s - periods * period_s)
-    ax.hlines(value / ref, start_s, end_s, colors=colour, lw=2.2, linestyles="--",
-              label=f"{name}, period fit over {periods} periods (the feature)")
-    ax.fill_between([start_s, end_s], (value - 2 * std) / ref, (value + 2 * std) / ref, color=colour, alpha=0.2,
-                    lw=0)
-
-
-def boundary_distance(af_rel: np.ndarray, a1_rel: np.ndarray, p_faulty: np.ndarray, threshold: float) -> np.ndarray:
-    """Signed distance of each grid point to the boundary (P = threshold), positive on the faulty side.
-
-    The boundary is the threshold contour of the recorded P(faulty) grid;
-    each point's distance is to the nearest point of that contour, as the
-    classifier measures it (in relative-feature units).
+    The text is set at 7.5 pt, or smaller (down to 6.5 pt) when a long
+    record (a model that does not fit explains at length) would leave the
+    plots too little room.
     """
-    import contourpy
+    for size_pt in _DETAIL_SIZES_PT:
+        page = Page()
+        y = _engineer_text(page, record, folder_name, size_pt)
+        if _plot_room_pt(y + 14.0) >= _MIN_PLOT_PT:
+            break
+    _engineer_plots(page, record, trace, y + 14.0)
+    _footer(page, f"Page 2 of 2  \u00b7  record {folder_name}")
+    return page
 
-    lines = contourpy.contour_generator(af_rel, a1_rel, p_faulty).lines(threshold)
+
+def _engineer_text(page: Page, record: Record, folder_name: str, size_pt: float) -> float:
+    """Page 2's header, parameter table, sections and reasons at ``size_pt``; returns their bottom."""
+    y = _header(page, "Solenoid valve test report: technical details", 2)
+    y = key_value_rows(page, MARGIN_PT, y + 8.0, [
+        ("Valve", record.valve_id or "-"),
+        ("Verdict", f"{record.verdict}, tested {content.local_time(record.started_at)}"),
+        ("Record folder", folder_name)], label_width_pt=70.0, value_width_pt=CONTENT_WIDTH_PT - 70.0,
+        size_pt=size_pt, max_lines=2, min_size_pt=min(size_pt, _DETAIL_MIN_PT))
+    y = _parameter_table(page, record, y + 14.0, size_pt)
+    column_pt = (CONTENT_WIDTH_PT - 16.0) / 2
+
+    def section(title: str, rows: list[tuple[str, str]]) -> tuple[str, Rows]:
+        return title, fit_rows(rows, label_width_pt=70.0, value_width_pt=column_pt - 70.0, size_pt=size_pt,
+                               max_lines=4, min_size_pt=min(size_pt, _DETAIL_MIN_PT),
+                               mono_labels=frozenset({"SHA-256", "Training data"}))
+
+    left = [section("Classifier", content.classifier_rows(record)), section("Baseline", content.baseline_rows(record)),
+            section("Coil", content.coil_rows(record))]
+    right = [section("Test", content.test_details_rows(record)),
+             section("Model fit", content.model_fit_rows(record))]
+    # the timing under the shorter column: a model that does not fit makes the right one long
+    shorter = left if _sections_height_pt(left) <= _sections_height_pt(right) else right
+    shorter.append(section("Timing", content.timing_rows(record)))
+    bottom = max(_draw_sections(page, MARGIN_PT, y + 14.0, column_pt, left),
+                 _draw_sections(page, MARGIN_PT + column_pt + 16.0, y + 14.0, column_pt, right))
+    return _reasons(page, record, bottom + 14.0, size_pt)
+
+
+def _plot_room_pt(top_pt: float) -> float:
+    """The height page 2's plots get below ``top_pt``: their titles above them, their labels below."""
+    return _FOOTER_BASELINE_PT - 14.0 - _PLOT_BELOW_PT - (top_pt + block_height_pt(1, 9.0) + 7.0)
+
+
+_SECTION_GAP_PT = 14.0
+_HEADING_PT = 9.5
+
+
+def _section_heading(page: Page, x_pt: float, top_pt: float, title: str, width_pt: float) -> float:
+    bottom = page.lines(x_pt, top_pt, fit_text(title, width_pt, _HEADING_PT, bold=True), bold=True)
+    page.rule(bottom + 3.0, x_pt, x_pt + width_pt, colour="0.75")
+    return bottom + 8.0
+
+
+def _sections_height_pt(sections: list[tuple[str, Rows]]) -> float:
+    heading_pt = block_height_pt(1, _HEADING_PT) + 8.0
+    return sum(heading_pt + rows.height_pt + _SECTION_GAP_PT for _, rows in sections)
+
+
+def _draw_sections(page: Page, x_pt: float, top_pt: float, width_pt: float,
+                   sections: list[tuple[str, Rows]]) -> float:
+    """Headed groups of label and value rows, one under the other; returns their bottom."""
+    y = top_pt
+    for title, rows in sections:
+        y = rows.draw(page, x_pt, _section_heading(page, x_pt, y, title, width_pt)) + _SECTION_GAP_PT
+    return y - _SECTION_GAP_PT
+
+
+_TABLE_COLUMNS = (("parameter", 62.0), ("unit", 64.0), ("identified", 72.0), ("\u00b1 1 sd", 62.0),
+                  ("reference", 72.0), ("reference from", 96.0), ("change", 82.0))
+
+
+def _parameter_table(page: Page, record: Record, top_pt: float, size_pt: float) -> float:
+    """The identified parameters with their standard errors, references and change; returns its bottom."""
+    y = _section_heading(page, MARGIN_PT, top_pt, "Identified parameters (referred to the reference coil; af and a1 "
+                                                  "are the diagnosis features)", CONTENT_WIDTH_PT)
+    rows = content.parameter_rows(record)
+    if not rows:
+        return page.paragraph(MARGIN_PT, y, "No parameters: the test stopped before identifying any.",
+                              CONTENT_WIDTH_PT, size_pt)
+    y = _table_row(page, y, [name for name, _ in _TABLE_COLUMNS], size_pt, bold=True)
+    for row in rows:
+        y = _table_row(page, y + 3.0, row, size_pt)
+    return y
+
+
+def _table_row(page: Page, top_pt: float, cells: list[str], size_pt: float, *, bold: bool = False) -> float:
+    x = MARGIN_PT
+    for text, (_, width) in zip(cells, _TABLE_COLUMNS, strict=True):
+        page.lines(x, top_pt, fit_text(text, width - 6.0, size_pt, bold=bold), bold=bold)
+        x += width
+    return top_pt + block_height_pt(1, size_pt)
+
+
+def _reasons(page: Page, record: Record, top_pt: float, size_pt: float) -> float:
+    """The verdict's reasons and the test's problems, across the page; returns their bottom."""
+    lines = content.reason_lines(record)
     if not lines:
-        return np.where(p_faulty >= threshold, np.inf, -np.inf)
-    boundary = np.concatenate(lines)
-    points = np.column_stack([af_rel.ravel(), a1_rel.ravel()])
-    nearest = np.sqrt(((points[:, None, :] - boundary[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
-    return np.where(p_faulty.ravel() >= threshold, nearest, -nearest).reshape(p_faulty.shape)
+        return top_pt - _SECTION_GAP_PT
+    y = _section_heading(page, MARGIN_PT, top_pt, "Reasons", CONTENT_WIDTH_PT)
+    for n, line in enumerate(lines[:6]):  # each whole, up to 6 lines (a model that does not fit explains at length)
+        y = page.lines(MARGIN_PT, y + (4.0 if n else 0.0),
+                       fit_text(line, CONTENT_WIDTH_PT, size_pt, max_lines=6, min_size_pt=min(size_pt, 6.0)))
+    return y
 
 
-def _decision_plane(ax: Any, record: Record) -> None:
-    cls, plane = record.classification, record.decision_plane
-    ax.set_title("Decision plane (Fig. 7): the valve against the boundary", fontsize=9)
-    if cls is None or plane is None:
-        ax.text(0.5, 0.5, "not classified" if not cls else "decision plane not in this record",
-                ha="center", va="center", fontsize=10, transform=ax.transAxes)
-        ax.set_xticks([])
-        ax.set_yticks([])
+def _engineer_plots(page: Page, record: Record, trace: dict[str, np.ndarray], top_pt: float) -> None:
+    """The convergence of af and a1 and the tracking error, side by side, down to the footer (or, on a page the
+    text has filled, a line saying where they are)."""
+    if _plot_room_pt(top_pt) < _MIN_PLOT_PT / 2:
+        page.paragraph(MARGIN_PT, top_pt, "No room left on this page for the convergence and tracking-error plots; "
+                       "the record's trace.mf4 holds their data.", CONTENT_WIDTH_PT, 7.5, max_lines=2, colour=GREY)
         return
-    p = np.asarray(plane.p_faulty, dtype=float)
-    A, B = np.meshgrid(np.linspace(*plane.af_rel_range, p.shape[1]), np.linspace(*plane.a1_rel_range, p.shape[0]))
-    dist = boundary_distance(A, B, p, plane.threshold)
-    band = plane.marginal_band
-    point = np.array([cls.features_rel.get("af", math.nan), cls.features_rel.get("a1", math.nan)])
-    ax.contourf(A, B, dist, levels=[-np.inf, -band], colors=["#e8f5e9"])
-    ax.contourf(A, B, dist, levels=[band, np.inf], colors=["#ffebee"])
-    ax.contourf(A, B, dist, levels=[-band, band], colors=["0.85"])
-    ax.contour(A, B, p, levels=[plane.threshold], colors="k", linewidths=1.2)
-    ax.scatter([1.0], [1.0], marker="s", color="C0", s=40, label="new-valve baseline")
-    ax.scatter([point[0]], [point[1]], marker="*", s=220, color=_VERDICT_COLOURS.get(cls.verdict, "k"),
-               edgecolor="k", zorder=5, label=f"this valve: {cls.verdict}")
-    ax.plot([], [], "k-", label="decision boundary")
-    ax.fill([], [], color="0.85", label=f"marginal band +/- {band:g}")
-    ax.set_xlabel("af / baseline", fontsize=8)
-    ax.set_ylabel("a1 / baseline", fontsize=8)
-    ax.tick_params(labelsize=7)
-    ax.legend(fontsize=7, loc="upper left")
-    ax.grid(alpha=0.3)
+    gap_pt, label_pt = 34.0, 40.0
+    width_pt = (CONTENT_WIDTH_PT - gap_pt) / 2 - label_pt
+    left_x = MARGIN_PT
+    right_x = MARGIN_PT + (CONTENT_WIDTH_PT + gap_pt) / 2
+    y_left = _plot_title(page, left_x, top_pt, "Estimates of af and a1 during the test",
+                         width_pt + label_pt, 9.0)
+    y_right = _plot_title(page, right_x, top_pt, "Tracking error over the whole test", width_pt + label_pt, 9.0)
+    y = max(y_left, y_right)
+    height_pt = min(_FOOTER_BASELINE_PT - 14.0 - _PLOT_BELOW_PT - y, 200.0)
+    plots.draw_convergence(page.axes(left_x + label_pt, y, width_pt, height_pt), trace, record)
+    plots.draw_tracking_error(page.axes(right_x + label_pt, y, width_pt, height_pt), trace)
+
+
+__all__ = ["REPORT_PDF", "REPORT_PNG", "REPORT_PNGS", "REPORT_PNG_PAGE_2", "customer_page", "draw_report",
+           "engineer_page", "report_pages", "write_pdf"]

@@ -36,7 +36,7 @@ def test_a_tests_record_its_report_and_an_export_are_0644_under_umask_022(umask_
     assert main(["history", "--db", db, "--csv", str(tmp_path / "tests.csv")]) == 0
     capsys.readouterr()
     found = {**modes(record), "tests.csv": stat.S_IMODE((tmp_path / "tests.csv").stat().st_mode)}
-    assert {"record.json", "report.pdf", "report-page.png", "tests.csv"} <= set(found)
+    assert {"record.json", "report.pdf", "report-page.png", "report-page-2.png", "tests.csv"} <= set(found)
     assert {name: oct(mode) for name, mode in found.items() if mode != 0o644} == {}
 
 

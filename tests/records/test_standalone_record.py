@@ -16,7 +16,7 @@ from edc_bench.bench import run_simulated_test
 from edc_bench.config import load_variant
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.records.record import write_record
-from edc_bench.records.report import REPORT_PNG, draw_report
+from edc_bench.records.report import REPORT_PNGS, draw_report
 from edc_bench.verdict.classifier import packaged_model_path
 
 
@@ -54,7 +54,7 @@ draw_report(sys.argv[1])
 
 
 def test_report_on_a_copied_folder_without_variant_or_model_is_the_same(worn_record: Path, tmp_path: Path) -> None:
-    _, png_here = draw_report(worn_record, tmp_path / "here")
+    _, pngs_here = draw_report(worn_record, tmp_path / "here")
     elsewhere = tmp_path / "other-machine" / worn_record.name
     shutil.copytree(worn_record, elsewhere)
     env_dirs = {"EDC_BENCH_DATA_DIR": str(tmp_path / "empty-data"), "EDC_BENCH_CACHE_DIR": str(tmp_path / "cache")}
@@ -63,7 +63,9 @@ def test_report_on_a_copied_folder_without_variant_or_model_is_the_same(worn_rec
     proc = subprocess.run([sys.executable, "-c", _ISOLATED_REPORT, str(elsewhere)], capture_output=True, text=True,
                           cwd=tmp_path, env={**os.environ, **env_dirs}, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert (elsewhere / REPORT_PNG).read_bytes() == png_here.read_bytes()
+    assert [png.name for png in pngs_here] == list(REPORT_PNGS)
+    for png in pngs_here:
+        assert (elsewhere / png.name).read_bytes() == png.read_bytes()
 
 
 def test_can_log_is_python_cans_format_with_absolute_times_and_directions(worn_record: Path) -> None:
