@@ -485,23 +485,20 @@ class SelfcheckSection(_Section):
     0.05 mm, a current sensor's gain 3 %).
     """
 
-    plausible = {
-        "lvdt_zero_mm": Plausible(0.001, 1, "mm", "an LVDT's zero may move by"),
-        "current_zero_a": Plausible(0.0001, 1, "A", "a current sensor's zero may move by"),
-    }
-
     every_tests: Annotated[int, Field(ge=1, le=100000)] | None = Field(
         default=None, description="a self-check at least every this many tests at a station (none: no limit)")
     every_hours: Annotated[float, Field(gt=0, le=8760, allow_inf_nan=False)] | None = Field(
         default=None, description="a self-check at least every this many hours at a station (none: no limit)")
-    lvdt_zero_mm: PositiveFloat = Field(default=0.02, description="how far the rack position at rest may move (mm)")
-    current_zero_a: PositiveFloat = Field(default=0.01, description="how far the coil current at rest may move (A)")
+    lvdt_zero_mm: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
+        default=0.02, description="how far the rack position at rest may move (mm)")
+    current_zero_a: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
+        default=0.01, description="how far the coil current at rest may move (A)")
     coil_r20_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
         default=0.015, description="how far the coil resistance measured may move (relative)")
     a0_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
         default=0.015, description="how far the spring rate a0 may move (relative)")
     af_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
-        default=0.03, description="how far the reference valve's af may move (relative)")
+        default=0.02, description="how far the reference valve's af may move (relative)")
     a1_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
         default=0.015, description="how far the reference valve's a1 may move (relative)")
 

@@ -94,7 +94,7 @@ class Tolerances:
     current_zero_a: float = 0.01
     coil_r20_rel: float = 0.015
     a0_rel: float = 0.015
-    af_rel: float = 0.03
+    af_rel: float = 0.02
     a1_rel: float = 0.015
 
     def of(self, quantity: str) -> float:
