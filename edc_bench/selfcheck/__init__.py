@@ -21,10 +21,11 @@ A session calls, with the station's history open as ``store``::
 
     registration = Registration.of(store.reference(station))   # None: say no_reference_line(station) once
     if registration is not None:
-        why = selfcheck_due(last_check(store, registration), store.tests_since(...), now, policy)
-        check = run_selfcheck(rig, registration)
+        variant = load_variant(registration.variant)
+        why = check_due(store, registration, SelfCheckPolicy.of_variant(variant), now)  # at the start: always run
+        check = run_selfcheck(rig, registration, variant)
         store.add_rig_check(rig_check_row(check, station, by))
-        print(check.result.line())
+        print(check.result.line())                              # GO, or NO-GO: what drifted, what to do
 """
 
 from __future__ import annotations
@@ -311,6 +312,30 @@ def last_check(store: Any, registration: Registration) -> LastCheck:
     return LastCheck(dt.datetime.fromisoformat(registration.registered_at), True)
 
 
+def check_due(store: Any, registration: Registration, policy: SelfCheckPolicy, now: dt.datetime) -> str | None:
+    """Whether the station must run its self-check before its next test, and why (None: not due).
+
+    Parameters
+    ----------
+    store : HistoryStore
+        The station's history (open).
+    registration : Registration
+        The station's reference valve.
+    policy : SelfCheckPolicy
+        How often checks are required (``SelfCheckPolicy.of_variant(variant)``, or the strictest of several).
+    now : datetime.datetime
+        The time now, time-zone aware.
+
+    Returns
+    -------
+    str or None
+        :func:`selfcheck_due` on the station's latest check (or the registration) and the tests since it.
+    """
+    last = last_check(store, registration)
+    tests = store.tests_since(registration.station, last.at.isoformat(timespec="seconds"))
+    return selfcheck_due(last, tests, now, policy)
+
+
 __all__ = ["REGISTER_COMMAND", "Cause", "LastCheck", "Registration", "Rig", "SelfCheck", "SelfCheckPolicy",
-           "SelfCheckResult", "last_check", "measure_reference", "no_reference_line", "registration_row",
+           "SelfCheckResult", "check_due", "last_check", "measure_reference", "no_reference_line", "registration_row",
            "rig_check_row", "run_selfcheck", "selfcheck_due", "tolerances_of", "values_of"]

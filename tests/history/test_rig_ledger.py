@@ -70,6 +70,28 @@ def test_revision_0004_on_an_older_history_keeps_its_rows_and_refuses_changes_to
                 conn.execute(sql)
 
 
+def test_a_check_is_due_after_the_tests_a_variant_allows_counted_from_the_last_check(tmp_path: Path) -> None:
+    import datetime as dt
+
+    from edc_bench.selfcheck import SelfCheckPolicy, check_due
+
+    with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
+        registration = Registration.of(store.add_reference(_reference_row()))
+        assert registration is not None
+        now = dt.datetime.fromisoformat(registration.registered_at) + dt.timedelta(hours=1)
+        policy = SelfCheckPolicy(every_tests=2, every_hours=8)
+        assert check_due(store, registration, policy, now) is None  # the registration counts as a check
+        for n in range(2):
+            row = {name: "" for name in ("pump_serial", "variant", "part_number", "operator", "clock",
+                                          "software_version", "reason")}
+            store.add_row({**row, "record_dir": f"/r/{n}", "started_at": "2999-01-01T00:00:00+00:00",
+                           "valve_id": f"V{n}", "verdict": "PASS", "station": "bench1"})
+        assert check_due(store, registration, policy, now).startswith("2 tests since the last rig self-check")
+        assert check_due(store, registration, policy, now + dt.timedelta(hours=8)) is not None
+        store.add_rig_check(_check_row(registration.id, "NO-GO"))
+        assert "was NO-GO" in check_due(store, registration, SelfCheckPolicy(), now)
+
+
 def test_a_station_adds_checks_and_only_an_engineer_registers(new_postgres_database: Callable[..., str]) -> None:
     from edc_bench.errors import ConfigError
     from edc_bench.history.roles import setup_roles
