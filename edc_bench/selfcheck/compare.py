@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 #: The figures a self-check compares, in the order they are shown.
 QUANTITIES = ("lvdt_zero_mm", "current_zero_a", "coil_r20_ohm", "a0_v_per_mm", "af_v", "a1_v_s_per_mm")
@@ -69,11 +69,6 @@ class ReferenceValues:
     def figures(self) -> dict[str, float]:
         """The compared figures by name (:data:`QUANTITIES`)."""
         return {name: getattr(self, name) for name in QUANTITIES}
-
-    def as_dict(self) -> dict[str, object]:
-        """Every field, for JSON and the history."""
-        return {f.name: (list(getattr(self, f.name)) if f.name == "test_problems" else getattr(self, f.name))
-                for f in fields(self)}
 
 
 @dataclass(frozen=True)

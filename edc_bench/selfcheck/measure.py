@@ -32,7 +32,8 @@ from edc_bench.selfcheck.compare import ReferenceValues
 from edc_bench.selfcheck.rest import RestReading, measure_rest
 
 
-def reference_values(variant: Variant, rest: RestReading, result: Any, coil_temp_c: float | None = None) -> ReferenceValues:
+def reference_values(variant: Variant, rest: RestReading, result: Any,
+                     coil_temp_c: float | None = None) -> ReferenceValues:
     """The figures of a rest reading and a bench test of the reference valve (pure).
 
     Parameters
