@@ -1,4 +1,4 @@
-"""The rig self-check's ledger in the history: revision 0004 on an older history keeps its rows, the new tables
+"""The rig self-check's ledger in the history: revision 0005 on an older history keeps its rows, the new tables
 refuse changes, a station adds checks and only an engineer registers a reference valve."""
 
 from __future__ import annotations
@@ -40,10 +40,10 @@ def _history_at(url: str, revision: str) -> None:
     engine.dispose()
 
 
-def test_revision_0004_on_an_older_history_keeps_its_rows_and_refuses_changes_to_the_ledger(tmp_path: Path) -> None:
+def test_revision_0005_on_an_older_history_keeps_its_rows_and_refuses_changes_to_the_ledger(tmp_path: Path) -> None:
     path = tmp_path / "h.sqlite"
     url = f"sqlite:///{path}"
-    _history_at(url, "0003")
+    _history_at(url, "0004")
     with sqlite3.connect(path) as conn:
         conn.execute("INSERT INTO tests (record_dir, started_at, valve_id, pump_serial, variant, part_number, verdict, "
                      "station, operator, clock, software_version, reason) VALUES ('/r/a', '2026-05-01T08:00:00+00:00', "
@@ -52,7 +52,7 @@ def test_revision_0004_on_an_older_history_keeps_its_rows_and_refuses_changes_to
                      "('V1', 'worn', '', 'ana', '2026-05-02', '2026-05-02')")
     with HistoryStore(url) as store:  # a station's SQLite file is upgraded when opened
         with store.engine.connect() as conn:
-            assert migrate.current(conn) == "0004" == migrate.head()
+            assert migrate.current(conn) == "0005" == migrate.head()
         assert [r["valve_id"] for r in store.list()] == ["V1"] and len(store.teardowns()) == 1
         assert store.reference("bench1") is None and store.rig_checks() == []
         first = store.add_reference(_reference_row())

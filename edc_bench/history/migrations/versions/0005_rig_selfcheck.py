@@ -5,8 +5,8 @@
 - rig_checks: each self-check: GO or NO-GO, the drifts named, its figures, and the registration compared with.
 - Triggers refuse UPDATE and DELETE (and TRUNCATE on PostgreSQL) on both, as on the other tables.
 
-Revision ID: 0004
-Revises: 0003
+Revision ID: 0005
+Revises: 0004
 Create Date: 2026-11-27
 """
 
@@ -15,8 +15,8 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
-revision = "0004"
-down_revision = "0003"
+revision = "0005"
+down_revision = "0004"
 branch_labels = None
 depends_on = None
 
