@@ -42,6 +42,7 @@ from edc_bench.verdict.judgement import judge_run
 
 if TYPE_CHECKING:
     from edc_bench.sim.adapter import AdapterModel
+    from edc_bench.sim.drift import SensorDrift
     from edc_bench.sim.rig import SimulatedRig
 from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.protocol import Icd, default_icd
@@ -231,7 +232,8 @@ _channels = itertools.count()
 def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: int = 0, *,
                        stiction: bool = True, sensor_noise: bool = True, adapter: AdapterModel | str | None = None,
                        clock_wrapper: Callable[[Clock], Clock] | None = None, options: BenchOptions | None = None,
-                       firmware: str = "python", **option_fields: Any) -> BenchResult:
+                       firmware: str = "python", drift: SensorDrift | str | None = None,
+                       **option_fields: Any) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
     Parameters
@@ -253,6 +255,9 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         Wraps the simulated clock (e.g. :class:`~edc_bench.testing.stalls.StallingClock` to inject host stalls).
     firmware : str, optional
         The rig's firmware: ``python`` (the prototype) or ``c`` (the C core, :mod:`firmware_proto.c_firmware`).
+    drift : SensorDrift or str, optional
+        The rig's sensors drifted (``lvdt_offset_mm=0.05``, see :func:`~edc_bench.sim.drift.parse_rig_drift`);
+        none by default.
     options : BenchOptions, optional
         As :func:`run_bench_test`; single fields may be given by name instead (``full_length=True``). The
         valve id defaults to the valve's spec; ``coil_temp_c`` is what the technician states, not taken from
@@ -264,13 +269,16 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
         With ``truth`` set to the simulated plant's parameters and ``simulation`` describing the rig.
     """
     from edc_bench.sim.adapter import AdapterModel, parse_adapter
+    from edc_bench.sim.drift import SensorDrift, parse_rig_drift
     from edc_bench.sim.inprocess import InProcessRig
     from edc_bench.sim.lockstep_bus import lockstep_pair
     from edc_bench.sim.rig import RigOptions, SimulatedRig
 
     spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
     link = parse_adapter(adapter) if isinstance(adapter, str) else (adapter or AdapterModel())
-    rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise, firmware=firmware))
+    sensors = parse_rig_drift(drift) if isinstance(drift, str) else (drift or SensorDrift())
+    rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise, firmware=firmware,
+                                                       drift=sensors))
     o = dataclasses.replace(options or BenchOptions(), **option_fields)
     o = dataclasses.replace(o, valve_id=o.valve_id or spec.label, truth=rig.truth,
                             describe_rig=lambda: _simulation(variant, spec, rig, link, seed, stiction, sensor_noise))
@@ -295,6 +303,7 @@ def _simulation(variant: Variant, spec: ValveSpec, rig: SimulatedRig, link: Adap
                  "resistance_start_ohm": rig.plant_params.resistance_ohm,
                  "resistance_end_ohm": rig.plant.resistance_ohm},
         "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise, "firmware": rig.options.firmware,
+        **({"sensor_drift": dataclasses.asdict(rig.options.drift)} if not rig.options.drift.none else {}),
         "adapter": dataclasses.asdict(link),
         "faulty_by_physics": is_faulty(variant, spec),
         "resisting_force_n": resisting_force_n(variant, spec),

@@ -17,7 +17,8 @@ from collections.abc import Sequence
 from edc_bench.cli.exit_codes import ExitCode
 
 COMMANDS = ("test", "rig", "variants", "tune", "calibrate", "train", "classify", "evaluate", "paper", "study-boundary",
-            "perf", "replay", "history", "label", "report", "check-station", "rig-check", "session")
+            "perf", "replay", "history", "label", "report", "check-station", "rig-check", "session",
+            "rig-selfcheck")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -424,3 +424,23 @@ def person_name(given: str | None, what: str) -> str:
     if problem:
         raise ConfigError(f"--by {given!r} {problem}; give {what}")
     return by
+
+
+def rig_drift(text: str) -> Any:
+    """``--rig-drift``: the simulated rig's sensor drift (:func:`edc_bench.sim.drift.parse_rig_drift`)."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.sim.drift import parse_rig_drift
+
+    try:
+        return parse_rig_drift(text, flag="")
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_rig_drift_argument(parser: Any) -> None:
+    """``--rig-drift SPEC``: the simulated rig's sensors drifted, as every command that runs the simulated rig
+    takes it."""
+    parser.add_argument("--rig-drift", type=rig_drift, default=None, metavar="SPEC",
+                        help="simulated rig: its sensors drifted, e.g. lvdt_offset_mm=0.05 or current_gain=1.03 "
+                             "(keys lvdt_offset_mm, lvdt_gain, current_gain, current_offset_a; default: none), what "
+                             "'edc-bench rig-selfcheck' must catch")

@@ -23,6 +23,8 @@ class ExitCode(enum.IntEnum):
     STATION_NOT_READY = 14  # edc-bench check-station: NO-GO
     RIG_NOT_CONFORMING = 15  # edc-bench rig-check: NO-GO
     HISTORY_NOT_AS_INDEXED = 16  # edc-bench history --verify: a record folder missing or altered since indexed
+    RIG_DRIFTED = 17  # edc-bench rig-selfcheck: NO-GO, a sensor or the reference valve drifted
+    NO_REFERENCE_VALVE = 18  # edc-bench rig-selfcheck: no reference valve is registered for the station
     BAD_INPUT = 2
     RIG_ERROR = 3
     INTERRUPTED = 130
@@ -47,6 +49,10 @@ MEANINGS: dict[int, str] = {
     ExitCode.RIG_NOT_CONFORMING: "rig-check: NO-GO, the rig breaks an ICD rule (the failed checks are printed)",
     ExitCode.HISTORY_NOT_AS_INDEXED: "history --verify: a record folder is missing or changed since it was indexed "
                                      "(each is listed)",
+    ExitCode.RIG_DRIFTED: "rig-selfcheck: NO-GO, the rig's sensors or the reference valve drifted (what drifted and "
+                          "what to do are printed)",
+    ExitCode.NO_REFERENCE_VALVE: "rig-selfcheck: no reference valve is registered for this station (the command "
+                                 "that registers one is printed)",
     ExitCode.BAD_INPUT: "bad input: the message names what was wrong and how to fix it; nothing was done",
     ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
     ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
@@ -61,6 +67,7 @@ SUCCESS: dict[str, str] = {
     "replay": "the record is reproduced exactly (a raw log: PASS)",
     "check-station": "GO: this PC holds the loop rate",
     "rig-check": "GO: the rig kept every ICD rule checked",
+    "rig-selfcheck": "GO: the reference valve measures as registered (with --register: registered)",
     "rig": "the rig was stopped (Ctrl-C or SIGTERM)",
 }
 
@@ -85,6 +92,7 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "check-station": (ExitCode.OK, ExitCode.STATION_NOT_READY),
     "rig-check": (ExitCode.OK, ExitCode.RIG_NOT_CONFORMING, ExitCode.RIG_ERROR),
     "session": (ExitCode.OK,),
+    "rig-selfcheck": (ExitCode.OK, ExitCode.RIG_ERROR, ExitCode.RIG_DRIFTED, ExitCode.NO_REFERENCE_VALVE),
 }
 
 #: Codes any command can return: bad input (argparse too), a bug, Ctrl-C.
@@ -95,6 +103,7 @@ SHORT_NAMES: dict[int, str] = {
     ExitCode.PASS: "PASS", ExitCode.MARGINAL: "MARGINAL", ExitCode.FAIL: "FAIL", ExitCode.INVALID: "INVALID",
     ExitCode.NOT_REPRODUCED: "replay not reproduced", ExitCode.STATION_NOT_READY: "station NO-GO",
     ExitCode.RIG_NOT_CONFORMING: "rig NO-GO", ExitCode.HISTORY_NOT_AS_INDEXED: "history not as indexed",
+    ExitCode.RIG_DRIFTED: "rig self-check NO-GO", ExitCode.NO_REFERENCE_VALVE: "no reference valve",
     ExitCode.BAD_INPUT: "bad input", ExitCode.RIG_ERROR: "rig or bus error", ExitCode.INTERNAL_ERROR: "internal error",
     ExitCode.INTERRUPTED: "interrupted", ExitCode.RECORD_NOT_WRITTEN: "record not written",
 }

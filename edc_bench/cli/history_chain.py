@@ -31,6 +31,12 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
     chain.add_argument("--verify", action="store_true",
                        help="read every indexed record folder again: list the missing and those changed since they "
                             f"were indexed (exit 16 if any)")
+    chain.add_argument("--rig", action="store_true",
+                       help="the rig self-check's ledger: each reference valve registered, each 'edc-bench "
+                            "rig-selfcheck', GO or NO-GO, what drifted, and each figure's change against the "
+                            "registration with its trend per check (--station: one station's)")
+    chain.add_argument("--station", type=identity(), default=None, metavar="NAME",
+                       help="with --rig: only this station's ledger")
     chain.add_argument("--schema", action="store_true",
                        help="the database's schema revision and the changes --upgrade would make")
     chain.add_argument("--upgrade", action="store_true",
@@ -49,9 +55,11 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
                                       ("--verify", args.verify), ("--schema", args.schema),
                                       ("--upgrade", args.upgrade), ("--setup-roles", args.setup_roles),
                                       ("--add", bool(args.add)), ("--trend", args.trend is not None),
-                                      ("--csv", args.csv is not None)) if flag]
+                                      ("--csv", args.csv is not None), ("--rig", args.rig)) if flag]
     if len(chosen) > 1:
         raise ConfigError(f"{' and '.join(chosen)} are separate actions: give one at a time")
+    if args.station is not None and not args.rig:
+        raise ConfigError("--station goes with --rig (the rig self-check's ledger of one station)")
     if args.withdraw is None and (args.why is not None or args.by is not None):
         raise ConfigError("--why and --by go with --withdraw TEST_ID")
     if args.withdraw is not None:
@@ -71,6 +79,10 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
             raise ConfigError(f"--why {problem}: say why the test is withdrawn (kept with it for good), e.g. "
                               "--why 'valve id typed wrong; retested as V-1043'")
         return _withdraw
+    if args.rig:
+        from edc_bench.cli.history_rig import run_rig
+
+        return run_rig
     return {"--audit": _audit, "--verify": _verify, "--schema": _schema, "--upgrade": _upgrade,
             "--setup-roles": _setup_roles}.get(chosen[0] if chosen else "")
 

@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from edc_bench.cli.common import add_variant_arguments, parse_host_port, seed_number
+from edc_bench.cli.common import add_rig_drift_argument, add_variant_arguments, parse_host_port, seed_number
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,6 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--firmware", choices=("python", "c"), default="python",
                    help="the rig's firmware: python (the prototype, default) or c (the C core; build it with "
                         "'make -C firmware_proto/c')")
+    add_rig_drift_argument(p)
     p.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
                    help="break this ICD rule, for trying 'edc-bench rig-check' on a rig that fails it (repeatable): "
                         "answers-bad-crc, wrong-counter-echo, slow-watchdog, no-watchdog, no-heartbeat, "
@@ -52,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
     valve = parse_valve_spec(args.valve, variant)
     adapter = parse_adapter(args.adapter)
     rig = SimulatedRig(variant, valve, seed=args.seed,
-                       options=RigOptions(breaks=_breaks(args.breaks), firmware=args.firmware))
+                       options=RigOptions(breaks=_breaks(args.breaks), firmware=args.firmware,
+                                          drift=args.rig_drift or RigOptions().drift))
     server = SlcanRigServer(rig, log=lambda line: print(f"rig: {line}", flush=True), adapter=adapter)
     if args.pty:
         where = server.open_pty()
@@ -67,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())
     broken = f", breaking {', '.join(args.breaks)}" if args.breaks else ""
+    if args.rig_drift is not None and not args.rig_drift.none:
+        broken += f", sensors drifted: {args.rig_drift.spec()}"
     print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}, {args.firmware} firmware{broken}, "
           f"serving slcan at {where}", flush=True)
     server.serve_forever()

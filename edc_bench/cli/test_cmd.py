@@ -12,6 +12,7 @@ from typing import Any
 from edc_bench.cli.common import (
     MAX_SEED,
     add_history_db_argument,
+    add_rig_drift_argument,
     add_variant_arguments,
     bit_rate,
     identity,
@@ -65,6 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--firmware", choices=("python", "c"), default="python",
                    help="simulated rig: its firmware, python (the prototype, default) or c (the C core; build it "
                         "with 'make -C firmware_proto/c')")
+    add_rig_drift_argument(p)
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
     p.add_argument("--pump-serial", type=identity(), default="", metavar="SERIAL",
                    help="serial number of the pump, for the record")
@@ -328,7 +330,8 @@ def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: dict[st
               "own timing", file=sys.stderr)
     simulated_only = [flag for flag, given in (("--no-stiction", args.no_stiction),
                                                ("--no-sensor-noise", args.no_sensor_noise),
-                                               ("--firmware", args.firmware != "python")) if given]
+                                               ("--firmware", args.firmware != "python"),
+                                               ("--rig-drift", args.rig_drift is not None)) if given]
     if bus_config is not None and simulated_only:
         print(f"edc-bench test: warning: {', '.join(simulated_only)} describe the simulated rig; on a real bus the "
               "valve mounted is what is tested", file=sys.stderr)
@@ -370,7 +373,8 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
             f"simulated time, at most {variant.excitation.duration_s:g} s")
         return run_simulated_test(variant, parse_valve_spec(args.valve, variant), seed,
                                   stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
-                                  adapter=args.adapter, options=options, firmware=args.firmware), []
+                                  adapter=args.adapter, options=options, firmware=args.firmware,
+                                  drift=args.rig_drift), []
     icd = default_icd()
     if bus_config is not None:
         log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
@@ -381,8 +385,9 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     from edc_bench.sim.process import rig_process
 
     rig_status: dict[str, float] = {}
+    drift = [] if args.rig_drift is None else ["--rig-drift", args.rig_drift.spec()]
     with rig_process(args.variant, args.valve, seed, args.adapter, rig_status,
-                     extra=["--firmware", args.firmware]) as channel:
+                     extra=["--firmware", args.firmware, *drift]) as channel:
         log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
         session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
         with session as bus:
@@ -390,7 +395,8 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     # the rig process's side of the timing (how long it once went without serving: a disturbed rig), known once it
     # has stopped
     simulation = {"rig_process": {"valve": args.valve, "seed": seed, "adapter": args.adapter,
-                                  "firmware": args.firmware, **rig_status}}
+                                  "firmware": args.firmware, **rig_status,
+                                  **({"sensor_drift": args.rig_drift.spec()} if args.rig_drift is not None else {})}}
     return dataclasses.replace(result, simulation=simulation), _closing_notes(session)
 
 

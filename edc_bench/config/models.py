@@ -475,6 +475,34 @@ class DiagnosisSection(_Section):
     population: PopulationSection
 
 
+class SelfcheckSection(_Section):
+    """The rig self-check with a reference valve (``edc-bench rig-selfcheck``, docs/faults.md).
+
+    How far each figure of the reference valve and the rig at rest may move from its registration before the
+    self-check is NO-GO, and how often a station must run it. The tolerances come from the spread of each
+    figure over repeated runs of the simulated rig with different noise (docs/faults.md prints it), with room
+    for a real rig's temperature and handling, and each below the drift it must catch (an LVDT's zero moved
+    0.05 mm, a current sensor's gain 3 %).
+    """
+
+    every_tests: Annotated[int, Field(ge=1, le=100000)] | None = Field(
+        default=None, description="a self-check at least every this many tests at a station (none: no limit)")
+    every_hours: Annotated[float, Field(gt=0, le=8760, allow_inf_nan=False)] | None = Field(
+        default=None, description="a self-check at least every this many hours at a station (none: no limit)")
+    lvdt_zero_mm: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
+        default=0.02, description="how far the rack position at rest may move (mm)")
+    current_zero_a: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
+        default=0.01, description="how far the coil current at rest may move (A)")
+    coil_r20_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
+        default=0.015, description="how far the coil resistance measured may move (relative)")
+    a0_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
+        default=0.015, description="how far the spring rate a0 may move (relative)")
+    af_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
+        default=0.02, description="how far the reference valve's af may move (relative)")
+    a1_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
+        default=0.015, description="how far the reference valve's a1 may move (relative)")
+
+
 class Variant(_Section):
     """A pump variant: everything the bench and the simulated rig need.
 
@@ -493,6 +521,7 @@ class Variant(_Section):
     acceptance: AcceptanceSection = AcceptanceSection()
     retest: RetestSection = RetestSection()
     diagnosis: DiagnosisSection
+    selfcheck: SelfcheckSection = SelfcheckSection()
     _source_file: str | None = PrivateAttr(default=None)
 
     @property

@@ -3,8 +3,10 @@
 Three group roles, made by ``edc-bench history --setup-roles`` (as the database's owner or a superuser); each
 person's or station's login is made a member of one (docs/shop-network.md):
 
-- ``edc_station``: read everything, add tests;
-- ``edc_engineer``: a station's rights, and record teardown findings, withdrawals and model adoptions;
+- ``edc_station``: read everything, add tests and rig self-checks;
+- ``edc_engineer``: a station's rights, and record teardown findings, withdrawals, model adoptions and reference
+  valves (what every later self-check compares with: a station that could register one could make a NO-GO go
+  away by registering the drifted rig as the reference);
 - ``edc_owner``: owns the tables, so it alone changes the schema (``history --upgrade``).
 
 No role may update or delete a stored row: the privileges are never granted, and the append-only triggers
@@ -22,9 +24,9 @@ STATION, ENGINEER, OWNER = "edc_station", "edc_engineer", "edc_owner"
 ROLES = (STATION, ENGINEER, OWNER)
 
 #: The tables each role may add rows to (every role reads every table).
-INSERTS = {STATION: ("tests",), ENGINEER: ("teardowns", "amendments", "adoptions")}
+INSERTS = {STATION: ("tests", "rig_checks"), ENGINEER: ("teardowns", "amendments", "adoptions", "reference_valves")}
 #: Every table of the history, the migrations' bookkeeping included.
-ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "alembic_version")
+ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "reference_valves", "rig_checks", "alembic_version")
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,8 @@ RIGHTS = {
     "label": Right("record teardown findings", ENGINEER),
     "withdraw": Right("withdraw tests or findings", ENGINEER),
     "adopt": Right("record model adoptions", ENGINEER),
+    "add-rig-check": Right("add rig self-checks", STATION),
+    "register-reference": Right("register a reference valve", ENGINEER),
     "upgrade": Right("change the history's schema", OWNER),
     "setup-roles": Right("create the history's roles", OWNER,
                          "ask the database's owner with the CREATEROLE right, or the server's administrator"),

@@ -13,6 +13,10 @@ changes is said by a new row naming the row it concerns:
   this one replaces.
 - ``amendments``: a withdrawal of a test or of a finding, with who, when and why.
 - ``adoptions``: a model a station was given to judge with, who adopted it and when.
+- ``reference_valves``: a station's reference valve for the rig self-check and its figures when registered; a
+  registration again is a new row, and the station's newest stands.
+- ``rig_checks``: each rig self-check (``edc-bench rig-selfcheck``): GO or NO-GO, the drifts named, its
+  figures, and the registration it was compared with (the ledger, ``history --rig``).
 
 Who: ``*_by`` is the person (``--by``, or the operating-system login), ``db_login`` the database login that
 wrote the row (on PostgreSQL; None on SQLite, where the file's permissions say who may write).
@@ -104,8 +108,51 @@ adoptions = sa.Table(
     sa.Column("db_login", sa.String(200)),
 )
 
+#: The figures of the reference valve and the rig at rest (:data:`edc_bench.selfcheck.compare.QUANTITIES`).
+FIGURES = ("lvdt_zero_mm", "current_zero_a", "coil_r20_ohm", "a0_v_per_mm", "af_v", "a1_v_s_per_mm")
+
+
+def _figures() -> list[sa.Column]:
+    return [sa.Column(name, sa.Float) for name in FIGURES] + [sa.Column("lvdt_at_floor", sa.Boolean)]
+
+
+reference_valves = sa.Table(
+    "reference_valves", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("station", sa.String(200), nullable=False, index=True),
+    sa.Column("valve_id", sa.String(200), nullable=False),
+    sa.Column("variant", sa.String(200), nullable=False),
+    *_figures(),
+    sa.Column("coil_temp_c", sa.Float),
+    sa.Column("simulated", sa.Boolean, nullable=False),
+    sa.Column("valve_spec", sa.String(200)),  # the simulated valve (None on a rig)
+    sa.Column("details", sa.Text),  # JSON: how it was measured
+    sa.Column("software_version", sa.String(40), nullable=False),
+    sa.Column("registered_by", sa.String(200), nullable=False),
+    sa.Column("registered_at", sa.String(40), nullable=False),
+    sa.Column("db_login", sa.String(200)),
+)
+
+rig_checks = sa.Table(
+    "rig_checks", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("station", sa.String(200), nullable=False, index=True),
+    sa.Column("reference_id", sa.Integer, nullable=False),  # the registration compared with
+    sa.Column("verdict", sa.String(10), nullable=False),  # GO or NO-GO
+    sa.Column("causes", sa.Text, nullable=False),  # the drifts named, comma-separated ('' for GO)
+    sa.Column("words", sa.Text, nullable=False),  # the line the technician read
+    *_figures(),
+    sa.Column("coil_temp_c", sa.Float),
+    sa.Column("simulated", sa.Boolean, nullable=False),
+    sa.Column("details", sa.Text),  # JSON: every figure's drift and tolerance, how it was measured
+    sa.Column("software_version", sa.String(40), nullable=False),
+    sa.Column("checked_by", sa.String(200), nullable=False),
+    sa.Column("checked_at", sa.String(40), nullable=False, index=True),
+    sa.Column("db_login", sa.String(200)),
+)
+
 #: The append-only tables, in the order they were made.
-TABLES = (tests, teardowns, amendments, adoptions)
+TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks)
 
 #: Columns of a test in listings and CSV exports, in order (what a test is; how it was indexed is in --audit).
 COLUMNS = tuple(c.name for c in tests.columns if c.name not in ("record_manifest", "db_login"))

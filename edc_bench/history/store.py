@@ -36,7 +36,16 @@ import sqlalchemy as sa
 from edc_bench.errors import ConfigError
 from edc_bench.history import migrate
 from edc_bench.history.guard import database_errors
-from edc_bench.history.schema import COLUMNS, TEARDOWN_COLUMNS, adoptions, amendments, teardowns, tests
+from edc_bench.history.schema import (
+    COLUMNS,
+    TEARDOWN_COLUMNS,
+    adoptions,
+    amendments,
+    reference_valves,
+    rig_checks,
+    teardowns,
+    tests,
+)
 from edc_bench.history.secrets import redact, secrets_of, shown_url
 from edc_bench.history.url import check_url, default_url
 from edc_bench.records.integrity import file_digest
@@ -429,6 +438,59 @@ class HistoryStore:
             if then is not None:
                 then()
         return row
+
+    # -- the rig self-check's ledger ----------------------------------------------------------------------------
+
+    def add_reference(self, row: dict[str, Any]) -> dict[str, Any]:
+        """Register a station's reference valve (``edc-bench rig-selfcheck --register``); returns the stored row.
+
+        ``row`` holds the columns of :data:`~edc_bench.history.schema.reference_valves` but ``id``,
+        ``registered_at`` and ``db_login``. A registration again is a new row: the station's newest stands, the
+        earlier ones stay (and the checks made against them).
+        """
+        row = {**row, "registered_at": _now(), "db_login": self.login}
+        with self._guard("register-reference"), self.engine.begin() as conn:
+            row["id"] = conn.execute(reference_valves.insert().values(**row)).inserted_primary_key[0]
+        return row
+
+    def reference(self, station: str) -> dict[str, Any] | None:
+        """The station's reference valve as it stands (its newest registration), or None if it has none."""
+        query = (sa.select(reference_valves).where(reference_valves.c.station == station)
+                 .order_by(reference_valves.c.id.desc()).limit(1))
+        found = self._rows(query)
+        return found[0] if found else None
+
+    def add_rig_check(self, row: dict[str, Any]) -> dict[str, Any]:
+        """Store one rig self-check; returns the stored row (columns of :data:`~edc_bench.history.schema.rig_checks`
+        but ``id``, ``checked_at`` and ``db_login``)."""
+        row = {**row, "checked_at": _now(), "db_login": self.login}
+        with self._guard("add-rig-check"), self.engine.begin() as conn:
+            row["id"] = conn.execute(rig_checks.insert().values(**row)).inserted_primary_key[0]
+        return row
+
+    def rig_checks(self, station: str | None = None, reference_id: int | None = None) -> list[dict[str, Any]]:
+        """Rig self-checks, oldest first: of one station and one registration if given."""
+        query = sa.select(rig_checks)
+        if station is not None:
+            query = query.where(rig_checks.c.station == station)
+        if reference_id is not None:
+            query = query.where(rig_checks.c.reference_id == reference_id)
+        return self._rows(query.order_by(rig_checks.c.id))
+
+    def references(self, station: str | None = None) -> list[dict[str, Any]]:
+        """Every registration, oldest first (of one station if given)."""
+        query = sa.select(reference_valves)
+        if station is not None:
+            query = query.where(reference_valves.c.station == station)
+        return self._rows(query.order_by(reference_valves.c.id))
+
+    def tests_since(self, station: str, since: str) -> int:
+        """Tests of ``station`` that started after ``since`` (an ISO time), withdrawn ones too: what the self-check's
+        due rule counts (:func:`edc_bench.selfcheck.due.selfcheck_due`)."""
+        query = sa.select(sa.func.count(sa.distinct(tests.c.record_dir))).where(
+            tests.c.station == station, tests.c.started_at > since)
+        with self._guard("read"), self.engine.connect() as conn:
+            return int(conn.execute(query).scalar() or 0)
 
     def _rows(self, query: sa.Select[Any]) -> list[dict[str, Any]]:
         with self._guard("read"), self.engine.connect() as conn:

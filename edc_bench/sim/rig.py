@@ -20,6 +20,7 @@ from edc_bench.errors import ConfigError
 from edc_bench.physics.feedforward import FeedforwardParameters, feedforward_truth
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.sim.broken_rigs import BrokenFirmware, IcdBreak
+from edc_bench.sim.drift import SensorDrift
 from edc_bench.sim.plant import DEFAULT_QUANTUM_S, Plant
 from edc_bench.sim.sensors import NoisySensor
 from firmware_proto.firmware import FirmwareLimits, Frame, RigFirmware
@@ -37,24 +38,30 @@ class SimulatedRigHardware:
         Supply voltage it reports (settable for fault injection).
     lvdt_disconnected : bool
         If True the LVDT reads NaN (fault injection).
+    drift : SensorDrift
+        How far the sensors have drifted (:mod:`edc_bench.sim.drift`): none by default.
     """
 
-    def __init__(self, plant: Plant, lvdt: NoisySensor, current: NoisySensor, supply_v: float) -> None:
+    def __init__(self, plant: Plant, lvdt: NoisySensor, current: NoisySensor, supply_v: float,
+                 drift: SensorDrift | None = None) -> None:
         self.plant = plant
         self.lvdt = lvdt
         self.current = current
         self.supply_v = supply_v
         self.lvdt_disconnected = False
+        self.drift = drift or SensorDrift()
 
     def sample_position_mm(self) -> float:
         """LVDT reading of the true rack position."""
         if self.lvdt_disconnected:
             return math.nan
-        return self.lvdt.sample(self.plant.x_mm)
+        d = self.drift
+        return self.lvdt.sample(d.lvdt_gain * self.plant.x_mm + d.lvdt_offset_mm)
 
     def sample_current_a(self) -> float:
         """Current sensor reading of the true coil current."""
-        return self.current.sample(self.plant.i_a)
+        d = self.drift
+        return self.current.sample(d.current_gain * self.plant.i_a + d.current_offset_a)
 
     def set_drive_v(self, drive_v: float) -> None:
         """Drive the amplifier."""
@@ -101,6 +108,9 @@ class RigOptions:
     firmware : str
         ``python``: the prototype (firmware_proto/firmware.py); ``c``: the C core (firmware_proto/c), built with
         ``make -C firmware_proto/c``.
+    drift : SensorDrift
+        The sensors' drift (``--rig-drift``, :mod:`edc_bench.sim.drift`): none by default. It is on top of the
+        variant's sensor model, and stays when ``sensor_noise`` is off.
     """
 
     stiction: bool = True
@@ -108,6 +118,7 @@ class RigOptions:
     quantum_s: float = DEFAULT_QUANTUM_S
     breaks: frozenset[IcdBreak] = frozenset()
     firmware: str = "python"
+    drift: SensorDrift = SensorDrift()
 
 
 class SimulatedRig:
@@ -143,6 +154,7 @@ class SimulatedRig:
             NoisySensor(lvdt_model, rng.spawn(1)[0]),
             NoisySensor(current_model, rng.spawn(1)[0]),
             variant.rig.supply_voltage_v,
+            self.options.drift,
         )
         self._quanta_per_s = 1.0 / self.options.quantum_s
         if self.options.firmware not in FIRMWARES:

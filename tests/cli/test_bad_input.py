@@ -290,6 +290,22 @@ CORPUS: dict[str, Case] = {
     "rig-check-out-is-a-file": case("rig-check --out afile", BAD, "--out", "a file is there"),
     "rig-check-variant-utf16": case("rig-check --variant utf16.toml", BAD, "UTF-16"),
     "rig-check-no-such-bus": case("rig-check --interface nosuchbus --channel x", BAD, "nosuchbus"),
+    # -- rig-selfcheck, and the simulated rig's drift ------------------------------------------------------------------
+    "rig-selfcheck-drift-unknown-key": case("rig-selfcheck --rig-drift lvdt_offset=0.05", BAD, "--rig-drift",
+                                            "is not a drift", "lvdt_offset_mm=0.05"),
+    "rig-selfcheck-drift-absurd": case("rig-selfcheck --rig-drift current_gain=3", BAD, "--rig-drift",
+                                       "outside 0.5..1.5"),
+    "rig-selfcheck-drift-on-a-bus": case("rig-selfcheck --rig-drift lvdt_gain=1.02 --interface virtual --channel x",
+                                         BAD, "--rig-drift", "simulated rig"),
+    "rig-selfcheck-register-without-id": case("rig-selfcheck --register", BAD, "--register needs --valve-id"),
+    "rig-selfcheck-id-without-register": case("rig-selfcheck --valve-id REF-1", BAD, "--valve-id goes with --register"),
+    "rig-selfcheck-register-bad-valve": case("rig-selfcheck --register --valve-id R --valve clearance=abc", BAD,
+                                             "clearance"),
+    "rig-selfcheck-db-missing-folder": case("rig-selfcheck --db sqlite:///nodir/h.sqlite", BAD, "nodir"),
+    "test-rig-drift-not-a-number": case("test --rig-drift lvdt_gain=abc", BAD, "--rig-drift", "not a number"),
+    "rig-rig-drift-twice": case("rig --listen 127.0.0.1:0 --rig-drift lvdt_gain=1.1,lvdt_gain=1.2", BAD,
+                                "--rig-drift", "given twice"),
+    "history-station-without-rig": case("history --station bench1", BAD, "--station goes with --rig"),
     # -- a second corpus, a newcomer's: what the system refuses, absurd counts, look-alike ids, mistyped URLs ----------
     "test-out-name-too-long": case(("test", "--out", "a" * 300), BAD, "too long", "shorter"),
     "test-variant-name-too-long": case(("test", "--variant", "a" * 300 + ".toml"), BAD, "too long", "shorter"),
@@ -353,7 +369,8 @@ WORK = ("edc_bench.bench.run_bench_test", "edc_bench.bench.run_simulated_test", 
         "edc_bench.learning.dataset.cached_dataset", "edc_bench.experiments.studies.paper_experiment",
         "edc_bench.population.calibrate.population_tests", "edc_bench.station.check_station",
         "edc_bench.perf.suite.run", "edc_bench.control.tuning.tune_pid",
-        "edc_bench.learning.shop_training.train_from_labels", "edc_bench.records.report.draw_report")
+        "edc_bench.learning.shop_training.train_from_labels", "edc_bench.records.report.draw_report",
+        "edc_bench.selfcheck.measure.measure_rest")
 
 
 @pytest.fixture()
