@@ -7,7 +7,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from edc_bench.cli.common import add_history_db_argument, bit_rate, identity, seed_number
+from edc_bench.cli.common import (
+    add_history_db_argument,
+    add_rig_drift_argument,
+    bit_rate,
+    identity,
+    seed_number,
+)
 from edc_bench.cli.exit_codes import ExitCode
 
 
@@ -38,6 +44,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--station", type=identity(), default=None, help="this bench station's name (default: host name)")
     p.add_argument("--operator", type=identity(), default=None,
                    help="who works the shift (default: the name given at this station last time; asked if none)")
+    add_rig_drift_argument(p)
     add_history_db_argument(p)
     p.set_defaults(run=run)
 
@@ -59,7 +66,12 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return ExitCode.BAD_INPUT
     bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True)
-    app = make_app(args.variant, RigChoice(bus_config=bus_config, first_seed=args.seed), args.out, args.db,
+    if bus_config is not None and args.rig_drift is not None:
+        from edc_bench.errors import ConfigError
+
+        raise ConfigError("--rig-drift describes the simulated rig: leave it out on a bus")
+    rig = RigChoice(bus_config=bus_config, first_seed=args.seed, rig_drift=args.rig_drift)
+    app = make_app(args.variant, rig, args.out, args.db,
                    args.station or socket.gethostname(), args.operator or remembered_operator())
     app.run()
     for line in app.shift.summary_lines():
@@ -75,11 +87,13 @@ def make_app(variant_name: str | None, rig: Any, out_dir: Path, history_url: str
     from edc_bench.config import load_variant
     from edc_bench.session.app import SessionApp
     from edc_bench.session.operator import remember_operator
+    from edc_bench.session.rig_selfcheck import SessionSelfCheck
     from edc_bench.session.runner import SessionRunner
 
     runner = SessionRunner(rig, out_dir, history_url, station, operator)
+    selfcheck = SessionSelfCheck(rig, history_url, station, by=lambda: runner.operator or "session")
     return SessionApp(runner, load_variant, variant_name, library_part_numbers(), operator, remember_operator,
-                      history_lines(history_url), out_dir)
+                      history_lines(history_url), out_dir, selfcheck=selfcheck)
 
 
 def library_part_numbers() -> dict[str, str]:

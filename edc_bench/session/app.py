@@ -11,8 +11,8 @@ from __future__ import annotations
 import shutil
 import subprocess
 import threading
+from dataclasses import replace
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Label, Static
 
+from edc_bench.session.rig_selfcheck import SelfCheckWords, SessionSelfCheck
 from edc_bench.session.runner import SessionRunner, ValveDone
 from edc_bench.session.scan import PROMPTS, Scan, Step, read_line
 from edc_bench.session.shift import RigCheckEntry, ShiftLog, ValveEntry, _now
@@ -53,14 +54,6 @@ class SnapshotObserver:
         figures = read_tick(k, loop)
         with self.lock:
             self.snapshot.apply(figures)
-
-
-@dataclass(frozen=True)
-class SelfCheckWords:
-    """A rig self-check as the session shows it: GO (True), NO-GO (False) or not run (None), and its words."""
-
-    go: bool | None
-    words: str
 
 
 class OperatorScreen(ModalScreen[str]):
@@ -103,10 +96,8 @@ class SessionApp(App[None]):
         Keeps a newly named operator for the next session.
     history_of : callable
         Valve id -> its earlier tests (newest first), lines for the screen.
-    rig_selfcheck : callable, optional
-        Runs the rig self-check with the reference valve (None: the session has none to run).
-    selfcheck_due : callable, optional
-        (tests since the last check, hours since) -> why a check is due now, or None.
+    selfcheck : SessionSelfCheck, optional
+        The station's rig self-check: run at the start of the shift and whenever it is due (None: none).
     shift_folder : pathlib.Path
         Where the shift summary is written.
     """
@@ -137,19 +128,18 @@ class SessionApp(App[None]):
     def __init__(self, runner: SessionRunner, variant_loader: Callable[[str | None], Any], variant_name: str | None,
                  part_numbers: Mapping[str, str], operator: str, remember_operator: Callable[[str], None],
                  history_of: Callable[[str], list[str]], shift_folder: Path,
-                 rig_selfcheck: Callable[[], SelfCheckWords] | None = None,
-                 selfcheck_due: Callable[[int, float], str | None] | None = None) -> None:
+                 selfcheck: SessionSelfCheck | None = None) -> None:
         super().__init__()
         self.runner, self.variant_loader, self.part_numbers = runner, variant_loader, part_numbers
         self.remember, self.history_of, self.shift_folder = remember_operator, history_of, shift_folder
-        self.rig_selfcheck_fn, self.selfcheck_due = rig_selfcheck, selfcheck_due
+        self.selfcheck = selfcheck
+        self.awaiting_reference = ""  # the reference valve's id while the session waits for it to be mounted
         self.variant = variant_loader(variant_name)
         self.scan = Scan(variant=self.variant.name)
         self.shift = ShiftLog(operator=operator, station=runner.station, rig=runner.rig.describe())
         self.observer: SnapshotObserver | None = None
         self.testing = False
         self.last: ValveDone | None = None
-        self.tests_since_check, self.last_check_at = 0, _monotonic()
         self.summary_file: Path | None = None
 
     # -- layout --------------------------------------------------------------------------------------------------
@@ -186,8 +176,12 @@ class SessionApp(App[None]):
 
     def _start_of_shift(self) -> None:
         self.query_one("#entry", Input).focus()
-        if self.rig_selfcheck_fn is not None:
-            self.action_rig_selfcheck()
+        if self.selfcheck is None:
+            return
+        if self.selfcheck.reference_valve() is None:  # said once; the shift goes on
+            self._selfcheck_done(self.selfcheck.no_reference_words())
+            return
+        self._ask_for_reference("the start of the shift")
 
     def _show_status(self) -> None:
         variant = self.variant
@@ -207,6 +201,14 @@ class SessionApp(App[None]):
         if self.testing:
             self._say("a test is running: wait for its verdict")
             return
+        if self.awaiting_reference:
+            event.input.value = ""
+            if event.value.strip():
+                self._say(f"mount the reference valve {self.awaiting_reference} and press Enter alone (Esc skips "
+                          "the check until it is due again)")
+                return
+            self._run_selfcheck_now()
+            return
         answer = read_line(self.scan, event.value, self.part_numbers)
         event.input.value = ""
         self._say(answer.message)
@@ -221,11 +223,21 @@ class SessionApp(App[None]):
             self._show_history(self.scan.valve_id)
         self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
         if answer.start_test:
+            why = self.selfcheck.due() if self.selfcheck is not None else None
+            if why:  # the rig is checked first; the valve stays scanned and is mounted after
+                self.scan = replace(self.scan, step=Step.MOUNT)
+                self._ask_for_reference(why)
+                return
             self._test(self.scan.valve_id, self.scan.pump_serial)
 
     def action_back(self) -> None:
         if self.testing:
             return
+        if self.awaiting_reference:
+            self.awaiting_reference = ""
+            self.shift.rig_checks.append(RigCheckEntry(None, "skipped by the operator", _now()))
+            self.query_one("#side", Static).update(Text("rig self-check skipped: it is asked for again when due",
+                                                         style="bold yellow"))
         self.scan = Scan(variant=self.variant.name)
         self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
         self._say("back to the valve id")
@@ -289,7 +301,6 @@ class SessionApp(App[None]):
     def _show_done(self, done: ValveDone) -> None:
         self.testing = False
         self.last = done
-        self.tests_since_check += len(done.tests)
         final = done.final
         verdict = self.query_one("#verdict", Static)
         what = final if done.decision is None else f"{final}  (MARGINAL, retest {done.tests[-1].verdict})"
@@ -323,36 +334,52 @@ class SessionApp(App[None]):
     # -- the rig self-check --------------------------------------------------------------------------------------
 
     def _check_due(self) -> None:
-        if self.selfcheck_due is None or self.rig_selfcheck_fn is None:
+        if self.selfcheck is None:
             return
-        why = self.selfcheck_due(self.tests_since_check, (_monotonic() - self.last_check_at) / 3600.0)
+        why = self.selfcheck.due()
         if why:
-            self._say(f"rig self-check due ({why}): it runs now; the reference valve must be mounted")
-            self.action_rig_selfcheck()
+            self._ask_for_reference(why)
+
+    def _ask_for_reference(self, why: str) -> None:
+        reference = self.selfcheck.reference_valve() if self.selfcheck is not None else None
+        if reference is None:
+            return
+        self.awaiting_reference = reference
+        self.query_one("#prompt", Label).update(f"Rig self-check ({why}): mount the reference valve {reference}, "
+                                                "then press Enter")
 
     def action_rig_selfcheck(self) -> None:
-        if self.testing or self.rig_selfcheck_fn is None:
-            return
+        if not self.testing and self.selfcheck is not None:
+            if self.selfcheck.reference_valve() is None:
+                self._selfcheck_done(self.selfcheck.no_reference_words())
+            else:
+                self._ask_for_reference("asked for")
+
+    def _run_selfcheck_now(self) -> None:
         self.testing = True
-        self.query_one("#prompt", Label).update("Rig self-check with the reference valve ...")
+        self.query_one("#prompt", Label).update(f"Rig self-check with the reference valve {self.awaiting_reference} "
+                                                "...")
+        self.awaiting_reference = ""
         self._run_selfcheck()
 
     @work(thread=True, exclusive=True)
     def _run_selfcheck(self) -> None:
         try:
-            words = self.rig_selfcheck_fn()
+            words = self.selfcheck.run()
         except Exception as exc:  # noqa: BLE001 - said on the screen; the shift goes on
             words = SelfCheckWords(False, f"the rig self-check could not run ({type(exc).__name__}: {exc})")
         self.call_from_thread(self._selfcheck_done, words)
 
     def _selfcheck_done(self, words: SelfCheckWords) -> None:
         self.testing = False
-        self.tests_since_check, self.last_check_at = 0, _monotonic()
         self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, _now()))
         style = {True: "green", False: "red"}.get(words.go, "yellow")
-        self.query_one("#side", Static).update(Text(f"rig self-check: {words.words}", style=f"bold {style}"))
+        line = words.words if words.words.startswith("rig self-check") else f"rig self-check: {words.words}"
+        self.query_one("#side", Static).update(Text(line, style=f"bold {style}"))
         self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
         self.query_one("#entry", Input).focus()
+        if words.go is False:
+            self._say("the rig is not fit to judge valves: do what the self-check says, then F6 to check again")
 
     # -- keys ----------------------------------------------------------------------------------------------------
 
@@ -383,9 +410,3 @@ class SessionApp(App[None]):
         except OSError as exc:
             self._say(f"the shift summary could not be written ({exc}); it is shown below")
         self.exit()
-
-
-def _monotonic() -> float:
-    import time
-
-    return time.monotonic()

@@ -28,13 +28,13 @@ class RigChoice:
         A real rig's bus (python-can settings), or None for the simulated rig (in process, simulated time).
     first_seed : int
         The simulated rig's first noise seed; each test of the session takes the next, so a retest sees new noise.
-    rig_drift : str
-        The simulated rig's sensor drift (as ``--rig-drift``), for trying the rig self-check; "" none.
+    rig_drift : SensorDrift or None
+        The simulated rig's sensors drifted (``--rig-drift``), what the rig self-check must catch; None: none.
     """
 
     bus_config: dict[str, Any] | None = None
     first_seed: int = 0
-    rig_drift: str = ""
+    rig_drift: Any = None
 
     @property
     def simulated(self) -> bool:
@@ -44,7 +44,8 @@ class RigChoice:
     def describe(self) -> str:
         """The rig in a few words, for the screen and the shift summary."""
         if self.simulated:
-            return "simulated rig" + (f" (drift {self.rig_drift})" if self.rig_drift else "")
+            drifted = self.rig_drift is not None and not self.rig_drift.none
+            return "simulated rig" + (f" (sensors drifted: {self.rig_drift.spec()})" if drifted else "")
         return f"rig on {self.bus_config.get('interface')} {self.bus_config.get('channel') or ''}".strip()
 
 
@@ -173,8 +174,8 @@ class SessionRunner:
         from edc_bench.bench import run_bench_test, run_simulated_test
 
         if self.rig.simulated:
-            extra = {"rig_drift": self.rig.rig_drift} if self.rig.rig_drift else {}
-            return run_simulated_test(variant, simulated_valve(variant, valve_id), seed, options=options, **extra)
+            return run_simulated_test(variant, simulated_valve(variant, valve_id), seed, options=options,
+                                      drift=self.rig.rig_drift)
         from edc_bench.protocol import default_icd
         from edc_bench.runtime.bus import ClosingBus, open_bus
         from edc_bench.runtime.clock import RealTimeClock

@@ -290,6 +290,11 @@ CORPUS: dict[str, Case] = {
     "rig-check-out-is-a-file": case("rig-check --out afile", BAD, "--out", "a file is there"),
     "rig-check-variant-utf16": case("rig-check --variant utf16.toml", BAD, "UTF-16"),
     "rig-check-no-such-bus": case("rig-check --interface nosuchbus --channel x", BAD, "nosuchbus"),
+    # -- session ----------------------------------------------------------------------------------------------------
+    "session-not-a-terminal": case("session", BAD, "needs a terminal", "edc-bench test"),
+    "session-variant-utf16": case("session --variant utf16.toml", BAD, "UTF-16"),
+    "session-out-is-a-file": case("session --out afile", BAD, "--out", "is a file, not a folder"),
+    "session-operator-too-long": case(("session", "--operator", LONG_ID), BAD, "--operator", "100"),
     # -- rig-selfcheck, and the simulated rig's drift ------------------------------------------------------------------
     "rig-selfcheck-drift-unknown-key": case("rig-selfcheck --rig-drift lvdt_offset=0.05", BAD, "--rig-drift",
                                             "is not a drift", "lvdt_offset_mm=0.05"),

@@ -117,3 +117,52 @@ def test_the_operator_is_remembered_and_a_mount_prompt_refuses_a_stray_scan(tmp_
     text = asyncio.run(session())
     assert "operator Jo" in text and "press Enter alone" in text and "Mount the valve" in text
     assert not out.exists() or not any(p.is_dir() for p in out.iterdir())  # nothing was tested
+
+
+def _register_reference(tmp_path: Path, db: str, station: str) -> None:
+    from helpers import edc_bench
+
+    proc = edc_bench("rig-selfcheck", "--register", "--valve-id", "REF-1", "--station", station, "--db", db,
+                     "--by", "Eng", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is_no_go(tmp_path: Path) -> None:
+    """A reference valve registered: the shift starts with the self-check (mount it, Enter). A rig whose current
+    sensor reads 3 % high is NO-GO, and a valve scanned after it is not tested: the check is asked for again."""
+    from edc_bench.sim.drift import parse_rig_drift
+
+    db = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    _register_reference(tmp_path, db, "bench-3")
+
+    async def shift(drift: str | None) -> tuple[str, str, object]:
+        rig = RigChoice(rig_drift=None if drift is None else parse_rig_drift(drift, flag=""))
+        app = make_app(None, rig, tmp_path / f"records-{drift}", db, "bench-3", "Anna")
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            asked = _screen_text(app)
+            await _type(pilot, "")  # the reference valve is mounted
+            await _wait_for_verdict(app, pilot)
+            checked = _screen_text(app)
+            await _type(pilot, "worn")
+            await _type(pilot, "PS-1")
+            await _type(pilot, "")
+            await _wait_for_verdict(app, pilot)
+            after = _screen_text(app)
+            await pilot.press("ctrl+q")
+            await pilot.pause()
+        return asked, checked + "\n" + after, app
+
+    asked, seen, app = asyncio.run(shift(None))
+    assert "mount the reference valve REF-1, then press Enter" in asked and "start of the shift" in asked
+    assert "rig self-check: GO" in seen and "WORN: REPLACE THE VALVE" in seen
+    assert [c.go for c in app.shift.rig_checks] == [True]
+
+    asked, seen, app = asyncio.run(shift("current_gain=1.03"))
+    assert "rig self-check: NO-GO" in seen and "current" in seen
+    assert "WORN: REPLACE THE VALVE" not in seen  # no valve is judged on a drifted rig
+    assert "mount the reference valve REF-1" in seen  # asked for again before the valve's test
+    assert [c.go for c in app.shift.rig_checks] == [False]
+    with HistoryStore(db) as store:
+        checks = store.rig_checks("bench-3")
+    assert [c["verdict"] for c in checks] == ["GO", "NO-GO"]

@@ -25,6 +25,11 @@ class Terminal:
         shell = " ".join(_quote(part) for part in command) + "; echo EXITED $?; sleep 600"
         subprocess.run(["tmux", "-S", self.socket, "new-session", "-d", "-s", self.name, "-x", "140", "-y", "45",
                         "-c", str(cwd), shell], check=True, env=env)
+        # the size stays 140 x 45 whatever clients or defaults this tmux has (no client ever attaches)
+        subprocess.run(["tmux", "-S", self.socket, "set-option", "-t", self.name, "window-size", "manual"],
+                       check=False, capture_output=True)
+        subprocess.run(["tmux", "-S", self.socket, "resize-window", "-t", self.name, "-x", "140", "-y", "45"],
+                       check=False, capture_output=True)
 
     def keys(self, *keys: str) -> None:
         subprocess.run(["tmux", "-S", self.socket, "send-keys", "-t", self.name, *keys], check=True)
@@ -55,7 +60,9 @@ def _quote(text: str) -> str:
 
 
 def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> None:
-    env = {**os.environ, "EDC_BENCH_DATA_DIR": str(tmp_path / "data"), "TERM": "xterm-256color"}
+    # COLUMNS and LINES (which pytest's workers may carry) would override the terminal's size for Textual
+    env = {key: value for key, value in os.environ.items() if key not in ("COLUMNS", "LINES")}
+    env.update(EDC_BENCH_DATA_DIR=str(tmp_path / "data"), TERM="xterm-256color")
     term = Terminal([sys.executable, "-m", "edc_bench", "session", "--db", f"sqlite:///{tmp_path / 'h.sqlite'}"],
                     tmp_path, env)
     try:

@@ -1,0 +1,102 @@
+"""A shift's load (slow): 1,500 simulated tests back to back in one session process, driven through the app as a
+technician would (scan, scan, Enter), with memory and open files measured as it goes.
+
+The report is drawn for every tenth valve (each draw is half the cost of a test; 150 draws still show a leak of
+matplotlib's), so the soak fits the slow pass. EDC_BENCH_SOAK_TESTS sets another count (at least 300).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from edc_bench.cli.session_cmd import make_app
+from edc_bench.history.store import HistoryStore
+from edc_bench.records.reader import load_record
+from edc_bench.session.runner import RigChoice
+
+TESTS = int(os.environ.get("EDC_BENCH_SOAK_TESTS", "1500"))
+WARM_UP_TESTS = min(200, TESTS // 5)  # caches, the classifier's session, matplotlib's fonts: filled by then
+SAMPLE_EVERY = 50  # tests
+MAX_GROWTH_MB = 40.0  # resident memory after the warm-up may grow this much over the whole soak, at most
+MAX_SLOPE_KB_PER_TEST = 10.0  # ... and its trend over the last two thirds: 15 MB per 1,500 tests
+
+
+def _rss_mb() -> float:
+    """Resident memory of what is alive: after a collection, with the C allocator's free pages handed back (glibc
+    keeps freed memory in per-thread arenas, and each test runs in a new worker thread)."""
+    import ctypes
+    import gc
+
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc: RSS as it is
+        pass
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError("no VmRSS in /proc/self/status")
+
+
+def _open_files() -> int:
+    return len(os.listdir("/proc/self/fd"))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="measures memory and files through /proc (Linux)")
+def test_a_shift_of_1500_tests_in_one_session_process(tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    out = tmp_path / "records"
+    samples: list[tuple[int, float, int]] = []  # (tests, RSS MB, open files)
+
+    async def shift():
+        app = make_app(None, RigChoice(), out, db, "soak-bench", "Soak Tester")
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            valve = 0
+            while app.shift.tests < TESTS:
+                app.runner.report = valve % 10 == 0
+                entry = app.query_one("#entry")
+                for line in (f"V-{valve:05d}", f"PS-{valve:05d}", ""):  # as a scanner types: a line, then Enter
+                    entry.value = line
+                    await pilot.press("enter")
+                await app.workers.wait_for_complete()
+                await pilot.pause()
+                valve += 1
+                if app.shift.tests // SAMPLE_EVERY > len(samples):
+                    samples.append((app.shift.tests, _rss_mb(), _open_files()))
+            await pilot.press("ctrl+q")
+            await pilot.pause()
+        return app
+
+    app = asyncio.run(shift())
+    tests, rss, files = (np.array(column) for column in zip(*samples, strict=True))
+    after = tests >= WARM_UP_TESTS
+    late = tests >= tests[-1] / 3
+    slope_kb = float(np.polyfit(tests[late], rss[late], 1)[0]) * 1024
+    growth = float(rss[after][-1] - rss[after][0])
+    print("samples (tests, MB, files):", [(int(t), round(float(m), 1), int(f)) for t, m, f in samples])
+    print(f"{app.shift.tests} tests of {len(app.shift.valves)} valves ({app.shift.retests} retests): resident "
+          f"memory {rss[0]:.0f} MB at {tests[0]}, {rss[after][0]:.0f} MB at {tests[after][0]}, {rss[-1]:.0f} MB at "
+          f"{tests[-1]} (growth after the warm-up {growth:+.1f} MB, trend {slope_kb:+.2f} kB per test); open files "
+          f"{files.min()}-{files.max()} (after the warm-up {files[after].min()}-{files[after].max()})")
+    assert growth <= MAX_GROWTH_MB and slope_kb <= MAX_SLOPE_KB_PER_TEST
+    assert files[after].max() - files[after].min() <= 2  # a leaked file per test would show 30 per sample
+    # the history whole, every record readable, and the shift summary as a file
+    with HistoryStore(db) as store:
+        rows = store.list()
+    assert len(rows) == app.shift.tests
+    assert {r["operator"] for r in rows} == {"Soak Tester"}
+    folders = [Path(r["record_dir"]) for r in rows]
+    assert len(set(folders)) == len(folders)
+    for folder in folders:
+        load_record(folder)  # checks the record's integrity manifest too
+    assert sum(1 for r in rows if r["decision"]) == app.shift.retests
+    assert f"tests: {app.shift.tests}; retests: {app.shift.retests}" in app.summary_file.read_text()
+    shutil.rmtree(out, ignore_errors=True)  # 2 MB a test: leave no 3 GB behind in pytest's temp folders
