@@ -5,6 +5,9 @@ visits) into a scratch station, then renders what the technician sees: the
 live panel in the middle of a test, the verdict panels, the report page, the
 history and a valve's trend, a replay and check-station. Terminal screens
 are rich's own SVG export of exactly what the commands print.
+
+``python docs/make_images.py session`` makes only the screens of ``edc-bench session``: the real app, driven
+headless by Textual's pilot as a technician drives it, each screen Textual's own SVG of what it shows.
 """
 
 from __future__ import annotations
@@ -114,5 +117,67 @@ def main() -> None:
     shutil.rmtree(scratch, ignore_errors=True)
 
 
+def session_screens() -> None:
+    """The session's screens (docs/station.md): the start with its rig self-check, a valve seen before, a MARGINAL
+    retested and decided, the next valve's PASS."""
+    import asyncio
+    import subprocess
+
+    scratch = Path(tempfile.mkdtemp(prefix="edc-bench-docs-session-"))
+    os.environ["EDC_BENCH_DATA_DIR"] = str(scratch / "station")
+    from edc_bench.cli.session_cmd import make_app
+    from edc_bench.session.runner import RigChoice
+
+    db = f"sqlite:///{scratch / 'history.sqlite'}"
+    subprocess.run([sys.executable, "-m", "edc_bench", "rig-selfcheck", "--register", "--valve-id", "REF-1",
+                    "--station", "bench-2", "--db", db, "--by", "j.weber"], check=True, capture_output=True)
+
+    async def shift() -> None:
+        app = make_app(None, RigChoice(), scratch / "records", db, "bench-2", "m.keller")
+
+        async def type_line(pilot, text: str) -> None:
+            app.query_one("#entry").value = text
+            await pilot.press("enter")
+            await pilot.pause()
+
+        async def settle(pilot) -> None:
+            await app.workers.wait_for_complete()
+            await pilot.pause()
+            await pilot.pause()
+
+        def shot(name: str) -> None:
+            app.save_screenshot(filename=name, path=str(IMAGES))
+            print(f"wrote docs/images/{name}")
+
+        async with app.run_test(size=(124, 40)) as pilot:
+            await pilot.pause()
+            shot("session-start.svg")
+            await type_line(pilot, "")  # the reference valve mounted
+            await settle(pilot)
+            await type_line(pilot, "clearance=0.185")
+            await type_line(pilot, "PS-20231")
+            await type_line(pilot, "")
+            await settle(pilot)
+            shot("session-retest.svg")
+            await type_line(pilot, "clearance=0.185")
+            shot("session-seen-before.svg")
+            await type_line(pilot, "PS-20232")
+            await type_line(pilot, "")
+            await settle(pilot)
+            await type_line(pilot, "new")
+            await type_line(pilot, "PS-20233")
+            await type_line(pilot, "")
+            await settle(pilot)
+            shot("session-pass.svg")
+            await pilot.press("ctrl+q")
+            await pilot.pause()
+        summary = app.summary_file.read_text()
+        (IMAGES / "session-shift-summary.txt").write_text(summary.replace(str(scratch), "..."))
+        print("wrote docs/images/session-shift-summary.txt")
+
+    asyncio.run(shift())
+    shutil.rmtree(scratch, ignore_errors=True)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(session_screens() if sys.argv[1:] == ["session"] else main())

@@ -72,3 +72,11 @@ def retest_table() -> str:
         decision = decide(second, rule, "not judged: check the mounting" if second == "INVALID" else "")
         rows.append(f"| MARGINAL | {second} | {decision.verdict} | {decision.words} |")
     return "\n".join(rows)
+
+
+def shift_summary() -> str:
+    """The shift summary file that ``python docs/make_images.py session`` wrote (the real app's), as a text block."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "images" / "session-shift-summary.txt").read_text()
+    return "```text\n" + text.rstrip() + "\n```"

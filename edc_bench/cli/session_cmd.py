@@ -123,8 +123,18 @@ def history_lines(url: str | None) -> Any:
                 rows = store.list(Filters(valve_id=valve_id), limit=5)[::-1]  # newest first
         except Exception as exc:  # noqa: BLE001 - the history is a help here, never a stop
             return [f"(the history could not be read: {type(exc).__name__})"]
-        return [f"{row['started_at'][:16].replace('T', ' ')}  {row['verdict']}"
+        return [f"{_local(row['started_at'])}  {row['verdict']}"
                 + (f" -> {row['decision']}" if row.get("decision") else "")
                 + f"  pump {row['pump_serial'] or '-'}, {row['variant']}" for row in rows]
 
     return lines
+
+
+def _local(iso: str) -> str:
+    """A history time (UTC) in this station's local time, to the minute."""
+    import datetime as dt
+
+    try:
+        return dt.datetime.fromisoformat(iso).astimezone().strftime("%Y-%m-%d %H:%M")
+    except ValueError:
+        return iso[:16].replace("T", " ")

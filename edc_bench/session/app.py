@@ -324,11 +324,11 @@ class SessionApp(App[None]):
             label = "test" if n == 0 else "retest"
             lines.append(f"{label}: {test.verdict}, {test.result.advice.words}")
             if test.record_dir is not None:
-                lines.append(f"  record {test.record_dir}")
-            if test.report_pdf is not None:
-                lines.append(f"  report {test.report_pdf} (F5 prints it)")
+                report = ", its report.pdf printed by F5" if test.report_pdf is not None else ""
+                lines.append(f"  record {test.record_dir.name}{report}")
         if done.decision is not None:
             lines.append(f"decision: {done.decision.verdict} by the pump type's rule {done.decision.rule}")
+        lines.append(f"records folder: {self.runner.out_dir.resolve()}")
         return Text("\n".join(lines))
 
     # -- the rig self-check --------------------------------------------------------------------------------------
