@@ -172,17 +172,18 @@ def _identity(page: Page, record: Record, top_pt: float) -> float:
 def _verdict(page: Page, record: Record, top_pt: float) -> float:
     """The verdict on a coloured badge, what to do beside it in large type, the findings under that."""
     badge_pt, gap_pt = 150.0, 16.0
-    word = fit_text(str(record.verdict), badge_pt - 16.0, 30.0, min_size_pt=12.0, bold=True)
+    shown = content.shown_verdict(record)  # a retest's decision
+    word = fit_text(shown, badge_pt - 16.0, 30.0, min_size_pt=12.0, bold=True)
     text_x, text_width = MARGIN_PT + badge_pt + gap_pt, CONTENT_WIDTH_PT - badge_pt - gap_pt
     y = page.lines(text_x, top_pt, fit_text(content.advice_sentence(record), text_width, 15.0, max_lines=3,
                                              min_size_pt=9.0, bold=True), bold=True)
     for line in content.findings(record):
         y = page.lines(text_x, y + 7.0, fit_text(line, text_width, 9.0, max_lines=4, min_size_pt=8.0))
     height = max(y - top_pt, 58.0)
-    page.box(MARGIN_PT, top_pt, badge_pt, height, plots.VERDICT_COLOURS.get(record.verdict, "0.45"))
+    page.box(MARGIN_PT, top_pt, badge_pt, height, plots.VERDICT_COLOURS.get(shown, "0.45"))
     word_top = top_pt + (height - word.height_pt) / 2
     page.lines(MARGIN_PT + badge_pt / 2, word_top, word, bold=True,
-               colour=_BADGE_TEXT.get(record.verdict, "white"), align="center")
+               colour=_BADGE_TEXT.get(shown, "white"), align="center")
     return top_pt + height
 
 

@@ -83,15 +83,26 @@ def pump_rows(record: Record) -> list[tuple[str, str]]:
             ("Valve", record.valve_id or "-")]
 
 
+def shown_verdict(record: Record) -> str:
+    """The verdict the customer is given: a retest's decision (with the test before it), else the test's."""
+    if record.retest is not None and record.retest.decision:
+        return record.retest.decision
+    return str(record.verdict)
+
+
 def advice_sentence(record: Record) -> str:
-    """The technician's line (:mod:`~edc_bench.records.advice`) as a sentence: ``Worn: replace the valve.``"""
-    words = record.advice.words.strip()
+    """The technician's line (:mod:`~edc_bench.records.advice`) as a sentence: ``Worn: replace the valve.``; a
+    retest's: what it and the test before it decided."""
+    words = (record.retest.words if record.retest is not None and record.retest.words else record.advice.words).strip()
     return (words[:1].upper() + words[1:] + ("" if words.endswith(".") else ".")) if words else ""
 
 
 def findings(record: Record) -> list[str]:
     """Page 1's plain findings under the verdict: the change against a new valve, the coil, a caution."""
     lines = []
+    if record.retest is not None and record.retest.decision:
+        lines.append(f"Tested twice: {record.retest.of_verdict or 'MARGINAL'} (near the limit), then {record.verdict} "
+                     f"on the retest; together they decide {record.retest.decision}.")
     cls = record.classification
     if cls is not None:
         af, a1 = cls.features_rel.get("af", math.nan), cls.features_rel.get("a1", math.nan)
