@@ -162,6 +162,8 @@ def report_of(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Callable[[st
             # the FAIL's test as if the ids had been typed this long (one simulation fewer)
             "long values": (lambda: replace(result_of("fail"), identity=LONG_IDENTITY, valve_id=LONG_VALVE_ID),
                             Verdict.FAIL),
+            # the MARGINAL's test as the retest of another MARGINAL: page 1 gives the pair's decision
+            "retest": (lambda: result_of("marginal"), Verdict.MARGINAL),
         }
 
         def result_of(kind: str) -> Any:
@@ -174,7 +176,8 @@ def report_of(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Callable[[st
         def report(kind: str) -> Path:
             if kind not in drawn:
                 result = result_of(kind)
-                folder = write_record(result, out / kind.replace(" ", "-"), figure=False)
+                folder = write_record(result, out / kind.replace(" ", "-"), figure=False,
+                                      retest=RETEST if kind == "retest" else None)
                 record = load_record(folder)
                 with local_time_zone(TIME_ZONE):  # the pages draw draw_report's, without its PNGs (test_report.py)
                     pages = report_pages(record, load_trace(folder), folder.name)
@@ -184,6 +187,9 @@ def report_of(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Callable[[st
         yield report
 
 
+RETEST = {"of_record": "20261126T102811-p-edc-default-clearance_0.185", "of_verdict": "MARGINAL",
+          "decision": "FAIL", "words": "near the limit twice: replace the valve",
+          "rule": "retest.decide.MARGINAL = FAIL"}
 TIME_ZONE = "IST-5:30"  # the reports are drawn on a machine half an hour off a whole-hour zone (POSIX TZ: no tz data)
 
 
@@ -205,7 +211,7 @@ class local_time_zone:  # noqa: N801  (a context manager named as it reads)
         time.tzset()
 
 
-@pytest.mark.parametrize("kind", ["pass", "fail", "marginal", "invalid", "long values"])
+@pytest.mark.parametrize("kind", ["pass", "fail", "marginal", "invalid", "long values", "retest"])
 def test_no_word_leaves_the_page_or_runs_into_another(report_of: Callable[[str], Path], kind: str) -> None:
     words, pages = pdf_words(report_of(kind))
     assert len(words) > 100  # the PDF's text is there to be read (not drawn as paths)
