@@ -36,6 +36,7 @@ def _drives(variant: Variant) -> dict[str, np.ndarray]:
     return {"loop": loop.trace["drive_v"], "batch": batch.parameters, "floor": floor_drives, "result": loop}
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_one_pid_detail_changed_in_one_place_changes_the_loop_replay_the_batch_and_the_floor(
         short: Variant, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     before = _drives(short)

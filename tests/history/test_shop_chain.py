@@ -46,6 +46,7 @@ def _create_login(server_db_url: str, login: str, role: str) -> str:
     return _login_url(server_db_url, login)
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_roles_hold_in_the_database_itself(postgres_db: str, record_dir: Path, tmp_path: Path) -> None:
     roles = edc_bench("history", "--setup-roles", "--db", postgres_db)
     assert roles.returncode == 0 and "edc_station" in roles.stdout, roles.stderr

@@ -97,6 +97,7 @@ def test_an_older_history_gets_the_new_columns_and_keeps_its_rows(tmp_path: Path
         conn.execute("DELETE FROM tests")
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_label_command_records_lists_and_refuses_bad_input(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'h.sqlite'}"
     with HistoryStore(url) as store:

@@ -269,6 +269,7 @@ def test_time_to_verdict_over_210_valves_median_10_s_p95_20_s_with_the_full_leng
     assert early["marginal_fraction"] <= full["marginal_fraction"]
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 @pytest.mark.parametrize("name", ["p-edc-default", "p-edc-hard", "p-edc-long"])
 def test_a_pump_the_model_fits_is_judged_through_a_usb_adapter(name: str) -> None:
     """A USB adapter's timing jitter is noise, not misfit. Found by #11's review: through usb-fs (0.5 ms jitter,

@@ -23,7 +23,8 @@ BATCH_TOLERANCE = {"af": 0.01, "a1": 0.01, "a2": 0.03, "a0": 0.01, "b": 0.01, "a
     ("p-edc-default", "worn", None),
     pytest.param("p-edc-default", "faulty", None, marks=pytest.mark.slow),
     pytest.param("p-edc-long", "worn", None, marks=pytest.mark.slow),
-    ("p-edc-default", "worn", "usb-fs"),  # the batch path's adapter model against the in-process rig's
+    # the batch path's adapter model against the in-process rig's (14 s: in the slow pass)
+    pytest.param("p-edc-default", "worn", "usb-fs", marks=pytest.mark.slow),
     pytest.param("p-edc-default", "new", "usb-fs", marks=pytest.mark.slow),
 ])
 def test_batch_path_gives_the_full_loops_parameters(variant_name: str, valve: str, adapter: str | None) -> None:

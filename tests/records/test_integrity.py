@@ -75,6 +75,7 @@ def test_a_changed_or_missing_file_and_a_removed_manifest_are_named(written: Pat
     assert named in str(caught.value)
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_the_report_written_into_the_folder_leaves_it_readable(written: Path, tmp_path: Path) -> None:
     folder = copy(written, tmp_path)
     for _ in range(2):  # report.pdf and its pages' PNGs are the report's, not the test's: not in the manifest

@@ -8,11 +8,19 @@ import asyncio
 import json
 from pathlib import Path
 
+import pytest
+
 from edc_bench.cli.session_cmd import make_app
 from edc_bench.history.store import HistoryStore
 from edc_bench.records.reader import load_record
 from edc_bench.session.operator import remembered_operator
 from edc_bench.session.runner import RigChoice
+
+
+@pytest.fixture(autouse=True)
+def _station_data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A station data folder of this test's own (the operator is remembered there)."""
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(tmp_path / "station-data"))
 
 
 def _screen_text(app) -> str:
@@ -127,6 +135,7 @@ def _register_reference(tmp_path: Path, db: str, station: str) -> None:
     assert proc.returncode == 0, proc.stderr
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is_no_go(tmp_path: Path) -> None:
     """A reference valve registered: the shift starts with the self-check (mount it, Enter). A rig whose current
     sensor reads 3 % high is NO-GO, and a valve scanned after it is not tested: the check is asked for again."""

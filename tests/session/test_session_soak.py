@@ -20,6 +20,12 @@ from edc_bench.history.store import HistoryStore
 from edc_bench.records.reader import load_record
 from edc_bench.session.runner import RigChoice
 
+@pytest.fixture(autouse=True)
+def _station_data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A station data folder of this test's own (the operator is remembered there)."""
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(tmp_path / "station-data"))
+
+
 TESTS = int(os.environ.get("EDC_BENCH_SOAK_TESTS", "1500"))
 WARM_UP_TESTS = min(200, TESTS // 5)  # caches, the classifier's session, matplotlib's fonts: filled by then
 SAMPLE_EVERY = 50  # tests

@@ -59,6 +59,7 @@ def _quote(text: str) -> str:
     return shlex.quote(text)
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> None:
     # COLUMNS and LINES (which pytest's workers may carry) would override the terminal's size for Textual
     env = {key: value for key, value in os.environ.items() if key not in ("COLUMNS", "LINES")}

@@ -92,6 +92,7 @@ def test_a_marginal_is_retested_and_the_pair_decides(tmp_path: Path) -> None:
     assert rows[second_dir.name]["decision"] == "FAIL"
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_the_json_summary_of_a_retest_holds_both_tests_and_the_decision(tmp_path: Path) -> None:
     proc = edc_bench("test", "--valve", NEAR_THE_LIMIT, "--out", "rec", "--no-figure", "--json", "--no-history",
                      cwd=tmp_path)
@@ -103,6 +104,7 @@ def test_the_json_summary_of_a_retest_holds_both_tests_and_the_decision(tmp_path
     assert summary["first_test"]["record_dir"] != summary["record_dir"]
 
 
+@pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_no_retest_leaves_a_marginal_to_the_technician(tmp_path: Path) -> None:
     proc = edc_bench("test", "--valve", NEAR_THE_LIMIT, "--out", "rec", "--no-figure", "--plain", "--no-history",
                      "--no-retest", cwd=tmp_path)
