@@ -248,7 +248,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
     # the MARGINAL procedure: the valve stays mounted and is tested again; on the simulated rig with new noise
     retest_seed = (args.seed + 1) % (MAX_SEED + 1)
     if not args.json:
-        print(f"\nretest: MARGINAL is near the limit; the bench tests the valve again now"
+        print("\nretest: MARGINAL is near the limit; the bench tests the valve again now"
               + (f" (simulated rig: noise seed {retest_seed})" if bus_config is None else "")
               + ". Leave the valve mounted.", flush=True)
     second = _test_once(args, variant, bus_config, valve_id, retest_seed, retest_of=first)
@@ -303,8 +303,7 @@ def _test_once(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any
         from edc_bench.verdict.retest import decide
 
         decision = decide(result.verdict, variant.retest, result.advice.words)
-        retest = {"of_record": retest_of.record_dir.name, "of_verdict": str(retest_of.result.verdict),
-                  "decision": str(decision.verdict), "words": decision.words, "rule": decision.rule}
+        retest = decision.record_entry(retest_of.record_dir.name, retest_of.result.verdict)
     record_dir, code = _finish(args, result, folder[0] if folder else None, notes, retest)
     return _Tested(result, record_dir, code, decision if record_dir is not None else None)
 

@@ -27,7 +27,7 @@ from textual.widgets import Footer, Input, Label, Static
 from edc_bench.session.rig_selfcheck import SelfCheckWords, SessionSelfCheck
 from edc_bench.session.runner import SessionRunner, ValveDone
 from edc_bench.session.scan import PROMPTS, Scan, Step, read_line
-from edc_bench.session.shift import RigCheckEntry, ShiftLog, ValveEntry, _now
+from edc_bench.session.shift import RigCheckEntry, ShiftLog, ValveEntry, now_local
 from edc_bench.ui.snapshot import Snapshot
 
 #: Colours of each verdict's block (white text on them).
@@ -235,7 +235,7 @@ class SessionApp(App[None]):
             return
         if self.awaiting_reference:
             self.awaiting_reference = ""
-            self.shift.rig_checks.append(RigCheckEntry(None, "skipped by the operator", _now()))
+            self.shift.rig_checks.append(RigCheckEntry(None, "skipped by the operator", now_local()))
             self.query_one("#side", Static).update(Text("rig self-check skipped: it is asked for again when due",
                                                          style="bold yellow"))
         self.scan = Scan(variant=self.variant.name)
@@ -312,7 +312,7 @@ class SessionApp(App[None]):
         self._say("; ".join(problems))
         self.shift.valves.append(ValveEntry(
             done.valve_id, done.pump_serial, done.variant, tuple(t.verdict for t in done.tests), final, done.words,
-            tuple(str(t.record_dir) for t in done.tests if t.record_dir is not None), _now()))
+            tuple(str(t.record_dir) for t in done.tests if t.record_dir is not None), now_local()))
         self._show_status()
         self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
         self.query_one("#entry", Input).focus()
@@ -372,7 +372,7 @@ class SessionApp(App[None]):
 
     def _selfcheck_done(self, words: SelfCheckWords) -> None:
         self.testing = False
-        self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, _now()))
+        self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, now_local()))
         style = {True: "green", False: "red"}.get(words.go, "yellow")
         line = words.words if words.words.startswith("rig self-check") else f"rig self-check: {words.words}"
         self.query_one("#side", Static).update(Text(line, style=f"bold {style}"))

@@ -166,8 +166,7 @@ class SessionRunner:
         retest = None
         if retest_of is not None and retest_of.record_dir is not None:
             decision = decide(result.verdict, variant.retest, result.advice.words)
-            retest = {"of_record": retest_of.record_dir.name, "of_verdict": retest_of.verdict,
-                      "decision": str(decision.verdict), "words": decision.words, "rule": decision.rule}
+            retest = decision.record_entry(retest_of.record_dir.name, retest_of.verdict)
         return self._store(result, folder[0] if folder else None, retest)
 
     def _run(self, variant: Variant, valve_id: str, options: Any, seed: int) -> Any:

@@ -41,7 +41,7 @@ class ShiftLog:
     operator: str
     station: str
     rig: str
-    started: str = field(default_factory=lambda: _now())
+    started: str = field(default_factory=lambda: now_local())  # noqa: PLW0108 - defined below
     valves: list[ValveEntry] = field(default_factory=list)
     rig_checks: list[RigCheckEntry] = field(default_factory=list)
 
@@ -62,7 +62,7 @@ class ShiftLog:
                             if finals[name]) or "none"
         checks = Counter("GO" if c.go else "NO-GO" if c.go is False else "not run" for c in self.rig_checks)
         check_words = ", ".join(f"{n} {what}" for what, n in checks.items()) or "none"
-        return [f"shift of {self.operator or '?'} at {self.station}, {self.rig}, from {self.started} to {_now()}",
+        return [f"shift of {self.operator or '?'} at {self.station}, {self.rig}, from {self.started} to {now_local()}",
                 f"valves: {len(self.valves)} ({counted}); tests: {self.tests}; retests: {self.retests}",
                 f"rig self-checks: {check_words}"]
 
@@ -78,12 +78,12 @@ class ShiftLog:
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write(text_path, lambda f: f.write("\n".join(lines) + "\n"), mode="w")
         data = {"operator": self.operator, "station": self.station, "rig": self.rig, "started": self.started,
-                "ended": _now(), "valves": [asdict(v) for v in self.valves],
+                "ended": now_local(), "valves": [asdict(v) for v in self.valves],
                 "rig_checks": [asdict(c) for c in self.rig_checks]}
         atomic_write(text_path.with_suffix(".json"), lambda f: json.dump(data, f, indent=2), mode="w")
         return text_path
 
 
-def _now() -> str:
+def now_local() -> str:
     """Local time with its UTC offset, to the second."""
     return datetime.datetime.now().astimezone().isoformat(timespec="seconds")

@@ -420,9 +420,12 @@ class SlcanRigServer:
                 wait_s = 0.0  # poll: a sleeping process on a VM can wake milliseconds late
             else:
                 wait_s = min(_MAX_WAIT_S, max(0.0, rig.firmware.next_deadline_s() - self._now()))
-        asleep_from = self._now()
-        ready = self._selector.select(timeout=wait_s)
-        self._asleep_s = min(self._now() - asleep_from, wait_s)
+        if wait_s > 0:  # a chosen sleep (not while polling): what it took is not a gap in serving
+            asleep_from = self._now()
+            ready = self._selector.select(timeout=wait_s)
+            self._asleep_s = min(self._now() - asleep_from, wait_s)
+        else:
+            ready, self._asleep_s = self._selector.select(timeout=0), 0.0
         for key, events in ready:
             kind, obj = key.data
             if kind == "listen":

@@ -39,8 +39,14 @@ class Decision:
     rule: str
 
     def as_dict(self) -> dict[str, str]:
-        """The decision as plain data (record.json, ``--json``)."""
+        """The decision as plain data (``--json``)."""
         return {"verdict": str(self.verdict), "words": self.words, "rule": self.rule}
+
+    def record_entry(self, first_record: str, first_verdict: str) -> dict[str, str]:
+        """The retest's record.json ``retest`` section (:class:`~edc_bench.records.schema.RetestSummary`): the
+        first test's folder name and verdict, and this decision."""
+        return {"of_record": first_record, "of_verdict": str(first_verdict), "decision": str(self.verdict),
+                "words": self.words, "rule": self.rule}
 
 
 def retest_wanted(verdict: Verdict | str, rule: RetestSection) -> bool:
