@@ -693,3 +693,83 @@ def time_to_verdict_paragraph() -> str:
             f"({learning_s:g} s; the learning period is {short_ms:.0f} ms short of a whole one, so that the last\n"
             f"period's last rows, which need half a smoothing window and the next sample,\n"
             f"are in at {setup.end_s(periods):.1f} s).")
+
+
+# ---------------------------------------------------------------------------------------- numbers to trust
+
+#: The coverage study's populations' size, seed and baseline (a shop's: a few new valves).
+COVERAGE_VALVES, COVERAGE_SEED, COVERAGE_CALIBRATION_VALVES = 300, 777, 5
+#: A new valve's Coulomb friction multiplied by these, damping as new: where a1's bias comes from.
+STICKY_FRICTION_FACTORS = (1.0, 2.0, 3.0)
+
+
+@measurement("bench-test-coverage", minutes=2.0)
+def coverage() -> dict[str, Any]:
+    """``edc-bench evaluate --coverage`` with its defaults, and a nominal new valve (nominal coil) with more
+    friction on the stick-slip pump with and without its Stribeck friction (batch path, full length, seed 0)."""
+    from edc_bench.config import parse_variant
+    from edc_bench.experiments.coverage import AF, A1, coverage_populations, coverage_study
+    from edc_bench.physics.valve import ValveSpec
+    from edc_bench.population.batch import run_batch
+
+    with isolated_station():
+        classifier = shipped_classifier()
+        populations = coverage_populations()
+        studies = [coverage_study(population, classifier, COVERAGE_VALVES, COVERAGE_SEED, COVERAGE_CALIBRATION_VALVES)
+                   for population in populations.values()]
+        sticky = populations["stick-slip"].variant
+        data = sticky.model_dump()
+        data["valve"]["stribeck_velocity_mm_s"] = 0.0
+        data["pump"]["name"] = f"{sticky.pump.name}-no-stribeck"
+        pumps = {"with Stribeck friction": sticky, "without": parse_variant(data)}
+        sweep = []
+        for pump, variant in pumps.items():
+            valves = [ValveSpec(variant.valve.clearance_new_mm, friction_scale=factor)
+                      for factor in STICKY_FRICTION_FACTORS]
+            result = run_batch(variant, valves, [0] * len(valves))
+            error = result.parameters / result.truth - 1.0
+            sweep.append({"pump": pump, "af": [rounded(e) for e in error[:, AF]],
+                          "a1": [rounded(e) for e in error[:, A1]], "trusted": result.trusted.tolist()})
+    return {"studies": [_rounded_tree(s) for s in studies], "sticky_valve": sweep}
+
+
+def _rounded_tree(value: Any) -> Any:
+    """Floats of a nested result rounded as the pages print them (the stored file stays readable)."""
+    if isinstance(value, dict):
+        return {k: _rounded_tree(v) for k, v in value.items()}
+    if isinstance(value, float):
+        return rounded(value)
+    return value
+
+
+def coverage_table() -> str:
+    """Per population: judged, af's and a1's share within tolerance, |error| p95, interval coverage, certain-wrong."""
+    data = stored("bench-test-coverage")
+    rows = []
+    for s in data["studies"]:
+        af, a1 = s["af"], s["a1"]
+        rows.append((f"{s['population']} (`{s['variant']}`)", f"{s['judged']} of {s['valves']}",
+                     f"{af['within']:.1%} / {a1['within']:.1%}",
+                     f"{af['error_p95']:.1%} / {a1['error_p95']:.1%}",
+                     f"{af['bias']:+.1%} / {a1['bias']:+.1%}",
+                     f"{af['baseline_error']:+.1%} / {a1['baseline_error']:+.1%}",
+                     f"**{af['covered']:.1%}** / **{a1['covered']:.1%}**",
+                     f"{s['certain_wrong']} of {s['certain']}", f"{s['median_stop_s']:.1f} s",
+                     f"{s['marginal_fraction']:.1%}", f"{s['accuracy_outside_band']:.1%}"))
+    header = ("population", "judged", "within 2 % / 5 % (af / a1)", "abs. error, 95th pct", "median error",
+              "baseline's error", "99 % interval holds the truth", "certain, but wrong", "median stop",
+              "MARGINAL", "accuracy outside the band")
+    return table(header, [tuple(str(c).replace("%", " %") for c in row) for row in rows])
+
+
+def sticky_valve_sentence() -> str:
+    """a1's and af's error on a new valve with 1x-3x its friction, with and without Stribeck friction."""
+    data = stored("bench-test-coverage")
+    factors = "x, ".join(f"{f:g}" for f in STICKY_FRICTION_FACTORS) + "x"
+    parts = []
+    for row in data["sticky_valve"]:
+        a1 = ", ".join(f"{e:+.1%}".replace("%", " %") for e in row["a1"])
+        af = ", ".join(f"{e:+.1%}".replace("%", " %") for e in row["af"])
+        parts.append(f"{row['pump']}, a1 {a1} and af {af}")
+    return (f"A nominal new valve of the stick-slip pump with {factors} its Coulomb friction and its damping as\n"
+            f"new (batch path, 30 s, seed 0) comes out with {'; '.join(parts)}.")

@@ -11,7 +11,11 @@ from edc_bench.cli.common import (
     add_history_label_arguments,
     add_population_arguments,
     check_population_inputs,
+    count_up_to,
 )
+
+#: the populations of ``--coverage`` (:mod:`edc_bench.experiments.coverage`)
+POPULATIONS = ("default", "hard", "stick-slip")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -28,6 +32,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="also stop each simulated test as the bench does (as soon as its verdict is certain) and "
                         "print the time to verdict (median, 95th percentile) and the early verdicts' accuracy "
                         "against the full-length tests'")
+    p.add_argument("--coverage", action="store_true",
+                   help="instead: how far the numbers behind the verdicts hold, on populations judged against a "
+                        "baseline of a few simulated new valves (as a shop's is): af's and a1's error against the "
+                        "truth, how often the early stop's 99 %% interval holds the true ratio, early stops certain "
+                        "of a wrong verdict (docs/bench-test.md, 'Numbers to trust')")
+    p.add_argument("--populations", nargs="+", choices=POPULATIONS, default=list(POPULATIONS), metavar="NAME",
+                   help=f"with --coverage: which populations ({', '.join(POPULATIONS)}; default: all)")
+    p.add_argument("--calibration-valves", type=count_up_to(50, " new valves for a baseline"), default=5,
+                   metavar="N", help="with --coverage: new valves in each population's baseline (default: 5)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
@@ -52,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
         _print_report(report, "by teardown")
         return 0
     check_population_inputs(args)  # before minutes of simulation
+    if args.coverage:
+        return _coverage(args, classifier)
     if args.time_to_verdict:
         return _time_to_verdict(args, classifier)
     start = time.perf_counter()
@@ -97,4 +112,35 @@ def _time_to_verdict(args: argparse.Namespace, classifier) -> int:
         print(f"{title}: INVALID {r['invalid']}, MARGINAL {r['marginal']} of {r['judged']} "
               f"({r['marginal_fraction']:.1%}), accuracy outside the marginal band {r['accuracy_outside_band']:.2%} "
               f"(faulty passed {r['faulty_passed']}, reusable failed {r['reusable_failed']})")
+    return 0
+
+
+def _coverage(args: argparse.Namespace, classifier) -> int:
+    """The numbers behind the verdicts against the simulation's truth, a population at a time, printed."""
+    from edc_bench.experiments.coverage import TOLERANCE_REL, coverage_populations, coverage_study
+
+    populations = coverage_populations()
+    reports = []
+    for name in args.populations:
+        if not args.json:
+            print(f"{name}: {args.count} valves against a baseline of {args.calibration_valves} new ones ...",
+                  file=sys.stderr)
+        reports.append(coverage_study(populations[name], classifier, args.count, args.seed, args.calibration_valves))
+    if args.json:
+        print(json.dumps({"model": classifier.name, "populations": reports}, indent=2))
+        return 0
+    print(f"judged by {classifier.name}, seed {args.seed}; the truth is the simulated plant's; within: af "
+          f"{TOLERANCE_REL['af']:.0%}, a1 {TOLERANCE_REL['a1']:.0%} of it; covered: the 99 % interval holds the "
+          f"true ratio (the valve's true feature over the calibration valves' true mean)")
+    for r in reports:
+        print(f"{r['population']} ({r['variant']}): {r['judged']} of {r['valves']} judged; baseline from "
+              f"{r['baseline_tests']} new valves, off its truth by af {r['af']['baseline_error']:+.1%}, "
+              f"a1 {r['a1']['baseline_error']:+.1%}")
+        for name in ("af", "a1"):
+            f = r[name]
+            print(f"  {name}: within {f['within']:.1%}; |error| median {f['error_p50']:.1%}, 95th percentile "
+                  f"{f['error_p95']:.1%}; bias {f['bias']:+.1%}; interval covers the truth {f['covered']:.1%}")
+        print(f"  stopped certain {r['certain']}, of which the truth contradicts {r['certain_wrong']}; median stop "
+              f"{r['median_stop_s']:.1f} s; MARGINAL {r['marginal_fraction']:.1%}; accuracy outside the marginal "
+              f"band {r['accuracy_outside_band']:.1%}")
     return 0

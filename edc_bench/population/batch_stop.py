@@ -37,6 +37,8 @@ class StopDecision:
     features_rel: np.ndarray  # (N, 2) af and a1 over the baseline's (NaN: no fit yet)
     trusted: np.ndarray  # (N,) the judgement would trust the numbers
     misfit: np.ndarray  # (N,) the model does not fit: INVALID
+    half_width_rel: np.ndarray  # (N, 2) the half widths of af's and a1's interval, relative (NaN: no fit yet)
+    certain: np.ndarray  # (N,) trusted, and the verdict is the same over the whole interval box
 
 
 @dataclass(frozen=True)
@@ -72,13 +74,13 @@ class StopRule:
         """
         n = len(at.parameters)
         if at.fit is None:
-            nothing = np.zeros(n, dtype=bool)
-            return StopDecision(np.full(n, last), np.full((n, 2), np.nan), nothing, nothing)
+            nothing, no_box = np.zeros(n, dtype=bool), np.full((n, 2), np.nan)
+            return StopDecision(np.full(n, last), no_box, nothing, nothing, no_box, nothing)
         base = np.array([self.baseline.af_v, self.baseline.a1_v_s_per_mm])
         centre, width = relative_box(at.parameters[:, [AF, A1]], at.fit, base, self.interval)
         misfit, trusted, certain, _ = stop_flags(self.variant, self.classifier, at.fit, periods, centre, width,
                                                  noise_v, reference_condition)
-        return StopDecision(certain | misfit | last, centre, trusted, misfit)
+        return StopDecision(certain | misfit | last, centre, trusted, misfit, width, certain)
 
 
 class StopOutcome:
@@ -90,8 +92,8 @@ class StopOutcome:
         (N,) whole periods each test ran.
     time_s : numpy.ndarray
         (N,) when each stopped (the end of its last period and the half smoothing window after it).
-    features_rel, trusted, misfit : numpy.ndarray
-        As :class:`StopDecision`'s, at the stop.
+    features_rel, trusted, misfit, half_width_rel, certain : numpy.ndarray
+        As :class:`StopDecision`'s, at the stop (``certain``: the test stopped because its verdict was certain).
     parameters : numpy.ndarray
         (N, 6) the identified parameters then, referred to the reference coil.
     converged, model_fits, problems : numpy.ndarray
@@ -109,6 +111,8 @@ class StopOutcome:
         self.features_rel = np.full((n, 2), np.nan)
         self.trusted = np.zeros(n, dtype=bool)
         self.misfit = np.zeros(n, dtype=bool)
+        self.half_width_rel = np.full((n, 2), np.nan)
+        self.certain = np.zeros(n, dtype=bool)
         self.parameters = np.full((n, len(PARAMETER_NAMES)), np.nan)
         self.converged = np.zeros(n, dtype=bool)
         self.model_fits = np.zeros(n, dtype=bool)
@@ -128,6 +132,8 @@ class StopOutcome:
         self.features_rel[which] = decision.features_rel[stop]
         self.trusted[which] = decision.trusted[stop]
         self.misfit[which] = decision.misfit[stop]
+        self.half_width_rel[which] = decision.half_width_rel[stop]
+        self.certain[which] = decision.certain[stop]
         self.parameters[which] = at.parameters[stop]
         self.converged[which] = at.converged[stop]
         self.model_fits[which] = at.model_fits[stop]

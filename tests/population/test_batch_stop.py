@@ -8,9 +8,10 @@ import pytest
 from edc_bench.config import load_variant
 from edc_bench.experiments.studies import early_outcome, with_gain_variation
 from edc_bench.population.batch import run_batch
-from edc_bench.population.batch_stop import StopRule
+from edc_bench.population.batch_stop import A1, AF, StopRule
 from edc_bench.population.valves import draw_population
 from edc_bench.sim.adapter import parse_adapter
+from edc_bench.verdict.early_stop import relative_box
 
 
 def _both(variant_name: str, count: int, seed: int, adapter: str | None = None, gain_variation: float = 0.0):
@@ -39,6 +40,7 @@ def test_a_stopped_batch_is_the_full_batch_stopped_afterwards(variant_name: str,
     variant, rule, full, stopped = _both(variant_name, 16, 5, adapter, gain_variation)
     periods, trusted, features, misfit = early_outcome(variant, full, rule.classifier, rule.baseline)
     out = stopped.stop
+    base = np.array([rule.baseline.af_v, rule.baseline.a1_v_s_per_mm])
     assert out is not None and stopped.periods is None
     assert np.array_equal(out.periods, periods)
     assert np.array_equal(out.trusted, trusted) and np.array_equal(out.misfit, misfit)
@@ -52,6 +54,13 @@ def test_a_stopped_batch_is_the_full_batch_stopped_afterwards(variant_name: str,
         assert np.array_equal(stopped.converged[here], at.converged[here])
         np.testing.assert_allclose(out.gain_variation_rel[here], at.fit.gain_variation_rel[here], rtol=1e-9,
                                    atol=1e-12)
+        # the interval it stopped with: the loop's (relative_box)
+        _, width = relative_box(at.parameters[:, [AF, A1]], at.fit, base, rule.interval)
+        np.testing.assert_allclose(out.half_width_rel[here], width[here], rtol=1e-9)
+    # a test that ended before its full length, fitting, ended certain of its verdict, and only a trusted one can
+    early = (out.periods < full.periods.blocks) & ~out.misfit
+    assert early.any() and out.certain[early].all()
+    assert out.trusted[out.certain].all() and np.isfinite(out.half_width_rel[out.trusted]).all()
     assert np.array_equal(stopped.truth, full.truth)
     # the point of stopping: most tests end well before the full length, as on the bench
     assert np.median(out.time_s) < 0.6 * variant.excitation.duration_s
