@@ -182,7 +182,8 @@ def classifier_rows(record: Record) -> list[tuple[str, str]]:
             ("SHA-256", cls.model_sha256 or "not recorded"),
             ("P(faulty)", f"{cls.probability_faulty:.4f}"
                           + (f" (threshold {cls.threshold:g})" if cls.threshold is not None else "")),
-            ("Distance", f"{cls.distance:+.4f} to the boundary"
+            ("Distance", (f"{cls.distance:+.4f} to the boundary" if cls.distance is not None
+                          else "beyond the classifier's scan (more than 3) from the boundary")
                          + (f" (marginal band \u00b1{band:g}; positive: worn side)" if band is not None else "")),
             ("Features", f"af {_number(cls.features_rel.get('af'), '.4f')}, "
                          f"a1 {_number(cls.features_rel.get('a1'), '.4f')} \u00d7 the baseline")]

@@ -63,7 +63,9 @@ class Classification(Section):
 
     verdict: Verdict
     probability_faulty: float
-    distance: float
+    #: signed distance to the boundary; None: beyond the classifier's scan (3.0), far on its verdict's side (the
+    #: classifier's +/-inf, which JSON cannot hold)
+    distance: float | None
     features_rel: dict[str, float]
     model: str = ""
     model_name: str | None = None

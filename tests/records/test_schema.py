@@ -33,6 +33,10 @@ def records(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     folders = {"judged": write_record(run_simulated_test(load_variant(), "worn", 2), out, figure=False),
                "unclassified": write_record(run_simulated_test(load_variant(), "new", 1, classify=False), out,
                                             figure=False),
+               # features so far beyond the boundary that the classifier's scan (3.0) finds none: distance inf, which
+               # JSON holds as null (the soak's 1,500 tests found 10 such valves, their records unreadable then)
+               "beyond the scan": write_record(run_simulated_test(load_variant(), "clearance=0.5,roughness=2", 2),
+                                               out, figure=False),
                "nominal": write_record(run_simulated_test(uncalibrated, "new", 1, nominal_baseline=True,
                                                           coil_temp_c=35.0), out, figure=False)}
     with simulated_bench_factory() as make:
@@ -66,6 +70,13 @@ def test_every_kind_of_record_reads_typed_and_the_schema_declares_all_it_holds(r
     aborted = kinds["aborted"]
     assert aborted.verdict == Verdict.INVALID and aborted.loop.abort is not None
     assert aborted.loop.abort_reason and aborted.loop.ticks_run < (aborted.loop.ticks_planned or 0)
+    far = kinds["beyond the scan"]
+    assert far.verdict == Verdict.FAIL and far.classification is not None and far.classification.distance is None
+    from edc_bench.history.store import row_from_record
+    from edc_bench.records.report_content import classifier_rows
+
+    assert "beyond the classifier's scan" in dict(classifier_rows(far))["Distance"]
+    assert row_from_record(far, records["beyond the scan"])["distance"] is None
     fit = kinds["model does not fit"].identification
     assert fit is not None and fit.model_fit is not None and fit.model_fit.fits is False
     with pytest.raises(Exception, match="frozen"):
