@@ -14,12 +14,9 @@ instead (docs/method.md, "The identification the verdict rests on"):
   regression on the reference takes that ringing for damping (a1 -20 %).
   Smoothing leaves sensor noise at a few per mille of the signal, so it
   biases nothing measurable.
-- **Only while the rack slides.** Rows where the reference moves slower than
-  ``reversal_exclusion`` of the peak speed are left out, and so is every row
-  whose smoothing window reaches a sample where the rack moves slower than
-  that: stick windows and breakaway are no part of the sgn(x') model, and a
-  window reaching into them smooths their forces (stiction, a Stribeck peak)
-  into a row the model reads as sliding (docs/method.md).
+- **Only while the rack slides.** Rows where the reference or the rack moves
+  slower than ``reversal_exclusion`` of the peak speed are left out: stick
+  windows and breakaway are no part of the sgn(x') model.
 - **With the solenoid's position dependence.** A force constant
   k_i (1 + s (x - x_m)) divides the drive by 1 + s Delta; to first order that
   adds Delta^2, Delta x' and Delta sgn(x') to the regressors (Delta = x - x_m).
@@ -56,9 +53,6 @@ from edc_bench.control.design import ControllerDesign
 
 #: Polynomial order of the smoothing (derivatives up to the third are taken from it).
 SMOOTHING_ORDER = 4
-#: Ticks either side of a sample whose straight line gives the rack's speed there, for whether a row's window slides
-#: (eleven samples: the LVDT's noise and an adapter's timing move it by a few per cent of the exclusion's speed).
-SPEED_SPAN_TICKS = 5
 #: Names of the nuisance terms of the force constant's position dependence (Delta = x - x_m).
 GAIN_TERMS = ("d2", "dv", "df", "d2f")  # Delta^2, Delta x', Delta sgn(x'), and of the second order Delta^2 sgn(x')
 #: Periods used at least before a test can count as converged (three give a spread with two degrees of freedom).
@@ -341,48 +335,22 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     cols = [basis[i] / sc[i] for i in setup.estimated]
     cols += [delta * delta / sc[6], delta * x1 / sc[7], delta * sgn / sc[8], delta * delta * sgn / sc[9]]
     X = np.stack(cols, axis=-1)
-    # a row needs its sample and the next, and every sample the smoothing reaches, to be real; and the rack to
-    # slide at all of them: a window that reaches into a stick or a breakaway smooths its forces (stiction, a
-    # Stribeck peak) into the row, which the sgn(x') model would take for less damping and more friction
+    # a row needs its sample and the next, and every sample the smoothing reaches, to be real
     half = setup.window // 2
-    limit = setup.exclusion_mm_s
-    ticks = len(x)
+    bad = (~np.asarray(valid, dtype=bool)).astype(np.int64)
+    cum = np.concatenate((np.zeros_like(bad[:1]), np.cumsum(bad, axis=0)), axis=0)
+    ticks = len(bad)
     k = np.arange(ticks)
     hi, lo = np.minimum(k + half + 2, ticks), np.maximum(k - half, 0)  # samples k - half .. k + 1 + half
-    near_bad = _any_in(~np.asarray(valid, dtype=bool), lo, hi)
-    # the rack slides all through the row's window: a window that reaches into a stick or a breakaway smooths its
-    # forces in. Its speed at each sample is the slope of a straight line through the SPEED_SPAN_TICKS either side,
-    # from the window's own samples only, so that a row's use depends on them alone, however the trace is cut into
-    # spans (the early stop feeds it a step at a time)
-    m = SPEED_SPAN_TICKS
-    slow = np.zeros(x.shape, dtype=bool)
-    if ticks > 2 * m:
-        with np.errstate(invalid="ignore"):  # a missing sample (NaN) counts as slow; its rows are unusable anyway
-            speed = _smooth(x[None], _slope_kernel(m, setup.period_s))[0]
-            slow[m:ticks - m] = ~(np.abs(speed[m:ticks - m]) >= limit)
-    near_slow = _any_in(slow, np.minimum(lo + m, ticks), np.maximum(hi - m, 0))
+    near_bad = (cum[hi] - cum[lo]) > 0
     edge = np.zeros(len(x), dtype=bool)
     edge[half: len(x) - half - 1] = True
     if x.ndim == 2:
         edge = edge[:, None]
+    limit = setup.exclusion_mm_s
     sliding = (np.abs(reference_velocity_mm_s) >= limit) & (np.abs(x1) >= limit)
-    use = sliding & ~near_bad & ~near_slow & edge & np.isfinite(target) & np.all(np.isfinite(X), axis=-1)
+    use = sliding & ~near_bad & edge & np.isfinite(target) & np.all(np.isfinite(X), axis=-1)
     return X, np.where(use, target, 0.0), use
-
-
-@functools.lru_cache(maxsize=8)
-def _slope_kernel(half: int, period_s: float) -> np.ndarray:
-    """Least-squares slope weights over ``2 half + 1`` samples, (1, 2 half + 1): a straight line's speed."""
-    j = np.arange(-half, half + 1, dtype=float)
-    kernel = (j / (period_s * float(j @ j)))[None]
-    kernel.flags.writeable = False
-    return kernel
-
-
-def _any_in(flags: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """For each row k, whether any of ``flags[lo[k]:hi[k]]`` is set (along the first axis; empty: False)."""
-    cum = np.concatenate((np.zeros_like(flags[:1], dtype=np.int64), np.cumsum(flags, axis=0)), axis=0)
-    return (cum[np.maximum(hi, lo)] - cum[lo]) > 0
 
 
 class BlockAccumulator:

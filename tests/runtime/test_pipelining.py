@@ -133,14 +133,13 @@ def test_gain_check_includes_the_transport_delay(variant: Variant, fast_link_var
 
 @pytest.mark.parametrize("valve", ["new", "worn"])
 def test_usb_adapter_identifies_as_without_latency(variant: Variant, valve: str) -> None:
-    """Same valve, same seed, shipped variant: through a USB full-speed adapter af and a1 stay within 1.5 %, the
-    verdict agrees (tests/population/test_latency.py checks 200 valves on the batch path: p95 within 1 %; this new
-    valve's af is 1.1 % off, its test stopped after three periods)."""
+    """Same valve, same seed, shipped variant: through a USB full-speed adapter af and a1 stay within 1 %, the
+    verdict agrees (tests/population/test_latency.py checks 200 valves on the batch path)."""
     instant = run_simulated_test(variant, valve, seed=3)
     usb = run_simulated_test(variant, valve, seed=3, adapter="usb-fs")
     assert usb.verdict == instant.verdict and usb.verdict in (Verdict.PASS, Verdict.FAIL)
     for name in ("af", "a1"):
-        assert usb.features[name] == pytest.approx(instant.features[name], rel=0.015), name
+        assert usb.features[name] == pytest.approx(instant.features[name], rel=0.01), name
     assert usb.outcome.missed_replies == 0
     ages = usb.outcome.reply_age_ticks
     assert min(ages) >= 2 and max(ages) <= 4  # replies 1.3-2.9 ms after their command, used 2-3 ticks on
