@@ -59,7 +59,7 @@ def test_a_stopped_batch_is_the_full_batch_stopped_afterwards(variant_name: str,
         np.testing.assert_allclose(out.half_width_rel[here], width[here], rtol=1e-9)
     # a test that ended before its full length, fitting, ended certain of its verdict, and only a trusted one can
     early = (out.periods < full.periods.blocks) & ~out.misfit
-    assert early.any() and out.certain[early].all()
+    assert out.certain[early].all() and (early.any() or gain_variation)  # on the unfittable pump all end misfit
     assert out.trusted[out.certain].all() and np.isfinite(out.half_width_rel[out.trusted]).all()
     assert np.array_equal(stopped.truth, full.truth)
     # the point of stopping: most tests end well before the full length, as on the bench
