@@ -2,8 +2,9 @@
 technician would (scan, scan, Enter), with memory and open files measured as it goes.
 
 The report is drawn for every tenth valve (each draw is half the cost of a test; 150 draws still show a leak of
-matplotlib's). EDC_BENCH_SOAK_TESTS sets another count (at least 300): CI runs 300 (.ci/run), since 1,500 take 37
-to 55 minutes at today's 1.5 to 2.2 s a test through the app.
+matplotlib's). EDC_BENCH_SOAK_TESTS sets another count (at least 300): CI runs 300 (.ci/run), since 1,500 take
+about 55 minutes at 2.1 s a test through the app (docs/station.md has a full run's figures). The full run found 10
+tests missing from the history once: valves beyond the classifier's distance scan, whose records could not be read.
 """
 
 from __future__ import annotations
