@@ -766,10 +766,12 @@ def sticky_valve_sentence() -> str:
     """a1's and af's error on a new valve with 1x-3x its friction, with and without Stribeck friction."""
     data = stored("bench-test-coverage")
     factors = "x, ".join(f"{f:g}" for f in STICKY_FRICTION_FACTORS) + "x"
-    parts = []
-    for row in data["sticky_valve"]:
-        a1 = ", ".join(f"{e:+.1%}".replace("%", " %") for e in row["a1"])
-        af = ", ".join(f"{e:+.1%}".replace("%", " %") for e in row["af"])
-        parts.append(f"{row['pump']}, a1 {a1} and af {af}")
+
+    def errors(values: list[float]) -> str:
+        return ", ".join(f"{e:+.1%}".replace("%", " %") for e in values)
+
+    with_it, without = data["sticky_valve"]
     return (f"A nominal new valve of the stick-slip pump with {factors} its Coulomb friction and its damping as\n"
-            f"new (batch path, 30 s, seed 0) comes out with {'; '.join(parts)}.")
+            f"new (batch path, 30 s, seed 0) comes out with a1 {errors(with_it['a1'])} (af {errors(with_it['af'])}),"
+            f"\nand with the same pump without its Stribeck term, a1 {errors(without['a1'])} "
+            f"(af {errors(without['af'])}).")
