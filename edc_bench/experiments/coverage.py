@@ -194,5 +194,14 @@ def coverage_figures(stopped: StopOutcome, parameters: np.ndarray, truth: np.nda
     return out
 
 
-__all__ = ["CoveragePopulation", "ShopBaseline", "TOLERANCE_REL", "coverage_figures", "coverage_populations", "coverage_study",
-           "draw_sticky_valves", "shop_baseline", "stick_slip_variant"]
+__all__ = [
+    "TOLERANCE_REL",
+    "CoveragePopulation",
+    "ShopBaseline",
+    "coverage_figures",
+    "coverage_populations",
+    "coverage_study",
+    "draw_sticky_valves",
+    "shop_baseline",
+    "stick_slip_variant",
+]
