@@ -51,6 +51,11 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.learning.evaluation import evaluate
     from edc_bench.verdict.classifier import ValveClassifier
 
+    if args.coverage and (args.from_history or args.time_to_verdict):
+        from edc_bench.errors import ConfigError
+
+        other = "--from-history" if args.from_history else "--time-to-verdict"
+        raise ConfigError(f"--coverage and {other} are two different studies: give one of them")
     classifier = ValveClassifier(args.model)
     if args.from_history:
         from edc_bench.cli.common import history_label_dataset

@@ -97,6 +97,13 @@ def test_coverage_on_the_command_line_refuses_an_unknown_population() -> None:
     assert run.returncode == 2 and "invalid choice: 'sticky'" in run.stderr and "Traceback" not in run.stderr
 
 
+def test_coverage_on_the_command_line_is_one_study_at_a_time() -> None:
+    run = subprocess.run([sys.executable, "-m", "edc_bench", "evaluate", "--coverage", "--from-history"],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2 and "--coverage and --from-history are two different studies" in run.stderr
+    assert "Traceback" not in run.stderr
+
+
 @pytest.mark.slow  # 20-30 s
 def test_coverage_on_the_command_line_prints_each_population() -> None:
     run = subprocess.run([sys.executable, "-m", "edc_bench", "evaluate", "--coverage", "--count", "8",
