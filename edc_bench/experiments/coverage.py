@@ -35,9 +35,9 @@ from edc_bench.physics.valve import ValveSpec
 from edc_bench.physics.wear import is_faulty
 from edc_bench.population.batch import run_batch
 from edc_bench.population.batch_stop import StopOutcome, StopRule
-from edc_bench.population.calibrate import SIMULATED_POPULATION
-from edc_bench.population.valves import draw_population, new_valves
-from edc_bench.verdict.baseline import Baseline
+from edc_bench.population.calibrate import population_run
+from edc_bench.population.valves import draw_population
+from edc_bench.verdict.baseline import Baseline, baseline_from_tests
 from edc_bench.verdict.classifier import ValveClassifier
 
 AF, A1 = PARAMETER_NAMES.index("af"), PARAMETER_NAMES.index("a1")
@@ -104,18 +104,11 @@ class ShopBaseline:
 
 
 def shop_baseline(variant: Variant, valves: int, seed: int) -> ShopBaseline:
-    """The mean of ``valves`` simulated new valves' trusted tests (full length, as ``edc-bench calibrate``)."""
-    new = new_valves(variant, valves, seed)
-    result = run_batch(variant, new, [seed * 100_000 + n for n in range(valves)])
-    ok = result.trusted
-    if not ok.any():
-        raise ValueError(f"none of the {valves} new valves of {variant.name} gave a trusted test: no baseline")
-    measured = result.parameters[ok][:, [AF, A1]]
-    spread = measured.std(axis=0, ddof=1) if ok.sum() > 1 else np.zeros(2)
-    baseline = Baseline(af_v=float(measured[:, 0].mean()), a1_v_s_per_mm=float(measured[:, 1].mean()),
-                        af_sd_v=float(spread[0]), a1_sd_v_s_per_mm=float(spread[1]), tests=int(ok.sum()),
-                        source=SIMULATED_POPULATION)
-    return ShopBaseline(baseline, result.truth[ok][:, [AF, A1]].mean(axis=0))
+    """The baseline ``edc-bench calibrate`` makes of ``valves`` simulated new valves (their trusted tests, full
+    length), and the true mean of those valves' af and a1."""
+    tests, result = population_run(variant, valves, seed)
+    measured = baseline_from_tests(tests)  # a clear error when no test was trusted
+    return ShopBaseline(measured, result.truth[result.trusted][:, [AF, A1]].mean(axis=0))
 
 
 def coverage_study(population: CoveragePopulation, classifier: ValveClassifier, count: int, seed: int,

@@ -11,6 +11,11 @@ from pathlib import Path
 from edc_bench.paths import atomic_write
 
 
+def now_local() -> str:
+    """Local time with its UTC offset, to the second."""
+    return datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+
+
 @dataclass(frozen=True)
 class ValveEntry:
     """One valve of the shift."""
@@ -41,7 +46,7 @@ class ShiftLog:
     operator: str
     station: str
     rig: str
-    started: str = field(default_factory=lambda: now_local())  # noqa: PLW0108 - defined below
+    started: str = field(default_factory=now_local)
     valves: list[ValveEntry] = field(default_factory=list)
     rig_checks: list[RigCheckEntry] = field(default_factory=list)
 
@@ -82,8 +87,3 @@ class ShiftLog:
                 "rig_checks": [asdict(c) for c in self.rig_checks]}
         atomic_write(text_path.with_suffix(".json"), lambda f: json.dump(data, f, indent=2), mode="w")
         return text_path
-
-
-def now_local() -> str:
-    """Local time with its UTC offset, to the second."""
-    return datetime.datetime.now().astimezone().isoformat(timespec="seconds")
