@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -277,4 +278,21 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str
         return []
     af, a1 = result.features["af"], result.features["a1"]
     print(f"{head}: af {af:.5f} V, a1 {a1:.6f} V s/mm (record {record})", file=sys.stderr)
-    return [BaselineTest(af, a1, result.valve_id, source, result.started_at, str(record.resolve()))]
+    return [BaselineTest(af, a1, result.valve_id, source, result.started_at, str(record.resolve()),
+                         **_uncertainty(result.identification))]
+
+
+def _uncertainty(identification: Any) -> dict[str, float | None]:
+    """A test's relative standard errors and core shifts of af and a1, for the baseline's allowance (None where the
+    identification has none)."""
+    out: dict[str, float | None] = {}
+    if identification is None:
+        return out
+    shifts = identification.model_fit.core_shift_rel if identification.model_fit is not None else None
+    for name in ("af", "a1"):
+        value, std = identification.final.get(name), identification.std.get(name)
+        se = abs(std / value) if value and std is not None else math.nan
+        out[f"{name}_se_rel"] = se if math.isfinite(se) else None
+        shift = (shifts or {}).get(name)
+        out[f"{name}_core_shift_rel"] = shift if shift is not None and math.isfinite(shift) else None
+    return out

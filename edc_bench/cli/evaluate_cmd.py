@@ -144,7 +144,8 @@ def _coverage(args: argparse.Namespace, classifier) -> int:
         for name in ("af", "a1"):
             f = r[name]
             print(f"  {name}: within {f['within']:.1%}; |error| median {f['error_p50']:.1%}, 95th percentile "
-                  f"{f['error_p95']:.1%}; bias {f['bias']:+.1%}; interval covers the truth {f['covered']:.1%}")
+                  f"{f['error_p95']:.1%}; bias {f['bias']:+.1%}; interval covers the truth {f['covered']:.1%} "
+                  f"(median half width {f['half_width_p50']:.1%})")
         print(f"  stopped certain {r['certain']}, of which the truth contradicts {r['certain_wrong']}; median stop "
               f"{r['median_stop_s']:.1f} s; MARGINAL {r['marginal_fraction']:.1%}; accuracy outside the marginal "
               f"band {r['accuracy_outside_band']:.1%}")

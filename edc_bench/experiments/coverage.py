@@ -157,7 +157,8 @@ def coverage_figures(stopped: StopOutcome, parameters: np.ndarray, truth: np.nda
     dict
         ``judged`` (trusted at their stop); per feature (``af``, ``a1``) over the judged: ``within`` (the share
         within :data:`TOLERANCE_REL` of the truth), ``error_p50``/``error_p95`` (of the |relative error|), ``bias``
-        (the median signed error), ``covered`` (the share whose interval holds the true ratio) and
+        (the median signed error), ``covered`` (the share whose interval holds the true ratio), ``half_width_p50``
+        (the interval's median half width, relative) and
         ``baseline_error`` (the baseline's); ``certain`` and ``certain_wrong`` (stopped certain; of those, with a
         verdict other than the classifier's at the true ratios); ``median_stop_s``; and
         :func:`~edc_bench.learning.evaluation.verdict_counts` of the judged against ``faulty``.
@@ -183,6 +184,7 @@ def coverage_figures(stopped: StopOutcome, parameters: np.ndarray, truth: np.nda
                      "error_p95": float(np.percentile(np.abs(e), 95)) if some else math.nan,
                      "bias": float(np.median(e)) if some else math.nan,
                      "covered": float(covered[judged, j].mean()) if some else math.nan,
+                     "half_width_p50": float(np.median(stopped.half_width_rel[judged, j])) if some else math.nan,
                      "baseline_error": float(shop.error_rel[j])}
     return out
 

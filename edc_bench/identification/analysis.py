@@ -64,6 +64,9 @@ class ModelFit:
         The solenoid's force constant's variation over the swing (+/-, relative), as identified.
     problems : list of str
         What does not fit (empty when the model fits), each with the measured figure and its limit.
+    core_shift_rel : dict
+        ``af``, ``a1``: the estimate's distance from the core sub-fit's, relative to the estimate
+        (:attr:`~edc_bench.identification.period_fit.PeriodFit.core_shift`): what the model misses at reversals.
     """
 
     residual_rms_v: float
@@ -74,6 +77,7 @@ class ModelFit:
     problems: list[str]
     systematic_rms_v: float = math.nan
     systematic_ratio: float = math.nan
+    core_shift_rel: dict[str, float] | None = None
 
     @property
     def fits(self) -> bool:
@@ -85,7 +89,8 @@ class ModelFit:
         return {"residual_rms_v": self.residual_rms_v, "expected_noise_v": self.expected_noise_v,
                 "residual_ratio": self.residual_ratio, "systematic_rms_v": self.systematic_rms_v,
                 "systematic_ratio": self.systematic_ratio, "spread_rel": dict(self.spread_rel),
-                "gain_variation_rel": self.gain_variation_rel, "fits": self.fits, "problems": list(self.problems)}
+                "gain_variation_rel": self.gain_variation_rel, "fits": self.fits, "problems": list(self.problems),
+                "core_shift_rel": None if self.core_shift_rel is None else dict(self.core_shift_rel)}
 
 
 @dataclass(frozen=True)
@@ -226,6 +231,8 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
         systematic_ratio=float(fit.systematic_rms_v[0]) / noise if noise > 0 else math.inf,
         spread_rel={n: float(fit.spread_rel[n][0]) for n in ("af", "a1")},
         gain_variation_rel=float(fit.gain_variation_rel[0]),
+        core_shift_rel={n: float(fit.core_shift[0, fit.columns.index(n)] / fit.theta[0, fit.columns.index(n)])
+                        for n in ("af", "a1")},
         problems=model_fit_problems(variant, fit, noise) if periods >= acc.min_periods else [],
     )
     settled = bool(fit.settled[0])

@@ -53,6 +53,14 @@ from edc_bench.control.design import ControllerDesign
 
 #: Polynomial order of the smoothing (derivatives up to the third are taken from it).
 SMOOTHING_ORDER = 4
+#: Ticks either side of a sample whose straight line gives the rack's speed there, for whether a row's window slides
+#: (:func:`core_rows`; eleven samples: the LVDT's noise moves the speed by a few per cent of the exclusion's).
+SPEED_SPAN_TICKS = 5
+#: The model's misfit at reversals in a verdict's interval: this many times the core shift (the fit's distance from
+#: the core sub-fit, :attr:`PeriodFit.core_shift`). The core rows are not wholly clear of the reversals either
+#: (their window's edge, the ringing after a breakaway), so the fit's own error can exceed the shift; docs/method.md,
+#: "The interval", prints the coverage this factor gives (``edc-bench evaluate --coverage``).
+MISFIT_ALLOWANCE = 2.0
 #: Names of the nuisance terms of the force constant's position dependence (Delta = x - x_m).
 GAIN_TERMS = ("d2", "dv", "df", "d2f")  # Delta^2, Delta x', Delta sgn(x'), and of the second order Delta^2 sgn(x')
 #: Periods used at least before a test can count as converged (three give a spread with two degrees of freedom).
@@ -290,8 +298,9 @@ def _smooth(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 
 def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.ndarray,
-         reference_velocity_mm_s: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Regressors, target and usable-row mask for a span of ticks.
+         reference_velocity_mm_s: np.ndarray,
+         valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Regressors, target, usable-row mask and the core rows (those clear of any stick) for a span of ticks.
 
     Parameters
     ----------
@@ -309,9 +318,10 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
 
     Returns
     -------
-    (X, y, use)
+    (X, y, use, core)
         X (T, [N,] p) scaled regressors, y (T, [N]) target, use (T, [N]) the rows to fit: the first and last
-        half window of the span are never usable (their smoothing is incomplete).
+        half window of the span are never usable (their smoothing is incomplete); core (T, [N]) the used rows
+        whose whole smoothing window slides (:func:`core_rows`), for the misfit's share of the interval.
     """
     x = np.asarray(position_mm, dtype=float)
     kernels = _smoothing_kernels(setup.window, setup.period_s)
@@ -337,12 +347,10 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     X = np.stack(cols, axis=-1)
     # a row needs its sample and the next, and every sample the smoothing reaches, to be real
     half = setup.window // 2
-    bad = (~np.asarray(valid, dtype=bool)).astype(np.int64)
-    cum = np.concatenate((np.zeros_like(bad[:1]), np.cumsum(bad, axis=0)), axis=0)
-    ticks = len(bad)
+    ticks = len(x)
     k = np.arange(ticks)
     hi, lo = np.minimum(k + half + 2, ticks), np.maximum(k - half, 0)  # samples k - half .. k + 1 + half
-    near_bad = (cum[hi] - cum[lo]) > 0
+    near_bad = _any_in(~np.asarray(valid, dtype=bool), lo, hi)
     edge = np.zeros(len(x), dtype=bool)
     edge[half: len(x) - half - 1] = True
     if x.ndim == 2:
@@ -350,7 +358,42 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     limit = setup.exclusion_mm_s
     sliding = (np.abs(reference_velocity_mm_s) >= limit) & (np.abs(x1) >= limit)
     use = sliding & ~near_bad & edge & np.isfinite(target) & np.all(np.isfinite(X), axis=-1)
-    return X, np.where(use, target, 0.0), use
+    return X, np.where(use, target, 0.0), use, use & core_rows(setup, x, lo, hi)
+
+
+def core_rows(setup: FitSetup, position_mm: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Rows whose smoothing window (samples ``lo[k] .. hi[k] - 1``) slides at every sample it reaches.
+
+    A row is a weighted sum over its window; one that reaches into a stick or a breakaway smooths their forces
+    (stiction, a Stribeck peak) into a row the sgn(x') model reads as sliding. The fit over these rows alone is the
+    sub-fit whose distance from the fit over all rows measures what the model misses at reversals
+    (:func:`solve`, ``core_shift``). The rack's speed at each sample is the slope of a straight line through the
+    :data:`SPEED_SPAN_TICKS` samples either side, all inside the window, so that a row's flag depends on its
+    window alone, however the trace is cut into spans (the early stop feeds it a step at a time).
+    """
+    x = position_mm
+    ticks, m = len(x), SPEED_SPAN_TICKS
+    slow = np.zeros(x.shape, dtype=bool)
+    if ticks > 2 * m:
+        with np.errstate(invalid="ignore"):  # a missing sample (NaN) counts as slow; its rows are unusable anyway
+            speed = _smooth(x[None], _slope_kernel(m, setup.period_s))[0]
+            slow[m:ticks - m] = ~(np.abs(speed[m:ticks - m]) >= setup.exclusion_mm_s)
+    return ~_any_in(slow, np.minimum(lo + m, ticks), np.maximum(hi - m, 0))
+
+
+@functools.lru_cache(maxsize=8)
+def _slope_kernel(half: int, period_s: float) -> np.ndarray:
+    """Least-squares slope weights over ``2 half + 1`` samples, (1, 2 half + 1): a straight line's speed."""
+    j = np.arange(-half, half + 1, dtype=float)
+    kernel = (j / (period_s * float(j @ j)))[None]
+    kernel.flags.writeable = False
+    return kernel
+
+
+def _any_in(flags: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """For each row k, whether any of ``flags[lo[k]:hi[k]]`` is set (along the first axis; empty: False)."""
+    cum = np.concatenate((np.zeros_like(flags[:1], dtype=np.int64), np.cumsum(flags, axis=0)), axis=0)
+    return (cum[np.maximum(hi, lo)] - cum[lo]) > 0
 
 
 class BlockAccumulator:
@@ -383,19 +426,34 @@ class BlockAccumulator:
         self.pair_xy = np.zeros((blocks, n, p))
         self.pair_xx = np.zeros((blocks, n, p, p))
         self.pair_count = np.zeros((blocks, n))
+        # the normal equations over the core rows alone (clear of any stick: :func:`core_rows`)
+        self.A_core = np.zeros((blocks, n, p, p))
+        self.z_core = np.zeros((blocks, n, p))
         # by phase, over the used rows fed so far: sum of X, of y, and their count. Rows come in time order (a
         # span's unused edge rows aside), so a row of block b finds here the rows of blocks 0..b-1 at its phase
         self._by_phase = np.zeros((setup.block_ticks, n, p + 2))
 
-    def add(self, block: int, X: np.ndarray, y: np.ndarray, use: np.ndarray, phase: int = 0) -> None:
+    def add(self, block: int, X: np.ndarray, y: np.ndarray, use: np.ndarray, phase: int = 0,
+            core: np.ndarray | None = None) -> None:
         """Add the rows of one span that all belong to ``block`` (X (T, N, p) or (T, p)), its first row at tick
-        ``phase`` of the block. Each row is used in one span only, and the used rows come in time order."""
+        ``phase`` of the block. Each row is used in one span only, and the used rows come in time order.
+        ``core``: which of the used rows are core rows (:func:`core_rows`; None: all of them)."""
         if X.ndim == 2:
             X, y, use = X[:, None, :], y[:, None], use[:, None]
+            core = None if core is None else core[:, None]
         w = use.astype(float)
         Xw = (X * w[..., None]).transpose(1, 2, 0)  # (N, p, T): one batched matrix product per test (BLAS)
-        self.A[block] += Xw @ X.transpose(1, 0, 2)
-        self.z[block] += (Xw @ y.T[..., None])[..., 0]
+        XT = X.transpose(1, 0, 2)
+        A, z = Xw @ XT, (Xw @ y.T[..., None])[..., 0]
+        self.A[block] += A
+        self.z[block] += z
+        if core is None:
+            self.A_core[block] += A
+            self.z_core[block] += z
+        else:
+            Xc = (X * (core & use)[..., None]).transpose(1, 2, 0)
+            self.A_core[block] += Xc @ XT
+            self.z_core[block] += (Xc @ y.T[..., None])[..., 0]
         self.yy[block] += ((y * w) * y).sum(axis=0)
         self.count[block] += w.sum(axis=0)
         p = X.shape[-1]
@@ -411,25 +469,29 @@ class BlockAccumulator:
 
     def take(self, keep: np.ndarray) -> None:
         """Keep the tests ``keep`` (indices) only: a batch whose other tests have stopped."""
-        for name in ("A", "z", "yy", "count", "pair_yy", "pair_xy", "pair_xx", "pair_count", "_by_phase"):
+        for name in ("A", "z", "yy", "count", "pair_yy", "pair_xy", "pair_xx", "pair_count", "A_core", "z_core",
+                     "_by_phase"):
             setattr(self, name, np.ascontiguousarray(getattr(self, name)[:, keep]))
 
     def snapshot(self, block: int) -> tuple:
         """What :meth:`add` to ``block`` changes, to :meth:`restore` after a trial (the early stop's pending rows)."""
-        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count)
+        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count,
+                  self.A_core, self.z_core)
         return tuple(a[block].copy() for a in arrays) + (self._by_phase.copy(),)
 
     def restore(self, block: int, saved: tuple) -> None:
         """Undo the :meth:`add` calls since :meth:`snapshot` of ``block``."""
-        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count)
+        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count,
+                  self.A_core, self.z_core)
         for a, value in zip(arrays, saved):
             a[block] = value
         self._by_phase = saved[-1]
 
 
 def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray, y: np.ndarray,
-               use: np.ndarray) -> None:
-    """Add rows for ticks ``start .. start + len(X) - 1`` to their blocks (rows before the first block are skipped)."""
+               use: np.ndarray, core: np.ndarray | None = None) -> None:
+    """Add rows for ticks ``start .. start + len(X) - 1`` to their blocks (rows before the first block are skipped);
+    ``core`` as :meth:`BlockAccumulator.add` takes it."""
     T = len(X)
     k = max(start, setup.first_tick)
     end = start + T
@@ -440,7 +502,7 @@ def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray
         block_start = setup.first_tick + block * setup.block_ticks
         block_end = min(end, block_start + setup.block_ticks)
         sl = slice(k - start, block_end - start)
-        acc.add(block, X[sl], y[sl], use[sl], phase=k - block_start)
+        acc.add(block, X[sl], y[sl], use[sl], phase=k - block_start, core=None if core is None else core[sl])
         k = block_end
 
 
@@ -481,6 +543,10 @@ class PeriodFit:
         ([N,] p) the least-squares standard error, from the residual.
     periods_used : numpy.ndarray
         Periods with rows enough for their own solution (the spread's degrees of freedom are one fewer).
+    core_shift : numpy.ndarray
+        ([N,] p) the estimate minus the core sub-fit's, over the core rows alone (:func:`core_rows`): where the
+        model holds, both estimate the same values and this is noise; where it misses what happens at reversals
+        (stick windows, Stribeck friction), the rows near them pull the fit, and this is how far.
     """
 
     theta: np.ndarray
@@ -498,6 +564,7 @@ class PeriodFit:
     spread_se: np.ndarray = field(default_factory=lambda: np.zeros(0))
     ls_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
     periods_used: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    core_shift: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def value(self, name: str) -> np.ndarray:
         """The estimate of one coefficient (``af``, ``a1``, ``d2``...)."""
@@ -506,6 +573,13 @@ class PeriodFit:
     def std_of(self, name: str) -> np.ndarray:
         """Its standard error."""
         return self.std[..., self.columns.index(name)]
+
+    def relative_figures(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """A coefficient's standard error and its core shift, both relative to its estimate."""
+        value = self.value(name)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return (np.abs(self.std_of(name) / value),
+                    self.core_shift[..., self.columns.index(name)] / value)
 
 
 def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodFit | None:
@@ -550,6 +624,7 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     spread_sd = np.where((used >= 2)[:, None], spread_sd, np.nan)  # one period: no spread known
     spread_se = spread_sd / np.sqrt(np.maximum(used, 1))[:, None]
     std = np.maximum(spread_se, ls_std)
+    core_shift = _core_shift(acc, blocks, theta_n, scale) / units
     cols = setup.columns
     i_af, i_a1, i_df = cols.index("af"), cols.index("a1"), cols.index("df")
     af, a1 = theta[:, i_af], theta[:, i_a1]
@@ -562,7 +637,15 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     for i in (i_af, i_a1):
         settled = settled & drift_free(block_theta[:, :, i], theta[:, i], settle_band_rel)
     return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, cond, settled,
-                     n_rows, cols, systematic_rms, spread_se, ls_std, used)
+                     n_rows, cols, systematic_rms, spread_se, ls_std, used, core_shift)
+
+
+def _core_shift(acc: BlockAccumulator, blocks: int, theta_n: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The fit (scaled, ``theta_n``) minus the core sub-fit, over the core rows alone: :attr:`PeriodFit.core_shift`,
+    scaled."""
+    ridge = 1e-12 * scale[:, :, None] * scale[:, None, :]
+    A_core, z_core = acc.A_core[:blocks].sum(axis=0), acc.z_core[:blocks].sum(axis=0)
+    return theta_n - np.linalg.solve(A_core + ridge, z_core[..., None])[..., 0]
 
 
 def reference_condition_number(design: ControllerDesign) -> float:

@@ -184,8 +184,8 @@ class _VectorPlant:
         self._tables = None
 
     def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
-                   coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray,
-                   fs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray, fs: np.ndarray | None = None,
+                   dt_s: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         pump = self.pump
         if pump.linear:
             f = -(pump.preload_n + fc * sign)
@@ -193,8 +193,10 @@ class _VectorPlant:
             friction = fc
             if pump.stribeck_velocity_mm_s > 0.0:
                 friction = fc + (fs - fc) * np.exp(-(v / pump.stribeck_velocity_mm_s) ** 2)
-            f = (pump.force_constant_n_per_a * pump.force_constant_slope_per_mm * (x - pump.force_constant_mid_mm) * i
-                 - (pump.preload_n + friction * sign))
+            # the pull's difference at mid-step, as the simulated rig's plant takes it (its module docstring)
+            mid_mm = x + 0.5 * dt_s * v
+            f = (pump.force_constant_n_per_a * pump.force_constant_slope_per_mm * (mid_mm - pump.force_constant_mid_mm)
+                 * i - (pump.preload_n + friction * sign))
         xn = phi[0] * x + phi[1] * v + phi[2] * i + gam[0] * coil_v + gam[1] * f
         vn = phi[3] * x + phi[4] * v + phi[5] * i + gam[2] * coil_v + gam[3] * f
         i_n = phi[8] * i + gam[4] * coil_v
@@ -203,7 +205,8 @@ class _VectorPlant:
     def advance_period(self, drive_v: np.ndarray) -> None:
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v, self.pump.amplifier_limit_v)
         sign = np.where(self.v > 0.0, 1.0, -1.0)
-        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc, self.fs)
+        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc, self.fs,
+                                      self._period_s)
         ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
         self.x = np.where(ok, xn, self.x)
         self.v = np.where(ok, vn, self.v)
@@ -229,7 +232,8 @@ class _VectorPlant:
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v[moving], self.pump.amplifier_limit_v)
         x, v, i = self.x[moving], self.v[moving], self.i[moving]
         sign = np.where(v > 0.0, 1.0, -1.0)
-        xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, self.fc[moving], self.fs[moving])
+        xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, self.fc[moving], self.fs[moving],
+                                      m * (self._period_s / QUANTA_PER_PERIOD))
         ok = ~self.stuck[moving] & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
         smooth = moving[ok]
         self.x[smooth], self.v[smooth], self.i[smooth] = xn[ok], vn[ok], i_n[ok]
@@ -249,7 +253,7 @@ class _VectorPlant:
             net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
             hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
             sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
-            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc, fs)
+            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc, fs, self._period_s / QUANTA_PER_PERIOD)
             # held racks: only the current evolves
             i_hold = phi[8] * i + gam[4] * coil_v
             reversed_ = vn * sign <= 0.0
@@ -365,9 +369,9 @@ class _RowFeeder:
         if span <= 0:
             return
         rows_ = span + 2 * self.half + 1
-        X, y, use = rows(self.setup, self.x[:rows_], self.u[:rows_], self.rho[:rows_], self.r1[:rows_],
-                         self.valid[:rows_])
-        accumulate(self.setup, self.acc, self.p - self.half, X, y, use)
+        X, y, use, core = rows(self.setup, self.x[:rows_], self.u[:rows_], self.rho[:rows_], self.r1[:rows_],
+                               self.valid[:rows_])
+        accumulate(self.setup, self.acc, self.p - self.half, X, y, use, core)
         keep_from = span  # the next span needs from its first tick - half on
         for a in (self.x, self.u, self.rho, self.r1, self.valid):
             a[: len(a) - keep_from] = a[keep_from:]

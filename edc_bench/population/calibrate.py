@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from edc_bench.config.models import Variant
 from edc_bench.population.batch import BatchResult, run_batch
 from edc_bench.population.valves import new_valves
-from edc_bench.verdict.baseline import BaselineTest
+from edc_bench.verdict.baseline import UNCERTAINTY_KEYS, BaselineTest
 
 SIMULATED_POPULATION = "simulated population"
 
@@ -20,10 +24,20 @@ def population_run(variant: Variant, tests: int, seed: int) -> tuple[list[Baseli
     valves = new_valves(variant, tests, seed)
     result = run_batch(variant, valves, [seed * 100_000 + n for n in range(tests)])
     af, a1 = result.feature("af"), result.feature("a1")
+    assert result.periods is not None  # a full-length batch keeps its period fit
+    fit = result.periods.at(result.periods.blocks).fit
+    figures = np.full((4, tests), np.nan)
+    if fit is not None:
+        (figures[0], figures[2]), (figures[1], figures[3]) = fit.relative_figures("af"), fit.relative_figures("a1")
     kept = [BaselineTest(float(af[n]), float(a1[n]), valve_id=f"{valves[n].label} (seed {seed})",
-                         source=SIMULATED_POPULATION)
+                         source=SIMULATED_POPULATION, **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))))
             for n in range(tests) if result.trusted[n]]
     return kept, result
+
+
+def _known(figures: dict[str, float]) -> dict[str, float | None]:
+    """The figures as a test keeps them: None where not known."""
+    return {key: float(value) if math.isfinite(value) else None for key, value in figures.items()}
 
 
 def population_tests(variant: Variant, tests: int, seed: int) -> list[BaselineTest]:

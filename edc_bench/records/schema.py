@@ -123,6 +123,7 @@ class ModelFit(Section):
     gain_variation_rel: float | None = None
     fits: bool | None = None
     problems: list[str] = Field(default_factory=list)
+    core_shift_rel: dict[str, float | None] | None = None
 
 
 class IdentificationSummary(Section):
@@ -155,6 +156,8 @@ class StopSummary(Section):
     verdict: Verdict | None = None
     features_rel: dict[str, float | None] | None = None
     half_width_rel: dict[str, float | None] | None = None
+    misfit_half_width_rel: dict[str, float | None] | None = None
+    baseline_half_width_rel: dict[str, float | None] | None = None
     confidence: float | None = None
     problems: list[str] = Field(default_factory=list)
 

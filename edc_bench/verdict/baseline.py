@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from edc_bench.config.loader import station_variant_dir, variant_dirs
 from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
@@ -36,6 +38,8 @@ EARLIER_DIR = "earlier"
 #: Fewer tests than this and calibrate says the baseline is thin (the spread between new valves is about 8 %).
 RECOMMENDED_TESTS = 5
 NOMINAL_SOURCE = "nominal physics (uncalibrated)"
+#: A [[test]] table's optional figures for the baseline's own uncertainty (:meth:`Baseline.allowance_rel`).
+UNCERTAINTY_KEYS = ("af_se_rel", "a1_se_rel", "af_core_shift_rel", "a1_core_shift_rel")
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,11 @@ class BaselineTest:
         When the test started (ISO 8601), empty if not known.
     record : str
         Its record folder, empty when none was written (simulated population).
+    af_se_rel, a1_se_rel : float or None
+        The standard error of its af and a1, relative (None: not known, as in files written before they were kept).
+    af_core_shift_rel, a1_core_shift_rel : float or None
+        Its af's and a1's distance from the core sub-fit's, relative (what the model missed at reversals,
+        :attr:`~edc_bench.identification.period_fit.PeriodFit.core_shift`; None: not known).
     """
 
     af_v: float
@@ -62,6 +71,15 @@ class BaselineTest:
     source: str = ""
     started_at: str = ""
     record: str = ""
+    af_se_rel: float | None = None
+    a1_se_rel: float | None = None
+    af_core_shift_rel: float | None = None
+    a1_core_shift_rel: float | None = None
+
+    @property
+    def uncertainty_known(self) -> bool:
+        """True when the test's standard errors and core shifts are kept (the baseline's allowance uses them)."""
+        return None not in (self.af_se_rel, self.a1_se_rel, self.af_core_shift_rel, self.a1_core_shift_rel)
 
 
 @dataclass(frozen=True)
@@ -114,6 +132,23 @@ class Baseline:
         """Standard uncertainty of the mean a1; nan with fewer than two tests."""
         return self.a1_sd_v_s_per_mm / math.sqrt(self.tests) if self.tests >= 2 else math.nan
 
+    def allowance_rel(self, z: float) -> np.ndarray:
+        """How far the baseline's own af and a1 may be from its valves' true mean, relative: (2,).
+
+        Each test's noise (z standard errors of the mean of the tests) and the model's misfit at reversals
+        (:data:`~edc_bench.identification.period_fit.MISFIT_ALLOWANCE` times its mean core shift), added: every
+        ratio judged against the baseline carries them (docs/method.md, "The interval"). Over the tests whose
+        figures are kept; zeros when none are (older files, the nominal baseline).
+        """
+        from edc_bench.identification.period_fit import MISFIT_ALLOWANCE
+
+        known = [t for t in self.test_list if t.uncertainty_known]
+        if not known:
+            return np.zeros(2)
+        se = np.array([[t.af_se_rel, t.a1_se_rel] for t in known], dtype=float)
+        shift = np.abs(np.array([[t.af_core_shift_rel, t.a1_core_shift_rel] for t in known], dtype=float))
+        return z * np.sqrt((se ** 2).sum(axis=0)) / len(known) + MISFIT_ALLOWANCE * shift.mean(axis=0)
+
     @property
     def measured_on_rig(self) -> bool:
         """True if any test behind it ran on a real rig (not the simulated rig or a simulated population)."""
@@ -164,9 +199,14 @@ class Baseline:
         if self.test_list:
             tests = tomlkit.aot()
             for test in self.test_list:
-                tests.append(tomlkit.table().add("af_v", test.af_v).add("a1_v_s_per_mm", test.a1_v_s_per_mm)
-                             .add("valve_id", test.valve_id).add("source", test.source)
-                             .add("started_at", test.started_at).add("record", test.record))
+                table = (tomlkit.table().add("af_v", test.af_v).add("a1_v_s_per_mm", test.a1_v_s_per_mm)
+                         .add("valve_id", test.valve_id).add("source", test.source)
+                         .add("started_at", test.started_at).add("record", test.record))
+                for key in UNCERTAINTY_KEYS:
+                    value = getattr(test, key)
+                    if value is not None and math.isfinite(value):
+                        table.add(key, value)
+                tests.append(table)
             document.add("test", tests)
         return tomlkit.dumps(document)
 
@@ -224,6 +264,12 @@ def baseline_path(variant_name: str, *, station: bool = True) -> Path | None:
     return None
 
 
+def _number(data: dict[str, Any], key: str) -> float | None:
+    """An optional number of a [[test]] table (None when absent)."""
+    value = data.get(key)
+    return None if value is None else float(value)
+
+
 def _text(data: dict[str, Any], key: str) -> str:
     value = data.get(key, "")
     return value if isinstance(value, str) else str(value)
@@ -245,7 +291,8 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
         raise ConfigError(f"{path}: baseline is for variant {data.get('variant')!r}, not {variant_name!r}")
     try:
         tests = tuple(BaselineTest(float(t["af_v"]), float(t["a1_v_s_per_mm"]), _text(t, "valve_id"),
-                                   _text(t, "source"), _text(t, "started_at"), _text(t, "record"))
+                                   _text(t, "source"), _text(t, "started_at"), _text(t, "record"),
+                                   *(_number(t, key) for key in UNCERTAINTY_KEYS))
                       for t in data.get("test", []))
         baseline = dataclasses.replace(Baseline.from_summary(data), path=str(path), test_list=tests)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
@@ -255,6 +302,13 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
     if not all(math.isfinite(v) and v > 0 for v in values):
         raise ConfigError(f"{path}: baseline af_v and a1_v_s_per_mm, and those of every [[test]], must be positive "
                           "numbers; restore the file from baselines/earlier/ or calibrate anew with --write")
+    for n, test in enumerate(tests, start=1):
+        for key in UNCERTAINTY_KEYS:
+            value = getattr(test, key)
+            if value is not None and not (math.isfinite(value) and (value >= 0 or "shift" in key)):
+                kind = "a number" if "shift" in key else "a number of at least 0"
+                raise ConfigError(f"{path}: [[test]] {n}: {key} must be {kind}, not {value}; delete the line (the "
+                                  "baseline then allows nothing for that test) or calibrate anew with --write")
     return baseline
 
 

@@ -47,6 +47,7 @@ from edc_bench.engine.outcome import StopReason
 from edc_bench.engine.replies import max_reply_age_ticks
 from edc_bench.identification.analysis import model_fit_problems, model_fits
 from edc_bench.identification.period_fit import (
+    MISFIT_ALLOWANCE,
     BlockAccumulator,
     FitSetup,
     PeriodFit,
@@ -108,13 +109,15 @@ class EarlyStop:
         #: half widths of their interval, the verdict at the centre ("" while not trusted); None before the first
         self.latest: dict[str, Any] | None = None
         self.fed_to_tick = setup.first_tick  # rows of ticks before this one are in the accumulator
-        self._search: tuple[np.ndarray, np.ndarray, int, int] | None = None  # centre, half width, periods, next
+        # centre, the half width's shrinking part and its fixed part, periods, the next candidate
+        self._search: tuple[np.ndarray, np.ndarray, np.ndarray, int, int] | None = None
         self._r_ref = variant.coil.resistance_ohm
         self._inductive = inductive_shares(variant)
         self._noise_v = expected_drive_noise_v(variant)
         self._reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
         self.interval = Interval.of(variant, self.max_periods)
         self._base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
+        self._baseline_allowance = baseline.allowance_rel(self.interval.z)
         # the classifier's first call costs several times a later one: paid now, before the loop's first tick
         certain_verdicts(classifier, np.ones((1, 2)), np.full((1, 2), 0.01))
 
@@ -149,7 +152,7 @@ class EarlyStop:
         alone? (one classifier call, five points)"""
         if self._search is None:
             return
-        centre, half_width, periods, more = self._search
+        centre, statistical, fixed, periods, more = self._search
         if more > self.max_periods:
             self.expected_end_s, self._search = self.duration_s, None
             self.expected_end_is_earliest = False
@@ -157,14 +160,14 @@ class EarlyStop:
         # enough candidates per step to finish before the next period's end (one, unless the test is long)
         candidates = np.arange(more, min(more + self.search_per_step, self.max_periods + 1))
         boxes = certain_verdicts(self.classifier, np.repeat(centre, len(candidates), axis=0),
-                                 half_width * self.interval.shrink(periods, candidates)[:, None])
+                                 statistical * self.interval.shrink(periods, candidates)[:, None] + fixed)
         if boxes.any():
             self.expected_end_s, self._search = self.setup.end_s(int(candidates[np.argmax(boxes)])), None
             self.expected_end_is_earliest = False
         else:  # not before the next candidate, at the earliest
             after = int(candidates[-1]) + 1
             self.expected_end_s = self.setup.end_s(min(after, self.max_periods))
-            self._search = (centre, half_width, periods, after)
+            self._search = (centre, statistical, fixed, periods, after)
 
     def check(self, k: int, columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
         """At tick ``k`` (one of :attr:`check_ticks`): the reason to stop now, with its figures, or None."""
@@ -191,7 +194,8 @@ class EarlyStop:
                                                        float(fit.value(name)[0]), self._r_ref,
                                                        float(columns["coil_resistance_ohm"][k]))
                                 for name in ("af", "a1")]])
-        centre, half_width = relative_box(parameters, fit, self._base, self.interval)
+        box = relative_box(parameters, fit, self._base, self.interval, self._baseline_allowance)
+        centre, half_width = box.centre, box.half_width
         misfit, trusted, certain, verdicts = stop_flags(self.variant, self.classifier, fit, periods, centre,
                                                         half_width, self._noise_v, self._reference_condition)
         self.latest = {"periods": periods, "af_rel": float(centre[0, 0]), "a1_rel": float(centre[0, 1]),
@@ -205,14 +209,16 @@ class EarlyStop:
             return {"reason": StopReason.VERDICT_CERTAIN, "time_s": time_s, "periods": periods, "verdict": str(verdicts[0]),
                     "confidence": acc.verdict_confidence,
                     "features_rel": {"af": float(centre[0, 0]), "a1": float(centre[0, 1])},
-                    "half_width_rel": {"af": float(half_width[0, 0]), "a1": float(half_width[0, 1])}}
+                    "half_width_rel": {"af": float(half_width[0, 0]), "a1": float(half_width[0, 1])},
+                    "misfit_half_width_rel": {"af": float(box.misfit[0, 0]), "a1": float(box.misfit[0, 1])},
+                    "baseline_half_width_rel": {"af": float(box.baseline[0, 0]), "a1": float(box.baseline[0, 1])}}
         if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
             self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None
         # when would the interval, shrinking with more periods (Interval.shrink), leave the verdict alone? Searched
         # a period at a time over the next steps (all at once would cost a classifier call per remaining period in
         # this tick)
-        self._search = (centre, half_width, periods, periods + 1)
+        self._search = (centre, box.statistical, box.fixed, periods, periods + 1)
         self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))  # the earliest it can be, meanwhile
         return None
 
@@ -251,18 +257,58 @@ class Interval:
         return np.sqrt(periods / more) * t_then / t_now
 
 
-def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray,
-                 interval: Interval) -> tuple[np.ndarray, np.ndarray]:
-    """af and a1 relative to the baseline, and the half width of their interval: (N, 2) each.
+@dataclass(frozen=True)
+class RelativeBox:
+    """af and a1 relative to the baseline, and the half width of their interval, in its three parts: (N, 2) each.
 
-    ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1. The half
-    width is the larger of t standard errors from the periods' spread and z least-squares ones (NaN, no box, with
-    fewer than two periods).
+    Attributes
+    ----------
+    centre : numpy.ndarray
+        The ratios to the baseline.
+    statistical : numpy.ndarray
+        The test's own noise: the larger of t standard errors from the periods' spread and z least-squares ones
+        (NaN, no box, with fewer than two periods). It shrinks with more periods (:meth:`Interval.shrink`).
+    misfit : numpy.ndarray
+        :data:`MISFIT_ALLOWANCE` times the core shift: what the model misses at reversals. More periods do not
+        shrink it.
+    baseline : numpy.ndarray
+        The baseline's own uncertainty (:meth:`~edc_bench.verdict.baseline.Baseline.allowance_rel`) times the
+        ratio: its tests' noise and misfit move every ratio judged against it.
+    """
+
+    centre: np.ndarray
+    statistical: np.ndarray
+    misfit: np.ndarray
+    baseline: np.ndarray
+
+    @property
+    def fixed(self) -> np.ndarray:
+        """The parts more periods do not shrink."""
+        return self.misfit + self.baseline
+
+    @property
+    def half_width(self) -> np.ndarray:
+        """The whole half width: the three parts added (they are not independent noises to add in quadrature:
+        the misfit is the same in every period)."""
+        return self.statistical + self.fixed
+
+
+def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray, interval: Interval,
+                 baseline_allowance_rel: np.ndarray | None = None) -> RelativeBox:
+    """af and a1 relative to the baseline and their interval (:class:`RelativeBox`), for N tests.
+
+    ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1;
+    ``baseline_allowance_rel``: (2,) the baseline's own relative uncertainty (none if not given).
     """
     t = interval.t[np.clip(fit.periods_used - 1, 0, len(interval.t) - 1)][:, None]
     columns = [fit.columns.index("af"), fit.columns.index("a1")]
     half = np.maximum(t * fit.spread_se[:, columns], interval.z * fit.ls_std[:, columns])
-    return parameters / base, half / np.abs(base)
+    centre = parameters / base
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shift_rel = np.abs(fit.core_shift[:, columns] / fit.theta[:, columns])
+    allowance = np.zeros(2) if baseline_allowance_rel is None else np.asarray(baseline_allowance_rel, dtype=float)
+    return RelativeBox(centre, half / np.abs(base), MISFIT_ALLOWANCE * shift_rel * np.abs(centre),
+                       allowance * np.abs(centre))
 
 
 def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, periods: int, centres: np.ndarray,

@@ -151,9 +151,9 @@ def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within
 
 @pytest.mark.parametrize("variation_rel", [0.30, -0.30], ids=["+30%", "-30%"])
 def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_early(hard, variation_rel: float) -> None:
-    """Every valve, the faulty one included: with its friction not yet learnt it sticks for up to 50 ms at a time
-    on this pump (2.8 mm off its reference), which ended the test at 2 s as "stuck rack or sensor" before the
-    tracking check waits 100 ticks (engine/tracking.py)."""
+    """Every valve, the faulty one included: with its friction not yet learnt it sticks and lags its reference on
+    this pump (more than 1 mm off for about 50 ms at a time), stick-slip that the tracking check must not take for
+    a stuck rack or sensor (engine/tracking.py)."""
     variant = with_gain_variation(hard, variation_rel)
     for valve in VALVES:
         result = run_simulated_test(variant, valve, 0, nominal_baseline=True)
@@ -167,11 +167,15 @@ def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_ear
         assert not result.judgement.identification.model_fit.fits
         # the stick-slip the tracking check must ride out (docs/bench-test.md)
         if valve == "faulty" and variation_rel > 0:
-            off = np.abs(result.trace["reference_mm"] - result.trace["position_mm"]) > 2.0
-            edges = np.flatnonzero(np.diff(np.r_[0, off.astype(np.int8), 0]))
-            longest = int((edges[1::2] - edges[::2]).max()) if len(edges) else 0
-            print(f"+30 % faulty: longest run more than 2 mm off {longest} ticks")
-            assert 0 < longest < variant.acceptance.tracking_error_ticks // 2 + 1
+            limit_mm = variant.acceptance.max_tracking_error_mm
+            longest = {}
+            for off_mm in (limit_mm / 2, limit_mm):
+                off = np.abs(result.trace["reference_mm"] - result.trace["position_mm"]) > off_mm
+                edges = np.flatnonzero(np.diff(np.r_[0, off.astype(np.int8), 0]))
+                longest[off_mm] = int((edges[1::2] - edges[::2]).max()) if len(edges) else 0
+            print(f"+30 % faulty: longest runs off its reference (mm: ticks) {longest}")
+            assert longest[limit_mm / 2] > 0  # it does stick and lag
+            assert longest[limit_mm] < variant.acceptance.tracking_error_ticks // 2 + 1
 
 
 @pytest.mark.slow
@@ -247,8 +251,8 @@ def test_the_early_interval_holds_what_the_full_length_test_finds(name: str) -> 
     baseline = load_baseline(variant, station=False)
     base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
     at = result.periods.at(3)
-    centre, half_width = relative_box(at.parameters[:, [5, 2]], at.fit, base,
-                                      Interval.of(variant, result.periods.blocks))
+    box = relative_box(at.parameters[:, [5, 2]], at.fit, base, Interval.of(variant, result.periods.blocks))
+    centre, half_width = box.centre, box.statistical  # the test's own noise
     full = result.parameters[:, [5, 2]] / base
     inside = np.all(np.abs(full - centre) <= half_width, axis=1)
     print(f"{name}: the full-length estimate inside the early box for {inside.sum()} of 100 valves")

@@ -1,0 +1,132 @@
+"""The misfit's share of a verdict's interval (issue #37 items 2 and 3): the core rows, the core sub-fit's shift,
+the interval's three parts, and the simulated plant whose position-dependent pull no longer lags.
+
+A row of the period fit is a weighted sum over its smoothing window; a window that reaches into a stick or a
+breakaway smooths forces the sgn(x') model cannot explain into the row. The core rows are those whose window slides
+throughout; the fit over them alone (the core sub-fit) moves away from the fit over all rows exactly when that
+happens, and the interval carries twice that distance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edc_bench.bench import run_simulated_test
+from edc_bench.config import load_variant, parse_variant
+from edc_bench.experiments.coverage import A1, AF, stick_slip_variant
+from edc_bench.identification.period_fit import (
+    MISFIT_ALLOWANCE,
+    SPEED_SPAN_TICKS,
+    FitSetup,
+    core_rows,
+)
+from edc_bench.physics.valve import ValveSpec
+from edc_bench.population.batch import run_batch
+from edc_bench.verdict.early_stop import Interval, relative_box
+
+
+@pytest.fixture(scope="module")
+def setup() -> FitSetup:
+    return FitSetup.from_variant(load_variant("p-edc-default"))
+
+
+def _windows(setup: FitSetup, ticks: int) -> tuple[np.ndarray, np.ndarray]:
+    half = setup.window // 2
+    k = np.arange(ticks)
+    return np.maximum(k - half, 0), np.minimum(k + half + 2, ticks)
+
+
+def test_a_row_is_core_only_if_its_whole_window_slides(setup) -> None:
+    """A rack that sweeps at 10 mm/s, stands still for 30 ms, and sweeps on: every row whose window reaches the
+    stand-still is out, every other row in."""
+    T, ticks = setup.period_s, 600
+    speed = np.full(ticks, 10.0)
+    speed[300:330] = 0.0
+    x = np.concatenate(([0.0], np.cumsum(speed[:-1] * T)))
+    lo, hi = _windows(setup, ticks)
+    core = core_rows(setup, x, lo, hi)
+    half, m = setup.window // 2, SPEED_SPAN_TICKS
+    assert setup.exclusion_mm_s < 10.0
+    # a sample is slow when its 11-sample straight line is slower than the exclusion's speed, and a row is out
+    # when the part of its window those lines fit in (half a window less m either side) reaches a slow sample
+    out = np.flatnonzero(~core[m + half: ticks - m - half - 1]) + m + half
+    print(f"rows out: {out.min()}..{out.max()} of a stand-still over samples 300..329")
+    assert len(out) == out.max() - out.min() + 1  # one stretch, around the stand-still
+    assert abs(out.min() - (300 - (half - m))) <= 3 and abs(out.max() - (330 + (half - m))) <= 3
+
+
+def test_core_rows_are_the_same_however_the_trace_is_cut(setup) -> None:
+    """The early stop feeds rows a step at a time: a row's flag depends on its own window only."""
+    rng = np.random.default_rng(4)
+    T, ticks = setup.period_s, 2000
+    t = np.arange(ticks) * T
+    x = 4.0 * np.sin(2 * np.pi * 0.5 * t) + 0.5 * np.sin(2 * np.pi * 3.0 * t) + rng.normal(0, 0.003, ticks)
+    whole = core_rows(setup, x, *_windows(setup, ticks))
+    half = setup.window // 2
+    for start, stop in ((0, 700), (650, 1400), (1300, 2000)):
+        part = core_rows(setup, x[start:stop], *_windows(setup, stop - start))
+        inner = slice(half, stop - start - half - 1)  # a span's edge rows are never used
+        np.testing.assert_array_equal(part[inner], whole[start:stop][inner])
+    assert 0.2 < (~whole).mean() < 0.8  # reversals leave a good share of rows out
+
+
+def test_the_core_shift_is_small_where_the_model_holds_and_large_where_friction_leaks_into_it() -> None:
+    default = load_variant("p-edc-default")
+    sticky = stick_slip_variant(default)
+    new = default.valve.clearance_new_mm
+    plain = run_batch(default, [ValveSpec(new)], [0], stiction=False)
+    stuck = run_batch(sticky, [ValveSpec(new, friction_scale=3.0)], [0])
+    shifts = {}
+    for name, result in (("plain", plain), ("sticky", stuck)):
+        fit = result.periods.at(result.periods.blocks).fit
+        shifts[name] = {f: float(fit.relative_figures(f)[1][0]) for f in ("af", "a1")}
+        shifts[name]["a1_error"] = float(result.parameters[0, A1] / result.truth[0, A1] - 1.0)
+        shifts[name]["af_error"] = float(result.parameters[0, AF] / result.truth[0, AF] - 1.0)
+    print(shifts)
+    assert abs(shifts["plain"]["a1"]) < 0.005 and abs(shifts["plain"]["af"]) < 0.005
+    # friction at reversals pulls the fit over all rows: a1 reads low, and the core sub-fit less so
+    assert shifts["sticky"]["a1_error"] < -0.04
+    assert shifts["sticky"]["a1"] < -0.03
+    # the interval's misfit part covers the error
+    assert MISFIT_ALLOWANCE * abs(shifts["sticky"]["a1"]) >= abs(shifts["sticky"]["a1_error"])
+
+
+def test_the_interval_is_the_noise_plus_twice_the_shift_plus_the_baseline_s_own() -> None:
+    variant = stick_slip_variant(load_variant("p-edc-default"))
+    result = run_batch(variant, [ValveSpec(variant.valve.clearance_new_mm, friction_scale=2.0)], [0])
+    at = result.periods.at(5)
+    base = at.parameters[0, [AF, A1]] * np.array([0.8, 1.25])  # ratios 1.25 and 0.8
+    interval = Interval.of(variant, result.periods.blocks)
+    box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, interval, np.array([0.01, 0.02]))
+    bare = relative_box(at.parameters[:, [AF, A1]], at.fit, base, interval)
+    np.testing.assert_allclose(box.centre, [[1.25, 0.8]], rtol=1e-12)
+    np.testing.assert_array_equal(box.statistical, bare.statistical)
+    shift = np.abs([at.fit.relative_figures(f)[1][0] for f in ("af", "a1")])
+    np.testing.assert_allclose(box.misfit[0], MISFIT_ALLOWANCE * shift * [1.25, 0.8], rtol=1e-12)
+    np.testing.assert_allclose(box.baseline[0], [0.0125, 0.016], rtol=1e-12)
+    assert not bare.baseline.any()
+    np.testing.assert_allclose(box.half_width, box.statistical + box.misfit + box.baseline, rtol=1e-15)
+    np.testing.assert_array_equal(box.fixed, box.misfit + box.baseline)
+
+
+def _no_stribeck(name: str):
+    data = load_variant(name).model_dump()
+    data["valve"]["stiction_ratio"] = 1.0  # breakaway = Coulomb: the Stribeck term has nothing to fall from
+    return parse_variant(data)
+
+
+def test_the_plant_s_position_dependent_pull_does_not_lag_into_damping() -> None:
+    """On the hard pump (force constant +/-10 % over the swing) a new valve's a1 read +2.1 % when the plant held
+    the pull's position-dependent part at each step's start: a force lagging the rack by half a step acts as
+    damping (k_i s i_0 T/2, 2 % of a new valve's). Taken at mid-step, both plants (the simulated rig's and the batch
+    path's) give the truth within noise."""
+    variant = _no_stribeck("p-edc-hard")
+    assert variant.coil.force_constant_variation_per_mm > 0
+    batch = run_batch(variant, [ValveSpec(variant.valve.clearance_new_mm)], [0])
+    batch_error = batch.parameters[0] / batch.truth[0] - 1.0
+    rig = run_simulated_test(variant, "new", 0, nominal_baseline=True, full_length=True)
+    rig_error = {name: entry["error_rel"] for name, entry in rig.parameters.items()}
+    print(f"a1 batch {batch_error[A1]:+.2%}, simulated rig {rig_error['a1']:+.2%}")
+    assert abs(batch_error[A1]) < 0.008 and abs(rig_error["a1"]) < 0.008
+    assert abs(batch_error[AF]) < 0.008 and abs(rig_error["af"]) < 0.008
