@@ -283,8 +283,8 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str
 
 
 def _uncertainty(identification: Any) -> dict[str, float | None]:
-    """A test's relative standard errors and core shifts of af and a1, for the baseline's allowance (None where the
-    identification has none)."""
+    """A test's relative standard errors and core shifts of af and a1, for the baseline's own uncertainty (None
+    where the identification has none)."""
     out: dict[str, float | None] = {}
     if identification is None:
         return out

@@ -500,7 +500,7 @@ class SelfcheckSection(_Section):
     af_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
         default=0.02, description="how far the reference valve's af may move (relative)")
     a1_rel: Annotated[float, Field(gt=0, le=0.5, allow_inf_nan=False)] = Field(
-        default=0.015, description="how far the reference valve's a1 may move (relative)")
+        default=0.02, description="how far the reference valve's a1 may move (relative)")
 
 
 class Variant(_Section):

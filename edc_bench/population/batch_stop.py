@@ -77,8 +77,7 @@ class StopRule:
             nothing, no_box = np.zeros(n, dtype=bool), np.full((n, 2), np.nan)
             return StopDecision(np.full(n, last), no_box, nothing, nothing, no_box, nothing)
         base = np.array([self.baseline.af_v, self.baseline.a1_v_s_per_mm])
-        box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, self.interval,
-                           self.baseline.allowance_rel(self.interval.z))
+        box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, self.interval, self.baseline)
         centre, width = box.centre, box.half_width
         misfit, trusted, certain, _ = stop_flags(self.variant, self.classifier, at.fit, periods, centre, width,
                                                  noise_v, reference_condition)

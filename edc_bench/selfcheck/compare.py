@@ -90,7 +90,7 @@ class Tolerances:
     coil_r20_rel: float = 0.015
     a0_rel: float = 0.015
     af_rel: float = 0.02
-    a1_rel: float = 0.015
+    a1_rel: float = 0.02
 
     def of(self, quantity: str) -> float:
         """The tolerance of ``quantity`` (a name of :data:`QUANTITIES`)."""

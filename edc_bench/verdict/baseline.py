@@ -38,7 +38,8 @@ EARLIER_DIR = "earlier"
 #: Fewer tests than this and calibrate says the baseline is thin (the spread between new valves is about 8 %).
 RECOMMENDED_TESTS = 5
 NOMINAL_SOURCE = "nominal physics (uncalibrated)"
-#: A [[test]] table's optional figures for the baseline's own uncertainty (:meth:`Baseline.allowance_rel`).
+#: A [[test]] table's optional figures for the baseline's own uncertainty (:meth:`Baseline.noise_rel`,
+#: :meth:`Baseline.core_shift_rel`).
 UNCERTAINTY_KEYS = ("af_se_rel", "a1_se_rel", "af_core_shift_rel", "a1_core_shift_rel")
 
 
@@ -78,7 +79,7 @@ class BaselineTest:
 
     @property
     def uncertainty_known(self) -> bool:
-        """True when the test's standard errors and core shifts are kept (the baseline's allowance uses them)."""
+        """True when the test's standard errors and core shifts are kept (a verdict's interval uses them)."""
         return None not in (self.af_se_rel, self.a1_se_rel, self.af_core_shift_rel, self.a1_core_shift_rel)
 
 
@@ -132,22 +133,24 @@ class Baseline:
         """Standard uncertainty of the mean a1; nan with fewer than two tests."""
         return self.a1_sd_v_s_per_mm / math.sqrt(self.tests) if self.tests >= 2 else math.nan
 
-    def allowance_rel(self, z: float) -> np.ndarray:
-        """How far the baseline's own af and a1 may be from its valves' true mean, relative: (2,).
-
-        Each test's noise (z standard errors of the mean of the tests) and the model's misfit at reversals
-        (:data:`~edc_bench.identification.period_fit.MISFIT_ALLOWANCE` times its mean core shift), added: every
-        ratio judged against the baseline carries them (docs/method.md, "The interval"). Over the tests whose
-        figures are kept; zeros when none are (older files, the nominal baseline).
-        """
-        from edc_bench.identification.period_fit import MISFIT_ALLOWANCE
-
+    def noise_rel(self, z: float) -> np.ndarray:
+        """How far the noise of the baseline's tests may move its af and a1, relative: (2,), z standard errors of
+        the mean of the tests. Over the tests whose figures are kept; zeros when none are (older files, the
+        nominal baseline). Every ratio judged against the baseline carries it (docs/method.md, "The interval")."""
         known = [t for t in self.test_list if t.uncertainty_known]
         if not known:
             return np.zeros(2)
         se = np.array([[t.af_se_rel, t.a1_se_rel] for t in known], dtype=float)
-        shift = np.abs(np.array([[t.af_core_shift_rel, t.a1_core_shift_rel] for t in known], dtype=float))
-        return z * np.sqrt((se ** 2).sum(axis=0)) / len(known) + MISFIT_ALLOWANCE * shift.mean(axis=0)
+        return z * np.sqrt((se ** 2).sum(axis=0)) / len(known)
+
+    def core_shift_rel(self) -> np.ndarray:
+        """The mean core shift of the baseline's tests, af and a1, relative and signed: (2,) (zeros when no test
+        kept its figures). A valve's ratio to the baseline errs by the difference between its misfit and this
+        (docs/method.md, "The interval")."""
+        known = [t for t in self.test_list if t.uncertainty_known]
+        if not known:
+            return np.zeros(2)
+        return np.array([[t.af_core_shift_rel, t.a1_core_shift_rel] for t in known], dtype=float).mean(axis=0)
 
     @property
     def measured_on_rig(self) -> bool:

@@ -117,7 +117,6 @@ class EarlyStop:
         self._reference_condition = reference_condition_number(ControllerDesign.from_variant(variant))
         self.interval = Interval.of(variant, self.max_periods)
         self._base = np.array([baseline.af_v, baseline.a1_v_s_per_mm])
-        self._baseline_allowance = baseline.allowance_rel(self.interval.z)
         # the classifier's first call costs several times a later one: paid now, before the loop's first tick
         certain_verdicts(classifier, np.ones((1, 2)), np.full((1, 2), 0.01))
 
@@ -194,7 +193,7 @@ class EarlyStop:
                                                        float(fit.value(name)[0]), self._r_ref,
                                                        float(columns["coil_resistance_ohm"][k]))
                                 for name in ("af", "a1")]])
-        box = relative_box(parameters, fit, self._base, self.interval, self._baseline_allowance)
+        box = relative_box(parameters, fit, self._base, self.interval, self.baseline)
         centre, half_width = box.centre, box.half_width
         misfit, trusted, certain, verdicts = stop_flags(self.variant, self.classifier, fit, periods, centre,
                                                         half_width, self._noise_v, self._reference_condition)
@@ -269,11 +268,12 @@ class RelativeBox:
         The test's own noise: the larger of t standard errors from the periods' spread and z least-squares ones
         (NaN, no box, with fewer than two periods). It shrinks with more periods (:meth:`Interval.shrink`).
     misfit : numpy.ndarray
-        :data:`MISFIT_ALLOWANCE` times the core shift: what the model misses at reversals. More periods do not
-        shrink it.
+        :data:`MISFIT_ALLOWANCE` times the difference between the test's core shift and the baseline's mean one,
+        times the ratio: what the model misses at reversals moves the ratio by the difference between the
+        valve's share and the baseline's. More periods do not shrink it.
     baseline : numpy.ndarray
-        The baseline's own uncertainty (:meth:`~edc_bench.verdict.baseline.Baseline.allowance_rel`) times the
-        ratio: its tests' noise and misfit move every ratio judged against it.
+        The noise of the baseline's tests (:meth:`~edc_bench.verdict.baseline.Baseline.noise_rel`) times the
+        ratio: it moves every ratio judged against the baseline.
     """
 
     centre: np.ndarray
@@ -294,21 +294,22 @@ class RelativeBox:
 
 
 def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray, interval: Interval,
-                 baseline_allowance_rel: np.ndarray | None = None) -> RelativeBox:
+                 baseline: Baseline | None = None) -> RelativeBox:
     """af and a1 relative to the baseline and their interval (:class:`RelativeBox`), for N tests.
 
     ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1;
-    ``baseline_allowance_rel``: (2,) the baseline's own relative uncertainty (none if not given).
+    ``baseline``: the baseline, for its own uncertainty (its tests' noise and core shifts; none if not given).
     """
     t = interval.t[np.clip(fit.periods_used - 1, 0, len(interval.t) - 1)][:, None]
     columns = [fit.columns.index("af"), fit.columns.index("a1")]
     half = np.maximum(t * fit.spread_se[:, columns], interval.z * fit.ls_std[:, columns])
     centre = parameters / base
     with np.errstate(divide="ignore", invalid="ignore"):
-        shift_rel = np.abs(fit.core_shift[:, columns] / fit.theta[:, columns])
-    allowance = np.zeros(2) if baseline_allowance_rel is None else np.asarray(baseline_allowance_rel, dtype=float)
-    return RelativeBox(centre, half / np.abs(base), MISFIT_ALLOWANCE * shift_rel * np.abs(centre),
-                       allowance * np.abs(centre))
+        shift_rel = fit.core_shift[:, columns] / fit.theta[:, columns]
+    base_shift, base_noise = ((np.zeros(2), np.zeros(2)) if baseline is None
+                              else (baseline.core_shift_rel(), baseline.noise_rel(interval.z)))
+    return RelativeBox(centre, half / np.abs(base), MISFIT_ALLOWANCE * np.abs(shift_rel - base_shift) * np.abs(centre),
+                       base_noise * np.abs(centre))
 
 
 def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, periods: int, centres: np.ndarray,

@@ -23,6 +23,7 @@ from edc_bench.identification.period_fit import (
 )
 from edc_bench.physics.valve import ValveSpec
 from edc_bench.population.batch import run_batch
+from edc_bench.verdict.baseline import BaselineTest, baseline_from_tests
 from edc_bench.verdict.early_stop import Interval, relative_box
 
 
@@ -92,19 +93,29 @@ def test_the_core_shift_is_small_where_the_model_holds_and_large_where_friction_
     assert MISFIT_ALLOWANCE * abs(shifts["sticky"]["a1"]) >= abs(shifts["sticky"]["a1_error"])
 
 
-def test_the_interval_is_the_noise_plus_twice_the_shift_plus_the_baseline_s_own() -> None:
+def test_the_interval_is_the_noise_plus_twice_the_shift_beyond_the_baseline_s_plus_the_baseline_s_noise() -> None:
+    """The misfit moves a ratio by the difference between the valve's share and the baseline's: twice the
+    difference of their core shifts; the baseline's tests' noise moves every ratio."""
     variant = stick_slip_variant(load_variant("p-edc-default"))
     result = run_batch(variant, [ValveSpec(variant.valve.clearance_new_mm, friction_scale=2.0)], [0])
     at = result.periods.at(5)
     base = at.parameters[0, [AF, A1]] * np.array([0.8, 1.25])  # ratios 1.25 and 0.8
     interval = Interval.of(variant, result.periods.blocks)
-    box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, interval, np.array([0.01, 0.02]))
+    tests = [BaselineTest(0.07, 0.004, af_se_rel=0.003, a1_se_rel=0.004, af_core_shift_rel=0.002,
+                          a1_core_shift_rel=-0.004),
+             BaselineTest(0.07, 0.004, af_se_rel=0.004, a1_se_rel=0.003, af_core_shift_rel=0.004,
+                          a1_core_shift_rel=-0.002)]
+    baseline = baseline_from_tests(tests)
+    box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, interval, baseline)
     bare = relative_box(at.parameters[:, [AF, A1]], at.fit, base, interval)
     np.testing.assert_allclose(box.centre, [[1.25, 0.8]], rtol=1e-12)
     np.testing.assert_array_equal(box.statistical, bare.statistical)
-    shift = np.abs([at.fit.relative_figures(f)[1][0] for f in ("af", "a1")])
-    np.testing.assert_allclose(box.misfit[0], MISFIT_ALLOWANCE * shift * [1.25, 0.8], rtol=1e-12)
-    np.testing.assert_allclose(box.baseline[0], [0.0125, 0.016], rtol=1e-12)
+    shift = np.array([at.fit.relative_figures(f)[1][0] for f in ("af", "a1")])
+    assert shift[1] < -0.01  # the friction pulls this valve's a1 well beyond the baseline's -0.3 %
+    np.testing.assert_allclose(box.misfit[0], MISFIT_ALLOWANCE * np.abs(shift - [0.003, -0.003]) * [1.25, 0.8],
+                               rtol=1e-12)
+    np.testing.assert_allclose(bare.misfit[0], MISFIT_ALLOWANCE * np.abs(shift) * [1.25, 0.8], rtol=1e-12)
+    np.testing.assert_allclose(box.baseline[0], interval.z * 0.005 / 2 * np.array([1.25, 0.8]), rtol=1e-12)
     assert not bare.baseline.any()
     np.testing.assert_allclose(box.half_width, box.statistical + box.misfit + box.baseline, rtol=1e-15)
     np.testing.assert_array_equal(box.fixed, box.misfit + box.baseline)

@@ -55,8 +55,7 @@ def test_a_stopped_batch_is_the_full_batch_stopped_afterwards(variant_name: str,
         np.testing.assert_allclose(out.gain_variation_rel[here], at.fit.gain_variation_rel[here], rtol=1e-9,
                                    atol=1e-12)
         # the interval it stopped with: the loop's (relative_box)
-        box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, rule.interval,
-                           rule.baseline.allowance_rel(rule.interval.z))
+        box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, rule.interval, rule.baseline)
         np.testing.assert_allclose(out.half_width_rel[here], box.half_width[here], rtol=1e-9)
     # a test that ended before its full length, fitting, ended certain of its verdict, and only a trusted one can
     early = (out.periods < full.periods.blocks) & ~out.misfit

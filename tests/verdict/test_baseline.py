@@ -42,8 +42,8 @@ def test_calibrate_command_writes_a_baseline_near_the_nominal_one(tmp_path: Path
     assert proc.returncode == 0, proc.stderr
     baseline = read_baseline(out, "p-edc-default")
     assert baseline.tests == 8 == len(baseline.test_list)
-    assert all(t.uncertainty_known for t in baseline.test_list)  # each test's noise and misfit, for the allowance
-    assert (baseline.allowance_rel(2.576) > 0).all()
+    assert all(t.uncertainty_known for t in baseline.test_list)  # each test's noise and misfit, for the interval
+    assert (baseline.noise_rel(2.576) > 0).all()
     assert baseline.source == "simulated population" and baseline.software.startswith("edc-bench ")
     shipped = load_baseline(load_variant())
     assert baseline.af_v == pytest.approx(shipped.af_v, rel=0.1)
@@ -60,7 +60,8 @@ def test_shipped_baselines_list_their_tests_and_state_their_uncertainty() -> Non
     for name in ("p-edc-default", "p-edc-long", "p-edc-hard"):
         baseline = load_baseline(load_variant(name))
         assert all(t.uncertainty_known for t in baseline.test_list), name
-        assert (0 < baseline.allowance_rel(2.576)).all() and (baseline.allowance_rel(2.576) < 0.05).all(), name
+        assert (0 < baseline.noise_rel(2.576)).all() and (baseline.noise_rel(2.576) < 0.01).all(), name
+        assert (np.abs(baseline.core_shift_rel()) < 0.02).all(), name
 
 
 def test_a_station_baseline_comes_before_the_library_one_and_an_earlier_one_is_kept(tmp_path, monkeypatch) -> None:
@@ -97,8 +98,7 @@ def test_a_test_entry_that_is_not_a_positive_number_is_refused(tmp_path: Path) -
         read_baseline(path)
 
 
-def test_the_baseline_s_allowance_is_its_tests_noise_of_the_mean_and_twice_their_mean_core_shift(tmp_path) -> None:
-    from edc_bench.identification.period_fit import MISFIT_ALLOWANCE
+def test_the_baseline_s_own_uncertainty_is_its_tests_noise_of_the_mean_and_their_mean_core_shift(tmp_path) -> None:
     from edc_bench.verdict.baseline import BaselineTest, baseline_from_tests
 
     tests = [BaselineTest(0.07, 0.004, "A", "rig", af_se_rel=0.003, a1_se_rel=0.004, af_core_shift_rel=0.001,
@@ -107,16 +107,17 @@ def test_the_baseline_s_allowance_is_its_tests_noise_of_the_mean_and_twice_their
                           a1_core_shift_rel=-0.002)]
     baseline = baseline_from_tests(tests)
     z = 2.576
-    expected = z * 0.005 / 2 + MISFIT_ALLOWANCE * np.array([0.002, 0.004])  # sqrt(3^2 + 4^2) = 5 per mille
-    np.testing.assert_allclose(baseline.allowance_rel(z), expected, rtol=1e-12)
+    noise = np.full(2, z * 0.005 / 2)  # sqrt(3^2 + 4^2) = 5 per mille, over two tests
+    np.testing.assert_allclose(baseline.noise_rel(z), noise, rtol=1e-12)
+    np.testing.assert_allclose(baseline.core_shift_rel(), [-0.001, -0.004], rtol=1e-12)
     path = tmp_path / "b.toml"
     path.write_text(baseline.to_toml("p-edc-default"))
     again = read_baseline(path, "p-edc-default")
     assert again.test_list == baseline.test_list
-    np.testing.assert_allclose(again.allowance_rel(z), expected, rtol=1e-12)
-    # a file from before the figures were kept allows nothing, as the nominal baseline does
+    np.testing.assert_allclose(again.noise_rel(z), noise, rtol=1e-12)
+    # a file from before the figures were kept allows nothing for itself, as the nominal baseline does
     older = baseline_from_tests([BaselineTest(0.07, 0.004, "A", "rig")])
-    assert not older.allowance_rel(z).any() and not load_baseline(load_variant()).test_list[0].record
+    assert not older.noise_rel(z).any() and not older.core_shift_rel().any()
 
 
 def test_a_test_entry_with_a_negative_standard_error_is_refused_with_what_to_do(tmp_path: Path) -> None:
