@@ -224,10 +224,13 @@ def hard_bias_sentence() -> str:
     rows = _rows(("p-edc-hard",))
     af = max((r["error_rel"]["af"] for r in rows), key=abs)
     a1 = max((r["error_rel"]["a1"] for r in rows), key=abs)
-    return (f"It does not hold the identification's bias (on `p-edc-hard` af up to {pct(af).replace('%', ' %')}, "
-            f"a1 up to {pct(a1).replace('%', ' %')}:\n"
-            f"\"Measured accuracy\" below) nor the baseline's own uncertainty, which the\n"
-            f"MARGINAL band is for.")
+    return (f"That part does not hold the identification's bias (on `p-edc-hard` af up to "
+            f"{pct(af).replace('%', ' %')}, a1 up to {pct(a1).replace('%', ' %')}:\n"
+            f"\"Measured accuracy\" below) nor the baseline's own uncertainty. Two more parts are added for\n"
+            f"them: twice the difference between the test's core shift and the baseline's (what friction at\n"
+            f"reversals pulls into the numbers), and the noise of the baseline's tests (docs/method.md, section 7,\n"
+            f"\"The interval\"; \"Numbers to trust on the hardest valves\" below measures how often the whole\n"
+            f"interval holds the truth).")
 
 
 # --------------------------------------------------------------------------------------------- the choices
@@ -412,7 +415,7 @@ def interval_paragraph() -> str:
     n = data["valves"]
     t_held = " and ".join(f"{v['t']} of {n} valves on `{k}`" for k, v in held.items())
     z_held = " and ".join(str(v["normal"]) for v in held.values())
-    return (f"The interval's half width is the larger of Student's t quantile times the\n"
+    return (f"The interval's first part is the larger of Student's t quantile times the\n"
             f"standard error of the mean from the periods' spread (t for {periods - 1} degrees of\n"
             f"freedom from {periods} periods, {interval.t[periods - 1]:.1f}, where the normal quantile is "
             f"{interval.z:.1f}: a spread\n"
