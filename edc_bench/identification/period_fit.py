@@ -368,11 +368,12 @@ def core_rows(setup: FitSetup, position_mm: np.ndarray, lo: np.ndarray, hi: np.n
     (stiction, a Stribeck peak) into a row the sgn(x') model reads as sliding. The fit over these rows alone is the
     sub-fit whose distance from the fit over all rows measures what the model misses at reversals
     (:func:`solve`, ``core_shift``). The rack's speed at each sample is the slope of a straight line through the
-    :data:`SPEED_SPAN_TICKS` samples either side, all inside the window, so that a row's flag depends on its
-    window alone, however the trace is cut into spans (the early stop feeds it a step at a time).
+    :data:`SPEED_SPAN_TICKS` samples either side (fewer when the window is shorter than that), all inside the
+    window, so that a row's flag depends on its window alone, however the trace is cut into spans (the early stop
+    feeds it a step at a time).
     """
     x = position_mm
-    ticks, m = len(x), SPEED_SPAN_TICKS
+    ticks, m = len(x), min(SPEED_SPAN_TICKS, max(1, setup.window // 2))
     slow = np.zeros(x.shape, dtype=bool)
     if ticks > 2 * m:
         with np.errstate(invalid="ignore"):  # a missing sample (NaN) counts as slow; its rows are unusable anyway
@@ -643,7 +644,10 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
 def _core_shift(acc: BlockAccumulator, blocks: int, theta_n: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """The fit (scaled, ``theta_n``) minus the core sub-fit, over the core rows alone: :attr:`PeriodFit.core_shift`,
     scaled."""
-    ridge = 1e-12 * scale[:, :, None] * scale[:, None, :]
+    # the fit's own ridge (on the diagonal, scaled as the fit's columns): a test with used rows but no core rows
+    # gets a shift of the whole estimate, a wide box, not a singular matrix
+    p = theta_n.shape[-1]
+    ridge = 1e-12 * np.eye(p) * scale[:, :, None] * scale[:, None, :]
     A_core, z_core = acc.A_core[:blocks].sum(axis=0), acc.z_core[:blocks].sum(axis=0)
     return theta_n - np.linalg.solve(A_core + ridge, z_core[..., None])[..., 0]
 
@@ -662,7 +666,7 @@ def reference_condition_number(design: ControllerDesign) -> float:
 
 
 def trace_rows(setup: FitSetup, trace: dict[str, np.ndarray], reference_resistance_ohm: float,
-               span: slice = slice(None)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               span: slice = slice(None)) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`rows` of a loop's trace columns over ``span`` (a tick's sample counts if its reply came in time and
     the tick was not lost in a gap): for the finished trace, and for the early stop's steps as the test runs."""
     rho = np.asarray(trace["coil_resistance_ohm"][span], dtype=float) / reference_resistance_ohm

@@ -310,8 +310,9 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
             value = getattr(test, key)
             if value is not None and not (math.isfinite(value) and (value >= 0 or "shift" in key)):
                 kind = "a number" if "shift" in key else "a number of at least 0"
-                raise ConfigError(f"{path}: [[test]] {n}: {key} must be {kind}, not {value}; delete the line (the "
-                                  "baseline then allows nothing for that test) or calibrate anew with --write")
+                raise ConfigError(f"{path}: [[test]] {n}: {key} must be {kind}, not {value}; delete the line (that "
+                                  "test then counts for the baseline's figures only, not for its uncertainty) or "
+                                  "calibrate anew with --write")
     return baseline
 
 

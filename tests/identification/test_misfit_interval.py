@@ -141,3 +141,21 @@ def test_the_plant_s_position_dependent_pull_does_not_lag_into_damping() -> None
     print(f"a1 batch {batch_error[A1]:+.2%}, simulated rig {rig_error['a1']:+.2%}")
     assert abs(batch_error[A1]) < 0.008 and abs(rig_error["a1"]) < 0.008
     assert abs(batch_error[AF]) < 0.008 and abs(rig_error["af"]) < 0.008
+
+
+def test_a_test_without_a_single_core_row_gets_a_wide_box_not_a_crash(setup) -> None:
+    """A valve that chatters in every smoothing window has used rows but no core rows: the core sub-fit is then
+    all ridge, and the shift the whole estimate (found by a review: a rank-one ridge made it singular)."""
+    from edc_bench.identification.period_fit import BlockAccumulator, accumulate, solve
+
+    rng = np.random.default_rng(1)
+    p = len(setup.columns)
+    for draw in range(4):
+        ticks = 3 * setup.block_ticks
+        X = rng.normal(size=(ticks, p))
+        y = X @ rng.normal(size=p) + 1e-3 * rng.normal(size=ticks)
+        use = np.ones(ticks, dtype=bool)
+        acc = BlockAccumulator(setup, 3)
+        accumulate(setup, acc, setup.first_tick, X, y, use, np.zeros(ticks, dtype=bool))
+        fit = solve(acc, 3, 0.02)
+        np.testing.assert_allclose(fit.core_shift, fit.theta, rtol=1e-6, err_msg=str(draw))
