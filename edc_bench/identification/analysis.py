@@ -231,8 +231,7 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
         systematic_ratio=float(fit.systematic_rms_v[0]) / noise if noise > 0 else math.inf,
         spread_rel={n: float(fit.spread_rel[n][0]) for n in ("af", "a1")},
         gain_variation_rel=float(fit.gain_variation_rel[0]),
-        core_shift_rel={n: float(fit.core_shift[0, fit.columns.index(n)] / fit.theta[0, fit.columns.index(n)])
-                        for n in ("af", "a1")},
+        core_shift_rel={n: float(fit.relative_figures(n)[1][0]) for n in ("af", "a1")},
         problems=model_fit_problems(variant, fit, noise) if periods >= acc.min_periods else [],
     )
     settled = bool(fit.settled[0])
