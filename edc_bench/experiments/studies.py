@@ -115,6 +115,10 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
 # --------------------------------------------------------------------------- beyond the model's reach
 
 
+#: af's and a1's error the hard variant's valves are held to (tests/identification/test_real_solenoids.py).
+HARD_VARIANT_BOUNDS_REL = (0.05, 0.10)
+
+
 def with_gain_variation(variant: Variant, variation_rel: float) -> Variant:
     """``variant`` with a solenoid whose force constant varies by +/-``variation_rel`` over the excitation's swing
     (negative: falling towards full delivery), named ``<name>-gainNN`` (``-gainNN-falling``)."""
@@ -140,7 +144,10 @@ def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: 
     list of dict
         Per variation: ``variation_rel``, ``valves``, ``judged``, ``misfit`` (INVALID by the model fit),
         ``af_error_max``/``a1_error_max`` (largest |error| against the plant's truth among the judged, NaN if
-        none), ``faulty_passed``/``reusable_failed`` (among the judged), and over all at their stop
+        none), ``beyond_bounds`` (judged valves identified worse than the hard variant is held to:
+        :data:`HARD_VARIANT_BOUNDS_REL`) and ``beyond_unflagged`` (of those, the ones whose interval, the early
+        stop's 99 % box, does not hold the truth), ``faulty_passed``/``reusable_failed`` (among the judged), and
+        over all at their stop
         ``gain_identified`` and ``repeating_ratio`` (the residual's repeating part over the sensor noise), (min, max).
     """
     base_variant = load_variant(variant_name)
@@ -158,6 +165,11 @@ def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: 
         gain = stopped.gain_variation_rel
         repeating = stopped.systematic_rms_v / expected_drive_noise_v(variant)
         errors = np.abs(result.parameters[:, [5, 2]] / result.truth[:, [5, 2]] - 1)
+        # the box relative to the estimate, against the truth's distance from it, relative to the estimate
+        with np.errstate(invalid="ignore", divide="ignore"):
+            held = np.abs(1 - result.truth[:, [5, 2]] / result.parameters[:, [5, 2]]) <= \
+                stopped.half_width_rel / stopped.features_rel
+        beyond = trusted & np.any(errors >= np.array(HARD_VARIANT_BOUNDS_REL), axis=1)
         verdicts = np.full(len(valves), "", dtype=object)
         if trusted.any():
             judged_verdicts, _, _ = classifier.classify_many(features[trusted])
@@ -167,6 +179,7 @@ def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: 
             "misfit": int(misfit.sum()),
             "af_error_max": float(errors[trusted, 0].max()) if trusted.any() else float("nan"),
             "a1_error_max": float(errors[trusted, 1].max()) if trusted.any() else float("nan"),
+            "beyond_bounds": int(beyond.sum()), "beyond_unflagged": int((beyond & ~held.all(axis=1)).sum()),
             "faulty_passed": int(((verdicts == Verdict.PASS.value) & truth_faulty).sum()),
             "reusable_failed": int(((verdicts == Verdict.FAIL.value) & ~truth_faulty).sum()),
             "gain_identified": (float(gain.min()), float(gain.max())),

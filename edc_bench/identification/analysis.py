@@ -65,8 +65,9 @@ class ModelFit:
     problems : list of str
         What does not fit (empty when the model fits), each with the measured figure and its limit.
     core_shift_rel : dict
-        ``af``, ``a1``: the estimate's distance from the core sub-fit's, relative to the estimate
-        (:attr:`~edc_bench.identification.period_fit.PeriodFit.core_shift`): what the model misses at reversals.
+        ``af``, ``a1``: the fit over every used row's distance from the estimate (the core rows' fit), relative
+        to the estimate (:attr:`~edc_bench.identification.period_fit.PeriodFit.core_shift`): what the model misses
+        at reversals.
     """
 
     residual_rms_v: float

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,10 +57,11 @@ SMOOTHING_ORDER = 4
 #: Ticks either side of a sample whose straight line gives the rack's speed there, for whether a row's window slides
 #: (:func:`core_rows`; eleven samples: the LVDT's noise moves the speed by a few per cent of the exclusion's).
 SPEED_SPAN_TICKS = 5
-#: The model's misfit at reversals in a verdict's interval: this many times the core shift (the fit's distance from
-#: the core sub-fit, :attr:`PeriodFit.core_shift`). The core rows are not wholly clear of the reversals either
-#: (their window's edge, the ringing after a breakaway), so the fit's own error can exceed the shift; docs/method.md,
-#: "The interval", prints the coverage this factor gives (``edc-bench evaluate --coverage``).
+#: The model's misfit at reversals in a verdict's interval: this many times the core shift (the fit over every row's
+#: distance from the estimate, the core rows' fit: :attr:`PeriodFit.core_shift`). The core rows are not wholly clear
+#: of the reversals either (their window's edge, the ringing after a breakaway), so the estimate keeps a share of
+#: the shift; docs/method.md, "The interval", prints the coverage this factor gives (``edc-bench evaluate
+#: --coverage``).
 MISFIT_ALLOWANCE = 2.0
 #: Names of the nuisance terms of the force constant's position dependence (Delta = x - x_m).
 GAIN_TERMS = ("d2", "dv", "df", "d2f")  # Delta^2, Delta x', Delta sgn(x'), and of the second order Delta^2 sgn(x')
@@ -241,7 +243,9 @@ def drift_free(per_period: np.ndarray, estimate: np.ndarray, band_rel: float) ->
         return np.ones(per_period.shape[1:], dtype=bool)
     if periods < DRIFT_MIN_PERIODS:
         half = periods // 2
-        early, late = np.nanmean(per_period[:half], axis=0), np.nanmean(per_period[half:], axis=0)
+        with warnings.catch_warnings():  # a test with no period of its own (all NaN): no drift known, NaN is False
+            warnings.simplefilter("ignore", RuntimeWarning)
+            early, late = np.nanmean(per_period[:half], axis=0), np.nanmean(per_period[half:], axis=0)
         return np.abs(late - early) <= band_rel * np.abs(estimate)
     gap, standard_error = _halves_gap(per_period)
     ns, values = zip(*DRIFT_CRITICAL)
@@ -321,7 +325,7 @@ def rows(setup: FitSetup, position_mm: np.ndarray, drive_v: np.ndarray, rho: np.
     (X, y, use, core)
         X (T, [N,] p) scaled regressors, y (T, [N]) target, use (T, [N]) the rows to fit: the first and last
         half window of the span are never usable (their smoothing is incomplete); core (T, [N]) the used rows
-        whose whole smoothing window slides (:func:`core_rows`), for the misfit's share of the interval.
+        whose whole smoothing window slides (:func:`core_rows`), the rows the estimate is fitted to.
     """
     x = np.asarray(position_mm, dtype=float)
     kernels = _smoothing_kernels(setup.window, setup.period_s)
@@ -365,9 +369,9 @@ def core_rows(setup: FitSetup, position_mm: np.ndarray, lo: np.ndarray, hi: np.n
     """Rows whose smoothing window (samples ``lo[k] .. hi[k] - 1``) slides at every sample it reaches.
 
     A row is a weighted sum over its window; one that reaches into a stick or a breakaway smooths their forces
-    (stiction, a Stribeck peak) into a row the sgn(x') model reads as sliding. The fit over these rows alone is the
-    sub-fit whose distance from the fit over all rows measures what the model misses at reversals
-    (:func:`solve`, ``core_shift``). The rack's speed at each sample is the slope of a straight line through the
+    (stiction, a Stribeck peak) into a row the sgn(x') model reads as sliding, and pulls a1 (the friction's excess
+    at a reversal lines up with the speed's fall). The estimate is the fit over these rows; its distance from the
+    fit over every row measures what the model misses at reversals (:func:`solve`, ``core_shift``). The rack's speed at each sample is the slope of a straight line through the
     :data:`SPEED_SPAN_TICKS` samples either side (fewer when the window is shorter than that), all inside the
     window, so that a row's flag depends on its window alone, however the trace is cut into spans (the early stop
     feeds it a step at a time).
@@ -430,6 +434,8 @@ class BlockAccumulator:
         # the normal equations over the core rows alone (clear of any stick: :func:`core_rows`)
         self.A_core = np.zeros((blocks, n, p, p))
         self.z_core = np.zeros((blocks, n, p))
+        self.yy_core = np.zeros((blocks, n))
+        self.count_core = np.zeros((blocks, n))
         # by phase, over the used rows fed so far: sum of X, of y, and their count. Rows come in time order (a
         # span's unused edge rows aside), so a row of block b finds here the rows of blocks 0..b-1 at its phase
         self._by_phase = np.zeros((setup.block_ticks, n, p + 2))
@@ -448,15 +454,21 @@ class BlockAccumulator:
         A, z = Xw @ XT, (Xw @ y.T[..., None])[..., 0]
         self.A[block] += A
         self.z[block] += z
+        yy, count = ((y * w) * y).sum(axis=0), w.sum(axis=0)
         if core is None:
             self.A_core[block] += A
             self.z_core[block] += z
+            self.yy_core[block] += yy
+            self.count_core[block] += count
         else:
-            Xc = (X * (core & use)[..., None]).transpose(1, 2, 0)
+            wc = (core & use).astype(float)
+            Xc = (X * wc[..., None]).transpose(1, 2, 0)
             self.A_core[block] += Xc @ XT
             self.z_core[block] += (Xc @ y.T[..., None])[..., 0]
-        self.yy[block] += ((y * w) * y).sum(axis=0)
-        self.count[block] += w.sum(axis=0)
+            self.yy_core[block] += ((y * wc) * y).sum(axis=0)
+            self.count_core[block] += wc.sum(axis=0)
+        self.yy[block] += yy
+        self.count[block] += count
         p = X.shape[-1]
         earlier = self._by_phase[phase: phase + len(X)]
         X0, y0 = earlier[..., :p], earlier[..., p]
@@ -468,24 +480,23 @@ class BlockAccumulator:
         earlier[..., p] += y * w
         earlier[..., p + 1] += w
 
+    #: The per-block sums :meth:`add` changes (first axis: block, second: test).
+    _SUMS = ("A", "z", "yy", "count", "pair_yy", "pair_xy", "pair_xx", "pair_count",
+             "A_core", "z_core", "yy_core", "count_core")
+
     def take(self, keep: np.ndarray) -> None:
         """Keep the tests ``keep`` (indices) only: a batch whose other tests have stopped."""
-        for name in ("A", "z", "yy", "count", "pair_yy", "pair_xy", "pair_xx", "pair_count", "A_core", "z_core",
-                     "_by_phase"):
+        for name in (*self._SUMS, "_by_phase"):
             setattr(self, name, np.ascontiguousarray(getattr(self, name)[:, keep]))
 
     def snapshot(self, block: int) -> tuple:
         """What :meth:`add` to ``block`` changes, to :meth:`restore` after a trial (the early stop's pending rows)."""
-        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count,
-                  self.A_core, self.z_core)
-        return tuple(a[block].copy() for a in arrays) + (self._by_phase.copy(),)
+        return tuple(getattr(self, name)[block].copy() for name in self._SUMS) + (self._by_phase.copy(),)
 
     def restore(self, block: int, saved: tuple) -> None:
         """Undo the :meth:`add` calls since :meth:`snapshot` of ``block``."""
-        arrays = (self.A, self.z, self.yy, self.count, self.pair_yy, self.pair_xy, self.pair_xx, self.pair_count,
-                  self.A_core, self.z_core)
-        for a, value in zip(arrays, saved):
-            a[block] = value
+        for name, value in zip(self._SUMS, saved):
+            getattr(self, name)[block] = value
         self._by_phase = saved[-1]
 
 
@@ -514,7 +525,8 @@ class PeriodFit:
     Attributes
     ----------
     theta : numpy.ndarray
-        ([N,] p) the coefficients in physical units (estimated parameters, then gain terms).
+        ([N,] p) the coefficients in physical units (estimated parameters, then gain terms): the fit over the core
+        rows (:func:`core_rows`), with the gain terms of the fit over every row.
     block_theta : numpy.ndarray
         (blocks, [N,] p) each period's own solution.
     std : numpy.ndarray
@@ -533,7 +545,7 @@ class PeriodFit:
         No drift (:func:`drift_free`): af and a1 over the first half of the periods and over the second half
         agree within the settle band or, from :data:`DRIFT_MIN_PERIODS` periods on, within the periods' noise.
     samples : numpy.ndarray
-        Rows used.
+        Rows the estimate used (the core rows).
     columns : tuple of str
         Names of the coefficients.
     systematic_rms_v : numpy.ndarray
@@ -545,9 +557,9 @@ class PeriodFit:
     periods_used : numpy.ndarray
         Periods with rows enough for their own solution (the spread's degrees of freedom are one fewer).
     core_shift : numpy.ndarray
-        ([N,] p) the estimate minus the core sub-fit's, over the core rows alone (:func:`core_rows`): where the
+        ([N,] p) the fit over every used row minus the estimate (the core rows' fit, :func:`core_rows`): where the
         model holds, both estimate the same values and this is noise; where it misses what happens at reversals
-        (stick windows, Stribeck friction), the rows near them pull the fit, and this is how far.
+        (stick windows, Stribeck friction), the rows near them pull the fit over every row, and this is how far.
     """
 
     theta: np.ndarray
@@ -583,41 +595,74 @@ class PeriodFit:
                     self.core_shift[..., self.columns.index(name)] / value)
 
 
+@dataclass
+class _Normal:
+    """One least-squares solution of summed normal equations, scaled (``theta_n``), and what comes with it."""
+
+    theta_n: np.ndarray  # (N, p)
+    block_n: np.ndarray  # (blocks, N, p): each period on its own (NaN: too few rows)
+    ssr: np.ndarray  # (N,) sum of squared residuals
+    rows: np.ndarray  # (N,)
+    cov_diag: np.ndarray  # (N, p) the least-squares variances, scaled
+    condition_number: np.ndarray  # (N,) of the scaled normal equations
+
+
+def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, scale: np.ndarray,
+            held: _Normal | None = None) -> _Normal:
+    """Solve the normal equations summed over blocks (``A`` (blocks, N, p, p)...), and each block's on its own.
+
+    ``scale``: the columns' scale (N, p), the same for every sub-fit so that their solutions compare. ``held``: a
+    solution whose gain terms (the last ``len(GAIN_TERMS)`` columns) this one keeps, solving for the others."""
+    p = A.shape[-1]
+    q = p - len(GAIN_TERMS) if held is not None else p
+    A_full, z_full = A.sum(axis=0), z.sum(axis=0)
+    z_q, A_q = z[..., :q], A[..., :q, :q]
+    if held is not None:  # the held terms' share taken off the target: z_q - A_qg theta_g
+        z_q = z_q - np.einsum("bnqg,ng->bnq", A[..., :q, q:], held.theta_n[:, q:])
+    # a ridge on the scaled diagonal: a test with no rows (no core rows, say) gets 0, not a singular matrix
+    ridge = 1e-12 * np.eye(q) * scale[:, :q, None] * scale[:, None, :q]
+    A_sum = A_q.sum(axis=0)
+    theta_n = np.linalg.solve(A_sum + ridge, z_q.sum(axis=0)[..., None])[..., 0]
+    enough = count >= 4 * p
+    safe_A = np.where(enough[..., None, None], A_q, np.eye(q))
+    block_n = np.linalg.solve(safe_A + 1e-12 * np.eye(q), np.where(enough[..., None], z_q, 0.0)[..., None])[..., 0]
+    block_n = np.where(enough[..., None], block_n, np.nan)
+    cov_diag = np.einsum("nqq->nq", np.linalg.inv(A_sum + ridge))
+    cond = np.linalg.cond(A_sum / scale[:, :q, None] / scale[:, None, :q])
+    if held is not None:
+        theta_n = np.concatenate((theta_n, held.theta_n[:, q:]), axis=-1)
+        block_n = np.concatenate((block_n, np.broadcast_to(held.theta_n[:, q:], block_n.shape[:-1] + (p - q,))),
+                                 axis=-1)
+    rows = count.sum(axis=0)
+    ssr = yy.sum(axis=0) - 2 * np.einsum("np,np->n", theta_n, z_full) + np.einsum("np,npq,nq->n", theta_n, A_full,
+                                                                                     theta_n)
+    ssr = np.maximum(ssr, 0.0)
+    cov_diag = cov_diag * (ssr / np.maximum(rows - q, 1))[:, None]
+    if held is not None:
+        cov_diag = np.concatenate((cov_diag, held.cov_diag[:, q:]), axis=-1)
+    return _Normal(theta_n, block_n, ssr, rows, cov_diag, cond)
+
+
 def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodFit | None:
-    """The fit over the first ``blocks`` blocks (None if there are none); vectorised over tests."""
+    """The fit over the first ``blocks`` blocks (None if there are none); vectorised over tests.
+
+    The estimate is the fit over the core rows (:func:`core_rows`: clear of any stick, whose forces the sgn(x')
+    model cannot explain); the model-fit figures (the residual and its repeating part) are the fit's over every
+    used row, where a misfit shows (:attr:`PeriodFit.core_shift` is the distance between the two)."""
     setup = acc.setup
     if blocks <= 0:
         return None
-    A, z, yy, count = acc.A[:blocks], acc.z[:blocks], acc.yy[:blocks], acc.count[:blocks]
-    p = A.shape[-1]
-    ridge = 1e-12 * np.eye(p)
-    A_all, z_all = A.sum(axis=0), z.sum(axis=0)
-    scale = np.sqrt(np.maximum(np.einsum("npp->np", A_all), 1e-300))
-    A_n = A_all / scale[:, :, None] / scale[:, None, :]
-    theta_n = np.linalg.solve(A_all + ridge * scale[:, :, None] * scale[:, None, :], z_all[..., None])[..., 0]
-    cond = np.linalg.cond(A_n)
-    # each period on its own (a period with too few rows gives NaN)
-    enough = count >= 4 * p
-    safe_A = np.where(enough[..., None, None], A, np.eye(p))
-    block_n = np.linalg.solve(safe_A + ridge, np.where(enough[..., None], z, 0.0)[..., None])[..., 0]
-    block_n = np.where(enough[..., None], block_n, np.nan)
-    n_rows = count.sum(axis=0)
-    ssr = yy.sum(axis=0) - 2 * np.einsum("np,np->n", theta_n, z_all) + np.einsum("np,npq,nq->n", theta_n, A_all,
-                                                                                     theta_n)
-    ssr = np.maximum(ssr, 0.0)
-    residual_rms = np.sqrt(ssr / np.maximum(n_rows, 1))
-    # the residual's part that repeats from one period to the next: r_b . r_b' over the pairs of rows at the same
-    # phase of two periods (noise, not the same twice, averages out of it; it can come out below 0 by noise: none)
-    pair_ss = (acc.pair_yy[1:blocks].sum(axis=0) - np.einsum("np,np->n", theta_n, acc.pair_xy[1:blocks].sum(axis=0))
-               + np.einsum("np,npq,nq->n", theta_n, acc.pair_xx[1:blocks].sum(axis=0), theta_n))
-    pairs = acc.pair_count[1:blocks].sum(axis=0)
-    systematic_rms = np.where(pairs > 0, np.sqrt(np.maximum(pair_ss, 0.0) / np.maximum(pairs, 1)), np.nan)
-    sigma2 = ssr / np.maximum(n_rows - p, 1)
-    cov_diag = np.einsum("npp->np", np.linalg.inv(A_all + ridge * scale[:, :, None] * scale[:, None, :])) * sigma2[:, None]
+    scale = np.sqrt(np.maximum(np.einsum("npp->np", acc.A[:blocks].sum(axis=0)), 1e-300))
+    every = _normal(acc.A[:blocks], acc.z[:blocks], acc.yy[:blocks], acc.count[:blocks], scale)
+    # the core rows see less of the swing's ends, where the gain terms show: they keep the fit over every row's
+    core = _normal(acc.A_core[:blocks], acc.z_core[:blocks], acc.yy_core[:blocks], acc.count_core[:blocks], scale,
+                   held=every)
+    residual_rms = np.sqrt(every.ssr / np.maximum(every.rows, 1))
+    systematic_rms = _systematic_rms(acc, blocks, every.theta_n)
     units = np.array([setup.scales[i] for i in setup.estimated] + list(setup.scales[6:]))
-    theta = theta_n / units
-    block_theta = block_n / units
-    ls_std = np.sqrt(np.maximum(cov_diag, 0.0)) / units
+    theta = core.theta_n / units
+    block_theta = core.block_n / units
+    ls_std = np.sqrt(np.maximum(core.cov_diag, 0.0)) / units
     good = np.isfinite(block_theta).all(axis=-1)
     used = good.sum(axis=0)
     spread_sd = np.sqrt(np.nansum(np.where(good[..., None], (block_theta - theta) ** 2, 0.0), axis=0)
@@ -625,31 +670,33 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     spread_sd = np.where((used >= 2)[:, None], spread_sd, np.nan)  # one period: no spread known
     spread_se = spread_sd / np.sqrt(np.maximum(used, 1))[:, None]
     std = np.maximum(spread_se, ls_std)
-    core_shift = _core_shift(acc, blocks, theta_n, scale) / units
+    core_shift = (every.theta_n - core.theta_n) / units
     cols = setup.columns
     i_af, i_a1, i_df = cols.index("af"), cols.index("a1"), cols.index("df")
     af, a1 = theta[:, i_af], theta[:, i_a1]
     spread = {"af": spread_sd[:, i_af] / np.abs(af), "a1": spread_sd[:, i_a1] / np.abs(a1)}
-    gain_variation = np.abs(theta[:, i_df] / af) * setup.swing_mm
+    # a model-fit figure, as the residual's: the fit over every row's (the core rows see less of the swing's ends)
+    every_theta = every.theta_n / units
+    gain_variation = np.abs(every_theta[:, i_df] / every_theta[:, i_af]) * setup.swing_mm
     # settled: every period has its own estimate, and af's and a1's show no drift (noise, a CAN adapter's jitter
     # mostly, scatters a1 4 % per period through usb-fs on p-edc-hard: two half means 2.3 % apart on a pump that
     # fits and does not drift)
     settled = used == blocks
     for i in (i_af, i_a1):
         settled = settled & drift_free(block_theta[:, :, i], theta[:, i], settle_band_rel)
-    return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, cond, settled,
-                     n_rows, cols, systematic_rms, spread_se, ls_std, used, core_shift)
+    return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, every.condition_number,
+                     settled, core.rows, cols, systematic_rms, spread_se, ls_std, used, core_shift)
 
 
-def _core_shift(acc: BlockAccumulator, blocks: int, theta_n: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """The fit (scaled, ``theta_n``) minus the core sub-fit, over the core rows alone: :attr:`PeriodFit.core_shift`,
-    scaled."""
-    # the fit's own ridge (on the diagonal, scaled as the fit's columns): a test with used rows but no core rows
-    # gets a shift of the whole estimate, a wide box, not a singular matrix
-    p = theta_n.shape[-1]
-    ridge = 1e-12 * np.eye(p) * scale[:, :, None] * scale[:, None, :]
-    A_core, z_core = acc.A_core[:blocks].sum(axis=0), acc.z_core[:blocks].sum(axis=0)
-    return theta_n - np.linalg.solve(A_core + ridge, z_core[..., None])[..., 0]
+def _systematic_rms(acc: BlockAccumulator, blocks: int, theta_n: np.ndarray) -> np.ndarray:
+    """The residual's part that repeats from one period to the next, for the scaled solution ``theta_n``.
+
+    r_b . r_b' over the pairs of rows at the same phase of two periods: noise, not the same twice, averages out
+    of it (it can come out below 0 by noise: none)."""
+    pair_ss = (acc.pair_yy[1:blocks].sum(axis=0) - np.einsum("np,np->n", theta_n, acc.pair_xy[1:blocks].sum(axis=0))
+               + np.einsum("np,npq,nq->n", theta_n, acc.pair_xx[1:blocks].sum(axis=0), theta_n))
+    pairs = acc.pair_count[1:blocks].sum(axis=0)
+    return np.where(pairs > 0, np.sqrt(np.maximum(pair_ss, 0.0) / np.maximum(pairs, 1)), np.nan)
 
 
 def reference_condition_number(design: ControllerDesign) -> float:

@@ -62,7 +62,7 @@ class BaselineTest:
     af_se_rel, a1_se_rel : float or None
         The standard error of its af and a1, relative (None: not known, as in files written before they were kept).
     af_core_shift_rel, a1_core_shift_rel : float or None
-        Its af's and a1's distance from the core sub-fit's, relative (what the model missed at reversals,
+        The fit over every used row's af and a1 less the estimate's, relative (what the model missed at reversals,
         :attr:`~edc_bench.identification.period_fit.PeriodFit.core_shift`; None: not known).
     """
 

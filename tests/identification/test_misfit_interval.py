@@ -86,10 +86,11 @@ def test_the_core_shift_is_small_where_the_model_holds_and_large_where_friction_
         shifts[name]["af_error"] = float(result.parameters[0, AF] / result.truth[0, AF] - 1.0)
     print(shifts)
     assert abs(shifts["plain"]["a1"]) < 0.005 and abs(shifts["plain"]["af"]) < 0.005
-    # friction at reversals pulls the fit over all rows: a1 reads low, and the core sub-fit less so
-    assert shifts["sticky"]["a1_error"] < -0.04
+    # friction at reversals pulls the fit over every row: it reads a1 more than 3 % lower than the estimate (the
+    # core rows' fit), which is within 2.5 % of the truth (it was -7.2 % when the estimate was the fit over every row)
     assert shifts["sticky"]["a1"] < -0.03
-    # the interval's misfit part covers the error
+    assert abs(shifts["sticky"]["a1_error"]) < 0.025
+    # the estimate keeps a share of the shift, and the interval's misfit part covers it
     assert MISFIT_ALLOWANCE * abs(shifts["sticky"]["a1"]) >= abs(shifts["sticky"]["a1_error"])
 
 
@@ -143,9 +144,10 @@ def test_the_plant_s_position_dependent_pull_does_not_lag_into_damping() -> None
     assert abs(batch_error[AF]) < 0.008 and abs(rig_error["af"]) < 0.008
 
 
-def test_a_test_without_a_single_core_row_gets_a_wide_box_not_a_crash(setup) -> None:
-    """A valve that chatters in every smoothing window has used rows but no core rows: the core sub-fit is then
-    all ridge, and the shift the whole estimate (found by a review: a rank-one ridge made it singular)."""
+def test_a_test_without_a_single_core_row_is_never_settled_and_does_not_crash(setup) -> None:
+    """A valve that chatters in every smoothing window has used rows but no core rows: the estimate (the core rows'
+    fit) is then all ridge, no period has its own estimate, and the test is not settled, so never trusted (a review
+    found that a rank-one ridge made this a singular matrix)."""
     from edc_bench.identification.period_fit import BlockAccumulator, accumulate, solve
 
     rng = np.random.default_rng(1)
@@ -158,4 +160,5 @@ def test_a_test_without_a_single_core_row_gets_a_wide_box_not_a_crash(setup) -> 
         acc = BlockAccumulator(setup, 3)
         accumulate(setup, acc, setup.first_tick, X, y, use, np.zeros(ticks, dtype=bool))
         fit = solve(acc, 3, 0.02)
-        np.testing.assert_allclose(fit.core_shift, fit.theta, rtol=1e-6, err_msg=str(draw))
+        assert not fit.settled.any() and fit.periods_used[0] == 0 and fit.samples[0] == 0, draw
+        assert np.all(np.isfinite(fit.theta)) and np.all(np.isfinite(fit.core_shift)), draw
