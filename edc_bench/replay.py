@@ -165,6 +165,9 @@ class ReplayReport:
 OLDER_RECORD_REL_TOL = 1e-9
 #: The first record schema whose figures replay must give to the bit (the controller's sums in today's order).
 EXACT_SCHEMA = 4
+#: The first record schema whose af and a1 are the period fit over the core rows (docs/method.md, section 7): an
+#: older record's were the fit over every used row, and replay, which identifies as today's edc-bench does, says so.
+CORE_ROWS_SCHEMA = 6
 
 
 def _same(a: Any, b: Any, rel_tol: float = 0.0) -> bool:
@@ -265,6 +268,11 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                        "reordered since)"]
     else:
         notes_after = []
+    if record.schema_version < CORE_ROWS_SCHEMA:
+        notes_after.append(f"recorded by an edc-bench whose af and a1 were the fit over every used row (record schema "
+                           f"{record.schema_version}); today's are the fit over the core rows (docs/method.md, "
+                           "section 7), so af, a1, their uncertainties and what follows from them (the early "
+                           "stop, the verdict's distance) may differ from the recorded ones")
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
     if altered:
         differences.insert(0, f"changed after the test (its integrity manifest): {', '.join(altered)}")

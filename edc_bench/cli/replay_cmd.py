@@ -97,6 +97,8 @@ def _print(out: dict[str, Any], as_json: bool) -> None:
             print("NOT reproduced:")
             for line in out["differences"]:
                 print(f"  - {line}")
+            for line in out["notes"]:
+                print(f"note: {line}")
     else:
         for line in out["differences"]:
             print(f"  - {line}")

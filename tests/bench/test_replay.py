@@ -173,3 +173,22 @@ def test_a_record_of_an_older_schema_is_compared_to_a_tolerance_a_new_one_to_the
     doc["parameters"]["a1"]["value"] *= 1.0 + 1e-6  # beyond the tolerance: a different run
     rewrite_record_json(folder, doc)
     assert not replay_record(folder).reproduced
+
+
+def test_a_record_from_before_the_core_rows_fit_says_why_its_numbers_may_differ(tmp_path: Path, capsys) -> None:
+    """Records of schema 5 and older hold af and a1 from the fit over every used row; replay identifies as today's
+    edc-bench does (the core rows), and says so beside whatever differs, on the command line too."""
+    from edc_bench.cli import main
+
+    folder = write_record(run_simulated_test(load_variant(), "new", 5), tmp_path, figure=False)
+    doc = json.loads((folder / "record.json").read_text())
+    assert doc["schema"] >= 6 and not any("every used row" in n for n in replay_record(folder).notes)
+    doc["schema"] = 5
+    doc["parameters"]["a1"]["value"] *= 1.01  # as the fit over every used row had it
+    rewrite_record_json(folder, doc)
+    report = replay_record(folder)
+    assert not report.reproduced and report.differences[0].startswith("a1 value"), report.differences
+    assert any("fit over every used row (record schema 5)" in n for n in report.notes), report.notes
+    code = main(["replay", str(folder)])
+    out = capsys.readouterr().out
+    assert code != 0 and "NOT reproduced:" in out and "note: recorded by an edc-bench whose af and a1" in out
