@@ -16,7 +16,10 @@ instead (docs/method.md, "The identification the verdict rests on"):
   biases nothing measurable.
 - **Only while the rack slides.** Rows where the reference or the rack moves
   slower than ``reversal_exclusion`` of the peak speed are left out: stick
-  windows and breakaway are no part of the sgn(x') model.
+  windows and breakaway are no part of the sgn(x') model. The estimate
+  takes the core rows of these (:func:`core_rows`: the whole smoothing
+  window slides), with the gain terms below held at the fit over every
+  row's; the model-fit figures are that fit's.
 - **With the solenoid's position dependence.** A force constant
   k_i (1 + s (x - x_m)) divides the drive by 1 + s Delta; to first order that
   adds Delta^2, Delta x' and Delta sgn(x') to the regressors (Delta = x - x_m).
@@ -44,7 +47,6 @@ from __future__ import annotations
 
 import functools
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -215,6 +217,14 @@ def drift_statistic(per_period: np.ndarray) -> np.ndarray:
         return gap / standard_error
 
 
+def _nan_mean(values: np.ndarray) -> np.ndarray:
+    """np.nanmean over the first axis (the same sums), NaN without a warning where every value is NaN (a test
+    without a period of its own: no drift known, and NaN compares False)."""
+    finite = ~np.isnan(values)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(finite, values, 0.0).sum(axis=0) / finite.sum(axis=0)
+
+
 def drift_free(per_period: np.ndarray, estimate: np.ndarray, band_rel: float) -> np.ndarray:
     """Whether a coefficient's estimates, period by period, show no drift.
 
@@ -243,9 +253,7 @@ def drift_free(per_period: np.ndarray, estimate: np.ndarray, band_rel: float) ->
         return np.ones(per_period.shape[1:], dtype=bool)
     if periods < DRIFT_MIN_PERIODS:
         half = periods // 2
-        with warnings.catch_warnings():  # a test with no period of its own (all NaN): no drift known, NaN is False
-            warnings.simplefilter("ignore", RuntimeWarning)
-            early, late = np.nanmean(per_period[:half], axis=0), np.nanmean(per_period[half:], axis=0)
+        early, late = _nan_mean(per_period[:half]), _nan_mean(per_period[half:])
         return np.abs(late - early) <= band_rel * np.abs(estimate)
     gap, standard_error = _halves_gap(per_period)
     ns, values = zip(*DRIFT_CRITICAL)
@@ -371,8 +379,8 @@ def core_rows(setup: FitSetup, position_mm: np.ndarray, lo: np.ndarray, hi: np.n
     A row is a weighted sum over its window; one that reaches into a stick or a breakaway smooths their forces
     (stiction, a Stribeck peak) into a row the sgn(x') model reads as sliding, and pulls a1 (the friction's excess
     at a reversal lines up with the speed's fall). The estimate is the fit over these rows; its distance from the
-    fit over every row measures what the model misses at reversals (:func:`solve`, ``core_shift``). The rack's speed at each sample is the slope of a straight line through the
-    :data:`SPEED_SPAN_TICKS` samples either side (fewer when the window is shorter than that), all inside the
+    fit over every row measures what the model misses at reversals (:func:`solve`, ``core_shift``). The rack's
+    speed at each sample is the slope of a straight line through the :data:`SPEED_SPAN_TICKS` samples either side (fewer when the window is shorter than that), all inside the
     window, so that a row's flag depends on its window alone, however the trace is cut into spans (the early stop
     feeds it a step at a time).
     """
@@ -540,7 +548,7 @@ class PeriodFit:
     gain_variation_rel : numpy.ndarray
         The force constant's variation over the swing, +/- relative (from the Delta sgn(x') term).
     condition_number : numpy.ndarray
-        Of the scaled normal equations.
+        Of the scaled normal equations of the fit over every used row (all columns).
     settled : numpy.ndarray
         No drift (:func:`drift_free`): af and a1 over the first half of the periods and over the second half
         agree within the settle band or, from :data:`DRIFT_MIN_PERIODS` periods on, within the periods' noise.

@@ -1,10 +1,10 @@
-"""The misfit's share of a verdict's interval (issue #37 items 2 and 3): the core rows, the core sub-fit's shift,
-the interval's three parts, and the simulated plant whose position-dependent pull no longer lags.
+"""The misfit's share of a verdict's interval (issue #37 items 1-3): the core rows, the core shift, the interval's
+three parts, and the simulated plant whose position-dependent pull no longer lags.
 
 A row of the period fit is a weighted sum over its smoothing window; a window that reaches into a stick or a
 breakaway smooths forces the sgn(x') model cannot explain into the row. The core rows are those whose window slides
-throughout; the fit over them alone (the core sub-fit) moves away from the fit over all rows exactly when that
-happens, and the interval carries twice that distance.
+throughout; the estimate is the fit over them, and the fit over every used row moves away from it exactly when that
+happens (the core shift); the interval carries twice that distance beyond the baseline's.
 """
 
 from __future__ import annotations
@@ -72,6 +72,7 @@ def test_core_rows_are_the_same_however_the_trace_is_cut(setup) -> None:
     assert 0.2 < (~whole).mean() < 0.8  # reversals leave a good share of rows out
 
 
+@pytest.mark.slow  # 15 s: the default suite stays under 5 minutes; CI's slow pass runs it
 def test_the_core_shift_is_small_where_the_model_holds_and_large_where_friction_leaks_into_it() -> None:
     default = load_variant("p-edc-default")
     sticky = stick_slip_variant(default)
@@ -90,8 +91,8 @@ def test_the_core_shift_is_small_where_the_model_holds_and_large_where_friction_
     # core rows' fit), which is within 2.5 % of the truth (it was -7.2 % when the estimate was the fit over every row)
     assert shifts["sticky"]["a1"] < -0.03
     assert abs(shifts["sticky"]["a1_error"]) < 0.025
-    # the estimate keeps a share of the shift, and the interval's misfit part covers it
-    assert MISFIT_ALLOWANCE * abs(shifts["sticky"]["a1"]) >= abs(shifts["sticky"]["a1_error"])
+    # the estimate keeps less than half of the shift, which the interval's misfit part allows twice over
+    assert abs(shifts["sticky"]["a1_error"]) < 0.5 * abs(shifts["sticky"]["a1"]) and MISFIT_ALLOWANCE >= 2
 
 
 def test_the_interval_is_the_noise_plus_twice_the_shift_beyond_the_baseline_s_plus_the_baseline_s_noise() -> None:
@@ -128,6 +129,7 @@ def _no_stribeck(name: str):
     return parse_variant(data)
 
 
+@pytest.mark.slow  # 9 s, as above
 def test_the_plant_s_position_dependent_pull_does_not_lag_into_damping() -> None:
     """On the hard pump (force constant +/-10 % over the swing) a new valve's a1 read +2.1 % when the plant held
     the pull's position-dependent part at each step's start: a force lagging the rack by half a step acts as

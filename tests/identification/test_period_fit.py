@@ -91,20 +91,42 @@ def test_a_trial_feed_is_taken_back_whole(setup) -> None:
     """The stop rule adds a period's last rows for a decision, then takes them out (snapshot, restore)."""
     X, y, use = _rows(setup, 1e-3, 1e-3, seed=3)
     cut = 2 * setup.block_ticks + 1500
+    core = use & (np.arange(len(X)) % 7 != 0)  # some used rows are not core rows
     acc = BlockAccumulator(setup, BLOCKS)
-    accumulate(setup, acc, setup.first_tick, X[:cut], y[:cut], use[:cut])
-    before = {name: getattr(acc, name).copy() for name in ("A", "pair_yy", "pair_xx", "pair_count")}
+    accumulate(setup, acc, setup.first_tick, X[:cut], y[:cut], use[:cut], core[:cut])
+    before = {name: getattr(acc, name).copy() for name in BlockAccumulator._SUMS}
     saved = acc.snapshot(2)
     accumulate(setup, acc, setup.first_tick + cut, X[cut:3 * setup.block_ticks], y[cut:3 * setup.block_ticks],
-               use[cut:3 * setup.block_ticks])
+               use[cut:3 * setup.block_ticks], core[cut:3 * setup.block_ticks])
+    assert acc.count_core[2].sum() > before["count_core"][2].sum()  # the trial fed core rows too
     acc.restore(2, saved)
     for name, value in before.items():
         np.testing.assert_array_equal(getattr(acc, name), value, err_msg=name)
     # and the rows fed again after give what one pass gives
-    accumulate(setup, acc, setup.first_tick + cut, X[cut:], y[cut:], use[cut:])
+    accumulate(setup, acc, setup.first_tick + cut, X[cut:], y[cut:], use[cut:], core[cut:])
     whole = _fit(setup, X, y, use)
     np.testing.assert_allclose(acc.pair_yy, whole.pair_yy, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(acc.pair_count, whole.pair_count)
+
+
+def test_the_estimate_is_the_core_rows_least_squares_with_the_gain_terms_of_the_fit_over_every_row(setup) -> None:
+    """solve() against explicit least squares: the fit over every used row, then the core rows' fit of the other
+    columns with the gain terms held at that fit's; the core shift is the distance between them."""
+    from edc_bench.identification.period_fit import GAIN_TERMS
+
+    X, y, use = _rows(setup, 0.0, 1e-2, seed=5)
+    core = use & (np.random.default_rng(6).random(len(X)) > 0.4)
+    acc = BlockAccumulator(setup, BLOCKS)
+    accumulate(setup, acc, setup.first_tick, X, y, use, core)
+    fit = solve(acc, BLOCKS, 0.02)
+    units = np.array([setup.scales[i] for i in setup.estimated] + list(setup.scales[6:]))
+    q = len(setup.columns) - len(GAIN_TERMS)
+    every = np.linalg.lstsq(X[use], y[use], rcond=None)[0]
+    held = np.linalg.lstsq(X[core, :q], y[core] - X[core, q:] @ every[q:], rcond=None)[0]
+    estimate = np.concatenate((held, every[q:]))
+    np.testing.assert_allclose(fit.theta[0] * units, estimate, rtol=1e-7)
+    np.testing.assert_allclose(fit.core_shift[0] * units, every - estimate, rtol=1e-6, atol=1e-9)
+    assert fit.samples[0] == core.sum() and np.abs(every - estimate)[:q].max() > 0  # two different fits
 
 
 def test_the_interval_takes_student_s_t_for_the_spread_of_few_periods() -> None:
