@@ -177,7 +177,7 @@ def model_plant_paragraph() -> str:
         raise RuntimeError(f"the model plant's worst error is {worst:.2%}: the paragraph says within 1 %")
     new_long = next(r for r in rows if r["variant"] == "p-edc-long" and r["valve"] == "new")
     full = stored("bench-test-accuracy")["long_new_model_full_length"]
-    return (f"On the model plant of the linear variants every parameter is within 1 %,\n"
+    return (f"On the model plant of the linear variants every parameter is within 1 % at the stop,\n"
             f"but with little room on a new valve of `p-edc-long`: af\n"
             f"{pct(new_long['error_rel']['af'], 2).replace('%', ' %')} at {new_long['stop_s']:.0f} s (the table rounds it), "
             f"{pct(full['error_rel']['af'], 2).replace('%', ' %')} at {full['duration_s']:.0f} s (the same test run\n"

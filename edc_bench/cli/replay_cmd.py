@@ -87,18 +87,16 @@ def _print(out: dict[str, Any], as_json: bool) -> None:
         print(f"  - {reason}")
     print(f"features: af = {out['features']['af']:.6g} V, a1 = {out['features']['a1']:.6g} V s/mm")
     if out["compared_with_record"]:
-        if out["reproduced"] and out["notes"]:
-            print("reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are the "
-                  "recorded ones; " + "; ".join(out["notes"]))
-        elif out["reproduced"]:
-            print("reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are exactly "
+        if out["reproduced"]:
+            exactly = "" if out["notes"] else "exactly "
+            print(f"reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are {exactly}"
                   "the recorded ones")
         else:
             print("NOT reproduced:")
             for line in out["differences"]:
                 print(f"  - {line}")
-            for line in out["notes"]:
-                print(f"note: {line}")
+        for line in out["notes"]:
+            print(f"note: {line}")
     else:
         for line in out["differences"]:
             print(f"  - {line}")
