@@ -380,7 +380,8 @@ def core_rows(setup: FitSetup, position_mm: np.ndarray, lo: np.ndarray, hi: np.n
     (stiction, a Stribeck peak) into a row the sgn(x') model reads as sliding, and pulls a1 (the friction's excess
     at a reversal lines up with the speed's fall). The estimate is the fit over these rows; its distance from the
     fit over every row measures what the model misses at reversals (:func:`solve`, ``core_shift``). The rack's
-    speed at each sample is the slope of a straight line through the :data:`SPEED_SPAN_TICKS` samples either side (fewer when the window is shorter than that), all inside the
+    speed at each sample is the slope of a straight line through the :data:`SPEED_SPAN_TICKS` samples either side
+    (fewer when the window is shorter than that), all inside the
     window, so that a row's flag depends on its window alone, however the trace is cut into spans (the early stop
     feeds it a step at a time).
     """
