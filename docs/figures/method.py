@@ -850,13 +850,17 @@ def gain_sweep_summary() -> str:
 
     failed = ("no reusable valve fails" if not reusable_failed else "reusable valves failed: " + ", ".join(
         f"{n} at {percent(v, 0, sign=True)}" for v, n in reusable_failed.items()) + " (valves near the boundary)")
-    held = " (the hard variant is held to 10 % on a1)" if a1 < 0.10 else ""
+    from edc_bench.experiments.studies import HARD_VARIANT_BOUNDS_REL
+
+    held = " (the hard variant is held to 10 % on a1)" if a1 < HARD_VARIANT_BOUNDS_REL[1] else ""
     beyond = sum(r["beyond_bounds"] for r in rows)
     unflagged = sum(r["beyond_unflagged"] for r in rows)
     if beyond:
         whose = "its" if beyond == 1 else ("each one's" if not unflagged else f"{beyond - unflagged} of their")
+        bounds = dict(zip(("af", "a1"), HARD_VARIANT_BOUNDS_REL))
         held = (f"; {beyond} judged valve{'s' if beyond > 1 else ''} beyond what the hard variant is held to "
-                f"(af 5 %, a1 10 %), and {whose} 99 % interval holds the truth")
+                f"(af {percent(bounds['af'], 0)}, a1 {percent(bounds['a1'], 0)}), and {whose} 99 % interval holds the "
+                "truth")
     return (f"Every pump the rule judges is identified with af within {percent(af)} and a1 within "
             f"{percent(a1)}{held};\n"
             + ("no faulty valve passes" if faulty_passed == 0 else f"{faulty_passed} faulty valves pass")

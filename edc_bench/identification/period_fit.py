@@ -609,19 +609,22 @@ class _Normal:
     """One least-squares solution of summed normal equations, scaled (``theta_n``), and what comes with it."""
 
     theta_n: np.ndarray  # (N, p)
-    block_n: np.ndarray  # (blocks, N, p): each period on its own (NaN: too few rows)
     ssr: np.ndarray  # (N,) sum of squared residuals
     rows: np.ndarray  # (N,)
     cov_diag: np.ndarray  # (N, p) the least-squares variances, scaled
-    condition_number: np.ndarray  # (N,) of the scaled normal equations
+    block_n: np.ndarray | None = None  # (blocks, N, p): each period on its own (NaN: too few rows)
+    condition_number: np.ndarray | None = None  # (N,) of the scaled normal equations
 
 
 def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, scale: np.ndarray,
             held: _Normal | None = None) -> _Normal:
-    """Solve the normal equations summed over blocks (``A`` (blocks, N, p, p)...), and each block's on its own.
+    """Solve the normal equations summed over blocks (``A`` (blocks, N, p, p)...).
 
-    ``scale``: the columns' scale (N, p), the same for every sub-fit so that their solutions compare. ``held``: a
-    solution whose gain terms (the last ``len(GAIN_TERMS)`` columns) this one keeps, solving for the others."""
+    ``scale``: the columns' scale (N, p), the same for every sub-fit so that their solutions compare. Without
+    ``held`` (the fit over every row) it gives the condition number, the model-fit figures' fit needs; with
+    ``held``, a solution whose gain terms (the last ``len(GAIN_TERMS)`` columns) this one keeps, solving for the
+    others, it gives each block's own solution, the estimate's spread needs (each only where it is used: the early
+    stop solves at every period's end)."""
     p = A.shape[-1]
     q = p - len(GAIN_TERMS) if held is not None else p
     A_full, z_full = A.sum(axis=0), z.sum(axis=0)
@@ -632,13 +635,16 @@ def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, sca
     ridge = 1e-12 * np.eye(q) * scale[:, :q, None] * scale[:, None, :q]
     A_sum = A_q.sum(axis=0)
     theta_n = np.linalg.solve(A_sum + ridge, z_q.sum(axis=0)[..., None])[..., 0]
-    enough = count >= 4 * p
-    safe_A = np.where(enough[..., None, None], A_q, np.eye(q))
-    block_n = np.linalg.solve(safe_A + 1e-12 * np.eye(q), np.where(enough[..., None], z_q, 0.0)[..., None])[..., 0]
-    block_n = np.where(enough[..., None], block_n, np.nan)
     cov_diag = np.einsum("nqq->nq", np.linalg.inv(A_sum + ridge))
-    cond = np.linalg.cond(A_sum / scale[:, :q, None] / scale[:, None, :q])
-    if held is not None:
+    block_n = cond = None
+    if held is None:
+        cond = np.linalg.cond(A_sum / scale[:, :q, None] / scale[:, None, :q])
+    else:
+        enough = count >= 4 * p
+        safe_A = np.where(enough[..., None, None], A_q, np.eye(q))
+        block_n = np.linalg.solve(safe_A + 1e-12 * np.eye(q),
+                                  np.where(enough[..., None], z_q, 0.0)[..., None])[..., 0]
+        block_n = np.where(enough[..., None], block_n, np.nan)
         theta_n = np.concatenate((theta_n, held.theta_n[:, q:]), axis=-1)
         block_n = np.concatenate((block_n, np.broadcast_to(held.theta_n[:, q:], block_n.shape[:-1] + (p - q,))),
                                  axis=-1)
@@ -649,7 +655,7 @@ def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, sca
     cov_diag = cov_diag * (ssr / np.maximum(rows - q, 1))[:, None]
     if held is not None:
         cov_diag = np.concatenate((cov_diag, held.cov_diag[:, q:]), axis=-1)
-    return _Normal(theta_n, block_n, ssr, rows, cov_diag, cond)
+    return _Normal(theta_n, ssr, rows, cov_diag, block_n, cond)
 
 
 def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodFit | None:
