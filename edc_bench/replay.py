@@ -168,6 +168,9 @@ EXACT_SCHEMA = 4
 #: The first record schema whose af and a1 are the period fit over the core rows (docs/method.md, section 7): an
 #: older record's were the fit over every used row, and replay, which identifies as today's edc-bench does, says so.
 CORE_ROWS_SCHEMA = 6
+#: The first record schema whose interval carries the held gain terms' error and the residual's repeating part
+#: (docs/method.md, section 7): an older record's early stop judged a narrower box.
+RESIDUAL_SCHEMA = 7
 
 
 def _same(a: Any, b: Any, rel_tol: float = 0.0) -> bool:
@@ -273,6 +276,11 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            f"{record.schema_version}); today's are the fit over the core rows (docs/method.md, "
                            "section 7), so af, a1, their uncertainties and what follows from them (the early "
                            "stop, the verdict's distance) may differ from the recorded ones")
+    elif record.schema_version < RESIDUAL_SCHEMA:
+        notes_after.append(f"recorded by an edc-bench whose interval left out the held gain terms' error and the "
+                           f"residual's repeating part (record schema {record.schema_version}); today's has them "
+                           "(docs/method.md, section 7), so the interval and the early stop may differ from the "
+                           "recorded ones")
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
     if altered:
         differences.insert(0, f"changed after the test (its integrity manifest): {', '.join(altered)}")

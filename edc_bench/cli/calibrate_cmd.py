@@ -283,8 +283,8 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str
 
 
 def _uncertainty(identification: Any) -> dict[str, float | None]:
-    """A test's relative standard errors and core shifts of af and a1, for the baseline's own uncertainty (None
-    where the identification has none)."""
+    """A test's relative standard errors and core shifts of af and a1, and its repeating residual, for the
+    baseline's own uncertainty (None where the identification has none)."""
     out: dict[str, float | None] = {}
     if identification is None:
         return out
@@ -295,4 +295,6 @@ def _uncertainty(identification: Any) -> dict[str, float | None]:
         out[f"{name}_se_rel"] = se if math.isfinite(se) else None
         shift = (shifts or {}).get(name)
         out[f"{name}_core_shift_rel"] = shift if shift is not None and math.isfinite(shift) else None
+    systematic = identification.model_fit.systematic_rms_v if identification.model_fit is not None else math.nan
+    out["systematic_rms_v"] = systematic if math.isfinite(systematic) else None
     return out

@@ -65,6 +65,11 @@ SPEED_SPAN_TICKS = 5
 #: the shift; docs/method.md, "The interval", prints the coverage this factor gives (``edc-bench evaluate
 #: --coverage``).
 MISFIT_ALLOWANCE = 2.0
+#: The model's misfit away from reversals in a verdict's interval: this many times the repeating residual beyond the
+#: baseline's, over each coefficient's term in the drive (:attr:`PeriodFit.term_rms_v`): as if that much of the
+#: misfit had gone into the term. A misfit spread over the swing (a solenoid whose gain varies beyond the model's
+#: series) moves the core shift little; it shows in the residual's repeating part (docs/method.md, "The interval").
+RESIDUAL_ALLOWANCE = 1.0
 #: Names of the nuisance terms of the force constant's position dependence (Delta = x - x_m).
 GAIN_TERMS = ("d2", "dv", "df", "d2f")  # Delta^2, Delta x', Delta sgn(x'), and of the second order Delta^2 sgn(x')
 #: Periods used at least before a test can count as converged (three give a spread with two degrees of freedom).
@@ -569,6 +574,9 @@ class PeriodFit:
         ([N,] p) the fit over every used row minus the estimate (the core rows' fit, :func:`core_rows`): where the
         model holds, both estimate the same values and this is noise; where it misses what happens at reversals
         (stick windows, Stribeck friction), the rows near them pull the fit over every row, and this is how far.
+    term_rms_v : numpy.ndarray
+        ([N,] p) each coefficient's term in the drive (the coefficient times its regressor), RMS over the estimate's
+        rows: a misfit of this size, were it all in the term, would move the coefficient by all of it.
     """
 
     theta: np.ndarray
@@ -587,6 +595,7 @@ class PeriodFit:
     ls_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
     periods_used: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     core_shift: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    term_rms_v: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def value(self, name: str) -> np.ndarray:
         """The estimate of one coefficient (``af``, ``a1``, ``d2``...)."""
@@ -614,6 +623,8 @@ class _Normal:
     cov_diag: np.ndarray  # (N, p) the least-squares variances, scaled
     block_n: np.ndarray | None = None  # (blocks, N, p): each period on its own (NaN: too few rows)
     condition_number: np.ndarray | None = None  # (N,) of the scaled normal equations
+    gain_cov: np.ndarray | None = None  # (N, g, g) the gain terms' covariance (the fit whose gain terms are held)
+    held_var: np.ndarray | None = None  # (N, p) the variance the held gain terms' error adds, the same every period
 
 
 def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, scale: np.ndarray,
@@ -621,10 +632,11 @@ def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, sca
     """Solve the normal equations summed over blocks (``A`` (blocks, N, p, p)...).
 
     ``scale``: the columns' scale (N, p), the same for every sub-fit so that their solutions compare. Without
-    ``held`` (the fit over every row) it gives the condition number, the model-fit figures' fit needs; with
-    ``held``, a solution whose gain terms (the last ``len(GAIN_TERMS)`` columns) this one keeps, solving for the
-    others, it gives each block's own solution, the estimate's spread needs (each only where it is used: the early
-    stop solves at every period's end)."""
+    ``held`` (the fit over every row) it gives the condition number, the model-fit figures' fit needs, and the
+    gain terms' covariance; with ``held``, a solution whose gain terms (the last ``len(GAIN_TERMS)`` columns) this
+    one keeps, solving for the others, it gives each block's own solution, the estimate's spread needs (each only
+    where it is used: the early stop solves at every period's end), and its covariance with the held terms' error
+    in it (:func:`_held_covariance`)."""
     p = A.shape[-1]
     q = p - len(GAIN_TERMS) if held is not None else p
     A_full, z_full = A.sum(axis=0), z.sum(axis=0)
@@ -635,7 +647,7 @@ def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, sca
     ridge = 1e-12 * np.eye(q) * scale[:, :q, None] * scale[:, None, :q]
     A_sum = A_q.sum(axis=0)
     theta_n = np.linalg.solve(A_sum + ridge, z_q.sum(axis=0)[..., None])[..., 0]
-    cov_diag = np.einsum("nqq->nq", np.linalg.inv(A_sum + ridge))
+    inverse = np.linalg.inv(A_sum + ridge)
     block_n = cond = None
     if held is None:
         cond = np.linalg.cond(A_sum / scale[:, :q, None] / scale[:, None, :q])
@@ -652,10 +664,38 @@ def _normal(A: np.ndarray, z: np.ndarray, yy: np.ndarray, count: np.ndarray, sca
     ssr = yy.sum(axis=0) - 2 * np.einsum("np,np->n", theta_n, z_full) + np.einsum("np,npq,nq->n", theta_n, A_full,
                                                                                      theta_n)
     ssr = np.maximum(ssr, 0.0)
-    cov_diag = cov_diag * (ssr / np.maximum(rows - q, 1))[:, None]
-    if held is not None:
-        cov_diag = np.concatenate((cov_diag, held.cov_diag[:, q:]), axis=-1)
-    return _Normal(theta_n, ssr, rows, cov_diag, block_n, cond)
+    sigma2 = ssr / np.maximum(rows - q, 1)
+    if held is None:
+        g = len(GAIN_TERMS)
+        return _Normal(theta_n, ssr, rows, np.einsum("nqq->nq", inverse) * sigma2[:, None], block_n, cond,
+                       gain_cov=inverse[:, p - g:, p - g:] * sigma2[:, None, None])
+    cov_diag, held_var = _held_covariance(A_full, inverse, held, sigma2)
+    return _Normal(theta_n, ssr, rows, cov_diag, block_n, cond, held_var=held_var)
+
+
+def _held_covariance(A_full: np.ndarray, inverse: np.ndarray, held: _Normal,
+                     sigma2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The variances of a fit with the gain terms held at another fit's, whose error they carry in.
+
+    With the gain terms g held at theta_g, the others solve A_qq theta_q = z_q - A_qg theta_g: an error in theta_g
+    moves theta_q by -M (theta_g's error), M = A_qq^-1 A_qg. theta_g's error, the fit over every row's, is the same
+    in every period, so the periods' spread does not see it; it adds ``held_var`` = diag(M Cov_g M') to both of
+    the estimate's errors. Its covariance with the core rows' own noise (the core rows are rows of that fit too) is
+    left out: it is zero where the core rows are every row, and leaving it out errs on the wide side.
+
+    Returns
+    -------
+    (cov_diag, held_var)
+        (N, p) each: the least-squares variances (the core rows' own noise plus ``held_var``; the gain terms keep
+        the held fit's), and ``held_var`` (0 for the gain terms themselves).
+    """
+    q = inverse.shape[-1]
+    M = inverse @ A_full[:, :q, q:]  # (N, q, g)
+    extra = np.maximum(np.einsum("nqg,ngh,nqh->nq", M, held.gain_cov, M), 0.0)
+    own = np.einsum("nqq->nq", inverse) * sigma2[:, None]
+    held_gain = held.cov_diag[:, q:]
+    return (np.concatenate((own + extra, held_gain), axis=-1),
+            np.concatenate((extra, np.zeros_like(held_gain)), axis=-1))
 
 
 def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodFit | None:
@@ -683,7 +723,9 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     spread_sd = np.sqrt(np.nansum(np.where(good[..., None], (block_theta - theta) ** 2, 0.0), axis=0)
                         / np.maximum(used - 1, 1)[:, None])
     spread_sd = np.where((used >= 2)[:, None], spread_sd, np.nan)  # one period: no spread known
-    spread_se = spread_sd / np.sqrt(np.maximum(used, 1))[:, None]
+    # the held gain terms' error is the same in every period: the spread cannot see it, so it is added (it is in
+    # ls_std already)
+    spread_se = np.sqrt(spread_sd ** 2 / np.maximum(used, 1)[:, None] + core.held_var / units ** 2)
     std = np.maximum(spread_se, ls_std)
     core_shift = (every.theta_n - core.theta_n) / units
     cols = setup.columns
@@ -700,7 +742,14 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     for i in (i_af, i_a1):
         settled = settled & drift_free(block_theta[:, :, i], theta[:, i], settle_band_rel)
     return PeriodFit(theta, block_theta, std, blocks, residual_rms, spread, gain_variation, every.condition_number,
-                     settled, core.rows, cols, systematic_rms, spread_se, ls_std, used, core_shift)
+                     settled, core.rows, cols, systematic_rms, spread_se, ls_std, used, core_shift,
+                     _term_rms(acc.A_core[:blocks], core))
+
+
+def _term_rms(A: np.ndarray, fit: _Normal) -> np.ndarray:
+    """(N, p) RMS of each coefficient's term in the drive over ``fit``'s rows (``A``: their normal equations)."""
+    mean_square = np.einsum("bnpp->np", A) / np.maximum(fit.rows, 1)[:, None]
+    return np.abs(fit.theta_n) * np.sqrt(mean_square)
 
 
 def _systematic_rms(acc: BlockAccumulator, blocks: int, theta_n: np.ndarray) -> np.ndarray:

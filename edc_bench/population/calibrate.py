@@ -26,9 +26,10 @@ def population_run(variant: Variant, tests: int, seed: int) -> tuple[list[Baseli
     af, a1 = result.feature("af"), result.feature("a1")
     assert result.periods is not None  # a full-length batch keeps its period fit
     fit = result.periods.at(result.periods.blocks).fit
-    figures = np.full((4, tests), np.nan)
+    figures = np.full((len(UNCERTAINTY_KEYS), tests), np.nan)
     if fit is not None:
         (figures[0], figures[2]), (figures[1], figures[3]) = fit.relative_figures("af"), fit.relative_figures("a1")
+        figures[4] = fit.systematic_rms_v
     kept = [BaselineTest(float(af[n]), float(a1[n]), valve_id=f"{valves[n].label} (seed {seed})",
                          source=SIMULATED_POPULATION, **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))))
             for n in range(tests) if result.trusted[n]]

@@ -158,6 +158,7 @@ class StopSummary(Section):
     half_width_rel: dict[str, float | None] | None = None
     misfit_half_width_rel: dict[str, float | None] | None = None
     baseline_half_width_rel: dict[str, float | None] | None = None
+    residual_half_width_rel: dict[str, float | None] | None = None
     confidence: float | None = None
     problems: list[str] = Field(default_factory=list)
 

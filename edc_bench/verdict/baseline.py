@@ -39,8 +39,8 @@ EARLIER_DIR = "earlier"
 RECOMMENDED_TESTS = 5
 NOMINAL_SOURCE = "nominal physics (uncalibrated)"
 #: A [[test]] table's optional figures for the baseline's own uncertainty (:meth:`Baseline.noise_rel`,
-#: :meth:`Baseline.core_shift_rel`).
-UNCERTAINTY_KEYS = ("af_se_rel", "a1_se_rel", "af_core_shift_rel", "a1_core_shift_rel")
+#: :meth:`Baseline.core_shift_rel`, :meth:`Baseline.systematic_rms_v`).
+UNCERTAINTY_KEYS = ("af_se_rel", "a1_se_rel", "af_core_shift_rel", "a1_core_shift_rel", "systematic_rms_v")
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,9 @@ class BaselineTest:
     af_core_shift_rel, a1_core_shift_rel : float or None
         The fit over every used row's af and a1 less the estimate's, relative (what the model missed at reversals,
         :attr:`~edc_bench.identification.period_fit.PeriodFit.core_shift`; None: not known).
+    systematic_rms_v : float or None
+        The part of its residual that repeats from period to period, V rms (None: not known, as in files written
+        before 2026-11-27).
     """
 
     af_v: float
@@ -76,6 +79,7 @@ class BaselineTest:
     a1_se_rel: float | None = None
     af_core_shift_rel: float | None = None
     a1_core_shift_rel: float | None = None
+    systematic_rms_v: float | None = None
 
     @property
     def uncertainty_known(self) -> bool:
@@ -151,6 +155,12 @@ class Baseline:
         if not known:
             return np.zeros(2)
         return np.array([[t.af_core_shift_rel, t.a1_core_shift_rel] for t in known], dtype=float).mean(axis=0)
+
+    def systematic_rms_v(self) -> float:
+        """The mean repeating residual of the baseline's tests that kept it, V rms (0 when none did: older files,
+        the nominal baseline). A valve's misfit beyond this widens its interval (docs/method.md, "The interval")."""
+        known = [t.systematic_rms_v for t in self.test_list if t.systematic_rms_v is not None]
+        return float(np.mean(known)) if known else 0.0
 
     @property
     def measured_on_rig(self) -> bool:

@@ -48,6 +48,7 @@ from edc_bench.engine.replies import max_reply_age_ticks
 from edc_bench.identification.analysis import model_fit_problems, model_fits
 from edc_bench.identification.period_fit import (
     MISFIT_ALLOWANCE,
+    RESIDUAL_ALLOWANCE,
     BlockAccumulator,
     FitSetup,
     PeriodFit,
@@ -210,7 +211,8 @@ class EarlyStop:
                     "features_rel": {"af": float(centre[0, 0]), "a1": float(centre[0, 1])},
                     "half_width_rel": {"af": float(half_width[0, 0]), "a1": float(half_width[0, 1])},
                     "misfit_half_width_rel": {"af": float(box.misfit[0, 0]), "a1": float(box.misfit[0, 1])},
-                    "baseline_half_width_rel": {"af": float(box.baseline[0, 0]), "a1": float(box.baseline[0, 1])}}
+                    "baseline_half_width_rel": {"af": float(box.baseline[0, 0]), "a1": float(box.baseline[0, 1])},
+                    "residual_half_width_rel": {"af": float(box.residual[0, 0]), "a1": float(box.residual[0, 1])}}
         if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
             self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None
@@ -258,7 +260,7 @@ class Interval:
 
 @dataclass(frozen=True)
 class RelativeBox:
-    """af and a1 relative to the baseline, and the half width of their interval, in its three parts: (N, 2) each.
+    """af and a1 relative to the baseline, and the half width of their interval, in its four parts: (N, 2) each.
 
     Attributes
     ----------
@@ -274,22 +276,27 @@ class RelativeBox:
     baseline : numpy.ndarray
         The noise of the baseline's tests (:meth:`~edc_bench.verdict.baseline.Baseline.noise_rel`) times the
         ratio: it moves every ratio judged against the baseline.
+    residual : numpy.ndarray
+        The model's misfit elsewhere: :data:`RESIDUAL_ALLOWANCE` times the residual's repeating part beyond the
+        baseline's tests' (in quadrature), over the feature's term in the drive, times the ratio. More periods do
+        not shrink it.
     """
 
     centre: np.ndarray
     statistical: np.ndarray
     misfit: np.ndarray
     baseline: np.ndarray
+    residual: np.ndarray
 
     @property
     def fixed(self) -> np.ndarray:
         """The parts more periods do not shrink."""
-        return self.misfit + self.baseline
+        return self.misfit + self.baseline + self.residual
 
     @property
     def half_width(self) -> np.ndarray:
-        """The whole half width: the three parts added (they are not independent noises to add in quadrature:
-        the misfit is the same in every period)."""
+        """The whole half width: the parts added (they are not independent noises to add in quadrature: the
+        misfit is the same in every period)."""
         return self.statistical + self.fixed
 
 
@@ -298,7 +305,8 @@ def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray, inter
     """af and a1 relative to the baseline and their interval (:class:`RelativeBox`), for N tests.
 
     ``parameters``: (N, 2) af and a1 referred to the reference coil; ``base``: the baseline's af and a1;
-    ``baseline``: the baseline, for its own uncertainty (its tests' noise and core shifts; none if not given).
+    ``baseline``: the baseline, for its own uncertainty (its tests' noise, core shifts and repeating residual; none
+    if not given: the whole repeating residual is then taken for misfit).
     """
     t = interval.t[np.clip(fit.periods_used - 1, 0, len(interval.t) - 1)][:, None]
     columns = [fit.columns.index("af"), fit.columns.index("a1")]
@@ -309,7 +317,23 @@ def relative_box(parameters: np.ndarray, fit: PeriodFit, base: np.ndarray, inter
     base_shift, base_noise = ((np.zeros(2), np.zeros(2)) if baseline is None
                               else (baseline.core_shift_rel(), baseline.noise_rel(interval.z)))
     return RelativeBox(centre, half / np.abs(base), MISFIT_ALLOWANCE * np.abs(shift_rel - base_shift) * np.abs(centre),
-                       base_noise * np.abs(centre))
+                       base_noise * np.abs(centre), _residual_rel(fit, columns, baseline) * np.abs(centre))
+
+
+def _residual_rel(fit: PeriodFit, columns: list[int], baseline: Baseline | None) -> np.ndarray:
+    """:data:`RESIDUAL_ALLOWANCE` times the residual's repeating part beyond the baseline's tests' mean one (in
+    quadrature), over each of ``columns``' term in the drive: (N, len(columns)), relative to the coefficient.
+
+    The baseline's new valves leave their own repeating residual (the smoothing's, the friction's at reversals)
+    and their share of it is in the baseline; what a valve leaves beyond that, were it all in a term, would move
+    the term's coefficient by that much over the term. 0 where the repeating part is not known (one period)."""
+    reference_v = 0.0 if baseline is None else baseline.systematic_rms_v()
+    systematic = np.nan_to_num(fit.systematic_rms_v, nan=0.0)
+    beyond_v = np.sqrt(np.maximum(systematic ** 2 - reference_v ** 2, 0.0))
+    term = fit.term_rms_v[:, columns]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(term > 0, RESIDUAL_ALLOWANCE * beyond_v[:, None] / term, np.where(beyond_v[:, None] > 0,
+                                                                                         np.inf, 0.0))
 
 
 def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, periods: int, centres: np.ndarray,

@@ -249,3 +249,37 @@ def test_one_outlying_period_is_no_drift() -> None:
     step = 1.0 + 0.002 * rng.normal(size=(13, 1))
     step[-2:] -= 0.2
     assert not drift_free(step, np.ones(1), 0.02)[0]
+
+
+def test_the_estimate_s_errors_carry_the_held_gain_terms_error(setup) -> None:
+    """The gain terms are held at the fit over every row's, whose own error is the same in every period: the
+    estimate's standard errors must carry it. Monte Carlo: 600 noise draws on the same rows, whose gain columns
+    correlate with the parameters' and whose core rows see less of a gain column (as of the swing's ends)."""
+    import dataclasses
+
+    from edc_bench.identification.period_fit import GAIN_TERMS
+
+    short = dataclasses.replace(setup, block_ticks=300, first_tick=0)
+    blocks, draws, noise_v = 6, 600, 0.01
+    ticks, p = blocks * short.block_ticks, len(short.columns)
+    q = p - len(GAIN_TERMS)
+    rng = np.random.default_rng(7)
+    X = rng.normal(size=(ticks, p))
+    X[:, q:] += 2.0 * X[:, :len(GAIN_TERMS)]
+    core = np.abs(X[:, q]) < 0.5
+    y = (X @ rng.normal(size=p))[:, None] + noise_v * rng.normal(size=(ticks, draws))
+    acc = BlockAccumulator(short, blocks, draws)
+    every = np.ones((ticks, draws), dtype=bool)
+    accumulate(short, acc, 0, np.broadcast_to(X[:, None, :], (ticks, draws, p)), y, every,
+               np.broadcast_to(core[:, None], (ticks, draws)))
+    fit = solve(acc, blocks, 0.02)
+    units = np.array([short.scales[i] for i in short.estimated] + list(short.scales[6:]))[:q]
+    scatter = fit.theta[:, :q].std(axis=0)  # the estimate's true error, over the draws
+    ls_std = np.sqrt(np.mean(fit.ls_std[:, :q] ** 2, axis=0))
+    spread_se = np.sqrt(np.mean(fit.spread_se[:, :q] ** 2, axis=0))
+    core_only = noise_v * np.sqrt(np.diag(np.linalg.inv(X[core, :q].T @ X[core, :q]))) / units
+    print("least squares / true:", ls_std / scatter, "spread / true:", spread_se / scatter,
+          "core rows' own / true:", core_only / scatter)
+    assert np.min(core_only / scatter) < 0.8  # the case is one where the held terms' error matters
+    np.testing.assert_allclose(ls_std / scatter, 1.0, atol=0.08)
+    assert np.all(spread_se / scatter > 0.92) and np.all(spread_se / scatter < 1.2)
