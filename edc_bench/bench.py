@@ -186,7 +186,8 @@ def _stop_rule(variant: Variant, o: BenchOptions, baseline: Baseline | None) -> 
     from edc_bench.verdict.classifier import default_classifier
     from edc_bench.verdict.early_stop import EarlyStop
 
-    return EarlyStop(variant, baseline, default_classifier(str(o.classifier_path) if o.classifier_path else None))
+    return EarlyStop(variant, baseline,
+                     default_classifier(str(o.classifier_path) if o.classifier_path else None, variant))
 
 
 def _run_loop(loop: BenchLoop, stream_can_log: Callable[[], Path] | None) -> tuple[LoopOutcome, Path | None]:

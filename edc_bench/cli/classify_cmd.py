@@ -30,7 +30,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--a1", type=positive_float("a1 in V s/mm as 'edc-bench test' prints it, e.g. 0.0038"),
                    default=None, help="identified a1 in V s/mm")
     p.add_argument("--model", type=Path, default=None,
-                   help="ONNX model (default: the station's: the adopted one, else the packaged network)")
+                   help="ONNX model (default: the variant's own if its [diagnosis] model names one, else the "
+                   "station's: the adopted one, else the packaged network)")
     p.add_argument("--nominal-baseline", action="store_true",
                    help="judge a variant that has no measured baseline against its nominal figures (as "
                         "'edc-bench test --nominal-baseline'); without it such a variant is not judged")

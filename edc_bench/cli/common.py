@@ -185,7 +185,8 @@ def add_population_arguments(parser: argparse.ArgumentParser, count: int, seed: 
     parser.add_argument("--seed", type=seed_number, default=seed,
                         help=f"population seed (default: {seed}; the shipped models were trained with 2026)")
     parser.add_argument("--model", type=Path, default=None,
-                        help="ONNX model (default: the station's: the adopted one, else the packaged network)")
+                        help="ONNX model (default: the variant's own if its [diagnosis] model names one, else the "
+                        "station's: the adopted one, else the packaged network)")
 
 
 def check_population_inputs(args: argparse.Namespace) -> None:

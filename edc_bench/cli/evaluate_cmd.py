@@ -56,8 +56,11 @@ def run(args: argparse.Namespace) -> int:
 
         other = "--from-history" if args.from_history else "--time-to-verdict"
         raise ConfigError(f"--coverage and {other} are two different studies: give one of them")
-    classifier = ValveClassifier(args.model)
+    # a given --model judges every variant; without it each variant's valves are judged by their own model (the
+    # station's, or the one the variant names)
+    classifier = ValveClassifier(args.model) if args.model is not None else None
     if args.from_history:
+        classifier = classifier or ValveClassifier()  # the history's tests: the station's model
         from edc_bench.cli.common import history_label_dataset
 
         dataset, where = history_label_dataset(args.db, args.include_simulated)
@@ -84,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(report, indent=2))
         return 0
     print(f"held-out population: {report['tests']} valves ({', '.join(args.variants)}), seed {args.seed}; "
-          f"{report['tests_per_minute']:.0f} bench tests per minute (batch path)", file=sys.stderr)
+          f"{report['tests_per_minute']:.0f} bench tests per minute (batch path); judged by "
+          f"{', '.join(report['models'])}", file=sys.stderr)
     print(f"INVALID (not converged): {report['invalid']}")
     _print_report(report, "by physics")
     return 0
@@ -102,12 +106,13 @@ def _time_to_verdict(args: argparse.Namespace, classifier) -> int:
     from edc_bench.experiments.studies import time_to_verdict
 
     report = time_to_verdict(classifier, list(args.variants), args.count, args.seed)
-    report["model"] = classifier.name
+    models = sorted({v["model"] for v in report["per_variant"].values()})
+    report["model"] = ", ".join(models)
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
     print(f"time to verdict: {report['valves']} simulated valves ({', '.join(args.variants)}), seed {args.seed}, "
-          f"judged by {classifier.name}")
+          f"judged by {report['model']}")
     print(f"  median {report['median_s']:.1f} s, 95th percentile {report['p95_s']:.1f} s")
     for name, v in report["per_variant"].items():
         print(f"  {name}: median {v['median_s']:.1f} s, 95th percentile {v['p95_s']:.1f} s "
@@ -131,14 +136,16 @@ def _coverage(args: argparse.Namespace, classifier) -> int:
             print(f"{name}: {args.count} valves against a baseline of {args.calibration_valves} new ones ...",
                   file=sys.stderr)
         reports.append(coverage_study(populations[name], classifier, args.count, args.seed, args.calibration_valves))
+    model = ", ".join(sorted({r["model"] for r in reports}))
     if args.json:
-        print(json.dumps({"model": classifier.name, "populations": reports}, indent=2))
+        print(json.dumps({"model": model, "populations": reports}, indent=2))
         return 0
-    print(f"judged by {classifier.name}, seed {args.seed}; the truth is the simulated plant's; within: af "
+    print(f"judged by {model}, seed {args.seed}; the truth is the simulated plant's; within: af "
           f"{TOLERANCE_REL['af']:.0%}, a1 {TOLERANCE_REL['a1']:.0%} of it; covered: the 99 % interval holds the "
           f"true ratio (the valve's true feature over the calibration valves' true mean)")
     for r in reports:
-        print(f"{r['population']} ({r['variant']}): {r['judged']} of {r['valves']} judged; baseline from "
+        print(f"{r['population']} ({r['variant']}, judged by {r['model']}): {r['judged']} of {r['valves']} judged; "
+              f"baseline from "
               f"{r['baseline_tests']} new valves, off its truth by af {r['af']['baseline_error']:+.1%}, "
               f"a1 {r['a1']['baseline_error']:+.1%}")
         for name in ("af", "a1"):

@@ -30,7 +30,7 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
                             "findings, corrections and withdrawals, with who and when")
     chain.add_argument("--verify", action="store_true",
                        help="read every indexed record folder again: list the missing and those changed since they "
-                            f"were indexed (exit 16 if any)")
+                            "were indexed (exit 16 if any)")
     chain.add_argument("--rig", action="store_true",
                        help="the rig self-check's ledger: each reference valve registered, each 'edc-bench "
                             "rig-selfcheck', GO or NO-GO, what drifted, and each figure's change against the "

@@ -51,6 +51,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="train on this dataset file instead of simulating")
     p.add_argument("--save-dataset", type=Path, default=None, metavar="FILE",
                    help="also write the simulated dataset to this file")
+    p.add_argument("--own", action="store_true",
+                   help="train one variant's own network (give one --variants name): written as "
+                        "valve_mlp-NAME.onnx, which the variant's [diagnosis] model line names, for a pump whose "
+                        "resisting force splits between friction and damping unlike the shipped network's pumps")
     p.add_argument("--models-dir", type=Path, default=None, metavar="DIR",
                    help="folder to write the models into (default: the package's models folder)")
     add_hidden_alias(p, "--out-dir", "models_dir", type=Path)  # its name before the flags were made consistent
@@ -79,8 +83,14 @@ def run(args: argparse.Namespace) -> int:
     """Simulate (or load) the data, train both models, write them."""
     from edc_bench.errors import ConfigError
     from edc_bench.learning.dataset import Dataset, make_dataset
-    from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, packaged_model_path
+    from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, own_model_file, packaged_model_path
 
+    if args.own and args.adopt is not None:
+        raise ConfigError("--own trains a variant's own network; --adopt makes a candidate the station's model: "
+                          "give one of them")
+    if args.own and (args.from_history or len(args.variants) != 1):  # before seconds of importing scikit-learn
+        raise ConfigError("--own trains one variant's own network from its simulated population: give one "
+                          "--variants NAME, without --from-history")
     if args.adopt is not None:  # adopting needs no training extra
         return _adopt(args)
     try:
@@ -110,7 +120,10 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         if args.save_dataset is not None:
             dataset.save(args.save_dataset)
-    for kind, name in (("mlp", DEFAULT_MODEL), ("linear", LINEAR_MODEL)):
+    # a variant's own: the network only (the shipped pair's linear model is a yardstick for the network)
+    kinds = [("mlp", own_model_file(args.variants[0]))] if args.own else [("mlp", DEFAULT_MODEL),
+                                                                          ("linear", LINEAR_MODEL)]
+    for kind, name in kinds:
         model = train(dataset, kind, args.seed, marginal_band=args.marginal_band)
         (out_dir / name).write_bytes(model.onnx_bytes)
         print(f"{kind}: training accuracy {model.train_accuracy:.4f} on {len(dataset)} tests -> {out_dir / name}")

@@ -12,6 +12,7 @@ without tripping over-current) are checked in :class:`Variant`.
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Any, ClassVar, Literal, NamedTuple, get_args
 
 from pydantic import (
@@ -473,6 +474,21 @@ class DiagnosisSection(_Section):
     resistance_speed_mm_s: PositiveFloat
     resistance_limit_n: PositiveFloat
     population: PopulationSection
+    model: str | None = Field(
+        default=None,
+        description="the classifier this pump's valves are judged by, a file name (built with 'edc-bench train "
+                    "--variants NAME --own'), looked up in the station's models folder, then the package's; none: "
+                    "the station's model (adopted, else the shipped network). For a pump whose resisting force "
+                    "splits between friction and damping unlike the shipped network's pumps: one boundary in "
+                    "(af/af0, a1/a1_0) does not serve both (docs/diagnosis.md)")
+
+    @field_validator("model")
+    @classmethod
+    def _model_file_name(cls, value: str | None) -> str | None:
+        if value is not None and not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]{0,115}\.onnx", value):
+            raise ValueError("give the model's file name alone (letters, digits, '.', '_', '-', ending in .onnx, "
+                             "as 'edc-bench train --variants NAME --own' writes valve_mlp-NAME.onnx), not a path")
+        return value
 
 
 class SelfcheckSection(_Section):

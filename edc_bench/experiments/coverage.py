@@ -38,7 +38,7 @@ from edc_bench.population.batch_stop import StopOutcome, StopRule
 from edc_bench.population.calibrate import population_run
 from edc_bench.population.valves import draw_population
 from edc_bench.verdict.baseline import Baseline, baseline_from_tests
-from edc_bench.verdict.classifier import ValveClassifier
+from edc_bench.verdict.classifier import ValveClassifier, judge_of
 
 AF, A1 = PARAMETER_NAMES.index("af"), PARAMETER_NAMES.index("a1")
 FEATURES = ("af", "a1")
@@ -111,19 +111,22 @@ def shop_baseline(variant: Variant, valves: int, seed: int) -> ShopBaseline:
     return ShopBaseline(measured, result.truth[result.trusted][:, [AF, A1]].mean(axis=0))
 
 
-def coverage_study(population: CoveragePopulation, classifier: ValveClassifier, count: int, seed: int,
+def coverage_study(population: CoveragePopulation, classifier: ValveClassifier | None, count: int, seed: int,
                    calibration_valves: int = 5) -> dict[str, Any]:
     """Judge ``count`` used valves of ``population`` against a baseline of ``calibration_valves`` new ones.
 
-    The baseline's valves are drawn with ``seed + 1``, the population with ``seed``.
+    The baseline's valves are drawn with ``seed + 1``, the population with ``seed``. They are judged by
+    ``classifier``, or (None) by the model that judges the population's pump
+    (:func:`~edc_bench.verdict.classifier.judge_of`).
 
     Returns
     -------
     dict
-        ``population``, ``variant``, ``valves``, ``calibration_valves``, ``baseline_tests``, ``seed``, and
-        :func:`coverage_figures`'s figures.
+        ``population``, ``variant``, ``model`` (the judging model's name), ``valves``, ``calibration_valves``,
+        ``baseline_tests``, ``seed``, and :func:`coverage_figures`'s figures.
     """
     variant = population.variant
+    classifier = judge_of(variant, classifier)
     shop = shop_baseline(variant, calibration_valves, seed + 1)
     valves = population.draw(variant, count, seed)
     result = run_batch(variant, valves, [seed * 100_000 + n for n in range(count)],
@@ -131,7 +134,7 @@ def coverage_study(population: CoveragePopulation, classifier: ValveClassifier, 
     assert result.stop is not None  # a run with a stop rule records its stops
     labels = np.array([is_faulty(variant, v) for v in valves])
     figures = coverage_figures(result.stop, result.parameters, result.truth, shop, classifier, labels)
-    return {"population": population.name, "variant": variant.name, "valves": count,
+    return {"population": population.name, "variant": variant.name, "model": classifier.name, "valves": count,
             "calibration_valves": calibration_valves, "baseline_tests": shop.measured.tests, "seed": seed, **figures}
 
 

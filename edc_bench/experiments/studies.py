@@ -24,7 +24,7 @@ from edc_bench.population.batch import BatchResult, run_batch
 from edc_bench.population.batch_stop import StopOutcome, StopRule
 from edc_bench.population.valves import draw_population, new_valves
 from edc_bench.verdict.baseline import Baseline, load_baseline
-from edc_bench.verdict.classifier import ValveClassifier
+from edc_bench.verdict.classifier import ValveClassifier, judge_of
 from edc_bench.verdict.verdicts import Verdict
 
 # --------------------------------------------------------------------------- time to verdict
@@ -60,12 +60,13 @@ def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassi
     return stopped.periods, stopped.trusted, stopped.features_rel, stopped.misfit
 
 
-def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count_per_variant: int,
+def time_to_verdict(classifier: ValveClassifier | None, variant_names: list[str], count_per_variant: int,
                     seed: int) -> dict[str, Any]:
     """Early stop against the full-length test on a simulated population (batch path, the loop's rule).
 
     Every valve's test is simulated to its full length once and stopped by :func:`early_outcome`. Both verdicts
-    are compared with the physical labels.
+    are compared with the physical labels. Each variant's valves are judged by ``classifier``, or (None) by the
+    model that judges that variant's (:func:`~edc_bench.verdict.classifier.judge_of`).
 
     Returns
     -------
@@ -74,39 +75,37 @@ def time_to_verdict(classifier: ValveClassifier, variant_names: list[str], count
         :func:`verdict_counts`; per variant the median and 95th percentile (each a stop time some test had: tests
         stop only at a period's end, so an interpolated percentile would name a time no test stopped at).
     """
-    stop_all, early_v, full_v, truth_all = [], [], [], []
-    early_ok, full_ok = [], []
+    stop_all, truth_all = [], []
+    judged: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {"early": [], "full": []}  # (trusted, verdicts)
     per_variant = {}
     for v_index, name in enumerate(variant_names):
         variant = load_variant(name)
+        judge = judge_of(variant, classifier)
         baseline = load_baseline(variant, station=False)
         population_seed = seed * 1000 + v_index
         valves = draw_population(variant, count_per_variant, population_seed)
         seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]
         result = run_batch(variant, valves, seeds)
         periods = result.periods
-        stop_p, stop_trusted, stop_features, _ = early_outcome(variant, result, classifier, baseline)
+        stop_p, stop_trusted, stop_features, _ = early_outcome(variant, result, judge, baseline)
         stop_s = np.array([periods.stop_time_s(int(p)) for p in stop_p])
-        full_trusted = result.trusted
         full_features = result.parameters[:, [5, 2]] / np.array([baseline.af_v, baseline.a1_v_s_per_mm])
-        truth = np.array([is_faulty(variant, v) for v in valves])
+        for label, features, ok in (("early", stop_features, stop_trusted), ("full", full_features, result.trusted)):
+            verdicts = judge.classify_many(np.where(np.isfinite(features), features, 1.0)[ok])[0]
+            judged[label].append((ok, verdicts))
         stop_all.append(stop_s)
-        truth_all.append(truth)
-        early_ok.append(stop_trusted)
-        full_ok.append(full_trusted)
-        early_v.append(stop_features)
-        full_v.append(full_features)
+        truth_all.append(np.array([is_faulty(variant, v) for v in valves]))
         per_variant[name] = {"valves": len(valves), "median_s": float(np.percentile(stop_s, 50, method="higher")),
                              "p95_s": float(np.percentile(stop_s, 95, method="higher")),
-                             "full_length_s": float(variant.excitation.duration_s)}
+                             "full_length_s": float(variant.excitation.duration_s), "model": judge.name}
     stop = np.concatenate(stop_all)
     truth = np.concatenate(truth_all)
     out: dict[str, Any] = {"valves": len(stop), "median_s": float(np.percentile(stop, 50, method="higher")),
                            "p95_s": float(np.percentile(stop, 95, method="higher")), "per_variant": per_variant,
                            "stop_s": stop.tolist()}
-    for label, features, ok in (("early", early_v, early_ok), ("full", full_v, full_ok)):
-        f, good = np.concatenate(features), np.concatenate(ok)
-        verdicts, _, _ = classifier.classify_many(np.where(np.isfinite(f), f, 1.0)[good])
+    for label, parts in judged.items():
+        good = np.concatenate([ok for ok, _ in parts])
+        verdicts = np.concatenate([v for _, v in parts])
         out[label] = {"invalid": int((~good).sum()), "judged": int(good.sum()),
                       **verdict_counts(verdicts, truth[good])}
     return out
@@ -130,13 +129,13 @@ def with_gain_variation(variant: Variant, variation_rel: float) -> Variant:
     return parse_variant(data)
 
 
-def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: int, seed: int,
+def gain_sweep(classifier: ValveClassifier | None, variations_rel: list[float], count: int, seed: int,
                variant_name: str = "p-edc-hard") -> list[dict[str, Any]]:
     """What the bench makes of pumps whose solenoid's gain varies more than the model's first order covers.
 
     One population of ``count`` used valves of ``variant_name`` (seed ``seed``), each on a pump whose force
-    constant varies by each of ``variations_rel`` over the swing, judged against the variant's baseline and
-    stopped by the bench's rule (:func:`early_outcome`). A pump the bench judges must be identified as well as the
+    constant varies by each of ``variations_rel`` over the swing, judged by ``classifier`` (None: the variant's
+    model) against the variant's baseline and stopped by the bench's rule (:func:`early_outcome`). A pump the bench judges must be identified as well as the
     hard variant is held to; the others must be INVALID "does not fit".
 
     Returns
@@ -151,6 +150,7 @@ def gain_sweep(classifier: ValveClassifier, variations_rel: list[float], count: 
         ``gain_identified`` and ``repeating_ratio`` (the residual's repeating part over the sensor noise), (min, max).
     """
     base_variant = load_variant(variant_name)
+    classifier = judge_of(base_variant, classifier)
     baseline = load_baseline(base_variant, station=False)
     valves = draw_population(base_variant, count, seed)
     seeds = [seed * 100_000 + n for n in range(count)]

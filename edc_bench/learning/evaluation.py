@@ -6,20 +6,34 @@ from typing import Any
 
 import numpy as np
 
+from edc_bench.config import load_variant
 from edc_bench.learning.dataset import Dataset
-from edc_bench.verdict.classifier import ValveClassifier
+from edc_bench.verdict.classifier import ValveClassifier, judge_of
 from edc_bench.verdict.verdicts import Verdict
 
 
-def evaluate(classifier: ValveClassifier, dataset: Dataset) -> dict[str, Any]:
+def evaluate(classifier: ValveClassifier | None, dataset: Dataset) -> dict[str, Any]:
     """Verdicts on a dataset against its physical labels.
 
-    Tests that did not converge are INVALID and not judged (counted apart).
+    Tests that did not converge are INVALID and not judged (counted apart). Judged by ``classifier``, or (None)
+    each variant's valves by the model that judges that variant's (the dataset's ``variants`` and
+    ``variant_index``); ``models`` names the models that judged.
     """
     ok = dataset.columns["converged"].astype(bool)
-    verdicts, _, _ = classifier.classify_many(dataset.features[ok])
+    if classifier is not None:
+        judges = {0: classifier}
+        which = np.zeros(len(dataset), dtype=int)
+    else:
+        judges = {n: judge_of(load_variant(name), None) for n, name in enumerate(dataset.provenance["variants"])}
+        which = dataset.columns["variant_index"].astype(int)
+    verdicts = np.full(len(dataset), "", dtype=object)
+    for n, judge in judges.items():
+        rows = ok & (which == n)
+        if rows.any():
+            verdicts[rows] = judge.classify_many(dataset.features[rows])[0]
     return {"tests": len(dataset), "invalid": int((~ok).sum()), "judged": int(ok.sum()),
-            **verdict_counts(verdicts, dataset.labels[ok] == 1)}
+            "models": sorted({judge.name for judge in judges.values()}),
+            **verdict_counts(verdicts[ok], dataset.labels[ok] == 1)}
 
 
 def verdict_counts(verdicts: np.ndarray, truth: np.ndarray) -> dict[str, Any]:

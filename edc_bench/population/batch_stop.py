@@ -62,8 +62,8 @@ class StopRule:
 
     @classmethod
     def shipped(cls, variant: Variant) -> StopRule:
-        """The rule with the packaged classifier and ``variant``'s packaged baseline."""
-        return cls.of(variant, default_classifier(), load_baseline(variant, station=False))
+        """The rule with the model ``variant``'s valves are judged by and ``variant``'s packaged baseline."""
+        return cls.of(variant, default_classifier(variant=variant), load_baseline(variant, station=False))
 
     def decide(self, periods: int, last: bool, at: BatchIdentification, noise_v: float,
                reference_condition: float) -> StopDecision:

@@ -19,11 +19,15 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from edc_bench.errors import ConfigError
 from edc_bench.verdict.verdicts import Verdict
+
+if TYPE_CHECKING:
+    from edc_bench.config.models import Variant
 
 DEFAULT_MODEL = "valve_mlp.onnx"
 LINEAR_MODEL = "valve_linear.onnx"
@@ -82,6 +86,40 @@ def station_model_path() -> Path:
     """The model this station judges with: the adopted one, else the packaged network."""
     adoption = adopted_model()
     return Path(adoption["path"]) if adoption else packaged_model_path()
+
+
+def own_model_file(variant_name: str) -> str:
+    """The file name ``edc-bench train --variants NAME --own`` gives a variant's own network."""
+    return f"valve_mlp-{variant_name}.onnx"
+
+
+def shipped_model_path(variant: Variant) -> Path:
+    """The packaged model ``variant``'s valves are judged by on a station that adopted and built none: its own, if
+    its ``[diagnosis] model`` names one, else the shipped network (for figures that must not depend on a
+    station)."""
+    return packaged_model_path(variant.diagnosis.model or DEFAULT_MODEL)
+
+
+def variant_model_path(variant: Variant) -> Path:
+    """The model ``variant``'s valves are judged by: the one its ``[diagnosis] model`` names (in the station's
+    models folder, else the package's), else the station's (:func:`station_model_path`).
+
+    Raises
+    ------
+    ConfigError
+        If the variant names a model that is in neither folder.
+    """
+    name = variant.diagnosis.model
+    if name is None:
+        return station_model_path()
+    folders = (station_models_dir(), packaged_model_path().parent)
+    for folder in folders:
+        if (folder / name).is_file():
+            return folder / name
+    raise ConfigError(f"variant {variant.name} is judged by its own classifier {name}, which is in neither "
+                      f"{folders[0]} nor {folders[1]}: build it with 'edc-bench train --variants {variant.name} "
+                      f"--own --models-dir {folders[0]}', or delete the [diagnosis] model line to judge with the "
+                      "station's model")
 
 
 def find_model(sha256: str) -> Path | None:
@@ -248,9 +286,18 @@ class ValveClassifier:
         return A, B, p
 
 
-def default_classifier(path: str | None = None) -> ValveClassifier:
-    """One session per model per process (created on first use); None: the station's model."""
-    return _session(str(Path(path).resolve()) if path else str(station_model_path().resolve()))
+def default_classifier(path: str | None = None, variant: Variant | None = None) -> ValveClassifier:
+    """One session per model per process (created on first use): ``path``, else the model ``variant``'s valves are
+    judged by (:func:`variant_model_path`), else the station's model."""
+    if path:
+        return _session(str(Path(path).resolve()))
+    return _session(str((variant_model_path(variant) if variant is not None else station_model_path()).resolve()))
+
+
+def judge_of(variant: Variant, classifier: ValveClassifier | None) -> ValveClassifier:
+    """``classifier`` where one is given (a study's ``--model``), else the model ``variant``'s valves are judged
+    by."""
+    return classifier if classifier is not None else default_classifier(variant=variant)
 
 
 @lru_cache(maxsize=4)

@@ -259,7 +259,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             judgement.baseline = None  # nothing was compared with it
             judgement.reasons = ([bad_coil] if bad_coil else []) + [not_calibrated_reason(variant, calibrate_command)]
             return judgement
-        judged, classifier = classify_against(baseline, features["af"], features["a1"], classifier_path)
+        judged, classifier = classify_against(baseline, features["af"], features["a1"], classifier_path, variant)
         judgement.verdict = Verdict(judged.verdict)
         judgement.classification = classification_dict(judged, classifier)
         judgement.reference_values = reference_values(variant, baseline)
@@ -329,14 +329,17 @@ def classify_features(variant: Variant, af: float, a1: float,
         The judgement, the baseline and the classifier that judged.
     """
     baseline = load_baseline(variant)
-    judged, classifier = classify_against(baseline, af, a1, classifier_path)
+    judged, classifier = classify_against(baseline, af, a1, classifier_path, variant)
     return judged, baseline, classifier
 
 
-def classify_against(baseline: Baseline, af: float, a1: float,
-                     classifier_path: Path | None = None) -> tuple[Classification, ValveClassifier]:
-    """Judge features with the classifier against ``baseline``; the judgement and the classifier that judged."""
-    classifier = default_classifier(str(classifier_path) if classifier_path else None)
+def classify_against(baseline: Baseline, af: float, a1: float, classifier_path: Path | None = None,
+                     variant: Variant | None = None) -> tuple[Classification, ValveClassifier]:
+    """Judge features with the classifier against ``baseline``; the judgement and the classifier that judged.
+
+    The classifier is ``classifier_path``'s, else the one ``variant``'s valves are judged by
+    (:func:`~edc_bench.verdict.classifier.variant_model_path`), else the station's."""
+    classifier = default_classifier(str(classifier_path) if classifier_path else None, variant)
     return classifier.classify(*baseline.relative(af, a1)), classifier
 
 

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, packaged_model_path
+from edc_bench.config import load_variant
+from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, own_model_file, packaged_model_path
 
 
 @pytest.mark.slow
@@ -21,6 +22,14 @@ def test_train_rebuilds_the_shipped_models_byte_for_byte(tmp_path: Path) -> None
     assert proc.returncode == 0, proc.stderr
     for name in (DEFAULT_MODEL, LINEAR_MODEL):
         assert (tmp_path / name).read_bytes() == packaged_model_path(name).read_bytes(), name
+    # and the hard variant's own network, with the command its variant file names
+    own = subprocess.run([sys.executable, "-m", "edc_bench", "train", "--variants", "p-edc-hard", "--own",
+                          "--models-dir", str(tmp_path)], capture_output=True, text=True, cwd=tmp_path, timeout=600,
+                         env=env)
+    assert own.returncode == 0, own.stderr
+    name = load_variant("p-edc-hard").diagnosis.model
+    assert name == own_model_file("p-edc-hard")
+    assert (tmp_path / name).read_bytes() == packaged_model_path(name).read_bytes(), name
 
 
 def _synthetic_dataset(rows: int, seed: int):

@@ -26,7 +26,7 @@ from edc_bench.population.valves import draw_population
 from edc_bench.runtime.gain_check import check_variant_gains
 from edc_bench.sim.adapter import parse_adapter
 from edc_bench.verdict.baseline import load_baseline
-from edc_bench.verdict.classifier import ValveClassifier
+from edc_bench.verdict.classifier import default_classifier
 from edc_bench.verdict.verdicts import Verdict
 
 VALVES = 200
@@ -46,7 +46,7 @@ def verdicts(variant: Variant, parameters: np.ndarray) -> np.ndarray:
     baseline = load_baseline(variant)
     rel = np.column_stack([parameters[:, PARAMETER_NAMES.index("af")] / baseline.af_v,
                            parameters[:, PARAMETER_NAMES.index("a1")] / baseline.a1_v_s_per_mm])
-    return ValveClassifier().classify_many(rel)[0]
+    return default_classifier(variant=variant).classify_many(rel)[0]
 
 
 @pytest.mark.slow

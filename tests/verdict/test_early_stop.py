@@ -95,6 +95,13 @@ def test_a_slow_to_decide_valve_runs_several_periods_and_stops_certain(spread_ru
     assert result.stop["reason"] == "verdict certain" and result.stop["periods"] >= 6
     searched = [b for b in boxes if b[3] and not b[4]]  # trusted, not yet certain: the expected end is searched
     assert len(searched) >= 3
+    # the stop records the box's fixed parts, the residual's among them; the whole is the last box the rule judged
+    box = boxes[-1][2]
+    for part in ("misfit", "baseline", "residual"):
+        recorded = result.stop[f"{part}_half_width_rel"]
+        np.testing.assert_allclose([recorded["af"], recorded["a1"]], getattr(box, part)[0], rtol=1e-12)
+    np.testing.assert_allclose([result.stop["half_width_rel"]["af"], result.stop["half_width_rel"]["a1"]],
+                               (box.statistical + box.misfit + box.baseline + box.residual)[0], rtol=1e-12)
 
 
 def test_no_call_smooths_more_than_a_step_of_rows_or_asks_the_classifier_more_than_once(spread_run) -> None:
