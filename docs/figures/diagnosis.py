@@ -292,6 +292,41 @@ def held_out_table() -> str:
     return head + body + "\n\n" + held_out_paragraph()
 
 
+@measurement("diagnosis-own-model", minutes=0.5)
+def own_model() -> dict[str, Any]:
+    """``edc-bench evaluate --variants p-edc-hard`` (the held-out seed, 300 valves), judged by the variant's own
+    network (the default) and by the shipped one (``--model``)."""
+    from edc_bench.learning.dataset import make_dataset
+    from edc_bench.learning.evaluation import evaluate
+
+    count, seed = 300, 777
+    with isolated_station():
+        dataset = make_dataset(["p-edc-hard"], count, seed)
+        keep = ("tests", "invalid", "judged", "marginal", "faulty_passed", "reusable_failed", "faulty", "reusable",
+                "models")
+        out: dict[str, Any] = {"count": count, "seed": seed}
+        for label, classifier in (("own", None), ("shipped", shipped_classifier())):
+            report = evaluate(classifier, dataset)
+            out[label] = {**{k: report[k] for k in keep},
+                          "accuracy_outside_band": round(report["accuracy_outside_band"], 6)}
+    return out
+
+
+def own_model_table() -> str:
+    """The hard pump's held-out valves judged by its own network and by the shipped one."""
+    e = stored("diagnosis-own-model")
+    rows = []
+    for key, label in (("own", f"its own, `{e['own']['models'][0]}` (`edc-bench evaluate --variants p-edc-hard`)"),
+                       ("shipped", "the shipped network (`--model edc_bench/verdict/models/valve_mlp.onnx`)")):
+        r = e[key]
+        rows.append((label, r["tests"], f"{r['marginal']} ({percent(r['marginal'] / r['judged'])})",
+                     percent(r["accuracy_outside_band"], 2), r["faulty_passed"], r["reusable_failed"]))
+    head = (f"{e['own']['tests']} held-out valves of `p-edc-hard` (seed {e['seed']}, not used in training; "
+            f"{e['own']['faulty']} faulty and {e['own']['reusable']} reusable by physics):\n\n")
+    return head + table(("judged by", "valves", "MARGINAL", "right outside the band", "faulty passed",
+                         "reusable failed"), rows)
+
+
 def held_out_paragraph() -> str:
     """What the held-out figures say about the boundary and the band."""
     e = stored("diagnosis-evaluate")

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from figures.common import measurement, percent, shipped_classifier, span, stored, table
+from figures.common import measurement, percent, span, stored, table
 
 DEFAULT = "p-edc-default"
 #: The shipped pump variants (configs/*.toml; `edc-bench variants`).
@@ -569,6 +569,7 @@ def _latency_figures(variant: Any, instant: Any, delayed: Any) -> dict[str, Any]
     """af and a1 through the link against the same valves without it, and how many verdicts changed."""
     from edc_bench.config.models import PARAMETER_NAMES
     from edc_bench.verdict.baseline import load_baseline
+    from edc_bench.verdict.classifier import judge_of
     out: dict[str, Any] = {}
     for name in ("af", "a1"):
         j = PARAMETER_NAMES.index(name)
@@ -580,7 +581,7 @@ def _latency_figures(variant: Any, instant: Any, delayed: Any) -> dict[str, Any]
     for result in (instant, delayed):
         rel = np.column_stack([result.parameters[:, PARAMETER_NAMES.index("af")] / baseline.af_v,
                                result.parameters[:, PARAMETER_NAMES.index("a1")] / baseline.a1_v_s_per_mm])
-        verdicts.append(shipped_classifier().classify_many(rel)[0])
+        verdicts.append(judge_of(variant, None).classify_many(rel)[0])
     out["verdicts_changed"] = int((np.asarray(verdicts[0]) != np.asarray(verdicts[1])).sum())
     out["converged"] = int(delayed.converged.sum())
     return out
@@ -803,10 +804,9 @@ def gain_sweep() -> dict[str, Any]:
     """60 used valves of p-edc-hard (seed 5) on pumps whose force constant varies by +/-10-30 % over the swing,
     stopped by the bench's rule (batch path): ``experiments.studies.gain_sweep``."""
     from edc_bench.experiments.studies import gain_sweep as sweep
-    from edc_bench.verdict.classifier import default_classifier
 
     rows = []
-    for row in sweep(default_classifier(), list(GAIN_VARIATIONS), 60, 5):
+    for row in sweep(None, list(GAIN_VARIATIONS), 60, 5):  # judged by p-edc-hard's own network
         rows.append({
             "variation_rel": row["variation_rel"], "valves": row["valves"], "judged": row["judged"],
             "misfit": row["misfit"],
