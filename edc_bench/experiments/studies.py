@@ -135,8 +135,8 @@ def gain_sweep(classifier: ValveClassifier | None, variations_rel: list[float], 
 
     One population of ``count`` used valves of ``variant_name`` (seed ``seed``), each on a pump whose force
     constant varies by each of ``variations_rel`` over the swing, judged by ``classifier`` (None: the variant's
-    model) against the variant's baseline and stopped by the bench's rule (:func:`early_outcome`). A pump the bench judges must be identified as well as the
-    hard variant is held to; the others must be INVALID "does not fit".
+    model) against the variant's baseline and stopped by the bench's rule (:func:`early_outcome`). A pump the bench
+    judges must be identified as well as the hard variant is held to; the others must be INVALID "does not fit".
 
     Returns
     -------

@@ -19,6 +19,7 @@ def _present(variant):
     return PidGains(c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm, c.derivative_filter_hz)
 
 
+@pytest.mark.slow  # 4 s: CI's slow pass (the default suite stays under 5 minutes)
 def test_gains_for_a_pump_with_twice_the_force_constant_keep_the_margins(tmp_path) -> None:
     variant = load_variant(write_new_pump_type(tmp_path))
     plant, period, delay = nominal_plant(variant), variant.controller.period_s, max_reply_age_ticks(variant)
@@ -32,7 +33,9 @@ def test_gains_for_a_pump_with_twice_the_force_constant_keep_the_margins(tmp_pat
     assert 0 < tuned.settling_s < 0.5 and tuned.closed_loop_bandwidth_hz > 5.0
 
 
-@pytest.mark.parametrize("name", ["p-edc-default", "p-edc-long", "paper"])
+# the other variants in CI's slow pass: the default suite stays under 5 minutes
+@pytest.mark.parametrize("name", ["p-edc-default", pytest.param("p-edc-long", marks=pytest.mark.slow),
+                                  pytest.param("paper", marks=pytest.mark.slow)])
 def test_proposed_gains_follow_at_least_as_fast_as_the_hand_tuned_ones(name: str) -> None:
     variant = load_variant(name)
     plant, period, delay = nominal_plant(variant), variant.controller.period_s, max_reply_age_ticks(variant)
@@ -50,6 +53,7 @@ def test_margins_no_pid_can_keep_are_refused_with_what_to_change() -> None:
         tune_pid(nominal_plant(variant), 0.001, 4, 60.0, 30.0)
 
 
+@pytest.mark.slow  # 4.5 s, as above
 def test_a_slow_adapter_gets_integral_dominated_gains() -> None:
     # 15 ms of reply age: only a PI whose integral corner lies above the crossover keeps the margins
     from edc_bench.config import with_changes

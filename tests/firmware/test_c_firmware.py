@@ -26,7 +26,7 @@ needs_library = pytest.mark.skipif(not c_firmware_available(),
 
 
 @needs_library
-@pytest.mark.parametrize("valve", ["new", "worn"])
+@pytest.mark.parametrize("valve", ["new", pytest.param("worn", marks=pytest.mark.slow)])  # worn: CI's slow pass
 def test_a_bench_test_through_the_c_firmware_gives_the_python_firmwares_verdict_and_features(valve: str) -> None:
     variant = load_variant()
     python = run_simulated_test(variant, valve, 4, check_gains=False)

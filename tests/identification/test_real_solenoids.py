@@ -150,7 +150,7 @@ def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within
 # ------------------------------------------------------------------------------------------- model fit
 
 
-@pytest.mark.parametrize("variation_rel", [0.30, -0.30], ids=["+30%", "-30%"])
+@pytest.mark.parametrize("variation_rel", [pytest.param(0.30, marks=pytest.mark.slow), -0.30], ids=["+30%", "-30%"])
 def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_early(hard, variation_rel: float) -> None:
     """Every valve, the faulty one included: with its friction not yet learnt it sticks and lags its reference on
     this pump (more than 1 mm off for about 50 ms at a time), stick-slip that the tracking check must not take for

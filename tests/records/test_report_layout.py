@@ -211,7 +211,10 @@ class local_time_zone:  # noqa: N801  (a context manager named as it reads)
         time.tzset()
 
 
-@pytest.mark.parametrize("kind", ["pass", "fail", "marginal", "invalid", "long values", "retest"])
+# pass, invalid and the retest in CI's slow pass: the default suite stays under 5 minutes
+@pytest.mark.parametrize("kind", [pytest.param("pass", marks=pytest.mark.slow), "fail", "marginal",
+                                  pytest.param("invalid", marks=pytest.mark.slow), "long values",
+                                  pytest.param("retest", marks=pytest.mark.slow)])
 def test_no_word_leaves_the_page_or_runs_into_another(report_of: Callable[[str], Path], kind: str) -> None:
     words, pages = pdf_words(report_of(kind))
     assert len(words) > 100  # the PDF's text is there to be read (not drawn as paths)

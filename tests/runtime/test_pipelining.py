@@ -178,7 +178,7 @@ def test_reordered_replies_are_matched_by_counter(simulated_bench) -> None:
     assert result.verdict == Verdict.FAIL and result.outcome.missed_replies == 0
 
 
-@pytest.mark.parametrize("adapter", [None, "usb-fs"])
+@pytest.mark.parametrize("adapter", [None, pytest.param("usb-fs", marks=pytest.mark.slow)])  # usb-fs: CI's slow pass
 def test_host_stalls_shorter_than_the_watchdog_are_gaps(variant: Variant, adapter: str | None,
                                                         tmp_path: Path) -> None:
     clocks: list[StallingClock] = []

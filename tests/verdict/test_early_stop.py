@@ -144,7 +144,7 @@ def test_the_expected_end_found_step_by_step_is_the_one_a_search_over_every_peri
     assert compared >= 3
 
 
-@pytest.mark.parametrize("adapter", [None, "usb-fs"])
+@pytest.mark.parametrize("adapter", [None, pytest.param("usb-fs", marks=pytest.mark.slow)])  # usb-fs: slow pass
 def test_rows_fed_a_step_at_a_time_sum_to_the_rows_of_the_whole_trace(adapter) -> None:
     """The accumulator the stop rule built step by step holds what one pass over the finished trace gives, for
     every period the test went on after (through a USB adapter's late replies too)."""
