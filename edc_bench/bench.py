@@ -70,7 +70,8 @@ class BenchOptions:
     classify : bool
         Judge a trustworthy test with the classifier (default); off for baseline calibration.
     classifier_path : pathlib.Path or None
-        ONNX model to judge with; the packaged (or adopted) one by default.
+        ONNX model to judge with; by default the one the variant's valves are judged by (its own, if its file names
+        one; else the station's: adopted, else packaged).
     check_gains : bool
         Check the PID gains' margins with python-control first (default).
     coil_temp_c : float or None
@@ -140,8 +141,13 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
     """
     o = options or BenchOptions()
     margins = check_variant_gains(variant) if o.check_gains else None
-    # loaded before the test: a damaged baseline file is refused now, not after it
+    # loaded before the test: a damaged baseline file, or a variant's own model that is missing, is refused now, not
+    # after it
     baseline = load_baseline(variant) if o.classify else None
+    if o.classify and o.classifier_path is None:
+        from edc_bench.verdict.classifier import variant_model_path
+
+        variant_model_path(variant)
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     stop_rule = _stop_rule(variant, o, baseline)
     loop = BenchLoop(bus, clock, variant, o.icd or default_icd(), o.observer, stop_requested=stop_requested,

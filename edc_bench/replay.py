@@ -168,8 +168,8 @@ EXACT_SCHEMA = 4
 #: The first record schema whose af and a1 are the period fit over the core rows (docs/method.md, section 7): an
 #: older record's were the fit over every used row, and replay, which identifies as today's edc-bench does, says so.
 CORE_ROWS_SCHEMA = 6
-#: The first record schema whose interval carries the held gain terms' error and the residual's repeating part
-#: (docs/method.md, section 7): an older record's early stop judged a narrower box.
+#: The first record schema whose uncertainties carry the held gain terms' error and whose interval the residual's
+#: repeating part (docs/method.md, section 7): an older record's std are smaller, its early stop judged a narrower box.
 RESIDUAL_SCHEMA = 7
 
 
@@ -240,7 +240,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
         if classifier_path is None:
             name = record.classification.model_name
             notes.append(f"the model that judged this test ({name}, sha256 {judged_by[:16]}...) is not on this "
-                         "station: judged with the station's model")
+                         "station: judged with the model that judges this variant's valves here")
     run = replay_frames(frames, variant, ticks_start_s=loop.ticks_start_s)
     planned = run.ticks if loop.ticks_planned is None else loop.ticks_planned
     abort = None if loop.abort is None else Abort.from_dict(loop.abort.model_dump())
@@ -277,10 +277,10 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            "section 7), so af, a1, their uncertainties and what follows from them (the early "
                            "stop, the verdict's distance) may differ from the recorded ones")
     elif record.schema_version < RESIDUAL_SCHEMA:
-        notes_after.append(f"recorded by an edc-bench whose interval left out the held gain terms' error and the "
-                           f"residual's repeating part (record schema {record.schema_version}); today's has them "
-                           "(docs/method.md, section 7), so the interval and the early stop may differ from the "
-                           "recorded ones")
+        notes_after.append(f"recorded by an edc-bench whose uncertainties left out the held gain terms' error, and "
+                           f"whose interval the residual's repeating part (record schema {record.schema_version}); "
+                           "today's have them (docs/method.md, section 7), so the parameters' std, and what follows "
+                           "from the interval (the early stop), may differ from the recorded ones")
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
     if altered:
         differences.insert(0, f"changed after the test (its integrity manifest): {', '.join(altered)}")

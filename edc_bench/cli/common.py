@@ -199,6 +199,11 @@ def check_population_inputs(args: argparse.Namespace) -> None:
         from edc_bench.verdict.classifier import ValveClassifier
 
         ValveClassifier(args.model)
+    else:  # each variant's own model, if its file names one: present?
+        from edc_bench.verdict.classifier import variant_model_path
+
+        for name in args.variants:
+            variant_model_path(load_variant(name))
 
 
 def print_quietly_if_closed(write: Callable[[], None]) -> None:

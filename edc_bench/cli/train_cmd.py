@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     """Simulate (or load) the data, train both models, write them."""
     from edc_bench.errors import ConfigError
     from edc_bench.learning.dataset import Dataset, make_dataset
-    from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, own_model_file, packaged_model_path
+    from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, packaged_model_path
 
     if args.own and args.adopt is not None:
         raise ConfigError("--own trains a variant's own network; --adopt makes a candidate the station's model: "
@@ -121,14 +121,23 @@ def run(args: argparse.Namespace) -> int:
         if args.save_dataset is not None:
             dataset.save(args.save_dataset)
     # a variant's own: the network only (the shipped pair's linear model is a yardstick for the network)
-    kinds = [("mlp", own_model_file(args.variants[0]))] if args.own else [("mlp", DEFAULT_MODEL),
-                                                                          ("linear", LINEAR_MODEL)]
+    kinds = [("mlp", _own_file(args.variants[0]))] if args.own else [("mlp", DEFAULT_MODEL), ("linear", LINEAR_MODEL)]
     for kind, name in kinds:
         model = train(dataset, kind, args.seed, marginal_band=args.marginal_band)
         (out_dir / name).write_bytes(model.onnx_bytes)
         print(f"{kind}: training accuracy {model.train_accuracy:.4f} on {len(dataset)} tests -> {out_dir / name}")
     print(f"training data sha256 {dataset.content_hash()}")
     return 0
+
+
+def _own_file(name: str) -> str:
+    """The file a variant's own network is written to: the one its ``[diagnosis] model`` line names, else
+    ``valve_mlp-<variant name>.onnx`` (which that line then names)."""
+    from edc_bench.config import load_variant
+    from edc_bench.verdict.classifier import own_model_file
+
+    variant = load_variant(name)  # a name, part number or file: the variant's own name
+    return variant.diagnosis.model or own_model_file(variant.name)
 
 
 def _check_training_inputs(args: argparse.Namespace) -> None:
@@ -145,7 +154,7 @@ def _check_training_inputs(args: argparse.Namespace) -> None:
         raise ConfigError(f"--dataset {args.dataset}: no such file; give a dataset written with --save-dataset")
     if args.save_dataset is not None:
         check_output_file(args.save_dataset, "--save-dataset")
-    if args.dataset is None:
+    if args.dataset is None or args.own:
         for name in args.variants:
             load_variant(name)
 
@@ -180,7 +189,8 @@ def _adopt(args: argparse.Namespace) -> int:
         print(f"this station judges with the shipped model again ({adopted[0].name}); recorded in {where}")
         return 0
     adoption = adopted[0]
-    print(f"this station now judges with {adoption['name']} (sha256 {adoption['sha256'][:16]}...), adopted by "
+    print(f"this station now judges with {adoption['name']} (sha256 {adoption['sha256'][:16]}...; a variant whose "
+          f"file names its own network keeps it), adopted by "
           f"{adoption['adopted_by']}; every record names it; recorded in {where}. Go back with: edc-bench train "
           "--adopt shipped")
     return 0

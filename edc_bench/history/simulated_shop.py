@@ -33,7 +33,7 @@ from edc_bench.learning.dataset import run_population
 from edc_bench.physics.wear import resisting_force_n
 from edc_bench.population.valves import draw_population
 from edc_bench.verdict.baseline import load_baseline
-from edc_bench.verdict.classifier import ValveClassifier
+from edc_bench.verdict.classifier import default_classifier
 from edc_bench.verdict.verdicts import Verdict
 
 SHOP_START = dt.datetime(2026, 1, 5, 8, 0, tzinfo=dt.UTC)
@@ -49,7 +49,6 @@ def simulate_shop(store: HistoryStore, count: int, seed: int, *, scrap_factor: f
     """
     if count < 1 or not 0 < scrap_factor <= 1.5:
         raise ValueError("count must be at least 1 and scrap_factor in (0, 1.5]")
-    classifier = ValveClassifier()
     workers = workers or os.cpu_count() or 1
     counts = {"tests": 0, "labelled": 0, "worn_by_shop": 0, "worn_by_variant": 0, "invalid": 0}
     index = 0
@@ -59,6 +58,7 @@ def simulate_shop(store: HistoryStore, count: int, seed: int, *, scrap_factor: f
         if n == 0:
             continue
         baseline = load_baseline(variant, station=False)  # simulated features: the shipped simulated baseline
+        classifier = default_classifier(variant=variant)  # as the bench judges this variant's valves
         population_seed = seed * 1000 + 500 + v_index  # apart from the training and evaluation seeds
         valves = draw_population(variant, n, population_seed)
         features, converged = run_population(variant, valves, [population_seed * 100_000 + k for k in range(n)],

@@ -565,9 +565,10 @@ class PeriodFit:
     systematic_rms_v : numpy.ndarray
         The residual's part that repeats from period to period (RMS, V): the model's misfit.
     spread_se : numpy.ndarray
-        ([N,] p) standard error of the mean from the periods' spread (NaN with fewer than two periods).
+        ([N,] p) standard error of the mean from the periods' spread, with the held gain terms' error added (the
+        same in every period, the spread does not see it; NaN with fewer than two periods).
     ls_std : numpy.ndarray
-        ([N,] p) the least-squares standard error, from the residual.
+        ([N,] p) the least-squares standard error, from the residual, with the held gain terms' error added.
     periods_used : numpy.ndarray
         Periods with rows enough for their own solution (the spread's degrees of freedom are one fewer).
     core_shift : numpy.ndarray
@@ -681,7 +682,8 @@ def _held_covariance(A_full: np.ndarray, inverse: np.ndarray, held: _Normal,
     moves theta_q by -M (theta_g's error), M = A_qq^-1 A_qg. theta_g's error, the fit over every row's, is the same
     in every period, so the periods' spread does not see it; it adds ``held_var`` = diag(M Cov_g M') to both of
     the estimate's errors. Its covariance with the core rows' own noise (the core rows are rows of that fit too) is
-    left out: it is zero where the core rows are every row, and leaving it out errs on the wide side.
+    left out: it is zero where the core rows are every row, and its sign depends on the rows the core leaves out
+    (docs/method.md, section 7, an open limitation).
 
     Returns
     -------

@@ -45,7 +45,8 @@ class StopDecision:
 class StopRule:
     """The loop's early stop for a batch: the classifier and the baseline a bench test of ``variant`` uses.
 
-    Build it with :meth:`of` (or :meth:`shipped` for the packaged model and baseline).
+    Build it with :meth:`of` (or :meth:`shipped` for the model the variant's valves are judged by and the packaged
+    baseline).
     """
 
     variant: Variant

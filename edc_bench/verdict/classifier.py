@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import shlex
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -116,8 +117,9 @@ def variant_model_path(variant: Variant) -> Path:
     for folder in folders:
         if (folder / name).is_file():
             return folder / name
+    given = shlex.quote(variant.source_file or variant.name)  # the file itself: a name may find another
     raise ConfigError(f"variant {variant.name} is judged by its own classifier {name}, which is in neither "
-                      f"{folders[0]} nor {folders[1]}: build it with 'edc-bench train --variants {variant.name} "
+                      f"{folders[0]} nor {folders[1]}: build it with 'edc-bench train --variants {given} "
                       f"--own --models-dir {folders[0]}', or delete the [diagnosis] model line to judge with the "
                       "station's model")
 

@@ -199,7 +199,8 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     classify : bool, optional
         Ask the classifier about a trustworthy run (default); off for baseline calibration.
     classifier_path : pathlib.Path, optional
-        ONNX model to judge with; the packaged one by default.
+        ONNX model to judge with; by default the one the variant's valves are judged by
+        (:func:`~edc_bench.verdict.classifier.variant_model_path`).
     coil_temp_c : float, optional
         The coil's temperature at the start of the test, to refer its resistance to 20 degC; 20 degC if
         not given.

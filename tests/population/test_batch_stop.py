@@ -29,8 +29,7 @@ def _both(variant_name: str, count: int, seed: int, adapter: str | None = None, 
 
 
 @pytest.mark.parametrize(("variant_name", "adapter", "gain_variation"), [
-    # in CI's slow pass like the others: the default suite stays under 5 minutes
-    pytest.param("p-edc-default", None, 0.0, marks=pytest.mark.slow),
+    ("p-edc-default", None, 0.0),
     # the samples come in late: the stop waits for the period's last
     pytest.param("p-edc-default", "usb-fs", 0.0, marks=pytest.mark.slow),
     # some tests stop early because the model does not fit
