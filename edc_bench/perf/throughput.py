@@ -15,8 +15,9 @@ import numpy as np
 
 def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, float]:
     """Valve tests per minute in the batch path, each test stopped where the bench's early stop ends it (the
-    model the variant's valves are judged by, and the packaged baseline): one process, and ``workers`` processes with ``valves`` each; and one process
-    running every test its full length (as training data are made), for comparison."""
+    model the variant's valves are judged by, and the packaged baseline): one process, and ``workers`` processes
+    with ``valves`` each; and one process running every test its full length (as training data are made), for
+    comparison."""
     from edc_bench.config import load_variant
     from edc_bench.learning.dataset import run_population
     from edc_bench.population.batch import run_batch
