@@ -52,9 +52,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--save-dataset", type=Path, default=None, metavar="FILE",
                    help="also write the simulated dataset to this file")
     p.add_argument("--own", action="store_true",
-                   help="train one variant's own network (give one --variants name): written as "
-                        "valve_mlp-NAME.onnx, which the variant's [diagnosis] model line names, for a pump whose "
-                        "resisting force splits between friction and damping unlike the shipped network's pumps")
+                   help="train one variant's own network (give one --variants name or file), for a pump whose "
+                        "resisting force splits between friction and damping unlike the shipped network's pumps: "
+                        "written as the file its [diagnosis] model line names, else valve_mlp-NAME.onnx (then add "
+                        "that line)")
     p.add_argument("--models-dir", type=Path, default=None, metavar="DIR",
                    help="folder to write the models into (default: the package's models folder)")
     add_hidden_alias(p, "--out-dir", "models_dir", type=Path)  # its name before the flags were made consistent
