@@ -108,11 +108,12 @@ def test_coverage_on_the_command_line_is_one_study_at_a_time() -> None:
 @pytest.mark.slow  # 20-30 s
 def test_coverage_on_the_command_line_prints_each_population() -> None:
     run = subprocess.run([sys.executable, "-m", "edc_bench", "evaluate", "--coverage", "--count", "8",
-                          "--populations", "default", "stick-slip", "--calibration-valves", "3"],
+                          "--populations", "default", "hard", "--calibration-valves", "3"],
                          capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
-    for line in ("default (p-edc-default): ", "stick-slip (p-edc-default-stick-slip): ", "interval covers the truth",
-                 "stopped certain"):
+    # each population with the model that judged it: the hard pump's own network
+    for line in ("default (p-edc-default, judged by valve_mlp): ",
+                 "hard (p-edc-hard, judged by valve_mlp-p-edc-hard): ", "interval covers the truth", "stopped certain"):
         assert line in run.stdout
 
 

@@ -56,7 +56,9 @@ def test_a_stopped_batch_is_the_full_batch_stopped_afterwards(variant_name: str,
                                    atol=1e-12)
         # the interval it stopped with: the loop's (relative_box)
         box = relative_box(at.parameters[:, [AF, A1]], at.fit, base, rule.interval, rule.baseline)
-        np.testing.assert_allclose(out.half_width_rel[here], box.half_width[here], rtol=1e-9)
+        # the residual part's repeating residual is a difference of large sums (as the gain variation's figure),
+        # whose last bits the two runs sum apart: 1e-10 of the ratio, far below any figure's resolution
+        np.testing.assert_allclose(out.half_width_rel[here], box.half_width[here], rtol=1e-9, atol=1e-10)
     # a test that ended before its full length, fitting, ended certain of its verdict, and only a trusted one can
     early = (out.periods < full.periods.blocks) & ~out.misfit
     assert out.certain[early].all() and (early.any() or gain_variation)  # on the unfittable pump all end misfit
