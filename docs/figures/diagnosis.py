@@ -266,13 +266,20 @@ def held_out() -> dict[str, Any]:
 
     count, seed = 300, 777
     dataset = make_dataset(SHIPPED_VARIANTS, count, seed)
-    keep = ("tests", "invalid", "judged", "marginal", "faulty_passed", "reusable_failed", "faulty", "reusable")
     out: dict[str, Any] = {"count_per_variant": count, "seed": seed}
     for kind in ("mlp", "linear"):
-        report = evaluate(shipped_classifier(kind), dataset)
-        out[kind] = {**{k: report[k] for k in keep},
-                     "accuracy_outside_band": round(report["accuracy_outside_band"], 6)}
+        out[kind] = _evaluation_figures(evaluate(shipped_classifier(kind), dataset))
     return out
+
+
+#: What the pages keep of an ``evaluate`` report.
+_EVALUATION_KEYS = ("tests", "invalid", "judged", "marginal", "faulty_passed", "reusable_failed", "faulty", "reusable")
+
+
+def _evaluation_figures(report: dict[str, Any], *more: str) -> dict[str, Any]:
+    """An ``evaluate`` report's figures as a page stores them (``more``: further keys)."""
+    return {**{k: report[k] for k in _EVALUATION_KEYS + more},
+            "accuracy_outside_band": round(report["accuracy_outside_band"], 6)}
 
 
 def held_out_table() -> str:
@@ -302,13 +309,9 @@ def own_model() -> dict[str, Any]:
     count, seed = 300, 777
     with isolated_station():
         dataset = make_dataset(["p-edc-hard"], count, seed)
-        keep = ("tests", "invalid", "judged", "marginal", "faulty_passed", "reusable_failed", "faulty", "reusable",
-                "models")
         out: dict[str, Any] = {"count": count, "seed": seed}
         for label, classifier in (("own", None), ("shipped", shipped_classifier())):
-            report = evaluate(classifier, dataset)
-            out[label] = {**{k: report[k] for k in keep},
-                          "accuracy_outside_band": round(report["accuracy_outside_band"], 6)}
+            out[label] = _evaluation_figures(evaluate(classifier, dataset), "models")
     return out
 
 
