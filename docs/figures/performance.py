@@ -1,4 +1,4 @@
-"""docs/performance.md's figures: one full run of ``edc-bench perf``, and where a simulated test's time goes."""
+"""docs/performance.md's figures: a full run of ``edc-bench perf``, where a simulated test's time goes, a batch's."""
 
 from __future__ import annotations
 
@@ -8,6 +8,10 @@ import pstats
 import subprocess
 import sys
 from collections import defaultdict
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
 
 from figures.common import measured_on, measurement, stored, stored_record, table, wrap
 
@@ -99,6 +103,85 @@ def profile_table() -> str:
                             [(part, f"{share:.0%}") for part, share in rows]), "",
                       wrap(f"{measured_on('performance-profile')} Total {result['total_s']:.2f} s under the "
                            f"profiler, which slows Python calls more than numpy's.")])
+
+
+#: Where a batch's time goes: the methods of the batch path timed, each with the part of the work it is.
+BATCH_PARTS = (
+    ("the period fit: rows and normal equations (identification)", "_RowFeeder", "sample"),
+    ("the controller (the law over arrays)", "_Controller", "step"),
+    ("the plant (compiled step)", "_VectorPlant", "advance_period"),
+    ("the coils' heating", "_VectorPlant", "add_heat"),
+    ("the sensors (rack and current, noise)", "_Sensors", "sample"),
+    ("the sensors (rack and current, noise)", "_Sensors", "current"),
+    ("the stop rule (fit solved, judged)", "_BatchRun", "_periods_done"),
+)
+
+
+@measurement("performance-batch-profile", minutes=0.5, timing=True)
+def profile_batch() -> dict:
+    """Share of an early-stopped batch's wall time (1,000 default valves, one process) by part, and how much of it
+    the tests still running after nine in ten have stopped take."""
+    import time
+
+    from edc_bench.config import load_variant
+    from edc_bench.population import batch
+    from edc_bench.population.batch_stop import StopRule
+    from edc_bench.population.valves import draw_population
+
+    variant = load_variant("p-edc-default")
+    valves = draw_population(variant, 1000, 7)
+    rule = StopRule.shipped(variant)
+    batch.run_batch(variant, valves[:4], list(range(4)), stop=rule)  # warm: imports, the compiled kernels
+    spent: dict[str, float] = defaultdict(float)
+    ticks: list[tuple[int, float]] = []
+    saved = [(getattr(batch, cls), method, getattr(getattr(batch, cls), method)) for _, cls, method in BATCH_PARTS]
+
+    def timed(part: str, function: Callable[..., Any]) -> Callable[..., Any]:
+        def run(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[part] += time.perf_counter() - t0
+        return run
+
+    original_rig_period = batch._BatchRun._rig_period
+
+    def rig_period(run: Any, k: int, u: np.ndarray) -> int:
+        ticks.append((len(run.alive), time.perf_counter()))
+        return original_rig_period(run, k, u)
+
+    try:
+        for part, cls, method in BATCH_PARTS:
+            setattr(getattr(batch, cls), method, timed(part, getattr(getattr(batch, cls), method)))
+        batch._BatchRun._rig_period = rig_period
+        t0 = time.perf_counter()
+        result = batch.run_batch(variant, valves, list(range(len(valves))), stop=rule)
+        total_s = time.perf_counter() - t0
+    finally:
+        for owner, method, original in saved:
+            setattr(owner, method, original)
+        batch._BatchRun._rig_period = original_rig_period
+    spent["the rest (tick bookkeeping, numpy's call costs)"] = total_s - sum(spent.values())
+    tail_from = next((t for alive, t in ticks if alive <= len(valves) // 10), None)
+    tail_s = 0.0 if tail_from is None else ticks[-1][1] - tail_from
+    return {"valves": len(valves), "total_s": round(total_s, 2),
+            "shares": {part: round(seconds / total_s, 3) for part, seconds in sorted(spent.items())},
+            "tail_share": round(tail_s / total_s, 3), "tail_valves": int(sum(result.stop.time_s > 12.5)),
+            "median_stop_s": float(np.median(result.stop.time_s))}
+
+
+def batch_profile_table() -> str:
+    """The batch's shares, largest first, and its tail."""
+    result = stored("performance-batch-profile")
+    rows = sorted(result["shares"].items(), key=lambda item: -item[1])
+    return "\n".join([table(("part of the batch path", "share of the batch's time"),
+                            [(part, f"{share:.0%}") for part, share in rows]), "",
+                      wrap(f"{measured_on('performance-batch-profile')} {result['valves']:,} default valves, each "
+                           f"stopped where the bench's early stop ends it (median {result['median_stop_s']:g} s), "
+                           f"in {result['total_s']:.2f} s; {result['tail_share']:.0%} of that time went to the "
+                           f"ticks after nine in ten had stopped, run for the {result['tail_valves']} tests still "
+                           f"running past 12.5 s.")])
 
 
 def recorded_command() -> str:

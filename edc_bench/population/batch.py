@@ -52,9 +52,10 @@ from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink
 from edc_bench.population.batch_stop import StopOutcome, StopRule
+from edc_bench.population.plant_kernel import advance, dissipate, pump_constants
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
-from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
+from edc_bench.sim.plant import THERMAL_STEP_S
 
 QUANTA_PER_PERIOD = 10
 HISTORY_EVERY = 10  # ticks between stored estimates (settle times at 10 ms resolution)
@@ -148,6 +149,11 @@ class _VectorPlant:
         self.v = np.zeros(n)
         self.i = np.zeros(n)
         self.stuck = np.ones(n, dtype=bool)
+        pump = self.pump
+        self._pump = pump_constants(pump.linear, pump.preload_n, pump.stribeck_velocity_mm_s,
+                                    pump.force_constant_n_per_a, pump.force_constant_slope_per_mm,
+                                    pump.force_constant_mid_mm, pump.net_stiffness_n_per_mm, pump.stroke_mm)
+        self._every = np.zeros(0, dtype=np.int64)
         # the coil warms as in :class:`~edc_bench.sim.plant.Plant`: stepped every THERMAL_STEP_S
         self.temp_c = np.array([p.coil_temp_c for p in params])
         self.resistance_ohm = np.array([p.resistance_ohm for p in params])
@@ -166,7 +172,7 @@ class _VectorPlant:
 
     def add_heat(self, dt_s: float) -> None:
         """The coils dissipated R i^2 for ``dt_s``; every THERMAL_STEP_S, step their temperature and resistance."""
-        self._heat_j += self.resistance_ohm * self.i * self.i * dt_s
+        dissipate(self._heat_j, self.resistance_ohm, self.i, dt_s)
         self._heat_s += dt_s
         if self._heat_s < THERMAL_STEP_S - 1e-9:
             return
@@ -183,37 +189,17 @@ class _VectorPlant:
         self.phi_q, self.gam_q = _coefficients(expm(self._aug * (self._period_s / QUANTA_PER_PERIOD)))
         self._tables = None
 
-    def _propagate(self, phi: np.ndarray, gam: np.ndarray, x: np.ndarray, v: np.ndarray, i: np.ndarray,
-                   coil_v: np.ndarray, sign: np.ndarray, fc: np.ndarray, fs: np.ndarray | None = None,
-                   dt_s: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        pump = self.pump
-        if pump.linear:
-            f = -(pump.preload_n + fc * sign)
-        else:  # as :class:`~edc_bench.sim.plant.Plant`: the departures from the linear model held over the step
-            friction = fc
-            if pump.stribeck_velocity_mm_s > 0.0:
-                friction = fc + (fs - fc) * np.exp(-(v / pump.stribeck_velocity_mm_s) ** 2)
-            # the pull's difference at mid-step, as the simulated rig's plant takes it (its module docstring)
-            mid_mm = x + 0.5 * dt_s * v
-            f = (pump.force_constant_n_per_a * pump.force_constant_slope_per_mm * (mid_mm - pump.force_constant_mid_mm)
-                 * i - (pump.preload_n + friction * sign))
-        xn = phi[0] * x + phi[1] * v + phi[2] * i + gam[0] * coil_v + gam[1] * f
-        vn = phi[3] * x + phi[4] * v + phi[5] * i + gam[2] * coil_v + gam[3] * f
-        i_n = phi[8] * i + gam[4] * coil_v
-        return xn, vn, i_n
-
     def advance_period(self, drive_v: np.ndarray) -> None:
+        """Every valve's plant over one period under its drive (compiled: :mod:`~edc_bench.population.plant_kernel`)."""
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v, self.pump.amplifier_limit_v)
-        sign = np.where(self.v > 0.0, 1.0, -1.0)
-        xn, vn, i_n = self._propagate(self.phi, self.gam, self.x, self.v, self.i, coil_v, sign, self.fc, self.fs,
-                                      self._period_s)
-        ok = ~self.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
-        self.x = np.where(ok, xn, self.x)
-        self.v = np.where(ok, vn, self.v)
-        self.i = np.where(ok, i_n, self.i)
-        fine = np.nonzero(~ok)[0]
-        if len(fine):
-            self._advance_fine(fine, coil_v[fine])
+        n = len(self.x)
+        if len(self._every) != n:  # the whole batch, each valve a whole period (rebuilt as valves leave)
+            self._every = np.arange(n)
+            self._whole_period = np.full(n, QUANTA_PER_PERIOD)
+            self._period_dt = np.full(n, self._period_s)
+        advance(self._every, self._whole_period, self.phi, self.gam, self._period_dt, self.x, self.v, self.i,
+                self.stuck, self.phi_q, self.gam_q, coil_v, self.fc, self.fs, self._period_s / QUANTA_PER_PERIOD,
+                self._pump)
 
     def advance_quanta(self, quanta: np.ndarray, drive_v: np.ndarray) -> None:
         """Advance each valve by its own number of quanta (0..QUANTA_PER_PERIOD) under a constant drive.
@@ -228,56 +214,10 @@ class _VectorPlant:
         moving = np.nonzero(quanta > 0)[0]
         m = quanta[moving]
         phi_t, gam_t = self._tables
-        phi, gam = phi_t[m, :, moving].T, gam_t[m, :, moving].T
+        phi, gam = np.ascontiguousarray(phi_t[m, :, moving].T), np.ascontiguousarray(gam_t[m, :, moving].T)
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v[moving], self.pump.amplifier_limit_v)
-        x, v, i = self.x[moving], self.v[moving], self.i[moving]
-        sign = np.where(v > 0.0, 1.0, -1.0)
-        xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, self.fc[moving], self.fs[moving],
-                                      m * (self._period_s / QUANTA_PER_PERIOD))
-        ok = ~self.stuck[moving] & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < self.pump.stroke_mm)
-        smooth = moving[ok]
-        self.x[smooth], self.v[smooth], self.i[smooth] = xn[ok], vn[ok], i_n[ok]
-        if not ok.all():
-            self._advance_fine(moving[~ok], coil_v[~ok], m[~ok])
-
-    def _advance_fine(self, idx: np.ndarray, coil_v: np.ndarray, quanta: np.ndarray | None = None) -> None:
-        """Karnopp stepping in quanta: the whole period, or ``quanta[j]`` quanta for valve ``idx[j]``."""
-        phi, gam = self.phi_q[:, idx], self.gam_q[:, idx]
-        fc, fs = self.fc[idx], self.fs[idx]
-        x, v, i, stuck = self.x[idx], self.v[idx], self.i[idx], self.stuck[idx]
-        pump = self.pump
-        k, ki, fpre, stroke = pump.net_stiffness_n_per_mm, pump.force_constant_n_per_a, pump.preload_n, pump.stroke_mm
-        slope, x_mid = pump.force_constant_slope_per_mm, pump.force_constant_mid_mm
-        steps = QUANTA_PER_PERIOD if quanta is None else int(quanta.max())
-        for step in range(steps):
-            net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
-            hold = stuck & ((np.abs(net) <= fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
-            sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
-            xn, vn, i_n = self._propagate(phi, gam, x, v, i, coil_v, sign, fc, fs, self._period_s / QUANTA_PER_PERIOD)
-            # held racks: only the current evolves
-            i_hold = phi[8] * i + gam[4] * coil_v
-            reversed_ = vn * sign <= 0.0
-            frac = np.where(v != vn, v / np.where(v != vn, v - vn, 1.0), 0.0)
-            x_rev = x + frac * (xn - x)
-            pull = ki * (1.0 + slope * (xn - x_mid)) * i_n
-            slow = ~reversed_ & (np.abs(vn) < STICK_SPEED_MM_S) & (np.abs(pull - k * xn - fpre) <= fs)
-            new_stuck = reversed_ | slow
-            xn = np.where(reversed_, x_rev, xn)
-            vn = np.where(new_stuck, 0.0, vn)
-            low, high = xn <= 0.0, xn >= stroke
-            xn = np.where(low, 0.0, np.where(high, stroke, xn))
-            vn = np.where(low | high, 0.0, vn)
-            new_stuck = new_stuck | low | high
-            if quanta is not None:  # valves whose quanta are done keep their state
-                done = step >= quanta
-                xn, vn, i_n, new_stuck = (np.where(done, x, xn), np.where(done, v, vn), np.where(done, i, i_n),
-                                          np.where(done, stuck, new_stuck))
-                hold = hold & ~done
-            x = np.where(hold, x, xn)
-            v = np.where(hold, 0.0, vn)
-            i = np.where(hold, i_hold, i_n)
-            stuck = np.where(hold, True, new_stuck)
-        self.x[idx], self.v[idx], self.i[idx], self.stuck[idx] = x, v, i, stuck
+        advance(moving, m, phi, gam, m * (self._period_s / QUANTA_PER_PERIOD), self.x, self.v, self.i, self.stuck,
+                self.phi_q, self.gam_q, coil_v, self.fc, self.fs, self._period_s / QUANTA_PER_PERIOD, self._pump)
 
 
 def _coefficients(augmented: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 #: Imported after the test or never by 'edc-bench test' on the simulated rig (and on a bus: the same path).
 NOT_BEFORE_THE_FIRST_TICK = ("asammdf", "pandas", "sqlalchemy", "scipy", "matplotlib", "control",
-                             "edc_bench.perf.suite")
+                             "edc_bench.perf.suite", "numba")
 
 _PROBE = """
 import json, sys

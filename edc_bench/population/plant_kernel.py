@@ -1,0 +1,119 @@
+"""The batch plant's step, compiled: every valve's rack and coil over one drive period (or some quanta of it).
+
+:class:`~edc_bench.population.batch._VectorPlant` holds N valves' state and coefficients as arrays; this module
+advances them. A valve that slides through the whole step takes it exactly (Phi and Gamma of the period); one
+that sticks, reverses or reaches a stop is replayed in quanta with the Karnopp rule of
+:class:`~edc_bench.sim.plant.Plant`. In numpy that replay was a few dozen array operations per quantum over the
+valves concerned, each paying numpy's call cost for a handful of values, and it took a fifth of a batch's time.
+Compiled by numba, each valve is a few hundred floating-point operations.
+
+The arithmetic is the numpy version's, operation for operation and in the same order (no fused multiply-add, no
+reassociation: numba's defaults), so a linear pump's results are the same to the bit. The one function call,
+the Stribeck curve's exponential, is the C library's (as the full loop's plant computes it), not numpy's own.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from edc_bench.sim.plant import STICK_SPEED_MM_S
+
+
+@njit(cache=True, nogil=True)
+def _propagate(phi: np.ndarray, gam: np.ndarray, j: int, x: float, v: float, i: float, coil_v: float,
+               sign: float, fc: float, fs: float, dt_s: float, pump: np.ndarray) -> tuple[float, float, float]:
+    """One exact step of valve ``j`` (columns of Phi and Gamma) under friction ``sign``; ``pump`` as
+    :func:`pump_constants` packs it."""
+    if pump[0] != 0.0:  # the linear pump
+        f = -(pump[1] + fc * sign)
+    else:  # the departures from the linear model, held over the step (sim.plant's module docstring)
+        friction = fc
+        if pump[2] > 0.0:
+            q = v / pump[2]
+            friction = fc + (fs - fc) * math.exp(-(q * q))
+        mid_mm = x + 0.5 * dt_s * v
+        f = pump[3] * (mid_mm - pump[4]) * i - (pump[1] + friction * sign)
+    xn = phi[0, j] * x + phi[1, j] * v + phi[2, j] * i + gam[0, j] * coil_v + gam[1, j] * f
+    vn = phi[3, j] * x + phi[4, j] * v + phi[5, j] * i + gam[2, j] * coil_v + gam[3, j] * f
+    i_n = phi[8, j] * i + gam[4, j] * coil_v
+    return xn, vn, i_n
+
+
+def pump_constants(linear: bool, preload_n: float, stribeck_velocity_mm_s: float, force_constant_n_per_a: float,
+                   force_constant_slope_per_mm: float, force_constant_mid_mm: float, net_stiffness_n_per_mm: float,
+                   stroke_mm: float) -> np.ndarray:
+    """The pump's own numbers, the same for every valve, packed for the kernels."""
+    return np.array([1.0 if linear else 0.0, preload_n, stribeck_velocity_mm_s,
+                     force_constant_n_per_a * force_constant_slope_per_mm, force_constant_mid_mm,
+                     force_constant_n_per_a, force_constant_slope_per_mm, net_stiffness_n_per_mm, stroke_mm])
+
+
+@njit(cache=True, nogil=True)
+def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool, phi_q: np.ndarray,
+                  gam_q: np.ndarray, coil_v: float, fc: float, fs: float, quantum_s: float,
+                  pump: np.ndarray) -> tuple[float, float, float, bool]:
+    """Karnopp stepping of valve ``j`` in ``steps`` quanta."""
+    ki, slope, x_mid, k, fpre, stroke = pump[5], pump[6], pump[4], pump[7], pump[1], pump[8]
+    for _ in range(steps):
+        net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
+        hold = stuck and (abs(net) <= fs or (x <= 0.0 and net <= 0.0) or (x >= stroke and net >= 0.0))
+        if stuck:
+            sign = 1.0 if net > 0.0 else -1.0
+        else:
+            sign = 1.0 if v > 0.0 else -1.0
+        if hold:  # held racks: only the current evolves
+            i = phi_q[8, j] * i + gam_q[4, j] * coil_v
+            v = 0.0
+            continue
+        xn, vn, i_n = _propagate(phi_q, gam_q, j, x, v, i, coil_v, sign, fc, fs, quantum_s, pump)
+        reversed_ = vn * sign <= 0.0
+        slow = False
+        if not reversed_:
+            pull = ki * (1.0 + slope * (xn - x_mid)) * i_n
+            slow = abs(vn) < STICK_SPEED_MM_S and abs(pull - k * xn - fpre) <= fs
+        new_stuck = reversed_ or slow
+        if reversed_:
+            frac = v / (v - vn) if v != vn else 0.0
+            xn = x + frac * (xn - x)
+        if new_stuck:
+            vn = 0.0
+        if xn <= 0.0 or xn >= stroke:
+            xn = 0.0 if xn <= 0.0 else stroke
+            vn = 0.0
+            new_stuck = True
+        x, v, i, stuck = xn, vn, i_n, new_stuck
+    return x, v, i, stuck
+
+
+@njit(cache=True, nogil=True)
+def advance(valves: np.ndarray, quanta: np.ndarray, phi: np.ndarray, gam: np.ndarray, dt_s: np.ndarray,
+            x: np.ndarray, v: np.ndarray, i: np.ndarray, stuck: np.ndarray, phi_q: np.ndarray, gam_q: np.ndarray,
+            coil_v: np.ndarray, fc: np.ndarray, fs: np.ndarray, quantum_s: float, pump: np.ndarray) -> None:
+    """Advance valves ``valves[m]`` by ``quanta[m]`` quanta each, in place.
+
+    ``phi``, ``gam`` (9 and 6 rows), ``dt_s`` and ``coil_v`` are per entry of ``valves`` (the exact step over
+    those quanta, and the coil voltage held); the state ``x``, ``v``, ``i``, ``stuck`` and ``phi_q``, ``gam_q``
+    (a quantum's step), ``fc``, ``fs`` are per valve of the batch. A valve that slides through takes the exact
+    step; otherwise its quanta are replayed one by one from where it was.
+    """
+    stroke = pump[8]
+    for m in range(len(valves)):
+        j = valves[m]
+        xj, vj, ij = x[j], v[j], i[j]
+        sign = 1.0 if vj > 0.0 else -1.0
+        xn, vn, i_n = _propagate(phi, gam, m, xj, vj, ij, coil_v[m], sign, fc[j], fs[j], dt_s[m], pump)
+        if not stuck[j] and vn * sign > STICK_SPEED_MM_S and xn > 0.0 and xn < stroke:
+            x[j], v[j], i[j] = xn, vn, i_n
+        else:
+            x[j], v[j], i[j], stuck[j] = _advance_fine(j, quanta[m], xj, vj, ij, stuck[j], phi_q, gam_q, coil_v[m],
+                                                       fc[j], fs[j], quantum_s, pump)
+
+
+@njit(cache=True, nogil=True)
+def dissipate(heat_j: np.ndarray, resistance_ohm: np.ndarray, i: np.ndarray, dt_s: float) -> None:
+    """Add each coil's ``R i^2`` over ``dt_s`` to ``heat_j``, in place (one call a tick instead of four numpy ones)."""
+    for j in range(len(heat_j)):
+        heat_j[j] += resistance_ohm[j] * i[j] * i[j] * dt_s
