@@ -52,7 +52,7 @@ from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink
 from edc_bench.population.batch_stop import StopOutcome, StopRule
-from edc_bench.population.plant_kernel import advance, dissipate, pump_constants
+from edc_bench.population.rig_kernels import advance, dissipate, pump_constants, quantised_reading
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import THERMAL_STEP_S
@@ -190,7 +190,7 @@ class _VectorPlant:
         self._tables = None
 
     def advance_period(self, drive_v: np.ndarray) -> None:
-        """Every valve's plant over one period under its drive (compiled: :mod:`~edc_bench.population.plant_kernel`)."""
+        """Every valve's plant over one period under its drive (compiled: :mod:`~edc_bench.population.rig_kernels`)."""
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v, self.pump.amplifier_limit_v)
         n = len(self.x)
         if len(self._every) != n:  # the whole batch, each valve a whole period (rebuilt as valves leave)
@@ -345,7 +345,7 @@ class _Sensors:
 
     def read(self, true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
         """The LVDT's reading of rack positions ``true_mm`` with the given noise."""
-        return np.round((true_mm + self._offset + noise_mm) / self._resolution) * self._resolution
+        return quantised_reading(true_mm, self._offset, noise_mm, self._resolution)
 
     def sample(self) -> np.ndarray:
         """The rack position now, as the LVDT reads it."""
@@ -353,8 +353,7 @@ class _Sensors:
 
     def current(self) -> np.ndarray:
         """The coil current now, as the current sensor reads it."""
-        step = self._current_step
-        return np.round((self.plant.i + self._current_offset + self._current_noise.next()) / step) * step
+        return quantised_reading(self.plant.i, self._current_offset, self._current_noise.next(), self._current_step)
 
 
 class _Reference:
@@ -411,6 +410,8 @@ class _Controller:
         self.coil = CoilEstimator(design.amplifier_gain, np.full(n, r_ref), design.period_s)
         self.coil_average = law.CoilAverage(design.coil_window_ticks, np.full(n, r_ref))
         self._w_est = np.empty((len(self.est_idx), n))  # the estimator's regressors, one row per parameter
+        # the design's derived figures, worked out once (reversal_speed_mm_s builds a reference each time)
+        self.adapt_from_s, self.reversal_speed_mm_s = design.adapt_from_s, design.reversal_speed_mm_s
         self._ones = np.ones(n)
 
     def take(self, keep: np.ndarray) -> None:
@@ -435,8 +436,7 @@ class _Controller:
         fixed_part = sum(nominal[i] * w_all[i] for i in self.fixed_idx) if self.fixed_idx else np.zeros(len(r))
         u1 = law.feedforward_v(ops, self.theta, w_est, fixed_part, rho)
         u, self.saturated = law.saturate(ops, u1 + u2, design.drive_limit_v)
-        adapting = law.adapting(self.saturated, k * design.period_s, r1, design.adapt_from_s,
-                                design.reversal_speed_mm_s)
+        adapting = law.adapting(self.saturated, k * design.period_s, r1, self.adapt_from_s, self.reversal_speed_mm_s)
         if adapting.any():
             y = u / rho - fixed_part
             if design.estimator_kind == "rls":

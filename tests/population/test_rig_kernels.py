@@ -1,4 +1,5 @@
-"""The batch plant's compiled step: the exact step for a sliding valve, the Karnopp replay for a held one.
+"""The simulated rig's compiled arithmetic: the exact step for a sliding valve, the Karnopp replay for a held one, a
+sensor's reading.
 
 (The whole batch against the simulated rig's plant: ``tests/identification/test_real_solenoids.py`` and
 ``tests/population/test_batch.py``; the same bits as before it was compiled: the shipped models rebuild byte for
@@ -11,6 +12,7 @@ import numpy as np
 
 from edc_bench.config import load_variant
 from edc_bench.population.batch import QUANTA_PER_PERIOD, _VectorPlant
+from edc_bench.population.rig_kernels import quantised_reading
 from edc_bench.population.valves import draw_population
 
 
@@ -53,3 +55,13 @@ def test_a_valve_held_by_stiction_keeps_its_place_while_its_current_rises() -> N
     for _ in range(QUANTA_PER_PERIOD):
         i = plant.phi_q[8, 0] * i + plant.gam_q[4, 0] * coil_v
     assert plant.i[0] == i
+
+
+def test_a_reading_rounds_half_to_even_as_numpy_does() -> None:
+    value = np.array([0.5, 1.5, 2.5, -0.5, -2.5, 3.2, -0.0, np.nan])  # in steps of 1: the halves go to the even
+    assert np.array_equal(quantised_reading(value, 0.0, np.zeros(len(value)), 1.0),
+                          np.array([0.0, 2.0, 2.0, -0.0, -2.0, 3.0, -0.0, np.nan]), equal_nan=True)
+    rng = np.random.default_rng(5)
+    value, noise = rng.uniform(0.0, 12.0, 1000), rng.normal(0.0, 2e-3, 1000)
+    numpy_reading = np.round((value + 0.01 + noise) / 1e-3) * 1e-3
+    assert np.array_equal(quantised_reading(value, 0.01, noise, 1e-3), numpy_reading)
