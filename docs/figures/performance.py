@@ -180,8 +180,7 @@ def batch_profile_table() -> str:
                       wrap(f"{measured_on('performance-batch-profile')} {result['valves']:,} default valves, each "
                            f"stopped where the bench's early stop ends it (median {result['median_stop_s']:g} s), "
                            f"in {result['total_s']:.2f} s; {result['tail_share']:.0%} of that time went to the "
-                           f"ticks after nine in ten had stopped, run for the {result['tail_valves']} tests still "
-                           f"running past 12.5 s.")])
+                           f"ticks after nine in ten had stopped ({result['tail_valves']} tests ran past 12.5 s).")])
 
 
 def recorded_command() -> str:

@@ -55,7 +55,7 @@ from edc_bench.population.batch_stop import StopOutcome, StopRule
 from edc_bench.population.rig_kernels import advance, dissipate, pump_constants, quantised_reading
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
-from edc_bench.sim.plant import THERMAL_STEP_S
+from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
 
 QUANTA_PER_PERIOD = 10
 HISTORY_EVERY = 10  # ticks between stored estimates (settle times at 10 ms resolution)
@@ -152,7 +152,8 @@ class _VectorPlant:
         pump = self.pump
         self._pump = pump_constants(pump.linear, pump.preload_n, pump.stribeck_velocity_mm_s,
                                     pump.force_constant_n_per_a, pump.force_constant_slope_per_mm,
-                                    pump.force_constant_mid_mm, pump.net_stiffness_n_per_mm, pump.stroke_mm)
+                                    pump.force_constant_mid_mm, pump.net_stiffness_n_per_mm, pump.stroke_mm,
+                                    STICK_SPEED_MM_S)
         self._every = np.zeros(0, dtype=np.int64)
         # the coil warms as in :class:`~edc_bench.sim.plant.Plant`: stepped every THERMAL_STEP_S
         self.temp_c = np.array([p.coil_temp_c for p in params])
