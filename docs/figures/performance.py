@@ -95,12 +95,16 @@ def profile_simulated_test() -> dict:
             "shares": {part: round(seconds / total_s, 3) for part, seconds in sorted(shares.items())}}
 
 
+def _shares_table(shares: dict[str, float], part: str, share: str) -> str:
+    """A table of shares (0..1) by part, largest first."""
+    rows = sorted(shares.items(), key=lambda item: -item[1])
+    return table((part, share), [(name, f"{value:.0%}") for name, value in rows])
+
+
 def profile_table() -> str:
     """The profile's shares, largest first."""
     result = stored("performance-profile")
-    rows = sorted(result["shares"].items(), key=lambda item: -item[1])
-    return "\n".join([table(("part of the code", "share of the test's time"),
-                            [(part, f"{share:.0%}") for part, share in rows]), "",
+    return "\n".join([_shares_table(result["shares"], "part of the code", "share of the test's time"), "",
                       wrap(f"{measured_on('performance-profile')} Total {result['total_s']:.2f} s under the "
                            f"profiler, which slows Python calls more than numpy's.")])
 
@@ -174,9 +178,7 @@ def profile_batch() -> dict:
 def batch_profile_table() -> str:
     """The batch's shares, largest first, and its tail."""
     result = stored("performance-batch-profile")
-    rows = sorted(result["shares"].items(), key=lambda item: -item[1])
-    return "\n".join([table(("part of the batch path", "share of the batch's time"),
-                            [(part, f"{share:.0%}") for part, share in rows]), "",
+    return "\n".join([_shares_table(result["shares"], "part of the batch path", "share of the batch's time"), "",
                       wrap(f"{measured_on('performance-batch-profile')} {result['valves']:,} default valves, each "
                            f"stopped where the bench's early stop ends it (median {result['median_stop_s']:g} s), "
                            f"in {result['total_s']:.2f} s; {result['tail_share']:.0%} of that time went to the "
