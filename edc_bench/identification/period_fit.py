@@ -455,10 +455,11 @@ class BlockAccumulator:
         self._by_phase = np.zeros((setup.block_ticks, n, p + 2))
 
     def add(self, block: int, X: np.ndarray, y: np.ndarray, use: np.ndarray, phase: int = 0,
-            core: np.ndarray | None = None) -> None:
+            core: np.ndarray | None = None, tests: slice = slice(None)) -> None:
         """Add the rows of one span that all belong to ``block`` (X (T, N, p) or (T, p)), its first row at tick
         ``phase`` of the block. Each row is used in one span only, and the used rows come in time order.
-        ``core``: which of the used rows are core rows (:func:`core_rows`; None: all of them)."""
+        ``core``: which of the used rows are core rows (:func:`core_rows`; None: all of them). ``tests``: the
+        tests (second axis) the rows are of, when they are not all of them (each test's sums are its own)."""
         if X.ndim == 2:
             X, y, use = X[:, None, :], y[:, None], use[:, None]
             core = None if core is None else core[:, None]
@@ -466,30 +467,30 @@ class BlockAccumulator:
         Xw = (X * w[..., None]).transpose(1, 2, 0)  # (N, p, T): one batched matrix product per test (BLAS)
         XT = X.transpose(1, 0, 2)
         A, z = Xw @ XT, (Xw @ y.T[..., None])[..., 0]
-        self.A[block] += A
-        self.z[block] += z
+        self.A[block, tests] += A
+        self.z[block, tests] += z
         yy, count = ((y * w) * y).sum(axis=0), w.sum(axis=0)
         if core is None:
-            self.A_core[block] += A
-            self.z_core[block] += z
-            self.yy_core[block] += yy
-            self.count_core[block] += count
+            self.A_core[block, tests] += A
+            self.z_core[block, tests] += z
+            self.yy_core[block, tests] += yy
+            self.count_core[block, tests] += count
         else:
             wc = (core & use).astype(float)
             Xc = (X * wc[..., None]).transpose(1, 2, 0)
-            self.A_core[block] += Xc @ XT
-            self.z_core[block] += (Xc @ y.T[..., None])[..., 0]
-            self.yy_core[block] += ((y * wc) * y).sum(axis=0)
-            self.count_core[block] += wc.sum(axis=0)
-        self.yy[block] += yy
-        self.count[block] += count
+            self.A_core[block, tests] += Xc @ XT
+            self.z_core[block, tests] += (Xc @ y.T[..., None])[..., 0]
+            self.yy_core[block, tests] += ((y * wc) * y).sum(axis=0)
+            self.count_core[block, tests] += wc.sum(axis=0)
+        self.yy[block, tests] += yy
+        self.count[block, tests] += count
         p = X.shape[-1]
-        earlier = self._by_phase[phase: phase + len(X)]
+        earlier = self._by_phase[phase: phase + len(X), tests]
         X0, y0 = earlier[..., :p], earlier[..., p]
-        self.pair_yy[block] += (y * w * y0).sum(axis=0)
-        self.pair_xy[block] += (Xw @ y0.T[..., None])[..., 0] + (X0.transpose(1, 2, 0) @ (w * y).T[..., None])[..., 0]
-        self.pair_xx[block] += Xw @ X0.transpose(1, 0, 2)
-        self.pair_count[block] += (w * earlier[..., p + 1]).sum(axis=0)
+        self.pair_yy[block, tests] += (y * w * y0).sum(axis=0)
+        self.pair_xy[block, tests] += (Xw @ y0.T[..., None])[..., 0] + (X0.transpose(1, 2, 0) @ (w * y).T[..., None])[..., 0]
+        self.pair_xx[block, tests] += Xw @ X0.transpose(1, 0, 2)
+        self.pair_count[block, tests] += (w * earlier[..., p + 1]).sum(axis=0)
         earlier[..., :p] += X * w[..., None]
         earlier[..., p] += y * w
         earlier[..., p + 1] += w
@@ -515,9 +516,9 @@ class BlockAccumulator:
 
 
 def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray, y: np.ndarray,
-               use: np.ndarray, core: np.ndarray | None = None) -> None:
+               use: np.ndarray, core: np.ndarray | None = None, tests: slice = slice(None)) -> None:
     """Add rows for ticks ``start .. start + len(X) - 1`` to their blocks (rows before the first block are skipped);
-    ``core`` as :meth:`BlockAccumulator.add` takes it."""
+    ``core`` and ``tests`` as :meth:`BlockAccumulator.add` takes them."""
     T = len(X)
     k = max(start, setup.first_tick)
     end = start + T
@@ -528,7 +529,8 @@ def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray
         block_start = setup.first_tick + block * setup.block_ticks
         block_end = min(end, block_start + setup.block_ticks)
         sl = slice(k - start, block_end - start)
-        acc.add(block, X[sl], y[sl], use[sl], phase=k - block_start, core=None if core is None else core[sl])
+        acc.add(block, X[sl], y[sl], use[sl], phase=k - block_start, core=None if core is None else core[sl],
+                tests=tests)
         k = block_end
 
 

@@ -263,6 +263,11 @@ class _RowFeeder:
     """
 
     SPAN = 500
+    #: Most tests whose rows are made and summed at a time: a span's rows of a thousand tests (tens of MB) would leave
+    #: the CPU's cache between numpy's passes over them. Each test's rows and sums are its own, so the figures are the
+    #: same, as long as no slice holds a single test of several (numpy sums a lone column pairwise, in another order
+    #: than the columns of a wider one): the slices are even, none narrower than half this.
+    TESTS_AT_A_TIME = 64
 
     def __init__(self, setup: FitSetup, acc: BlockAccumulator, n: int, lag: int) -> None:
         self.setup, self.acc, self.half = setup, acc, setup.window // 2
@@ -310,9 +315,13 @@ class _RowFeeder:
         if span <= 0:
             return
         rows_ = span + 2 * self.half + 1
-        X, y, use, core = rows(self.setup, self.x[:rows_], self.u[:rows_], self.rho[:rows_], self.r1[:rows_],
-                               self.valid[:rows_])
-        accumulate(self.setup, self.acc, self.p - self.half, X, y, use, core)
+        n = self.x.shape[1]
+        parts = -(-n // self.TESTS_AT_A_TIME)
+        for part in range(parts):
+            tests = slice(part * n // parts, (part + 1) * n // parts)
+            X, y, use, core = rows(self.setup, self.x[:rows_, tests], self.u[:rows_, tests],
+                                   self.rho[:rows_, tests], self.r1[:rows_, tests], self.valid[:rows_, tests])
+            accumulate(self.setup, self.acc, self.p - self.half, X, y, use, core, tests)
         keep_from = span  # the next span needs from its first tick - half on
         for a in (self.x, self.u, self.rho, self.r1, self.valid):
             a[: len(a) - keep_from] = a[keep_from:]

@@ -48,3 +48,17 @@ def test_batch_is_deterministic_per_seed() -> None:
     a = run_batch(variant, valves, list(range(6)))
     b = run_batch(variant, valves, list(range(6)))
     assert np.array_equal(a.parameters, b.parameters)
+
+
+def test_the_period_fit_taken_a_few_tests_at_a_time_gives_the_same_sums(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The rows are made and summed a slice of the tests at a time (for the CPU's cache): to the bit the same."""
+    from edc_bench.population import batch
+
+    variant = load_variant()
+    valves = draw_population(variant, 5, 11)
+    whole = run_batch(variant, valves, list(range(5)))
+    monkeypatch.setattr(batch._RowFeeder, "TESTS_AT_A_TIME", 3)  # slices of 2 and 3
+    sliced = run_batch(variant, valves, list(range(5)))
+    for name in whole.periods.acc._SUMS:
+        assert np.array_equal(getattr(whole.periods.acc, name), getattr(sliced.periods.acc, name)), name
+    assert np.array_equal(whole.parameters, sliced.parameters)
