@@ -38,6 +38,18 @@ pytest_plugins = ["pg_server"]
 
 def pytest_configure(config: pytest.Config) -> None:
     build_c_firmware()
+    keep_compiled_kernels_out_of_the_users_cache(config)
+
+
+def keep_compiled_kernels_out_of_the_users_cache(config: pytest.Config) -> None:
+    """The batch path's compiled kernels (numba) go to pytest's cache folder: test modules import the batch path as
+    they are collected, before :func:`_station_dirs` points edc-bench's cache folder elsewhere. Shared by the
+    workers and kept between runs, so a run compiles them only when they changed."""
+    import os
+    import tempfile
+
+    folder = config.cache.mkdir("numba") if config.cache is not None else tempfile.mkdtemp(prefix="edc-bench-numba-")
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(folder))
 
 
 def build_c_firmware() -> None:

@@ -374,8 +374,10 @@ class _Reference:
         T = design.period_s
         ref0, ref1 = design.reference(0.0), design.reference(1.0)
         t_ticks = np.arange(design.ticks) * T
-        mid0 = ref0.tabulate(t_ticks + 0.5 * T)
-        self.mid0_rows, self.mid_slope_rows = mid0.T.tolist(), (ref1.tabulate(t_ticks + 0.5 * T) - mid0).T.tolist()
+        mid0 = ref0.tabulate(t_ticks + 0.5 * T)  # a row each: r and its first three derivatives
+        mid_slope = ref1.tabulate(t_ticks + 0.5 * T) - mid0
+        # per tick, a column in the regressors' order (third derivative first, the reference last)
+        self.mid0_cols, self.mid_slope_cols = (np.ascontiguousarray(a[::-1].T[:, :, None]) for a in (mid0, mid_slope))
         self.now0 = ref0.tabulate(t_ticks)[0]
         self.now_slope = ref1.tabulate(t_ticks)[0] - self.now0
         self.start = start
@@ -384,12 +386,11 @@ class _Reference:
         """Keep the valves ``keep`` (indices) only."""
         self.start = self.start[keep]
 
-    def at_mid_tick(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def at_mid_tick(self, k: int, out: np.ndarray) -> None:
         """The third, second and first derivatives and the reference itself in the middle of tick ``k``'s
-        interval (where the drive is held), per valve."""
-        at_start0, slope, start = self.mid0_rows[k], self.mid_slope_rows[k], self.start
-        return (at_start0[3] + start * slope[3], at_start0[2] + start * slope[2],
-                at_start0[1] + start * slope[1], at_start0[0] + start * slope[0])
+        interval (where the drive is held), per valve, into the rows of ``out`` (4, N)."""
+        np.multiply(self.mid_slope_cols[k], self.start, out=out)
+        np.add(out, self.mid0_cols[k], out=out)
 
     def now(self, k: int) -> np.ndarray:
         """The reference at tick ``k``'s time, per valve."""
@@ -409,7 +410,12 @@ class _Controller:
         self.design, self.reference, self.r_ref = design, reference, r_ref
         self.est_idx, self.fixed_idx = list(design.estimated), list(design.fixed)
         self.nominal = np.array(design.nominal)
-        self.inv_w_est_scale = 1.0 / np.array(design.scales)[self.est_idx]
+        self.inv_w_est_scale = (1.0 / np.array(design.scales)[self.est_idx])[:, None]
+        # the estimated parameters' rows of the regressors: a slice (no copy) when they follow each other, as they
+        # do in every variant so far
+        first = self.est_idx[0] if self.est_idx else 0
+        contiguous = self.est_idx == list(range(first, first + len(self.est_idx)))
+        self._est_rows = slice(first, first + len(self.est_idx)) if contiguous else self.est_idx
         # valves along the last axis: every update is a contiguous pass over n values
         self.theta = np.tile(np.array(design.theta0)[:, None], (1, n))
         self.P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
@@ -419,14 +425,12 @@ class _Controller:
         self.saturated = np.zeros(n)
         self.coil = CoilEstimator(design.amplifier_gain, np.full(n, r_ref), design.period_s)
         self.coil_average = law.CoilAverage(design.coil_window_ticks, np.full(n, r_ref))
-        self._w_est = np.empty((len(self.est_idx), n))  # the estimator's regressors, one row per parameter
         # the design's derived figures, worked out once (reversal_speed_mm_s builds a reference each time)
         self.adapt_from_s, self.reversal_speed_mm_s = design.adapt_from_s, design.reversal_speed_mm_s
-        self._ones = np.ones(n)
 
     def take(self, keep: np.ndarray) -> None:
         """Keep the valves ``keep`` (indices) only."""
-        take_last_axis(self, keep, ("theta", "P", "saturated", "_w_est", "_ones"))
+        take_last_axis(self, keep, ("theta", "P", "saturated"))
         self.pid.take(keep)
         self.coil.take(keep)
         self.coil_average.take(keep)
@@ -438,12 +442,13 @@ class _Controller:
         ops, design = law.ARRAYS, self.design
         rho = self.coil_average.add(self.coil.resistance_ohm) / self.r_ref
         u2 = law.pid_update(ops, self.pid_c, self.pid, error_mm, self.saturated, usable)
-        r3, r2, r1, r = self.reference.at_mid_tick(k)
-        w_all = (r3, r2, r1, r, self._ones, np.sign(r1))
-        for j, i in enumerate(self.est_idx):
-            np.multiply(w_all[i], self.inv_w_est_scale[j], out=self._w_est[j])
-        w_est, nominal = self._w_est, self.nominal
-        fixed_part = sum(nominal[i] * w_all[i] for i in self.fixed_idx) if self.fixed_idx else np.zeros(len(r))
+        w_all = np.empty((6, len(error_mm)))  # a row each: r''', r'', r', r, 1, sgn(r'), the regressors
+        self.reference.at_mid_tick(k, w_all[:4])
+        r1 = w_all[2]
+        w_all[4] = 1.0
+        np.sign(r1, out=w_all[5])
+        w_est, nominal = w_all[self._est_rows] * self.inv_w_est_scale, self.nominal
+        fixed_part = sum(nominal[i] * w_all[i] for i in self.fixed_idx) if self.fixed_idx else np.zeros(len(r1))
         u1 = law.feedforward_v(ops, self.theta, w_est, fixed_part, rho)
         u, self.saturated = law.saturate(ops, u1 + u2, design.drive_limit_v)
         adapting = law.adapting(self.saturated, k * design.period_s, r1, self.adapt_from_s, self.reversal_speed_mm_s)
