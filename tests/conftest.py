@@ -48,7 +48,8 @@ def keep_compiled_kernels_out_of_the_users_cache(config: pytest.Config) -> None:
     import os
     import tempfile
 
-    folder = config.cache.mkdir("numba") if config.cache is not None else tempfile.mkdtemp(prefix="edc-bench-numba-")
+    cache = getattr(config, "cache", None)  # None with -p no:cacheprovider
+    folder = cache.mkdir("numba") if cache is not None else tempfile.mkdtemp(prefix="edc-bench-numba-")
     os.environ.setdefault("NUMBA_CACHE_DIR", str(folder))
 
 
