@@ -44,13 +44,19 @@ def pytest_configure(config: pytest.Config) -> None:
 def keep_compiled_kernels_out_of_the_users_cache(config: pytest.Config) -> None:
     """The batch path's compiled kernels (numba) go to pytest's cache folder: test modules import the batch path as
     they are collected, before :func:`_station_dirs` points edc-bench's cache folder elsewhere. Shared by the
-    workers and kept between runs, so a run compiles them only when they changed."""
+    workers and kept between runs, so a run compiles them only when they changed. Without pytest's cache (``-p
+    no:cacheprovider``, or a folder that cannot be made) a temporary folder of the run's own."""
     import os
     import tempfile
 
-    cache = getattr(config, "cache", None)  # None with -p no:cacheprovider
-    folder = cache.mkdir("numba") if cache is not None else tempfile.mkdtemp(prefix="edc-bench-numba-")
-    os.environ.setdefault("NUMBA_CACHE_DIR", str(folder))
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    cache = getattr(config, "cache", None)
+    try:
+        folder = cache.mkdir("numba") if cache is not None else None
+    except OSError:  # pytest itself only warns that it cannot write its cache
+        folder = None
+    os.environ["NUMBA_CACHE_DIR"] = str(folder or tempfile.mkdtemp(prefix="edc-bench-numba-"))
 
 
 def build_c_firmware() -> None:

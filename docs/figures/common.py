@@ -10,6 +10,7 @@ import json
 import os
 import pkgutil
 import platform
+import subprocess
 import tempfile
 import textwrap
 from dataclasses import dataclass
@@ -85,6 +86,20 @@ def machine() -> str:
     return f"{model}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
 
 
+def measured_commit() -> str | None:
+    """The commit of the code a timing measured (short hash; '+ changes' when the package's files differ from it),
+    or None outside a git checkout: a page's figure says which code it is of."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        changed = subprocess.run(["git", "status", "--porcelain", "--", "edc_bench", "firmware_proto", "configs"],
+                                 cwd=root, capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return f"{head} + changes" if changed else head
+
+
 @contextlib.contextmanager
 def isolated_station() -> Iterator[Path]:
     """A temporary, empty station: data, cache and variant folders and the working folder, restored afterwards.
@@ -147,7 +162,7 @@ def measure(name: str) -> Path:
     record: dict[str, Any] = {"name": name, "command": f"python docs/regenerate.py --measure {name}",
                               "result": result}
     if entry.timing:
-        record["measured"] = {"date": dt.date.today().isoformat(), "machine": machine()}
+        record["measured"] = {"date": dt.date.today().isoformat(), "machine": machine(), "commit": measured_commit()}
     folder = data_dir()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{name}.json"
@@ -172,7 +187,8 @@ def measured_on(name: str) -> str:
     """'Measured on <date> on <machine> (`command`).' for a timing measurement."""
     record = stored_record(name)
     when = record["measured"]
-    return f"Measured on {when['date']} on {when['machine']} (`{record['command']}`)."
+    code = f", code at commit {when['commit']}" if when.get("commit") else ""
+    return f"Measured on {when['date']} on {when['machine']}{code} (`{record['command']}`)."
 
 
 def when_and_where(name: str) -> str:

@@ -109,22 +109,27 @@ def profile_table() -> str:
                            f"profiler, which slows Python calls more than numpy's.")])
 
 
-#: Where a batch's time goes: the methods of the batch path timed, each with the part of the work it is.
+#: Where a batch's time goes: the functions of the batch path timed (a class's method, or a function of the module
+#: when no class is named), each with the part of the work it is. A part's time is its own: what a part it calls
+#: takes (the heating's matrix exponentials) is counted there.
 BATCH_PARTS = (
     ("the period fit: rows and normal equations (identification)", "_RowFeeder", "sample"),
     ("the controller (the law over arrays)", "_Controller", "step"),
     ("the plant (compiled step)", "_VectorPlant", "advance_period"),
-    ("the coils' heating", "_VectorPlant", "add_heat"),
+    ("the plant's matrix exponentials (at the start, and again as the coils warm)", "", "expm"),
+    ("the coils' heating (without the exponentials)", "_VectorPlant", "add_heat"),
     ("the sensors (rack and current, noise)", "_Sensors", "sample"),
     ("the sensors (rack and current, noise)", "_Sensors", "current"),
     ("the stop rule (fit solved, judged)", "_BatchRun", "_periods_done"),
 )
+#: The rest of a batch's wall time: what no part above times.
+BATCH_REST = "the rest (tick bookkeeping, numpy's call costs)"
 
 
 @measurement("performance-batch-profile", minutes=0.5, timing=True)
 def profile_batch() -> dict:
-    """Share of an early-stopped batch's wall time (1,000 default valves, one process) by part, and how much of it
-    the tests still running after nine in ten have stopped take."""
+    """Share of an early-stopped batch's wall time (1,000 default valves, one process) by part; how much of it the
+    tests still running after nine in ten have stopped take (the tail), and the tail's own shares."""
     import time
 
     from edc_bench.config import load_variant
@@ -137,52 +142,68 @@ def profile_batch() -> dict:
     rule = StopRule.shipped(variant)
     batch.run_batch(variant, valves[:4], list(range(4)), stop=rule)  # warm: imports, the compiled kernels
     spent: dict[str, float] = defaultdict(float)
-    ticks: list[tuple[int, float]] = []
-    saved = [(getattr(batch, cls), method, getattr(getattr(batch, cls), method)) for _, cls, method in BATCH_PARTS]
+    spent_in_tail: dict[str, float] = defaultdict(float)
+    inner_s = [0.0]  # time taken by timed parts inside the part now running (not its own)
+    tail = {"from_s": None}
+    owners = [(batch if not cls else getattr(batch, cls), name) for _, cls, name in BATCH_PARTS]
+    saved = [(owner, name, getattr(owner, name)) for owner, name in owners]
 
     def timed(part: str, function: Callable[..., Any]) -> Callable[..., Any]:
         def run(*args: Any, **kwargs: Any) -> Any:
+            outer_inner, inner_s[0] = inner_s[0], 0.0
             t0 = time.perf_counter()
             try:
                 return function(*args, **kwargs)
             finally:
-                spent[part] += time.perf_counter() - t0
+                took = time.perf_counter() - t0
+                spent[part] += took - inner_s[0]
+                if tail["from_s"] is not None:
+                    spent_in_tail[part] += took - inner_s[0]
+                inner_s[0] = outer_inner + took
         return run
 
     original_rig_period = batch._BatchRun._rig_period
 
     def rig_period(run: Any, k: int, u: np.ndarray) -> int:
-        ticks.append((len(run.alive), time.perf_counter()))
+        if tail["from_s"] is None and len(run.alive) <= len(valves) // 10:
+            tail["from_s"] = time.perf_counter()
         return original_rig_period(run, k, u)
 
     try:
-        for part, cls, method in BATCH_PARTS:
-            setattr(getattr(batch, cls), method, timed(part, getattr(getattr(batch, cls), method)))
+        for (part, _, _), (owner, name) in zip(BATCH_PARTS, owners):
+            setattr(owner, name, timed(part, getattr(owner, name)))
         batch._BatchRun._rig_period = rig_period
         t0 = time.perf_counter()
         result = batch.run_batch(variant, valves, list(range(len(valves))), stop=rule)
-        total_s = time.perf_counter() - t0
+        end_s = time.perf_counter()
     finally:
-        for owner, method, original in saved:
-            setattr(owner, method, original)
+        for owner, name, original in saved:
+            setattr(owner, name, original)
         batch._BatchRun._rig_period = original_rig_period
-    spent["the rest (tick bookkeeping, numpy's call costs)"] = total_s - sum(spent.values())
-    tail_from = next((t for alive, t in ticks if alive <= len(valves) // 10), None)
-    tail_s = 0.0 if tail_from is None else ticks[-1][1] - tail_from
+    total_s = end_s - t0
+    spent[BATCH_REST] = total_s - sum(spent.values())
+    tail_s = 0.0 if tail["from_s"] is None else end_s - tail["from_s"]
+    if tail_s > 0.0:
+        spent_in_tail[BATCH_REST] = tail_s - sum(spent_in_tail.values())
     return {"valves": len(valves), "total_s": round(total_s, 2),
             "shares": {part: round(seconds / total_s, 3) for part, seconds in sorted(spent.items())},
             "tail_share": round(tail_s / total_s, 3), "tail_valves": int(sum(result.stop.time_s > 12.5)),
+            "tail_shares": {part: round(seconds / tail_s, 3) for part, seconds in sorted(spent_in_tail.items())},
             "median_stop_s": float(np.median(result.stop.time_s))}
 
 
 def batch_profile_table() -> str:
-    """The batch's shares, largest first, and its tail."""
+    """The batch's shares, largest first, and its tail's (the ticks after nine in ten tests had stopped)."""
     result = stored("performance-batch-profile")
-    return "\n".join([_shares_table(result["shares"], "part of the batch path", "share of the batch's time"), "",
-                      wrap(f"{measured_on('performance-batch-profile')} {result['valves']:,} default valves, each "
-                           f"stopped where the bench's early stop ends it (median {result['median_stop_s']:g} s), "
-                           f"in {result['total_s']:.2f} s; {result['tail_share']:.0%} of that time went to the "
-                           f"ticks after nine in ten had stopped ({result['tail_valves']} tests ran past 12.5 s).")])
+    tail = result["tail_shares"]
+    first, second = sorted(tail, key=lambda part: -tail[part])[:2]
+    return "\n".join([
+        _shares_table(result["shares"], "part of the batch path", "share of the batch's time"), "",
+        wrap(f"{measured_on('performance-batch-profile')} {result['valves']:,} default valves, each stopped where "
+             f"the bench's early stop ends it (median {result['median_stop_s']:g} s), in {result['total_s']:.2f} s; "
+             f"{result['tail_share']:.0%} of that time went to the ticks after nine in ten had stopped "
+             f"({result['tail_valves']} tests ran past 12.5 s), and of that tail, {tail[first]:.0%} to {first} "
+             f"and {tail[second]:.0%} to {second}.")])
 
 
 def recorded_command() -> str:

@@ -459,7 +459,8 @@ class BlockAccumulator:
         """Add the rows of one span that all belong to ``block`` (X (T, N, p) or (T, p)), its first row at tick
         ``phase`` of the block. Each row is used in one span only, and the used rows come in time order.
         ``core``: which of the used rows are core rows (:func:`core_rows`; None: all of them). ``tests``: the
-        tests (second axis) the rows are of, when they are not all of them (each test's sums are its own)."""
+        tests (second axis) the rows are of, when they are not all of them (each test's sums are its own); a slice,
+        not an index array, as the sums by phase are updated through a view."""
         if X.ndim == 2:
             X, y, use = X[:, None, :], y[:, None], use[:, None]
             core = None if core is None else core[:, None]
@@ -488,7 +489,8 @@ class BlockAccumulator:
         earlier = self._by_phase[phase: phase + len(X), tests]
         X0, y0 = earlier[..., :p], earlier[..., p]
         self.pair_yy[block, tests] += (y * w * y0).sum(axis=0)
-        self.pair_xy[block, tests] += (Xw @ y0.T[..., None])[..., 0] + (X0.transpose(1, 2, 0) @ (w * y).T[..., None])[..., 0]
+        self.pair_xy[block, tests] += ((Xw @ y0.T[..., None])[..., 0]
+                                       + (X0.transpose(1, 2, 0) @ (w * y).T[..., None])[..., 0])
         self.pair_xx[block, tests] += Xw @ X0.transpose(1, 0, 2)
         self.pair_count[block, tests] += (w * earlier[..., p + 1]).sum(axis=0)
         earlier[..., :p] += X * w[..., None]

@@ -411,11 +411,6 @@ class _Controller:
         self.est_idx, self.fixed_idx = list(design.estimated), list(design.fixed)
         self.nominal = np.array(design.nominal)
         self.inv_w_est_scale = (1.0 / np.array(design.scales)[self.est_idx])[:, None]
-        # the estimated parameters' rows of the regressors: a slice (no copy) when they follow each other, as they
-        # do in every variant so far
-        first = self.est_idx[0] if self.est_idx else 0
-        contiguous = self.est_idx == list(range(first, first + len(self.est_idx)))
-        self._est_rows = slice(first, first + len(self.est_idx)) if contiguous else self.est_idx
         # valves along the last axis: every update is a contiguous pass over n values
         self.theta = np.tile(np.array(design.theta0)[:, None], (1, n))
         self.P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
@@ -447,7 +442,7 @@ class _Controller:
         r1 = w_all[2]
         w_all[4] = 1.0
         np.sign(r1, out=w_all[5])
-        w_est, nominal = w_all[self._est_rows] * self.inv_w_est_scale, self.nominal
+        w_est, nominal = w_all[self.est_idx] * self.inv_w_est_scale, self.nominal
         fixed_part = sum(nominal[i] * w_all[i] for i in self.fixed_idx) if self.fixed_idx else np.zeros(len(r1))
         u1 = law.feedforward_v(ops, self.theta, w_est, fixed_part, rho)
         u, self.saturated = law.saturate(ops, u1 + u2, design.drive_limit_v)
