@@ -331,8 +331,9 @@ def _exclusion_text(effect: dict[str, Any]) -> str:
     share = "none" if effect["exclusion"] == 0 else f"{effect['exclusion'] * 100:.0f} %"
     names = ("a2", "a1", "af")
     if effect["verdict"] == "INVALID" and all(abs(effect["error_rel"][n]) > UNTRUSTED_ERROR_FLOOR for n in names):
-        return (f"{share}: INVALID, each of {', '.join(names)} more than {UNTRUSTED_ERROR_FLOOR * 100:.0f} % off (how far "
-                f"depends on the last bits of the arithmetic, a CPU's BLAS kernels, as an ill-conditioned fit's does)")
+        floor_pct = f"{UNTRUSTED_ERROR_FLOOR * 100:.0f} %"
+        return (f"{share}: INVALID, each of {', '.join(names)} more than {floor_pct} off (how far depends on the "
+                f"last bits of the arithmetic, a CPU's BLAS kernels, as an ill-conditioned fit's does)")
     errors = ", ".join(f"{n} {signed(effect['error_rel'][n])} %" for n in names)
     return f"{share}: {errors}, {effect['verdict']}"
 

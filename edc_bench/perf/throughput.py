@@ -18,7 +18,7 @@ def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, floa
     model the variant's valves are judged by, and the packaged baseline): one process, and ``workers`` processes
     with ``valves`` each; and one process running every test its full length (as training data are made), for
     comparison. The one-process figures are timed after a batch of two, which loads (on a new station, compiles)
-    the batch path's compiled kernels; each pool worker loads them from the cache as it starts."""
+    the batch path's compiled kernels; the pool's figure includes what its workers pay to start."""
     from edc_bench.config import load_variant
     from edc_bench.learning.dataset import run_population
     from edc_bench.population.batch import run_batch
