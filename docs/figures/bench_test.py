@@ -325,8 +325,8 @@ def _exclusion_text(effect: dict[str, Any]) -> str:
     """'10 %: a2 +1.5 %, a1 +0.2 %, af -0.1 %, FAIL' for one reversal exclusion's test.
 
     An INVALID test's fit is too ill-conditioned to trust, and its errors with it: they move by tens of per cent
-    with the last bits of the arithmetic (on one CPU's BLAS kernels a2 +32 %, on another's +10 %). The page says
-    only how far off each one is at least (:data:`UNTRUSTED_ERROR_FLOOR`), which holds on both.
+    with the last bits of the arithmetic (the BLAS kernels a CPU gets). The page says only how far off each one is
+    at least (:data:`UNTRUSTED_ERROR_FLOOR`), which holds whichever kernels ran.
     """
     share = "none" if effect["exclusion"] == 0 else f"{effect['exclusion'] * 100:.0f} %"
     names = ("a2", "a1", "af")

@@ -16,8 +16,8 @@ import pytest
 from edc_bench.config import load_variant
 from edc_bench.population.batch import QUANTA_PER_PERIOD, _VectorPlant
 from edc_bench.population.rig_kernels import quantised_reading
-from edc_bench.sim.plant import STICK_SPEED_MM_S
 from edc_bench.population.valves import draw_population
+from edc_bench.sim.plant import STICK_SPEED_MM_S
 
 
 def _plant(n: int = 2) -> _VectorPlant:
