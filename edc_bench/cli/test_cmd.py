@@ -506,6 +506,7 @@ def _index(record_dir: Path, url: str | None) -> str | None:
 
 
 def _print_report(result: Any, record_dir: Path | None) -> None:
+    from edc_bench.identification.analysis import model_fit_line
     from edc_bench.identification.coil_check import coil_line
     from edc_bench.records.baseline_text import baseline_line
 
@@ -539,10 +540,7 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
               f"condition number {ident.condition_number:.3g})")
         if ident.model_fit is not None:
             fit = ident.model_fit
-            print(f"model fit: residual {fit.residual_ratio:.2f}x the sensor noise ({fit.systematic_ratio:.2f}x the "
-                  f"same every period), period-to-period spread af "
-                  f"{fit.spread_rel['af']:.1%} a1 {fit.spread_rel['a1']:.1%}, solenoid gain variation "
-                  f"+/-{fit.gain_variation_rel:.0%}" + ("" if fit.fits else " - DOES NOT FIT"))
+            print(f"model fit: {model_fit_line(fit)}" + ("" if fit.fits else " - DOES NOT FIT"))
     if result.stop is not None:
         print(f"stopped: {result.stop['reason']} at {result.stop['time_s']:.1f} s")
     t = result.timing

@@ -94,6 +94,23 @@ class ModelFit:
                 "core_shift_rel": None if self.core_shift_rel is None else dict(self.core_shift_rel)}
 
 
+def model_fit_line(fit: ModelFit, ratio_decimals: int = 2) -> str:
+    """The model fit in one line for people: the residual against the sensor noise, the part of it the same every
+    period, the estimates' spread from period to period, the solenoid gain's variation.
+
+    A figure the test did not measure (with one whole period, the part the same every period and the spread) is
+    left out, never printed as ``nan``.
+    """
+    d = ratio_decimals
+    line = f"residual {fit.residual_ratio:.{d}f}x the sensor noise"
+    if math.isfinite(fit.systematic_ratio):
+        line += f" ({fit.systematic_ratio:.{d}f}x the same every period)"
+    spread = [f"{name} {fit.spread_rel[name]:.1%}" for name in ("af", "a1")
+              if fit.spread_rel.get(name) is not None and math.isfinite(fit.spread_rel[name])]
+    line += (", period-to-period spread " + " ".join(spread)) if spread else ", no period-to-period spread (one period)"
+    return line + f", solenoid gain variation +/-{fit.gain_variation_rel:.0%}"
+
+
 @dataclass(frozen=True)
 class Identification:
     """Quality figures of one identification.

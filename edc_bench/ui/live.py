@@ -21,6 +21,7 @@ from rich.table import Table
 from rich.text import Text
 
 from edc_bench.engine.outcome import StopReason
+from edc_bench.identification.analysis import model_fit_line
 from edc_bench.identification.coil_check import coil_line
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
@@ -151,10 +152,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     ident = result.identification
     if ident is not None and ident.model_fit is not None:
         fit = ident.model_fit
-        body.add_row("model fit", Text(f"residual {fit.residual_ratio:.1f}x the sensor noise "
-                                       f"({fit.systematic_ratio:.1f}x the same every period), period-to-period spread "
-                                       f"af {fit.spread_rel['af']:.1%} a1 {fit.spread_rel['a1']:.1%}, solenoid gain "
-                                       f"+/-{fit.gain_variation_rel:.0%}" + ("" if fit.fits else ": DOES NOT FIT"),
+        body.add_row("model fit", Text(model_fit_line(fit, ratio_decimals=1) + ("" if fit.fits else ": DOES NOT FIT"),
                                        style="" if fit.fits else "bold magenta"))
     t = result.timing
     if t.get("ticks"):

@@ -40,3 +40,18 @@ def test_a_folder_given_twice_is_indexed_once(record: Path, tmp_path: Path,
     assert "indexed 1 new record folder(s)" in capsys.readouterr().err
     assert main(["history", "--db", db, "--add", str(record)]) == 0
     assert "indexed 0 new record folder(s)" in capsys.readouterr().err
+
+
+def test_a_model_fit_over_one_period_prints_no_nan() -> None:
+    # one whole period (a test interrupted early): nothing the same every period, no spread between periods
+    import math
+
+    from edc_bench.identification.analysis import ModelFit, model_fit_line
+
+    one_period = ModelFit(1e-3, 1e-3, 1.95, {"af": math.nan, "a1": math.nan}, 0.0, [], systematic_ratio=math.nan)
+    assert model_fit_line(one_period) == ("residual 1.95x the sensor noise, no period-to-period spread (one period), "
+                                          "solenoid gain variation +/-0%")
+    three = ModelFit(1e-3, 1e-3, 1.95, {"af": 0.002, "a1": 0.0021}, 0.05, [], systematic_ratio=0.29)
+    assert model_fit_line(three, ratio_decimals=1) == (
+        "residual 1.9x the sensor noise (0.3x the same every period), period-to-period spread af 0.2% a1 0.2%, "
+        "solenoid gain variation +/-5%")
