@@ -19,6 +19,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from mypy_extensions import mypyc_attr
+
 from edc_bench.protocol import (
     BENCH_CMD_ID,
     RIG_FEEDBACK_ID,
@@ -108,6 +110,7 @@ class FirmwareCounters:
     faults: dict[str, int] = field(default_factory=dict)
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)  # compiled in a wheel; the simulator's broken rigs derive from it
 class RigFirmware:
     """The rig's ICD logic.
 

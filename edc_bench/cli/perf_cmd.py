@@ -35,7 +35,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _environment(quick: bool) -> dict[str, Any]:
+    import importlib.machinery
+
     from edc_bench import __version__
+    from edc_bench.engine import tick
     from edc_bench.runtime.clock import cpu_steal_s
 
     return {
@@ -43,6 +46,8 @@ def _environment(quick: bool) -> dict[str, Any]:
         "edc_bench": __version__, "python": platform.python_version(), "machine": platform.machine(),
         "cpus": os.cpu_count(), "quick": quick, "cpu_steal_at_start_s": cpu_steal_s(),
         "command": "edc-bench perf" + (" --quick" if quick else ""),
+        # a wheel runs the tick's modules compiled (hatch_build.py), an editable install their source
+        "compiled": (tick.__file__ or "").endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES)),
     }
 
 
@@ -50,7 +55,8 @@ def _table(figures: list[Any], env: dict[str, Any]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"edc-bench perf, {env['date']} ({env['cpus']} CPUs, Python {env['python']}"
+    build = "the tick's modules compiled" if env["compiled"] else "the tick's modules from source"
+    table = Table(title=f"edc-bench perf, {env['date']} ({env['cpus']} CPUs, Python {env['python']}, {build}"
                         f"{', quick' if env['quick'] else ''})", show_lines=False)
     for col in ("group", "figure", "measured", "reference", "target", "met", "notes"):
         table.add_column(col, overflow="fold")

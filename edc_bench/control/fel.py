@@ -220,8 +220,10 @@ class FelController:
             u2 = self.pid.update(error, self._saturated)
         else:  # none: the last error again while its sample is young enough, else the PID holds
             last = self._last_error_mm
-            usable = newest_usable and last is not None
-            u2 = self.pid.update(last if usable else math.nan, self._saturated, usable)
+            if newest_usable and last is not None:
+                u2 = self.pid.update(last, self._saturated, True)
+            else:
+                u2 = self.pid.update(math.nan, self._saturated, False)
 
         if k < len(self.table):
             r, r1, r2, r3, r_now = self.table[k]

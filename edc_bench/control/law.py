@@ -13,7 +13,7 @@ how. Three callers run it:
 - the benchmark's floor (:func:`edc_bench.perf.compute.lean_tick`), with
   :data:`SCALAR` and nothing else around it.
 
-The functions are written in a few primitives (:class:`Ops`); each
+The functions are written in a few primitives (:class:`~edc_bench.control.scalar_ops.Ops`); each
 backend implements the primitives (a dot product is a Python loop for five
 floats, one ``einsum`` for five arrays), never the controller. Callers
 reach the functions through this module (``law.pid_update(...)``), so a
@@ -28,94 +28,7 @@ from typing import Any
 
 import numpy as np
 
-
-class Ops:
-    """The primitives the law is written in, for Python floats and lists (one test).
-
-    A vector is a list of floats; a matrix a list of lists. ``ok`` masks say for which tests an update applies
-    (a bool here).
-    """
-
-    @staticmethod
-    def where(condition: Any, a: Any, b: Any) -> Any:
-        """``a`` where ``condition`` holds, else ``b``."""
-        return a if condition else b
-
-    @staticmethod
-    def clip(x: float, limit: float) -> float:
-        """``x`` within +/- ``limit``."""
-        return limit if x > limit else (-limit if x < -limit else x)
-
-    @staticmethod
-    def isnan(x: float) -> bool:
-        """NaN (here: no previous error)."""
-        return x != x
-
-    #: Neither NaN nor infinite.
-    isfinite = staticmethod(math.isfinite)
-    #: Whether any test has it.
-    any = staticmethod(bool)
-
-    @staticmethod
-    def dot(a: list[float], b: list[float]) -> float:
-        """``sum(a_j b_j)``."""
-        out = 0.0
-        for x, y in zip(a, b):
-            out += x * y
-        return out
-
-    @staticmethod
-    def matvec(m: list[list[float]], v: list[float]) -> list[float]:
-        """``m v``."""
-        out = []
-        for row in m:
-            acc = 0.0
-            for x, y in zip(row, v):
-                acc += x * y
-            out.append(acc)
-        return out
-
-    @staticmethod
-    def divide(v: list[float], d: float) -> list[float]:
-        """``v / d``."""
-        return [x / d for x in v]
-
-    @staticmethod
-    def multiply(a: list[float], b: list[float]) -> list[float]:
-        """Element by element."""
-        return [x * y for x, y in zip(a, b)]
-
-    @staticmethod
-    def add_scaled(v: list[float], g: list[float], s: float, ok: bool) -> None:
-        """``v += g s`` in place, where ``ok``."""
-        if ok:
-            for i, gi in enumerate(g):
-                v[i] += gi * s
-
-    @staticmethod
-    def rank_one_down(m: list[list[float]], g: list[float], h: list[float], scale: float, ok: bool) -> None:
-        """``m = (m - g h^T) scale`` in place, where ``ok``; ``m`` symmetric and ``g`` parallel to ``h`` (the RLS
-        covariance), so the upper triangle is computed and mirrored, which keeps ``m`` exactly symmetric."""
-        if ok:
-            n = len(h)
-            for i in range(n):
-                row, gi = m[i], g[i]
-                for j in range(i, n):
-                    v = (row[j] - gi * h[j]) * scale
-                    row[j] = v
-                    m[j][i] = v
-
-    @staticmethod
-    def bound_trace(m: list[list[float]], max_trace: float) -> None:
-        """Scale ``m`` down to ``trace(m) = max_trace`` where it is more."""
-        trace = 0.0
-        for i, row in enumerate(m):
-            trace += row[i]
-        if trace > max_trace:
-            scale = max_trace / trace
-            for row in m:
-                for j in range(len(row)):
-                    row[j] *= scale
+from edc_bench.control.scalar_ops import Ops
 
 
 class ArrayOps(Ops):

@@ -74,7 +74,7 @@ class ReplyMatcher:
 
     def __init__(self, max_age_ticks: int) -> None:
         self.max_age_ticks = max_age_ticks
-        self._tick_of = [None] * 256  # counter -> tick of the command in flight with it
+        self._tick_of: list[int | None] = [None] * 256  # counter -> tick of the command in flight with it
         self._in_flight: deque[tuple[int, int]] = deque()  # (tick, counter), oldest first
         self._answered: set[int] = set()
         self._expired: set[int] = set()  # ticks whose commands expired unanswered
@@ -135,13 +135,16 @@ class ReplyMatcher:
         tick = self._tick_of[counter]
         counts = self.counts
         in_flight = self._in_flight
+        if tick is None:  # for no command this run sent
+            counts.unmatched += 1
+            return None
         if tick in self._expired:  # already counted missed; note that it came, too late
             self._expired.discard(tick)
             counts.ages[next_tick - tick] = counts.ages.get(next_tick - tick, 0) + 1
             counts.too_old += 1
             self._replied(tick)  # the link is alive
             return None
-        if (tick is None or tick in self._answered or tick in self._late
+        if (tick in self._answered or tick in self._late
                 or not in_flight or tick < in_flight[0][0]):
             counts.unmatched += 1  # a repeat of a reply already seen, or for no command in flight
             return None

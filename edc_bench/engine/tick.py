@@ -192,7 +192,7 @@ class TickEngine:
             return
         flags = reply_flags(reply)
         self.trace.reply_arrived(tick, now_s - self._sent_s[tick], reply.position_mm, reply.current_a, flags)
-        self.controller.add_sample(tick, reply.position_mm, reply.current_a)
+        self._controller().add_sample(tick, reply.position_mm, reply.current_a)
         if tick == matcher.newest_tick:
             self.position_mm, self.current_a, self.newest_reply = reply.position_mm, reply.current_a, reply
             self.newest_flags = flags
@@ -253,6 +253,12 @@ class TickEngine:
         """The ticks are over: replies that still come (during the safe stop) are no longer the test's."""
         self.ticking = False
 
+    def _controller(self) -> FelController:
+        """The controller, once :meth:`start` built it."""
+        if self.controller is None:
+            raise RuntimeError("the ticks have not started: TickEngine.start() builds the controller")
+        return self.controller
+
     def tick_time_s(self, k: int) -> float:
         """Clock time of tick ``k``'s deadline."""
         return self.t_start_s + k * self.period_s
@@ -262,7 +268,7 @@ class TickEngine:
 
         Skipped, never sent late in a burst.
         """
-        trace, ctl, t0 = self.trace, self.controller, self.t_start_s
+        trace, ctl, t0 = self.trace, self._controller(), self.t_start_s
         for g in range(k, k + lost):
             trace.write_gap(g, self.tick_time_s(g) - t0, ctl)
         self.outcome.gaps += 1
@@ -274,7 +280,7 @@ class TickEngine:
 
     def command(self, k: int) -> bytes:
         """The controller's step for tick ``k``: the RUN command's payload (its drive in :attr:`drive_v`)."""
-        ctl = self.controller
+        ctl = self._controller()
         self.drive_v = ctl.step(k, newest_usable=self.matcher.usable(k))
         self.counter = (self.run_base + k) & 0xFF
         return self._encode(Mode.RUN, self.drive_v, ctl.reference_mm)
@@ -284,7 +290,7 @@ class TickEngine:
         matcher = self.matcher
         self._sent_s[k] = sent_s
         matcher.sent(k, self.counter)
-        self.trace.write_tick(k, self.tick_time_s(k) - self.t_start_s, lateness_s, math.nan, self.controller,
+        self.trace.write_tick(k, self.tick_time_s(k) - self.t_start_s, lateness_s, math.nan, self._controller(),
                               self.position_mm, self.current_a, self.drive_v, False, self.newest_flags,
                               k - matcher.newest_tick)
         outcome = self.outcome
@@ -302,7 +308,7 @@ class TickEngine:
         outcome.max_unanswered_in_row = counts.max_unanswered_in_row
         abort = self._abort(k)
         if abort is None and k > self._follow_from_k and self._off_reference.update(
-                self.controller.reference_mm, self.position_mm):
+                self._controller().reference_mm, self.position_mm):
             abort = Abort(AbortKind.OFF_REFERENCE, self._off_reference.figures())
         return None if abort is None else abort.at(self.tick_time_s(k) - self.t_start_s)
 

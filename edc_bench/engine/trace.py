@@ -145,7 +145,7 @@ class CanFrameLog:
         self.can_id = np.zeros(capacity, dtype=np.uint32)  # 29-bit extended ids too
         self.dlc = np.zeros(capacity, dtype=np.uint8)
         self.data = np.zeros((capacity, 8), dtype=np.uint8)
-        self._raw = memoryview(self.data).cast("B")  # payloads, 8 bytes a frame; filled by slice assignment
+        self._raw = self.data.data.cast("B")  # payloads, 8 bytes a frame; filled by slice assignment
         self.rx = np.zeros(capacity, dtype=bool)
         self.flags = np.zeros(capacity, dtype=np.uint8)  # FRAME_EXTENDED | FRAME_REMOTE | FRAME_ERROR | FRAME_TRUNCATED
         self.count = 0

@@ -141,7 +141,11 @@ class Icd:
         import cantools  # deferred: only needed once, at start-up
 
         self.dbc_file = Path(dbc_file) if dbc_file is not None else dbc_path()
-        self.database = cantools.database.load_file(str(self.dbc_file))
+        database = cantools.database.load_file(str(self.dbc_file))
+        if not isinstance(database, cantools.database.can.Database) or database.dbc is None:
+            raise ProtocolError(f"{self.dbc_file}: not a CAN database in DBC format")
+        self.database = database
+        self._dbc = database.dbc
         self.bench_cmd = self._layout("BENCH_CMD", BENCH_CMD_ID)
         self.rig_feedback = self._layout("RIG_FEEDBACK", RIG_FEEDBACK_ID)
         self.rig_heartbeat = self._layout("RIG_HEARTBEAT", RIG_HEARTBEAT_ID)
@@ -157,7 +161,7 @@ class Icd:
                                     f"ICD v1 order {expected}")
         self.bench_cmd_data_id = self._data_id("BENCH_CMD")
         self.rig_feedback_data_id = self._data_id("RIG_FEEDBACK")
-        attributes = self.database.dbc.attributes
+        attributes = self._dbc.attributes
         self.watchdog_ms = int(attributes["WatchdogMs"].value)
         self.bitrate = int(attributes["Baudrate"].value)
         self.version = (int(attributes["IcdVersionMajor"].value), int(attributes["IcdVersionMinor"].value))

@@ -29,7 +29,7 @@ import gc
 import time
 import traceback
 from collections.abc import Callable
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from edc_bench.canlib import can
 from edc_bench.config.models import Variant
@@ -39,6 +39,9 @@ from edc_bench.engine.tick import StopRule, TickEngine
 from edc_bench.engine.trace import CanFrameLog, Trace, frame_flags
 from edc_bench.protocol import BENCH_CMD_ID, Icd, RigFeedback, RigState
 from edc_bench.runtime.clock import Clock, cpu_steal_s
+
+if TYPE_CHECKING:
+    from can import BusABC
 
 
 class Phase(enum.StrEnum):
@@ -100,7 +103,7 @@ class BenchLoop:
         its full length without one.
     """
 
-    def __init__(self, bus: can.BusABC, clock: Clock, variant: Variant, icd: Icd,
+    def __init__(self, bus: BusABC, clock: Clock, variant: Variant, icd: Icd,
                  observer: LoopObserver | None = None, stop_requested: Callable[[], bool] | None = None,
                  stop_rule: StopRule | None = None) -> None:
         self.bus = bus
@@ -247,7 +250,10 @@ class BenchLoop:
     def run(self) -> LoopOutcome:
         """Run the test; always ends with SAFE. Returns what happened."""
         gc_was_enabled = gc.isenabled()
-        gc.collect()
+        # what the last test left is young: collect those generations only (a full collection scans everything the
+        # process holds, a tenth of a short simulated test); the old generation is collected as Python schedules it,
+        # between tests, once the collector is enabled again
+        gc.collect(1)
         gc.freeze()  # objects alive now are never scanned again
         gc.disable()  # and no collection interrupts a tick
         self.clock.start()

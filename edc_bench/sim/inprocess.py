@@ -14,13 +14,18 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from edc_bench.canlib import can
-import numpy as np
 
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.rig import SimulatedRig
 from firmware_proto.firmware import Frame
+
+if TYPE_CHECKING:
+    from can import BusABC
 
 
 class InProcessRig:
@@ -40,7 +45,7 @@ class InProcessRig:
         Seed of the adapter's jitter.
     """
 
-    def __init__(self, bus: can.BusABC, rig: SimulatedRig, adapter: AdapterModel | None = None,
+    def __init__(self, bus: BusABC, rig: SimulatedRig, adapter: AdapterModel | None = None,
                  seed: int = 0) -> None:
         self.bus = bus
         self.rig = rig

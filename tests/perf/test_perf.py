@@ -42,6 +42,7 @@ def test_perf_quick_prints_all_five_groups_and_leaves_the_history_alone(tmp_path
         assert f["value"] is not None and math.isfinite(f["value"]) and f["value"] >= 0, f
         assert f["met"] in (True, False), f  # every figure has a target here
     assert report["environment"]["quick"] is True
+    assert report["environment"]["compiled"] in (True, False)
 
 
 @pytest.mark.parametrize("kind", ["rls", "gradient"])

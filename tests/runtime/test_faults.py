@@ -126,16 +126,19 @@ def test_rig_never_ready_is_one_clear_line(tmp_path: Path, simulated_bench) -> N
 
 def test_a_bug_in_the_tick_still_ends_safe_with_the_data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                          simulated_bench) -> None:
-    from edc_bench.control.fel import FelController
+    from edc_bench.control import law
 
-    original = FelController.step
+    original = law.feedforward_v
+    calls = []
 
-    def failing_step(self, k: int, *args, **kwargs) -> float:
-        if k == 1500:
+    def failing_feedforward(*args, **kwargs):
+        # the controller's law is looked up at every call, compiled controller or not (hatch_build.py)
+        calls.append(1)
+        if len(calls) == 1501:  # tick 1500's step
             raise ZeroDivisionError("injected bug")
-        return original(self, k, *args, **kwargs)
+        return original(*args, **kwargs)
 
-    monkeypatch.setattr(FelController, "step", failing_step)
+    monkeypatch.setattr(law, "feedforward_v", failing_feedforward)
     result, rig, _ = run_with(simulated_bench)
     assert result.outcome.abort_reason == "internal error: ZeroDivisionError: injected bug"
     assert "Traceback" in result.outcome.events[-1]

@@ -31,6 +31,7 @@ from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.records.record import write_record
 from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, open_bus
 from edc_bench.runtime.clock import SimulatedClock
+from edc_bench.runtime.loop import BenchLoop
 from edc_bench.sim.rig import SimulatedRig
 from edc_bench.testing.slcan_rig import SlcanSocketRig
 from edc_bench.verdict.verdicts import Verdict
@@ -259,9 +260,15 @@ def test_a_busy_bus_is_logged_whole(tmp_path: Path) -> None:
 
 def test_frames_beyond_the_log_maximum_are_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                    simulated_bench) -> None:
-    from edc_bench.runtime import loop as loop_module
+    from edc_bench import bench as bench_module
 
-    monkeypatch.setattr(loop_module, "CanFrameLog", lambda capacity: CanFrameLog(3000))
+    def with_a_small_log(*args, **kwargs) -> BenchLoop:
+        # the loop's own module may be compiled (hatch_build.py): its names cannot be patched, its attributes can
+        loop = BenchLoop(*args, **kwargs)
+        loop.frames = CanFrameLog(3000)
+        return loop
+
+    monkeypatch.setattr(bench_module, "BenchLoop", with_a_small_log)
     variant = _variant(SHORT_S)
     bench, clock, _ = simulated_bench(variant, "worn", 1)
     result = run_bench_test(bench, clock, variant, BenchOptions(check_gains=False))

@@ -1,0 +1,88 @@
+"""The wheel's compiled modules (hatch_build.py): there when installed from a wheel, never shadowing the source of an
+editable install, and giving the same records as the source, to the bit."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import importlib.machinery
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import edc_bench
+
+ROOT = Path(__file__).resolve().parents[2]
+RUNS_FROM_SOURCE = Path(edc_bench.__file__).resolve().parent == ROOT / "edc_bench"
+
+
+def _compiled_list() -> tuple[str, ...]:
+    """hatch_build.COMPILED, read without importing hatchling (a build dependency, not a test one)."""
+    tree = ast.parse((ROOT / "hatch_build.py").read_text(encoding="utf-8"))
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "COMPILED" for t in node.targets):
+            return tuple(ast.literal_eval(node.value))
+    raise AssertionError("hatch_build.py has no COMPILED")
+
+
+def _module_name(path: str) -> str:
+    return path.removesuffix(".py").replace("/", ".")
+
+
+def _is_compiled(name: str) -> bool:
+    origin = importlib.import_module(name).__file__ or ""
+    return origin.endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES))
+
+
+def test_an_editable_install_runs_the_source_and_a_wheel_the_compiled_modules() -> None:
+    compiled = {path: _is_compiled(_module_name(path)) for path in _compiled_list()}
+    if RUNS_FROM_SOURCE or os.environ.get("EDC_BENCH_PURE_PYTHON"):
+        # a stale build in the tree would run instead of the source a developer edits
+        assert not any(compiled.values()), compiled
+    else:
+        assert all(compiled.values()), compiled
+
+
+# the same test, run by whichever edc_bench is first on the path; prints what must come out the same to the bit
+_DIGEST = """
+import hashlib, json
+from edc_bench.bench import run_simulated_test
+from edc_bench.config import load_variant
+out = {}
+for variant, valve, adapter in (("p-edc-default", "worn", "usb-fs"), ("p-edc-hard", "faulty", None)):
+    result = run_simulated_test(load_variant(variant), valve, seed=3, adapter=adapter)
+    digest = hashlib.sha256()
+    for name in sorted(result.trace):
+        digest.update(name.encode() + result.trace[name].tobytes())
+    frames = result.frames
+    for column in (frames.t_s, frames.can_id, frames.data, frames.rx):
+        digest.update(column[:frames.count].tobytes())
+    out[variant] = {"verdict": str(result.verdict), "features": result.features, "ticks": result.outcome.ticks_run,
+                    "trace_and_frames": digest.hexdigest()}
+import edc_bench.engine.tick
+out["tick_module"] = edc_bench.engine.tick.__file__
+print(json.dumps(out, sort_keys=True))
+"""
+
+
+def _digest_in_process() -> dict:
+    lines: list[str] = []
+    namespace = {"print": lines.append}
+    exec(_DIGEST, namespace)  # noqa: S102 - the test's own code, run here as in the subprocess
+    return json.loads(lines[-1])
+
+
+@pytest.mark.skipif(RUNS_FROM_SOURCE, reason="the package runs from source here: nothing compiled to compare "
+                                            "(CI installs the wheel)")
+def test_the_compiled_modules_give_the_records_of_the_source() -> None:
+    assert _is_compiled("edc_bench.engine.tick")
+    source = subprocess.run([sys.executable, "-c", _DIGEST], capture_output=True, text=True, check=True,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)}, cwd=ROOT)
+    from_source = json.loads(source.stdout.strip().splitlines()[-1])
+    compiled = _digest_in_process()
+    assert from_source.pop("tick_module").endswith(".py") and not compiled.pop("tick_module").endswith(".py")
+    assert from_source == compiled
