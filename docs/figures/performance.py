@@ -77,9 +77,17 @@ PROFILE_PARTS = (
 
 @measurement("performance-profile", minutes=0.5, timing=True)
 def profile_simulated_test() -> dict:
-    """Share of a full-length default simulated test's own time (cProfile's tottime) by the code's job."""
+    """Share of a full-length default simulated test's own time (cProfile's tottime) by the code's job, of the
+    source: cProfile does not see into the wheel's compiled modules."""
+    import importlib.machinery
+
     from edc_bench.bench import run_simulated_test
     from edc_bench.config import load_variant
+    from edc_bench.engine import tick
+
+    if (tick.__file__ or "").endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES)):
+        raise RuntimeError("the tick's modules are compiled here (a wheel): profile the source, from an editable "
+                           "install (pip install -e .)")
 
     variant = load_variant("p-edc-default")
     run_simulated_test(variant, "new", 1, full_length=True)  # warm: imports, the gain check's cache
