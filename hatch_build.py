@@ -97,6 +97,7 @@ class CompiledEngineHook(BuildHookInterface):
                                "--build-temp", str(self._work / "temp")], cwd=self._work,
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         if done.returncode != 0:
+            shutil.rmtree(self._work, ignore_errors=True)
             raise RuntimeError(
                 f"compiling the tick's modules with mypyc failed (a C compiler and Python's headers are needed):\n"
                 f"{done.stdout[-4000:]}\nTo install without them (slower simulated tests), set "
