@@ -6,7 +6,8 @@ firmware and the plant). mypyc compiles these same source files, type hints
 and all, to C extension modules: one definition, run as C. The arithmetic stays
 IEEE double, operation for operation (``-ffp-contract=off``: no fused
 multiply-add, whatever the compiler's target), so a compiled run gives the same
-records, to the bit, as the source (``tests/structure/test_compiled.py``).
+records (trace, frames, record.json), to the bit, as the source
+(``tests/structure/test_compiled.py``).
 
 - A wheel (``pip install .``) carries the compiled modules beside their
   sources; Python imports the compiled one.
@@ -14,7 +15,8 @@ records, to the bit, as the source (``tests/structure/test_compiled.py``).
   edit takes effect at once.
 - ``EDC_BENCH_PURE_PYTHON=1`` builds a wheel without them (a machine without a
   C compiler). Everything works the same, only slower: the simulated test
-  takes about twice as long (docs/performance.md).
+  takes about twice as long (docs/performance.md). Tracebacks from a compiled
+  module show its source lines without the ``^^^`` markers.
 
 What is compiled is :data:`COMPILED`. A module there must type-check under
 mypy (mypyc checks its types at run time) and must not be changed from outside
@@ -27,6 +29,7 @@ the floor.
 
 from __future__ import annotations
 
+import importlib.machinery
 import os
 import shutil
 import subprocess
@@ -59,8 +62,9 @@ COMPILED = (
     "firmware_proto/firmware.py",
 )
 
-#: Set to build a wheel of sources only.
+#: Set to 1 to build a wheel of sources only.
 PURE_PYTHON_ENV = "EDC_BENCH_PURE_PYTHON"
+_YES, _NO = ("1", "true", "yes"), ("", "0", "false", "no")
 
 _SETUP = """\
 import sys
@@ -83,9 +87,13 @@ class CompiledEngineHook(BuildHookInterface):
     PLUGIN_NAME = "custom"
 
     def initialize(self, version: str, build_data: dict[str, Any]) -> None:
+        """Compile :data:`COMPILED` into a temporary folder and add the extension modules to the wheel's files."""
         if self.target_name != "wheel" or version == "editable":
             return
-        if os.environ.get(PURE_PYTHON_ENV):
+        pure = os.environ.get(PURE_PYTHON_ENV, "").strip().lower()
+        if pure not in _YES + _NO:
+            raise ValueError(f"{PURE_PYTHON_ENV}={pure!r}: give 1 (no compiled modules) or 0 (compile them)")
+        if pure in _YES:
             self.app.display_warning(f"{PURE_PYTHON_ENV} is set: the wheel carries no compiled modules")
             return
         self._work = Path(tempfile.mkdtemp(prefix="edc-bench-mypyc-"))
@@ -99,15 +107,17 @@ class CompiledEngineHook(BuildHookInterface):
         if done.returncode != 0:
             shutil.rmtree(self._work, ignore_errors=True)
             raise RuntimeError(
-                f"compiling the tick's modules with mypyc failed (a C compiler and Python's headers are needed):\n"
-                f"{done.stdout[-4000:]}\nTo install without them (slower simulated tests), set "
-                f"{PURE_PYTHON_ENV}=1.")
-        for built in sorted(lib.rglob("*.so")):
-            build_data["force_include"][str(built)] = built.relative_to(lib).as_posix()
+                f"compiling the tick's modules with mypyc failed; it needs a C compiler and Python's headers. The "
+                f"end of its output:\n{done.stdout[-4000:]}\nTo install without compiling them (slower simulated "
+                f"tests), set {PURE_PYTHON_ENV}=1.")
+        for built in sorted(lib.rglob("*")):
+            if built.name.endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES)):
+                build_data["force_include"][str(built)] = built.relative_to(lib).as_posix()
         build_data["pure_python"] = False
         build_data["infer_tag"] = True
 
     def finalize(self, version: str, build_data: dict[str, Any], artifact_path: str) -> None:
+        """Remove the temporary folder once the wheel holds its files."""
         work = getattr(self, "_work", None)
         if work is not None:
             shutil.rmtree(work, ignore_errors=True)

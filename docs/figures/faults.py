@@ -43,18 +43,30 @@ def _bus_rule(name: str) -> Any:
     }[name]
 
 
+class _DriveWatch:
+    """The rig's hardware as its firmware sees it, every drive set logged with the rig's time."""
+
+    def __init__(self, rig: Any) -> None:
+        self._rig, self._hardware = rig, rig.hardware
+        self.log: list[tuple[float, float]] = []
+
+    def set_drive_v(self, drive_v: float) -> None:
+        self.log.append((self._rig.time_s, drive_v))
+        self._hardware.set_drive_v(drive_v)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._hardware, name)
+
+
 def _watch_drive(rig: Any) -> list[tuple[float, float]]:
-    """Log every drive the rig's firmware sets, with the rig's time: [(time_s, drive_v), ...]."""
-    log: list[tuple[float, float]] = []
-    hardware = rig.hardware
-    original = hardware.set_drive_v
+    """Log every drive the rig's firmware sets, with the rig's time: [(time_s, drive_v), ...].
 
-    def set_drive_v(drive_v: float) -> None:
-        log.append((rig.time_s, drive_v))
-        original(drive_v)
-
-    hardware.set_drive_v = set_drive_v
-    return log
+    The firmware is given a watching hardware; the hardware's own method cannot be replaced where the simulated
+    rig is compiled (hatch_build.py).
+    """
+    watch = _DriveWatch(rig)
+    rig.firmware.hw = watch
+    return watch.log
 
 
 def _first_safe_s(result: Any, after_s: float) -> float | None:

@@ -53,7 +53,7 @@ def perf_environment() -> str:
     """When and where the stored run was made, and how much CPU the hypervisor took meanwhile."""
     env = stored("performance-perf")["environment"]
     build = ("the tick's modules compiled (a wheel)" if env.get("compiled")
-             else "the tick's modules from source (an editable install)")
+             else "the tick's modules from source (an editable install, or a wheel built without compiling)")
     return wrap(f"{measured_on('performance-perf')} edc-bench {env['edc_bench']}, {build}; `{env['command']}` "
                 f"started at {env['date']}; the hypervisor took {env['cpu_steal_s']:.1f} s of CPU during the run (CPU steal, "
                 f"as /proc/stat counts it).")

@@ -45,8 +45,8 @@ class Estimator(ABC):
         self.residual_var = 0.0  # exponentially weighted mean of squared a-priori errors
         self._residual_weight = 0.0
 
-    def update(self, w: Sequence[float], y: float) -> float:
-        """Move the estimate towards explaining ``y`` by ``w``.
+    def update(self, w: list[float], y: float) -> float:
+        """Move the estimate towards explaining ``y`` by ``w`` (a list of floats, one per estimated parameter).
 
         Returns
         -------
@@ -64,7 +64,7 @@ class Estimator(ABC):
         return err
 
     @abstractmethod
-    def _update(self, w: Sequence[float], y: float) -> tuple[float, bool]:
+    def _update(self, w: list[float], y: float) -> tuple[float, bool]:
         """Apply one update (:mod:`edc_bench.control.law`); the a-priori error and whether it applied."""
 
     def std(self) -> list[float] | None:
@@ -96,7 +96,7 @@ class RecursiveLeastSquares(Estimator):
         self.max_trace = max_trace
         self.P = [[(s * s if i == j else 0.0) for j, s in enumerate(initial_std)] for i in range(len(initial_std))]
 
-    def _update(self, w: Sequence[float], y: float) -> tuple[float, bool]:
+    def _update(self, w: list[float], y: float) -> tuple[float, bool]:
         return law.rls_update(law.SCALAR, self.theta, self.P, w, y, self.lam, self.max_trace)
 
     def std(self) -> list[float]:
@@ -127,5 +127,5 @@ class NormalisedGradient(Estimator):
             raise ValueError("one gain per parameter")
         self.gains = [float(g) * period_s for g in gains]
 
-    def _update(self, w: Sequence[float], y: float) -> tuple[float, bool]:
+    def _update(self, w: list[float], y: float) -> tuple[float, bool]:
         return law.gradient_update(law.SCALAR, self.theta, self.gains, w, y)

@@ -45,7 +45,10 @@ class Clock(ABC):
     """Time as the bench loop sees it."""
 
     #: True if replies arrive only after waiting (real time); False if the
-    #: rig has answered by the time ``after_send`` returns (lockstep).
+    #: rig has answered by the time ``after_send`` returns (lockstep). A
+    #: subclass outside the package sets it on the instance, in ``__init__``:
+    #: in a wheel the loop is compiled (hatch_build.py) and reads the
+    #: instance's value, never a subclass's class attribute.
     waits_for_replies: bool = True
 
     def start(self) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import importlib
 import importlib.machinery
+import importlib.metadata
 import json
 import os
 import subprocess
@@ -38,13 +39,20 @@ def _is_compiled(name: str) -> bool:
     return origin.endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES))
 
 
+def _built_compiled() -> bool:
+    """Whether the installed package should run compiled: a wheel built with the hook (a platform tag), not from
+    source and not a wheel built with EDC_BENCH_PURE_PYTHON=1 (``py3-none-any``)."""
+    if RUNS_FROM_SOURCE:
+        return False
+    wheel = importlib.metadata.distribution("edc-bench").read_text("WHEEL") or ""
+    return "Tag: py3-none-any" not in wheel
+
+
 def test_an_editable_install_runs_the_source_and_a_wheel_the_compiled_modules() -> None:
     compiled = {path: _is_compiled(_module_name(path)) for path in _compiled_list()}
-    if RUNS_FROM_SOURCE or os.environ.get("EDC_BENCH_PURE_PYTHON"):
-        # a stale build in the tree would run instead of the source a developer edits
-        assert not any(compiled.values()), compiled
-    else:
-        assert all(compiled.values()), compiled
+    # all or none: a stale build in the tree would run instead of the source a developer edits, and a wheel that
+    # lost a module would run it slower unseen
+    assert set(compiled.values()) == {_built_compiled()}, compiled
 
 
 # the same test, run by whichever edc_bench is first on the path; prints what must come out the same to the bit
@@ -59,13 +67,18 @@ from edc_bench.records.record import write_record
 WALL_CLOCK = {"timing": ("first_tick_unix_s", "stop_check_max_us", "cpu_steal_s"),
               "loop": ("first_tick_unix_s", "clock_origin_unix_s", "stop_check_max_s", "cpu_steal_s")}
 out = {}
-for variant, valve, adapter in (("p-edc-default", "worn", "usb-fs"), ("p-edc-hard", "faulty", None)):
-    result = run_simulated_test(load_variant(variant), valve, seed=3, adapter=adapter)
+from edc_bench.testing.stalls import StallingClock
+def stalls(clock):
+    return StallingClock(clock, stall_s=0.005, every_s=1.0, first_s=2.5)
+for case, variant, valve, adapter, wrapper in (("worn-usb-fs", "p-edc-default", "worn", "usb-fs", None),
+                                               ("faulty-hard", "p-edc-hard", "faulty", None, None),
+                                               ("new-host-stalls", "p-edc-default", "new", None, stalls)):
+    result = run_simulated_test(load_variant(variant), valve, seed=3, adapter=adapter, clock_wrapper=wrapper)
     digest = hashlib.sha256()
     for name in sorted(result.trace):
         digest.update(name.encode() + result.trace[name].tobytes())
     frames = result.frames
-    for column in (frames.t_s, frames.can_id, frames.data, frames.rx):
+    for column in (frames.t_s, frames.can_id, frames.dlc, frames.data, frames.rx, frames.flags):
         digest.update(column[:frames.count].tobytes())
     with tempfile.TemporaryDirectory() as folder:
         record = json.loads((write_record(result, Path(folder), figure=False) / "record.json").read_text())
@@ -75,7 +88,7 @@ for variant, valve, adapter in (("p-edc-default", "worn", "usb-fs"), ("p-edc-har
     for key in ("started_at", "integrity", "files"):
         record.pop(key)
     record["baseline"].pop("path")  # the installed package's copy, or the repository's
-    out[variant] = {"trace_and_frames": digest.hexdigest(), "record_json": json.dumps(record, sort_keys=True)}
+    out[case] = {"trace_and_frames": digest.hexdigest(), "record_json": json.dumps(record, sort_keys=True)}
 import edc_bench.engine.tick
 out["tick_module"] = edc_bench.engine.tick.__file__
 print(json.dumps(out, sort_keys=True))
@@ -89,8 +102,9 @@ def _digest_in_process() -> dict:
     return json.loads(lines[-1])
 
 
-@pytest.mark.skipif(RUNS_FROM_SOURCE, reason="the package runs from source here: nothing compiled to compare "
-                                            "(CI installs the wheel)")
+@pytest.mark.skipif(not _built_compiled(), reason="the installed package is not compiled (an editable install, or "
+                                                   "a wheel built with EDC_BENCH_PURE_PYTHON=1): nothing to compare; "
+                                                   "CI installs the compiled wheel")
 def test_the_compiled_modules_give_the_records_of_the_source() -> None:
     assert _is_compiled("edc_bench.engine.tick")
     source = subprocess.run([sys.executable, "-c", _DIGEST], capture_output=True, text=True, check=True,
@@ -98,4 +112,5 @@ def test_the_compiled_modules_give_the_records_of_the_source() -> None:
     from_source = json.loads(source.stdout.strip().splitlines()[-1])
     compiled = _digest_in_process()
     assert from_source.pop("tick_module").endswith(".py") and not compiled.pop("tick_module").endswith(".py")
+    assert json.loads(compiled["new-host-stalls"]["record_json"])["loop"]["gaps"] > 0  # the stalls cost ticks
     assert from_source == compiled
