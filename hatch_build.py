@@ -71,8 +71,10 @@ import sys
 from setuptools import setup
 from mypyc.build import mypycify
 
-# the modules they import are read for their types, not compiled, and their own type errors are not this build's
-options = ["--ignore-missing-imports", "--follow-imports=silent", "--python-version=3.11"]
+# the package's modules they import are read for their types, not compiled, and their own type errors are not
+# this build's; installed packages (numpy, python-can, ...) are not looked at, so their values are typed Any and
+# run with Python's own semantics, and a build does not depend on what the build environment happens to hold
+options = ["--ignore-missing-imports", "--follow-imports=silent", "--no-site-packages", "--python-version=3.11"]
 extensions = mypycify([*options, *{paths!r}], opt_level="3", group_name="edc_bench_compiled")
 for extension in extensions:
     # IEEE double, operation for operation: never a fused multiply-add, even on a target that has one

@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import numpy as np
 
 from edc_bench.errors import ConfigError
 
-ArrayOrFloat = float | np.ndarray
+ArrayOrFloat: TypeAlias = float | np.ndarray
 
 
 @dataclass(frozen=True)
