@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from helpers import write_new_pump_type
 
@@ -23,10 +25,10 @@ def _present(variant):
 def test_gains_for_a_pump_with_twice_the_force_constant_keep_the_margins(tmp_path) -> None:
     variant = load_variant(write_new_pump_type(tmp_path))
     plant, period, delay = nominal_plant(variant), variant.controller.period_s, max_reply_age_ticks(variant)
-    before = loop_margins(plant, *vars(_present(variant)).values(), period, delay)
+    before = loop_margins(plant, *dataclasses.astuple(_present(variant)), period, delay)
     assert before.gain_margin_db < 6 or before.phase_margin_deg < 30  # the default's gains do not fit it
     tuned = tune_pid(plant, period, delay, 6.0, 30.0)
-    again = loop_margins(plant, *vars(tuned.gains).values(), period, delay)  # checked anew, as the bench will
+    again = loop_margins(plant, *dataclasses.astuple(tuned.gains), period, delay)  # checked anew, as the bench will
     assert again.closed_loop_stable
     assert again.gain_margin_db >= 6.0 and again.phase_margin_deg >= 30.0
     assert again == tuned.margins
