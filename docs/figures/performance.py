@@ -55,8 +55,8 @@ def perf_environment() -> str:
     build = ("the tick's modules compiled (a wheel)" if env.get("compiled")
              else "the tick's modules from source (an editable install, or a wheel built without compiling)")
     return wrap(f"{measured_on('performance-perf')} edc-bench {env['edc_bench']}, {build}; `{env['command']}` "
-                f"started at {env['date']}; the hypervisor took {env['cpu_steal_s']:.1f} s of CPU during the run (CPU steal, "
-                f"as /proc/stat counts it).")
+                f"started at {env['date']}; the hypervisor took {env['cpu_steal_s']:.1f} s of CPU during the run "
+                f"(CPU steal, as /proc/stat counts it).")
 
 
 #: Where a simulated test's time goes, by the code's job (the first match of a function's file wins).
@@ -79,13 +79,11 @@ PROFILE_PARTS = (
 def profile_simulated_test() -> dict:
     """Share of a full-length default simulated test's own time (cProfile's tottime) by the code's job, of the
     source: cProfile does not see into the wheel's compiled modules."""
-    import importlib.machinery
-
     from edc_bench.bench import run_simulated_test
     from edc_bench.config import load_variant
-    from edc_bench.engine import tick
+    from edc_bench.perf import tick_compiled
 
-    if (tick.__file__ or "").endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES)):
+    if tick_compiled():
         raise RuntimeError("the tick's modules are compiled here (a wheel): profile the source, from an editable "
                            "install (pip install -e .)")
 

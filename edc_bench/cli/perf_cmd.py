@@ -35,10 +35,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _environment(quick: bool) -> dict[str, Any]:
-    import importlib.machinery
-
     from edc_bench import __version__
-    from edc_bench.engine import tick
+    from edc_bench.perf import tick_compiled
     from edc_bench.runtime.clock import cpu_steal_s
 
     return {
@@ -46,8 +44,7 @@ def _environment(quick: bool) -> dict[str, Any]:
         "edc_bench": __version__, "python": platform.python_version(), "machine": platform.machine(),
         "cpus": os.cpu_count(), "quick": quick, "cpu_steal_at_start_s": cpu_steal_s(),
         "command": "edc-bench perf" + (" --quick" if quick else ""),
-        # a wheel runs the tick's modules compiled (hatch_build.py), an editable install their source
-        "compiled": (tick.__file__ or "").endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES)),
+        "compiled": tick_compiled(),
     }
 
 
