@@ -27,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import itertools
+import uuid
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -149,6 +150,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
 
         variant_model_path(variant)
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    # the test's own id, fixed at its start: the history knows the test by it wherever its folder is copied
+    test_id = uuid.uuid4().hex
     stop_rule = _stop_rule(variant, o, baseline)
     loop = BenchLoop(bus, clock, variant, o.icd or default_icd(), o.observer, stop_requested=stop_requested,
                      stop_rule=stop_rule)
@@ -175,6 +178,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
         variant=variant,
         valve_id=o.valve_id,
         started_at=started,
+        test_id=test_id,
         clock="simulated" if isinstance(clock, SimulatedClock) else "real-time",
         trace=trace,
         frames=loop.frames,

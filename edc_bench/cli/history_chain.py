@@ -29,14 +29,26 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
                        help="everything the history holds of one valve, in the order written: tests indexed, "
                             "findings, corrections and withdrawals, with who and when")
     chain.add_argument("--verify", action="store_true",
-                       help="read every indexed record folder again: list the missing and those changed since they "
-                            "were indexed (exit 16 if any)")
+                       help="read every indexed record folder again and check the history's hash chain: list the "
+                            "missing folders, those changed since they were first indexed, tests indexed again with "
+                            "other content, and rows changed, deleted or put in by hand (exit 16 if any; --station: "
+                            "one station's)")
+    chain.add_argument("--heads", nargs="?", const="-", default=None, metavar="FILE",
+                       help="print each chain's last row and hash (JSON) to keep outside the station; with --verify: "
+                            "check that the history still holds the heads kept in FILE")
+    chain.add_argument("--map-login", default=None, metavar="LOGIN",
+                       help="PostgreSQL, the owner's login: the database login LOGIN is station --station NAME (the "
+                            "database writes that name into every test and rig self-check the login adds; a login "
+                            "with no station may add none) and person --person NAME; without either: list the "
+                            "logins' mappings")
+    chain.add_argument("--person", type=identity(), default=None, metavar="NAME",
+                       help="with --map-login: the person the login is (named in its withdrawals and adoptions)")
     chain.add_argument("--rig", action="store_true",
                        help="the rig self-check's ledger: each reference valve registered, each 'edc-bench "
                             "rig-selfcheck', GO or NO-GO, what drifted, and each figure's change against the "
                             "registration with its trend per check (--station: one station's)")
     chain.add_argument("--station", type=identity(), default=None, metavar="NAME",
-                       help="with --rig: only this station's ledger")
+                       help="with --rig or --verify: only this station's; with --map-login: the login's station")
     chain.add_argument("--schema", action="store_true",
                        help="the database's schema revision and the changes --upgrade would make")
     chain.add_argument("--upgrade", action="store_true",
@@ -55,11 +67,18 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
                                       ("--verify", args.verify), ("--schema", args.schema),
                                       ("--upgrade", args.upgrade), ("--setup-roles", args.setup_roles),
                                       ("--add", bool(args.add)), ("--trend", args.trend is not None),
-                                      ("--csv", args.csv is not None), ("--rig", args.rig)) if flag]
+                                      ("--csv", args.csv is not None), ("--rig", args.rig),
+                                      ("--map-login", args.map_login is not None),
+                                      ("--heads", args.heads is not None and not args.verify)) if flag]
     if len(chosen) > 1:
         raise ConfigError(f"{' and '.join(chosen)} are separate actions: give one at a time")
-    if args.station is not None and not args.rig:
-        raise ConfigError("--station goes with --rig (the rig self-check's ledger of one station)")
+    if args.station is not None and not (args.rig or args.verify or args.map_login is not None):
+        raise ConfigError("--station goes with --rig, --verify (one station's) or --map-login (the login's station)")
+    if args.person is not None and args.map_login is None:
+        raise ConfigError("--person goes with --map-login LOGIN (the person that database login is)")
+    if args.verify and args.heads == "-":
+        raise ConfigError("--verify --heads FILE: name the file of heads kept earlier ('edc-bench history --heads "
+                          "> FILE' wrote it)")
     if args.withdraw is None and (args.why is not None or args.by is not None):
         raise ConfigError("--why and --by go with --withdraw TEST_ID")
     if args.withdraw is not None:
@@ -84,7 +103,8 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
 
         return run_rig
     return {"--audit": _audit, "--verify": _verify, "--schema": _schema, "--upgrade": _upgrade,
-            "--setup-roles": _setup_roles}.get(chosen[0] if chosen else "")
+            "--setup-roles": _setup_roles, "--map-login": _map_login, "--heads": _heads}.get(chosen[0] if chosen
+                                                                                            else "")
 
 
 def _withdraw(args: argparse.Namespace) -> int:
@@ -133,21 +153,96 @@ def _audit_table(events: list[dict[str, Any]], valve: str) -> None:
 def _verify(args: argparse.Namespace) -> int:
     from edc_bench.cli.exit_codes import ExitCode
     from edc_bench.history.store import HistoryStore
-    from edc_bench.history.verify import verify
+    from edc_bench.history.verify import Finding, changed_findings, verify
 
-    with HistoryStore(args.db, must_exist=True) as store:
-        rows = store.indexed()
+    kept = _read_heads(args.heads) if args.heads is not None else None
+    with HistoryStore(args.db, must_exist=True, warn=lambda _problem: None) as store:  # the breaks are listed below
+        rows = store.indexed(args.station)
+        changes = store.changed_tests(args.station)
+        breaks = store.chain_breaks(args.station)
+        gone_heads = store.missing_heads(kept) if kept is not None else []
+        restored = [p for p in store.problems if "triggers were missing" in p]
         where = store.shown_url
-    found = verify(rows)
+    found: list[Finding] = verify(rows) + changed_findings(changes)
+    chain = [b.line() for b in breaks] + gone_heads + restored
     if args.json:
-        print(json.dumps({"checked": len(rows), "findings": [f.__dict__ for f in found]}, indent=2))
+        print(json.dumps({"checked": len(rows), "station": args.station, "findings": [f.__dict__ for f in found],
+                          "chain": chain}, indent=2))
     else:
         for f in found:
             print(f"{f.problem}: test {f.test_id} (valve {f.valve_id}) {f.record_dir}: {f.detail}")
+        for line in chain:
+            print(f"chain: {line}")
         missing = sum(f.problem == "missing" for f in found)
-        print(f"checked {len(rows)} indexed record folder(s) in {where}: {missing} missing, "
-              f"{len(found) - missing} altered since indexed", file=sys.stderr)
-    return ExitCode.HISTORY_NOT_AS_INDEXED if found else ExitCode.OK
+        changed = sum(f.problem == "changed" for f in found)
+        of = f" of station {args.station}" if args.station else ""
+        print(f"checked {len(rows)} indexed record folder(s){of} in {where}: {missing} missing, "
+              f"{len(found) - missing - changed} altered since indexed, {changed} indexed again with other content; "
+              f"the chain: {'holds' if not chain else f'{len(chain)} problem(s)'}", file=sys.stderr)
+    return ExitCode.HISTORY_NOT_AS_INDEXED if found or chain else ExitCode.OK
+
+
+def _read_heads(path: str) -> list[dict[str, Any]]:
+    """The chain heads kept in ``path`` (``history --heads`` wrote them), checked."""
+    from pathlib import Path
+
+    from edc_bench.errors import ConfigError
+
+    try:
+        heads = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(f"--heads {path}: cannot read it ({exc.strerror})") from None
+    except ValueError:
+        raise ConfigError(f"--heads {path}: not the JSON 'edc-bench history --heads' writes") from None
+    if not isinstance(heads, list) or not all(isinstance(h, dict) and {"table", "id", "row_hash"} <= set(h)
+                                              for h in heads):
+        raise ConfigError(f"--heads {path}: not the JSON 'edc-bench history --heads' writes (a list of table, id, "
+                          "row_hash)")
+    return heads
+
+
+def _heads(args: argparse.Namespace) -> int:
+    from edc_bench.history.store import HistoryStore
+
+    with HistoryStore(args.db, must_exist=True) as store:
+        heads = store.heads()
+    text = json.dumps(heads, indent=2)
+    if args.heads == "-":
+        print_quietly_if_closed(lambda: print(text))
+    else:
+        from pathlib import Path
+
+        from edc_bench.paths import atomic_write
+
+        atomic_write(Path(args.heads), lambda f: f.write(text + "\n"), mode="w")
+        print(f"wrote {len(heads)} chain head(s) to {args.heads}: keep it away from the station; "
+              f"'edc-bench history --verify --heads {args.heads}' checks them later", file=sys.stderr)
+    return 0
+
+
+def _map_login(args: argparse.Namespace) -> int:
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.store import HistoryStore
+
+    from edc_bench.cli.common import person_name
+
+    with HistoryStore(args.db, must_exist=True) as store:
+        if store.is_sqlite:
+            raise ConfigError(f"--map-login is for a shop's PostgreSQL history; {store.shown_url} is a station's "
+                              "SQLite file, which has no logins")
+        if args.station is None and args.person is None:
+            rows = store.logins()
+            for r in rows:
+                print(f"{r['login']}: station {r['station'] or '(none)'}, person {r['person'] or '(the login)'} "
+                      f"(mapped {r['mapped_at'][:16].replace('T', ' ')} by {r['mapped_by']})")
+            if not rows:
+                print("no login is mapped yet: edc-bench history --map-login LOGIN --station NAME")
+            return 0
+        row = store.map_login(args.map_login, args.station, args.person, person_name(None, "who maps the login"))
+    print(f"database login {row['login']} is station {row['station'] or '(none)'}"
+          + (f", person {row['person']}" if row["person"] else "")
+          + ": the database writes it into that login's rows from now on")
+    return 0
 
 
 def _schema_engine(args: argparse.Namespace) -> tuple[Any, str]:

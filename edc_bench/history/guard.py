@@ -20,6 +20,8 @@ def problem(exc: sa.exc.DBAPIError, action: str, shown_url: str, login: str | No
     orig = exc.orig
     text = str(orig).strip()
     first = text.splitlines()[0] if text else type(orig).__name__
+    if first.startswith("edc-bench history:"):  # the database's own words (revision 0006's triggers)
+        return first.removeprefix("edc-bench history:").strip()
     if getattr(orig, "sqlstate", None) == INSUFFICIENT_PRIVILEGE:
         return refusal(action, login)
     if "append-only" in first:  # the history's own triggers

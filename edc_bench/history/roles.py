@@ -7,7 +7,11 @@ person's or station's login is made a member of one (docs/shop-network.md):
 - ``edc_engineer``: a station's rights, and record teardown findings, withdrawals, model adoptions and reference
   valves (what every later self-check compares with: a station that could register one could make a NO-GO go
   away by registering the drifted rig as the reference);
-- ``edc_owner``: owns the tables, so it alone changes the schema (``history --upgrade``).
+- ``edc_owner``: owns the tables, so it alone changes the schema (``history --upgrade``) and says which station
+  each login is (``history --map-login``: the ``edc_logins`` table, which no other role may add to).
+
+What a row says of who wrote it, when, and where is the database's, not the client's: a trigger of revision 0006
+sets the id, the time, the login and the login's mapped station (:mod:`edc_bench.history.chain`).
 
 No role may update or delete a stored row: the privileges are never granted, and the append-only triggers
 (:mod:`edc_bench.history.schema`) refuse it to the owner too. SQLite has no logins: a single station's file
@@ -26,7 +30,8 @@ ROLES = (STATION, ENGINEER, OWNER)
 #: The tables each role may add rows to (every role reads every table).
 INSERTS = {STATION: ("tests", "rig_checks"), ENGINEER: ("teardowns", "amendments", "adoptions", "reference_valves")}
 #: Every table of the history, the migrations' bookkeeping included.
-ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "reference_valves", "rig_checks", "alembic_version")
+ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "reference_valves", "rig_checks", "edc_logins",
+              "chain_anchors", "alembic_version")
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,7 @@ RIGHTS = {
     "upgrade": Right("change the history's schema", OWNER),
     "setup-roles": Right("create the history's roles", OWNER,
                          "ask the database's owner with the CREATEROLE right, or the server's administrator"),
+    "map-login": Right("say which station a database login is", OWNER),
 }
 
 _WHO = {STATION: "a station's", ENGINEER: "the engineer's", OWNER: "the database owner's"}
@@ -103,5 +109,6 @@ def apply_grants(connection: sa.Connection) -> None:
             sequence = connection.execute(sa.text("SELECT pg_get_serial_sequence(:t, 'id')"), {"t": table}).scalar()
             if sequence:
                 connection.exec_driver_sql(f"GRANT USAGE ON SEQUENCE {sequence} TO {role}")
-    if connection.execute(sa.text("SELECT 1 FROM pg_proc WHERE proname = 'edc_bench_append_only'")).first():
-        connection.exec_driver_sql(f"ALTER FUNCTION edc_bench_append_only() OWNER TO {OWNER}")
+    for (function,) in connection.execute(sa.text("SELECT proname FROM pg_proc WHERE proname LIKE 'edc\\_bench\\_%' "
+                                                  "AND pronargs = 0")):
+        connection.exec_driver_sql(f"ALTER FUNCTION {function}() OWNER TO {OWNER}")

@@ -5,10 +5,12 @@ Every table is append-only: a row, once stored, is never updated or deleted
 PostgreSQL the roles' privileges, :mod:`edc_bench.history.roles`). What
 changes is said by a new row naming the row it concerns:
 
-- ``tests``: one row each time a record folder is indexed; indexing a folder
-  again whose record changed adds a row, and the newest row of a folder is
-  the test as it stands. Each row keeps the SHA-256 of record.json as it was
-  read and the record's own integrity manifest, for ``history --verify``.
+- ``tests``: one row per test (``test_key``: the id record.json carries) and
+  content; its first row is the test as it stands (its *anchor*). Indexing it
+  again with other content adds a row that every reader shows as a change;
+  copies of its folder are the same test. Each row keeps the SHA-256 of
+  record.json as it was read and the record's own integrity manifest, for
+  ``history --verify``.
 - ``teardowns``: what a valve's teardown found; ``corrects_id`` names a finding
   this one replaces.
 - ``amendments``: a withdrawal of a test or of a finding, with who, when and why.
@@ -17,6 +19,8 @@ changes is said by a new row naming the row it concerns:
   registration again is a new row, and the station's newest stands.
 - ``rig_checks``: each rig self-check (``edc-bench rig-selfcheck``): GO or NO-GO, the drifts named, its
   figures, and the registration it was compared with (the ledger, ``history --rig``).
+
+Every row is hash-chained (``prev_hash``, ``row_hash``: :mod:`edc_bench.history.chain`).
 
 Who: ``*_by`` is the person (``--by``, or the operating-system login), ``db_login`` the database login that
 wrote the row (on PostgreSQL; None on SQLite, where the file's permissions say who may write).
@@ -27,6 +31,13 @@ from __future__ import annotations
 import sqlalchemy as sa
 
 metadata = sa.MetaData()
+
+
+def _chain() -> list[sa.Column]:
+    """Every row's place in its chain (:mod:`edc_bench.history.chain`): the hash of the chain's row before it,
+    and its own."""
+    return [sa.Column("prev_hash", sa.String(64)), sa.Column("row_hash", sa.String(64))]
+
 
 tests = sa.Table(
     "tests", metadata,
@@ -69,6 +80,9 @@ tests = sa.Table(
     sa.Column("indexed_at", sa.String(40)),
     sa.Column("indexed_by", sa.String(200)),
     sa.Column("db_login", sa.String(200)),
+    # the test's own id (record.json's test_id; a key from its when/valve/pump/station for older records)
+    sa.Column("test_key", sa.String(200), index=True),
+    *_chain(),
 )
 
 teardowns = sa.Table(
@@ -83,6 +97,7 @@ teardowns = sa.Table(
     sa.Column("recorded_at", sa.String(40), nullable=False),
     sa.Column("corrects_id", sa.Integer),  # the finding this one replaces
     sa.Column("db_login", sa.String(200)),
+    *_chain(),
 )
 
 amendments = sa.Table(
@@ -95,6 +110,7 @@ amendments = sa.Table(
     sa.Column("amended_by", sa.String(200), nullable=False),
     sa.Column("amended_at", sa.String(40), nullable=False),
     sa.Column("db_login", sa.String(200)),
+    *_chain(),
 )
 
 adoptions = sa.Table(
@@ -106,6 +122,7 @@ adoptions = sa.Table(
     sa.Column("adopted_by", sa.String(200), nullable=False),
     sa.Column("adopted_at", sa.String(40), nullable=False),
     sa.Column("db_login", sa.String(200)),
+    *_chain(),
 )
 
 #: The figures of the reference valve and the rig at rest (:data:`edc_bench.selfcheck.compare.QUANTITIES`).
@@ -131,6 +148,7 @@ reference_valves = sa.Table(
     sa.Column("registered_by", sa.String(200), nullable=False),
     sa.Column("registered_at", sa.String(40), nullable=False),
     sa.Column("db_login", sa.String(200)),
+    *_chain(),
 )
 
 rig_checks = sa.Table(
@@ -149,13 +167,47 @@ rig_checks = sa.Table(
     sa.Column("checked_by", sa.String(200), nullable=False),
     sa.Column("checked_at", sa.String(40), nullable=False, index=True),
     sa.Column("db_login", sa.String(200)),
+    *_chain(),
+)
+
+#: Which station (and person) each database login is: kept by the chain's owner (``history --map-login``); a
+#: login's newest row stands. The database sets a row's station and person from it (PostgreSQL).
+edc_logins = sa.Table(
+    "edc_logins", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("login", sa.String(200), nullable=False, index=True),
+    sa.Column("station", sa.String(200)),  # None: a login that is no station's (an engineer's)
+    sa.Column("person", sa.String(200)),
+    sa.Column("mapped_by", sa.String(200), nullable=False),
+    sa.Column("mapped_at", sa.String(40), nullable=False),
+)
+
+#: The rows written before the chain began (revision 0006), one digest per table and chain
+#: (:func:`edc_bench.history.chain.anchor_hash`): the first chained row of the chain follows it.
+chain_anchors = sa.Table(
+    "chain_anchors", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("tbl", sa.String(40), nullable=False),
+    sa.Column("chain", sa.String(200), nullable=False),
+    sa.Column("rows", sa.Integer, nullable=False),
+    sa.Column("last_id", sa.Integer, nullable=False),
+    sa.Column("hash", sa.String(64), nullable=False),
+    sa.Column("made_at", sa.String(40), nullable=False),
 )
 
 #: The append-only tables, in the order they were made.
-TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks)
+TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks, edc_logins, chain_anchors)
+
+#: The hash-chained tables (:mod:`edc_bench.history.chain`).
+CHAINED_TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks)
+
+#: The triggers a SQLite history must have (checked, and restored if missing, whenever it is opened).
+SQLITE_TRIGGERS = tuple(f"{t.name}_no_{event}" for t in TABLES for event in ("update", "delete")) + tuple(
+    f"{t.name}_chained" for t in CHAINED_TABLES)
 
 #: Columns of a test in listings and CSV exports, in order (what a test is; how it was indexed is in --audit).
-COLUMNS = tuple(c.name for c in tests.columns if c.name not in ("record_manifest", "db_login"))
+COLUMNS = tuple(c.name for c in tests.columns if c.name not in ("record_manifest", "db_login", "prev_hash",
+                                                                 "row_hash"))
 
 #: Teardown columns in listings, in order (the id: to withdraw or correct a finding recorded by mistake).
-TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name != "db_login")
+TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name not in ("db_login", "prev_hash", "row_hash"))

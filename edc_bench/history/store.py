@@ -25,8 +25,9 @@ import csv
 import datetime as dt
 import json
 import math
-from collections.abc import Callable, Iterable, Sequence
-from contextlib import AbstractContextManager
+import sys
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -35,12 +36,16 @@ import sqlalchemy as sa
 
 from edc_bench.errors import ConfigError
 from edc_bench.history import migrate
+from edc_bench.history.chain import CHAIN_COLUMN, Break, chain_of, check_chain, legacy_test_key, row_hash
 from edc_bench.history.guard import database_errors
 from edc_bench.history.schema import (
+    CHAINED_TABLES,
     COLUMNS,
     TEARDOWN_COLUMNS,
     adoptions,
     amendments,
+    chain_anchors,
+    edc_logins,
     reference_valves,
     rig_checks,
     teardowns,
@@ -105,7 +110,17 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "simulated": record.simulated_rig,
         "retest_of": _retest_of(record, record_dir),
         "decision": None if record.retest is None else _text(record.retest.decision)[:20] or None,
+        "test_key": test_key(record),
     }
+
+
+def test_key(record: Record) -> str:
+    """The key the history knows a test by: the id its record carries (schema 8 on), else one made from what the
+    record says of when, which valve, which pump and where (:func:`~edc_bench.history.chain.legacy_test_key`)."""
+    if record.test_id:
+        return _text(record.test_id)[:200]
+    return legacy_test_key(_text(record.started_at), _text(record.valve_id), _text(record.identity.pump_serial),
+                           _text(record.identity.station))
 
 
 def _retest_of(record: Record, record_dir: Path) -> str | None:
@@ -150,12 +165,18 @@ class HistoryStore:
         (default: :func:`default_url`).
     must_exist : bool, optional
         Refuse a SQLite file named by the URL that does not exist (see :func:`check_url`).
+    warn : callable, optional
+        Where what opening finds wrong is said (default: a ``warning:`` line on standard error); also kept in
+        :attr:`problems`.
 
     A station's SQLite file is brought to this edc-bench's schema revision when opened; a PostgreSQL history must
     be at it already (its owner runs ``edc-bench history --upgrade``).
     """
 
-    def __init__(self, url: str | None = None, must_exist: bool = False) -> None:
+    def __init__(self, url: str | None = None, must_exist: bool = False,
+                 warn: Callable[[str], None] | None = None) -> None:
+        if warn is None:
+            warn = _print_warning
         check_url(url, must_exist)
         self.url = url or default_url()
         #: the URL as people may see it: its password masked
@@ -175,22 +196,104 @@ class HistoryStore:
             sa.event.listen(self.engine, "connect", _sqlite_pragmas)
         #: the database login writing rows (PostgreSQL), None on SQLite
         self.login: str | None = None
+        #: what opening found wrong (a SQLite file's missing triggers, a broken chain), each said on ``warn``
+        self.problems: list[str] = []
+        self._warn = warn
         with self._guard("read"):
             with self.engine.connect() as conn:
                 revision = migrate.current(conn)
                 if not self.is_sqlite:
-                    self.login = conn.execute(sa.text("SELECT current_user")).scalar()
-            if revision == migrate.head():
-                return
-            if self.is_sqlite and (revision is None or migrate.is_known(revision)):
-                migrate.upgrade(self.engine)  # a station's own file: brought up to date as it is opened
-                return
-            with self.engine.connect() as conn:
-                migrate.require_head(conn, self.shown_url)
+                    self.login = conn.execute(sa.text("SELECT session_user")).scalar()
+            if revision != migrate.head():
+                if self.is_sqlite and (revision is None or migrate.is_known(revision)):
+                    migrate.upgrade(self.engine)  # a station's own file: brought up to date as it is opened
+                else:
+                    with self.engine.connect() as conn:
+                        migrate.require_head(conn, self.shown_url)
+            if self.is_sqlite:
+                self._check_sqlite()
+
+    def _check_sqlite(self) -> None:
+        """A station's file is append-only only while its triggers are there: restore any missing, say so loudly,
+        and check the chain (a row changed while they were gone breaks it)."""
+        from edc_bench.history.sqlite_guard import restore_triggers
+
+        with self._writing("read") as conn:
+            restored = restore_triggers(conn)
+        if restored:
+            self._say(f"history database {self.shown_url}: its append-only triggers were missing ({len(restored)}: "
+                      f"{', '.join(restored)}); someone may have changed or deleted rows while they were: restored "
+                      "now; 'edc-bench history --verify' shows where its chain breaks")
+        breaks = self.chain_breaks()
+        if breaks:
+            self._say(f"history database {self.shown_url}: its chain is broken in {len(breaks)} place(s), first "
+                      f"{breaks[0].line()}: rows were changed, deleted or put in by hand; 'edc-bench history "
+                      "--verify' lists them")
+
+    def _say(self, problem: str) -> None:
+        self.problems.append(problem)
+        if self._warn is not None:
+            self._warn(problem)
 
     def _guard(self, action: str) -> AbstractContextManager[None]:
         """Database errors as one line a person can act on: a refused right names whose login has it."""
         return database_errors(action, self.shown_url, self._secrets, self.login)
+
+    @contextmanager
+    def _writing(self, action: str) -> Iterator[sa.Connection]:
+        """One transaction that writes: on SQLite begun IMMEDIATE, so that reading a chain's last row and adding the
+        next is one step no other writer comes between (PostgreSQL's trigger takes a lock per chain)."""
+        with self._guard(action):
+            if not self.is_sqlite:
+                with self.engine.begin() as conn:
+                    yield conn
+                return
+            with self.engine.connect() as plain:
+                conn = plain.execution_options(isolation_level="AUTOCOMMIT")  # BEGIN is ours, not the driver's
+                conn.exec_driver_sql("BEGIN IMMEDIATE")
+                try:
+                    yield conn
+                except BaseException:
+                    conn.exec_driver_sql("ROLLBACK")
+                    raise
+                conn.exec_driver_sql("COMMIT")
+
+    def _append(self, conn: sa.Connection, table: sa.Table, row: dict[str, Any]) -> dict[str, Any] | None:
+        """Add one row to its chain; returns it as stored (None: the same test's content was stored meanwhile).
+
+        PostgreSQL's trigger sets the id, the time, the login, the station and the hashes itself (what the row
+        says of them is not trusted); on SQLite they are computed here, inside :meth:`_writing`'s lock.
+        """
+        if not self.is_sqlite:
+            from sqlalchemy.dialects.postgresql import insert
+
+            statement = insert(table).values(**row)
+            if table is tests:
+                statement = statement.on_conflict_do_nothing(index_elements=[tests.c.test_key, tests.c.record_sha256],
+                                                             index_where=tests.c.row_hash.is_not(None))
+            stored = conn.execute(statement.returning(*table.c)).first()
+            return None if stored is None else dict(stored._mapping)
+        row = _typed(table, {key: value for key, value in row.items() if key != "id"})
+        row["id"] = int(conn.execute(sa.select(sa.func.coalesce(sa.func.max(table.c.id), 0) + 1)).scalar() or 1)
+        chain = chain_of(table.name, row)
+        row["prev_hash"] = self._chain_head(conn, table, chain)
+        row["row_hash"] = row_hash(table.name, row["prev_hash"], row)
+        conn.execute(table.insert().values(**row))
+        return row
+
+    @staticmethod
+    def _chain_head(conn: sa.Connection, table: sa.Table, chain: str) -> str:
+        """The hash a new row of ``chain`` follows: its last row's, else its anchor's, else ''."""
+        column = table.c[CHAIN_COLUMN[table.name]]
+        last = conn.execute(sa.select(table.c.row_hash).where(sa.func.coalesce(column, "") == chain,
+                                                             table.c.row_hash.is_not(None))
+                            .order_by(table.c.id.desc()).limit(1)).scalar()
+        if last is not None:
+            return str(last)
+        anchor = conn.execute(sa.select(chain_anchors.c.hash).where(chain_anchors.c.tbl == table.name,
+                                                                   chain_anchors.c.chain == chain)
+                              .order_by(chain_anchors.c.id.desc()).limit(1)).scalar()
+        return str(anchor or "")
 
     def close(self) -> None:
         """Release connections."""
@@ -218,29 +321,48 @@ class HistoryStore:
         return self.add_row(row, indexed_by)
 
     def add_row(self, row: dict[str, Any], indexed_by: str | None = None) -> str:
-        """Store one test's row (:func:`row_from_record`); see :meth:`add`."""
-        row = {**row, "indexed_at": _now(), "indexed_by": indexed_by or _login_name(), "db_login": self.login}
-        with self._guard("add-test"), self.engine.begin() as conn:  # one transaction: all of the row or nothing
-            before = conn.execute(sa.select(tests).where(tests.c.record_dir == row["record_dir"])
-                                  .order_by(tests.c.id.desc()).limit(1)).first()
-            if before is not None:
-                if conn.execute(sa.select(tests.c.id).where(tests.c.record_dir == row["record_dir"],
-                                                            tests.c.id.in_(_withdrawn("tests")))).first():
-                    return "withdrawn"
-                if _same_test(dict(before._mapping), row):
-                    return "unchanged"
-            conn.execute(tests.insert().values(**row))
-        return "new" if before is None else "changed"
+        """Store one test's row (:func:`row_from_record`); see :meth:`add`.
+
+        A test is known by its key (``test_key``: the id its record carries), not by its folder: a copy of the
+        folder elsewhere is the same test, a withdrawal follows it, and its first indexing stands. The content is
+        stored once (a unique key on the test and its record's hash): two stations indexing the same copy at once
+        store one row.
+        """
+        row = {**{key: value for key, value in row.items() if key != "changes"},  # a listed row given back
+               "indexed_at": _now(), "indexed_by": indexed_by or _login_name(), "db_login": self.login}
+        if not row.get("test_key"):  # a row made by hand (the simulated shop's): its folder names the test
+            row["test_key"] = "folder:" + str(row["record_dir"])
+        key = row["test_key"]
+        with self._writing("add-test") as conn:
+            if conn.execute(sa.select(tests.c.id).where(tests.c.test_key == key,
+                                                        tests.c.id.in_(_withdrawn("tests")))).first():
+                return "withdrawn"
+            before = [dict(r._mapping) for r in conn.execute(sa.select(tests).where(tests.c.test_key == key)
+                                                            .order_by(tests.c.id))]
+            if any(_same_test(stored, row) for stored in before):
+                return "unchanged"
+            if self._append(conn, tests, row) is None:
+                return "unchanged"  # another station stored this content a moment ago
+        return "new" if not before else "changed"
 
     def _current_tests(self) -> sa.ColumnElement[bool]:
-        """The rows that are tests as they stand: each folder's newest row, unless the test was withdrawn."""
-        newest = sa.select(sa.func.max(tests.c.id)).group_by(tests.c.record_dir)
-        withdrawn = sa.select(tests.c.record_dir).where(tests.c.id.in_(_withdrawn("tests")))
-        return sa.and_(tests.c.id.in_(newest), tests.c.record_dir.not_in(withdrawn))
+        """The rows that are tests as they stand: each test's first row (what it said when first indexed), unless
+        the test was withdrawn."""
+        first = sa.select(sa.func.min(tests.c.id)).group_by(tests.c.test_key)
+        return sa.and_(tests.c.id.in_(first), tests.c.test_key.not_in(_withdrawn_keys()))
+
+    @staticmethod
+    def _changes() -> sa.ScalarSelect[Any]:
+        """How many times a test was indexed again with other content after its first indexing (a correlated
+        count for the listing: every reader shows it)."""
+        later = tests.alias("later")
+        return (sa.select(sa.func.count()).where(later.c.test_key == tests.c.test_key, later.c.id > tests.c.id)
+                .scalar_subquery())
 
     def list(self, filters: Filters = Filters(), limit: int | None = None) -> list[dict[str, Any]]:
         """Tests as they stand matching ``filters``, oldest first (the newest ``limit`` if given)."""
-        query = sa.select(*(tests.c[name] for name in COLUMNS)).where(self._current_tests())
+        query = sa.select(*(tests.c[name] for name in COLUMNS), self._changes().label("changes")).where(
+            self._current_tests())
         f = filters
         for column, value in ((tests.c.valve_id, f.valve_id), (tests.c.pump_serial, f.pump_serial),
                               (tests.c.verdict, f.verdict)):
@@ -261,26 +383,116 @@ class HistoryStore:
             query = query.limit(limit)
         return self._rows(query)[::-1]
 
-    def indexed(self) -> list[dict[str, Any]]:
-        """Every test as it stands with how it was indexed (record hash and manifest), for ``--verify``."""
-        return self._rows(sa.select(tests).where(self._current_tests()).order_by(tests.c.id))
+    def indexed(self, station: str | None = None) -> list[dict[str, Any]]:
+        """Every test as it stands (of one station if given) with how it was first indexed (record hash and
+        manifest), for ``--verify``."""
+        query = sa.select(tests).where(self._current_tests())
+        if station is not None:
+            query = query.where(tests.c.station == station)
+        return self._rows(query.order_by(tests.c.id))
+
+    def changed_tests(self, station: str | None = None) -> list[dict[str, Any]]:
+        """Rows that indexed a test again with other content than its first indexing (of one station's tests if
+        given), oldest first, each with ``first_id``: the row that stands."""
+        first = tests.alias("first")
+        query = (sa.select(tests, first.c.id.label("first_id"))
+                 .join(first, sa.and_(first.c.test_key == tests.c.test_key, first.c.id < tests.c.id))
+                 .where(first.c.id.in_(sa.select(sa.func.min(tests.c.id)).group_by(tests.c.test_key))))
+        if station is not None:
+            query = query.where(first.c.station == station)
+        return self._rows(query.order_by(tests.c.id))
+
+    def chain_breaks(self, station: str | None = None) -> list[Break]:
+        """Where the history's chains break (:func:`~edc_bench.history.chain.check_chain`): of one station's
+        chains if given. PostgreSQL recomputes each row's hash itself; SQLite's are recomputed here."""
+        found: list[Break] = []
+        with self._guard("read"), self.engine.connect() as conn:
+            for table in CHAINED_TABLES:
+                column = table.c[CHAIN_COLUMN[table.name]]
+                query = sa.select(table)
+                if station is not None:
+                    if CHAIN_COLUMN[table.name] != "station":
+                        continue
+                    query = query.where(column == station)
+                rows = [dict(r._mapping) for r in conn.execute(query.order_by(table.c.id))]
+                anchors = _anchors(conn, table.name, station)
+                recomputed = legacy = None
+                if not self.is_sqlite:
+                    recomputed, legacy = _pg_recomputed(conn, table.name, anchors)
+                found += check_chain(table.name, rows, anchors, recomputed, legacy)
+        return found
+
+    def heads(self) -> list[dict[str, Any]]:
+        """Each chain's last row (table, chain, id, row_hash): what a shop keeps outside the station (``history
+        --heads``) so that a history rewritten whole is caught (``history --verify --heads FILE``)."""
+        heads = []
+        with self._guard("read"), self.engine.connect() as conn:
+            for table in CHAINED_TABLES:
+                column = sa.func.coalesce(table.c[CHAIN_COLUMN[table.name]], "")
+                last = sa.select(sa.func.max(table.c.id)).where(table.c.row_hash.is_not(None)).group_by(column)
+                for r in conn.execute(sa.select(table.c.id, column.label("chain"), table.c.row_hash)
+                                      .where(table.c.id.in_(last)).order_by(table.c.id)):
+                    heads.append({"table": table.name, "chain": r.chain, "id": r.id, "row_hash": r.row_hash})
+        return heads
+
+    def missing_heads(self, heads: list[dict[str, Any]]) -> list[str]:
+        """The heads kept outside the station (:meth:`heads`, as written then) that this history no longer holds
+        as they were: each one line."""
+        missing = []
+        with self._guard("read"), self.engine.connect() as conn:
+            for head in heads:
+                table = {t.name: t for t in CHAINED_TABLES}.get(str(head.get("table")))
+                if table is None:
+                    missing.append(f"a kept head names no table of the history: {head.get('table')!r}")
+                    continue
+                stored = conn.execute(sa.select(table.c.row_hash).where(table.c.id == head.get("id"))).scalar()
+                if stored != head.get("row_hash"):
+                    missing.append(f"row {head.get('id')} of {table.name} (chain {head.get('chain') or '(none)'}): "
+                                   + ("gone" if stored is None else "not the row it was")
+                                   + " since its head was kept: the history was rewritten")
+        return missing
+
+    # -- who each login is (the chain's owner keeps it) -----------------------------------------------------------
+
+    def map_login(self, login: str, station: str | None, person: str | None, by: str) -> dict[str, Any]:
+        """Say which station (and person) a database login is (``history --map-login``): from then on the database
+        writes that station into every test and rig self-check the login adds, and that person into its
+        withdrawals, adoptions and registrations. A login's newest mapping stands. The owner's login only."""
+        row = {"login": login, "station": station, "person": person, "mapped_by": by, "mapped_at": _now()}
+        with self._writing("map-login") as conn:
+            row["id"] = conn.execute(edc_logins.insert().values(**row)).inserted_primary_key[0]
+        return row
+
+    def logins(self) -> list[dict[str, Any]]:
+        """Each login's mapping as it stands (its newest), by login."""
+        newest = sa.select(sa.func.max(edc_logins.c.id)).group_by(edc_logins.c.login)
+        return self._rows(sa.select(edc_logins).where(edc_logins.c.id.in_(newest)).order_by(edc_logins.c.login))
+
+    @property
+    def station(self) -> str | None:
+        """The station this database login is mapped to (PostgreSQL; None on SQLite or where it is mapped to
+        none): the name the database writes into its rows."""
+        if self.is_sqlite or self.login is None:
+            return None
+        found = self._rows(sa.select(edc_logins.c.station).where(edc_logins.c.login == self.login)
+                           .order_by(edc_logins.c.id.desc()).limit(1))
+        return found[0]["station"] if found else None
 
     def withdraw_test(self, test_id: int, reason: str, by: str | None = None) -> dict[str, Any]:
         """Withdraw a test (its id from ``history``): it leaves listings, trends and training; ``--audit`` keeps it.
         Returns the test's row."""
-        with self._guard("withdraw"), self.engine.begin() as conn:
+        with self._writing("withdraw") as conn:
             found = conn.execute(sa.select(tests).where(tests.c.id == test_id)).first()
             if found is None:
                 raise ConfigError(f"no test with id {test_id} in {self.shown_url} (see 'edc-bench history')")
-            if conn.execute(sa.select(amendments.c.id).where(
-                    amendments.c.target == "tests",
-                    amendments.c.target_id.in_(sa.select(tests.c.id).where(
-                        tests.c.record_dir == found.record_dir)))).first() is not None:
+            # the test, not the row: every row of its key (a copy of its folder, a change) is withdrawn with it
+            if conn.execute(sa.select(tests.c.id).where(tests.c.test_key == found.test_key,
+                                                        tests.c.test_key.in_(_withdrawn_keys()))).first():
                 raise ConfigError(f"test {test_id} (valve {found.valve_id!r}) is withdrawn already "
                                   f"(see 'edc-bench history --audit {found.valve_id}')")
-            conn.execute(amendments.insert().values(target="tests", target_id=test_id, action="withdraw",
-                                                    reason=reason, amended_by=by or _login_name(), amended_at=_now(),
-                                                    db_login=self.login))
+            self._append(conn, amendments, {"target": "tests", "target_id": test_id, "action": "withdraw",
+                                            "reason": reason, "amended_by": by or _login_name(), "amended_at": _now(),
+                                            "db_login": self.login})
         return dict(found._mapping)
 
     # -- teardowns ---------------------------------------------------------------------------------------------
@@ -311,11 +523,11 @@ class HistoryStore:
         row = {"valve_id": valve_id, "finding": finding, "clearance_mm": clearance_mm, "note": note,
                "labelled_by": labelled_by, "labelled_at": labelled_at, "recorded_at": _now(),
                "corrects_id": corrects, "db_login": self.login}
-        with self._guard("label"), self.engine.begin() as conn:
+        with self._writing("label") as conn:
             if corrects is not None:
                 self._current_teardown(conn, corrects, valve_id)
-            row["id"] = conn.execute(teardowns.insert().values(**row)).inserted_primary_key[0]
-        return row
+            stored = self._append(conn, teardowns, row)
+        return _shown(stored or row)
 
     def _current_teardown(self, conn: sa.Connection, teardown_id: int, valve_id: str | None = None) -> Any:
         """The finding ``teardown_id`` if it stands (not withdrawn nor corrected); a ConfigError saying why not."""
@@ -330,11 +542,11 @@ class HistoryStore:
 
     def withdraw_teardown(self, teardown_id: int, reason: str, by: str | None = None) -> dict[str, Any]:
         """Withdraw a finding recorded by mistake (its id from ``label --list``); returns it."""
-        with self._guard("withdraw"), self.engine.begin() as conn:
+        with self._writing("withdraw") as conn:
             found = self._current_teardown(conn, teardown_id)
-            conn.execute(amendments.insert().values(target="teardowns", target_id=teardown_id, action="withdraw",
-                                                    reason=reason, amended_by=by or _login_name(), amended_at=_now(),
-                                                    db_login=self.login))
+            self._append(conn, amendments, {"target": "teardowns", "target_id": teardown_id, "action": "withdraw",
+                                            "reason": reason, "amended_by": by or _login_name(), "amended_at": _now(),
+                                            "db_login": self.login})
         return dict(found._mapping)
 
     def _standing_teardowns(self, conn: sa.Connection, valve_id: str | None = None) -> list[dict[str, Any]]:
@@ -433,11 +645,11 @@ class HistoryStore:
         """
         row = {"station": station, "model_name": model_name, "model_sha256": model_sha256, "adopted_by": adopted_by,
                "adopted_at": _now(), "db_login": self.login}
-        with self._guard("adopt"), self.engine.begin() as conn:
-            conn.execute(adoptions.insert().values(**row))
+        with self._writing("adopt") as conn:
+            stored = self._append(conn, adoptions, row)
             if then is not None:
                 then()
-        return row
+        return _shown(stored or row)
 
     # -- the rig self-check's ledger ----------------------------------------------------------------------------
 
@@ -449,9 +661,9 @@ class HistoryStore:
         earlier ones stay (and the checks made against them).
         """
         row = {**row, "registered_at": _now(), "db_login": self.login}
-        with self._guard("register-reference"), self.engine.begin() as conn:
-            row["id"] = conn.execute(reference_valves.insert().values(**row)).inserted_primary_key[0]
-        return row
+        with self._writing("register-reference") as conn:
+            stored = self._append(conn, reference_valves, row)
+        return _shown(stored or row)
 
     def reference(self, station: str) -> dict[str, Any] | None:
         """The station's reference valve as it stands (its newest registration), or None if it has none."""
@@ -464,9 +676,9 @@ class HistoryStore:
         """Store one rig self-check; returns the stored row (columns of :data:`~edc_bench.history.schema.rig_checks`
         but ``id``, ``checked_at`` and ``db_login``)."""
         row = {**row, "checked_at": _now(), "db_login": self.login}
-        with self._guard("add-rig-check"), self.engine.begin() as conn:
-            row["id"] = conn.execute(rig_checks.insert().values(**row)).inserted_primary_key[0]
-        return row
+        with self._writing("add-rig-check") as conn:
+            stored = self._append(conn, rig_checks, row)
+        return _shown(stored or row)
 
     def rig_checks(self, station: str | None = None, reference_id: int | None = None) -> list[dict[str, Any]]:
         """Rig self-checks, oldest first: of one station and one registration if given."""
@@ -487,7 +699,7 @@ class HistoryStore:
     def tests_since(self, station: str, since: str) -> int:
         """Tests of ``station`` that started after ``since`` (an ISO time), withdrawn ones too: what the self-check's
         due rule counts (:func:`edc_bench.selfcheck.due.selfcheck_due`)."""
-        query = sa.select(sa.func.count(sa.distinct(tests.c.record_dir))).where(
+        query = sa.select(sa.func.count(sa.distinct(tests.c.test_key))).where(
             tests.c.station == station, tests.c.started_at > since)
         with self._guard("read"), self.engine.connect() as conn:
             return int(conn.execute(query).scalar() or 0)
@@ -521,16 +733,80 @@ def _withdrawn(target: str) -> sa.Select[Any]:
     return sa.select(amendments.c.target_id).where(amendments.c.target == target, amendments.c.action == "withdraw")
 
 
+def _withdrawn_keys() -> sa.Select[Any]:
+    """The keys of the tests withdrawn: a withdrawal names a row, and withdraws its test wherever it was indexed."""
+    return sa.select(tests.c.test_key).where(tests.c.id.in_(_withdrawn("tests")))
+
+
+def _shown(row: dict[str, Any]) -> dict[str, Any]:
+    """A stored row as the commands show it (the chain's hashes are for ``--verify``)."""
+    return {key: value for key, value in row.items() if key not in ("prev_hash", "row_hash")}
+
+
+def _typed(table: sa.Table, row: dict[str, Any]) -> dict[str, Any]:
+    """``row``'s values as the database gives them back (so that the hash computed before the row is stored is the
+    one computed from it when read): a float column's number a float, NaN (which SQLite stores as nothing) None."""
+    typed: dict[str, Any] = {}
+    for key, value in row.items():
+        kind = table.c[key].type
+        if value is None:
+            typed[key] = None
+        elif isinstance(kind, sa.Float):
+            number = float(value)
+            typed[key] = None if math.isnan(number) else number
+        elif isinstance(kind, sa.Boolean):
+            typed[key] = bool(value)
+        elif isinstance(kind, sa.Integer):
+            typed[key] = int(value)
+        else:
+            typed[key] = _text(value)
+    return typed
+
+
+def _anchors(conn: sa.Connection, table: str, station: str | None) -> dict[str, dict[str, Any]]:
+    """Each chain's anchor of ``table`` (its newest: a revision anchors once), by chain (of one station if given)."""
+    query = sa.select(chain_anchors).where(chain_anchors.c.tbl == table)
+    if station is not None:
+        query = query.where(chain_anchors.c.chain == station)
+    return {r.chain: dict(r._mapping) for r in conn.execute(query.order_by(chain_anchors.c.id))}
+
+
+def _pg_recomputed(conn: sa.Connection, table: str, anchors: dict[str, dict[str, Any]]
+                   ) -> tuple[dict[int, str], dict[str, str]]:
+    """Each chained row's hash and each anchored chain's digest as PostgreSQL computes them (revision 0006's
+    trigger and anchors): the same canonical form as when they were written."""
+    canonical = "(jsonb_strip_nulls(to_jsonb(t)) - 'prev_hash' - 'row_hash')::text"
+    rows = conn.execute(sa.text(
+        f"SELECT t.id, encode(sha256(convert_to(coalesce(t.prev_hash, '') || '|{table}|' || {canonical}, 'UTF8')), "
+        f"'hex') FROM {table} t WHERE t.row_hash IS NOT NULL"))
+    recomputed = {int(r[0]): str(r[1]) for r in rows}
+    chain = f"coalesce(t.{CHAIN_COLUMN[table]}, '')"
+    legacy: dict[str, str] = {}
+    for name, anchor in anchors.items():
+        digest = conn.execute(sa.text(
+            f"SELECT encode(sha256(convert_to(string_agg({canonical}, E'\\n' ORDER BY t.id), 'UTF8')), 'hex') "
+            f"FROM {table} t WHERE t.row_hash IS NULL AND t.id <= :last AND {chain} = :chain"),
+            {"last": anchor["last_id"], "chain": name}).scalar()
+        legacy[name] = str(digest or "")
+    return recomputed, legacy
+
+
+def _print_warning(problem: str) -> None:
+    print(f"warning: {problem}", file=sys.stderr)
+
+
 def audit_events(test_rows: list[dict[str, Any]], teardown_rows: list[dict[str, Any]],
                  amendment_rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The audit trail of one valve from its rows (:meth:`HistoryStore.audit`), in the order written."""
     events = []
     seen: set[str] = set()
     for t in test_rows:
-        again = t["record_dir"] in seen
-        seen.add(t["record_dir"])
-        events.append({"when": t["indexed_at"] or t["started_at"], "event": "test re-indexed (record changed)"
-                       if again else "test indexed", "id": t["id"],
+        key = t.get("test_key") or t["record_dir"]
+        again = key in seen
+        seen.add(key)
+        events.append({"when": t["indexed_at"] or t["started_at"],
+                       "event": "record changed after its first indexing (the first stands)" if again
+                       else "test indexed", "id": t["id"],
                        "what": f"{t['verdict']}, tested {t['started_at'][:16]}, {t['record_dir']}",
                        "by": t["indexed_by"] or t["operator"], "db_login": t["db_login"], "order": (0, t["id"])})
     for f in teardown_rows:

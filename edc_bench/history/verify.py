@@ -1,9 +1,12 @@
 """``history --verify``: every indexed record folder read again and held to what the history kept of it.
 
 When a record is indexed the history keeps the SHA-256 of its record.json and the record's own integrity
-manifest (records of schema 5 on: the digests of the trace, the CAN log and the figure). A folder is *missing*
-when it or its record.json is gone, *altered* when record.json's bytes differ from those indexed, or a file its
-manifest names changed. Rows indexed before the history kept a hash can only be found missing.
+manifest (records of schema 5 on: the digests of the trace, the CAN log and the figure). A test is held to its
+*first* indexing, which stands: a folder is *missing* when it or its record.json is gone, *altered* when
+record.json's bytes differ from those first indexed, or a file its manifest names changed; a test indexed again
+with other content is *changed*, every time ``--verify`` runs (re-indexing a tampered record does not silence
+it). Rows indexed before the history kept a hash can only be found missing. The hash chain
+(:mod:`edc_bench.history.chain`) is checked beside this, by the store.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ class Finding:
     test_id: int
     valve_id: str
     record_dir: str
-    problem: str  # 'missing' or 'altered'
+    problem: str  # 'missing', 'altered' or 'changed'
     detail: str
 
 
@@ -72,3 +75,13 @@ def verify(rows: list[dict[str, Any]]) -> list[Finding]:
         if problem is not None:
             found.append(problem)
     return found
+
+
+def changed_findings(rows: list[dict[str, Any]]) -> list[Finding]:
+    """One finding per row that indexed a test again with other content than its first indexing
+    (:meth:`~edc_bench.history.store.HistoryStore.changed_tests`): the first stands, and this is said every time."""
+    return [Finding(row["first_id"], row["valve_id"], row["record_dir"], "changed",
+                    f"indexed again with other content as row {row['id']} ({row['verdict']}, at "
+                    f"{(row['indexed_at'] or '')[:19]} by database login {row['db_login'] or '(none)'}): the first "
+                    "indexing stands; the record was changed after its test")
+            for row in rows]

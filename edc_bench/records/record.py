@@ -64,6 +64,9 @@ class BenchResult:
         The variant as the test ran it.
     valve_id, started_at, clock : str
         The valve's id, the UTC start time, ``simulated`` or ``real-time``.
+    test_id : str
+        The test's own id (a random UUID, hex), made at its start: record.json carries it, and the history knows
+        the test by it (not by its folder's path, which copies change).
     trace : dict of numpy.ndarray
         Per-tick columns.
     frames : CanFrameLog
@@ -99,6 +102,7 @@ class BenchResult:
     stop: dict[str, Any] | None = None
     software_version: str = __version__
     identity: dict[str, str] = field(default_factory=dict)
+    test_id: str = ""
 
     @property
     def verdict(self) -> Verdict:
@@ -162,6 +166,7 @@ def record_dict(result: BenchResult, files: dict[str, str | None],
         "variant": result.variant.name,
         "part_number": result.variant.pump.part_number,
         "started_at": result.started_at,
+        "test_id": result.test_id,
         "clock": result.clock,
         "software_version": result.software_version,
         "firmware_version": result.outcome.fw_version,

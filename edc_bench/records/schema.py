@@ -257,6 +257,7 @@ class Record(Section):
     variant: str = ""
     part_number: str = ""
     started_at: str = ""
+    test_id: str = ""  # the test's own id, made at its start (schema 8 on; '' in older records)
     clock: str = ""
     software_version: str = ""
     firmware_version: str | None = None

@@ -73,6 +73,9 @@ def test_eight_stations_and_an_engineer_at_once_lose_nothing(postgres_db: str) -
         for login, role in [*((f"bench{n}", STATION) for n in range(STATIONS)), ("ines", ENGINEER)]:
             conn.exec_driver_sql(f"CREATE ROLE {login} LOGIN IN ROLE {role}")
     engine.dispose()
+    with HistoryStore(postgres_db) as owner:  # each station's login is that station (docs/shop-network.md)
+        for n in range(STATIONS):
+            owner.map_login(f"bench{n}", f"bench{n}", None, "admin")
     as_login = lambda login: postgres_db.replace("://postgres@", f"://{login}@")  # noqa: E731
     ctx = multiprocessing.get_context("spawn")
     start, done, results = ctx.Barrier(STATIONS + 1), ctx.Queue(), ctx.Queue()
@@ -98,3 +101,9 @@ def test_eight_stations_and_an_engineer_at_once_lose_nothing(postgres_db: str) -
     assert len({r["record_dir"] for r in rows}) == len(rows)  # every row once
     assert all(count == TESTS_PER_STATION for count in per_station.values())
     assert len(teardowns) == engineer["labels"] > 0 and engineer["exports"] > 0 and engineer["trainings"] == 1
+    assert store_breaks(postgres_db) == []  # eight writers at once, and every station's chain holds
+
+
+def store_breaks(url: str) -> list[str]:
+    with HistoryStore(url) as store:
+        return [b.line() for b in store.chain_breaks()]

@@ -43,6 +43,9 @@ def _create_login(server_db_url: str, login: str, role: str) -> str:
                              f"CREATE ROLE {login} LOGIN; END IF; END $$")
         conn.exec_driver_sql(f"GRANT {role} TO {login}")
     engine.dispose()
+    if role == "edc_station":  # the chain's owner says which station the login is (docs/shop-network.md)
+        with HistoryStore(server_db_url) as owner:
+            owner.map_login(login, login, None, "admin")
     return _login_url(server_db_url, login)
 
 
@@ -152,8 +155,9 @@ def test_the_owner_sees_and_applies_each_schema_change(new_postgres_database: Ca
     with HistoryStore(url) as store:
         assert [r["valve_id"] for r in store.list()] == ["V1"]
         row = {key: value for key, value in store.list()[0].items() if key != "id"}
-        store.add_row({**row, "verdict": "FAIL"})  # the folder indexed again with other content: a new row
-        assert [r["verdict"] for r in store.list()] == ["FAIL"] and len(store.audit("V1")) == 2
+        store.add_row({**row, "verdict": "FAIL"})  # the test indexed again with other content: a change
+        # its first indexing stands, and the change is shown with it
+        assert [(r["verdict"], r["changes"]) for r in store.list()] == [("PASS", 1)] and len(store.audit("V1")) == 2
     with sa.create_engine(url).begin() as conn:
         assert migrate.current(conn) == migrate.head()
         conn.exec_driver_sql("ALTER TABLE alembic_version DISABLE TRIGGER ALL")
@@ -201,12 +205,26 @@ def test_sqlite_refuses_changes_and_the_audit_shows_withdrawals_and_corrections(
     assert "recorded by mistake" in edc_bench("history", "--audit", valve, "--db", url).stdout
 
 
+def _as_another_test(folder: Path) -> None:
+    """Make a copied record folder another test's: its own test id, its manifest written again."""
+    import uuid
+
+    from edc_bench.records.integrity import manifest
+
+    doc = json.loads((folder / "record.json").read_text())
+    doc["test_id"] = uuid.uuid4().hex
+    files = [name for name in doc["integrity"]["files"]]
+    doc["integrity"] = manifest({k: v for k, v in doc.items() if k != "integrity"}, folder, files)
+    (folder / "record.json").write_text(json.dumps(doc))
+
+
 def test_verify_finds_a_folder_changed_after_it_was_indexed_and_one_removed(record_dir: Path,
                                                                             tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'h.sqlite'}"
     kept, changed, gone = (tmp_path / name for name in ("kept", "changed", "gone"))
     for folder in (kept, changed, gone):
         shutil.copytree(record_dir, folder)
+        _as_another_test(folder)  # a copy is the same test: three tests here
     assert edc_bench("history", "--add", str(kept), str(changed), str(gone), "--db", url).returncode == 0
     clean = edc_bench("history", "--verify", "--db", url)
     assert clean.returncode == 0 and "checked 3" in clean.stderr and "0 missing, 0 altered" in clean.stderr
@@ -289,7 +307,7 @@ def test_a_test_on_the_simulated_rig_is_marked_and_left_out_of_trends_and_traini
     with HistoryStore(url) as store:
         store.add(record, record_dir)
         rig_row = {key: value for key, value in store.list()[0].items() if key != "id"}
-        store.add_row({**rig_row, "record_dir": "/records/on-a-rig", "simulated": False})
+        store.add_row({**rig_row, "record_dir": "/records/on-a-rig", "simulated": False, "test_key": "on-a-rig"})
         store.add_teardown(record.valve_id, "worn", labelled_by="ana", labelled_at="2099-01-01")
         assert [r["simulated"] for r in store.list()] == [True, False]  # listed, and marked
         assert [r["simulated"] for r in store.list(Filters(simulated=False))] == [False]

@@ -85,7 +85,7 @@ for case, variant, valve, adapter, wrapper in (("worn-usb-fs", "p-edc-default", 
     for section, keys in WALL_CLOCK.items():
         for key in keys:
             record[section].pop(key)
-    for key in ("started_at", "integrity", "files"):
+    for key in ("started_at", "test_id", "integrity", "files"):
         record.pop(key)
     record["baseline"].pop("path")  # the installed package's copy, or the repository's
     out[case] = {"trace_and_frames": digest.hexdigest(), "record_json": json.dumps(record, sort_keys=True)}
