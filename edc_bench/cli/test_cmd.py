@@ -183,6 +183,7 @@ def run(args: argparse.Namespace) -> int:
         from edc_bench.cli.common import check_history_url
 
         check_history_url(args.history_db)  # a test is minutes; a wrong database is refused before it
+        _check_chain_model(args)
     with interrupt_guard():  # the first Ctrl-C aborts the test; later ones cannot cost the record
         code = _run_guarded(args)
         if stop_requested() and code not in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN):
@@ -190,6 +191,31 @@ def run(args: argparse.Namespace) -> int:
             print("edc-bench test: interrupted by the operator; the record is written (INVALID)", file=sys.stderr)
             return ExitCode.INTERRUPTED
         return code
+
+
+def _check_chain_model(args: argparse.Namespace) -> None:
+    """On a chain's station, refuse to judge with a model the chain does not record for it (an adoption that
+    bypassed the chain). A chain that cannot be reached now is not checked: the test goes on, and its indexing says
+    what is wrong after it."""
+    from edc_bench.learning.chain_adoption import chain_url
+
+    if chain_url() is None or args.history_db not in (None, chain_url()):
+        return
+    import socket
+
+    from edc_bench.errors import ConfigError, EdcBenchError
+    from edc_bench.history.store import HistoryStore
+    from edc_bench.learning.chain_adoption import chain_model_problem, chain_station
+    from edc_bench.verdict.classifier import file_sha256, station_model_path
+
+    try:
+        with HistoryStore(chain_url()) as store:
+            station = chain_station(store, args.station or socket.gethostname())
+            problem = chain_model_problem(store, station, file_sha256(station_model_path()))
+    except EdcBenchError:
+        return
+    if problem:
+        raise ConfigError(problem)
 
 
 def _identity(args: argparse.Namespace) -> dict[str, str]:

@@ -176,13 +176,16 @@ def _adopt(args: argparse.Namespace) -> int:
                         ("--dataset", args.dataset), ("--include-simulated", args.include_simulated or None)):
         if value is not None:
             raise ConfigError(f"{flag} does not go with --adopt (it adopts a model file, or 'shipped')")
+    from edc_bench.learning.chain_adoption import chain_station, check_adoption_target
+
+    check_adoption_target(args.db)  # a chain's station adopts in the chain, nowhere else
     shipped = args.adopt == "shipped"
     model = load_candidate(packaged_model_path() if shipped else Path(args.adopt))
     by = args.by or getpass.getuser()
     adopted: list[Any] = []
     # recorded in the history around the station's change: a login that may not adopt changes nothing here
     with HistoryStore(args.db) as store:
-        store.add_adoption(model.name, model.sha256, socket.gethostname(), by,
+        store.add_adoption(model.name, model.sha256, chain_station(store, socket.gethostname()), by,
                            then=lambda: adopted.append(adopt_shipped() if shipped else adopt(Path(args.adopt), by,
                                                                                              model)))
         where = store.shown_url

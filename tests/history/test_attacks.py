@@ -1,0 +1,376 @@
+"""A chain's history tried as an attacker at one of its stations would (issue #51): every right a station's login
+has, used against the rows of others, on a real PostgreSQL server, and a station's own SQLite file changed with
+the sqlite3 program. Each attack is refused by the database, or named by ``history --verify``: each test says
+which."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sqlite3
+import subprocess
+import sys
+import uuid
+from pathlib import Path
+
+import psycopg
+import pytest
+import sqlalchemy as sa
+from helpers import edc_bench
+
+from edc_bench.bench import run_simulated_test
+from edc_bench.config import load_variant
+from edc_bench.history.roles import setup_roles
+from edc_bench.history.store import HistoryStore
+from edc_bench.records.integrity import manifest
+from edc_bench.records.reader import load_record
+from edc_bench.records.record import write_record
+
+
+@pytest.fixture(scope="module")
+def fail_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One simulated test's record folder: a faulty valve, FAIL."""
+    folder = write_record(run_simulated_test(load_variant(), "faulty", 3), tmp_path_factory.mktemp("records"),
+                          figure=False)
+    assert load_record(folder).verdict == "FAIL"
+    return folder
+
+
+def _login(url: str, login: str) -> str:
+    return url.replace("://postgres@", f"://{login}@")
+
+
+def _dsn(url: str) -> str:
+    return url.replace("postgresql+psycopg://", "postgresql://")
+
+
+@pytest.fixture
+def chain(postgres_db: str) -> dict[str, str]:
+    """A chain as docs/shop-network.md sets it up: roles, two stations' logins mapped to their stations, an
+    engineer. Returns the URLs by login ('owner': the superuser that made it)."""
+    engine = sa.create_engine(postgres_db)
+    with engine.begin() as conn:
+        setup_roles(conn)
+        for login, role in (("bench3", "edc_station"), ("bench4", "edc_station"), ("ines", "edc_engineer"),
+                            ("nomap", "edc_station")):
+            conn.exec_driver_sql(f"DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '{login}') THEN "
+                                 f"CREATE ROLE {login} LOGIN; END IF; END $$")
+            conn.exec_driver_sql(f"GRANT {role} TO {login}")
+    engine.dispose()
+    with HistoryStore(postgres_db) as owner:
+        owner.map_login("bench3", "Werkstatt Nord 3", None, "admin")
+        owner.map_login("bench4", "Werkstatt Süd 4", None, "admin")
+        owner.map_login("ines", None, "Ines Braun", "admin")
+    return {"owner": postgres_db, **{login: _login(postgres_db, login) for login in ("bench3", "bench4", "ines",
+                                                                                      "nomap")}}
+
+
+def _row(valve: str, verdict: str = "FAIL", key: str | None = None, sha: str = "a" * 64) -> dict:
+    return {"record_dir": f"/records/{valve}", "started_at": "2026-11-20T08:00:00+00:00", "valve_id": valve,
+            "pump_serial": "P-1", "variant": "p-edc-default", "part_number": "PE", "verdict": verdict,
+            "station": "ignored", "operator": "ana", "clock": "real-time", "software_version": "0.1.0",
+            "reason": "", "test_key": key or uuid.uuid4().hex, "record_sha256": sha}
+
+
+_INSERT = ("INSERT INTO tests (id, record_dir, started_at, valve_id, pump_serial, variant, part_number, verdict, "
+           "station, operator, clock, software_version, reason, test_key, record_sha256, record_manifest, indexed_at, "
+           "db_login) VALUES (%(id)s, %(record_dir)s, %(started_at)s, %(valve_id)s, %(pump_serial)s, %(variant)s, "
+           "%(part_number)s, %(verdict)s, %(station)s, %(operator)s, %(clock)s, %(software_version)s, %(reason)s, "
+           "%(test_key)s, %(record_sha256)s, %(record_manifest)s, %(indexed_at)s, %(db_login)s) RETURNING *")
+
+
+def _raw_insert(url: str, row: dict) -> dict:
+    """INSERT as the attacker types it in psql: every column its own choice."""
+    values = {"id": None, "record_manifest": None, "indexed_at": None, "db_login": None, **row}
+    with psycopg.connect(_dsn(url), row_factory=psycopg.rows.dict_row) as conn:
+        return conn.execute(_INSERT, values).fetchone()
+
+
+def _verify(url: str, *args: str) -> subprocess.CompletedProcess:
+    return edc_bench("history", "--verify", *args, "--db", url)
+
+
+# --- PostgreSQL: what a station inserts cannot claim what the server knows better --------------------------------
+
+
+def test_a_forged_station_login_time_and_id_are_the_servers_own(chain: dict[str, str]) -> None:
+    stored = _raw_insert(chain["bench3"], {**_row("V-1"), "id": 999_999, "station": "Werkstatt Süd 4",
+                                           "db_login": "bench4", "indexed_at": "2020-01-01T00:00:00+00:00"})
+    assert stored["id"] < 1000, "the id is the sequence's"
+    assert stored["station"] == "Werkstatt Nord 3" and stored["db_login"] == "bench3"
+    assert stored["indexed_at"] > "2026-"  # the server's clock, not the row's claim
+    listed = HistoryStore(chain["owner"]).list()
+    assert [(r["valve_id"], r["station"]) for r in listed] == [("V-1", "Werkstatt Nord 3")]
+    assert _verify(chain["owner"], "--station", "Werkstatt Nord 3").stdout.count("missing:") == 1  # a phantom folder
+
+
+def test_a_block_of_ids_ahead_of_the_sequence_blocks_no_station(chain: dict[str, str]) -> None:
+    for n in range(5):
+        _raw_insert(chain["bench3"], {**_row(f"V-block-{n}"), "id": 2 + n})  # the ids the next rows would take
+    with HistoryStore(chain["bench4"]) as other:
+        assert other.add_row(_row("V-after")) == "new"  # the next station's indexing is not refused
+    ids = [r["id"] for r in HistoryStore(chain["owner"]).list()]
+    assert len(set(ids)) == 6
+
+
+def test_a_copy_of_another_stations_fail_as_pass_is_refused(chain: dict[str, str]) -> None:
+    with HistoryStore(chain["bench4"]) as other:
+        assert other.add_row(_row("V-2", "FAIL", key="K-2", sha="b" * 64)) == "new"
+    original = HistoryStore(chain["owner"]).list()[0]
+    # the same test and hash (copied from the readable row): the unique key refuses it
+    with pytest.raises(psycopg.errors.UniqueViolation):
+        _raw_insert(chain["bench3"], {**_row("V-2", "PASS", key="K-2", sha="b" * 64),
+                                      "record_manifest": original["record_sha256"]})
+    # the same test with other content: refused, it is another station's test
+    with pytest.raises(psycopg.errors.InsufficientPrivilege, match="first indexed by another station"):
+        _raw_insert(chain["bench3"], _row("V-2", "PASS", key="K-2", sha="c" * 64))
+    listed = HistoryStore(chain["owner"]).list()
+    assert [(r["verdict"], r["station"], r["changes"]) for r in listed] == [("FAIL", "Werkstatt Süd 4", 0)]
+
+
+def test_a_backdated_pass_for_a_folder_that_never_existed_is_the_attackers_and_found_missing(
+        chain: dict[str, str]) -> None:
+    _raw_insert(chain["bench3"], {**_row("V-ghost", "PASS"), "started_at": "2025-01-01T08:00:00+00:00",
+                                  "record_dir": "/records/never-there"})
+    found = _verify(chain["owner"], "--station", "Werkstatt Nord 3")
+    assert found.returncode == 16 and "missing: test" in found.stdout and "never-there" in found.stdout
+    assert "Werkstatt Nord 3" in HistoryStore(chain["owner"]).list()[0]["station"]  # attributed to its writer
+    # the other station's own check is not disturbed by it
+    assert _verify(chain["owner"], "--station", "Werkstatt Süd 4").returncode == 0
+
+
+def test_a_login_mapped_to_no_station_may_add_no_tests(chain: dict[str, str]) -> None:
+    with pytest.raises(psycopg.errors.InsufficientPrivilege, match="mapped to no station"):
+        _raw_insert(chain["nomap"], _row("V-3"))
+    refused = edc_bench("history", "--map-login", "bench9", "--station", "x", "--db", chain["bench3"])
+    assert refused.returncode == 2 and "may not say which station a database login is" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
+
+
+def test_a_forged_rig_self_check_for_another_station_is_refused(chain: dict[str, str]) -> None:
+    with HistoryStore(chain["ines"]) as engineer:
+        reference = engineer.add_reference({
+            "station": "Werkstatt Süd 4", "valve_id": "REF-1", "variant": "p-edc-default", "simulated": True,
+            "software_version": "0.1.0", "registered_by": "someone else"})
+    assert reference["registered_by"] == "Ines Braun" and reference["db_login"] == "ines"  # the login's person
+    with psycopg.connect(_dsn(chain["bench3"])) as conn:
+        with pytest.raises(psycopg.errors.InsufficientPrivilege, match="is not station Werkstatt Nord 3's"):
+            conn.execute("INSERT INTO rig_checks (station, reference_id, verdict, causes, words, simulated, "
+                         "software_version, checked_by, checked_at) VALUES ('Werkstatt Süd 4', %s, 'NO-GO', 'af', "
+                         "'drifted', true, '0.1.0', 'x', '2020-01-01')", (reference["id"],))
+    assert HistoryStore(chain["owner"]).rig_checks() == []
+
+
+def test_an_engineer_files_findings_and_withdrawals_only_as_itself(chain: dict[str, str]) -> None:
+    with HistoryStore(chain["bench3"]) as station:
+        station.add_row(_row("V-5"))
+    with psycopg.connect(_dsn(chain["ines"]), row_factory=psycopg.rows.dict_row) as conn:
+        finding = conn.execute("INSERT INTO teardowns (valve_id, finding, note, labelled_by, labelled_at, recorded_at, "
+                               "db_login) VALUES ('V-5', 'worn', '', 'ines', '2026-11-20', '2020-01-01', 'boss') "
+                               "RETURNING *").fetchone()
+        withdrawal = conn.execute("INSERT INTO amendments (target, target_id, action, reason, amended_by, "
+                                  "amended_at, db_login) VALUES ('tests', 1, 'withdraw', 'x', 'the boss', "
+                                  "'2020-01-01', 'boss') RETURNING *").fetchone()
+        with pytest.raises(psycopg.errors.InsufficientPrivilege, match="names no stored row"):
+            conn.execute("INSERT INTO amendments (target, target_id, action, reason, amended_by, amended_at) VALUES "
+                         "('tests', 424242, 'withdraw', 'x', 'y', 'z')")
+    assert finding["db_login"] == "ines" and finding["recorded_at"] > "2026-"
+    assert (withdrawal["db_login"], withdrawal["amended_by"]) == ("ines", "Ines Braun")
+    # a station's login may write neither, nor a login's mapping
+    with psycopg.connect(_dsn(chain["bench3"])) as conn:
+        for sql in ("INSERT INTO amendments (target, target_id, action, reason, amended_by, amended_at) VALUES "
+                    "('tests', 1, 'withdraw', 'x', 'y', 'z')",
+                    "INSERT INTO edc_logins (login, station, mapped_by, mapped_at) VALUES ('bench3', 'Werkstatt Süd "
+                    "4', 'x', 'y')",
+                    "ALTER TABLE tests DISABLE TRIGGER ALL", "SET session_replication_role = replica"):
+            with pytest.raises(psycopg.errors.InsufficientPrivilege):
+                conn.execute(sql)
+            conn.rollback()
+
+
+def test_a_row_changed_with_the_triggers_off_breaks_the_chain_where_it_was_done(chain: dict[str, str]) -> None:
+    """What the owner's (or a superuser's) rights could still do to one row is named by --verify."""
+    with HistoryStore(chain["bench3"]) as station:
+        for n in range(3):
+            station.add_row(_row(f"V-6{n}"))
+    assert _verify(chain["owner"], "--station", "Werkstatt Nord 3").stdout.count("chain:") == 0
+    with psycopg.connect(_dsn(chain["owner"])) as conn:
+        conn.execute("ALTER TABLE tests DISABLE TRIGGER tests_append_only")
+        conn.execute("UPDATE tests SET verdict = 'PASS' WHERE valve_id = 'V-61'")
+        conn.execute("DELETE FROM tests WHERE valve_id = 'V-60'")
+        conn.execute("ALTER TABLE tests ENABLE TRIGGER tests_append_only")
+    found = _verify(chain["owner"], "--station", "Werkstatt Nord 3")
+    assert found.returncode == 16
+    chain_lines = [line for line in found.stdout.splitlines() if line.startswith("chain:")]
+    assert any("row 2 of tests" in line and "was edited" in line for line in chain_lines), found.stdout
+    assert any("row 2 of tests" in line and "deleted or put in" in line for line in chain_lines), found.stdout
+
+
+# --- a record tampered with and indexed again, on both databases --------------------------------------------------
+
+
+def _tamper_verdict(folder: Path, verdict: str) -> None:
+    """Edit record.json's verdict and write its integrity manifest again, as an attacker with the code would."""
+    doc = json.loads((folder / "record.json").read_text())
+    doc["verdict"] = verdict
+    doc["integrity"] = manifest({k: v for k, v in doc.items() if k != "integrity"}, folder,
+                                list(doc["integrity"]["files"]))
+    (folder / "record.json").write_text(json.dumps(doc))
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def station_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    if request.param == "sqlite":
+        return f"sqlite:///{tmp_path / 'history.sqlite'}"
+    return request.getfixturevalue("chain")["bench3"]
+
+
+def test_a_tampered_record_indexed_again_is_a_change_every_reader_shows(fail_dir: Path, tmp_path: Path,
+                                                                        station_url: str) -> None:
+    folder = tmp_path / "record"
+    shutil.copytree(fail_dir, folder)
+    assert edc_bench("history", "--add", str(folder), "--db", station_url).returncode == 0
+    _tamper_verdict(folder, "PASS")
+    again = edc_bench("history", "--add", str(folder), "--db", station_url)
+    # the reader refuses it (its verdict does not follow from its figures), or it is stored as a change: never as
+    # the test as it stands
+    listing = json.loads(edc_bench("history", "--json", "--db", station_url).stdout)
+    assert [r["verdict"] for r in listing] == ["FAIL"]
+    for _ in range(2):  # every time, not once
+        found = _verify(station_url)
+        assert found.returncode == 16, found.stderr
+        assert "altered: test" in found.stdout and "record.json" in found.stdout
+    if again.returncode == 0:
+        assert "changed" in again.stderr
+        assert listing[0]["changes"] == 1
+        assert "changed: test" in found.stdout
+        valve = listing[0]["valve_id"]
+        audit = json.loads(edc_bench("history", "--audit", valve, "--json", "--db", station_url).stdout)
+        assert [e["event"] for e in audit] == ["test indexed", "record changed after its first indexing (the first "
+                                                                "stands)"]
+
+
+def test_a_withdrawn_tests_copy_stays_withdrawn(fail_dir: Path, tmp_path: Path, station_url: str) -> None:
+    folder, copy = tmp_path / "record", tmp_path / "share" / "record"
+    shutil.copytree(fail_dir, folder)
+    assert edc_bench("history", "--add", str(folder), "--db", station_url).returncode == 0
+    withdraw_url = station_url if station_url.startswith("sqlite") else station_url.replace("bench3@", "ines@")
+    listed = json.loads(edc_bench("history", "--json", "--db", station_url).stdout)
+    withdrawn = edc_bench("history", "--withdraw", str(listed[0]["id"]), "--why", "valve id typed wrong", "--db",
+                          withdraw_url)
+    assert withdrawn.returncode == 0, withdrawn.stderr
+    shutil.copytree(folder, copy)  # "copy the records to the share" (docs/shop-network.md)
+    added = edc_bench("history", "--add", str(copy), "--db", station_url)
+    assert added.returncode == 0 and "withdrawn before, and not indexed again" in added.stderr
+    assert json.loads(edc_bench("history", "--json", "--db", station_url).stdout) == []
+
+
+def _add_all(url: str, folders: list[Path]) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "edc_bench", "history", "--add", *map(str, folders), "--db", url],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_four_concurrent_adds_of_the_same_folders_store_each_test_once(fail_dir: Path, tmp_path: Path,
+                                                                        station_url: str) -> None:
+    folders = []
+    for n in range(12):
+        folder = tmp_path / f"r{n:02d}"
+        shutil.copytree(fail_dir, folder)
+        doc = json.loads((folder / "record.json").read_text())
+        doc["test_id"] = uuid.uuid4().hex  # twelve tests
+        doc["integrity"] = manifest({k: v for k, v in doc.items() if k != "integrity"}, folder,
+                                    list(doc["integrity"]["files"]))
+        (folder / "record.json").write_text(json.dumps(doc))
+        folders.append(folder)
+    procs = [_add_all(station_url, folders) for _ in range(4)]
+    outs = [proc.communicate(timeout=240) for proc in procs]
+    assert [proc.returncode for proc in procs] == [0] * 4, [err for _, err in outs]
+    with HistoryStore(station_url) as store:
+        rows = store.list()
+        assert len(rows) == 12 and all(r["changes"] == 0 for r in rows)
+        assert store.chain_breaks() == []
+    with sa.create_engine(station_url).connect() as conn:
+        assert conn.exec_driver_sql("SELECT count(*) FROM tests").scalar() == 12  # not 17 to 22
+
+
+# --- a station's own SQLite file, changed with the sqlite3 program ----------------------------------------------
+
+
+def test_dropped_sqlite_triggers_are_restored_said_loudly_and_the_edits_named(fail_dir: Path, tmp_path: Path) -> None:
+    path = tmp_path / "history.sqlite"
+    url = f"sqlite:///{path}"
+    with HistoryStore(url) as store:
+        for n in range(4):
+            store.add_row({**_row(f"V-7{n}", sha=f"{n}" * 64), "station": "bench1"})
+    heads = tmp_path / "heads.json"
+    assert edc_bench("history", "--heads", str(heads), "--db", url).returncode == 0
+    with sqlite3.connect(path) as conn:
+        names = [r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'trigger'")]
+        for name in names:
+            conn.execute(f"DROP TRIGGER {name}")
+        conn.execute("UPDATE tests SET verdict = 'PASS' WHERE valve_id = 'V-71'")
+        conn.execute("DELETE FROM tests WHERE valve_id = 'V-72'")
+        conn.execute("DELETE FROM tests WHERE valve_id = 'V-73'")  # the last row: no later row's link shows it
+    listing = edc_bench("history", "--db", url)
+    assert listing.returncode == 0
+    assert "its append-only triggers were missing (22" in listing.stderr and "restored now" in listing.stderr
+    assert "its chain is broken" in listing.stderr
+    with sqlite3.connect(path) as conn:
+        assert {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'trigger'")} == set(names)
+        with pytest.raises(sqlite3.IntegrityError, match="append-only"):
+            conn.execute("DELETE FROM tests")
+        with pytest.raises(sqlite3.IntegrityError, match="chained"):
+            conn.execute("INSERT INTO tests (record_dir, started_at, valve_id, pump_serial, variant, part_number, "
+                         "verdict, station, operator, clock, software_version, reason) VALUES ('/x', 'x', 'V', 'P', "
+                         "'v', 'p', 'PASS', 'bench1', 'a', 'c', 's', '')")
+    found = _verify(url, "--heads", str(heads))
+    assert found.returncode == 16
+    assert "row 2 of tests (chain bench1): its content no longer gives its hash" in found.stdout
+    assert "row 4 of tests" in found.stdout and "gone since its head was kept" in found.stdout  # the deleted tail
+
+
+def test_a_sqlite_history_rewritten_whole_is_caught_by_the_heads_kept_outside(tmp_path: Path) -> None:
+    path = tmp_path / "history.sqlite"
+    url = f"sqlite:///{path}"
+    with HistoryStore(url) as store:
+        store.add_row({**_row("V-80", "FAIL"), "station": "bench1"})
+    heads = tmp_path / "heads.json"
+    assert edc_bench("history", "--heads", str(heads), "--db", url).returncode == 0
+    path.unlink()
+    with HistoryStore(url) as store:  # the same test rebuilt with the program's own code, as PASS
+        store.add_row({**_row("V-80", "PASS"), "station": "bench1"})
+    alone = _verify(url)
+    assert "the chain: holds" in alone.stderr and "chain:" not in alone.stdout  # consistent in itself...
+    found = _verify(url, "--heads", str(heads))
+    assert found.returncode == 16 and "not the row it was since its head was kept" in found.stdout  # ...not outside
+
+
+# --- adoption is the chain's ------------------------------------------------------------------------------------
+
+
+def test_an_adoption_that_bypasses_the_chain_is_refused_and_the_chains_model_stands(chain: dict[str, str],
+                                                                                      tmp_path: Path) -> None:
+    import os
+
+    from edc_bench.verdict.classifier import packaged_model_path
+
+    station_pc = {**os.environ, "EDC_BENCH_HISTORY_URL": chain["bench3"],
+                  "EDC_BENCH_DATA_DIR": str(tmp_path / "station")}
+    candidate = packaged_model_path("valve_linear.onnx")  # another network than the shipped one
+    bypass = edc_bench("train", "--adopt", str(candidate), "--db", f"sqlite:///{tmp_path / 'any.sqlite'}",
+                       env=station_pc)
+    assert bypass.returncode == 2 and len(bypass.stderr.strip().splitlines()) == 1, bypass.stderr
+    assert "adopted there, by an engineer's login (a member of edc_engineer)" in bypass.stderr
+    assert not (tmp_path / "station" / "models").exists() and not (tmp_path / "any.sqlite").exists()
+    # the engineer adopts on the chain (on another PC): the row names the station as the chain knows it
+    engineer_pc = {**station_pc, "EDC_BENCH_DATA_DIR": str(tmp_path / "engineer-pc")}
+    adopted = edc_bench("train", "--adopt", str(candidate), "--by", "someone", "--db", chain["ines"],
+                        env=engineer_pc)
+    assert adopted.returncode == 0, adopted.stderr
+    with sa.create_engine(chain["owner"]).connect() as conn:
+        row = conn.exec_driver_sql("SELECT station, adopted_by, db_login FROM adoptions").one()
+    assert tuple(row) == ("Werkstatt Nord 3", "Ines Braun", "ines")
+    # this station still has the shipped network: it may not judge with it while the chain says otherwise
+    refused = edc_bench("test", "--valve-id", "V-1", env=station_pc)
+    assert refused.returncode == 2 and "not the one the chain records for station 'Werkstatt Nord 3'" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
