@@ -36,11 +36,11 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
     chain.add_argument("--heads", nargs="?", const="-", default=None, metavar="FILE",
                        help="print each chain's last row and hash (JSON) to keep outside the station; with --verify: "
                             "check that the history still holds the heads kept in FILE")
-    chain.add_argument("--map-login", default=None, metavar="LOGIN",
+    chain.add_argument("--map-login", nargs="?", const="", default=None, metavar="LOGIN",
                        help="PostgreSQL, the owner's login: the database login LOGIN is station --station NAME (the "
                             "database writes that name into every test and rig self-check the login adds; a login "
-                            "with no station may add none) and person --person NAME; without either: list the "
-                            "logins' mappings")
+                            "with no station may add none) and person --person NAME; without LOGIN: list every "
+                            "login's mapping")
     chain.add_argument("--person", type=identity(), default=None, metavar="NAME",
                        help="with --map-login: the person the login is (named in its withdrawals and adoptions)")
     chain.add_argument("--rig", action="store_true",
@@ -230,7 +230,9 @@ def _map_login(args: argparse.Namespace) -> int:
         if store.is_sqlite:
             raise ConfigError(f"--map-login is for a shop's PostgreSQL history; {store.shown_url} is a station's "
                               "SQLite file, which has no logins")
-        if args.station is None and args.person is None:
+        if not args.map_login:
+            if args.station is not None or args.person is not None:
+                raise ConfigError("--map-login LOGIN --station NAME: name the database login to map")
             rows = store.logins()
             for r in rows:
                 print(f"{r['login']}: station {r['station'] or '(none)'}, person {r['person'] or '(the login)'} "
@@ -238,6 +240,9 @@ def _map_login(args: argparse.Namespace) -> int:
             if not rows:
                 print("no login is mapped yet: edc-bench history --map-login LOGIN --station NAME")
             return 0
+        if args.station is None and args.person is None:
+            raise ConfigError(f"--map-login {args.map_login}: give --station NAME (a station's login) and/or --person "
+                              "NAME (the person the login is)")
         row = store.map_login(args.map_login, args.station, args.person, person_name(None, "who maps the login"))
     print(f"database login {row['login']} is station {row['station'] or '(none)'}"
           + (f", person {row['person']}" if row["person"] else "")
