@@ -13,6 +13,7 @@ from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 if TYPE_CHECKING:
     from edc_bench.records.schema import Record
     from edc_bench.verdict.baseline import Baseline
+    from edc_bench.verdict.classifier import ValveClassifier
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -21,7 +22,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "classify", help="classify af/a1 values or a record folder",
         description="Judge a valve from its identified af and a1 (--variant with --af and --a1), or from a record "
                     "folder written by 'edc-bench test'. The record's own verdict is reused if the test was "
-                    "INVALID: a model never judges a bad test.",
+                    "INVALID: a model never judges a bad test. A record's verdict is compared with this one: "
+                    "where they differ, or the record's verdict does not follow from its own figures, one line "
+                    "says so (both verdicts, and why) and the exit code is 13.",
     )
     p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (for --af/--a1)")
@@ -47,14 +50,14 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.verdict.judgement import classification_dict, classify_features
     from edc_bench.verdict.verdicts import Verdict
 
+    record = None
     if args.record_dir is not None:
         if args.af is not None or args.a1 is not None:
             raise ConfigError("give either a record folder or --af and --a1, not both")
         record = load_record(args.record_dir)
         if record.verdict == Verdict.INVALID:
             out = {"verdict": Verdict.INVALID, "reasons": record.reasons, "record_dir": str(args.record_dir)}
-            print_quietly_if_closed(lambda: _report(out, args.json))
-            return ExitCode.INVALID
+            return _finish(out, args.json, record)
         recorded = record.variant
         variant = load_variant(args.variant or recorded or None)
         if args.variant and recorded and variant.name != recorded:
@@ -75,15 +78,84 @@ def run(args: argparse.Namespace) -> int:
         _check_plausible(af, a1, baseline)  # typed values; a record's were measured
     if not baseline.calibrated and not args.nominal_baseline:
         out = {"verdict": Verdict.INVALID, "variant": variant.name, "reasons": [not_calibrated_reason(variant)]}
-        print_quietly_if_closed(lambda: _report(out, args.json))
-        return ExitCode.INVALID
+        return _finish(out, args.json, record, "this station has no measured baseline for the variant now")
     judged, baseline, classifier = classify_features(variant, af, a1, args.model)
     out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged, classifier),
            "baseline": baseline.summary()}
     if not baseline.calibrated:
         out["reasons"] = [nominal_baseline_warning(variant)]
-    print_quietly_if_closed(lambda: _report(out, args.json))
-    return exit_code_for(judged.verdict)
+    return _finish(out, args.json, record, "" if record is None else _why_else(record, baseline, classifier))
+
+
+def _finish(out: dict, as_json: bool, record: Record | None, why: str = "") -> int:
+    """Report ``out``, with the line that says it is not as ``record`` says where that is so; the exit code.
+
+    A record's verdict is not as recorded when this classification gives another verdict on the valve, or when
+    the record's verdict does not follow from its own figures (:func:`~edc_bench.records.consistency.disagreements`):
+    then one line says so, naming both verdicts and ``why`` (what differs between the test's judgement and this
+    one), and the exit code is 13 (:attr:`~edc_bench.cli.exit_codes.ExitCode.NOT_REPRODUCED`), so a script never
+    takes a verdict that disagrees with its record for a plain one.
+    """
+    from edc_bench.records.consistency import disagreements
+
+    line = None
+    if record is not None:
+        found = disagreements(record)
+        line = not_as_recorded(record, out["verdict"], found, why)
+        out = {**out, "recorded_verdict": record.verdict, "not_as_recorded": line, "disagreements": found}
+    print_quietly_if_closed(lambda: _report(out, as_json))
+    return ExitCode.NOT_REPRODUCED if line else exit_code_for(out["verdict"])
+
+
+def not_as_recorded(record: Record, verdict: str, found: list[str], why: str = "") -> str | None:
+    """The line for a classification ``verdict`` of ``record`` that is not as the record says (None: it is).
+
+    Parameters
+    ----------
+    record : Record
+        The record classified.
+    verdict : str
+        The verdict classify gives (the record's own for an INVALID record).
+    found : list of str
+        Where the record's verdict does not follow from its own figures
+        (:func:`~edc_bench.records.consistency.disagreements`).
+    why : str, optional
+        What differs between the test's judgement and this one (another model or baseline), said when the
+        verdicts differ.
+    """
+    differ = record.verdict.judges_the_valve and verdict != record.verdict
+    if not (found or differ):
+        return None
+    head = (f"NOT as recorded: the record says {record.verdict}, classify says {verdict}" if differ else
+            f"NOT as recorded: the record says {record.verdict}")
+    if found:
+        return (f"{head}; the record's verdict does not follow from its own figures ({'; '.join(found)}): record.json "
+                "was changed after its test, its digests written again")
+    return f"{head} ({why})" if why else head
+
+
+def _why_else(record: Record, baseline: Baseline, classifier: ValveClassifier) -> str:
+    """What differs between the test's judgement of ``record`` and classify's against ``baseline`` with
+    ``classifier``: the coil, the model, the baseline (empty: none of them)."""
+    why = []
+    if "coil out of spec" in record.problems or (record.coil is not None and record.coil.in_spec is False):
+        why.append("its coil is out of spec, which fails the valve whatever its wear and which classify does not "
+                   "judge")
+    if "not calibrated" in record.problems:
+        why.append("the test had no measured baseline for its variant")
+    kept = record.classification
+    if kept is not None and kept.model_sha256 and kept.model_sha256 != classifier.sha256:
+        why.append(f"the test was judged by {kept.model_file or kept.model_name or 'another model'} "
+                   f"(SHA-256 {kept.model_sha256[:12]}), classify by {classifier.path.name} "
+                   f"({classifier.sha256[:12]})")
+    then = record.baseline
+    if then is not None and then.af_v is not None and then.a1_v_s_per_mm is not None \
+            and (then.af_v, then.a1_v_s_per_mm) != (baseline.af_v, baseline.a1_v_s_per_mm):
+        when = then.written_at or then.source or "another"
+        why.append(f"the test was judged against the baseline of {when} (af0 {then.af_v:.4g} V, a1_0 "
+                   f"{then.a1_v_s_per_mm:.4g} V s/mm), classify against {baseline.written_at or baseline.source} "
+                   f"(af0 {baseline.af_v:.4g} V, a1_0 {baseline.a1_v_s_per_mm:.4g} V s/mm)")
+    return "; ".join(why)
 
 
 #: A worn valve measures a few times its new-valve baseline; this many times is a typing or unit error.
@@ -131,3 +203,5 @@ def _report(out: dict, as_json: bool) -> None:
               f"(marginal band {out['marginal_band']:g}, {out['model']} model)")
     for reason in out.get("reasons", []):
         print(f"  - {reason}")
+    if out.get("not_as_recorded"):
+        print(out["not_as_recorded"])

@@ -19,7 +19,7 @@ class ExitCode(enum.IntEnum):
     MARGINAL = 10
     FAIL = 11
     INVALID = 12
-    NOT_REPRODUCED = 13  # edc-bench replay: the log does not give the recorded result
+    NOT_REPRODUCED = 13  # replay: the log does not give the recorded result; classify FOLDER: not the recorded verdict
     STATION_NOT_READY = 14  # edc-bench check-station: NO-GO
     RIG_NOT_CONFORMING = 15  # edc-bench rig-check: NO-GO
     HISTORY_NOT_AS_INDEXED = 16  # edc-bench history --verify: a record folder missing or altered since indexed
@@ -44,7 +44,8 @@ MEANINGS: dict[int, str] = {
     ExitCode.MARGINAL: "MARGINAL: near the boundary, retest",
     ExitCode.FAIL: "FAIL: replace the valve",
     ExitCode.INVALID: "INVALID: the test is not to be trusted (the reasons are printed)",
-    ExitCode.NOT_REPRODUCED: "replay: the log does not give the recorded result",
+    ExitCode.NOT_REPRODUCED: "replay: the log does not give the recorded result; classify FOLDER: the verdict is not "
+                             "the record's, or the record's does not follow from its own figures (both are printed)",
     ExitCode.STATION_NOT_READY: "check-station: NO-GO (the advice is printed)",
     ExitCode.RIG_NOT_CONFORMING: "rig-check: NO-GO, the rig breaks an ICD rule (the failed checks are printed)",
     ExitCode.HISTORY_NOT_AS_INDEXED: "history --verify: a record folder is missing or changed since it was indexed "
@@ -80,7 +81,7 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "tune": (ExitCode.OK,),
     "calibrate": (ExitCode.OK, ExitCode.INVALID, ExitCode.RIG_ERROR, ExitCode.RECORD_NOT_WRITTEN),
     "train": (ExitCode.OK,),
-    "classify": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID),
+    "classify": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID, ExitCode.NOT_REPRODUCED),
     "evaluate": (ExitCode.OK,),
     "paper": (ExitCode.OK,),
     "study-boundary": (ExitCode.OK,),
@@ -101,7 +102,7 @@ ALWAYS = (ExitCode.BAD_INPUT, ExitCode.INTERNAL_ERROR, ExitCode.INTERRUPTED)
 #: The short names of README's sentence ("Exit codes: 0 PASS, 10 MARGINAL, ...").
 SHORT_NAMES: dict[int, str] = {
     ExitCode.PASS: "PASS", ExitCode.MARGINAL: "MARGINAL", ExitCode.FAIL: "FAIL", ExitCode.INVALID: "INVALID",
-    ExitCode.NOT_REPRODUCED: "replay not reproduced", ExitCode.STATION_NOT_READY: "station NO-GO",
+    ExitCode.NOT_REPRODUCED: "not as recorded", ExitCode.STATION_NOT_READY: "station NO-GO",
     ExitCode.RIG_NOT_CONFORMING: "rig NO-GO", ExitCode.HISTORY_NOT_AS_INDEXED: "history not as indexed",
     ExitCode.RIG_DRIFTED: "rig self-check NO-GO", ExitCode.NO_REFERENCE_VALVE: "no reference valve",
     ExitCode.BAD_INPUT: "bad input", ExitCode.RIG_ERROR: "rig or bus error", ExitCode.INTERNAL_ERROR: "internal error",

@@ -19,7 +19,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "boundary. Page 2, for the engineer: the parameter table against the baseline, the classifier "
                     "(model, file, SHA-256, P(faulty), distance), baseline, coil, timing, model fit, versions and "
                     "the convergence and tracking-error plots. Writes report.pdf (both pages), report-page.png "
-                    "(page 1) and report-page-2.png into the record folder (or --out).",
+                    "(page 1) and report-page-2.png into the record folder (or --out). A record changed since its "
+                    "test, or whose verdict does not follow from its own figures (problems, classification, "
+                    "features, baseline), is refused, naming what disagrees.",
     )
     p.add_argument("record_dir", type=Path, help="a record folder written by 'edc-bench test'")
     p.add_argument("--out", type=Path, default=None, metavar="DIR", help="folder for the report (default: the record's)")
@@ -29,15 +31,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Draw and say where."""
     from edc_bench.cli.common import check_output_folder, probe_writable
+    from edc_bench.errors import ConfigError
+    from edc_bench.records.consistency import disagreements, refusal
     from edc_bench.records.reader import load_record
     from edc_bench.records.report import draw_report
 
-    _check_text(load_record(args.record_dir), args.record_dir)  # a folder that is not a record, and ...
+    record = load_record(args.record_dir)  # a folder that is not a record, or changed since its test, ...
+    _check_text(record, args.record_dir)  # ... text that cannot be drawn, ...
     if args.out is not None:
-        check_output_folder(args.out, "--out")  # ... an --out that cannot take the report, refused before drawing
+        check_output_folder(args.out, "--out")  # ... an --out that cannot take the report, ...
     else:
         probe_writable(args.record_dir, f"{args.record_dir}: the record folder is not writable; write the report "
                                         "elsewhere with --out DIR")
+    found = disagreements(record)
+    if found:  # ... and a verdict that does not follow from the record's own figures, refused before drawing
+        raise ConfigError(refusal(args.record_dir, record, found, "no report drawn"))
     pdf, pngs = draw_report(args.record_dir, args.out)
     print(f"report: {pdf}\npage images: {', '.join(map(str, pngs))}")
     return 0

@@ -74,9 +74,6 @@ def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: fl
     temp_c = REFERENCE_TEMP_C if coil_temp_c is None else float(coil_temp_c)
     r20 = float(resistance_20c_ohm(r_start, temp_c, alpha))
     low, high = coil.resistance_min_ohm, coil.resistance_max_ohm
-    judged = low is not None or high is not None
-    tol = SPEC_TOLERANCE_REL
-    in_spec = (low is None or r20 >= low * (1 - tol)) and (high is None or r20 <= high * (1 + tol))
     return {
         "resistance_ohm": r_end,
         "resistance_start_ohm": r_start,
@@ -86,11 +83,25 @@ def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: fl
         "temp_source": "given (--coil-temp-c)" if coil_temp_c is not None else "assumed: a rested coil at 20 degC",
         "warming_k": (r_end / r_start - 1.0) / alpha if alpha > 0 and r_start > 0 else math.nan,
         "spec_ohm": [low, high],
-        "in_spec": bool(in_spec) if judged else None,
+        "in_spec": in_spec(r20, low, high),
         "reference_ohm": coil.resistance_ohm,
         "inductance_mh": coil.inductance_mh,
         "inductance_source": "nominal (not measured)",
     }
+
+
+def in_spec(resistance_20c_ohm: float, low: float | None, high: float | None) -> bool | None:
+    """Whether a coil's resistance at 20 degC is within its spec ``low``-``high`` ohm (either may be None), beyond
+    the measurement's tolerance (:data:`SPEC_TOLERANCE_REL`); None where the variant gives no spec.
+
+    The one place the rule is written: :func:`coil_finding` judges with it, and
+    :mod:`edc_bench.records.consistency` re-decides a record's ``coil.in_spec`` with it.
+    """
+    if low is None and high is None:
+        return None
+    tol = SPEC_TOLERANCE_REL
+    return bool((low is None or resistance_20c_ohm >= low * (1 - tol))
+                and (high is None or resistance_20c_ohm <= high * (1 + tol)))
 
 
 def coil_reason(finding: dict[str, Any]) -> str | None:

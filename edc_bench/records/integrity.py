@@ -6,20 +6,44 @@ Every reader checks it (:func:`altered`) and refuses a record that changed after
 changed: a verdict edited from PASS to FAIL is ``record.json's 'verdict'``, a replaced log is ``can.log``.
 
 The digests catch a record changed by hand or by a tool, or damaged on a disk; they carry no secret, so
-someone who rewrites the digests too is not stopped (a signed record needs a key the station keeps: not here).
-Records of schema 4 and older carry no manifest and are read as before.
+someone who rewrites the digests too is not stopped (a signed record needs a key the station keeps: not here);
+whether such a record's verdict still follows from its own figures is :mod:`~edc_bench.records.consistency`'s
+question.
+
+Records of schema 4 and older carry no manifest and are read as before. A record whose ``schema`` says 4 or
+older but which holds what only a writer of manifests writes (:func:`manifest_writer_signs`: a key added in
+schema 5 or later, or an edc-bench version released after manifests came) had its manifest removed: it is
+altered, whatever its schema says. A record made to look old in every key (those keys removed too, its version
+left at 0.1.0, which wrote both kinds) cannot be told from a genuine old one by the record alone: the history's
+digest of the record as first indexed is what catches it.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 from typing import Any
 
 #: The record schema from which record.json must carry its manifest.
 INTEGRITY_SCHEMA = 5
 ALGORITHM = "sha256"
+
+#: The last edc-bench version that wrote records without a manifest; it also wrote them with one (the version was
+#: 0.1.0 before and after schema 5, 2026-11-26), so only a later version says "a writer of manifests".
+LAST_VERSION_WITHOUT_MANIFEST = (0, 1, 0)
+
+#: Keys of record.json (a path of nested keys) that only writers of manifests have written: each came with
+#: schema 5 or later (records/writer.py's schema list; git log -S on each), so no record of schema 4 holds one.
+MANIFEST_ERA_KEYS: tuple[tuple[str, ...], ...] = (
+    ("test_id",),  # schema 8: the test's own id
+    ("retest",),  # the MARGINAL retest (2026-11-26, schema 5): written in every record since, null when none
+    ("stop", "misfit_half_width_rel"),  # the early stop's interval parts (#37, schema 5 and 7)
+    ("stop", "baseline_half_width_rel"),
+    ("stop", "residual_half_width_rel"),
+    ("identification", "model_fit", "core_shift_rel"),  # the core rows' fit (#37, schema 5)
+)
 
 
 def section_digest(value: Any) -> str:
@@ -56,6 +80,11 @@ def altered(doc: dict[str, Any], folder: Path) -> list[str]:
     except (TypeError, ValueError):
         schema = INTEGRITY_SCHEMA  # a damaged schema field: held to its manifest like any new record
     if schema < INTEGRITY_SCHEMA and "integrity" not in doc:
+        signs = manifest_writer_signs(doc)
+        if signs:  # a lowered schema, the manifest removed: the record says who wrote it
+            shown = " and ".join(signs[:2]) + (f" (and {len(signs) - 2} more)" if len(signs) > 2 else "")
+            return [f"record.json's integrity manifest (removed: its schema says {doc.get('schema')!r}, but it holds "
+                    f"{shown}, written only by an edc-bench that writes a manifest)"]
         return []  # an older record: nothing to check it against (a lowered schema with a manifest is checked)
     kept = doc.get("integrity")
     if not isinstance(kept, dict) or not isinstance(kept.get("sections"), dict) \
@@ -77,4 +106,36 @@ def altered(doc: dict[str, Any], folder: Path) -> list[str]:
     return changes
 
 
-__all__ = ["INTEGRITY_SCHEMA", "altered", "file_digest", "manifest", "section_digest"]
+def manifest_writer_signs(doc: dict[str, Any]) -> list[str]:
+    """What in record.json ``doc`` says an edc-bench that writes integrity manifests wrote it, its ``schema`` aside.
+
+    Returns
+    -------
+    list of str
+        Each sign in words (``'test_id'``, ``software_version 0.2.0``); empty when the record holds none
+        (a genuine older record, or one made to look old in every key: the record alone cannot tell those apart).
+    """
+    signs = []
+    for path in MANIFEST_ERA_KEYS:
+        value: Any = doc
+        for key in path:
+            value = value.get(key, _ABSENT) if isinstance(value, dict) else _ABSENT
+        if value is not _ABSENT:
+            signs.append(repr(".".join(path)))
+    version = _version(doc.get("software_version"))
+    if version is not None and version > LAST_VERSION_WITHOUT_MANIFEST:
+        signs.append(f"software_version {doc['software_version']}")
+    return signs
+
+
+_ABSENT = object()
+
+
+def _version(text: Any) -> tuple[int, int, int] | None:
+    """The release of an edc-bench version string (``0.2.0``, ``0.2.0.dev1``, ``0.1.0+local``), or None."""
+    match = re.match(r"\s*v?(\d+)\.(\d+)(?:\.(\d+))?", text) if isinstance(text, str) else None
+    return None if match is None else (int(match[1]), int(match[2]), int(match[3] or 0))
+
+
+__all__ = ["INTEGRITY_SCHEMA", "LAST_VERSION_WITHOUT_MANIFEST", "MANIFEST_ERA_KEYS", "altered", "file_digest",
+           "manifest", "manifest_writer_signs", "section_digest"]

@@ -135,6 +135,31 @@ def find_model(sha256: str) -> Path | None:
     return None
 
 
+def verdicts_of(probability_faulty: np.ndarray | float, distance: np.ndarray | float, threshold: float,
+                marginal_band: float) -> np.ndarray:
+    """The classifier's rule: MARGINAL within ``marginal_band`` of the boundary, else FAIL where P(faulty) reaches
+    ``threshold``, else PASS.
+
+    Parameters
+    ----------
+    probability_faulty, distance : float or numpy.ndarray
+        P(faulty) and the signed distance to the boundary (+/-inf: beyond the scan) of each valve.
+    threshold, marginal_band : float
+        The model's.
+
+    Returns
+    -------
+    numpy.ndarray
+        The verdicts' names (``"PASS"``, ``"MARGINAL"``, ``"FAIL"``), one per valve.
+
+    The one place the rule is written: :meth:`ValveClassifier.classify_many` judges with it, and
+    :mod:`edc_bench.records.consistency` re-decides a record's classification with it from the figures kept.
+    """
+    faulty = np.asarray(probability_faulty) >= threshold
+    return np.where(np.abs(np.asarray(distance, dtype=float)) < marginal_band, Verdict.MARGINAL.value,
+                    np.where(faulty, Verdict.FAIL.value, Verdict.PASS.value))
+
+
 @dataclass(frozen=True)
 class Classification:
     """The model's judgement of one valve.
@@ -248,11 +273,8 @@ class ValveClassifier:
     def classify_many(self, features_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Verdicts, P(faulty) and distances for rows of relative features."""
         p = self.probabilities(features_rel)
-        faulty = p >= self.threshold
-        d = self.distances(features_rel, faulty)
-        verdicts = np.where(np.abs(d) < self.marginal_band, Verdict.MARGINAL.value,
-                            np.where(faulty, Verdict.FAIL.value, Verdict.PASS.value))
-        return verdicts, p, d
+        d = self.distances(features_rel, p >= self.threshold)
+        return verdicts_of(p, d, self.threshold, self.marginal_band), p, d
 
     def verdicts(self, features_rel: np.ndarray) -> np.ndarray:
         """The verdicts :meth:`classify_many` gives, for a fraction of its cost away from the boundary.

@@ -23,7 +23,7 @@ from edc_bench.engine.outcome import LoopOutcome
 from edc_bench.identification.analysis import Identification, ModelFit, analyse
 from edc_bench.identification.coil_check import coil_finding, coil_reason
 from edc_bench.identification.period_fit import DRIFT_MIN_PERIODS
-from edc_bench.identification.trust import Problem, trust_problems
+from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_problems
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
 from edc_bench.verdict.baseline import Baseline, load_baseline
@@ -89,6 +89,27 @@ class Judgement:
     features_volt: dict[str, float] = field(default_factory=dict)
     coil: dict[str, Any] | None = None
     problems: Problem = Problem.NONE
+
+
+def verdict_of(problems: Problem, classified: Verdict | None) -> Verdict:
+    """A test's verdict from its problems and the classifier's verdict on its valve (None: not classified).
+
+    A test the trust rule does not trust is INVALID; else a coil out of spec fails the valve whatever its wear (it
+    is replaced or repaired first; the coil's spec needs no baseline); else a variant without a measured baseline
+    is INVALID; else the classifier's verdict stands, and a trustworthy test that was not classified (baseline
+    calibration) is UNCLASSIFIED.
+
+    The one place the rule is written: :func:`judge_run` decides with it, and
+    :mod:`edc_bench.records.consistency` re-decides a record's verdict with it from the problems and the
+    classification the record keeps.
+    """
+    if problems & TRUST_PROBLEMS:
+        return Verdict.INVALID
+    if Problem.COIL_OUT_OF_SPEC in problems:
+        return Verdict.FAIL
+    if Problem.NOT_CALIBRATED in problems:
+        return Verdict.INVALID
+    return Verdict.UNCLASSIFIED if classified is None else Verdict(classified)
 
 
 def run_problems(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
@@ -237,31 +258,29 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     features = {n: final.get(n, math.nan) for n in ("af", "a1")}
     coil = coil_finding(variant, trace, coil_temp_c)
     bad_coil = coil_reason(coil) if coil is not None else None
+    problems |= Problem.COIL_OUT_OF_SPEC if bad_coil else Problem.NONE
     judgement = Judgement(
-        verdict=Verdict.INVALID if reasons else Verdict.UNCLASSIFIED,
+        verdict=verdict_of(problems, None),
         reasons=(reasons or ["test trustworthy; classification switched off"]) + ([bad_coil] if bad_coil else []),
         parameters=parameters, features=features,
         converged=bool(ident and ident.converged and not outcome.aborted),
         identification=ident, reference_values=reference_values(variant, None),
         features_volt={n: volts_at_coil(inductive[n], features[n], r_ref, r_hat) for n in ("af", "a1")},
-        coil=coil, problems=problems | (Problem.COIL_OUT_OF_SPEC if bad_coil else Problem.NONE),
+        coil=coil, problems=problems,
     )
     if not reasons and bad_coil:
-        # a coil out of spec fails the valve, whatever its wear: it is replaced or repaired first
-        judgement.verdict = Verdict.FAIL
-        judgement.reasons = [bad_coil]
+        judgement.reasons = [bad_coil]  # a FAIL (verdict_of): the coil is replaced or repaired first
     if not reasons and classify:
         baseline = baseline if baseline is not None else load_baseline(variant)
         judgement.baseline = baseline.summary()
         if not baseline.calibrated and not nominal_baseline:
-            # the coil's spec needs no baseline: a coil out of spec still fails the valve
-            judgement.verdict = Verdict.FAIL if bad_coil else Verdict.INVALID
             judgement.problems |= Problem.NOT_CALIBRATED
+            judgement.verdict = verdict_of(judgement.problems, None)
             judgement.baseline = None  # nothing was compared with it
             judgement.reasons = ([bad_coil] if bad_coil else []) + [not_calibrated_reason(variant, calibrate_command)]
             return judgement
         judged, classifier = classify_against(baseline, features["af"], features["a1"], classifier_path, variant)
-        judgement.verdict = Verdict(judged.verdict)
+        judgement.verdict = verdict_of(judgement.problems, Verdict(judged.verdict))
         judgement.classification = classification_dict(judged, classifier)
         judgement.reference_values = reference_values(variant, baseline)
         judgement.decision_plane = decision_plane(classifier, judged.features_rel)
@@ -269,7 +288,6 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
             f"{judged.distance:+.3f} (marginal band {classifier.marginal_band:g})"]
         if bad_coil:
-            judgement.verdict = Verdict.FAIL
             judgement.reasons = [bad_coil, f"the valve itself: {judged.verdict}; " + judgement.reasons[0]]
         if not baseline.calibrated:
             judgement.reasons.insert(0, nominal_baseline_warning(variant, calibrate_command))
