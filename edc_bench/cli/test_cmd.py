@@ -197,7 +197,7 @@ def _check_chain_model(args: argparse.Namespace) -> None:
     """On a chain's station, refuse to judge with a model the chain does not record for it (an adoption that
     bypassed the chain). A chain that cannot be reached now is not checked: the test goes on, and its indexing says
     what is wrong after it."""
-    from edc_bench.learning.chain_adoption import chain_url
+    from edc_bench.history.chain_adoption import chain_url
 
     if chain_url() is None or args.history_db not in (None, chain_url()):
         return
@@ -205,7 +205,7 @@ def _check_chain_model(args: argparse.Namespace) -> None:
 
     from edc_bench.errors import ConfigError, EdcBenchError
     from edc_bench.history.store import HistoryStore
-    from edc_bench.learning.chain_adoption import chain_model_problem, chain_station
+    from edc_bench.history.chain_adoption import chain_model_problem, chain_station
     from edc_bench.verdict.classifier import file_sha256, station_model_path
 
     try:

@@ -176,7 +176,7 @@ def _adopt(args: argparse.Namespace) -> int:
                         ("--dataset", args.dataset), ("--include-simulated", args.include_simulated or None)):
         if value is not None:
             raise ConfigError(f"{flag} does not go with --adopt (it adopts a model file, or 'shipped')")
-    from edc_bench.learning.chain_adoption import chain_station, check_adoption_target
+    from edc_bench.history.chain_adoption import chain_station, check_adoption_target
 
     check_adoption_target(args.db)  # a chain's station adopts in the chain, nowhere else
     shipped = args.adopt == "shipped"
