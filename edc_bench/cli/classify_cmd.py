@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         record = load_record(args.record_dir)
         if record.verdict == Verdict.INVALID:
             out = {"verdict": Verdict.INVALID, "reasons": record.reasons, "record_dir": str(args.record_dir)}
-            return _finish(out, args.json, record)
+            return _finish(out, args.json, record, record_dir=args.record_dir)
         recorded = record.variant
         variant = load_variant(args.variant or recorded or None)
         if args.variant and recorded and variant.name != recorded:
@@ -78,29 +78,38 @@ def run(args: argparse.Namespace) -> int:
         _check_plausible(af, a1, baseline)  # typed values; a record's were measured
     if not baseline.calibrated and not args.nominal_baseline:
         out = {"verdict": Verdict.INVALID, "variant": variant.name, "reasons": [not_calibrated_reason(variant)]}
-        return _finish(out, args.json, record, "this station has no measured baseline for the variant now")
+        return _finish(out, args.json, record, "this station has no measured baseline for the variant now",
+                       args.record_dir)
     judged, baseline, classifier = classify_features(variant, af, a1, args.model)
     out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged, classifier),
            "baseline": baseline.summary()}
     if not baseline.calibrated:
         out["reasons"] = [nominal_baseline_warning(variant)]
-    return _finish(out, args.json, record, "" if record is None else _why_else(record, baseline, classifier))
+    return _finish(out, args.json, record, "" if record is None else _why_else(record, baseline, classifier),
+                   args.record_dir)
 
 
-def _finish(out: dict, as_json: bool, record: Record | None, why: str = "") -> int:
+def _finish(out: dict, as_json: bool, record: Record | None, why: str = "", record_dir: Path | None = None) -> int:
     """Report ``out``, with the line that says it is not as ``record`` says where that is so; the exit code.
 
     A record's verdict is not as recorded when this classification gives another verdict on the valve, or when
     the record's verdict does not follow from its own figures (:func:`~edc_bench.records.consistency.disagreements`):
     then one line says so, naming both verdicts and ``why`` (what differs between the test's judgement and this
     one), and the exit code is 13 (:attr:`~edc_bench.cli.exit_codes.ExitCode.NOT_REPRODUCED`), so a script never
-    takes a verdict that disagrees with its record for a plain one.
+    takes a verdict that disagrees with its record for a plain one. A record that is not what the history first
+    indexed for its test (``record_dir`` given, a history there to ask) is said the same way.
     """
     from edc_bench.records.consistency import disagreements
 
     line = None
     if record is not None:
         found = disagreements(record)
+        if record_dir is not None:  # and what the history holds of it, where a history is there to ask
+            from edc_bench.history.standing import history_standing
+
+            standing = history_standing(record, record_dir)
+            if standing is not None and standing.differs:
+                found.append(standing.differs)
         line = not_as_recorded(record, out["verdict"], found, why)
         out = {**out, "recorded_verdict": record.verdict, "not_as_recorded": line, "disagreements": found}
     print_quietly_if_closed(lambda: _report(out, as_json))
@@ -129,7 +138,7 @@ def not_as_recorded(record: Record, verdict: str, found: list[str], why: str = "
     head = (f"NOT as recorded: the record says {record.verdict}, classify says {verdict}" if differ else
             f"NOT as recorded: the record says {record.verdict}")
     if found:
-        return (f"{head}; the record's verdict does not follow from its own figures ({'; '.join(found)}): record.json "
+        return (f"{head}; the record disagrees with itself or with the history ({'; '.join(found)}): record.json "
                 "was changed after its test, its digests written again")
     return f"{head} ({why})" if why else head
 

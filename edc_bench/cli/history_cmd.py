@@ -74,10 +74,15 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--since {args.since} is after --until {args.until}: give the earlier day first")
     records = []
     if args.add:  # every record read before any is added: one bad folder adds nothing
+        from edc_bench.records.consistency import disagreements, refusal
         from edc_bench.records.reader import load_record
 
         folders = list(dict.fromkeys(Path(folder).resolve() for folder in args.add))  # each folder once
         records = [(load_record(folder), folder) for folder in folders]
+        for record, folder in records:  # a verdict that does not follow from the record's figures is not indexed
+            found = disagreements(record)
+            if found:
+                raise ConfigError(refusal(folder, record, found, "nothing indexed"))
     with HistoryStore(args.db, must_exist=not args.add) as store:
         if args.add:
             outcomes = [store.add(record, folder) for record, folder in records]

@@ -25,6 +25,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("record_dir", type=Path, help="a record folder written by 'edc-bench test'")
     p.add_argument("--out", type=Path, default=None, metavar="DIR", help="folder for the report (default: the record's)")
+    from edc_bench.cli.common import add_history_db_argument
+
+    add_history_db_argument(p, "where the test's chain hash is looked up (page 1 prints it), and the record held to "
+                               "the one first indexed: ")
     p.set_defaults(run=run)
 
 
@@ -46,8 +50,15 @@ def run(args: argparse.Namespace) -> int:
     found = disagreements(record)
     if found:  # ... and a verdict that does not follow from the record's own figures, refused before drawing
         raise ConfigError(refusal(args.record_dir, record, found, "no report drawn"))
-    pdf, pngs = draw_report(args.record_dir, args.out)
-    print(f"report: {pdf}\npage images: {', '.join(map(str, pngs))}")
+    from edc_bench.history.standing import history_standing
+
+    standing = history_standing(record, args.record_dir, args.db)
+    if standing is not None and standing.differs:  # ... or a record that is not the one the history first indexed
+        raise ConfigError(f"{args.record_dir}: {standing.differs}: no report drawn; 'edc-bench history --audit "
+                          f"{record.valve_id}' shows the test as indexed")
+    pdf, pngs = draw_report(args.record_dir, args.out, None if standing is None else standing.note())
+    print(f"report: {pdf}\npage images: {', '.join(map(str, pngs))}"
+          + ("" if standing is None else f"\nhistory: {standing.note()} (printed on page 1)"))
     return 0
 
 

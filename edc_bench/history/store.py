@@ -391,6 +391,13 @@ class HistoryStore:
             query = query.where(tests.c.station == station)
         return self._rows(query.order_by(tests.c.id))
 
+    def first_indexing(self, key: str) -> dict[str, Any] | None:
+        """The row that first indexed the test ``key`` (the one that stands), with ``changes``: how many times it was
+        indexed again with other content; None if the history does not hold the test."""
+        found = self._rows(sa.select(tests, self._changes().label("changes")).where(tests.c.test_key == key)
+                           .order_by(tests.c.id).limit(1))
+        return found[0] if found else None
+
     def changed_tests(self, station: str | None = None) -> list[dict[str, Any]]:
         """Rows that indexed a test again with other content than its first indexing (of one station's tests if
         given), oldest first, each with ``first_id``: the row that stands."""

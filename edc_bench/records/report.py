@@ -63,7 +63,8 @@ _DETAIL_MIN_PT = 6.5  # the smallest a long value on page 2 is set before it is 
 _MIN_PLOT_PT = 110.0
 
 
-def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, tuple[Path, ...]]:
+def draw_report(folder: Path, out_dir: Path | None = None, history_note: str | None = None
+                ) -> tuple[Path, tuple[Path, ...]]:
     """Draw the report of the record in ``folder``.
 
     Parameters
@@ -72,6 +73,9 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, tuple[
         A record folder written by ``edc-bench test``.
     out_dir : pathlib.Path, optional
         Where to write (default: the record folder).
+    history_note : str, optional
+        The test's entry in the history and its chain hash (:meth:`~edc_bench.history.standing.Standing.note`),
+        printed in page 1's footer: the customer's copy keeps an anchor of the history outside the station.
 
     Returns
     -------
@@ -83,7 +87,7 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, tuple[
     trace = load_trace(folder)
     out_dir = Path(out_dir) if out_dir is not None else folder
     out_dir.mkdir(parents=True, exist_ok=True)
-    pages = report_pages(record, trace, folder.name)
+    pages = report_pages(record, trace, folder.name, history_note)
     pdf = write_pdf(pages, record, out_dir / REPORT_PDF)
     pngs = tuple(out_dir / name for name in REPORT_PNGS)
     for page, png in zip(pages, pngs, strict=True):
@@ -91,9 +95,10 @@ def draw_report(folder: Path, out_dir: Path | None = None) -> tuple[Path, tuple[
     return pdf, pngs
 
 
-def report_pages(record: Record, trace: dict[str, np.ndarray], folder_name: str) -> list[Page]:
+def report_pages(record: Record, trace: dict[str, np.ndarray], folder_name: str,
+                 history_note: str | None = None) -> list[Page]:
     """The two pages, drawn and not yet written: the customer's and the engineer's."""
-    return [customer_page(record, trace, folder_name), engineer_page(record, trace, folder_name)]
+    return [customer_page(record, trace, folder_name, history_note), engineer_page(record, trace, folder_name)]
 
 
 def write_pdf(pages: list[Page], record: Record, path: Path) -> Path:
@@ -116,7 +121,8 @@ def write_pdf(pages: list[Page], record: Record, path: Path) -> Path:
 # --- page 1: the customer's ---------------------------------------------------------------------------------------
 
 
-def customer_page(record: Record, trace: dict[str, np.ndarray], folder_name: str) -> Page:
+def customer_page(record: Record, trace: dict[str, np.ndarray], folder_name: str,
+                  history_note: str | None = None) -> Page:
     """Who, what, when, the verdict and what to do, the tracking plot and the valve against the boundary."""
     page = Page()
     y = _header(page, "Solenoid valve test report", 1)
@@ -127,8 +133,9 @@ def customer_page(record: Record, trace: dict[str, np.ndarray], folder_name: str
     tracking_pt, decision_pt = _plot_heights(record, y + 18.0)
     y = _tracking(page, trace, y + 18.0, tracking_pt)
     _decision(page, record, y + 14.0, decision_pt)
+    # the history's hash before the folder's name: a long valve id in the name can only cut the line's end
     _footer(page, f"Technical details on page 2  \u00b7  edc-bench {record.software_version or '?'}  \u00b7  "
-                  f"record {folder_name}")
+                  + (f"{history_note}  \u00b7  " if history_note else "") + f"record {folder_name}")
     return page
 
 

@@ -192,22 +192,27 @@ class SessionRunner:
         except OSError as exc:
             return TestDone(result, None, None, (f"the record could not be written ({exc}): free space on the disk, "
                                                  "then test the valve again",))
-        report_pdf = None
-        if self.report:
-            try:
-                from edc_bench.records.report import draw_report
-
-                report_pdf, _ = draw_report(record_dir)
-            except Exception as exc:  # noqa: BLE001 - a report is redrawn later from the record; never lose the test
-                problems.append(f"the report could not be drawn ({type(exc).__name__}: {exc}); draw it with: "
-                                f"edc-bench report {record_dir}")
-        try:
+        indexed = True
+        try:  # indexed first: the report's page 1 prints the test's chain hash
             index_record_dir(record_dir, self.history_url)
         except Exception as exc:  # noqa: BLE001 - the record is safe; the history can take it later
             from edc_bench.history.secrets import known_secrets, redact
 
+            indexed = False
             problems.append(redact(f"the history was not updated ({type(exc).__name__}: {exc}); add it later with: "
                                    f"edc-bench history --add {record_dir}", known_secrets(self.history_url)))
+        report_pdf = None
+        if self.report:
+            try:
+                from edc_bench.history.standing import history_standing
+                from edc_bench.records.reader import load_record
+                from edc_bench.records.report import draw_report
+
+                standing = history_standing(load_record(record_dir), record_dir, self.history_url) if indexed else None
+                report_pdf, _ = draw_report(record_dir, history_note=None if standing is None else standing.note())
+            except Exception as exc:  # noqa: BLE001 - a report is redrawn later from the record; never lose the test
+                problems.append(f"the report could not be drawn ({type(exc).__name__}: {exc}); draw it with: "
+                                f"edc-bench report {record_dir}")
         return TestDone(result, record_dir, report_pdf, tuple(problems))
 
 

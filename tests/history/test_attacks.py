@@ -6,11 +6,13 @@ which."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sqlite3
 import subprocess
 import sys
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 
 import psycopg
@@ -209,15 +211,6 @@ def test_a_row_changed_with_the_triggers_off_breaks_the_chain_where_it_was_done(
 # --- a record tampered with and indexed again, on both databases --------------------------------------------------
 
 
-def _tamper_verdict(folder: Path, verdict: str) -> None:
-    """Edit record.json's verdict and write its integrity manifest again, as an attacker with the code would."""
-    doc = json.loads((folder / "record.json").read_text())
-    doc["verdict"] = verdict
-    doc["integrity"] = manifest({k: v for k, v in doc.items() if k != "integrity"}, folder,
-                                list(doc["integrity"]["files"]))
-    (folder / "record.json").write_text(json.dumps(doc))
-
-
 @pytest.fixture(params=["sqlite", "postgresql"])
 def station_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
     if request.param == "sqlite":
@@ -225,29 +218,90 @@ def station_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
     return request.getfixturevalue("chain")["bench3"]
 
 
-def test_a_tampered_record_indexed_again_is_a_change_every_reader_shows(fail_dir: Path, tmp_path: Path,
-                                                                        station_url: str) -> None:
+def _rewrite(folder: Path, change: Callable[[dict], None]) -> None:
+    """Change record.json and write its integrity manifest again, as an attacker with the code would."""
+    doc = json.loads((folder / "record.json").read_text())
+    change(doc)
+    if "integrity" in doc:
+        doc["integrity"] = manifest({k: v for k, v in doc.items() if k != "integrity"}, folder,
+                                    list(doc["integrity"]["files"]))
+    (folder / "record.json").write_text(json.dumps(doc))
+
+
+def _indexed_then_changed(fail_dir: Path, tmp_path: Path, url: str, change: Callable[[dict], None]) -> Path:
     folder = tmp_path / "record"
     shutil.copytree(fail_dir, folder)
-    assert edc_bench("history", "--add", str(folder), "--db", station_url).returncode == 0
-    _tamper_verdict(folder, "PASS")
-    again = edc_bench("history", "--add", str(folder), "--db", station_url)
-    # the reader refuses it (its verdict does not follow from its figures), or it is stored as a change: never as
-    # the test as it stands
-    listing = json.loads(edc_bench("history", "--json", "--db", station_url).stdout)
-    assert [r["verdict"] for r in listing] == ["FAIL"]
+    assert edc_bench("history", "--add", str(folder), "--db", url).returncode == 0
+    _rewrite(folder, change)
+    return folder
+
+
+def _verify_says(url: str, *words: str) -> None:
     for _ in range(2):  # every time, not once
-        found = _verify(station_url)
+        found = _verify(url)
         assert found.returncode == 16, found.stderr
-        assert "altered: test" in found.stdout and "record.json" in found.stdout
-    if again.returncode == 0:
-        assert "changed" in again.stderr
-        assert listing[0]["changes"] == 1
-        assert "changed: test" in found.stdout
-        valve = listing[0]["valve_id"]
-        audit = json.loads(edc_bench("history", "--audit", valve, "--json", "--db", station_url).stdout)
-        assert [e["event"] for e in audit] == ["test indexed", "record changed after its first indexing (the first "
-                                                                "stands)"]
+        assert all(word in found.stdout for word in words), found.stdout
+
+
+def test_a_tampered_verdict_is_refused_by_every_reader_and_named_by_verify(fail_dir: Path, tmp_path: Path,
+                                                                          station_url: str) -> None:
+    folder = _indexed_then_changed(fail_dir, tmp_path, station_url, lambda doc: doc.update(verdict="PASS"))
+    for argv in (("history", "--add", str(folder), "--db", station_url), ("report", str(folder), "--db", station_url)):
+        refused = edc_bench(*argv)
+        assert refused.returncode == 2 and "its verdict PASS does not follow from its own figures" in refused.stderr
+    classified = edc_bench("classify", str(folder), env={**os.environ, "EDC_BENCH_HISTORY_URL": station_url})
+    assert classified.returncode == 13 and "NOT as recorded: the record says PASS, classify says FAIL" in \
+        classified.stdout
+    assert [r["verdict"] for r in json.loads(edc_bench("history", "--json", "--db", station_url).stdout)] == ["FAIL"]
+    _verify_says(station_url, "altered: test", "record.json")
+
+
+def test_a_record_changed_and_indexed_again_is_a_change_every_reader_shows(fail_dir: Path, tmp_path: Path,
+                                                                           station_url: str) -> None:
+    """A change the record's own figures cannot show (who tested): the history's first indexing can."""
+    folder = _indexed_then_changed(fail_dir, tmp_path, station_url,
+                                   lambda doc: doc["identity"].update(operator="somebody else"))
+    again = edc_bench("history", "--add", str(folder), "--db", station_url)
+    assert again.returncode == 0 and "changed" in again.stderr
+    listing = json.loads(edc_bench("history", "--json", "--db", station_url).stdout)
+    assert [(r["operator"], r["changes"]) for r in listing] == [(load_record(fail_dir).identity.operator, 1)]
+    valve = listing[0]["valve_id"]
+    audit = json.loads(edc_bench("history", "--audit", valve, "--json", "--db", station_url).stdout)
+    assert [e["event"] for e in audit] == ["test indexed", "record changed after its first indexing (the first "
+                                                            "stands)"]
+    _verify_says(station_url, "altered: test", "changed: test", "indexed again with other content")
+    refused = edc_bench("report", str(folder), "--db", station_url)
+    assert refused.returncode == 2 and "is not the record the history first indexed" in refused.stderr
+    classified = edc_bench("classify", str(folder), env={**os.environ, "EDC_BENCH_HISTORY_URL": station_url})
+    assert classified.returncode == 13 and "is not the record the history first indexed" in classified.stdout
+
+
+def test_the_schema_downgrade_trick_is_refused_by_the_reader_and_named_by_verify(fail_dir: Path, tmp_path: Path,
+                                                                                station_url: str) -> None:
+    def downgrade(doc: dict) -> None:
+        doc.update(schema=4, verdict="PASS")
+        del doc["integrity"]  # then no digest would be checked at all
+
+    folder = _indexed_then_changed(fail_dir, tmp_path, station_url, downgrade)
+    for argv in (("history", "--add", str(folder)), ("report", str(folder))):
+        refused = edc_bench(*argv, "--db", station_url)
+        assert refused.returncode == 2 and "integrity manifest (removed: its schema says 4" in refused.stderr
+    _verify_says(station_url, "altered: test", "record.json")
+
+
+def test_the_report_prints_the_tests_chain_hash_on_the_customers_page(fail_dir: Path, tmp_path: Path) -> None:
+    from pdfminer.high_level import extract_text
+
+    url = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    folder = tmp_path / "record"
+    shutil.copytree(fail_dir, folder)
+    assert edc_bench("history", "--add", str(folder), "--db", url).returncode == 0
+    drawn = edc_bench("report", str(folder), "--db", url)
+    assert drawn.returncode == 0, drawn.stderr
+    with HistoryStore(url) as store:
+        head = store.heads()[0]
+    page_1 = extract_text(str(folder / "report.pdf"), page_numbers=[0])
+    assert f"history test {head['id']}, chain {head['row_hash'][:16]}" in page_1
 
 
 def test_a_withdrawn_tests_copy_stays_withdrawn(fail_dir: Path, tmp_path: Path, station_url: str) -> None:
