@@ -43,12 +43,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``edc-bench``; returns the process exit code."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    _hide_history_passwords(argv)  # before parsing: argparse's errors quote the arguments
+    try:
+        return _run(build_parser().parse_args(argv))
+    finally:
+        _flush_redacting_streams()
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the parsed command; an error raised on purpose becomes one line and its exit code."""
     from edc_bench.cli.common import printable
     from edc_bench.errors import EdcBenchError, RecordNotWrittenError, RigError
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    _hide_history_password(args)
     try:
         return int(args.run(args))
     except RigError as exc:
@@ -79,16 +86,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _internal_error(args.command, exc)
 
 
-def _hide_history_password(args: argparse.Namespace) -> None:
-    """While a history password is known (``--db`` or ``EDC_BENCH_HISTORY_URL``), nothing this process prints can
-    show it: every URL edc-bench prints is masked where it is made, and standard output and error are scrubbed too,
-    for what a library prints (a driver's message, a traceback)."""
+def _hide_history_passwords(argv: Sequence[str]) -> None:
+    """While a history password is known (in the arguments, such as ``--db URL``, or ``EDC_BENCH_HISTORY_URL``),
+    nothing this process prints can show it: every URL edc-bench prints is masked where it is made, and standard
+    output and error are scrubbed too (:class:`~edc_bench.history.secrets.RedactingStream`), for what argparse
+    quotes of the arguments and what a library prints (a driver's message, a traceback)."""
     from edc_bench.history.secrets import RedactingStream, known_secrets
 
-    secrets = known_secrets(getattr(args, "db", None), getattr(args, "history_db", None))
+    secrets = known_secrets(*argv)  # every argument: a mistyped flag's URL is quoted as much as --db's
     if secrets:
         sys.stdout = RedactingStream(sys.stdout, secrets)  # type: ignore[assignment]
         sys.stderr = RedactingStream(sys.stderr, secrets)  # type: ignore[assignment]
+
+
+def _flush_redacting_streams() -> None:
+    """Write out the line a :class:`~edc_bench.history.secrets.RedactingStream` holds unended (``print(...,
+    end="")``), for a caller that goes on in this process; a reader gone by now is no error."""
+    from edc_bench.history.secrets import RedactingStream
+
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, RedactingStream):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed pipe, a closed file
+                pass
 
 
 _NO_ROOM = (errno.ENOSPC, errno.EDQUOT)

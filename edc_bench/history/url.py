@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from edc_bench.errors import ConfigError
-from edc_bench.history.secrets import shown_url
+from edc_bench.history.secrets import raw_at_in_password, shown_url
 
 
 def default_url() -> str:
@@ -110,13 +110,19 @@ def _parsed_sqlite_path(text: str, where: str) -> Path | None:
     """The SQLite file a URL names, checked by SQLAlchemy (None: not SQLite); a ConfigError if it is no use."""
     import sqlalchemy as sa
 
+    if raw_at_in_password(text):  # SQLAlchemy would take what follows the '@' for the host, and show it
+        raise ConfigError(f"history database {shown_url(text)!r}{where}: its password holds a raw '@', which ends "
+                          "a password in a URL: write each '@' in it as %40 (p@ss as p%40ss)")
     try:
         parsed = sa.engine.make_url(text)
     except sa.exc.ArgumentError:
         hint = f" (a file: sqlite:///{text})" if "://" not in text else ""
         raise ConfigError(f"history database {shown_url(text)!r}{where} is not a database URL: use sqlite:///FILE{hint} or "
                           "postgresql+psycopg://USER@HOST/DB") from None
-    shown = parsed.render_as_string(hide_password=True)
+    except ValueError:  # SQLAlchemy's int() of what it read as the port
+        raise ConfigError(f"history database {shown_url(text)!r}{where}: its port is not a number; give "
+                          "HOST:PORT with digits (postgresql+psycopg://USER@HOST:5432/DB), or HOST alone") from None
+    shown = shown_url(parsed.render_as_string(hide_password=True))  # SQLAlchemy shows a ?password= as it is
     if parsed.get_backend_name() not in ("sqlite", "postgresql"):
         raise ConfigError(f"history database {shown!r}{where}: {parsed.get_backend_name()!r} is not a database "
                           "edc-bench keeps its history in; use SQLite (sqlite:///FILE) or PostgreSQL "
