@@ -104,19 +104,22 @@ def _finish(out: dict, as_json: bool, record: Record | None, why: str = "", reco
     line = None
     if record is not None:
         found = disagreements(record)
+        history = None
         if record_dir is not None:  # and what the history holds of it, where a history is there to ask
             from edc_bench.history.standing import history_standing
 
             standing = history_standing(record, record_dir)
             if standing is not None and standing.differs:
-                found.append(standing.differs)
-        line = not_as_recorded(record, out["verdict"], found, why)
-        out = {**out, "recorded_verdict": record.verdict, "not_as_recorded": line, "disagreements": found}
+                history = standing.differs
+        line = not_as_recorded(record, out["verdict"], found, why, history)
+        out = {**out, "recorded_verdict": record.verdict, "not_as_recorded": line, "disagreements": found,
+               "not_as_first_indexed": history}
     print_quietly_if_closed(lambda: _report(out, as_json))
     return ExitCode.NOT_REPRODUCED if line else exit_code_for(out["verdict"])
 
 
-def not_as_recorded(record: Record, verdict: str, found: list[str], why: str = "") -> str | None:
+def not_as_recorded(record: Record, verdict: str, found: list[str], why: str = "",
+                    history: str | None = None) -> str | None:
     """The line for a classification ``verdict`` of ``record`` that is not as the record says (None: it is).
 
     Parameters
@@ -131,15 +134,21 @@ def not_as_recorded(record: Record, verdict: str, found: list[str], why: str = "
     why : str, optional
         What differs between the test's judgement and this one (another model or baseline), said when the
         verdicts differ.
+    history : str, optional
+        How record.json differs from the record the history first indexed for its test
+        (:attr:`~edc_bench.history.standing.Standing.differs`).
     """
     differ = record.verdict.judges_the_valve and verdict != record.verdict
-    if not (found or differ):
+    if not (found or differ or history):
         return None
     head = (f"NOT as recorded: the record says {record.verdict}, classify says {verdict}" if differ else
             f"NOT as recorded: the record says {record.verdict}")
+    tail = f"; {history}" if history else ""
     if found:
-        return (f"{head}; the record disagrees with itself or with the history ({'; '.join(found)}): record.json "
-                "was changed after its test, its digests written again")
+        return (f"{head}; the record's verdict does not follow from its own figures ({'; '.join(found)}): record.json "
+                f"was changed after its test, its digests written again{tail}")
+    if history:
+        return head + tail
     return f"{head} ({why})" if why else head
 
 

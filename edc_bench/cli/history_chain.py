@@ -313,7 +313,8 @@ def _owner_errors(action: str, where: str, engine: Any) -> AbstractContextManage
     from edc_bench.history.guard import database_errors
     from edc_bench.history.secrets import known_secrets
 
-    return database_errors(action, where, known_secrets(), engine.url.username)
+    return database_errors(action, where, known_secrets(engine.url.render_as_string(hide_password=False)),
+                           engine.url.username)
 
 
 __all__ = ["add_chain_arguments", "chain_action"]

@@ -63,10 +63,17 @@ def _coil_temp(text: str) -> float:
     return parse(text)
 
 
-def _station(args: argparse.Namespace) -> str:
+def _station(args: argparse.Namespace, store: Any) -> str:
+    """The station's name as its history knows it: on a chain, the station its database login is mapped to (the
+    name the database writes into its rows), else ``--station``, else the name the chain knows this PC's own login
+    by, else the host name."""
     import socket
 
-    return args.station or socket.gethostname()
+    from edc_bench.history.chain_adoption import chain_station
+
+    if store.station:
+        return str(store.station)
+    return args.station or chain_station(store, socket.gethostname())
 
 
 def run(args: argparse.Namespace) -> int:
@@ -108,8 +115,9 @@ def _register(args: argparse.Namespace, rig: Any, by: str) -> int:
     variant = load_variant(args.variant)
     if rig.simulated:
         parse_valve_spec(args.valve, variant)  # before any work
-    station, seed = _station(args), args.seed if args.seed is not None else 0
+    seed = args.seed if args.seed is not None else 0
     with HistoryStore(args.db) as store:
+        station = _station(args, store)
         earlier = store.reference(station)
         _say(args, f"edc-bench rig-selfcheck: registering reference valve {args.valve_id} for station {station} on "
                    f"the {rig.describe()} (about {variant.excitation.duration_s + 0.5:g} s of rig time)")
@@ -148,8 +156,8 @@ def _check(args: argparse.Namespace, rig: Any, by: str) -> int:
     from edc_bench.history.store import HistoryStore
     from edc_bench.selfcheck import Registration, no_reference_line, rig_check_row, run_selfcheck
 
-    station = _station(args)
     with HistoryStore(args.db) as store:
+        station = _station(args, store)
         registration = Registration.of(store.reference(station))
         if registration is None:
             print(no_reference_line(station), file=sys.stderr)

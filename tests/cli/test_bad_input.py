@@ -252,7 +252,7 @@ CORPUS: dict[str, Case] = {
     "history-add-garbage": case("history --add rec", BAD, "not an edc-bench record", files=GARBAGE_RECORD),
     # a record an older edc-bench wrote with bytes that are not UTF-8: indexed (escaped), never a crash
     "history-add-not-utf8-record": case("history --add rec", ExitCode.OK, "indexed 1 new record folder",
-                                        files={"rec/record.json": record_json(valve_id=NOT_UTF8)}),
+                                        files={"rec/record.json": record_json(valve_id=NOT_UTF8, verdict="UNCLASSIFIED")}),
     # -- label ---------------------------------------------------------------------------------------------------
     "label-db-missing-folder": case("label V-1 --finding worn --db sqlite:///nodir/h.sqlite", BAD, "nodir",
                                     "does not exist"),

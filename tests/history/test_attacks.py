@@ -106,6 +106,16 @@ def test_a_forged_station_login_time_and_id_are_the_servers_own(chain: dict[str,
     assert _verify(chain["owner"], "--station", "Werkstatt Nord 3").stdout.count("missing:") == 1  # a phantom folder
 
 
+def test_a_row_without_a_test_key_cannot_hide_the_others(chain: dict[str, str]) -> None:
+    with HistoryStore(chain["bench4"]) as other:
+        other.add_row(_row("V-kept"))
+    stored = _raw_insert(chain["bench3"], {**_row("V-nokey"), "test_key": None})
+    assert stored["test_key"] == "folder:/records/V-nokey"
+    with HistoryStore(chain["ines"]) as engineer:
+        engineer.withdraw_test(stored["id"], "never tested")
+    assert [r["valve_id"] for r in HistoryStore(chain["owner"]).list()] == ["V-kept"]
+
+
 def test_a_block_of_ids_ahead_of_the_sequence_blocks_no_station(chain: dict[str, str]) -> None:
     for n in range(5):
         _raw_insert(chain["bench3"], {**_row(f"V-block-{n}"), "id": 2 + n})  # the ids the next rows would take

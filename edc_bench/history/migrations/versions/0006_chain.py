@@ -85,6 +85,8 @@ def _pg_stamp_function(table: str) -> str:
             f"station, so it may not add {what}: the chain''s owner maps it (edc-bench history --map-login % "
             "--station NAME)', session_user, session_user USING ERRCODE = 'insufficient_privilege'; END IF;")
     if table == "tests":
+        # a row without its test's key would group with every other such row: its folder names it
+        specific.append("IF NEW.test_key IS NULL THEN NEW.test_key := 'folder:' || NEW.record_dir; END IF;")
         specific.append(
             "IF NOT trusted AND EXISTS (SELECT 1 FROM tests t WHERE t.test_key = NEW.test_key AND t.station <> "
             "NEW.station) AND NOT EXISTS (SELECT 1 FROM tests t WHERE t.test_key = NEW.test_key AND "
