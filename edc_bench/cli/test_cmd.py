@@ -454,16 +454,23 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
     if record_error:
         print(f"edc-bench test: warning: {record_error}", file=sys.stderr)
     saved_elsewhere = not record_dir.resolve().is_relative_to(Path(args.out).resolve())  # moved later, added then
-    history_error = None if args.no_history or saved_elsewhere else _index(record_dir, args.history_db)
     abort = result.outcome.abort
     if abort is not None and abort.kind is AbortKind.INTERNAL_ERROR:
+        if not (args.no_history or saved_elsewhere):
+            _index(record_dir, args.history_db)
         print(f"edc-bench test: {result.outcome.abort_reason}\nThis is a bug in edc-bench; the rig was sent SAFE and "
               f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
         return record_dir, ExitCode.INTERNAL_ERROR
-    if history_error:
-        print(f"edc-bench test: warning: the history was not updated ({history_error}); the record is complete. "
-              f"Add it later with: edc-bench history --add {record_dir}", file=sys.stderr)
-    _report(args, result, record_dir)
+    _report(args, result, record_dir)  # the verdict first: the history (a server, perhaps slow) comes after it
+    if not (args.no_history or saved_elsewhere):
+        from edc_bench.history.url import default_url
+
+        if not args.json and not (args.history_db or default_url()).startswith("sqlite"):  # a server: say we wait
+            print("saving the test to the history...", file=sys.stderr, flush=True)
+        history_error = _index(record_dir, args.history_db)
+        if history_error:
+            print(f"edc-bench test: warning: the history was not updated ({history_error}); the record is complete. "
+                  f"Add it later with: edc-bench history --add {record_dir}", file=sys.stderr)
     return record_dir, exit_code_for(result.verdict)
 
 

@@ -187,6 +187,16 @@ class HistoryStore:
         kwargs: dict[str, Any] = {"hide_parameters": True}  # a driver's error never quotes the row's values
         if self.is_sqlite:
             kwargs["connect_args"] = {"timeout": 30.0}
+        else:  # a network gone silent costs seconds, not minutes (the station's settings)
+            from edc_bench.history.limits import history_limits
+
+            #: the connection's and each statement's limit
+            self.limits = history_limits()
+            connect_args = self.limits.connect_args()
+            if "options" in parsed.query:  # the URL's own server options come first
+                connect_args["options"] = f"{parsed.query['options']} {connect_args['options']}"
+                parsed = parsed.difference_update_query(["options"])
+            kwargs["connect_args"] = connect_args
         try:
             self.engine = sa.create_engine(parsed, **kwargs)
         except (sa.exc.ArgumentError, ImportError, sa.exc.NoSuchModuleError) as exc:
