@@ -44,7 +44,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", type=Path, default=None, metavar="PNG", help="with --trend: also draw it (a .png file)")
     p.add_argument("--csv", default=None, metavar="FILE", help="write the listed tests as CSV ('-': stdout)")
     p.add_argument("--add", nargs="+", type=Path, default=None, metavar="RECORD_DIR",
-                   help="index record folders (after a test ran with --no-history, or to rebuild the history)")
+                   help="index record folders (after a test ran with --no-history, or to rebuild the history): "
+                        "each good one is indexed, each bad one listed (exit 2)")
     p.add_argument("--json", action="store_true", help="print only JSON")
     from edc_bench.cli.history_chain import add_chain_arguments
 
@@ -55,6 +56,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """List, trend, export or add (or one of the chain's actions)."""
     from edc_bench.cli.common import check_output_file
+    from edc_bench.cli.exit_codes import ExitCode
     from edc_bench.cli.history_chain import chain_action
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import Filters, HistoryStore, parse_day
@@ -72,31 +74,32 @@ def run(args: argparse.Namespace) -> int:
     since, until = parse_day(args.since, "--since"), parse_day(args.until, "--until")
     if since is not None and until is not None and since > until:
         raise ConfigError(f"--since {args.since} is after --until {args.until}: give the earlier day first")
-    records = []
-    if args.add:  # every record read before any is added: one bad folder adds nothing
-        from edc_bench.records.consistency import disagreements, refusal
-        from edc_bench.records.reader import load_record
-
+    records: list[tuple[Any, Path]] = []
+    bad: list[str] = []
+    if args.add:  # each folder read and checked on its own: the good ones are indexed, each bad one is listed
         folders = list(dict.fromkeys(Path(folder).resolve() for folder in args.add))  # each folder once
-        records = [(load_record(folder), folder) for folder in folders]
-        for record, folder in records:  # a verdict that does not follow from the record's figures is not indexed
-            found = disagreements(record)
-            if found:
-                raise ConfigError(refusal(folder, record, found, "nothing indexed"))
+        records, bad = _readable_records(folders)
+        if not records:  # nothing to index: the history is not opened (nor made)
+            for line in bad:
+                print(f"edc-bench history: error: {line}", file=sys.stderr)
+            return ExitCode.BAD_INPUT
     with HistoryStore(args.db, must_exist=not args.add) as store:
         if args.add:
             outcomes = [store.add(record, folder) for record, folder in records]
             new, changed = outcomes.count("new"), outcomes.count("changed")
             same, withdrawn = outcomes.count("unchanged"), outcomes.count("withdrawn")
             print(f"indexed {new} new record folder(s) in {store.shown_url}"
-                  + (f"; {changed} indexed before and changed since: added again (the earlier row is kept, "
-                     "'history --audit' shows both)" if changed else "")
+                  + (f"; {changed} indexed before with other content: each recorded as a change (the first "
+                     "indexing stands; 'history --verify' and '--audit' show it)" if changed else "")
                   + (f"; {same} already indexed as they are" if same else "")
                   + (f"; {withdrawn} withdrawn before, and not indexed again (see 'history --audit')" if withdrawn
                      else "")
-                  + (f" ({len(args.add) - len(records)} given more than once)" if len(args.add) > len(records)
-                     else ""), file=sys.stderr)
-            return 0
+                  + (f" ({len(args.add) - len(folders)} given more than once)" if len(args.add) > len(folders)
+                     else "")
+                  + (f"; {len(bad)} not indexed (below)" if bad else ""), file=sys.stderr)
+            for line in bad:
+                print(f"edc-bench history: not indexed: {line}", file=sys.stderr)
+            return ExitCode.BAD_INPUT if bad else ExitCode.OK
         if args.trend is not None:
             return _trend(store, args)
         filters = Filters(valve_id=args.valve_id, pump_serial=args.pump_serial, variant=args.variant,
@@ -110,6 +113,28 @@ def run(args: argparse.Namespace) -> int:
     else:
         print_quietly_if_closed(lambda: history_table(rows, store.shown_url))
     return 0
+
+
+def _readable_records(folders: list[Path]) -> tuple[list[tuple[Any, Path]], list[str]]:
+    """The records of ``folders`` that may be indexed, and one line for each that may not (unreadable, changed
+    since its test, or a verdict that does not follow from its own figures)."""
+    from edc_bench.errors import EdcBenchError
+    from edc_bench.records.consistency import disagreements, refusal
+    from edc_bench.records.reader import load_record
+
+    records, bad = [], []
+    for folder in folders:
+        try:
+            record = load_record(folder)
+        except (EdcBenchError, OSError) as exc:
+            bad.append(str(exc) if isinstance(exc, EdcBenchError) else f"{folder}: {exc}")
+            continue
+        found = disagreements(record)
+        if found:
+            bad.append(refusal(folder, record, found, "not indexed"))
+            continue
+        records.append((record, folder))
+    return records, bad
 
 
 def _export(rows: list[dict[str, Any]], target: str) -> None:

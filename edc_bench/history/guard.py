@@ -13,6 +13,8 @@ from edc_bench.history.secrets import redact
 
 #: PostgreSQL's SQLSTATE for a privilege the login lacks.
 INSUFFICIENT_PRIVILEGE = "42501"
+#: What SQLite says of a damaged file.
+_DAMAGED = ("malformed", "not a database", "disk image", "file is encrypted")
 
 
 def problem(exc: sa.exc.DBAPIError, action: str, shown_url: str, login: str | None = None) -> str:
@@ -26,6 +28,11 @@ def problem(exc: sa.exc.DBAPIError, action: str, shown_url: str, login: str | No
         return refusal(action, login)
     if "append-only" in first:  # the history's own triggers
         return first
+    if shown_url.startswith("sqlite") and any(words in first for words in _DAMAGED):  # a station's file, damaged
+        from edc_bench.history.url import damaged_advice
+
+        path = shown_url.removeprefix("sqlite:///")
+        return f"history database {shown_url} is damaged ({first}): {damaged_advice(path)}"
     if isinstance(exc, sa.exc.OperationalError):  # the server down, the file locked...
         return f"history database {shown_url}: {first}"
     return f"history database {shown_url}: {type(orig).__name__}: {first}"

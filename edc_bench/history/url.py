@@ -143,6 +143,13 @@ def _parsed_sqlite_path(text: str, where: str) -> Path | None:
     return Path(parsed.database)
 
 
+def damaged_advice(path: Path | str) -> str:
+    """What a technician does about a damaged history file: test on without it, or rebuild it from the records
+    (which stay the source of truth)."""
+    return (f"to test on, give --no-history (each record stays on disk); to rebuild the history, move the file aside "
+            f"(mv {path} {path}.damaged) and index the records again: edc-bench history --add RECORDS_FOLDER/*")
+
+
 def _check_sqlite_file(path: Path, what: str, fix: str, default: bool) -> None:
     """Refuse a SQLite target that is a folder, a device, another kind of file, or in a missing folder."""
     if path.is_dir():
@@ -156,8 +163,8 @@ def _check_sqlite_file(path: Path, what: str, fix: str, default: bool) -> None:
         except OSError as exc:
             raise ConfigError(f"{what}: cannot read {path} ({exc.strerror}); {fix}") from None
         if header != SQLITE_HEADER:
-            raise ConfigError(f"{what}: {path} is not a SQLite database (it holds other data); refusing to touch it: "
-                              f"{fix}")
+            raise ConfigError(f"{what}: {path} is not a SQLite database (it holds other data, or is damaged); "
+                              f"refusing to touch it: {fix}; {damaged_advice(path)}")
     if not path.parent.is_dir():
         if default:
             path.parent.mkdir(parents=True, exist_ok=True)  # the station's own data folder, on a fresh station
