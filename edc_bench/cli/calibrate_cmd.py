@@ -42,7 +42,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--valve", default=None, metavar="SPEC",
                    help="calibrate on the simulated rig with this simulated valve (new, or physical values such as "
                         "clearance=0.09), through the full loop as 'edc-bench test' runs it")
-    p.add_argument("--valve-id", type=identity(), default="", metavar="ID",
+    p.add_argument("--valve-id", type=identity(), default=None, metavar="ID",
                    help="identity of the valve mounted, for the records")
     p.add_argument("--seed", type=seed_number, default=None,
                    help="seed of the simulated rig's noise or the simulated population (default: 100 plus the "

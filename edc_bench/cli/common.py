@@ -130,7 +130,9 @@ def positive_float(what: str) -> Callable[[str], float]:
 def identity(limit: int = MAX_ID_CHARS) -> Callable[[str], str]:
     """An argparse type for an identity (valve id, pump serial, operator, station): valid text, at most ``limit``."""
     def parse(text: str) -> str:
-        problem = text_problem(text, limit)
+        # given and empty is as blank as spaces: a flag left out is how to give none
+        problem = "is empty: give it as printed on the part, or leave the flag out" if text == "" else \
+            text_problem(text, limit)
         if problem:
             shown = text if len(text) <= 60 else f"{text[:57]}..."  # a long one cut before quoting: quotes closed
             raise argparse.ArgumentTypeError(f"{printable(repr(shown))} {problem}")

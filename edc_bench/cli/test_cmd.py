@@ -45,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--interface", default=None, help="python-can interface, e.g. slcan, socketcan, pcan")
     p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
     p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
-    p.add_argument("--valve-id", type=identity(), default="", metavar="ID",
+    p.add_argument("--valve-id", type=identity(), default=None, metavar="ID",
                    help="identity of the valve under test, kept as given in the record and the history (at most "
                         "100 characters; default on the simulated rig in simulated time: its --valve SPEC; in real time: none, with a "
                         "warning)")
@@ -68,7 +68,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "with 'make -C firmware_proto/c')")
     add_rig_drift_argument(p)
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
-    p.add_argument("--pump-serial", type=identity(), default="", metavar="SERIAL",
+    p.add_argument("--pump-serial", type=identity(), default=None, metavar="SERIAL",
                    help="serial number of the pump, for the record")
     p.add_argument("--operator", type=identity(), default=None,
                    help="who ran the test (default: the login name)")
@@ -226,7 +226,7 @@ def _identity(args: argparse.Namespace) -> dict[str, str]:
         operator = args.operator or getpass.getuser()
     except (KeyError, OSError):  # no user name in this environment
         operator = ""
-    return {"pump_serial": args.pump_serial, "station": args.station or socket.gethostname(), "operator": operator}
+    return {"pump_serial": args.pump_serial or "", "station": args.station or socket.gethostname(), "operator": operator}
 
 
 def _live(args: argparse.Namespace) -> bool:

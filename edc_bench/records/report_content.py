@@ -70,9 +70,12 @@ def pump_text(record: Record) -> str:
 
 def test_rows(record: Record) -> list[tuple[str, str]]:
     """Page 1's who and when."""
-    return [("Date", local_time(record.started_at)),
+    rows = [("Date", local_time(record.started_at)),
             ("Station", record.identity.station or "-"),
             ("Operator", record.identity.operator or "-")]
+    if record.simulated_rig:  # a demonstration or a test run: never to be taken for a valve's test on a rig
+        rows.append(("Rig", "SIMULATED: no real valve was tested"))
+    return rows
 
 
 def pump_rows(record: Record) -> list[tuple[str, str]]:

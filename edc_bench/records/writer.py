@@ -45,7 +45,9 @@ def json_safe(value: Any) -> Any:
 def new_record_dir(out_dir: Path, valve_id: str, variant: str, started_at: str) -> Path:
     """Create a fresh folder for one test's record."""
     stamp = re.sub(r"[^0-9T]", "", started_at.split("+")[0])
-    safe_id = re.sub(r"[^A-Za-z0-9_.-]+", "_", valve_id or "valve").strip("_") or "valve"
+    # letters and digits of any script kept ("Ölventil" stays Ölventil); what a file system or a shell would take
+    # otherwise (separators, spaces, quotes, control characters) becomes '_'
+    safe_id = re.sub(r"[^\w.-]+", "_", valve_id or "valve").strip("_.") or "valve"
     out_dir.mkdir(parents=True, exist_ok=True)
     base = out_dir / f"{stamp}-{variant}-{safe_id}"
     path, n = base, 1
