@@ -80,7 +80,7 @@ def _find_sync(frames: list[LoggedFrame], icd: Icd) -> tuple[Any, int]:
 
 
 def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s: float = 0.0,
-                  icd: Icd | None = None) -> ReplayedRun:
+                  icd: Icd | None = None, recorded_variant: bool = False) -> ReplayedRun:
     """Rebuild a test's trace and controller from its frames, through the loop's own tick engine.
 
     The frames are taken in the order the loop logged them: a RUN command is
@@ -98,6 +98,9 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
     ticks_start_s : float, optional
         Clock time of tick 0 (the record's ``loop.ticks_start_s``), so the
         trace's times are computed as the loop computed them.
+    recorded_variant : bool, optional
+        ``variant`` is the record's own (the test ran with it): drives that differ then point at the log, not at
+        the variant.
 
     Raises
     ------
@@ -112,6 +115,7 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
     capacity = int(round(variant.excitation.duration_s / variant.controller.period_s))
     engine = TickEngine(variant, icd, capacity)
     worst = 0.0
+    first_off: int | None = None
     k, first_counter = -1, None
     for _, can_id, data in frames[first_run:]:
         if can_id != BENCH_CMD_ID:
@@ -135,11 +139,19 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
             engine.skip(k + 1, tick - k - 1)
         k = tick
         engine.command(k)
-        worst = max(worst, abs(engine.drive_v - cmd.drive_v))
+        off = abs(engine.drive_v - cmd.drive_v)
+        if off > DRIVE_TOLERANCE_V and first_off is None:
+            first_off = k
+        worst = max(worst, off)
         engine.sent(k, math.nan, math.nan)
     if worst > DRIVE_TOLERANCE_V:
-        raise ConfigError(f"replayed drives differ from the logged commands by up to {worst * 1e3:.1f} mV: the log "
-                          "was not made with this variant (or this edc-bench version's controller)")
+        where = f"replayed drives differ from the logged commands from tick {first_off} on, by up to " \
+                f"{worst * 1e3:.1f} mV"
+        if recorded_variant:  # the test's own variant: what changed is the log (or the controller that reads it)
+            raise ConfigError(f"{where}: the CAN log is not the one the test wrote (changed or cut after the test), "
+                              "or this edc-bench's controller is not the one that ran it (its software_version)")
+        raise ConfigError(f"{where}: the log was not made with this variant (or this edc-bench version's "
+                          "controller)")
     outcome = engine.outcome
     return ReplayedRun(engine.trace.view(), engine.controller, k + 1, engine.matcher.counts.missed, worst,
                        gaps=outcome.gaps, ticks_lost=outcome.ticks_lost)
@@ -241,7 +253,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
             name = record.classification.model_name
             notes.append(f"the model that judged this test ({name}, sha256 {judged_by[:16]}...) is not on this "
                          "station: judged with the model that judges this variant's valves here")
-    run = replay_frames(frames, variant, ticks_start_s=loop.ticks_start_s)
+    run = replay_frames(frames, variant, ticks_start_s=loop.ticks_start_s, recorded_variant=True)
     planned = run.ticks if loop.ticks_planned is None else loop.ticks_planned
     abort = None if loop.abort is None else Abort.from_dict(loop.abort.model_dump())
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,

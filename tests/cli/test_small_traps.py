@@ -48,3 +48,21 @@ def test_a_simulated_tests_customer_page_says_no_real_valve_was_tested() -> None
     assert rows.get("Rig") == "SIMULATED: no real valve was tested", rows
     on_a_rig = Record.model_validate({"verdict": "PASS", "clock": "real-time"})
     assert "Rig" not in dict(who_and_when_rows(on_a_rig))
+
+
+def test_a_hand_edited_can_log_is_blamed_not_the_tests_own_variant(tmp_path: Path) -> None:
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.errors import ConfigError
+    from edc_bench.records.record import write_record
+    from edc_bench.replay import replay_record
+
+    folder = write_record(run_simulated_test(load_variant(), "new", 2), tmp_path, figure=False)
+    log = folder / "can.log"
+    lines = log.read_text().splitlines()
+    k = next(i for i in range(len(lines) // 2, len(lines)) if " 121#" in lines[i])  # a rig feedback mid-test
+    head, data = lines[k].rsplit("#", 1)
+    lines[k] = f"{head}#{data[:2]}{'0' if data[2] != '0' else '1'}{data[3:]}"  # one hex digit of its position
+    log.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ConfigError, match="the CAN log is not the one the test wrote") as refused:
+        replay_record(folder)
+    assert "this variant" not in str(refused.value)
