@@ -228,7 +228,11 @@ class LiveView:
             try:
                 self._proc.wait(timeout=3.0)
             except Exception:
-                self._proc.kill()
+                self._proc.kill()  # a panel that does not end never holds the test's end
+                try:
+                    self._proc.wait(timeout=1.0)  # reaped: no zombie, and its returncode says it was killed
+                except Exception:  # noqa: BLE001 - nothing more to do for a panel
+                    pass
 
     def _send(self, message: tuple[str, Any]) -> None:
         if self._fd is None:
