@@ -142,28 +142,33 @@ def _audit_table(events: list[dict[str, Any]], valve: str) -> None:
     from rich.text import Text
 
     table = Table(title=Text(f"valve {valve}: {len(events)} entries, in the order written (times in UTC)"))
-    for col in ("written", "what happened", "id", "details", "by", "database login"):
+    for col in ("written", "what happened", "id", "details", "by", "database login", "chain"):
         table.add_column(col)
     for e in events:  # the technicians' text as typed: rich Text, never read as markup
         table.add_row(e["when"][:19].replace("T", " "), e["event"], str(e["id"]), Text(e["what"]), Text(e["by"]),
-                      Text(e["db_login"] or ""))
+                      Text(e["db_login"] or ""), (e.get("chain_hash") or "")[:16])
     Console(width=None if sys.stdout.isatty() else 160).print(table)
 
 
 def _verify(args: argparse.Namespace) -> int:
     from edc_bench.cli.exit_codes import ExitCode
     from edc_bench.history.store import HistoryStore
-    from edc_bench.history.verify import Finding, changed_findings, verify
+    from edc_bench.history.verify import Finding, changed_findings, model_findings, verify
+    from edc_bench.verdict.classifier import shipped_model_hashes
 
     kept = _read_heads(args.heads) if args.heads is not None else None
     with HistoryStore(args.db, must_exist=True, warn=lambda _problem: None) as store:  # the breaks are listed below
         rows = store.indexed(args.station)
         changes = store.changed_tests(args.station)
+        adoptions = store.adoptions()
         breaks = store.chain_breaks(args.station)
         gone_heads = store.missing_heads(kept) if kept is not None else []
-        restored = [p for p in store.problems if "triggers were missing" in p]
+        restored = [f"the history's append-only triggers were found missing or changed and restored at "
+                    f"{e['happened_at'][:19].replace('T', ' ')} UTC ({e['detail']}): rows may have been changed "
+                    "while they were (the chain above names where)" for e in store.guard_events()]
         where = store.shown_url
-    found: list[Finding] = verify(rows) + changed_findings(changes)
+    found: list[Finding] = verify(rows) + changed_findings(changes) + model_findings(rows, adoptions,
+                                                                                    shipped_model_hashes())
     chain = [b.line() for b in breaks] + gone_heads + restored
     if args.json:
         print(json.dumps({"checked": len(rows), "station": args.station, "findings": [f.__dict__ for f in found],
@@ -175,10 +180,12 @@ def _verify(args: argparse.Namespace) -> int:
             print(f"chain: {line}")
         missing = sum(f.problem == "missing" for f in found)
         changed = sum(f.problem == "changed" for f in found)
+        models = sum(f.problem == "model" for f in found)
         of = f" of station {args.station}" if args.station else ""
         print(f"checked {len(rows)} indexed record folder(s){of} in {where}: {missing} missing, "
-              f"{len(found) - missing - changed} altered since indexed, {changed} indexed again with other content; "
-              f"the chain: {'holds' if not chain else f'{len(chain)} problem(s)'}", file=sys.stderr)
+              f"{len(found) - missing - changed - models} altered since indexed, {changed} indexed again with other "
+              f"content, {models} judged by a model never adopted; the chain: "
+              f"{'holds' if not chain else f'{len(chain)} problem(s)'}", file=sys.stderr)
     return ExitCode.HISTORY_NOT_AS_INDEXED if found or chain else ExitCode.OK
 
 

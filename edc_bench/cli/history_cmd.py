@@ -138,15 +138,15 @@ def _readable_records(folders: list[Path]) -> tuple[list[tuple[Any, Path]], list
 
 
 def _export(rows: list[dict[str, Any]], target: str) -> None:
-    from edc_bench.history.store import write_csv
+    from edc_bench.history.store import LIST_COLUMNS, write_csv
 
     if target == "-":
-        print_quietly_if_closed(lambda: write_csv(rows, sys.stdout))
+        print_quietly_if_closed(lambda: write_csv(rows, sys.stdout, LIST_COLUMNS))
         return
     from edc_bench.paths import atomic_write
 
     path = Path(target)  # checked before the history was read (run)
-    atomic_write(path, lambda f: write_csv(rows, f), mode="w")
+    atomic_write(path, lambda f: write_csv(rows, f, LIST_COLUMNS), mode="w")
     print(f"wrote {len(rows)} test(s) to {path}", file=sys.stderr)
 
 
@@ -164,9 +164,12 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
 
     # ids and names are the technicians' text, kept as given: rich Text, never read as markup ("V[/1]" is an id)
     simulated = sum(bool(r.get("simulated")) for r in rows)
+    changed = sum(bool(r.get("changes")) for r in rows)
     table = Table(title=Text(f"{len(rows)} test(s) in {url} (times in UTC)"
                              + (f"; sim: {simulated} on the simulated rig, out of trends and training" if simulated
-                                else "")))
+                                else "")
+                             + (f"; {changed} CHANGED: indexed again with other content after their first indexing, "
+                                "which stands (history --verify, --audit)" if changed else "")))
     # the classifier's figures (P(faulty), distance) are the engineer's: in --json and --csv, not on this screen
     for col in ("id", "started", "valve", "pump serial", "variant", "sim", "verdict", "af V", "a1 V s/mm", "station",
                 "operator"):
@@ -174,7 +177,9 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
     for r in rows:
         table.add_row(str(r["id"]), _when(r["started_at"]), Text(r["valve_id"]), Text(r["pump_serial"]),
                       Text(r["variant"]), "yes" if r.get("simulated") else "",
-                      Text(r["verdict"], style=VERDICT_STYLES.get(r["verdict"], "")), _fmt(r["af_v"], ".5f"),
+                      Text(r["verdict"], style=VERDICT_STYLES.get(r["verdict"], ""))
+                      + Text(f" CHANGED {r['changes']}x" if r.get("changes") else "", style="bold red"),
+                      _fmt(r["af_v"], ".5f"),
                       _fmt(r["a1_v_s_per_mm"], ".6f"), Text(r["station"]),
                       Text(r["operator"]))
     (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)

@@ -28,7 +28,7 @@ from typing import Any
 
 #: The tables that are chained, and the column that names a row's chain ('' where the row has none).
 CHAIN_COLUMN = {"tests": "station", "teardowns": "db_login", "amendments": "db_login", "adoptions": "station",
-                "reference_valves": "station", "rig_checks": "station"}
+                "reference_valves": "station", "rig_checks": "station", "guard_events": "db_login"}
 
 #: The columns no row's content hash includes (they are the chain itself).
 CHAIN_FIELDS = ("prev_hash", "row_hash")

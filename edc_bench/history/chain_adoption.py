@@ -58,41 +58,64 @@ def check_adoption_target(db: str | None) -> None:
 
 
 def chain_station(store: HistoryStore, fallback: str) -> str:
-    """The name the chain knows this station by: the station its own login (``EDC_BENCH_HISTORY_URL``'s user) is
-    mapped to, else ``fallback``."""
-    chain = chain_url()
-    if chain is None or store.is_sqlite:
+    """The name the chain knows this station by: the station the database login is mapped to (the login the
+    store is connected as, else the station's own in ``EDC_BENCH_HISTORY_URL``), else ``fallback``."""
+    if store.is_sqlite:
         return fallback
+    if store.station:  # this connection's own login (a service-file URL names no user)
+        return str(store.station)
     import sqlalchemy as sa
 
     from edc_bench.history.schema import edc_logins
 
-    login = sa.engine.make_url(chain).username
+    chain = chain_url()
+    login = sa.engine.make_url(chain).username if chain else None
     if not login:
         return fallback
-    with store.engine.connect() as conn:
-        mapped = conn.execute(sa.select(edc_logins.c.station).where(edc_logins.c.login == login)
-                              .order_by(edc_logins.c.id.desc()).limit(1)).scalar()
-    return str(mapped) if mapped else fallback
+    mapped = store._rows(sa.select(edc_logins.c.station).where(edc_logins.c.login == login)
+                         .order_by(edc_logins.c.id.desc()).limit(1))
+    return str(mapped[0]["station"]) if mapped and mapped[0]["station"] else fallback
+
+
+def allowed_models(store: HistoryStore, station: str, before: str | None = None) -> set[str]:
+    """The SHA-256 of every model the station may judge with: the shipped ones, and each the history records an
+    adoption of for ``station`` (up to ``before``, an ISO time, if given)."""
+    import sqlalchemy as sa
+
+    from edc_bench.history.schema import adoptions
+    from edc_bench.verdict.classifier import shipped_model_hashes
+
+    query = sa.select(adoptions.c.model_sha256).where(adoptions.c.station == station)
+    if before is not None:
+        query = query.where(adoptions.c.adopted_at <= before)
+    return shipped_model_hashes() | {r["model_sha256"] for r in store._rows(query)}
 
 
 def chain_model_problem(store: HistoryStore, station: str, model_sha256: str) -> str | None:
     """Why this station may not judge with the model whose SHA-256 is ``model_sha256`` (None: it is the one the
-    chain's newest adoption for ``station`` names, or the chain names none)."""
+    chain's newest adoption for ``station`` names, or, with none, a shipped one)."""
     import sqlalchemy as sa
 
     from edc_bench.history.schema import adoptions
 
-    with store.engine.connect() as conn:
-        newest = conn.execute(sa.select(adoptions).where(adoptions.c.station == station)
-                              .order_by(adoptions.c.id.desc()).limit(1)).first()
-    if newest is None or newest.model_sha256 == model_sha256:
+    newest = store._rows(sa.select(adoptions).where(adoptions.c.station == station)
+                         .order_by(adoptions.c.id.desc()).limit(1))
+    fix = ("an engineer adopts it here with 'edc-bench train --adopt FILE' (the chain's history in "
+           "EDC_BENCH_HISTORY_URL), or test with --no-history")
+    if not newest:
+        from edc_bench.verdict.classifier import file_sha256, packaged_model_path
+
+        if model_sha256 == file_sha256(packaged_model_path()):  # the shipped default: what a new station judges with
+            return None
+        return (f"this station judges with a model (sha256 {model_sha256[:12]}...) the chain records no adoption of "
+                f"for station {station!r}: it judges with the shipped models until one is adopted there; "
+                "'edc-bench train --adopt shipped' goes back to them, or " + fix)
+    row = newest[0]
+    if row["model_sha256"] == model_sha256:
         return None
     return (f"this station judges with a model (sha256 {model_sha256[:12]}...) that is not the one the chain records "
-            f"for station {station!r}: {newest.model_name} (sha256 {newest.model_sha256[:12]}..., adopted by "
-            f"{newest.adopted_by} at {newest.adopted_at[:16].replace('T', ' ')}); an engineer adopts it here with "
-            "'edc-bench train --adopt FILE' (the chain's history in EDC_BENCH_HISTORY_URL), or test with "
-            "--no-history")
+            f"for station {station!r}: {row['model_name']} (sha256 {row['model_sha256'][:12]}..., adopted by "
+            f"{row['adopted_by']} at {row['adopted_at'][:16].replace('T', ' ')}); {fix}")
 
 
-__all__ = ["chain_model_problem", "chain_station", "chain_url", "check_adoption_target"]
+__all__ = ["allowed_models", "chain_model_problem", "chain_station", "chain_url", "check_adoption_target"]

@@ -31,7 +31,7 @@ ROLES = (STATION, ENGINEER, OWNER)
 INSERTS = {STATION: ("tests", "rig_checks"), ENGINEER: ("teardowns", "amendments", "adoptions", "reference_valves")}
 #: Every table of the history, the migrations' bookkeeping included.
 ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "reference_valves", "rig_checks", "edc_logins",
-              "chain_anchors", "alembic_version")
+              "chain_anchors", "chain_heads", "guard_events", "alembic_version")
 
 
 @dataclass(frozen=True)
@@ -96,6 +96,11 @@ def apply_grants(connection: sa.Connection) -> None:
     if not may:  # the roles are the server's, this database is another's: its owner runs --setup-roles
         return
     present = [t for t in ALL_TABLES if sa.inspect(connection).has_table(t)]
+    # nobody else makes objects here: not in the schema (PostgreSQL 14 and older let every login), and no
+    # temporary tables, whose names would come first in a search path that does not name pg_temp
+    connection.exec_driver_sql("REVOKE CREATE ON SCHEMA public FROM PUBLIC")
+    database = connection.execute(sa.text("SELECT current_database()")).scalar()
+    connection.exec_driver_sql(f'REVOKE TEMPORARY ON DATABASE "{database}" FROM PUBLIC')
     # first: PostgreSQL hands a table only to a role that may create in its schema
     connection.exec_driver_sql(f"GRANT USAGE ON SCHEMA public TO {STATION}")
     connection.exec_driver_sql(f"GRANT USAGE, CREATE ON SCHEMA public TO {OWNER}")
@@ -106,9 +111,10 @@ def apply_grants(connection: sa.Connection) -> None:
     for role, tables in INSERTS.items():
         for table in (t for t in tables if t in present):
             connection.exec_driver_sql(f"GRANT INSERT ON {table} TO {role}")
+            # the id is the trigger's (its owner's rights): a login needs no number of its own, nor to burn them
             sequence = connection.execute(sa.text("SELECT pg_get_serial_sequence(:t, 'id')"), {"t": table}).scalar()
             if sequence:
-                connection.exec_driver_sql(f"GRANT USAGE ON SEQUENCE {sequence} TO {role}")
+                connection.exec_driver_sql(f"REVOKE ALL ON SEQUENCE {sequence} FROM {role}, PUBLIC")
     for (function,) in connection.execute(sa.text("SELECT proname FROM pg_proc WHERE proname LIKE 'edc\\_bench\\_%' "
                                                   "AND pronargs = 0")):
         connection.exec_driver_sql(f"ALTER FUNCTION {function}() OWNER TO {OWNER}")

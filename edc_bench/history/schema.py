@@ -82,6 +82,9 @@ tests = sa.Table(
     sa.Column("db_login", sa.String(200)),
     # the test's own id (record.json's test_id; a key from its when/valve/pump/station for older records)
     sa.Column("test_key", sa.String(200), index=True),
+    # what the record says of when, which valve, which pump and where (chain.legacy_test_key), for every row: a
+    # copy stripped of its id is still the same test
+    sa.Column("legacy_key", sa.String(200), index=True),
     *_chain(),
 )
 
@@ -97,6 +100,7 @@ teardowns = sa.Table(
     sa.Column("recorded_at", sa.String(40), nullable=False),
     sa.Column("corrects_id", sa.Integer),  # the finding this one replaces
     sa.Column("db_login", sa.String(200)),
+    sa.Column("recorded_by", sa.String(200)),  # who filed it (the login's person on PostgreSQL); labelled_by opened it
     *_chain(),
 )
 
@@ -195,11 +199,24 @@ chain_anchors = sa.Table(
     sa.Column("made_at", sa.String(40), nullable=False),
 )
 
+#: What the history's guard found and did: a station's SQLite triggers found missing or changed, and restored
+#: (kept, chained: ``history --verify`` names it every time after).
+guard_events = sa.Table(
+    "guard_events", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("event", sa.String(40), nullable=False),
+    sa.Column("detail", sa.Text, nullable=False),
+    sa.Column("happened_at", sa.String(40), nullable=False),
+    sa.Column("db_login", sa.String(200)),
+    *_chain(),
+)
+
 #: The append-only tables, in the order they were made.
-TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks, edc_logins, chain_anchors)
+TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks, edc_logins, chain_anchors,
+          guard_events)
 
 #: The hash-chained tables (:mod:`edc_bench.history.chain`).
-CHAINED_TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks)
+CHAINED_TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks, guard_events)
 
 #: The triggers a SQLite history must have (checked, and restored if missing, whenever it is opened).
 SQLITE_TRIGGERS = tuple(f"{t.name}_no_{event}" for t in TABLES for event in ("update", "delete")) + tuple(
@@ -207,7 +224,7 @@ SQLITE_TRIGGERS = tuple(f"{t.name}_no_{event}" for t in TABLES for event in ("up
 
 #: Columns of a test in listings and CSV exports, in order (what a test is; how it was indexed is in --audit).
 COLUMNS = tuple(c.name for c in tests.columns if c.name not in ("record_manifest", "db_login", "prev_hash",
-                                                                 "row_hash"))
+                                                                 "row_hash", "legacy_key"))
 
 #: Teardown columns in listings, in order (the id: to withdraw or correct a finding recorded by mistake).
 TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name not in ("db_login", "prev_hash", "row_hash"))

@@ -30,13 +30,21 @@ def trigger_sql(name: str) -> str:
     raise KeyError(name)
 
 
+def _normal(sql: str) -> str:
+    """A CREATE TRIGGER statement as SQLite keeps it (without IF NOT EXISTS), its spaces made single."""
+    return " ".join(sql.replace("IF NOT EXISTS ", "").split())
+
+
 def restore_triggers(conn: sa.Connection) -> list[str]:
-    """Create the history's triggers that are missing; returns their names (empty: all there)."""
-    present = {row[0] for row in conn.exec_driver_sql("SELECT name FROM sqlite_master WHERE type = 'trigger'")}
-    missing = [name for name in SQLITE_TRIGGERS if name not in present]
-    for name in missing:
+    """Create the history's triggers that are missing, and make again those that are not what they must be (a
+    trigger of the same name that does nothing); returns their names (empty: all there, as they must be)."""
+    present = {name: sql or "" for name, sql in
+               conn.exec_driver_sql("SELECT name, sql FROM sqlite_master WHERE type = 'trigger'")}
+    wrong = [name for name in SQLITE_TRIGGERS if _normal(present.get(name, "")) != _normal(trigger_sql(name))]
+    for name in wrong:
+        conn.exec_driver_sql(f'DROP TRIGGER IF EXISTS "{name}"')
         conn.exec_driver_sql(trigger_sql(name))
-    return missing
+    return wrong
 
 
 __all__ = ["restore_triggers", "trigger_sql"]

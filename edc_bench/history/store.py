@@ -46,6 +46,7 @@ from edc_bench.history.schema import (
     amendments,
     chain_anchors,
     edc_logins,
+    guard_events,
     reference_valves,
     rig_checks,
     teardowns,
@@ -111,6 +112,8 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "retest_of": _retest_of(record, record_dir),
         "decision": None if record.retest is None else _text(record.retest.decision)[:20] or None,
         "test_key": test_key(record),
+        "legacy_key": legacy_test_key(_text(record.started_at), _text(record.valve_id),
+                                      _text(identity.pump_serial), _text(identity.station)),
     }
 
 
@@ -230,10 +233,13 @@ class HistoryStore:
 
         with self._writing("read") as conn:
             restored = restore_triggers(conn)
+            if restored:  # kept in the history itself: said by every --verify after, not only to whoever opens it now
+                self._append(conn, guard_events, {"event": "triggers restored", "detail": ", ".join(restored),
+                                                  "happened_at": _now(), "db_login": None})
         if restored:
-            self._say(f"history database {self.shown_url}: its append-only triggers were missing ({len(restored)}: "
-                      f"{', '.join(restored)}); someone may have changed or deleted rows while they were: restored "
-                      "now; 'edc-bench history --verify' shows where its chain breaks")
+            self._say(f"history database {self.shown_url}: its append-only triggers were missing or changed "
+                      f"({len(restored)}: {', '.join(restored)}); someone may have changed or deleted rows meanwhile: "
+                      "restored now; 'edc-bench history --verify' shows where its chain breaks")
         breaks = self.chain_breaks()
         if breaks:
             self._say(f"history database {self.shown_url}: its chain is broken in {len(breaks)} place(s), first "
@@ -338,12 +344,21 @@ class HistoryStore:
         stored once (a unique key on the test and its record's hash): two stations indexing the same copy at once
         store one row.
         """
-        row = {**{key: value for key, value in row.items() if key != "changes"},  # a listed row given back
+        row = {**{key: value for key, value in row.items() if key not in LISTED},  # a listed row given back
                "indexed_at": _now(), "indexed_by": indexed_by or _login_name(), "db_login": self.login}
         if not row.get("test_key"):  # a row made by hand (the simulated shop's): its folder names the test
             row["test_key"] = "folder:" + str(row["record_dir"])
-        key = row["test_key"]
+        if not row.get("legacy_key"):
+            row["legacy_key"] = legacy_test_key(*(_text(row.get(name) or "") for name in
+                                                  ("started_at", "valve_id", "pump_serial", "station")))
         with self._writing("add-test") as conn:
+            # the same when, valve, pump and place is the same test, whatever id its record carries now (a copy
+            # stripped of its id to look old): it keeps the key it was first indexed under
+            first = conn.execute(sa.select(tests.c.test_key).where(tests.c.legacy_key == row["legacy_key"])
+                                 .order_by(tests.c.id).limit(1)).scalar()
+            if first is not None:
+                row["test_key"] = first
+            key = row["test_key"]
             if conn.execute(sa.select(tests.c.id).where(tests.c.test_key == key,
                                                         tests.c.id.in_(_withdrawn("tests")))).first():
                 return "withdrawn"
@@ -371,8 +386,8 @@ class HistoryStore:
 
     def list(self, filters: Filters = Filters(), limit: int | None = None) -> list[dict[str, Any]]:
         """Tests as they stand matching ``filters``, oldest first (the newest ``limit`` if given)."""
-        query = sa.select(*(tests.c[name] for name in COLUMNS), self._changes().label("changes")).where(
-            self._current_tests())
+        query = sa.select(*(tests.c[name] for name in COLUMNS), self._changes().label("changes"),
+                          tests.c.row_hash.label("chain_hash")).where(self._current_tests())
         f = filters
         for column, value in ((tests.c.valve_id, f.valve_id), (tests.c.pump_serial, f.pump_serial),
                               (tests.c.verdict, f.verdict)):
@@ -407,6 +422,14 @@ class HistoryStore:
         found = self._rows(sa.select(tests, self._changes().label("changes")).where(tests.c.test_key == key)
                            .order_by(tests.c.id).limit(1))
         return found[0] if found else None
+
+    def adoptions(self) -> list[dict[str, Any]]:
+        """Every adoption, oldest first (``train --adopt``)."""
+        return self._rows(sa.select(adoptions).order_by(adoptions.c.id))
+
+    def guard_events(self) -> list[dict[str, Any]]:
+        """What the guard found and did, oldest first (a SQLite file's triggers restored)."""
+        return self._rows(sa.select(guard_events).order_by(guard_events.c.id))
 
     def changed_tests(self, station: str | None = None) -> list[dict[str, Any]]:
         """Rows that indexed a test again with other content than its first indexing (of one station's tests if
@@ -539,7 +562,8 @@ class HistoryStore:
             raise ConfigError(f"teardown finding {finding!r}: use one of {', '.join(FINDINGS)}")
         row = {"valve_id": valve_id, "finding": finding, "clearance_mm": clearance_mm, "note": note,
                "labelled_by": labelled_by, "labelled_at": labelled_at, "recorded_at": _now(),
-               "corrects_id": corrects, "db_login": self.login}
+               "corrects_id": corrects, "db_login": self.login,
+               "recorded_by": _login_name()}  # on PostgreSQL the database writes the login's person instead
         with self._writing("label") as conn:
             if corrects is not None:
                 self._current_teardown(conn, corrects, valve_id)
@@ -726,6 +750,13 @@ class HistoryStore:
             return [dict(r._mapping) for r in conn.execute(query)]
 
 
+#: What a listing adds to a test's columns (:meth:`HistoryStore.list`): how often it was indexed again with other
+#: content, and its row's chain hash (what a customer's report prints).
+LISTED = ("changes", "chain_hash")
+
+#: The columns of a listing's CSV export.
+LIST_COLUMNS = COLUMNS + LISTED
+
 #: The columns that say how a row was indexed, not what the test was.
 _INDEXING = ("id", "record_manifest", "indexed_at", "indexed_by", "db_login")
 
@@ -770,7 +801,7 @@ def _typed(table: sa.Table, row: dict[str, Any]) -> dict[str, Any]:
         if value is None:
             typed[key] = None
         elif isinstance(kind, sa.Float):
-            number = float(value)
+            number = float(value) + 0.0  # -0.0 is stored as 0
             typed[key] = None if math.isnan(number) else number
         elif isinstance(kind, sa.Boolean):
             typed[key] = bool(value)
@@ -826,16 +857,19 @@ def audit_events(test_rows: list[dict[str, Any]], teardown_rows: list[dict[str, 
                        "event": "record changed after its first indexing (the first stands)" if again
                        else "test indexed", "id": t["id"],
                        "what": f"{t['verdict']}, tested {t['started_at'][:16]}, {t['record_dir']}",
-                       "by": t["indexed_by"] or t["operator"], "db_login": t["db_login"], "order": (0, t["id"])})
+                       "by": t["indexed_by"] or t["operator"], "db_login": t["db_login"],
+                       "chain_hash": t.get("row_hash"), "order": (0, t["id"])})
     for f in teardown_rows:
         corrects = f" (corrects finding {f['corrects_id']})" if f["corrects_id"] is not None else ""
         events.append({"when": f["recorded_at"], "event": "finding recorded", "id": f["id"],
-                       "what": f"{f['finding']}, opened {f['labelled_at'][:16]}{corrects}", "by": f["labelled_by"],
-                       "db_login": f["db_login"], "order": (1, f["id"])})
+                       "what": f"{f['finding']}, opened {f['labelled_at'][:16]} by {f['labelled_by']}{corrects}",
+                       "by": f.get("recorded_by") or f["labelled_by"], "db_login": f["db_login"],
+                       "chain_hash": f.get("row_hash"), "order": (1, f["id"])})
     for a in amendment_rows:
         kind = "test" if a["target"] == "tests" else "finding"
         events.append({"when": a["amended_at"], "event": f"{kind} {a['target_id']} withdrawn", "id": a["id"],
-                       "what": a["reason"], "by": a["amended_by"], "db_login": a["db_login"], "order": (2, a["id"])})
+                       "what": a["reason"], "by": a["amended_by"], "db_login": a["db_login"],
+                       "chain_hash": a.get("row_hash"), "order": (2, a["id"])})
     events.sort(key=lambda e: (e["when"], e["order"]))
     return [{key: value for key, value in e.items() if key != "order"} for e in events]
 

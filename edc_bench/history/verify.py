@@ -85,3 +85,32 @@ def changed_findings(rows: list[dict[str, Any]]) -> list[Finding]:
                     f"{(row['indexed_at'] or '')[:19]} by database login {row['db_login'] or '(none)'}): the first "
                     "indexing stands; the record was changed after its test")
             for row in rows]
+
+
+def model_findings(rows: list[dict[str, Any]], adoptions: list[dict[str, Any]], shipped: set[str]) -> list[Finding]:
+    """One finding per test judged by a model that is neither shipped nor adopted for its station in the history
+    before it was indexed (an adoption that bypassed the chain, or a model put in the station's folder by hand).
+
+    Parameters
+    ----------
+    rows : list of dict
+        Tests as they stand (:meth:`~edc_bench.history.store.HistoryStore.indexed`).
+    adoptions : list of dict
+        Every adoption the history holds (``station``, ``model_sha256``, ``adopted_at``).
+    shipped : set of str
+        The SHA-256 of the networks the bench judges with unless one is adopted.
+    """
+    found = []
+    for row in rows:
+        sha = row.get("model_sha256")
+        if not sha or sha in shipped:
+            continue
+        when = row.get("indexed_at") or row.get("started_at") or ""
+        if any(a["station"] == row["station"] and a["model_sha256"] == sha and a["adopted_at"] <= when
+               for a in adoptions):
+            continue
+        found.append(Finding(row["id"], row["valve_id"], row["record_dir"], "model",
+                             f"judged by a model (sha256 {sha[:12]}..., {row.get('model_name') or 'unnamed'}) the "
+                             f"history records no adoption of for station {row['station']!r} before the test was "
+                             "indexed: an adoption that bypassed the history, or a model put in by hand"))
+    return found

@@ -124,6 +124,14 @@ def variant_model_path(variant: Variant) -> Path:
                       "station's model")
 
 
+def shipped_model_hashes() -> set[str]:
+    """The SHA-256 of each network the bench judges with unless a station adopts another: the shipped default
+    and each shipped variant's own (``valve_mlp*.onnx``; the linear model is the paper's comparison, not a
+    judge)."""
+    folder = packaged_model_path().parent
+    return {file_sha256(path) for path in sorted(folder.glob("valve_mlp*.onnx"))}
+
+
 def find_model(sha256: str) -> Path | None:
     """A model file with this SHA-256 among the packaged models and the station's own, or None."""
     folders = [packaged_model_path().parent, station_models_dir()]

@@ -213,6 +213,8 @@ def _as_another_test(folder: Path) -> None:
 
     doc = json.loads((folder / "record.json").read_text())
     doc["test_id"] = uuid.uuid4().hex
+    doc["valve_id"] = f"{doc['valve_id']}-{folder.name}"  # and another valve: the same valve at the same second
+    # and place would be the same test (the history's legacy key)
     files = [name for name in doc["integrity"]["files"]]
     doc["integrity"] = manifest({k: v for k, v in doc.items() if k != "integrity"}, folder, files)
     (folder / "record.json").write_text(json.dumps(doc))
@@ -307,7 +309,8 @@ def test_a_test_on_the_simulated_rig_is_marked_and_left_out_of_trends_and_traini
     with HistoryStore(url) as store:
         store.add(record, record_dir)
         rig_row = {key: value for key, value in store.list()[0].items() if key != "id"}
-        store.add_row({**rig_row, "record_dir": "/records/on-a-rig", "simulated": False, "test_key": "on-a-rig"})
+        store.add_row({**rig_row, "record_dir": "/records/on-a-rig", "simulated": False, "test_key": "on-a-rig",
+                       "legacy_key": "on-a-rig", "started_at": "2026-11-27T23:59:59+00:00"})
         store.add_teardown(record.valve_id, "worn", labelled_by="ana", labelled_at="2099-01-01")
         assert [r["simulated"] for r in store.list()] == [True, False]  # listed, and marked
         assert [r["simulated"] for r in store.list(Filters(simulated=False))] == [False]
