@@ -1,22 +1,33 @@
 """The C firmware core (``c/``), loaded with ctypes behind the same interface as :class:`~firmware_proto.firmware.RigFirmware`.
 
 The simulated rig runs either firmware over the same plant (``edc-bench rig --firmware c``), and the firmware
-tests run against both. The library is built by ``make -C firmware_proto/c`` (gcc and cantools); where it is
-not built, :func:`load_library` says how to build it. ``EDC_BENCH_C_FIRMWARE`` names another build of it.
+tests run against both. The host library is built on first use, with ``c/Makefile`` (make, a C compiler and
+cantools), into the user's cache folder, one folder per digest of what it is built from
+(:func:`cached_library_path`): never inside the installed package, rebuilt when the sources change, and shared by
+every later run. Without make or a compiler :func:`load_library` says in one line what is missing.
+``EDC_BENCH_C_FIRMWARE`` names a library built elsewhere.
 """
 
 from __future__ import annotations
 
 import ctypes
+import hashlib
+import importlib.metadata
 import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
 from functools import lru_cache
 from pathlib import Path
 
-from edc_bench.protocol import FaultCode, Icd, RigState, default_icd
+from edc_bench.protocol import FaultCode, Icd, RigState, dbc_path, default_icd
 from firmware_proto.firmware import FirmwareCounters, FirmwareLimits, Frame, RigHardware
 
 LIBRARY_ENV = "EDC_BENCH_C_FIRMWARE"
 C_DIR = Path(__file__).resolve().parent / "c"
+LIBRARY_NAME = "libedcrig.so"
 
 _DOUBLE_FN = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_void_p)
 _DRIVE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_double)
@@ -35,27 +46,125 @@ class _Limits(ctypes.Structure):
 
 
 class CFirmwareMissing(RuntimeError):
-    """The C firmware library is not built (the message says how to build it)."""
+    """The C firmware library is not there and cannot be built here (the message says what is missing)."""
+
+
+def _cache_root() -> Path:
+    """edc-bench's cache folder, found as ``edc_bench.paths.cache_dir`` finds it: ``EDC_BENCH_CACHE_DIR``, else the
+    user's cache folder (``XDG_CACHE_HOME`` on Linux, by platformdirs). Read here, not imported: the firmware
+    imports nothing of the bench's but the protocol (pyproject.toml's import contracts)."""
+    configured = os.environ.get("EDC_BENCH_CACHE_DIR")
+    if configured:
+        return Path(configured)
+    from platformdirs import user_cache_dir
+
+    return Path(user_cache_dir("edc-bench", appauthor=False))
+
+
+def sources_digest() -> str:
+    """SHA-256 of what the host library is built from: ``c/src`` and the Makefile, the ICD's DBC its frame codec is
+    generated from, cantools' version (the generator) and the machine it is built for."""
+    digest = hashlib.sha256()
+    for path in [*sorted((C_DIR / "src").glob("*.[ch]")), C_DIR / "Makefile", dbc_path()]:
+        digest.update(f"{path.name}\0{len(path.read_bytes())}\0".encode())
+        digest.update(path.read_bytes())
+    digest.update(f"cantools {importlib.metadata.version('cantools')} {sys.platform} {platform.machine()}".encode())
+    return digest.hexdigest()
+
+
+def cached_library_path() -> Path:
+    """Where the first use builds the library: ``<cache>/firmware-<digest of the sources>/libedcrig.so``."""
+    return _cache_root() / f"firmware-{sources_digest()[:16]}" / LIBRARY_NAME
 
 
 def library_path() -> Path:
-    """Where the library is looked for: ``EDC_BENCH_C_FIRMWARE``, else ``c/build/libedcrig.so`` beside this file."""
-    return Path(os.environ.get(LIBRARY_ENV) or C_DIR / "build" / "libedcrig.so")
+    """Where the library is looked for: ``EDC_BENCH_C_FIRMWARE``, else :func:`cached_library_path`."""
+    return Path(os.environ.get(LIBRARY_ENV) or cached_library_path())
 
 
-def load_library(path: str | None = None) -> ctypes.CDLL:
-    """The C firmware library, its functions typed.
+def build_library(folder: Path | None = None) -> Path:
+    """Build the host library with ``c/Makefile`` into ``folder`` (default: :func:`cached_library_path`'s).
+
+    make writes only below ``BUILD``: the package's own folder is read, never written. The build goes to a
+    temporary folder beside ``folder`` and is renamed into place whole, so a run that starts meanwhile never loads
+    half a library, and of two first uses at once the second keeps the first's.
+
+    Parameters
+    ----------
+    folder : pathlib.Path, optional
+        The folder to hold ``libedcrig.so`` (made; must not exist yet, or already hold a build).
+
+    Returns
+    -------
+    pathlib.Path
+        The library.
 
     Raises
     ------
     CFirmwareMissing
-        If it is not built: naming the command that builds it.
+        In one line: make or a C compiler missing, the folder not writable, or the build failed (its output kept
+        in a log file beside the folder).
     """
-    where = Path(path) if path else library_path()
-    if not where.is_file():
-        raise CFirmwareMissing(f"the C firmware is not built ({where} is missing): build it with "
-                               f"'make -C {C_DIR}' (needs gcc; {LIBRARY_ENV} names a library built elsewhere)")
-    return _typed(str(where))
+    folder = Path(folder) if folder is not None else cached_library_path().parent
+    compiler = (os.environ.get("CC") or "cc").split()[0]
+    missing = [what for what, program in (("make", "make"), (f"C compiler ({compiler})", compiler))
+               if not shutil.which(program)]
+    if missing:
+        raise CFirmwareMissing(f"the C firmware is built on first use, and this machine has no "
+                               f"{' and no '.join(missing)}: install {'them' if len(missing) > 1 else 'it'} "
+                               f"(Debian: apt-get install make gcc), or set {LIBRARY_ENV} to a {LIBRARY_NAME} "
+                               "built elsewhere")
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=folder.parent))
+    except OSError as exc:
+        raise CFirmwareMissing(f"cannot build the C firmware in {folder.parent} ({exc.strerror}): set "
+                               f"EDC_BENCH_CACHE_DIR to a folder this user can write, or {LIBRARY_ENV} to a "
+                               f"{LIBRARY_NAME} built elsewhere") from None
+    print(f"building the C firmware into {folder} (once for these sources)", file=sys.stderr, flush=True)
+    done = subprocess.run(["make", "-C", str(C_DIR), f"BUILD={work}", f"PYTHON={sys.executable}", f"DBC={dbc_path()}"],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if done.returncode != 0:
+        shutil.rmtree(work, ignore_errors=True)
+        log = folder.with_name(f"{folder.name}-build.log")
+        log.write_text(done.stdout, encoding="utf-8")
+        last = next((line.strip() for line in reversed(done.stdout.splitlines()) if line.strip()), "no output")
+        raise CFirmwareMissing(f"building the C firmware failed ({last}); make's output is in {log}")
+    try:
+        os.rename(work, folder)
+    except OSError:  # built meanwhile by another run (or left by an earlier one): keep that one
+        shutil.rmtree(work, ignore_errors=True)
+        if not (folder / LIBRARY_NAME).is_file():
+            raise CFirmwareMissing(f"{folder} exists without {LIBRARY_NAME}: remove it, and the next run builds "
+                                   "the C firmware again") from None
+    return folder / LIBRARY_NAME
+
+
+def load_library(path: str | None = None) -> ctypes.CDLL:
+    """The C firmware library, its functions typed: ``path``, else ``EDC_BENCH_C_FIRMWARE``, else the user's cache
+    build of these sources, built here on first use (:func:`build_library`).
+
+    Raises
+    ------
+    CFirmwareMissing
+        If the library named is missing or does not load, or cannot be built: in one line, what to do.
+    """
+    given = path or os.environ.get(LIBRARY_ENV)
+    if given:
+        where = Path(given)
+        if not where.is_file():
+            how = f"unset {LIBRARY_ENV} to build it on first use, or " if not path else ""
+            raise CFirmwareMissing(f"the C firmware library {where} is missing: {how}build one with "
+                                   f"'make -C {C_DIR} BUILD=DIR' (needs make and gcc)")
+    else:
+        where = cached_library_path()
+        if not where.is_file():
+            where = build_library(where.parent)
+    try:
+        return _typed(str(where))
+    except OSError as exc:
+        raise CFirmwareMissing(f"the C firmware library {where} does not load ({exc}): remove it and build it "
+                               "again") from None
 
 
 @lru_cache(maxsize=4)
@@ -182,8 +291,9 @@ class CRigFirmware:
 
 
 def c_firmware_available() -> bool:
-    """Whether the library is built where :func:`library_path` looks."""
+    """Whether the library is built where :func:`library_path` looks (nothing is built to find out)."""
     return library_path().is_file()
 
 
-__all__ = ["CFirmwareMissing", "CRigFirmware", "c_firmware_available", "library_path", "load_library"]
+__all__ = ["CFirmwareMissing", "CRigFirmware", "build_library", "c_firmware_available", "cached_library_path",
+           "library_path", "load_library", "sources_digest"]

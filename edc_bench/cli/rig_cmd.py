@@ -28,8 +28,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="hold frames back as a CAN adapter would: usb-fs (a USB full-speed adapter, 1.5-3.5 ms "
                         "round trip), or latency_ms=L,jitter_ms=J,usb_frame_ms=F one way[,drift_ppm=D] (default: none)")
     p.add_argument("--firmware", choices=("python", "c"), default="python",
-                   help="the rig's firmware: python (the prototype, default) or c (the C core; build it with "
-                        "'make -C firmware_proto/c')")
+                   help="the rig's firmware: python (the prototype, default) or c (the C core, built on first "
+                        "use into the user's cache: needs make and gcc)")
     add_rig_drift_argument(p)
     p.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
                    help="break this ICD rule, for trying 'edc-bench rig-check' on a rig that fails it (repeatable): "

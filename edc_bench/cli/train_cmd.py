@@ -31,12 +31,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "train", help="train and export the valve classifiers (needs the 'train' extra)",
         description="Simulate a population of used valves per variant through the batch path, label each valve "
                     "from its physics (the variant's resisting-force limit), and train the paper's network "
-                    "(valve_mlp.onnx) and a linear model (valve_linear.onnx) on (af/af0, a1/a1_0). With the "
-                    "defaults this rebuilds the models shipped in the package byte for byte. "
-                    "--from-history trains a candidate on the shop's labelled tests instead (teardown findings "
-                    "recorded with 'edc-bench label'), with that simulated population as a prior, and prints its "
-                    "cross-validated accuracy beside the current model's; --adopt makes a candidate the station's "
-                    "model. Too few labels are refused as bad input (exit 2), with the counts.",
+                    "(valve_mlp.onnx) and a linear model (valve_linear.onnx) on (af/af0, a1/a1_0). They are "
+                    "written into the station's models folder, never into the installed package: the pair as "
+                    "candidates, which change nothing until one is adopted (--adopt FILE); with the defaults "
+                    "they are the shipped models byte for byte. --rebuild-shipped writes the shipped models in "
+                    "a source checkout (developers). --from-history trains a candidate on the shop's labelled "
+                    "tests instead (teardown findings recorded with 'edc-bench label'), with that simulated "
+                    "population as a prior, and prints its cross-validated accuracy beside the current model's; "
+                    "--adopt makes a candidate the station's model. Too few labels are refused as bad input "
+                    "(exit 2), with the counts.",
     )
     p.add_argument("--variants", nargs="+", default=list(DEFAULT_VARIANTS), metavar="NAME",
                    help=f"variants to draw populations from (default: {' '.join(DEFAULT_VARIANTS)})")
@@ -54,11 +57,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--own", action="store_true",
                    help="train one variant's own network (give one --variants name or file), for a pump whose "
                         "resisting force splits between friction and damping unlike the shipped network's pumps: "
-                        "written as the file its [diagnosis] model line names, else valve_mlp-NAME.onnx (then add "
-                        "that line)")
+                        "written into the station's models folder as the file its [diagnosis] model line names, "
+                        "else valve_mlp-NAME.onnx (then add that line); a file the package ships is written as a "
+                        "candidate instead, and the shipped one kept")
     p.add_argument("--models-dir", type=Path, default=None, metavar="DIR",
-                   help="folder to write the models into (default: the package's models folder)")
+                   help="folder to write the models into (default: the station's models folder; never the "
+                        "package's)")
     add_hidden_alias(p, "--out-dir", "models_dir", type=Path)  # its name before the flags were made consistent
+    p.add_argument("--rebuild-shipped", action="store_true",
+                   help="write the models into the package's source tree, as the shipped ones (developers: a "
+                        "source checkout only, never an installed package)")
     shop = p.add_argument_group("the shop's data")
     shop.add_argument("--from-history", action="store_true",
                       help="train a candidate on the history's labelled tests, the simulated population as prior")
@@ -81,10 +89,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Simulate (or load) the data, train both models, write them."""
+    """Simulate (or load) the data, train both models (or a variant's own network), write them."""
     from edc_bench.errors import ConfigError
-    from edc_bench.learning.dataset import Dataset, make_dataset
-    from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL, packaged_model_path
 
     if args.own and args.adopt is not None:
         raise ConfigError("--own trains a variant's own network; --adopt makes a candidate the station's model: "
@@ -92,12 +98,14 @@ def run(args: argparse.Namespace) -> int:
     if args.own and (args.from_history or len(args.variants) != 1):  # before seconds of importing scikit-learn
         raise ConfigError("--own trains one variant's own network from its simulated population: give one "
                           "--variants NAME, without --from-history")
+    if args.rebuild_shipped:
+        _check_rebuild(args)
     if args.adopt is not None:  # adopting needs no training extra
         return _adopt(args)
     try:
         import sklearn  # noqa: F401
 
-        from edc_bench.learning.train import train
+        from edc_bench.learning.train import train  # noqa: F401
     except ImportError:
         raise ConfigError("training needs the 'train' extra: pip install '.[train]'") from None
     if args.count < 20:
@@ -109,8 +117,19 @@ def run(args: argparse.Namespace) -> int:
                         ("--candidate-file", args.candidate_file), ("--by", args.by), ("--json", args.json or None)):
         if value is not None:
             raise ConfigError(f"{flag} goes with --from-history or --adopt")
-    out_dir = args.models_dir or packaged_model_path().parent
-    check_output_folder(out_dir, "--models-dir")  # before minutes of simulation and training
+    return _from_simulation(args)
+
+
+def _from_simulation(args: argparse.Namespace) -> int:
+    """Train on a simulated population (or ``--dataset``) and write the models where :func:`_destination` says."""
+    from edc_bench.learning.adoption import write_model
+    from edc_bench.learning.dataset import Dataset, make_dataset
+    from edc_bench.learning.train import train
+    from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL
+
+    own = _own(args.variants[0]) if args.own else None
+    out_dir, where = _destination(args, own)
+    check_output_folder(out_dir, where)  # before minutes of simulation and training
     if args.dataset is not None:
         dataset = Dataset.load(args.dataset)
     else:
@@ -122,23 +141,105 @@ def run(args: argparse.Namespace) -> int:
         if args.save_dataset is not None:
             dataset.save(args.save_dataset)
     # a variant's own: the network only (the shipped pair's linear model is a yardstick for the network)
-    kinds = [("mlp", _own_file(args.variants[0]))] if args.own else [("mlp", DEFAULT_MODEL), ("linear", LINEAR_MODEL)]
+    kinds = [("mlp", own[1])] if own else [("mlp", DEFAULT_MODEL), ("linear", LINEAR_MODEL)]
+    written = []
     for kind, name in kinds:
         model = train(dataset, kind, args.seed, marginal_band=args.marginal_band)
-        (out_dir / name).write_bytes(model.onnx_bytes)
+        if where == CANDIDATE:  # named for its data: never the shipped model's name, which it does not replace
+            name = f"{Path(name).stem}-sim-{dataset.content_hash()[:8]}.onnx"
+        kept = write_model(out_dir, name, model.onnx_bytes)
+        written.append(out_dir / name)
         print(f"{kind}: training accuracy {model.train_accuracy:.4f} on {len(dataset)} tests -> {out_dir / name}")
+        if kept is not None:
+            print(f"kept the earlier {name} as {kept.name}: the tests it judged still replay with it")
     print(f"training data sha256 {dataset.content_hash()}")
+    _say_what_changed(where, own, written[0])
     return 0
+
+
+#: Where :func:`_destination` writes: a candidate to adopt, a station variant's own network, the source tree's
+#: shipped models, the folder ``--models-dir`` names.
+CANDIDATE, STATION, SHIPPED, FOLDER = ("the station's candidates folder", "the station's models folder",
+                                       "--rebuild-shipped", "--models-dir")
+
+
+def _destination(args: argparse.Namespace, own: tuple[Any, str] | None) -> tuple[Path, str]:
+    """The folder the models are written into, and which of :data:`CANDIDATE`, ... it is.
+
+    Never the installed package's: a file there is the same for every station and every record judged by it
+    (``--models-dir`` inside it is refused by :func:`_check_training_inputs`). A variant's own network goes where
+    its variant finds it (the station's models folder), unless the package ships that file: written there it would
+    stand in for the shipped one unasked, so it is a candidate then, as the pair always is.
+    """
+    from edc_bench.paths import source_checkout
+    from edc_bench.verdict.classifier import packaged_model_path, station_models_dir
+
+    root = source_checkout() if args.rebuild_shipped else None
+    if root is not None:  # else refused by _check_rebuild before
+        return root / "edc_bench" / "verdict" / "models", SHIPPED
+    if args.models_dir is not None:  # the station's own folder, named: where a variant finds its network
+        station = args.models_dir.resolve() == station_models_dir().resolve()
+        return args.models_dir, STATION if station and own is not None else FOLDER
+    if own is not None and not packaged_model_path(own[1]).is_file():
+        return station_models_dir(), STATION
+    return station_models_dir() / "candidates", CANDIDATE
+
+
+def _say_what_changed(where: str, own: tuple[Any, str] | None, written: Path) -> None:
+    """One line on what the station judges with now, and the command that changes it."""
+    import shlex
+
+    from edc_bench.verdict.classifier import packaged_model_path, station_models_dir
+
+    if where == CANDIDATE and own is None:
+        print(f"not adopted: this station judges as before; to judge with this network: edc-bench train --adopt "
+              f"{shlex.quote(str(written))}")
+    elif where == CANDIDATE:
+        print(f"{own[0].name} is judged by the shipped {own[1]} as before; to judge its valves by this network on "
+              f"this station, train it into the station's models folder: --models-dir "
+              f"{shlex.quote(str(station_models_dir()))} ('edc-bench train --adopt shipped' goes back)")
+    elif where == STATION and own[0].diagnosis.model == own[1]:
+        instead = (" instead of the shipped one ('edc-bench train --adopt shipped' goes back)"
+                   if packaged_model_path(own[1]).is_file() else "")
+        print(f"{own[0].name}'s valves are judged by it from now on (its [diagnosis] model line names "
+              f"{own[1]}){instead}")
+    elif where == STATION:
+        print(f"to judge {own[0].name}'s valves by it, add  model = \"{own[1]}\"  to the [diagnosis] section of "
+              f"{own[0].source_file or 'its variant file'}")
+    elif where == SHIPPED:
+        print(f"the shipped models in the source tree ({written.parent}) are rebuilt: they ship with the next build")
+
+
+def _own(name: str) -> tuple[Any, str]:
+    """The variant ``name`` and the file its own network is written to (:func:`_own_file`)."""
+    from edc_bench.config import load_variant
+    from edc_bench.verdict.classifier import own_model_file
+
+    variant = load_variant(name)  # a name, part number or file: the variant's own name
+    return variant, variant.diagnosis.model or own_model_file(variant.name)
 
 
 def _own_file(name: str) -> str:
     """The file a variant's own network is written to: the one its ``[diagnosis] model`` line names, else
     ``valve_mlp-<variant name>.onnx`` (which that line then names)."""
-    from edc_bench.config import load_variant
-    from edc_bench.verdict.classifier import own_model_file
+    return _own(name)[1]
 
-    variant = load_variant(name)  # a name, part number or file: the variant's own name
-    return variant.diagnosis.model or own_model_file(variant.name)
+
+def _check_rebuild(args: argparse.Namespace) -> None:
+    """``--rebuild-shipped``: a source checkout's shipped models, and nothing else at the same time."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.paths import package_folders, source_checkout
+
+    if args.adopt is not None or args.from_history:
+        raise ConfigError("--rebuild-shipped rebuilds the shipped models from their simulated populations: leave "
+                          "out --adopt and --from-history")
+    if args.models_dir is not None:
+        raise ConfigError("--rebuild-shipped writes the source tree's models folder, --models-dir another one: "
+                          "give one of them")
+    if source_checkout() is None:
+        raise ConfigError(f"--rebuild-shipped: this edc-bench is an installed package ({package_folders()[0]}), "
+                          "whose files the program never writes; run it in a source checkout (pip install -e .), "
+                          "or give --models-dir DIR to build the models elsewhere")
 
 
 def _check_training_inputs(args: argparse.Namespace) -> None:
@@ -147,12 +248,19 @@ def _check_training_inputs(args: argparse.Namespace) -> None:
 
     from edc_bench.config import load_variant
     from edc_bench.errors import ConfigError
+    from edc_bench.paths import inside_package
 
     if not (math.isfinite(args.marginal_band) and 0 <= args.marginal_band < 0.5):
         raise ConfigError(f"--marginal-band {args.marginal_band}: give the band's half-width in baseline ratios, "
                           "0 or more and below 0.5 (default 0.03)")
     if args.dataset is not None and not args.dataset.is_file():
         raise ConfigError(f"--dataset {args.dataset}: no such file; give a dataset written with --save-dataset")
+    for flag, path in (("--models-dir", args.models_dir), ("--save-dataset", args.save_dataset),
+                       ("--candidate-file", args.candidate_file)):
+        if path is not None and inside_package(path):
+            rebuild = ", or --rebuild-shipped in a source checkout" if flag == "--models-dir" else ""
+            raise ConfigError(f"{flag} {path}: that is inside the installed edc-bench package, whose files the "
+                              f"program never writes; give a folder of your own (default: the station's){rebuild}")
     if args.save_dataset is not None:
         check_output_file(args.save_dataset, "--save-dataset")
     if args.dataset is None or args.own:
@@ -173,7 +281,8 @@ def _adopt(args: argparse.Namespace) -> int:
         raise ConfigError("--adopt and --from-history are separate steps: train, read the figures, then adopt")
     for flag, value in (("--prior-weight", args.prior_weight), ("--name", args.name),
                         ("--candidate-file", args.candidate_file), ("--json", args.json or None),
-                        ("--dataset", args.dataset), ("--include-simulated", args.include_simulated or None)):
+                        ("--dataset", args.dataset), ("--include-simulated", args.include_simulated or None),
+                        ("--models-dir", args.models_dir), ("--save-dataset", args.save_dataset)):
         if value is not None:
             raise ConfigError(f"{flag} does not go with --adopt (it adopts a model file, or 'shipped')")
     from edc_bench.history.chain_adoption import chain_station, check_adoption_target
@@ -190,7 +299,10 @@ def _adopt(args: argparse.Namespace) -> int:
                                                                                              model)))
         where = store.shown_url
     if shipped:
-        print(f"this station judges with the shipped model again ({adopted[0].name}); recorded in {where}")
+        # the files that stood in for shipped ones, renamed: named so the line says where they went
+        aside = "".join(f"; {was.name} set aside as {now.name}, where the tests it judged still replay"
+                        for was, now in adopted[0])
+        print(f"this station judges with the shipped models again ({model.name}){aside}; recorded in {where}")
         return 0
     adoption = adopted[0]
     print(f"this station now judges with {adoption['name']} (sha256 {adoption['sha256'][:16]}...; a variant whose "

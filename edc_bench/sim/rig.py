@@ -106,8 +106,8 @@ class RigOptions:
     breaks : frozenset of IcdBreak
         ICD rules the rig's firmware breaks (:mod:`edc_bench.sim.broken_rigs`): none by default.
     firmware : str
-        ``python``: the prototype (firmware_proto/firmware.py); ``c``: the C core (firmware_proto/c), built with
-        ``make -C firmware_proto/c``.
+        ``python``: the prototype (firmware_proto/firmware.py); ``c``: the C core (firmware_proto/c), built on
+        first use into the user's cache (:func:`firmware_proto.c_firmware.load_library`).
     drift : SensorDrift
         The sensors' drift (``--rig-drift``, :mod:`edc_bench.sim.drift`): none by default. It is on top of the
         variant's sensor model, and stays when ``sensor_noise`` is off.

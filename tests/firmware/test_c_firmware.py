@@ -5,6 +5,7 @@ Skipped, saying how to build it, where the library is not built (CI builds it wi
 from __future__ import annotations
 
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -21,8 +22,8 @@ from edc_bench.sim.lockstep_bus import lockstep_pair
 from edc_bench.sim.rig import RigOptions, SimulatedRig
 from firmware_proto.c_firmware import C_DIR, c_firmware_available, library_path
 
-needs_library = pytest.mark.skipif(not c_firmware_available(),
-                                   reason=f"the C firmware is not built ({library_path()}): make -C firmware_proto/c")
+needs_library = pytest.mark.skipif(not c_firmware_available(), reason=f"the C firmware is not built "
+                                   f"({library_path()}): this machine has no make or cc")
 
 
 @needs_library
@@ -72,7 +73,7 @@ def test_the_cortex_m_build_compiles_and_fits(tmp_path: Path) -> None:
     if not shutil.which("arm-none-eabi-gcc"):
         pytest.skip("arm-none-eabi-gcc is not installed (Debian: apt-get install gcc-arm-none-eabi "
                     "libnewlib-arm-none-eabi)")
-    proc = subprocess.run(["make", "-C", str(C_DIR), "mcu", f"BUILD={tmp_path}", "PYTHON=python"],
+    proc = subprocess.run(["make", "-C", str(C_DIR), "mcu", f"BUILD={tmp_path}", f"PYTHON={sys.executable}"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "warning" not in (proc.stdout + proc.stderr).lower()
@@ -87,8 +88,8 @@ def test_the_cortex_m_build_compiles_and_fits(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_the_c_build_has_no_warnings_at_wall_wextra(tmp_path: Path) -> None:
     """The host build from scratch (cantools generating the codec from the DBC), warnings as errors."""
-    proc = subprocess.run(["make", "-C", str(C_DIR), f"BUILD={tmp_path}", "PYTHON=python"], capture_output=True,
-                          text=True)
+    proc = subprocess.run(["make", "-C", str(C_DIR), f"BUILD={tmp_path}", f"PYTHON={sys.executable}"],
+                          capture_output=True, text=True)
     if proc.returncode != 0 and "cc: not found" in proc.stderr + proc.stdout:
         pytest.skip("no C compiler on this machine")
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -104,7 +105,6 @@ def test_a_real_time_test_over_the_rig_process_with_the_c_firmware_passes_a_new_
     Python firmware. A run the machine disturbed (steal, a tick 10 ms late, the rig process not serving) that did
     not PASS is skipped with its figures."""
     import json
-    import sys
 
     proc = subprocess.run([sys.executable, "-m", "edc_bench", "test", "--realtime", "--firmware", "c", "--valve", "new",
                            "--json", "--no-figure", "--no-history", "--out", "rec"], cwd=tmp_path, capture_output=True,

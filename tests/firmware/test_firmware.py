@@ -79,7 +79,7 @@ class Harness:
 @pytest.fixture(params=["python", "c"])
 def rig(icd: Icd, request: pytest.FixtureRequest) -> Harness:
     if request.param == "c" and not c_firmware_available():
-        pytest.skip(f"the C firmware is not built ({library_path()}): make -C firmware_proto/c")
+        pytest.skip(f"the C firmware is not built ({library_path()}): this machine has no make or cc")
     return Harness(icd, request.param)
 
 

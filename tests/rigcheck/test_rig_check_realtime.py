@@ -44,7 +44,7 @@ def _check(adapter: str = "none", breaks: tuple[str, ...] = (), firmware: str = 
 @pytest.mark.parametrize(("adapter", "firmware"), [("none", "python"), ("usb-fs", "python"), ("none", "c")])
 def test_the_rig_process_is_go_in_real_time(adapter: str, firmware: str) -> None:
     if firmware == "c" and not c_firmware_available():
-        pytest.skip(f"the C firmware is not built ({library_path()}): make -C firmware_proto/c")
+        pytest.skip(f"the C firmware is not built ({library_path()}): this machine has no make or cc")
     report, disturbed, figures = _check(adapter, firmware=firmware)
     if not report.go and disturbed:
         pytest.skip(f"the machine got in the way: {figures}")
