@@ -305,17 +305,44 @@ def probe_writable(folder: Path, message: str) -> None:
         raise ConfigError(f"{message} ({exc.strerror or exc})") from None
 
 
-#: interfaces that cannot guess their channel, with an example of one
-_NEEDS_CHANNEL = {"slcan": "socket://127.0.0.1:5000 or /dev/ttyACM0", "serial": "/dev/ttyUSB0",
-                  "socketcan": "can0", "robotell": "/dev/ttyUSB0", "seeedstudio": "/dev/ttyUSB0"}
+def bus_option(text: str) -> tuple[str, str]:
+    """``--bus-option KEY=VALUE``: one further argument of the python-can interface (socketcand's ``host``...)."""
+    key, sep, value = text.partition("=")
+    key = key.strip()
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"{text!r} is not KEY=VALUE: give one argument of the python-can interface, "
+                                         "e.g. --bus-option host=192.168.1.10")
+    if key in ("interface", "bustype", "channel", "bitrate"):
+        flag = "interface" if key == "bustype" else key
+        raise argparse.ArgumentTypeError(f"{key} has a flag of its own: give --{flag} {value or flag.upper()}")
+    return key, value
+
+
+def add_bus_arguments(parser: Any, interface_help: str = "python-can interface, e.g. slcan, socketcan, pcan",
+                      channel_help: str = "python-can channel, e.g. socket://127.0.0.1:5000 or can0",
+                      bitrate_help: str = "CAN bit rate (default: the ICD's 500000)") -> None:
+    """``--interface``, ``--channel``, ``--bitrate`` and ``--bus-option``: a python-can bus, as every command on a
+    rig takes it (:func:`bus_settings` checks them)."""
+    parser.add_argument("--interface", default=None, help=interface_help)
+    parser.add_argument("--channel", default=None, help=channel_help)
+    parser.add_argument("--bitrate", type=bit_rate, default=None, help=bitrate_help)
+    parser.add_argument("--bus-option", dest="bus_options", type=bus_option, action="append", default=[],
+                        metavar="KEY=VALUE",
+                        help="a further argument of the python-can interface, repeatable, e.g. --bus-option "
+                             "host=192.168.1.10 --bus-option port=29536 for socketcand; values are read as python-can "
+                             "reads its config file (5 is a number, true a yes). CAN_CONFIG (a JSON object) and "
+                             "python-can's config file can give them too")
 
 
 def bus_settings(interface: str | None, channel: str | None, bitrate: int | None, *,
-                 configured_alone: bool) -> dict[str, Any] | None:
+                 configured_alone: bool, options: list[tuple[str, str]] | None = None) -> dict[str, Any] | None:
     """The python-can bus to open, checked before any work; None for no bus (the simulated rig).
 
     The flags win; what they leave open comes from python-can's own sources
-    (``CAN_INTERFACE``/``CAN_CHANNEL``/``CAN_BITRATE``, then its config file).
+    (``CAN_INTERFACE``/``CAN_CHANNEL``/``CAN_BITRATE``/``CAN_CONFIG``, then its config files, each read in the
+    encoding it was written in: :mod:`edc_bench.runtime.bus_config`), further arguments included. The
+    interface's module is loaded and the arguments its bus requires are checked here, before any work: a
+    driver that cannot load or a channel or host not given is one line, exit 3.
 
     Parameters
     ----------
@@ -323,53 +350,84 @@ def bus_settings(interface: str | None, channel: str | None, bitrate: int | None
         The ``--interface``, ``--channel`` and ``--bitrate`` flags (None: not given).
     configured_alone : bool
         Whether python-can's environment or config file alone selects a bus (``test`` does; ``calibrate``
-        takes a bus from its flags only, and the environment only completes them).
+        takes a bus from its flags only, and the environment only completes them). Without flags and without
+        it, python-can's sources are not read at all.
+    options : list of (str, str), optional
+        The ``--bus-option KEY=VALUE`` flags.
+
+    Returns
+    -------
+    BusSettings or None
+        A dict of python-can's bus arguments (text as given; :func:`~edc_bench.runtime.bus.open_bus` casts
+        them as python-can does), knowing where those no flag gave came from.
 
     Raises
     ------
     ConfigError
-        An interface python-can does not have, a channel without an interface, a bit rate that is not a
-        number: naming the setting and listing what python-can accepts.
+        An interface python-can does not have, a channel or option without an interface, an option given
+        twice, a bit rate that is not a number: naming the setting and listing what python-can accepts.
+    RigError
+        A config file or ``CAN_CONFIG`` that cannot be read (naming it); an interface that cannot load here or
+        lacks a channel or argument it requires (naming what to install or give).
     """
-    import os
-
     from edc_bench.canlib import can
     from edc_bench.errors import ConfigError
+    from edc_bench.runtime.bus_config import ENVIRONMENT, BusSettings, check_interface, python_can_config
 
+    options = list(options or [])
+    given = dict(options)
+    if len(given) < len(options):
+        twice = next(key for key in given if sum(k == key for k, _ in options) > 1)
+        raise ConfigError(f"--bus-option {twice} is given twice: give each argument once")
     flags = {k: v for k, v in (("interface", interface), ("channel", channel), ("bitrate", bitrate)) if v is not None}
-    if not flags and not configured_alone:
+    if not flags and not given and not configured_alone:
         return None
-    configured = {**can.util.load_file_config(), **can.util.load_environment_config()}
-    if not flags and not configured.get("interface"):
+    configured, sources = python_can_config()
+    if not flags and not given and not configured.get("interface"):
         return None
-    if "bitrate" in flags and len(flags) == 1 and not configured.get("interface"):
-        raise ConfigError(f"--bitrate {bitrate} sets the bit rate of a bus: give --interface and --channel too "
-                          "(the simulated rig has no bit rate)")
-    settings = {**{k: configured[k] for k in ("interface", "channel", "bitrate") if configured.get(k)}, **flags}
-    source = {"interface": "--interface" if interface is not None else
-              "CAN_INTERFACE" if os.environ.get("CAN_INTERFACE") else "interface in python-can's config file",
-              "bitrate": "--bitrate" if bitrate is not None else "CAN_BITRATE or python-can's config file"}
+    if "interface" not in flags and "channel" not in flags and not configured.get("interface") and (
+            "bitrate" in flags or given):
+        what = f"--bitrate {bitrate} sets the bit rate of a bus" if "bitrate" in flags else \
+            f"--bus-option {next(iter(given))} is an argument of a bus"
+        raise ConfigError(f"{what}: give --interface and --channel too (the simulated rig has no bus)")
+    named = ("interface", "channel", "bitrate")  # first, for messages that show the settings
+    merged = {**{k: v for k, v in configured.items() if k not in named or v}, **given, **flags}
+    settings = {**{k: merged[k] for k in named if k in merged}, **{k: v for k, v in merged.items() if k not in named}}
+    origin = {k: sources[k] for k in settings if k not in flags and k not in given and k in sources}
+
+    def source(key: str) -> str:
+        """The flag, variable or file that gave ``key``, for a message."""
+        if key in flags or key in given:
+            return f"--{key}" if key in flags else f"--bus-option {key}"
+        where = origin.get(key, "")
+        return where if where in ENVIRONMENT.values() else f"{key} in {where}" if where else key
+
     valid = sorted(can.interfaces.VALID_INTERFACES)
     if not settings.get("interface"):
-        given = f"--channel {channel} needs --interface" if channel is not None else "--interface is empty"
-        raise ConfigError(f"{given}: give the python-can interface of the adapter, one of "
+        what = (f"--channel {channel} needs --interface" if channel is not None else
+                "--interface is empty" if interface is not None else
+                f"{source('channel')} needs an interface" if settings.get("channel") else
+                "the bus options need an interface")
+        raise ConfigError(f"{what}: give the python-can interface of the adapter, one of "
                           f"{', '.join(valid)} (e.g. --interface socketcan --channel can0, or --interface slcan "
                           "--channel socket://127.0.0.1:5000); or set CAN_INTERFACE")
-    if settings["interface"] not in can.interfaces.VALID_INTERFACES:
-        raise ConfigError(f"{source['interface']} {settings['interface']!r}: python-can has no such interface; use "
+    if not isinstance(settings["interface"], str) or settings["interface"] not in can.interfaces.VALID_INTERFACES:
+        raise ConfigError(f"{source('interface')} {settings['interface']!r}: python-can has no such interface; use "
                           f"one of {', '.join(valid)}")
-    if settings["interface"] in _NEEDS_CHANNEL and not settings.get("channel"):
-        raise ConfigError(f"{source['interface']} {settings['interface']} needs --channel: the adapter's port or "
-                          f"address, e.g. --channel {_NEEDS_CHANNEL[settings['interface']]} (or set CAN_CHANNEL)")
     if "bitrate" in settings:
         try:
             settings["bitrate"] = int(settings["bitrate"])
         except (TypeError, ValueError):
-            raise ConfigError(f"{source['bitrate']} {settings['bitrate']!r}: not a bit rate; give bits per second, "
+            raise ConfigError(f"{source('bitrate')} {settings['bitrate']!r}: not a bit rate; give bits per second, "
                               "e.g. 500000") from None
         if settings["bitrate"] <= 0:
-            raise ConfigError(f"{source['bitrate']} {settings['bitrate']}: give bits per second above 0, e.g. 500000")
-    return settings
+            raise ConfigError(f"{source('bitrate')} {settings['bitrate']}: give bits per second above 0, e.g. 500000")
+    by_source: dict[str, list[str]] = {}
+    for key, where in origin.items():
+        by_source.setdefault(where, []).append(key)
+    bus = BusSettings(settings, "; ".join(f"{', '.join(keys)} from {where}" for where, keys in by_source.items()))
+    check_interface(bus)
+    return bus
 
 
 def check_history_url(url: str | None) -> None:

@@ -13,7 +13,7 @@ from edc_bench.cli.exit_codes import ExitCode
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
-    from edc_bench.cli.common import add_variant_arguments, bit_rate
+    from edc_bench.cli.common import add_bus_arguments, add_variant_arguments
 
     p = sub.add_parser(
         "rig-check", help="check a rig against ICD v1 (GO / NO-GO), before its first valve",
@@ -25,9 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "rig in simulated time (with --break, one that breaks a rule). Writes rig-check.json and a "
                     "one-page rig-check.pdf. Exit 0 for GO, 15 for NO-GO.",
     )
-    p.add_argument("--interface", default=None, help="python-can interface, e.g. slcan, socketcan, pcan")
-    p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
-    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    add_bus_arguments(p)
     add_variant_arguments(p)
     p.add_argument("--commands", type=_commands, default=2000, metavar="N",
                    help="commands in the reply-latency run, at 1 kHz (default 2000)")
@@ -68,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.errors import ConfigError
     from edc_bench.rigcheck.report import as_json, print_table, write_files
 
-    bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False)
+    bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False,
+                              options=args.bus_options)
     if bus_config is not None and (args.breaks or args.firmware != "python"):
         raise ConfigError("--break and --firmware apply to the simulated rig only: leave out --interface/--channel, "
                           "or them")

@@ -13,10 +13,10 @@ from edc_bench.cli.exit_codes import ExitCode
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
     from edc_bench.cli.common import (
+        add_bus_arguments,
         add_history_db_argument,
         add_rig_drift_argument,
         add_variant_arguments,
-        bit_rate,
         identity,
         seed_number,
     )
@@ -43,9 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_rig_drift_argument(p)
     p.add_argument("--firmware", choices=("python", "c"), default="python",
                    help="simulated rig: its firmware, python (the prototype, default) or c (the C core)")
-    p.add_argument("--interface", default=None, help="python-can interface of a rig, e.g. slcan, socketcan, pcan")
-    p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
-    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    add_bus_arguments(p, interface_help="python-can interface of a rig, e.g. slcan, socketcan, pcan")
     p.add_argument("--coil-temp-c", type=_coil_temp, default=None, metavar="C",
                    help="the reference valve's coil temperature (default: 20, a coil that has rested)")
     p.add_argument("--station", type=identity(), default=None,
@@ -83,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.selfcheck import Rig
 
     check_history_url(args.db)
-    bus = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False)
+    bus = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False, options=args.bus_options)
     simulated_only = [flag for flag, given in (("--rig-drift", args.rig_drift is not None),
                                                ("--seed", args.seed is not None),
                                                ("--firmware", args.firmware != "python")) if given]

@@ -205,35 +205,119 @@ class ClosingBus:
     def __init__(self, bus: can.BusABC) -> None:
         self.bus = bus
         self.close_error: str | None = None
+        self.closed = False
 
     def __enter__(self) -> can.BusABC:
         return self.bus
 
     def __exit__(self, *exc: object) -> None:
-        self.close_error = close_quietly(self.bus)
+        if not self.closed:  # closed once: a bus opened ahead of its test is closed by the test, or after it
+            self.closed = True
+            self.close_error = close_quietly(self.bus)
 
 
 def open_bus(config: dict[str, Any], default_bitrate: int) -> can.BusABC:
-    """Open a python-can bus from ``interface``/``channel``/``bitrate`` settings.
+    """Open a python-can bus from its settings (``interface``, ``channel``, ``bitrate`` and any further argument).
 
-    ``slcan`` gets :class:`BufferedSlcanBus`; on a ``socket://`` or pty
-    channel it does not wait for an adapter to wake up.
+    The settings are complete (:func:`edc_bench.cli.common.bus_settings` reads python-can's environment and
+    config files robustly): python-can is told to read no config of its own, which it would read in the
+    locale's encoding. ``slcan`` gets :class:`BufferedSlcanBus`; on a ``socket://`` or pty channel it does not
+    wait for an adapter to wake up. What python-can and the driver log while the bus opens is held back: a bus
+    that does not open is said in one line, and one that opens lets it out.
 
     Raises
     ------
     RigError
-        If the bus cannot be opened, naming the settings.
+        If the bus cannot be opened, whatever the driver raised: one line naming the settings, why, and what
+        the interface needs (a driver to install, a channel or argument to give).
     """
-    kwargs = dict(config)
-    kwargs.setdefault("bitrate", default_bitrate)
+    from edc_bench.runtime.bus_config import (
+        bus_problem,
+        exception_words,
+        python_can_voice,
+        replay_said_on_import,
+    )
+
+    bus: can.BusABC | None = None
+    refused: str | None = None
+    why = ""
+    with python_can_voice() as voice:
+        try:
+            bus = _open(config, default_bitrate)
+        except RigError as exc:  # said in full already
+            refused = str(exc)
+        except Exception as exc:  # noqa: BLE001 - whatever a driver raises (NameError of a missing library...)
+            why = exception_words(exc)
+        # a bus that failed half-way is gone here (its destructor's warning held back, not printed after the line)
+    if refused is not None:
+        raise RigError(refused)
+    if bus is None:
+        raise RigError(bus_problem(config, why, voice.lines()))
+    voice.replay()
+    replay_said_on_import(str(config.get("interface")))
+    return bus
+
+
+def _open(config: dict[str, Any], default_bitrate: int) -> can.BusABC:
+    """Open the bus; RigError (one line) for what is known before python-can is asked, anything for the rest."""
+    from edc_bench.runtime.bus_config import bus_keyword_arguments, bus_problem, check_interface
+
+    check_interface(config)  # bus_settings did for the commands; here for every other caller too (cached import)
+    interface = str(config.get("interface"))
+    kwargs = bus_keyword_arguments({**config, "bitrate": config.get("bitrate") or default_bitrate})
+    if interface == "socketcand":
+        problem = socketcand_problem(kwargs.get("host"), kwargs.get("port"))
+        if problem:
+            raise RigError(bus_problem(config, problem, channel=False))
+    if interface == "slcan":
+        kwargs.pop("interface")
+        channel = str(kwargs.pop("channel", ""))
+        if channel.startswith(("socket://", "/dev/pts")):
+            kwargs.setdefault("sleep_after_open", 0)  # no USB adapter to wait for
+        return BufferedSlcanBus(channel, **kwargs)
+    return can.Bus(ignore_config=True, **kwargs)
+
+
+#: How long a socketcand server may take to accept the connection and to greet.
+SOCKETCAND_TIMEOUT_S = 3.0
+
+
+def socketcand_problem(host: Any, port: Any) -> str | None:
+    """Why no socketcand server greets at ``host``:``port`` (None if one does), found within
+    :data:`SOCKETCAND_TIMEOUT_S`.
+
+    python-can's socketcand bus retries a refused connection for 10 s, logging each attempt, and waits without
+    limit for a server that accepts and says nothing; a look first makes those one line in a few seconds.
+    """
+    if not isinstance(port, int) or not 0 < port < 65536:
+        return f"--bus-option port={port}: not a port number; give socketcand's TCP port, 1 to 65535 (its default 29536)"
+    address = f"{host}:{port}"
     try:
-        if kwargs.get("interface") == "slcan":
-            kwargs.pop("interface")
-            channel = str(kwargs.pop("channel", ""))
-            if channel.startswith(("socket://", "/dev/pts")):
-                kwargs.setdefault("sleep_after_open", 0)  # no USB adapter to wait for
-            return BufferedSlcanBus(channel, **kwargs)
-        return can.Bus(**kwargs)
-    except (can.CanError, OSError, ValueError, ImportError) as exc:
-        where = ", ".join(f"{k}={v}" for k, v in config.items())
-        raise RigError(f"cannot open the CAN bus ({where}): {exc}") from None
+        sock = socket.create_connection((str(host), port), timeout=SOCKETCAND_TIMEOUT_S)
+    except socket.gaierror as exc:
+        return f"socketcand host {host!r} is not known here ({exc.strerror}); give its name or address"
+    except ConnectionRefusedError:
+        return (f"nothing listens at {address} (connection refused): start socketcand there (e.g. socketcand -i can0), "
+                "or give its --bus-option host= and port=")
+    except TimeoutError:
+        return (f"{address} did not answer within {SOCKETCAND_TIMEOUT_S:g} s: is the host up, socketcand running "
+                "there and the network between?")
+    except OSError as exc:
+        return f"cannot reach {address} ({exc.strerror or exc})"
+    greeting = b""
+    with sock:
+        try:
+            while b">" not in greeting and len(greeting) < 64:
+                chunk = sock.recv(64)
+                if not chunk:
+                    break
+                greeting += chunk
+        except TimeoutError:
+            return (f"{address} accepted the connection but said nothing within {SOCKETCAND_TIMEOUT_S:g} s (socketcand "
+                    "greets at once): is it socketcand's port?")
+        except OSError as exc:
+            return f"{address} dropped the connection ({exc.strerror or exc}): is it socketcand's port?"
+    text = greeting.decode("ascii", "replace").strip()
+    if not text.startswith("< hi >"):
+        return f"{address} is not a socketcand server: it greeted {text[:40]!r}, not '< hi >'; check the port"
+    return None
