@@ -603,19 +603,19 @@ class Variant(_Section):
                 f" the fade-in ({excitation.fade_s:g} s) and the convergence window "
                 f"({self.acceptance.convergence_window_s:g} s) need more than {shortest_s:g} s"
             )
-        period_ms = self.controller.period_s * 1e3
-        if rig.watchdog_ms <= 2 * period_ms:  # a command each tick, and one late tick, must not trip it
-            raise ValueError(
-                f"rig.watchdog_ms ({rig.watchdog_ms:g} ms) does not outlast two ticks of the loop "
-                f"(controller.period_s {period_ms:g} ms): the rig would go safe between commands; give more than "
-                f"{2 * period_ms:g} ms (the ICD's default is 20 ms)"
-            )
         nyquist_hz = 0.5 / self.controller.period_s
         fastest = max(t.frequency_hz for t in excitation.active_tones)
         if fastest > nyquist_hz / 10:
             raise ValueError(
                 f"excitation tone at {fastest} Hz is too fast for a {self.controller.period_s * 1e3:g} ms period: "
                 f"keep tones below {nyquist_hz / 10:g} Hz"
+            )
+        period_ms = self.controller.period_s * 1e3
+        if rig.watchdog_ms <= 2 * period_ms:  # a command each tick, and one late tick, must not trip it
+            raise ValueError(
+                f"rig.watchdog_ms ({rig.watchdog_ms:g} ms) does not outlast two ticks of the loop "
+                f"(controller.period_s {period_ms:g} ms): the rig would go safe between commands; give more than "
+                f"{2 * period_ms:g} ms (the ICD's default is 20 ms)"
             )
         reach_mm = max(rack.mid_stroke_mm, rack.stroke_mm - rack.mid_stroke_mm)
         if abs(coil.force_constant_variation_per_mm) * reach_mm >= 0.9:

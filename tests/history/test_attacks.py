@@ -221,7 +221,8 @@ def test_a_row_changed_with_the_triggers_off_breaks_the_chain_where_it_was_done(
 # --- a record tampered with and indexed again, on both databases --------------------------------------------------
 
 
-@pytest.fixture(params=["sqlite", "postgresql"])
+# on PostgreSQL in CI's slow pass (the default suite's 5 minutes): the same readers, the same refusals
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.slow)])
 def station_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
     if request.param == "sqlite":
         return f"sqlite:///{tmp_path / 'history.sqlite'}"

@@ -21,6 +21,7 @@ def good_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
                         figure=False)
 
 
+@pytest.mark.slow  # three tests as processes: CI's slow pass
 def test_a_damaged_history_says_how_to_test_on_and_how_to_rebuild(good_dir: Path, tmp_path: Path) -> None:
     path = tmp_path / "history.sqlite"
     url = f"sqlite:///{path}"

@@ -66,6 +66,7 @@ def password_server() -> Iterator[tuple[Path, int]]:
         shutil.rmtree(base, ignore_errors=True)
 
 
+@pytest.mark.slow  # a server of its own and every step as a process: CI's slow pass
 def test_the_pages_steps_set_a_chain_up_as_written(password_server: tuple[Path, int], tmp_path: Path) -> None:
     socket_dir, port = password_server
     psql = _pg_bin("psql")

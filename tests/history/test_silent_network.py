@@ -72,6 +72,7 @@ def _timed_lines(argv: list[str], env: dict[str, str]) -> tuple[list[tuple[float
     return lines, time.monotonic() - began, code
 
 
+@pytest.mark.slow  # a whole test as a process, in real time: CI's slow pass
 def test_a_test_shows_its_verdict_before_the_silent_history_and_ends_within_the_limit(silent_server: int,
                                                                                         tmp_path: Path) -> None:
     env = {**os.environ, "EDC_BENCH_DATA_DIR": str(tmp_path / "station"),
