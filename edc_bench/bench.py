@@ -209,6 +209,8 @@ def _run_loop(loop: BenchLoop, stream_can_log: Callable[[], Path] | None) -> tup
         except OSError as exc:  # a full disk, a folder that vanished: the frames stay in memory all the same
             loop.outcome.events.append(f"can.log could not be opened for streaming ({type(exc).__name__}: {exc}); "
                                        "every frame is kept in memory and written with the record")
+    # Ctrl-C ends the test as an abort (SAFE); with no caller's guard around this one (perf, rig-selfcheck) it is
+    # raised once the loop has ended, so that no one goes on with the cut test as if it were whole
     with interrupt_guard():
         if stream is None:
             return loop.run(), None

@@ -32,4 +32,12 @@ class RigError(EdcBenchError, RuntimeError):
 
 
 class RecordNotWrittenError(EdcBenchError, OSError):
-    """A test was measured, but its record could not be written (a full disk, a folder gone)."""
+    """A test was measured, but its record could not be written (a full disk, a folder gone); or what a command
+    makes (a baseline, a variant's gains) could not be written for a full disk. Exit code 74."""
+
+
+def disk_full(exc: OSError) -> bool:
+    """Whether ``exc`` says there is no room: the disk is full (ENOSPC) or the user's quota used up (EDQUOT)."""
+    import errno
+
+    return exc.errno in (errno.ENOSPC, errno.EDQUOT)

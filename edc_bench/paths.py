@@ -71,6 +71,12 @@ def atomic_write(path: Path, write: Callable[[Any], None], mode: str = "wb") -> 
         Receives the open temporary file and writes the content.
     mode : str
         ``"wb"`` or ``"w"``.
+
+    Raises
+    ------
+    OSError
+        If it cannot be written (``path`` unchanged, no temporary file left); an error that names no file (a full
+        disk's ENOSPC from a write) is raised again naming ``path``.
     """
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
@@ -83,8 +89,11 @@ def atomic_write(path: Path, write: Callable[[Any], None], mode: str = "wb") -> 
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.filename is None and exc.errno is not None:
+            # a write into a full disk names no file: name the one that was not written, for the one-line error
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
         raise
     dir_fd = os.open(path.parent, os.O_RDONLY)
     try:
@@ -97,3 +106,42 @@ def write_json_atomic(path: Path, data: Any) -> None:
     """Write ``data`` as JSON to ``path`` atomically, creating its folder."""
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, lambda f: json.dump(data, f), mode="w")
+
+
+def package_folders() -> tuple[Path, ...]:
+    """The folders of the installed package itself (``edc_bench``, ``firmware_proto``): read-only to the program.
+
+    Returns
+    -------
+    tuple of pathlib.Path
+        Resolved folders; in an editable install, the source tree's.
+    """
+    import importlib.util
+
+    import edc_bench
+
+    folders = [Path(edc_bench.__file__).resolve().parent]
+    spec = importlib.util.find_spec("firmware_proto")
+    if spec is not None and spec.submodule_search_locations:
+        folders += [Path(p).resolve() for p in spec.submodule_search_locations]
+    return tuple(folders)
+
+
+def inside_package(path: Path) -> bool:
+    """Whether ``path`` (existing or not) is one of :func:`package_folders` or lies inside one."""
+    resolved = Path(path).resolve()
+    return any(resolved == folder or folder in resolved.parents for folder in package_folders())
+
+
+def source_checkout() -> Path | None:
+    """The source tree this edc-bench runs from (a checkout, installed editable or on the path), else None.
+
+    Only a source tree may have its shipped files rebuilt (``edc-bench train --rebuild-shipped``); an installed
+    package (site-packages) never.
+    """
+    import edc_bench
+
+    root = Path(edc_bench.__file__).resolve().parent.parent
+    installed = any(part in ("site-packages", "dist-packages") for part in root.parts)
+    return root if not installed and (root / "pyproject.toml").is_file() and (root / "hatch_build.py").is_file() \
+        else None

@@ -247,7 +247,8 @@ def _rows(variant: Any) -> list[Row]:
             "`tracking_error_ticks`)", "abort, SAFE", "12", "lvdt_stuck"),
         Row("rig never READY", f"no READY heartbeat within `acceptance.ready_timeout_s` ({a.ready_timeout_s:g} s)",
             "no command sent", "12", "never-ready", safe="rig never driven"),
-        Row("Ctrl-C, SIGTERM", "stop request polled every tick", "abort, SAFE; further signals only noted", "130",
+        Row("Ctrl-C, SIGTERM", "stop request polled every tick and while waiting for READY",
+            "abort, SAFE, the record written; further signals only noted", "130",
             safe="SAFE at the next tick", says="`" + describe(Abort(AbortKind.INTERRUPTED)) + "`"),
         Row("a bug in the bench (an exception in the tick)", "caught by the loop", "abort, SAFE; record with the "
             "traceback; exit 70", "70", safe="SAFE at the next tick",
@@ -324,6 +325,17 @@ OTHER_BAD_INPUT = (
      '2'),
     ('a bus that does not open',
      '`cannot open the CAN bus (interface=socketcan, channel=nosuchcan0): ...`',
+     '3'),
+    ("any of python-can's interfaces whose driver or package is missing, or that lacks a channel or an argument it "
+     "requires (socketcand's host and port), by flag, environment or config file",
+     "`cannot open the CAN bus (interface=kvaser, channel=0): NameError: ... (python-can: Kvaser canlib is "
+     "unavailable.); kvaser needs Kvaser's CANlib driver ...`; `the socketcand interface needs --bus-option "
+     "host=192.168.1.10 and --bus-option port=29536 ...`",
+     '3'),
+    ("python-can's config file that cannot be read (binary, no `[default]` line, a lone `%`), a `CAN_CONFIG` that "
+     "is not a JSON object",
+     "`/home/bench/.canrc: not a config file python-can can read: line 1, 'interface = kvaser', comes before any "
+     "[section] line; ...` (a file in Latin-1, Windows-1252 or UTF-16 is read as such)",
      '3'),
     ('tune: no PID keeps the margins, or the variant file cannot be written',
      '`no PID gains keep 60 dB and 30 deg ...`; `cannot write the gains (...); copy the proposed gains ... by hand`',

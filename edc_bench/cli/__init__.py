@@ -45,8 +45,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``edc-bench``; returns the process exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
     _hide_history_passwords(argv)  # before parsing: argparse's errors quote the arguments
+    from edc_bench.runtime.signals import raise_on_interrupt
+
     try:
-        return _run(build_parser().parse_args(argv))
+        with raise_on_interrupt():  # SIGTERM means what Ctrl-C means, from here to the exit code
+            return _run(build_parser().parse_args(argv))
+    except KeyboardInterrupt:  # before the command could start: while the parser imports the commands
+        print("edc-bench: interrupted", file=sys.stderr)
+        return ExitCode.INTERRUPTED
     finally:
         _flush_redacting_streams()
 
@@ -78,11 +84,18 @@ def _run(args: argparse.Namespace) -> int:
         return ExitCode.OK
     except OSError as exc:
         message = path_problem(exc)
+        if message is None and exc.errno in _NO_ROOM:  # a write into a full disk names no file (os.write, fsync)
+            message = f"{exc.strerror or 'no space left'}: {_PATH_ADVICE[exc.errno]}"
         if message is None:
             return _internal_error(args.command, exc)
         print(printable(f"edc-bench {args.command}: error: {message}"), file=sys.stderr)
         return ExitCode.RECORD_NOT_WRITTEN if exc.errno in _NO_ROOM else ExitCode.BAD_INPUT
     except Exception as exc:  # noqa: BLE001 - the last line of defence for the technician
+        from edc_bench.runtime.signals import interrupt_raised
+
+        if interrupt_raised():  # a library cut short by Ctrl-C may say so in an error of its own: still Ctrl-C
+            print(f"edc-bench {args.command}: interrupted", file=sys.stderr)
+            return ExitCode.INTERRUPTED
         return _internal_error(args.command, exc)
 
 

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from edc_bench.cli.common import bit_rate, count_up_to, identity, seed_number
+from edc_bench.cli.common import add_bus_arguments, count_up_to, identity, seed_number
 from edc_bench.cli.exit_codes import ExitCode
 
 
@@ -47,9 +47,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=seed_number, default=None,
                    help="seed of the simulated rig's noise or the simulated population (default: 100 plus the "
                         "tests already in the baseline; each test adds its number)")
-    p.add_argument("--interface", default=None, help="python-can interface of a real rig")
-    p.add_argument("--channel", default=None, help="python-can channel of a real rig")
-    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate")
+    add_bus_arguments(p, interface_help="python-can interface of a real rig, e.g. slcan, socketcan, pcan",
+                      channel_help="python-can channel of a real rig, e.g. socket://127.0.0.1:5000 or can0")
     p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
                    help="folder for the calibration tests' records (default: ./records), as in 'edc-bench test'")
     p.add_argument("--station", type=identity(), default=None,
@@ -58,19 +57,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the tests, pool them, print and write the baseline."""
-    from edc_bench.runtime.signals import interrupt_guard
+    """Run the tests, pool them, print and write the baseline.
 
-    with interrupt_guard():
-        return _run(args)
-
-
-def _run(args: argparse.Namespace) -> int:
+    Ctrl-C or SIGTERM ends the calibration with no baseline printed or written (exit 130): a test on a rig ends
+    first as an abort (SAFE sent, its record written); a simulated population stops at once.
+    """
     from edc_bench.cli.common import bus_settings
     from edc_bench.config import load_variant
     from edc_bench.errors import ConfigError
+    from edc_bench.runtime.signals import interrupt_guard
 
-    bus = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False)
+    bus = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=False, options=args.bus_options)
     rig = bus is not None
     if rig and args.valve is not None:
         raise ConfigError("--valve simulates a valve on the simulated rig; with --interface/--channel the valve is "
@@ -83,11 +80,12 @@ def _run(args: argparse.Namespace) -> int:
     target, earlier = _target_and_earlier(args, variant)
     # each appended run of a simulated valve gets fresh noise unless a seed is given
     seed = args.seed if args.seed is not None else 100 + len(earlier)
-    if rig:
-        measured = _rig_tests(args, bus, variant, tests)
-    elif args.valve is not None:
-        measured = _simulated_rig_tests(args, variant, tests, seed)
-    else:
+    if rig or args.valve is not None:
+        # a test ends safely and keeps its record, then the guard raises the interrupt: no more tests, no baseline
+        with interrupt_guard():
+            measured = (_rig_tests(args, bus, variant, tests) if rig
+                        else _simulated_rig_tests(args, variant, tests, seed))
+    else:  # no rig and no record: Ctrl-C stops the population where it is
         from edc_bench.population.calibrate import population_tests
 
         print(f"calibrating {variant.name} on {tests} simulated new valves (seed {seed})", file=sys.stderr)
@@ -262,16 +260,22 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str
     """Write the test's record and print its line; the test as a baseline entry if it converged."""
 
     from edc_bench.errors import RecordNotWrittenError
-    from edc_bench.records.record import write_record
+    from edc_bench.records.record import missing_files, write_record
     from edc_bench.verdict.baseline import BaselineTest
     from edc_bench.verdict.verdicts import Verdict
 
     try:
         record = write_record(result, args.out, figure=False)
+        missing = missing_files(record)
     except OSError as exc:  # the baseline names each test's record: without it, no baseline
         raise RecordNotWrittenError(f"the record of test {n + 1}/{tests} could not be written under {args.out} "
                                     f"({type(exc).__name__}: {exc}); no baseline was written: free space or give "
                                     "another --out, then calibrate again") from None
+    if missing:  # nor with a record that lacks its data (a full disk part way)
+        raise RecordNotWrittenError(f"the record of test {n + 1}/{tests} in {record} is incomplete ("
+                                    + "; ".join(f"{k}: {v}" for k, v in missing.items())
+                                    + "); no baseline was written: free space or give another --out, then calibrate "
+                                      "again")
     head = f"test {n + 1}/{tests}"
     if result.verdict != Verdict.UNCLASSIFIED:  # INVALID, or a coil out of spec (FAIL): not a new valve's figures
         print(f"{head}: {result.verdict}, not used: {'; '.join(result.reasons)} (record {record})", file=sys.stderr)

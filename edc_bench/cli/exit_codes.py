@@ -29,7 +29,7 @@ class ExitCode(enum.IntEnum):
     RIG_ERROR = 3
     INTERRUPTED = 130
     INTERNAL_ERROR = 70
-    RECORD_NOT_WRITTEN = 74  # test, calibrate: a record could not be written anywhere (sysexits' EX_IOERR)
+    RECORD_NOT_WRITTEN = 74  # a full disk: a record (or a baseline, a report) not written whole (sysexits' EX_IOERR)
 
 
 def exit_code_for(verdict: str) -> ExitCode:
@@ -57,8 +57,10 @@ MEANINGS: dict[int, str] = {
     ExitCode.BAD_INPUT: "bad input: the message names what was wrong and how to fix it; nothing was done",
     ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
     ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
-    ExitCode.INTERRUPTED: "interrupted (Ctrl-C or SIGTERM); a test's record is still written",
-    ExitCode.RECORD_NOT_WRITTEN: "a measured test's record could not be written anywhere (a full disk): not saved",
+    ExitCode.INTERRUPTED: "interrupted (Ctrl-C or SIGTERM); a started test's record is still written, nothing "
+                          "else cut short is saved",
+    ExitCode.RECORD_NOT_WRITTEN: "a full disk: a record, baseline or report could not be written whole (a test's "
+                                 "verdict is printed all the same)",
 }
 
 #: What 0 means for each command (default: done).
@@ -72,7 +74,7 @@ SUCCESS: dict[str, str] = {
     "rig": "the rig was stopped (Ctrl-C or SIGTERM)",
 }
 
-#: The codes each command can return; every command can also return 2, 70 and 130 (:data:`ALWAYS`).
+#: The codes each command can return; every command can also return 2, 70, 74 and 130 (:data:`ALWAYS`).
 COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "test": (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL, ExitCode.INVALID, ExitCode.RIG_ERROR,
              ExitCode.RECORD_NOT_WRITTEN),
@@ -96,8 +98,8 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "rig-selfcheck": (ExitCode.OK, ExitCode.RIG_ERROR, ExitCode.RIG_DRIFTED, ExitCode.NO_REFERENCE_VALVE),
 }
 
-#: Codes any command can return: bad input (argparse too), a bug, Ctrl-C.
-ALWAYS = (ExitCode.BAD_INPUT, ExitCode.INTERNAL_ERROR, ExitCode.INTERRUPTED)
+#: Codes any command can return: bad input (argparse too), a bug, a full disk, Ctrl-C or SIGTERM.
+ALWAYS = (ExitCode.BAD_INPUT, ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN, ExitCode.INTERRUPTED)
 
 #: The short names of README's sentence ("Exit codes: 0 PASS, 10 MARGINAL, ...").
 SHORT_NAMES: dict[int, str] = {

@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from edc_bench.cli.common import (
+    add_bus_arguments,
     add_history_db_argument,
     add_rig_drift_argument,
-    bit_rate,
     identity,
     seed_number,
 )
@@ -34,9 +34,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH",
                    help="the pump type tested until a part number is scanned (default: p-edc-default)")
-    p.add_argument("--interface", default=None, help="python-can interface of a real rig, e.g. slcan, socketcan")
-    p.add_argument("--channel", default=None, help="python-can channel, e.g. can0 or socket://127.0.0.1:5000")
-    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    add_bus_arguments(p, interface_help="python-can interface of a real rig, e.g. slcan, socketcan",
+                      channel_help="python-can channel, e.g. can0 or socket://127.0.0.1:5000")
     p.add_argument("--seed", type=seed_number, default=0,
                    help="simulated rig: the first test's noise seed; each later test takes the next (default: 0)")
     p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
@@ -65,19 +64,32 @@ def run(args: argparse.Namespace) -> int:
         print("edc-bench session: needs a terminal (it is a full-screen app); for scripts use 'edc-bench test'",
               file=sys.stderr)
         return ExitCode.BAD_INPUT
-    bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True)
-    if bus_config is not None and args.rig_drift is not None:
-        from edc_bench.errors import ConfigError
+    from edc_bench.errors import ConfigError, RigError
 
+    try:
+        bus_config = bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True,
+                                  options=args.bus_options)
+    except RigError as exc:  # before the screen opens nothing has started: refused as input, the session's exit 2
+        raise ConfigError(str(exc)) from None
+    if bus_config is not None and args.rig_drift is not None:
         raise ConfigError("--rig-drift describes the simulated rig: leave it out on a bus")
     rig = RigChoice(bus_config=bus_config, first_seed=args.seed, rig_drift=args.rig_drift)
     app = make_app(args.variant, rig, args.out, args.db,
                    args.station or socket.gethostname(), args.operator or remembered_operator())
-    app.run()
+    from edc_bench.runtime.signals import interrupt_guard, stop_requested
+
+    # Ctrl-C or SIGTERM sent to the session (kill, a shutdown) is held back: a test running ends as an abort (SAFE,
+    # its record and history row kept), then the app ends the shift itself, and the terminal is left as it was
+    with interrupt_guard(reraise=False):
+        app.run()
+        interrupted = stop_requested()
     for line in app.shift.summary_lines():
         print(line)
     if app.summary_file is not None:
         print(f"shift summary: {app.summary_file}")
+    if interrupted:
+        print("edc-bench session: interrupted (Ctrl-C or SIGTERM); every test started has its record", file=sys.stderr)
+        return ExitCode.INTERRUPTED
     return ExitCode.OK
 
 

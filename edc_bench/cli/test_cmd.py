@@ -3,18 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from edc_bench.cli.common import (
     MAX_SEED,
+    add_bus_arguments,
     add_history_db_argument,
     add_rig_drift_argument,
     add_variant_arguments,
-    bit_rate,
     identity,
     print_quietly_if_closed,
     seed_number,
@@ -42,9 +44,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="override the variant's estimator (rls: recursive least squares; gradient: the paper's law)")
     p.add_argument("--realtime", action="store_true",
                    help="run in real time; without a bus, starts the simulated rig as a process and drives it over slcan")
-    p.add_argument("--interface", default=None, help="python-can interface, e.g. slcan, socketcan, pcan")
-    p.add_argument("--channel", default=None, help="python-can channel, e.g. socket://127.0.0.1:5000 or can0")
-    p.add_argument("--bitrate", type=bit_rate, default=None, help="CAN bit rate (default: the ICD's 500000)")
+    add_bus_arguments(p)
     p.add_argument("--valve-id", type=identity(), default=None, metavar="ID",
                    help="identity of the valve under test, kept as given in the record and the history (at most "
                         "100 characters; default on the simulated rig in simulated time: its --valve SPEC; in real time: none, with a "
@@ -106,7 +106,7 @@ def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
     """Bus settings from flags, python-can's environment or config file (checked); None for the in-process rig."""
     from edc_bench.cli.common import bus_settings
 
-    return bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True)
+    return bus_settings(args.interface, args.channel, args.bitrate, configured_alone=True, options=args.bus_options)
 
 
 def _duration_s(text: str) -> float:
@@ -125,7 +125,9 @@ def _calibrate_command(variant: Any, bus_config: dict[str, Any] | None) -> str:
 
     words = ["--valve", "new"] if bus_config is None else [
         word for key in ("interface", "channel", "bitrate") if bus_config.get(key) is not None
-        for word in (f"--{key}", str(bus_config[key]))]
+        for word in (f"--{key}", str(bus_config[key]))] + [
+        word for key, value in bus_config.items() if key not in ("interface", "channel", "bitrate")
+        for word in ("--bus-option", f"{key}={value}")]
     return default_calibrate_command(variant, words)
 
 
@@ -184,7 +186,8 @@ def run(args: argparse.Namespace) -> int:
 
         check_history_url(args.history_db)  # a test is minutes; a wrong database is refused before it
         _check_chain_model(args)
-    with interrupt_guard():  # the first Ctrl-C aborts the test; later ones cannot cost the record
+    # the first Ctrl-C aborts the test; later ones cannot cost the record; 130 is said here, in this command's words
+    with interrupt_guard(reraise=False):
         code = _run_guarded(args)
         if stop_requested() and code not in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN):
             # the record is written (INVALID, "interrupted by the operator"); the exit code says who ended it
@@ -252,13 +255,37 @@ def _observer(args: argparse.Namespace, title: str) -> Any:
 
 def _run_guarded(args: argparse.Namespace) -> int:
     from edc_bench.cli.common import check_output_folder
-    from edc_bench.runtime.signals import stop_requested
-    from edc_bench.verdict.retest import retest_wanted
 
     check_output_folder(args.out, "--out")  # before the test, not after it
     variant = _variant(args)
     bus_config = _bus_config(args)
     _check_rig_flags(args, variant, bus_config)
+    with _bus_opened_ahead(bus_config) as opened:
+        return _test_and_retest(args, variant, bus_config, opened)
+
+
+@contextlib.contextmanager
+def _bus_opened_ahead(bus_config: dict[str, Any] | None) -> Iterator[Any]:
+    """The bus of the first test, opened before anything is said or shown: a bus that does not open is one line
+    (exit 3), not a warning and a panel before it. The test closes it; if the test never ran, leaving does."""
+    if bus_config is None:
+        yield None
+        return
+    from edc_bench.protocol import default_icd
+    from edc_bench.runtime.bus import ClosingBus, open_bus
+
+    opened = ClosingBus(open_bus(bus_config, default_icd().bitrate))
+    try:
+        yield opened
+    finally:
+        opened.__exit__(None, None, None)  # closes once: nothing left to do after the test closed it
+
+
+def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None, opened: Any) -> int:
+    """The test, and after a MARGINAL its retest (the first test on ``opened``, the bus opened ahead, if any)."""
+    from edc_bench.runtime.signals import stop_requested
+    from edc_bench.verdict.retest import retest_wanted
+
     simulated = bus_config is None and not args.realtime
     # a simulated valve is named by its spec; a valve on a bus is named only by the technician
     valve_id = args.valve_id or (args.valve if simulated else "")
@@ -266,7 +293,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
         print("edc-bench test: warning: no --valve-id: the record and the history name no valve (the bench cannot "
               "read it off the valve); give --valve-id ID to follow this valve in 'edc-bench history --trend' "
               "and 'edc-bench label'", file=sys.stderr)
-    first = _test_once(args, variant, bus_config, valve_id, args.seed, retest_of=None)
+    first = _test_once(args, variant, bus_config, valve_id, args.seed, retest_of=None, opened=opened)
     if (first.record_dir is None or first.code in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN)
             or stop_requested() or args.no_retest or not retest_wanted(first.result.verdict, variant.retest)):
         if args.json:
@@ -295,7 +322,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
         print_quietly_if_closed(lambda: print(f"\ndecision: {second.decision.verdict}, {second.decision.words} "
                                               f"(first test MARGINAL, retest {second.result.verdict}; "
                                               f"rule {second.decision.rule})"))
-    if stop_requested():
+    if stop_requested() or second.code == ExitCode.RECORD_NOT_WRITTEN:  # a retest's record missing a part: 74 too
         return second.code
     return exit_code_for(second.decision.verdict)
 
@@ -311,8 +338,9 @@ class _Tested:
 
 
 def _test_once(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None, valve_id: str, seed: int,
-               retest_of: _Tested | None) -> _Tested:
-    """Run one test on the rig the flags name, write its record, add it to the history and show its verdict."""
+               retest_of: _Tested | None, opened: Any = None) -> _Tested:
+    """Run one test on the rig the flags name (a bus: ``opened`` ahead, or here), write its record, add it to the
+    history and show its verdict."""
     folder: list[Path] = []
     options = _options(args, variant, bus_config, valve_id, folder)
     simulated = bus_config is None and not args.realtime
@@ -324,7 +352,8 @@ def _test_once(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any
     with _observer(args, title) as observer:
         if observer is not None:
             observer.phase("connect")
-        result, notes = _run(args, variant, bus_config, dataclasses.replace(options, observer=observer), seed)
+        result, notes = _run(args, variant, bus_config, dataclasses.replace(options, observer=observer), seed,
+                             opened)
     decision = retest = None
     if retest_of is not None:
         from edc_bench.verdict.retest import decide
@@ -383,8 +412,9 @@ def _options(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] 
 
 
 def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None,
-         options: Any, seed: int) -> tuple[Any, list[str]]:
-    """Run the test on the rig the flags name; the result, and what the record should note of the bus after it."""
+         options: Any, seed: int, opened: Any = None) -> tuple[Any, list[str]]:
+    """Run the test on the rig the flags name (on a bus: ``opened``, the :class:`~edc_bench.runtime.bus.ClosingBus`
+    opened ahead, else opened here); the result, and what the record should note of the bus after it."""
     from edc_bench.bench import run_bench_test, run_simulated_test
     from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.protocol import default_icd
@@ -404,20 +434,29 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     icd = default_icd()
     if bus_config is not None:
         log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
-        session = ClosingBus(open_bus(bus_config, icd.bitrate))
+        session = opened if opened is not None else ClosingBus(open_bus(bus_config, icd.bitrate))
         with session as bus:
             result = run_bench_test(bus, RealTimeClock(), variant, options)
         return result, _closing_notes(session)
+    from edc_bench.errors import RigError
+    from edc_bench.runtime.signals import stop_requested
     from edc_bench.sim.process import rig_process
 
     rig_status: dict[str, float] = {}
     drift = [] if args.rig_drift is None else ["--rig-drift", args.rig_drift.spec()]
-    with rig_process(args.variant, args.valve, seed, args.adapter, rig_status,
-                     extra=["--firmware", args.firmware, *drift]) as channel:
-        log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
-        session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
-        with session as bus:
-            result = run_bench_test(bus, RealTimeClock(), variant, options)
+    try:
+        with rig_process(args.variant, args.valve, seed, args.adapter, rig_status,
+                         extra=["--firmware", args.firmware, *drift]) as channel:
+            log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
+            session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
+            with session as bus:
+                result = run_bench_test(bus, RealTimeClock(), variant, options)
+    except RigError:
+        # Ctrl-C at the terminal reaches the rig process too (one process group): a rig that stopped for it while
+        # starting is the operator's interrupt (130), not a rig fault (3); no test started, so there is no record
+        if stop_requested():
+            raise KeyboardInterrupt from None
+        raise
     # the rig process's side of the timing (how long it once went without serving: a disturbed rig), known once it
     # has stopped
     simulation = {"rig_process": {"valve": args.valve, "seed": seed, "adapter": args.adapter,
@@ -445,14 +484,14 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
             retest: dict[str, str] | None = None) -> tuple[Path | None, int]:
     """Write the record, add it to the history, show the verdict (``--json``: the caller prints the summary); the
     record folder and the exit code."""
-    record_dir, record_error = _write_record(result, args, folder, notes, retest)
+    record_dir, record_error, whole = _write_record(result, args, folder, notes, retest)
     if record_dir is None:
         _report(args, result, None)
         print(f"edc-bench test: error: the record could not be written ({record_error}). The verdict above was "
               "not saved: free space on the disk or give a writable --out, then test the valve again.",
               file=sys.stderr)
         return None, ExitCode.RECORD_NOT_WRITTEN
-    if record_error:
+    if record_error and whole:
         print(f"edc-bench test: warning: {record_error}", file=sys.stderr)
     saved_elsewhere = not record_dir.resolve().is_relative_to(Path(args.out).resolve())  # moved later, added then
     abort = result.outcome.abort
@@ -470,8 +509,14 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
             print("saving the test to the history...", file=sys.stderr, flush=True)
         history_error = _index(record_dir, args.history_db)
         if history_error:
-            print(f"edc-bench test: warning: the history was not updated ({history_error}); the record is complete. "
-                  f"Add it later with: edc-bench history --add {record_dir}", file=sys.stderr)
+            print(f"edc-bench test: warning: the history was not updated ({history_error}); the record is "
+                  f"{'complete' if whole else 'on disk'}. Add it later with: edc-bench history --add {record_dir}",
+                  file=sys.stderr)
+    if not whole:  # a record missing a part (a full disk part way) is no clean exit: the verdict stands, its data not
+        print(f"edc-bench test: error: {record_error}. The verdict above stands, but the test cannot be replayed "
+              f"or shown whole from {record_dir}: free space on the disk, then test the valve again.",
+              file=sys.stderr)
+        return record_dir, ExitCode.RECORD_NOT_WRITTEN
     return record_dir, exit_code_for(result.verdict)
 
 
@@ -490,26 +535,29 @@ def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> N
 
 
 def _write_record(result: Any, args: argparse.Namespace, folder: Path | None, notes: list[str],
-                  retest: dict[str, str] | None = None) -> tuple[Path | None, str | None]:
+                  retest: dict[str, str] | None = None) -> tuple[Path | None, str | None, bool]:
     """Write the record under ``--out``; if its record.json cannot be written (a full disk), into a new folder in
     the temp folder.
 
     Returns
     -------
-    (folder, problem)
-        The record folder (None if it could not be written anywhere) and what went wrong on the way.
+    (folder, problem, whole)
+        The record folder (None if it could not be written anywhere), what went wrong on the way, and whether the
+        record holds every data file (a trace or CAN log the disk had no room for leaves it incomplete).
     """
     import tempfile
 
     from edc_bench.records.record import missing_files, write_record
 
+    def incomplete(written: Path) -> str | None:
+        missing = missing_files(written)
+        return "; ".join(f"{k}: {v}" for k, v in missing.items()) if missing else None
+
     try:
         written = write_record(result, args.out, figure=not args.no_figure, folder=folder, notes=notes,
                                retest=retest)
-        missing = missing_files(written)
-        if not missing:
-            return written, None
-        return written, "the record is incomplete: " + "; ".join(f"{k}: {v}" for k, v in missing.items())
+        missing = incomplete(written)
+        return written, None if missing is None else f"the record is incomplete: {missing}", missing is None
     except OSError as exc:
         first = f"{type(exc).__name__}: {exc}"
     where = f" (what was written is in {folder})" if folder is not None else ""
@@ -518,10 +566,14 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None, no
         fallback = Path(tempfile.mkdtemp(prefix="edc-bench-record-"))
         written = write_record(result, fallback, figure=False, folder=fallback, notes=notes, retest=retest)
     except OSError as exc:
-        return None, f"under {args.out}: {first}; in the temp folder: {type(exc).__name__}: {exc}"
+        return None, f"under {args.out}: {first}; in the temp folder: {type(exc).__name__}: {exc}", False
+    missing = incomplete(written)
+    if missing is not None:
+        return written, (f"the record could not be written under {args.out} ({first}), and in {written} it is "
+                         f"incomplete: {missing}"), False
     return written, (f"the record could not be written under {args.out} ({first}); it was saved to {written} "
                      "instead and is not in the history: move it to the records folder once there is room, then "
-                     "add it with: edc-bench history --add FOLDER")
+                     "add it with: edc-bench history --add FOLDER"), True
 
 
 def _index(record_dir: Path, url: str | None) -> str | None:

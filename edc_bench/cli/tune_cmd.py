@@ -90,10 +90,13 @@ def _values(gains: PidGains) -> tuple[float, float, float, float]:
 
 def _write_gains(file: Path, gains: PidGains) -> None:
     """Replace the gains in the file's [controller] table, keeping every comment and the layout."""
+    import contextlib
+
     import tomlkit
 
     from edc_bench.errors import ConfigError
 
+    temporary = file.with_name(f".{file.name}.tune")
     try:
         document = tomlkit.parse(file.read_text(encoding="utf-8"))
         table = document["controller"]
@@ -101,9 +104,14 @@ def _write_gains(file: Path, gains: PidGains) -> None:
                               _values(gains), strict=True):
             table[key] = value
         text = tomlkit.dumps(document)
-        temporary = file.with_name(f".{file.name}.tune")
         temporary.write_text(text, encoding="utf-8")
         temporary.replace(file)  # a crash never leaves half a variant file
     except OSError as exc:
-        raise ConfigError(f"{file}: cannot write the gains ({exc.strerror}); copy the proposed gains into its "
-                          "[controller] table by hand") from None
+        from edc_bench.errors import RecordNotWrittenError, disk_full
+
+        if temporary.is_file():  # what a full disk let through is no variant file
+            with contextlib.suppress(OSError):
+                temporary.unlink()
+        error = RecordNotWrittenError if disk_full(exc) else ConfigError  # a full disk is exit 74, as everywhere
+        raise error(f"{file}: cannot write the gains ({exc.strerror}); copy the proposed gains into its "
+                    "[controller] table by hand") from None

@@ -7,8 +7,17 @@ exception at an arbitrary point (an exception between a lock's acquire and
 its release would leave the lock held, and the SAFE commands could then
 hang on it). The loop ends the test as an abort with SAFE commands; the
 record is still written; further signals are only noted. Guards nest; the
-outermost installs and restores the handlers. A signal the parent process
-set to be ignored stays ignored.
+outermost installs and restores the handlers, and at its end raises the
+interrupt it held back as :class:`KeyboardInterrupt` (unless its owner says
+the interrupt itself), so that no caller goes on as if the test had run
+whole. A signal the parent process set to be ignored stays ignored.
+
+Outside a guard, :func:`raise_on_interrupt` makes SIGTERM raise
+:class:`KeyboardInterrupt` as Ctrl-C does (the two mean the same everywhere),
+and notes that it did (:func:`interrupt_raised`): a library interrupted in
+the middle of its work may turn the :class:`KeyboardInterrupt` into an error
+of its own (a compiled module's ``ImportError: initialization failed``,
+pydantic's ``SchemaError``), which is still the operator's interrupt.
 """
 
 from __future__ import annotations
@@ -20,7 +29,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 _SIGNALS = {signal.SIGINT, signal.SIGTERM}
-_state: dict = {"depth": 0, "count": 0, "previous": {}}
+_state: dict = {"depth": 0, "count": 0, "previous": {}, "raised": False}
 
 
 def _handler(signum: int, frame: object) -> None:
@@ -35,8 +44,18 @@ def stop_requested() -> bool:
 
 
 @contextmanager
-def interrupt_guard() -> Iterator[None]:
-    """Within the block, Ctrl-C and SIGTERM request a stop (see :func:`stop_requested`) instead of raising."""
+def interrupt_guard(*, reraise: bool = True) -> Iterator[None]:
+    """Within the block, Ctrl-C and SIGTERM request a stop (see :func:`stop_requested`) instead of raising.
+
+    Parameters
+    ----------
+    reraise : bool
+        At the end of the outermost guard, raise :class:`KeyboardInterrupt` if a signal came during it (the test
+        has ended safely and its record is written by then): a caller that does not look at
+        :func:`stop_requested` can never report an interrupted test as a whole one. False for the owner that
+        says the interrupt itself (``edc-bench test``'s exit code 130 with its own words). A block that ends by
+        an exception raises that one.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -50,7 +69,42 @@ def interrupt_guard() -> Iterator[None]:
         yield
     finally:
         _state["depth"] -= 1
-        if _state["depth"] == 0:
+        outermost = _state["depth"] == 0
+        if outermost:
             for sig, previous in _state["previous"].items():
-                signal.signal(sig, previous)
+                signal.signal(sig, signal.SIG_DFL if previous is None else previous)
             _state["previous"] = {}
+    if outermost and reraise and _state["count"] > 0:
+        raise KeyboardInterrupt
+
+
+def _raise(signum: int, frame: object) -> None:
+    _state["raised"] = True
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def raise_on_interrupt() -> Iterator[None]:
+    """Within the block, Ctrl-C and SIGTERM raise :class:`KeyboardInterrupt` (a service manager's stop, a
+    shutdown, ``kill``: the same exit 130 as Ctrl-C, not a process killed mid-write), and
+    :func:`interrupt_raised` says one did.
+
+    Only in the main thread; a signal the parent process set to be ignored stays ignored. Guards inside the
+    block (:func:`interrupt_guard`) hold both signals back as usual and put this back at their end.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _state["raised"] = False
+    previous = {sig: signal.signal(sig, _raise) for sig in _SIGNALS if signal.getsignal(sig) is not signal.SIG_IGN}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)  # None: not set from Python
+
+
+def interrupt_raised() -> bool:
+    """True once Ctrl-C or SIGTERM has raised :class:`KeyboardInterrupt` in a :func:`raise_on_interrupt` block
+    (whatever a library made of it since)."""
+    return _state["raised"]

@@ -24,6 +24,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Label, Static
 
+from edc_bench.runtime.signals import stop_requested
 from edc_bench.session.rig_selfcheck import SelfCheckWords, SessionSelfCheck
 from edc_bench.session.runner import SessionRunner, ValveDone
 from edc_bench.session.scan import PROMPTS, Scan, Step, read_line
@@ -158,6 +159,7 @@ class SessionApp(App[None]):
 
     def on_mount(self) -> None:
         self.set_interval(0.25, self._draw_live)
+        self.set_interval(0.1, self._check_interrupt)
         self._show_status()
         if not self.shift.operator:
             self.push_screen(OperatorScreen(""), self._operator_named)
@@ -405,8 +407,24 @@ class SessionApp(App[None]):
         if self.testing:
             self._say("a test is running: the shift ends after its verdict (press Ctrl+Q again then)")
             return
+        self._end_shift()
+
+    def _end_shift(self) -> None:
         try:
             self.summary_file = self.shift.write(self.shift_folder)
         except OSError as exc:
             self._say(f"the shift summary could not be written ({exc}); it is shown below")
         self.exit()
+
+    def _check_interrupt(self) -> None:
+        """Ctrl-C or SIGTERM sent to the session's process (``edc-bench session`` holds them back,
+        :func:`~edc_bench.runtime.signals.interrupt_guard`): a test running sees it too and ends as an abort, SAFE
+        sent and its record kept; once no test runs, the shift ends as by Ctrl+Q, its summary saying why."""
+        if not stop_requested() or self.shift.interrupted:
+            return
+        if self.testing:
+            self._say("interrupted (Ctrl-C or SIGTERM): the test stops safely and keeps its record; the shift ends "
+                      "then")
+            return
+        self.shift.interrupted = True
+        self._end_shift()

@@ -60,6 +60,7 @@ class SessionSelfCheck:
         """Run the check now (the reference valve mounted); its words, stored in the ledger."""
         from edc_bench.config import load_variant
         from edc_bench.history.store import HistoryStore
+        from edc_bench.runtime.signals import stop_requested
         from edc_bench.selfcheck import Rig, no_reference_line, rig_check_row, run_selfcheck
 
         with HistoryStore(self.history_url) as store:
@@ -74,6 +75,9 @@ class SessionSelfCheck:
             seed = (registration.seed or 0) + 1 + len(store.rig_checks(self.station, registration.id))
             rig = Rig(bus=self.rig.bus_config, drift=self.rig.rig_drift)
             check = run_selfcheck(rig, registration, variant, seed=seed)
+            if stop_requested():  # Ctrl-C or SIGTERM cut the reference valve's test: its figures judge nothing
+                return SelfCheckWords(None, "rig self-check interrupted (Ctrl-C or SIGTERM): not stored; run it "
+                                            "again")
             store.add_rig_check(rig_check_row(check, self.station, self.by()))
         self.checks += 1
         return SelfCheckWords(check.result.go, check.result.line())

@@ -132,8 +132,11 @@ class SessionRunner:
             Called with ``"test"`` or ``"retest"`` before each test; returns the test's
             :class:`~edc_bench.runtime.loop.LoopObserver` (or None).
         """
+        from edc_bench.runtime.signals import stop_requested
+
         first = self.run_test(variant, valve_id, pump_serial, observer("test") if observer else None)
-        if first.record_dir is None or not retest_wanted(first.result.verdict, variant.retest):
+        if (first.record_dir is None or stop_requested()  # interrupted: no retest is started
+                or not retest_wanted(first.result.verdict, variant.retest)):
             return ValveDone(valve_id, pump_serial, variant.name, (first,), None)
         second = self.run_test(variant, valve_id, pump_serial, observer("retest") if observer else None,
                                retest_of=first)
@@ -184,7 +187,8 @@ class SessionRunner:
 
     def _store(self, result: Any, folder: Path | None, retest: dict[str, str] | None) -> TestDone:
         from edc_bench.history.store import index_record_dir
-        from edc_bench.records.record import write_record
+        from edc_bench.records.record import missing_files, write_record
+        from edc_bench.runtime.signals import stop_requested
 
         problems: list[str] = []
         try:
@@ -192,6 +196,11 @@ class SessionRunner:
         except OSError as exc:
             return TestDone(result, None, None, (f"the record could not be written ({exc}): free space on the disk, "
                                                  "then test the valve again",))
+        missing = missing_files(record_dir)
+        if missing:  # a full disk part way: the verdict stands, the record lacks data
+            problems.append(f"the record {record_dir.name} is incomplete ("
+                            + "; ".join(f"{k}: {v}" for k, v in missing.items())
+                            + "): free space on the disk, then test the valve again")
         indexed = True
         try:  # indexed first: the report's page 1 prints the test's chain hash
             index_record_dir(record_dir, self.history_url)
@@ -202,7 +211,9 @@ class SessionRunner:
             problems.append(redact(f"the history was not updated ({type(exc).__name__}: {exc}); add it later with: "
                                    f"edc-bench history --add {record_dir}", known_secrets(self.history_url)))
         report_pdf = None
-        if self.report:
+        if self.report and stop_requested():  # the session is ending (Ctrl-C or SIGTERM): no seconds spent drawing
+            problems.append(f"no report drawn (interrupted); draw it with: edc-bench report {record_dir}")
+        elif self.report:
             try:
                 from edc_bench.history.standing import history_standing
                 from edc_bench.records.reader import load_record

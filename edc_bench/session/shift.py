@@ -49,6 +49,7 @@ class ShiftLog:
     started: str = field(default_factory=now_local)
     valves: list[ValveEntry] = field(default_factory=list)
     rig_checks: list[RigCheckEntry] = field(default_factory=list)
+    interrupted: bool = False  # ended by Ctrl-C or SIGTERM, not by the operator's Ctrl+Q
 
     @property
     def tests(self) -> int:
@@ -67,7 +68,9 @@ class ShiftLog:
                             if finals[name]) or "none"
         checks = Counter("GO" if c.go else "NO-GO" if c.go is False else "not run" for c in self.rig_checks)
         check_words = ", ".join(f"{n} {what}" for what, n in checks.items()) or "none"
-        return [f"shift of {self.operator or '?'} at {self.station}, {self.rig}, from {self.started} to {now_local()}",
+        ended = " (ended by Ctrl-C or SIGTERM)" if self.interrupted else ""
+        return [f"shift of {self.operator or '?'} at {self.station}, {self.rig}, from {self.started} to {now_local()}"
+                f"{ended}",
                 f"valves: {len(self.valves)} ({counted}); tests: {self.tests}; retests: {self.retests}",
                 f"rig self-checks: {check_words}"]
 
@@ -83,7 +86,7 @@ class ShiftLog:
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write(text_path, lambda f: f.write("\n".join(lines) + "\n"), mode="w")
         data = {"operator": self.operator, "station": self.station, "rig": self.rig, "started": self.started,
-                "ended": now_local(), "valves": [asdict(v) for v in self.valves],
-                "rig_checks": [asdict(c) for c in self.rig_checks]}
+                "ended": now_local(), "ended_by": "interrupt" if self.interrupted else "operator",
+                "valves": [asdict(v) for v in self.valves], "rig_checks": [asdict(c) for c in self.rig_checks]}
         atomic_write(text_path.with_suffix(".json"), lambda f: json.dump(data, f, indent=2), mode="w")
         return text_path

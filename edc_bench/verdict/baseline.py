@@ -347,6 +347,8 @@ def write_baseline(path: Path, text: str) -> Path | None:
     ------
     ConfigError
         If the folder cannot be written.
+    RecordNotWrittenError
+        If the disk is full (or the quota used up).
     """
     from edc_bench.paths import atomic_write
 
@@ -366,6 +368,12 @@ def write_baseline(path: Path, text: str) -> Path | None:
             kept.write_bytes(path.read_bytes())
         atomic_write(path, lambda handle: handle.write(text), mode="w")
     except OSError as exc:
+        from edc_bench.errors import RecordNotWrittenError, disk_full
+
+        if disk_full(exc):  # exit 74 as every full disk, not 2: nothing was wrong with what was asked
+            raise RecordNotWrittenError(f"{path}: cannot write the baseline ({exc.strerror or exc}); the measured "
+                                        "tests are listed above: free space, then calibrate again, or write it "
+                                        "elsewhere with --baseline-file FILE") from None
         raise ConfigError(f"{path}: cannot write the baseline ({exc.strerror or exc}); the measured tests are "
                           "listed above: write it elsewhere with --baseline-file FILE") from None
     return kept

@@ -1,0 +1,73 @@
+"""The interrupt guard and the CLI's handlers, in process: Ctrl-C and SIGTERM alike, held back inside a guard and
+raised at its end unless its owner says the interrupt itself (#52)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import pytest
+
+from edc_bench.runtime.signals import interrupt_guard, interrupt_raised, raise_on_interrupt, stop_requested
+
+
+def _signal_self(sig: int) -> None:
+    """Send ``sig`` to this process and give Python the moment to run its handler."""
+    os.kill(os.getpid(), sig)
+    for _ in range(100):  # the handler runs between bytecodes of the main thread: at once, in practice
+        time.sleep(0.001)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_guard_holds_the_signal_back_then_raises_it_at_its_end(sig: int) -> None:
+    with pytest.raises(KeyboardInterrupt):
+        with interrupt_guard():
+            with interrupt_guard():  # the inner guard's end raises nothing: the outer one's work goes on
+                _signal_self(sig)
+                assert stop_requested()
+            reached = True
+    assert reached
+
+
+def test_the_owner_of_a_guard_may_say_the_interrupt_itself() -> None:
+    with interrupt_guard(reraise=False):
+        _signal_self(signal.SIGINT)
+        seen = stop_requested()
+    assert seen
+
+
+def test_an_error_in_the_block_is_raised_rather_than_the_interrupt() -> None:
+    with pytest.raises(ValueError):
+        with interrupt_guard():
+            _signal_self(signal.SIGTERM)
+            raise ValueError("the block's own")
+
+
+def test_a_guard_puts_the_handlers_back() -> None:
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    with interrupt_guard(reraise=False):
+        pass
+    assert {sig: signal.getsignal(sig) for sig in before} == before
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_outside_a_guard_both_signals_raise_and_are_noted(sig: int) -> None:
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(KeyboardInterrupt):
+        with raise_on_interrupt():
+            assert not interrupt_raised()
+            _signal_self(sig)
+    assert interrupt_raised()  # what a library made of the KeyboardInterrupt is still the operator's interrupt
+    assert signal.getsignal(signal.SIGTERM) == before
+
+
+def test_an_ignored_signal_stays_ignored() -> None:
+    previous = signal.signal(signal.SIGTERM, signal.SIG_IGN)  # nohup, a parent that ignores it for its children
+    try:
+        with raise_on_interrupt(), interrupt_guard(reraise=False):
+            _signal_self(signal.SIGTERM)
+            assert not stop_requested()
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGTERM, previous)
