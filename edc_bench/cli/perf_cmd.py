@@ -65,6 +65,16 @@ def _table(figures: list[Any], env: dict[str, Any]) -> None:
     print(f"CPU steal during the run: {env['cpu_steal_s']:.2f} s (this machine is a shared VM; see the notes)")
 
 
+def unjudged(figures: list[Any]) -> list[Any]:
+    """A quick run's figures with no target judged: its runs are too short for the targets (a smoke run), so a
+    'NO' there would say nothing of the station."""
+    import dataclasses
+
+    return [f if f.met is None else dataclasses.replace(
+        f, met=None, note="; ".join(filter(None, (f.note, "target not judged: a quick run is too short for it"))))
+        for f in figures]
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the chosen groups and report."""
     from edc_bench.perf import suite
@@ -85,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.json:
         print(f"edc-bench perf: {', '.join(groups)}{' (quick)' if args.quick else ''}", file=sys.stderr, flush=True)
     figures = suite.run(groups, quick=args.quick, variant_name=args.variant, on_figure=announce)
+    if args.quick:
+        figures = unjudged(figures)
     env["cpu_steal_s"] = cpu_steal_s() - env.pop("cpu_steal_at_start_s")
     if args.json:
         from edc_bench.records.writer import json_safe

@@ -66,3 +66,16 @@ def test_a_hand_edited_can_log_is_blamed_not_the_tests_own_variant(tmp_path: Pat
     with pytest.raises(ConfigError, match="the CAN log is not the one the test wrote") as refused:
         replay_record(folder)
     assert "this variant" not in str(refused.value)
+
+
+def test_a_quick_perf_run_judges_no_target() -> None:
+    from edc_bench.cli.perf_cmd import unjudged
+    from edc_bench.perf.figures import Figure
+
+    figures = [Figure("loop", "p99 lateness", 250.0, "us", target="< 300 us", met=True),
+               Figure("speed", "simulated test", 20.0, "x real time", target=">= 50x", met=False, note="2 tests"),
+               Figure("speed", "batch", 900.0, "tests/min")]
+    shown = unjudged(figures)
+    assert [f.met for f in shown] == [None, None, None]
+    assert shown[1].note == "2 tests; target not judged: a quick run is too short for it" and shown[2].note == ""
+    assert [f.target for f in shown] == [f.target for f in figures]  # the target still said, not judged
