@@ -8,9 +8,11 @@ Each row is written in one transaction, so a writer killed half-way leaves
 no partial row.
 
 Nothing stored is changed or deleted (:mod:`edc_bench.history.schema`): a
-record folder indexed again with other content is a new row, a withdrawal
-or a corrected finding is a row naming the row it concerns. Readers show
-the current state; :meth:`HistoryStore.audit` the whole chain.
+test is known by the id its record carries, its first indexing stands, and
+indexing it again with other content is a row every reader shows as a
+change; a withdrawal or a corrected finding is a row naming the row it
+concerns. Every row is hash-chained (:mod:`edc_bench.history.chain`).
+Readers show the current state; :meth:`HistoryStore.audit` the whole trail.
 
 The records stay the source of truth for tests: the tests table is an
 index, and ``edc-bench history --add FOLDER...`` rebuilds it from them.
