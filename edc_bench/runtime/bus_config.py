@@ -296,8 +296,9 @@ def _config_problem(exc: configparser.Error) -> str:
     if isinstance(exc, configparser.DuplicateOptionError):
         return f"{exc.option} twice in [{exc.section}] (line {exc.lineno})"
     if isinstance(exc, configparser.ParsingError):
-        lineno, line = exc.errors[0]  # the line as repr() shows it
-        return f"line {lineno}, {line if len(line) <= 42 else line[:38] + '...'}, is not KEY = VALUE"
+        lineno, line = exc.errors[0]  # as repr() shows it up to Python 3.12, the line itself from 3.13 on
+        shown = line if len(line) >= 2 and line[0] in "'\"" and line[-1] == line[0] else repr(line.rstrip("\r\n"))
+        return f"line {lineno}, {shown if len(shown) <= 42 else shown[:38] + '...'}, is not KEY = VALUE"
     if isinstance(exc, configparser.InterpolationError):
         return f"[{exc.section}] {exc.option}: a % must be written %% (python-can reads %(name)s as another key)"
     return str(exc).splitlines()[0]
