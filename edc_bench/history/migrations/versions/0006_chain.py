@@ -99,7 +99,11 @@ def _pg_stamp_function(table: str) -> str:
             "--station NAME)', session_user, session_user USING ERRCODE = 'insufficient_privilege'; END IF;")
     if table == "tests":
         # a row without its test's keys would group with every other such row: what it says gives them
-        specific.append(f"IF NEW.legacy_key IS NULL THEN NEW.legacy_key := {_LEGACY_KEY_SQL.replace('started_at', 'NEW.started_at').replace('valve_id', 'NEW.valve_id').replace('pump_serial', 'NEW.pump_serial').replace('|| station', '|| NEW.station')}; END IF;")
+        new_legacy_key = _LEGACY_KEY_SQL
+        for column in ("started_at", "valve_id", "pump_serial", "station"):
+            new_legacy_key = new_legacy_key.replace(f"{column} ||" if column != "station" else "|| station",
+                                                    f"NEW.{column} ||" if column != "station" else "|| NEW.station")
+        specific.append(f"IF NEW.legacy_key IS NULL THEN NEW.legacy_key := {new_legacy_key}; END IF;")
         specific.append("IF NEW.test_key IS NULL THEN NEW.test_key := 'folder:' || NEW.record_dir; END IF;")
         specific.append(
             "IF NOT trusted AND EXISTS (SELECT 1 FROM public.tests t WHERE (t.test_key = NEW.test_key OR t.legacy_key "
