@@ -1,4 +1,4 @@
-"""The chain: each test known by its own id, every row hash-chained, and on PostgreSQL the database decides who wrote it.
+"""The chain: each test known by its own id, every row hash-chained; on PostgreSQL the database decides who wrote it.
 
 - tests.test_key: the test's own id (record.json's ``test_id``, schema 8 on). Rows indexed before this revision,
   and records without an id, get a key from what the record says of when, which valve, which pump and where
