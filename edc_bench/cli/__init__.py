@@ -62,8 +62,14 @@ def _run(args: argparse.Namespace) -> int:
     from edc_bench.cli.common import printable
     from edc_bench.errors import EdcBenchError, RecordNotWrittenError, RigError
 
+    from edc_bench.runtime.signals import interrupt_raised
+
     try:
-        return int(args.run(args))
+        code = int(args.run(args))
+        if code == ExitCode.OK and interrupt_raised():  # a Ctrl-C Python swallowed, the command done all the same:
+            print(f"edc-bench {args.command}: interrupted", file=sys.stderr)  # still Ctrl-C
+            return ExitCode.INTERRUPTED
+        return code
     except RigError as exc:
         print(printable(f"edc-bench {args.command}: error: {exc}"), file=sys.stderr)
         return ExitCode.RIG_ERROR
@@ -91,8 +97,6 @@ def _run(args: argparse.Namespace) -> int:
         print(printable(f"edc-bench {args.command}: error: {message}"), file=sys.stderr)
         return ExitCode.RECORD_NOT_WRITTEN if exc.errno in _NO_ROOM else ExitCode.BAD_INPUT
     except Exception as exc:  # noqa: BLE001 - the last line of defence for the technician
-        from edc_bench.runtime.signals import interrupt_raised
-
         if interrupt_raised():  # a library cut short by Ctrl-C may say so in an error of its own: still Ctrl-C
             print(f"edc-bench {args.command}: interrupted", file=sys.stderr)
             return ExitCode.INTERRUPTED

@@ -97,11 +97,30 @@ def raise_on_interrupt() -> Iterator[None]:
         return
     _state["raised"] = False
     previous = {sig: signal.signal(sig, _raise) for sig in _SIGNALS if signal.getsignal(sig) is not signal.SIG_IGN}
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _raise_again
     try:
         yield
     finally:
+        sys.unraisablehook = previous_hook
         for sig, handler in previous.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)  # None: not set from Python
+
+
+def _raise_again(unraisable: object) -> None:
+    """Python ignores an exception raised where it cannot propagate (an import lock's callback, a destructor),
+    printing a traceback: a Ctrl-C that lands there would be lost. Raise it again, as the signal it was, so that it
+    reaches the command at its next step; anything else as Python would."""
+    if isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt):
+        import os
+
+        # sent again from another thread, once this hook has returned: raised here (raise_signal, interrupt_main run
+        # the handler at once) it would be ignored again; the handler raises at the main thread's next step
+        timer = threading.Timer(0.05, os.kill, args=(os.getpid(), signal.SIGINT))
+        timer.daemon = True
+        timer.start()
+        return
+    sys.__unraisablehook__(unraisable)  # type: ignore[arg-type]
 
 
 def interrupt_raised() -> bool:

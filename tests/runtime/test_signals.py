@@ -71,3 +71,26 @@ def test_an_ignored_signal_stays_ignored() -> None:
         assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def test_a_ctrl_c_python_would_ignore_is_raised_again() -> None:
+    """A KeyboardInterrupt raised where Python cannot let it propagate (a weakref's callback here, an import
+    lock's in the CI run that found it) is not lost: it reaches the code after it."""
+    import gc
+    import weakref
+
+    from edc_bench.runtime.signals import raise_on_interrupt
+
+    class Thing:
+        pass
+
+    with pytest.raises(KeyboardInterrupt), raise_on_interrupt():
+        thing = Thing()
+        def callback(_: object) -> None:
+            raise KeyboardInterrupt  # as the signal's handler raises it, in a place Python cannot let it out of
+
+        _ref = weakref.ref(thing, callback)
+        del thing
+        gc.collect()
+        for _ in range(100):  # the signal sent again arrives within moments
+            time.sleep(0.01)
