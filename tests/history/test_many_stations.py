@@ -71,7 +71,10 @@ def test_eight_stations_and_an_engineer_at_once_lose_nothing(postgres_db: str) -
     with engine.begin() as conn:
         setup_roles(conn)
         for login, role in [*((f"bench{n}", STATION) for n in range(STATIONS)), ("ines", ENGINEER)]:
-            conn.exec_driver_sql(f"CREATE ROLE {login} LOGIN IN ROLE {role}")
+            # the server's roles outlive a test's database: another test may have made this login already
+            conn.exec_driver_sql(f"DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '{login}') THEN "
+                                 f"CREATE ROLE {login} LOGIN; END IF; END $$")
+            conn.exec_driver_sql(f"GRANT {role} TO {login}")
     engine.dispose()
     with HistoryStore(postgres_db) as owner:  # each station's login is that station (docs/shop-network.md)
         for n in range(STATIONS):
