@@ -89,45 +89,8 @@ def _pg_stamp_function(table: str) -> str:
     table or view named like one it reads (``pg_temp`` is searched first unless named) cannot stand in for it.
     """
     chain_column = CHAINED[table]
-    specific = [f"NEW.{TIME_COLUMN[table]} := stamp;"]
-    if table in ("tests", "rig_checks"):
-        what = "tests" if table == "tests" else "rig self-checks"
-        specific.append(
-            "IF mapped_station IS NOT NULL THEN NEW.station := mapped_station; "
-            "ELSIF NOT trusted THEN RAISE EXCEPTION 'edc-bench history: the database login % is mapped to no "
-            f"station, so it may not add {what}: the chain''s owner maps it (edc-bench history --map-login % "
-            "--station NAME)', session_user, session_user USING ERRCODE = 'insufficient_privilege'; END IF;")
-    if table == "tests":
-        # a row without its test's keys would group with every other such row: what it says gives them
-        new_legacy_key = _LEGACY_KEY_SQL
-        for column in ("started_at", "valve_id", "pump_serial", "station"):
-            new_legacy_key = new_legacy_key.replace(f"{column} ||" if column != "station" else "|| station",
-                                                    f"NEW.{column} ||" if column != "station" else "|| NEW.station")
-        specific.append(f"IF NEW.legacy_key IS NULL THEN NEW.legacy_key := {new_legacy_key}; END IF;")
-        specific.append("IF NEW.test_key IS NULL THEN NEW.test_key := 'folder:' || NEW.record_dir; END IF;")
-        specific.append(
-            "IF NOT trusted AND EXISTS (SELECT 1 FROM public.tests t WHERE (t.test_key = NEW.test_key OR t.legacy_key "
-            "= NEW.legacy_key) AND t.station <> NEW.station) AND NOT EXISTS (SELECT 1 FROM public.tests t WHERE "
-            "t.test_key = NEW.test_key AND t.record_sha256 = NEW.record_sha256) THEN RAISE EXCEPTION 'edc-bench "
-            "history: this test was first indexed by another station; station % may not index it with other "
-            "content', NEW.station USING ERRCODE = 'insufficient_privilege'; END IF;")
-    if table == "rig_checks":
-        specific.append(
-            "IF NOT EXISTS (SELECT 1 FROM public.reference_valves r WHERE r.id = NEW.reference_id AND r.station = "
-            "NEW.station) THEN RAISE EXCEPTION 'edc-bench history: reference valve registration % is not station "
-            "%''s: a rig self-check is compared with its own station''s reference valve', NEW.reference_id, "
-            "NEW.station USING ERRCODE = 'insufficient_privilege'; END IF;")
-    if table == "amendments":
-        specific.append(
-            "IF NEW.target NOT IN ('tests', 'teardowns') OR (NEW.target = 'tests' AND NOT EXISTS (SELECT 1 FROM "
-            "public.tests t WHERE t.id = NEW.target_id)) OR (NEW.target = 'teardowns' AND NOT EXISTS (SELECT 1 FROM "
-            "public.teardowns f WHERE f.id = NEW.target_id)) THEN RAISE EXCEPTION 'edc-bench history: a withdrawal "
-            "names no stored row (% %)', NEW.target, NEW.target_id USING ERRCODE = 'insufficient_privilege'; END IF;")
-    if table in PERSON_COLUMN:
-        specific.append(f"IF NOT trusted THEN NEW.{PERSON_COLUMN[table]} := coalesce(mapped_person, session_user); "
-                        "END IF;")
     chain_value = "NEW.station" if chain_column == "station" else "NEW.db_login"
-    body = " ".join(specific)
+    body = " ".join(_pg_table_checks(table))
     return f"""
 CREATE OR REPLACE FUNCTION public.edc_bench_stamp_{table}() RETURNS trigger LANGUAGE plpgsql SECURITY DEFINER
 SET search_path = pg_catalog, public, pg_temp AS $fn$
@@ -170,6 +133,48 @@ BEGIN
                                                                               {_pg_canonical('NEW')}, 'UTF8')), 'hex');
     RETURN NEW;
 END $fn$"""
+
+
+def _pg_table_checks(table: str) -> list[str]:
+    """The PL/pgSQL statements of ``table``'s stamp that only that table has: its time, station, keys and refusals."""
+    specific = [f"NEW.{TIME_COLUMN[table]} := stamp;"]
+    if table in ("tests", "rig_checks"):
+        what = "tests" if table == "tests" else "rig self-checks"
+        specific.append(
+            "IF mapped_station IS NOT NULL THEN NEW.station := mapped_station; "
+            "ELSIF NOT trusted THEN RAISE EXCEPTION 'edc-bench history: the database login % is mapped to no "
+            f"station, so it may not add {what}: the chain''s owner maps it (edc-bench history --map-login % "
+            "--station NAME)', session_user, session_user USING ERRCODE = 'insufficient_privilege'; END IF;")
+    if table == "tests":
+        # a row without its test's keys would group with every other such row: what it says gives them
+        new_legacy_key = _LEGACY_KEY_SQL
+        for column in ("started_at", "valve_id", "pump_serial", "station"):
+            new_legacy_key = new_legacy_key.replace(f"{column} ||" if column != "station" else "|| station",
+                                                    f"NEW.{column} ||" if column != "station" else "|| NEW.station")
+        specific.append(f"IF NEW.legacy_key IS NULL THEN NEW.legacy_key := {new_legacy_key}; END IF;")
+        specific.append("IF NEW.test_key IS NULL THEN NEW.test_key := 'folder:' || NEW.record_dir; END IF;")
+        specific.append(
+            "IF NOT trusted AND EXISTS (SELECT 1 FROM public.tests t WHERE (t.test_key = NEW.test_key OR t.legacy_key "
+            "= NEW.legacy_key) AND t.station <> NEW.station) AND NOT EXISTS (SELECT 1 FROM public.tests t WHERE "
+            "t.test_key = NEW.test_key AND t.record_sha256 = NEW.record_sha256) THEN RAISE EXCEPTION 'edc-bench "
+            "history: this test was first indexed by another station; station % may not index it with other "
+            "content', NEW.station USING ERRCODE = 'insufficient_privilege'; END IF;")
+    if table == "rig_checks":
+        specific.append(
+            "IF NOT EXISTS (SELECT 1 FROM public.reference_valves r WHERE r.id = NEW.reference_id AND r.station = "
+            "NEW.station) THEN RAISE EXCEPTION 'edc-bench history: reference valve registration % is not station "
+            "%''s: a rig self-check is compared with its own station''s reference valve', NEW.reference_id, "
+            "NEW.station USING ERRCODE = 'insufficient_privilege'; END IF;")
+    if table == "amendments":
+        specific.append(
+            "IF NEW.target NOT IN ('tests', 'teardowns') OR (NEW.target = 'tests' AND NOT EXISTS (SELECT 1 FROM "
+            "public.tests t WHERE t.id = NEW.target_id)) OR (NEW.target = 'teardowns' AND NOT EXISTS (SELECT 1 FROM "
+            "public.teardowns f WHERE f.id = NEW.target_id)) THEN RAISE EXCEPTION 'edc-bench history: a withdrawal "
+            "names no stored row (% %)', NEW.target, NEW.target_id USING ERRCODE = 'insufficient_privilege'; END IF;")
+    if table in PERSON_COLUMN:
+        specific.append(f"IF NOT trusted THEN NEW.{PERSON_COLUMN[table]} := coalesce(mapped_person, session_user); "
+                        "END IF;")
+    return specific
 
 
 def _legacy_keys_sqlite(bind: sa.Connection) -> None:
