@@ -20,6 +20,19 @@ def edc_bench(*args: str, cwd: Path | None = None, timeout: float = 600,
                           timeout=timeout, env=env)
 
 
+def run_cli(argv: list[str], capsys: Any) -> tuple[int, str, str]:
+    """``edc-bench ARGV`` in this process: (exit code, stdout, stderr) with pytest's ``capsys``; argparse's exits
+    become codes too."""
+    from edc_bench.cli import main
+
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
 def check_safe_and_complete(result: Any, rig: Any, tmp_path: Path) -> None:
     """A test that ended in a fault: INVALID, the rig at 0 V and READY or FAULT, SAFE commanded within 20 ms of
     the detection (when the bus still sends), and the record on disk holding every tick and frame up to it.

@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from helpers import REPO
+from helpers import REPO, run_cli
 
-from edc_bench.cli import COMMANDS, build_parser, main
+from edc_bench.cli import COMMANDS, build_parser
 from edc_bench.cli.exit_codes import (
     COMMAND_CODES,
     MEANINGS,
@@ -409,16 +409,6 @@ def _prepare(folder: Path, files: Mapping[str, object]) -> None:
             path.write_bytes(content)
         else:
             path.write_text(str(content), encoding="utf-8")
-
-
-def run_cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    """``edc-bench ARGV`` in process: (exit code, stdout, stderr); argparse's exits become codes too."""
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture()

@@ -33,9 +33,8 @@ from pathlib import Path
 
 import can
 import pytest
-from helpers import REPO
+from helpers import REPO, run_cli
 
-from edc_bench.cli import main
 from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.errors import RigError
 
@@ -90,16 +89,6 @@ def bench(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[WorkReach
     monkeypatch.setattr("edc_bench.bench.run_simulated_test", simulated)
     monkeypatch.setattr("edc_bench.population.calibrate.population_tests", simulated)
     yield reached
-
-
-def run_cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    """``edc-bench ARGV`` in process: (exit code, stdout, stderr); argparse's exits become codes too."""
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def lines(text: str) -> list[str]:

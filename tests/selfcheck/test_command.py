@@ -7,19 +7,10 @@ import json
 from pathlib import Path
 
 import pytest
+from helpers import run_cli
 
-from edc_bench.cli import main
 from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.history.store import HistoryStore
-
-
-def run_cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

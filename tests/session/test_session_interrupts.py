@@ -7,67 +7,39 @@ from __future__ import annotations
 
 import json
 import os
-import shlex
-import shutil
 import signal
-import subprocess
 import sys
 import time
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import can
 import pytest
+from tmux_terminal import NEEDS_TMUX, Terminal, terminal_env
 
 from edc_bench.history.store import HistoryStore
 from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
 
 pytestmark = [
-    pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed (apt-get install tmux)"),
+    NEEDS_TMUX,
     pytest.mark.skipif(not Path("/proc/self").exists(), reason="reads the session's records through /proc's pids"),
 ]
 
 SIGNALS = [pytest.param(signal.SIGINT, id="ctrl-c"), pytest.param(signal.SIGTERM, id="sigterm")]
 
 
-class Session:
-    """``edc-bench session`` in a tmux terminal of its own (140 x 45); its pid kept in ``session.pid``."""
+class Session(Terminal):
+    """``edc-bench session`` in a terminal of its own (140 x 45); its pid kept in ``session.pid``."""
 
     def __init__(self, cwd: Path) -> None:
-        self.cwd, self.name, self.socket = cwd, f"edc-{uuid.uuid4().hex[:8]}", str(cwd / "tmux.sock")
-        self.url = f"sqlite:///{cwd / 'h.sqlite'}"
-        # COLUMNS and LINES (which pytest's workers may carry) would override the terminal's size for Textual
-        env = {key: value for key, value in os.environ.items() if key not in ("COLUMNS", "LINES")}
-        env.update(EDC_BENCH_DATA_DIR=str(cwd / "data"), TERM="xterm-256color")
+        self.cwd, self.url = cwd, f"sqlite:///{cwd / 'h.sqlite'}"
         command = ["sh", "-c", 'echo $$ > session.pid; exec "$@"', "sh", sys.executable, "-m", "edc_bench", "session",
                    "--operator", "Anna", "--db", self.url]
-        shell = " ".join(shlex.quote(part) for part in command) + "; echo EXITED $?; sleep 600"
-        subprocess.run(["tmux", "-S", self.socket, "new-session", "-d", "-s", self.name, "-x", "140", "-y", "45",
-                        "-c", str(cwd), shell], check=True, env=env)
-
-    def keys(self, *keys: str) -> None:
-        subprocess.run(["tmux", "-S", self.socket, "send-keys", "-t", self.name, *keys], check=True)
-
-    def screen(self) -> str:
-        return subprocess.run(["tmux", "-S", self.socket, "capture-pane", "-p", "-t", self.name],
-                              capture_output=True, text=True, check=True).stdout
-
-    def wait_for(self, text: str, timeout_s: float = 90.0) -> str:
-        """The screen once it shows ``text`` (waits on the app, not on a clock)."""
-        deadline = time.monotonic() + timeout_s
-        while text not in (screen := self.screen()):
-            if time.monotonic() > deadline:
-                raise AssertionError(f"the screen never showed {text!r}; it shows:\n{screen}")
-            time.sleep(0.1)
-        return screen
+        super().__init__(command, cwd, terminal_env({"EDC_BENCH_DATA_DIR": str(cwd / "data")}))
 
     def send(self, sig: int) -> None:
         """Send ``sig`` to the session's process (the shell exec'd it: the pid it wrote is the app's)."""
         os.kill(int((self.cwd / "session.pid").read_text()), sig)
-
-    def close(self) -> None:
-        subprocess.run(["tmux", "-S", self.socket, "kill-server"], check=False, capture_output=True)
 
 
 @pytest.fixture()
