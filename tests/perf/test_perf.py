@@ -21,7 +21,7 @@ from edc_bench.protocol import Icd, Mode
 
 
 @pytest.mark.slow  # the benchmark itself, about 30 s
-def test_perf_quick_prints_all_five_groups_and_leaves_the_history_alone(tmp_path: Path) -> None:
+def test_perf_quick_prints_every_group_and_leaves_the_history_alone(tmp_path: Path) -> None:
     station = tmp_path / "station"
     env = {**os.environ, "EDC_BENCH_DATA_DIR": str(station)}
     env.pop("EDC_BENCH_HISTORY_URL", None)
@@ -36,11 +36,12 @@ def test_perf_quick_prints_all_five_groups_and_leaves_the_history_alone(tmp_path
     names = " | ".join(f["name"] for f in figures)
     for expected in ("rls", "gradient", "BENCH_CMD encode", "RIG_FEEDBACK decode", "simulated full-length test of 30 s",
                      "simulated early-stopped (the technician's) test",
-                     "1 kHz", "2 kHz", "batch path", "--help", "first tick"):
+                     "1 kHz", "2 kHz", "batch path", "--help", "first tick", "safe stop to its decision on screen"):
         assert expected in names
     for f in figures:
         assert f["value"] is not None and math.isfinite(f["value"]) and f["value"] >= 0, f
-        assert f["met"] in (True, False), f  # every figure has a target here
+        # every figure has a target; a quick run's figures are too short to be judged against it, and say so
+        assert f["target"] and f["met"] is None and "target not judged: a quick run is too short" in f["note"], f
     assert report["environment"]["quick"] is True
     assert report["environment"]["compiled"] in (True, False)
 
