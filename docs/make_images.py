@@ -125,7 +125,7 @@ def session_screens() -> None:
 
     scratch = Path(tempfile.mkdtemp(prefix="edc-bench-docs-session-"))
     os.environ["EDC_BENCH_DATA_DIR"] = str(scratch / "station")
-    from edc_bench.cli.session_cmd import make_app
+    from edc_bench.session.build import make_app
     from edc_bench.session.runner import RigChoice
 
     db = f"sqlite:///{scratch / 'history.sqlite'}"
@@ -160,7 +160,8 @@ def session_screens() -> None:
             await settle(pilot)
             shot("session-retest.svg")
             await type_line(pilot, "clearance=0.185")
-            shot("session-seen-before.svg")
+            shot("session-seen-before.svg")  # judged in this shift already: asked about, with its history
+            await type_line(pilot, "clearance=0.185")  # scanned again: taken
             await type_line(pilot, "PS-20232")
             await type_line(pilot, "")
             await settle(pilot)

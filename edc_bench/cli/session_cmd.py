@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from edc_bench.cli.common import (
     add_bus_arguments,
@@ -54,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
 
     from edc_bench.cli.common import bus_settings, check_history_url, check_output_folder
     from edc_bench.config import load_variant
+    from edc_bench.session.build import make_app
     from edc_bench.session.operator import remembered_operator
     from edc_bench.session.runner import RigChoice
 
@@ -91,62 +91,3 @@ def run(args: argparse.Namespace) -> int:
         print("edc-bench session: interrupted (Ctrl-C or SIGTERM); every test started has its record", file=sys.stderr)
         return ExitCode.INTERRUPTED
     return ExitCode.OK
-
-
-def make_app(variant_name: str | None, rig: Any, out_dir: Path, history_url: str | None, station: str,
-             operator: str) -> Any:
-    """The session's app on ``rig`` (a :class:`~edc_bench.session.runner.RigChoice`), as the command runs it."""
-    from edc_bench.config import load_variant
-    from edc_bench.session.app import SessionApp
-    from edc_bench.session.operator import remember_operator
-    from edc_bench.session.rig_selfcheck import SessionSelfCheck
-    from edc_bench.session.runner import SessionRunner
-
-    runner = SessionRunner(rig, out_dir, history_url, station, operator)
-    selfcheck = SessionSelfCheck(rig, history_url, station, by=lambda: runner.operator or "session")
-    return SessionApp(runner, load_variant, variant_name, library_part_numbers(), operator, remember_operator,
-                      history_lines(history_url), out_dir, selfcheck=selfcheck)
-
-
-def library_part_numbers() -> dict[str, str]:
-    """Part number -> variant name, of every variant this station has (unreadable files left out)."""
-    from edc_bench.config import load_variant
-    from edc_bench.config.loader import available_variants
-    from edc_bench.errors import ConfigError
-    from edc_bench.session.scan import part_number_index
-
-    names: dict[str, str] = {}
-    for name in available_variants():
-        try:
-            names[name] = load_variant(name).pump.part_number
-        except ConfigError:
-            continue
-    return part_number_index(names)
-
-
-def history_lines(url: str | None) -> Any:
-    """Valve id -> its last tests at this shop, newest first, as lines for the screen."""
-
-    def lines(valve_id: str) -> list[str]:
-        from edc_bench.history.store import Filters, HistoryStore
-
-        try:
-            with HistoryStore(url) as store:
-                rows = store.list(Filters(valve_id=valve_id), limit=5)[::-1]  # newest first
-        except Exception as exc:  # noqa: BLE001 - the history is a help here, never a stop
-            return [f"(the history could not be read: {type(exc).__name__})"]
-        return [f"{_local(row['started_at'])}  {row['verdict']}"
-                + (f" -> {row['decision']}" if row.get("decision") else "")
-                + f"  pump {row['pump_serial'] or '-'}, {row['variant']}" for row in rows]
-
-    return lines
-
-
-def _local(iso: str) -> str:
-    """A history time (UTC) in this station's local time, to the minute."""
-    import datetime as dt
-
-    try:
-        return dt.datetime.fromisoformat(iso).astimezone().strftime("%Y-%m-%d %H:%M")
-    except ValueError:
-        return iso[:16].replace("T", " ")

@@ -17,14 +17,12 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from edc_bench.errors import ConfigError
+from edc_bench.station_settings import settings_section
 
-#: The settings file in the station's data folder.
-SETTINGS_FILE = "station.toml"
 DEFAULT_CONNECT_S = 5.0
 DEFAULT_STATEMENT_S = 15.0
 #: libpq counts connect_timeout in whole seconds and takes less than 2 as 2.
@@ -66,21 +64,10 @@ def history_limits(data_folder: Path | None = None) -> HistoryLimits:
         For a settings file that cannot be read, or a limit that is not a number of seconds, naming where.
     """
     values: dict[str, float] = {}
-    if data_folder is None:
-        from edc_bench.paths import data_dir
-
-        data_folder = data_dir(create=False)
-    path = Path(data_folder) / SETTINGS_FILE
-    if path.is_file():
-        try:
-            section = tomllib.loads(path.read_text(encoding="utf-8")).get("history", {})
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-            raise ConfigError(f"the station's settings {path} cannot be read ({exc}): correct or remove it") from None
-        if not isinstance(section, dict):
-            raise ConfigError(f"the station's settings {path}: [history] is not a section")
-        for name in ("connect_timeout_s", "statement_timeout_s"):
-            if name in section:
-                values[name] = _number(section[name], name, str(path))
+    section, path = settings_section("history", data_folder)
+    for name in ("connect_timeout_s", "statement_timeout_s"):
+        if name in section:
+            values[name] = _number(section[name], name, str(path))
     for name, variable in (("connect_timeout_s", "EDC_BENCH_HISTORY_CONNECT_TIMEOUT_S"),
                            ("statement_timeout_s", "EDC_BENCH_HISTORY_STATEMENT_TIMEOUT_S")):
         if os.environ.get(variable):

@@ -15,7 +15,7 @@ class Figure:
     Attributes
     ----------
     group : str
-        One of the five benchmark groups.
+        One of the benchmark groups (:data:`edc_bench.perf.GROUPS`).
     name : str
         What was measured.
     value : float

@@ -1,4 +1,4 @@
-"""The five benchmark groups, each figure beside its reference and its target (issue #6)."""
+"""The benchmark groups, each figure beside its reference and its target (issue #6; the session's, #53)."""
 
 from __future__ import annotations
 
@@ -21,10 +21,13 @@ class Sizes:
     realtime_s: float
     valves: int
     startup_repeats: int
+    session_valves: int
 
 
-FULL = Sizes(ticks=30_000, frames=50_000, simulated_repeats=3, realtime_s=60.0, valves=1000, startup_repeats=5)
-QUICK = Sizes(ticks=30_000, frames=3_000, simulated_repeats=1, realtime_s=3.0, valves=40, startup_repeats=1)
+FULL = Sizes(ticks=30_000, frames=50_000, simulated_repeats=3, realtime_s=60.0, valves=1000, startup_repeats=5,
+             session_valves=12)
+QUICK = Sizes(ticks=30_000, frames=3_000, simulated_repeats=1, realtime_s=3.0, valves=40, startup_repeats=1,
+              session_valves=3)
 
 
 def _tick(variant_name: str | None, sizes: Sizes) -> list[Figure]:
@@ -155,6 +158,20 @@ def _throughput(variant_name: str | None, sizes: Sizes) -> list[Figure]:
     ]
 
 
+def _session(sizes: Sizes) -> list[Figure]:
+    from edc_bench.perf.session import session_latency
+
+    m = session_latency(sizes.session_valves)
+    (decision_p50, decision_max), (report_p50, report_max) = m["decision_s"], m["report_s"]
+    return [
+        Figure("session", "a test's safe stop to its decision on screen, worst", decision_max, "s", report_max,
+               "its reports drawn, worst", "<= 0.5 s", decision_max <= 0.5,
+               f"median {decision_p50:.2f} s; reports drawn after the decision, median {report_p50:.2f} s from the "
+               f"safe stop; {m['valves']} valves, {m['tests']} tests on the simulated rig, the app headless; "
+               "judgement, record, history row and screen update included"),
+    ]
+
+
 def run(groups: tuple[str, ...] = GROUPS, *, quick: bool = False, variant_name: str | None = None,
         on_figure: Callable[[Figure], None] | None = None) -> list[Figure]:
     """Run the chosen groups; ``on_figure`` sees each figure as soon as it is measured."""
@@ -165,6 +182,7 @@ def run(groups: tuple[str, ...] = GROUPS, *, quick: bool = False, variant_name: 
         "simulated": lambda: _simulated(variant_name, sizes),
         "realtime": lambda: _realtime(variant_name, sizes),
         "throughput": lambda: _throughput(variant_name, sizes),
+        "session": lambda: _session(sizes),
     }
     figures: list[Figure] = []
     with scratch_history():  # the benchmark's tests are no shop's: none of them reaches the station's history

@@ -11,6 +11,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 import threading
+import time
 from dataclasses import replace
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -27,7 +28,8 @@ from textual.widgets import Footer, Input, Label, Static
 from edc_bench.runtime.signals import stop_requested
 from edc_bench.session.rig_selfcheck import SelfCheckWords, SessionSelfCheck
 from edc_bench.session.runner import SessionRunner, ValveDone
-from edc_bench.session.scan import PROMPTS, Scan, Step, read_line
+from edc_bench.session.scan import PROMPTS, Scan, ScanContext, Step, read_line
+from edc_bench.session.scan_rules import ScanRules
 from edc_bench.session.shift import RigCheckEntry, ShiftLog, ValveEntry, now_local
 from edc_bench.ui.snapshot import Snapshot
 
@@ -42,9 +44,13 @@ class SnapshotObserver:
     def __init__(self) -> None:
         self.snapshot = Snapshot()
         self.lock = threading.Lock()
+        #: time.monotonic() when the test's loop had stopped the rig safely (its judgement begins), None before
+        self.safe_stopped_at: float | None = None
 
     def phase(self, name: str) -> None:
         """A new phase began."""
+        if name == "classify":
+            self.safe_stopped_at = time.monotonic()
         with self.lock:
             self.snapshot.enter(name)
 
@@ -129,8 +135,9 @@ class SessionApp(App[None]):
     def __init__(self, runner: SessionRunner, variant_loader: Callable[[str | None], Any], variant_name: str | None,
                  part_numbers: Mapping[str, str], operator: str, remember_operator: Callable[[str], None],
                  history_of: Callable[[str], list[str]], shift_folder: Path,
-                 selfcheck: SessionSelfCheck | None = None) -> None:
+                 selfcheck: SessionSelfCheck | None = None, scan_rules: ScanRules | None = None) -> None:
         super().__init__()
+        self.scan_rules = scan_rules or ScanRules()
         self.runner, self.variant_loader, self.part_numbers = runner, variant_loader, part_numbers
         self.remember, self.history_of, self.shift_folder = remember_operator, history_of, shift_folder
         self.selfcheck = selfcheck
@@ -142,6 +149,11 @@ class SessionApp(App[None]):
         self.testing = False
         self.last: ValveDone | None = None
         self.summary_file: Path | None = None
+        self.drawing = threading.Event()  # set while the last valve's reports are drawn
+        self.end_when_drawn = False  # Ctrl+Q (or an interrupt) came while they were
+        #: seconds from each valve's last safe stop to its decision on screen, and to its reports drawn
+        self.decision_latencies_s: list[float] = []
+        self.report_latencies_s: list[float] = []
 
     # -- layout --------------------------------------------------------------------------------------------------
 
@@ -200,8 +212,11 @@ class SessionApp(App[None]):
     def on_input_submitted(self, event: Input.Submitted) -> None:
         if event.input.id != "entry":
             return
-        if self.testing:
-            self._say("a test is running: wait for its verdict")
+        if self.testing:  # never kept for the next prompt: it would be glued to the next scan
+            typed = event.value.strip()
+            event.input.value = ""
+            self._say(f"{typed!r} was not taken: a test is running. Scan it again after the verdict." if typed else
+                      "a test is running: wait for its verdict")
             return
         if self.awaiting_reference:
             event.input.value = ""
@@ -211,7 +226,8 @@ class SessionApp(App[None]):
                 return
             self._run_selfcheck_now()
             return
-        answer = read_line(self.scan, event.value, self.part_numbers)
+        judged = {v.valve_id: f"{v.final} at {v.at[11:16]}" for v in self.shift.valves}
+        answer = read_line(self.scan, event.value, ScanContext(self.part_numbers, self.scan_rules, judged))
         event.input.value = ""
         self._say(answer.message)
         if answer.switched_variant:
@@ -223,7 +239,7 @@ class SessionApp(App[None]):
         if self.scan.step is Step.PUMP_SERIAL:  # a new valve: the last verdict gives way to it
             self._clear_verdict()
             self._show_history(self.scan.valve_id)
-        self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
+        self._show_prompt()
         if answer.start_test:
             why = self.selfcheck.due() if self.selfcheck is not None else None
             if why:  # the rig is checked first; the valve stays scanned and is mounted after
@@ -231,6 +247,22 @@ class SessionApp(App[None]):
                 self._ask_for_reference(why)
                 return
             self._test(self.scan.valve_id, self.scan.pump_serial)
+
+    def _show_prompt(self) -> None:
+        """The current step's prompt; mounting names the valve and pump scanned, so a wrong scan shows before the
+        test."""
+        if self.scan.step is Step.MOUNT:
+            self.query_one("#prompt", Label).update(f"Valve {self.scan.valve_id} on pump {self.scan.pump_serial}. "
+                                                    f"{PROMPTS[Step.MOUNT]}")
+        else:
+            self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
+
+    def _discard_typed(self) -> str:
+        """Clear what was typed while a test ran and not sent with Enter; the words saying so ('' if nothing)."""
+        entry = self.query_one("#entry", Input)
+        typed = entry.value.strip()
+        entry.value = ""
+        return f"{typed!r}, typed during the test, was not taken: scan it again" if typed else ""
 
     def action_back(self) -> None:
         if self.testing:
@@ -263,7 +295,8 @@ class SessionApp(App[None]):
 
     def _test(self, valve_id: str, pump_serial: str) -> None:
         self.testing = True
-        self.query_one("#prompt", Label).update(f"Testing valve {valve_id} ... (Ctrl+Q ends the shift after it)")
+        self.query_one("#prompt", Label).update(f"Testing valve {valve_id} ... keys typed now are not taken "
+                                                "(Ctrl+Q ends the shift after it)")
         self._run_valve(valve_id, pump_serial, self.variant)
 
     def _new_observer(self, which: str) -> SnapshotObserver:
@@ -277,12 +310,19 @@ class SessionApp(App[None]):
     @work(thread=True, exclusive=True)
     def _run_valve(self, valve_id: str, pump_serial: str, variant: Any) -> None:
         self.last_valve_id = valve_id
+        self._wait_for_reports()
         try:
             done = self.runner.run_valve(variant, valve_id, pump_serial, observer=self._new_observer)
         except Exception as exc:  # noqa: BLE001 - the shift goes on; what failed is said on the screen
             self.call_from_thread(self._test_failed, valve_id, f"{type(exc).__name__}: {exc}")
             return
         self.call_from_thread(self._show_done, done)
+
+    def _wait_for_reports(self) -> None:
+        """In a test's worker: the last valve's reports finished first (drawing beside a real-time loop would
+        disturb its ticks; they take seconds, mostly while the next valve is scanned and mounted)."""
+        while self.drawing.is_set():
+            time.sleep(0.05)
 
     def _draw_live(self) -> None:
         observer = self.observer
@@ -296,13 +336,18 @@ class SessionApp(App[None]):
 
     def _test_failed(self, valve_id: str, why: str) -> None:
         self.testing = False
+        typed = self._discard_typed()
         self._say(f"the test of valve {valve_id} could not run: {why}. Check the rig and its cable, then scan "
-                  "the valve again.")
+                  f"the valve again.{' ' + typed if typed else ''}")
         self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
 
     def _show_done(self, done: ValveDone) -> None:
         self.testing = False
         self.last = done
+        safe_stopped_at = self.observer.safe_stopped_at if self.observer is not None else None
+        draw = self.runner.report and any(t.record_dir is not None for t in done.tests)
+        if draw:  # before the details are shown, which say so
+            self.drawing.set()
         final = done.final
         verdict = self.query_one("#verdict", Static)
         what = final if done.decision is None else f"{final}  (MARGINAL, retest {done.tests[-1].verdict})"
@@ -310,15 +355,43 @@ class SessionApp(App[None]):
         verdict.styles.background = VERDICT_COLOURS.get(final, "magenta")
         self.query_one("#words", Static).update(Text(done.words.upper() if final != "INVALID" else done.words))
         self.query_one("#live", Static).update(self._details(done))
-        problems = [p for t in done.tests for p in t.problems]
-        self._say("; ".join(problems))
+        typed = self._discard_typed()
+        self._say("; ".join(p for p in [*(p for t in done.tests for p in t.problems), typed] if p))
         self.shift.valves.append(ValveEntry(
             done.valve_id, done.pump_serial, done.variant, tuple(t.verdict for t in done.tests), final, done.words,
             tuple(str(t.record_dir) for t in done.tests if t.record_dir is not None), now_local()))
         self._show_status()
         self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
         self.query_one("#entry", Input).focus()
+        if safe_stopped_at is not None:
+            self.decision_latencies_s.append(time.monotonic() - safe_stopped_at)
+        if draw:
+            self._draw_reports(done, safe_stopped_at)
         self._check_due()
+
+    @work(thread=True, group="reports")
+    def _draw_reports(self, done: ValveDone, safe_stopped_at: float | None) -> None:
+        try:
+            drawn = self.runner.draw_reports(done)
+        finally:
+            self.drawing.clear()
+        if safe_stopped_at is not None:
+            self.report_latencies_s.append(time.monotonic() - safe_stopped_at)
+        said = {p for t in done.tests for p in t.problems}
+        self.call_from_thread(self._reports_drawn, drawn, [p for t in drawn.tests for p in t.problems if p not in said])
+
+    def _reports_drawn(self, done: ValveDone, problems: list[str]) -> None:
+        """The valve's reports are drawn (or what failed): its details say so, unless the next test has begun."""
+        if self.last is not None and self.last.tests[0].record_dir == done.tests[0].record_dir:
+            self.last = done
+            if not self.testing:
+                self.query_one("#live", Static).update(self._details(done))
+        if problems:
+            self._say("; ".join(problems))
+        elif any(t.report_pdf is not None for t in done.tests) and not self.testing:
+            self._say(f"the report of valve {done.valve_id} is ready: F5 prints it")
+        if self.end_when_drawn:
+            self._end_shift()
 
     def _details(self, done: ValveDone) -> Text:
         lines = []
@@ -326,7 +399,8 @@ class SessionApp(App[None]):
             label = "test" if n == 0 else "retest"
             lines.append(f"{label}: {test.verdict}, {test.result.advice.words}")
             if test.record_dir is not None:
-                report = ", its report.pdf printed by F5" if test.report_pdf is not None else ""
+                report = (", report ready (F5 prints it)" if test.report_pdf is not None else
+                          ", report being drawn" if self.drawing.is_set() else "")
                 lines.append(f"  record {test.record_dir.name}{report}")
         if done.decision is not None:
             lines.append(f"decision: {done.decision.verdict} by the pump type's rule {done.decision.rule}")
@@ -366,6 +440,7 @@ class SessionApp(App[None]):
 
     @work(thread=True, exclusive=True)
     def _run_selfcheck(self) -> None:
+        self._wait_for_reports()
         try:
             words = self.selfcheck.run()
         except Exception as exc:  # noqa: BLE001 - said on the screen; the shift goes on
@@ -374,14 +449,18 @@ class SessionApp(App[None]):
 
     def _selfcheck_done(self, words: SelfCheckWords) -> None:
         self.testing = False
+        typed = self._discard_typed()
         self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, now_local()))
         style = {True: "green", False: "red"}.get(words.go, "yellow")
         line = words.words if words.words.startswith("rig self-check") else f"rig self-check: {words.words}"
         self.query_one("#side", Static).update(Text(line, style=f"bold {style}"))
-        self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
+        self._show_prompt()
         self.query_one("#entry", Input).focus()
         if words.go is False:
-            self._say("the rig is not fit to judge valves: do what the self-check says, then F6 to check again")
+            self._say("the rig is not fit to judge valves: do what the self-check says, then F6 to check again"
+                      + (f"; {typed}" if typed else ""))
+        elif typed:
+            self._say(typed)
 
     # -- keys ----------------------------------------------------------------------------------------------------
 
@@ -393,7 +472,8 @@ class SessionApp(App[None]):
         done = self.last
         pdfs = [t.report_pdf for t in done.tests if t.report_pdf is not None] if done is not None else []
         if not pdfs:
-            self._say("no report to print yet: test a valve first")
+            self._say("the report is being drawn: press F5 again when it is ready" if self.drawing.is_set() else
+                      "no report to print yet: test a valve first")
             return
         lp = shutil.which("lp")
         if lp is None:
@@ -410,6 +490,10 @@ class SessionApp(App[None]):
         self._end_shift()
 
     def _end_shift(self) -> None:
+        if self.drawing.is_set():  # a report half drawn is a report lost: the shift ends once it is whole
+            self.end_when_drawn = True
+            self._say("finishing the last report: the shift ends then")
+            return
         try:
             self.summary_file = self.shift.write(self.shift_folder)
         except OSError as exc:
@@ -427,4 +511,5 @@ class SessionApp(App[None]):
                       "then")
             return
         self.shift.interrupted = True
-        self._end_shift()
+        if not self.end_when_drawn:  # else the shift ends once the last report is drawn
+            self._end_shift()

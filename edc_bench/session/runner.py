@@ -10,7 +10,7 @@ from __future__ import annotations
 import datetime
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -55,8 +55,9 @@ class TestDone:
 
     result: Any  # the BenchResult
     record_dir: Path | None
-    report_pdf: Path | None
+    report_pdf: Path | None  # None until :meth:`SessionRunner.draw_reports` has drawn it
     problems: tuple[str, ...]  # what went wrong on the way (record, report, history), in words
+    indexed: bool = False  # its history row was written
 
     @property
     def verdict(self) -> str:
@@ -145,7 +146,7 @@ class SessionRunner:
 
     def run_test(self, variant: Variant, valve_id: str, pump_serial: str, observer: Any = None,
                  retest_of: TestDone | None = None) -> TestDone:
-        """One test: run it, write its record (and report), add it to the history."""
+        """One test: run it, write its record, add it to the history (its report is drawn by :meth:`draw_reports`)."""
         from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
 
         folder: list[Path] = []
@@ -188,7 +189,6 @@ class SessionRunner:
     def _store(self, result: Any, folder: Path | None, retest: dict[str, str] | None) -> TestDone:
         from edc_bench.history.store import index_record_dir
         from edc_bench.records.record import missing_files, write_record
-        from edc_bench.runtime.signals import stop_requested
 
         problems: list[str] = []
         try:
@@ -210,21 +210,41 @@ class SessionRunner:
             indexed = False
             problems.append(redact(f"the history was not updated ({type(exc).__name__}: {exc}); add it later with: "
                                    f"edc-bench history --add {record_dir}", known_secrets(self.history_url)))
-        report_pdf = None
-        if self.report and stop_requested():  # the session is ending (Ctrl-C or SIGTERM): no seconds spent drawing
-            problems.append(f"no report drawn (interrupted); draw it with: edc-bench report {record_dir}")
-        elif self.report:
-            try:
-                from edc_bench.history.standing import history_standing
-                from edc_bench.records.reader import load_record
-                from edc_bench.records.report import draw_report
+        return TestDone(result, record_dir, None, tuple(problems), indexed)
 
-                standing = history_standing(load_record(record_dir), record_dir, self.history_url) if indexed else None
-                report_pdf, _ = draw_report(record_dir, history_note=None if standing is None else standing.note())
-            except Exception as exc:  # noqa: BLE001 - a report is redrawn later from the record; never lose the test
-                problems.append(f"the report could not be drawn ({type(exc).__name__}: {exc}); draw it with: "
-                                f"edc-bench report {record_dir}")
-        return TestDone(result, record_dir, report_pdf, tuple(problems))
+    def draw_reports(self, done: ValveDone) -> ValveDone:
+        """Draw the report of each of the valve's tests (after its verdict is shown: a report takes seconds, which
+        the technician should not wait for); ``done`` with their PDFs, and what failed in words.
+
+        Not while a test runs: drawing competes with the real-time loop for this process.
+        """
+        from edc_bench.runtime.signals import stop_requested
+
+        tests = []
+        for test in done.tests:
+            if test.record_dir is None or not self.report:
+                tests.append(test)
+            elif stop_requested():  # the session is ending (Ctrl-C or SIGTERM): no seconds spent drawing
+                tests.append(replace(test, problems=(*test.problems, "no report drawn (interrupted); draw it with: "
+                                                                     f"edc-bench report {test.record_dir}")))
+            else:
+                tests.append(self._draw(test))
+        return replace(done, tests=tuple(tests))
+
+    def _draw(self, test: TestDone) -> TestDone:
+        try:
+            from edc_bench.history.standing import history_standing
+            from edc_bench.records.reader import load_record
+            from edc_bench.records.report import draw_report
+
+            record_dir = test.record_dir
+            standing = (history_standing(load_record(record_dir), record_dir, self.history_url) if test.indexed
+                        else None)
+            report_pdf, _ = draw_report(record_dir, history_note=None if standing is None else standing.note())
+        except Exception as exc:  # noqa: BLE001 - a report is redrawn later from the record; never lose the test
+            return replace(test, problems=(*test.problems, f"the report could not be drawn ({type(exc).__name__}: "
+                                                           f"{exc}); draw it with: edc-bench report {test.record_dir}"))
+        return replace(test, report_pdf=report_pdf)
 
 
 __all__ = ["RigChoice", "SessionRunner", "TestDone", "ValveDone", "simulated_valve"]

@@ -18,7 +18,8 @@ from pathlib import Path
 import pytest
 
 from edc_bench.errors import ConfigError
-from edc_bench.history.limits import SETTINGS_FILE, history_limits
+from edc_bench.history.limits import history_limits
+from edc_bench.station_settings import SETTINGS_FILE
 
 CONNECT_S = 2.0
 #: what a command may take beyond the limit: Python's start, imports, the message (generous: a busy CI)

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
-from edc_bench.session.scan import Scan, Step, part_number_index, read_line
+import pytest
 
-PARTS = {"PE-EDC-0001": "p-edc-default", "PE-EDC-0002": "p-edc-long"}
+from edc_bench.errors import ConfigError
+from edc_bench.session.scan import Scan, ScanContext, Step, part_number_index, read_line
+from edc_bench.session.scan_rules import scan_rules
+
+PARTS = ScanContext({"PE-EDC-0001": "p-edc-default", "PE-EDC-0002": "p-edc-long"})
 
 
 def test_valve_id_then_pump_serial_then_mount_always_in_that_order() -> None:
@@ -37,3 +41,85 @@ def test_an_empty_id_or_text_at_mount_is_refused_with_what_to_do() -> None:
 
 def test_a_part_number_two_variants_share_switches_to_neither() -> None:
     assert part_number_index({"a": "P1", "b": "P1", "c": "P2"}) == {"P2": "c"}
+
+
+def _scan_twice(scan: Scan, line: str, context: ScanContext) -> tuple[str, Scan]:
+    """The first answer's message (asked about), and the state after the same line scanned again."""
+    first = read_line(scan, line, context)
+    assert first.refused and first.scan.step is scan.step and first.scan.pending == line
+    second = read_line(first.scan, line, context)
+    assert not second.refused and second.scan.pending == ""
+    return first.message, second.scan
+
+
+def test_a_double_scan_of_the_valve_label_is_asked_about_and_taken_only_when_scanned_again() -> None:
+    scan = read_line(Scan(), "V-1001", PARTS).scan
+    message, after = _scan_twice(scan, "V-1001", PARTS)
+    assert "the pump serial 'V-1001' is the valve id again" in message and "scan it again to take it" in message
+    assert (after.step, after.pump_serial) == (Step.MOUNT, "V-1001")
+    # another line in between: the first is forgotten, the right serial taken at once
+    asked = read_line(scan, "V-1001", PARTS).scan
+    right = read_line(asked, "PS-77", PARTS)
+    assert not right.refused and right.scan.pump_serial == "PS-77"
+    assert read_line(read_line(right.scan, "", PARTS).scan, "V-1001", PARTS).scan.step is Step.PUMP_SERIAL
+
+
+def test_an_id_with_characters_no_label_has_is_asked_about_naming_them() -> None:
+    message, after = _scan_twice(Scan(), "v@l#ve;DROP TABLE--ä€", PARTS)
+    assert "characters an id rarely has ('@' '#' ';' space '€')" in message
+    assert after.valve_id == "v@l#ve;DROP TABLE--ä€"  # taken as it is when confirmed: stored as data, never SQL
+    for plain in ("V-9999", "clearance=0.185", "Ventil-ä1", "2024/17.3"):
+        assert read_line(Scan(), plain, PARTS).scan.step is Step.PUMP_SERIAL, plain
+
+
+def test_a_valve_judged_in_this_shift_is_asked_about_naming_its_verdict() -> None:
+    context = ScanContext(PARTS.part_numbers, judged={"V-7": "FAIL at 10:02"})
+    message, after = _scan_twice(Scan(), "V-7", context)
+    assert "valve V-7 was judged in this shift already (FAIL at 10:02)" in message
+    assert after.valve_id == "V-7"
+
+
+def test_the_stations_patterns_ask_about_misfits_and_refuse_unknown_part_numbers() -> None:
+    rules = scan_rules({"valve_id": r"V-\d{5}", "pump_serial": r"PS-\d{4}", "part_number": r"PE-EDC-\d{4}"},
+                       "station.toml")
+    context = ScanContext(PARTS.part_numbers, rules)
+    assert read_line(Scan(), "V-12345", context).scan.step is Step.PUMP_SERIAL
+    message, _ = _scan_twice(Scan(), "V-9999faulty", context)
+    assert "'V-9999faulty' does not look like a valve id here (the station's pattern 'V-\\\\d{5}')" in message
+    unknown = read_line(Scan(), "PE-EDC-0099", context)
+    assert unknown.refused and "part number of no pump type" in unknown.message and unknown.scan.pending == ""
+    assert read_line(Scan(), "PE-EDC-0002", context).switched_variant
+
+
+@pytest.mark.parametrize(("section", "words"), [
+    ({"valve": "V"}, "[scan] valve is not a field; the fields are valve_id, pump_serial, part_number"),
+    ({"valve_id": "V-("}, "is not a regular expression"),
+    ({"valve_id": 5}, "give a regular expression as a string"),
+])
+def test_a_bad_scan_setting_is_refused_naming_it(section: dict, words: str) -> None:
+    with pytest.raises(ConfigError, match="station.toml") as caught:
+        scan_rules(section, "station.toml")
+    assert words in str(caught.value)
+
+
+def test_the_docs_scan_settings_work_as_written_and_a_bad_file_stops_the_session_naming_it(
+        tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import re
+
+    from helpers import REPO
+
+    from edc_bench.session.build import make_app
+    from edc_bench.session.runner import RigChoice
+    from edc_bench.session.scan_rules import station_scan_rules
+    from edc_bench.station_settings import SETTINGS_FILE
+
+    (example,) = [block for block in re.findall(r"```toml\n(.*?)```", (REPO / "docs/station.md").read_text(),
+                                                re.S) if "[scan]" in block]
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(tmp_path))
+    (tmp_path / SETTINGS_FILE).write_text(example, encoding="utf-8")
+    context = ScanContext(PARTS.part_numbers, station_scan_rules())
+    assert read_line(Scan(), "V-20417", context).scan.step is Step.PUMP_SERIAL
+    assert "does not look like a valve id here" in read_line(Scan(), "V-9999faulty", context).message
+    (tmp_path / SETTINGS_FILE).write_text("[scan]\nvalve_id = 'V-('\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=f"{SETTINGS_FILE}: \\[scan\\] valve_id = 'V-\\(' is not a regular"):
+        make_app(None, RigChoice(), tmp_path / "records", f"sqlite:///{tmp_path / 'h.sqlite'}", "b", "Jo")

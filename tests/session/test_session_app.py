@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import asyncio
 import json
+import threading
 from pathlib import Path
 
 import pytest
 
-from edc_bench.cli.session_cmd import make_app
+from edc_bench.session.build import make_app
 from edc_bench.history.store import HistoryStore
 from edc_bench.records.reader import load_record
 from edc_bench.session.operator import remembered_operator
@@ -68,7 +69,10 @@ def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
             await _type(pilot, "")
             await _wait_for_verdict(app, pilot)
             seen.append(_screen_text(app))
-            # a part number scanned at the serial's prompt switches the pump type; the worn valve again
+            # the worn valve again (asked about: judged in this shift; scanned again to take it); a part number
+            # scanned at the serial's prompt switches the pump type
+            await _type(pilot, "worn")
+            seen.append(_screen_text(app))
             await _type(pilot, "worn")
             await _type(pilot, "PE-EDC-0002")
             seen.append(_screen_text(app))
@@ -80,8 +84,9 @@ def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
             await pilot.pause()
         return tuple(seen), app
 
-    (worn, marginal, switched, again), app = asyncio.run(shift())
-    assert "FAIL" in worn and "WORN: REPLACE THE VALVE" in worn and "report.pdf" in worn
+    (worn, marginal, asked, switched, again), app = asyncio.run(shift())
+    assert "valve worn was judged in this shift already (FAIL at " in asked and "scan it again to take it" in asked
+    assert "FAIL" in worn and "WORN: REPLACE THE VALVE" in worn and "report ready (F5 prints it)" in worn
     assert "FAIL  (MARGINAL, retest MARGINAL)" in marginal and "NEAR THE LIMIT TWICE: REPLACE THE VALVE" in marginal
     assert "retest: MARGINAL" in marginal and "retest.decide.MARGINAL = FAIL" in marginal
     assert "pump type switched to p-edc-long" in switched and "valve worn, tested before" in switched
@@ -175,3 +180,95 @@ def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is
     with HistoryStore(db) as store:
         checks = store.rig_checks("bench-3")
     assert [c["verdict"] for c in checks] == ["GO", "NO-GO"]
+
+
+def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path: Path) -> None:
+    """#53: a technician typed during a test; the text stayed in the input and the next scan was appended to it (the
+    history held "V-9999faulty"). Now it is cleared, and the screen says it was not taken."""
+    db = f"sqlite:///{tmp_path / 'h.sqlite'}"
+
+    async def session() -> tuple[str, str, str]:
+        app = make_app(None, RigChoice(), tmp_path / "records", db, "bench-1", "Jo")
+        app.runner.report = False
+        typed = threading.Event()  # each test waits for the keys, so they land while it runs, on any machine
+        real_run_valve = app.runner.run_valve
+
+        def run_valve_after_the_keys(*args, **kwargs):
+            assert typed.wait(30)
+            typed.clear()
+            return real_run_valve(*args, **kwargs)
+
+        app.runner.run_valve = run_valve_after_the_keys
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            await _type(pilot, "new")
+            await _type(pilot, "PS-1")
+            assert "Valve new on pump PS-1. Mount the valve" in _screen_text(app)  # shown back before the test
+            await _type(pilot, "")
+            assert app.testing
+            await pilot.press(*"V-9999")  # typed during the test, no Enter
+            during = _screen_text(app)
+            typed.set()
+            await _wait_for_verdict(app, pilot)
+            after_first = _screen_text(app)
+            assert app.query_one("#entry").value == ""
+            await _type(pilot, "faulty")
+            await _type(pilot, "PS-2")
+            await _type(pilot, "")
+            assert app.testing
+            await _type(pilot, "V-8888")  # typed and sent during the test
+            sent = _screen_text(app)
+            typed.set()
+            await _wait_for_verdict(app, pilot)
+            await pilot.press("ctrl+q")
+        return during, after_first, sent
+
+    during, after_first, sent = asyncio.run(session())
+    assert "keys typed now are not taken" in during
+    assert "'V-9999', typed during the test, was not taken: scan it again" in after_first
+    assert "'V-8888' was not taken: a test is running. Scan it again after the verdict." in sent
+    with HistoryStore(db) as store:
+        assert [r["valve_id"] for r in store.list()] == ["new", "faulty"]
+
+
+def test_the_verdict_is_shown_before_the_report_is_drawn_and_the_screen_says_when_it_is_ready(tmp_path: Path) -> None:
+    """#53: the report (seconds on a loaded PC) was drawn before the verdict was shown; the panel sat on "classify".
+    Here drawing is held until the verdict has been read off the screen."""
+    out = tmp_path / "records"
+
+    async def session() -> tuple[str, str, str, str]:
+        app = make_app(None, RigChoice(), out, f"sqlite:///{tmp_path / 'h.sqlite'}", "bench-1", "Jo")
+        may_draw = threading.Event()
+        real_draw = app.runner._draw
+
+        def draw_when_allowed(test):
+            assert may_draw.wait(60)
+            return real_draw(test)
+
+        app.runner._draw = draw_when_allowed
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            for line in ("worn", "PS-1", ""):
+                await _type(pilot, line)
+            while app.testing:  # the test's worker; the report's is held
+                await asyncio.sleep(0.05)
+            await pilot.pause()
+            shown = _screen_text(app)
+            await pilot.press("f5")
+            await pilot.pause()
+            f5_early = _screen_text(app)
+            await pilot.press("ctrl+q")  # the shift ends once the report is whole, not half drawn
+            await pilot.pause()
+            ending = _screen_text(app)
+            may_draw.set()
+            while app.drawing.is_set() or app.summary_file is None:
+                await asyncio.sleep(0.05)
+            return shown, f5_early, ending, str(app.return_code)
+
+    shown, f5_early, ending, _ = asyncio.run(session())
+    assert "WORN: REPLACE THE VALVE" in shown and "report being drawn" in shown
+    assert "the report is being drawn: press F5 again when it is ready" in f5_early
+    assert "finishing the last report: the shift ends then" in ending
+    (record,) = [p for p in out.iterdir() if p.is_dir()]
+    assert (record / "report.pdf").is_file()
+    assert list(out.glob("shift-*.txt"))  # the shift's summary written once the report was
