@@ -142,6 +142,8 @@ def session_screens() -> None:
 
         async def settle(pilot) -> None:
             await app.workers.wait_for_complete()
+            while app.drawing.is_set():  # the reports are drawn after the verdict
+                await asyncio.sleep(0.05)
             await pilot.pause()
             await pilot.pause()
 

@@ -234,6 +234,8 @@ class SessionApp(App[None]):
             self.variant = self.variant_loader(answer.scan.variant)
             self._show_status()
         self.scan = answer.scan
+        if answer.refused and self.scan.pending and self.scan.step is Step.VALVE_ID:
+            self._show_history(self.scan.pending)  # asked about: what the history knows of it helps decide
         if answer.refused or answer.switched_variant:
             return
         if self.scan.step is Step.PUMP_SERIAL:  # a new valve: the last verdict gives way to it
@@ -386,10 +388,8 @@ class SessionApp(App[None]):
             self.last = done
             if not self.testing:
                 self.query_one("#live", Static).update(self._details(done))
-        if problems:
+        if problems:  # "report ready" is said in the details: the message line may hold a question being asked
             self._say("; ".join(problems))
-        elif any(t.report_pdf is not None for t in done.tests) and not self.testing:
-            self._say(f"the report of valve {done.valve_id} is ready: F5 prints it")
         if self.end_when_drawn:
             self._end_shift()
 
