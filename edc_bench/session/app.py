@@ -226,8 +226,7 @@ class SessionApp(App[None]):
                 return
             self._run_selfcheck_now()
             return
-        judged = {v.valve_id: f"{v.final} at {v.at[11:16]}" for v in self.shift.valves}
-        answer = read_line(self.scan, event.value, ScanContext(self.part_numbers, self.scan_rules, judged))
+        answer = read_line(self.scan, event.value, ScanContext(self.part_numbers, self.scan_rules, self.shift.judged()))
         event.input.value = ""
         self._say(answer.message)
         if answer.switched_variant:

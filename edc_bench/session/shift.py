@@ -61,6 +61,11 @@ class ShiftLog:
         """Valves tested a second time (a MARGINAL's retest)."""
         return sum(1 for v in self.valves if len(v.verdicts) > 1)
 
+    def judged(self) -> dict[str, str]:
+        """Valve id -> its last judgement in this shift, as said on screen ("FAIL at 10:02"). A valve left INVALID
+        is not in it: no judgement, and testing it again is what its words ask for."""
+        return {v.valve_id: f"{v.final} at {v.at[11:16]}" for v in self.valves if v.final != "INVALID"}
+
     def summary_lines(self) -> list[str]:
         """The shift in a few lines, for the screen and the file."""
         finals = Counter(v.final for v in self.valves)

@@ -123,3 +123,15 @@ def test_the_docs_scan_settings_work_as_written_and_a_bad_file_stops_the_session
     (tmp_path / SETTINGS_FILE).write_text("[scan]\nvalve_id = 'V-('\n", encoding="utf-8")
     with pytest.raises(ConfigError, match=f"{SETTINGS_FILE}: \\[scan\\] valve_id = 'V-\\(' is not a regular"):
         make_app(None, RigChoice(), tmp_path / "records", f"sqlite:///{tmp_path / 'h.sqlite'}", "b", "Jo")
+
+
+def test_a_valve_left_invalid_is_not_asked_about_when_scanned_again() -> None:
+    from edc_bench.session.shift import ShiftLog, ValveEntry
+
+    shift = ShiftLog("Jo", "bench-1", "simulated rig")
+    for valve, final in (("V-1", "FAIL"), ("V-2", "INVALID"), ("V-3", "PASS")):
+        shift.valves.append(ValveEntry(valve, "PS", "p-edc-default", (final,), final, "", (), "2026-11-27T10:02:31"))
+    assert shift.judged() == {"V-1": "FAIL at 10:02", "V-3": "PASS at 10:02"}
+    context = ScanContext(PARTS.part_numbers, judged=shift.judged())
+    assert read_line(Scan(), "V-2", context).scan.step is Step.PUMP_SERIAL  # INVALID: tested again, as told
+    assert read_line(Scan(), "V-1", context).refused
