@@ -44,8 +44,9 @@ def _read(path: str) -> str | None:
         return None
 
 
-def _busy_programs(min_share: float = 0.1, sample_s: float = 0.5) -> list[tuple[str, float]]:
-    """Other processes using at least ``min_share`` of a CPU, measured over ``sample_s``."""
+def _busy_programs(min_share: float = 0.1, sample_s: float = 0.5) -> list[tuple[str, float, int]]:
+    """Other processes using at least ``min_share`` of a CPU, measured over ``sample_s``: (name, share, pid), the
+    busiest first (the pid tells apart two of one name, and is what ``kill`` or the task manager takes)."""
     import time
 
     def times() -> dict[int, tuple[str, int]]:
@@ -70,7 +71,7 @@ def _busy_programs(min_share: float = 0.1, sample_s: float = 0.5) -> list[tuple[
         if pid in before:
             share = (ticks - before[pid][1]) / hz / sample_s
             if share >= min_share:
-                busy.append((name, share))
+                busy.append((name, share, pid))
     return sorted(busy, key=lambda item: -item[1])
 
 
@@ -98,7 +99,7 @@ def system_facts() -> dict[str, object]:
 
 
 def judge(period_s: float, late_s: np.ndarray, steal_s: float, overrun_limit: float,
-          facts: dict[str, object], busy: list[tuple[str, float]]) -> tuple[str, list[str], list[str]]:
+          facts: dict[str, object], busy: list[tuple[str, float, int]]) -> tuple[str, list[str], list[str]]:
     """GO or NO-GO, why, and what to do about it."""
     p999 = float(np.percentile(late_s, 99.9)) if len(late_s) else float("inf")
     overruns = int((late_s > period_s).sum())
@@ -113,7 +114,7 @@ def judge(period_s: float, late_s: np.ndarray, steal_s: float, overrun_limit: fl
         advice.append(f"The hypervisor took {steal_s:.2f} s of CPU during the check: this PC is a virtual machine "
                       "sharing its cores. A bench station needs a physical PC or dedicated (pinned) cores.")
     if busy:
-        names = ", ".join(f"{name} ({share:.0%} of a CPU)" for name, share in busy[:5])
+        names = ", ".join(f"{name} (pid {pid}, {share:.0%} of a CPU)" for name, share, pid in busy[:5])
         advice.append(f"Close the programs using CPU: {names}.")
     if facts.get("governor") not in (None, "performance"):
         advice.append(f"The CPU governor is '{facts['governor']}': set it to 'performance' "

@@ -24,12 +24,12 @@ def test_station_no_go_names_the_causes_and_advises() -> None:
     late[::50] = 1.5e-3  # 2 % of ticks overrun
     facts = {"governor": "powersave", "on_battery": True, "realtime_scheduling_now": False,
              "realtime_priority_allowed": False}
-    verdict, reasons, advice = judge(1e-3, late, 0.8, 0.01, facts, [("firefox", 0.9)])
+    verdict, reasons, advice = judge(1e-3, late, 0.8, 0.01, facts, [("firefox", 0.9, 4711)])
     assert verdict == "NO-GO"
     assert any("p99.9 lateness 1500 us" in r for r in reasons)
     assert any("200 of 10000 ticks overran" in r for r in reasons)
     text = " ".join(advice)
-    for expected in ("virtual machine", "firefox (90% of a CPU)", "'performance'", "battery", "limits.conf"):
+    for expected in ("virtual machine", "firefox (pid 4711, 90% of a CPU)", "'performance'", "battery", "limits.conf"):
         assert expected in text
 
 
