@@ -172,7 +172,7 @@ def session_screens() -> None:
             await type_line(pilot, "")
             await settle(pilot)
             shot("session-pass.svg")
-            await pilot.press("ctrl+q")
+            await pilot.press("ctrl+q", "ctrl+q")
             await pilot.pause()
         summary = app.summary_file.read_text()
         (IMAGES / "session-shift-summary.txt").write_text(summary.replace(str(scratch), "..."))

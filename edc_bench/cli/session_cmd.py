@@ -26,7 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "order, the valve id, the pump serial and 'mount the valve, then Enter' (a barcode scanner "
                     "types and ends with Enter); it tests the valve, retests a MARGINAL, shows the verdict with "
                     "what to do until the next scan, and makes the report (PDF and PNG) in every record. A pump "
-                    "part number scanned at any prompt switches the pump type. Ctrl+Q ends the shift and writes "
+                    "part number scanned at any prompt switches the pump type. Ctrl+Q twice ends the shift and writes "
                     "its summary. Without bus arguments the simulated rig runs in process (a valve id that names "
                     "a simulated valve, such as worn or clearance=0.185, gets that valve; any other id a used "
                     "valve drawn from it). 'edc-bench test' stays for scripts.",

@@ -34,6 +34,8 @@ from edc_bench.session.shift import RigCheckEntry, ShiftLog, ValveEntry, now_loc
 from edc_bench.ui.snapshot import Snapshot
 
 #: Colours of each verdict's block (white text on them).
+#: A second Ctrl+Q within this many seconds of the first ends the shift.
+END_CONFIRM_S = 10.0
 VERDICT_COLOURS = {"PASS": "green", "MARGINAL": "#b58900", "FAIL": "red", "INVALID": "magenta"}
 
 
@@ -151,6 +153,7 @@ class SessionApp(App[None]):
         self.summary_file: Path | None = None
         self.drawing = threading.Event()  # set while the last valve's reports are drawn
         self.end_when_drawn = False  # Ctrl+Q (or an interrupt) came while they were
+        self.end_asked_at: float | None = None  # time.monotonic() of a first Ctrl+Q, which asks
         #: seconds from each valve's last safe stop to its decision on screen, and to its reports drawn
         self.decision_latencies_s: list[float] = []
         self.report_latencies_s: list[float] = []
@@ -212,6 +215,7 @@ class SessionApp(App[None]):
     def on_input_submitted(self, event: Input.Submitted) -> None:
         if event.input.id != "entry":
             return
+        self.end_asked_at = None  # the shift goes on: a later Ctrl+Q asks again
         if self.testing:  # never kept for the next prompt: it would be glued to the next scan
             typed = event.value.strip()
             event.input.value = ""
@@ -266,6 +270,7 @@ class SessionApp(App[None]):
         return f"{typed!r}, typed during the test, was not taken: scan it again" if typed else ""
 
     def action_back(self) -> None:
+        self.end_asked_at = None
         if self.testing:
             return
         if self.awaiting_reference:
@@ -485,6 +490,12 @@ class SessionApp(App[None]):
     def action_end_shift(self) -> None:
         if self.testing:
             self._say("a test is running: the shift ends after its verdict (press Ctrl+Q again then)")
+            return
+        asked = self.end_asked_at
+        if asked is None or time.monotonic() - asked > END_CONFIRM_S:  # a key next to others: asked, not obeyed
+            self.end_asked_at = time.monotonic()
+            self._say(f"End the shift? Press Ctrl+Q again within {END_CONFIRM_S:g} s to end it and write its "
+                      "summary; scanning goes on as before")
             return
         self._end_shift()
 

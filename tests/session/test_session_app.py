@@ -40,6 +40,11 @@ async def _type(pilot, text: str) -> None:
 
 
 async def _wait_for_verdict(app, pilot) -> None:
+    """The test's verdict shown, and its reports drawn after it (their worker ends once the screen has them)."""
+    await app.workers.wait_for_complete()
+    await pilot.pause()
+    while app.drawing.is_set():
+        await asyncio.sleep(0.05)
     await app.workers.wait_for_complete()
     await pilot.pause()
     await pilot.pause()
@@ -80,7 +85,7 @@ def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
             await _type(pilot, "")
             await _wait_for_verdict(app, pilot)
             seen.append(_screen_text(app))
-            await pilot.press("ctrl+q")
+            await pilot.press("ctrl+q", "ctrl+q")
             await pilot.pause()
         return tuple(seen), app
 
@@ -124,12 +129,24 @@ def test_the_operator_is_remembered_and_a_mount_prompt_refuses_a_stray_scan(tmp_
             await _type(pilot, "PS-1")
             await _type(pilot, "V-2")  # a second valve's id scanned before Enter: not a test start
             text = _screen_text(app)
+            await pilot.press("ctrl+q")  # pressed by mistake: asked, the shift goes on
+            await pilot.pause()
+            asked = _screen_text(app)
+            assert app.is_running and app.summary_file is None
+            await _type(pilot, "")  # the valve tested: a later Ctrl+Q asks again
+            await app.workers.wait_for_complete()
             await pilot.press("ctrl+q")
-        return text
+            await pilot.pause()
+            assert app.is_running
+            await pilot.press("ctrl+q")
+            await pilot.pause()
+            assert app.summary_file is not None
+        return text + asked
 
     text = asyncio.run(session())
+    assert "End the shift? Press Ctrl+Q again within 10 s to end it" in text
     assert "operator Jo" in text and "press Enter alone" in text and "Mount the valve" in text
-    assert not out.exists() or not any(p.is_dir() for p in out.iterdir())  # nothing was tested
+    assert len([p for p in out.iterdir() if p.is_dir()]) == 1  # one valve tested, after the Ctrl+Q that asked
 
 
 def _register_reference(tmp_path: Path, db: str, station: str) -> None:
@@ -163,7 +180,7 @@ def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is
             await _type(pilot, "")
             await _wait_for_verdict(app, pilot)
             after = _screen_text(app)
-            await pilot.press("ctrl+q")
+            await pilot.press("ctrl+q", "ctrl+q")
             await pilot.pause()
         return asked, checked + "\n" + after, app
 
@@ -220,7 +237,7 @@ def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path:
             sent = _screen_text(app)
             typed.set()
             await _wait_for_verdict(app, pilot)
-            await pilot.press("ctrl+q")
+            await pilot.press("ctrl+q", "ctrl+q")
         return during, after_first, sent
 
     during, after_first, sent = asyncio.run(session())
@@ -257,7 +274,7 @@ def test_the_verdict_is_shown_before_the_report_is_drawn_and_the_screen_says_whe
             await pilot.press("f5")
             await pilot.pause()
             f5_early = _screen_text(app)
-            await pilot.press("ctrl+q")  # the shift ends once the report is whole, not half drawn
+            await pilot.press("ctrl+q", "ctrl+q")  # the shift ends once the report is whole, not half drawn
             await pilot.pause()
             ending = _screen_text(app)
             may_draw.set()

@@ -97,7 +97,7 @@ def test_a_shift_of_1500_tests_in_one_session_process(tmp_path: Path) -> None:
                 valve += 1
                 if app.shift.tests // SAMPLE_EVERY > len(samples):
                     samples.append((app.shift.tests, _rss_mb(), _open_files(), _python_blocks()))
-            await pilot.press("ctrl+q")
+            await pilot.press("ctrl+q", "ctrl+q")
             await pilot.pause()
         return app
 

@@ -36,6 +36,8 @@ def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> 
         passed = term.wait_for("REUSABLE: REFIT THE VALVE")
         assert "valves 2, tests 3" in passed
         term.keys("C-q")
+        term.wait_for("End the shift? Press Ctrl+Q again")
+        term.keys("C-q")
         ended = term.wait_for("EXITED")
     finally:
         term.close()
