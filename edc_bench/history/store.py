@@ -27,6 +27,7 @@ import csv
 import datetime as dt
 import json
 import math
+import os
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager
@@ -242,7 +243,7 @@ class HistoryStore:
             self._say(f"history database {self.shown_url}: its append-only triggers were missing or changed "
                       f"({len(restored)}: {', '.join(restored)}); someone may have changed or deleted rows meanwhile: "
                       "restored now; 'edc-bench history --verify' shows where its chain breaks")
-        breaks = self.chain_breaks()
+        breaks = self._chain_breaks_since_checked(full=bool(restored))
         if breaks:
             self._say(f"history database {self.shown_url}: its chain is broken in {len(breaks)} place(s), first "
                       f"{breaks[0].line()}: rows were changed, deleted or put in by hand; 'edc-bench history "
@@ -462,6 +463,34 @@ class HistoryStore:
                 if not self.is_sqlite:
                     recomputed, legacy = _pg_recomputed(conn, table.name, anchors)
                 found += check_chain(table.name, rows, anchors, recomputed, legacy)
+        return found
+
+    def _chain_breaks_since_checked(self, full: bool) -> list[Break]:
+        """The SQLite chain's breaks, checked in full at this process's first opening of the file (and after its
+        triggers were restored), then only in the rows added since: a shift's session opens the history for every
+        test, and a year's rows cost it a second each time. ``history --verify`` always checks in full."""
+        try:
+            stat = os.stat(self.engine.url.database or "")
+            key: tuple[str, int, int] | None = (os.path.realpath(self.engine.url.database or ""), stat.st_dev,
+                                                stat.st_ino)
+        except OSError:  # an in-memory database, or a file that cannot be looked at: checked in full
+            key = None
+        checked = None if full or key is None else _CHECKED.get(key)
+        found: list[Break] = []
+        heads: dict[str, tuple[int, dict[str, str]]] = {}
+        with self._guard("read"), self.engine.connect() as conn:
+            for table in CHAINED_TABLES:
+                since_id, verified = checked[table.name] if checked is not None else (0, None)
+                rows = [dict(r._mapping) for r in conn.execute(sa.select(table).where(table.c.id > since_id)
+                                                               .order_by(table.c.id))]
+                found += check_chain(table.name, rows, _anchors(conn, table.name, None), verified_heads=verified)
+                last = dict(verified or {})
+                for row in rows:
+                    if row.get("row_hash") is not None:
+                        last[chain_of(table.name, row)] = str(row["row_hash"])
+                heads[table.name] = (max([since_id, *(int(row["id"]) for row in rows)]), last)
+        if key is not None and not found:  # a break is looked for again at every opening until it is mended
+            _CHECKED[key] = heads
         return found
 
     def heads(self) -> list[dict[str, Any]]:
@@ -812,6 +841,11 @@ def _typed(table: sa.Table, row: dict[str, Any]) -> dict[str, Any]:
         else:
             typed[key] = _text(value)
     return typed
+
+
+#: SQLite files whose chain this process has checked: (path, device, inode) -> table -> (the last id checked, each
+#: chain's last hash), so that a later opening checks only the rows added since
+_CHECKED: dict[tuple[str, int, int], dict[str, tuple[int, dict[str, str]]]] = {}
 
 
 def _anchors(conn: sa.Connection, table: str, station: str | None) -> dict[str, dict[str, Any]]:
