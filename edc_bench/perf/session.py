@@ -1,7 +1,8 @@
 """The session's latency: from a test's safe stop to its decision on the screen, and to its report drawn.
 
 The app runs headless (Textual's test driver) on the simulated rig, a valve at a time scanned as a technician
-scans it; the app stamps each valve's safe stop (the loop's end, when its judgement begins) and measures from it.
+scans it; the app stamps each valve's safe stop (the loop's end, when its judgement begins) and measures from it to
+its decision put on the screen's widgets (Textual paints them at its next refresh, within 1/60 s).
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ def session_latency(valves: int) -> dict[str, Any]:
                             await pilot.press("enter")
                             if not app.scan.pending:
                                 break
+                    await app.workers.wait_for_complete()
+                    while app.drawing.is_set():  # the reports, drawn after the decision
+                        await asyncio.sleep(0.05)
                     await app.workers.wait_for_complete()
                     await pilot.pause()
                 app.exit()

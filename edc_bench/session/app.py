@@ -112,10 +112,11 @@ class SessionApp(App[None]):
     """
 
     TITLE = "edc-bench session"
+    ENABLE_COMMAND_PALETTE = False  # its Quit would end the shift without its summary or the report being drawn
     CSS = """
     Screen { layout: vertical; }
     #status { height: 1; background: $boost; padding: 0 1; }
-    #prompt { height: 1; margin: 1 1 0 1; text-style: bold; }
+    #prompt { height: auto; margin: 1 1 0 1; text-style: bold; }
     #entry { margin: 0 1; }
     #message { height: auto; margin: 0 1; color: $warning; }
     #verdict { height: 5; content-align: center middle; text-style: bold; margin: 1 1 0 1; }
@@ -154,6 +155,10 @@ class SessionApp(App[None]):
         self.drawing = threading.Event()  # set while the last valve's reports are drawn
         self.end_when_drawn = False  # Ctrl+Q (or an interrupt) came while they were
         self.end_asked_at: float | None = None  # time.monotonic() of a first Ctrl+Q, which asks
+        self.verdict_shown = False  # the last valve's verdict is on screen (until the next valve id)
+        self.refused_while_testing: list[str] = []  # lines sent during the test: said again with its verdict
+        self.begun_while_testing = False  # the entry held text when the verdict came: its next line is refused
+        self.message = ""
         #: seconds from each valve's last safe stop to its decision on screen, and to its reports drawn
         self.decision_latencies_s: list[float] = []
         self.report_latencies_s: list[float] = []
@@ -208,7 +213,12 @@ class SessionApp(App[None]):
             f"{self.shift.tests}")
 
     def _say(self, message: str) -> None:
+        self.message = message
         self.query_one("#message", Static).update(Text(message))
+
+    def _say_too(self, message: str) -> None:
+        """Add to what the message line says (a question being asked stays on it)."""
+        self._say(f"{self.message}; {message}" if self.message else message)
 
     # -- the prompts ---------------------------------------------------------------------------------------------
 
@@ -216,12 +226,25 @@ class SessionApp(App[None]):
         if event.input.id != "entry":
             return
         self.end_asked_at = None  # the shift goes on: a later Ctrl+Q asks again
+        if self.end_when_drawn:
+            event.input.value = ""
+            self._say("the shift is ending: the last report is being finished")
+            return
         if self.testing:  # never kept for the next prompt: it would be glued to the next scan
             typed = event.value.strip()
             event.input.value = ""
+            if typed:
+                self.refused_while_testing.append(typed)
             self._say(f"{typed!r} was not taken: a test is running. Scan it again after the verdict." if typed else
                       "a test is running: wait for its verdict")
             return
+        if self.begun_while_testing:  # its first keys were typed during the test: part of it may be lost
+            self.begun_while_testing = False
+            typed = event.value.strip()
+            event.input.value = ""
+            if typed:
+                self._say(f"{typed!r} was begun while the test ran and is not taken whole: scan it again")
+                return
         if self.awaiting_reference:
             event.input.value = ""
             if event.value.strip():
@@ -253,6 +276,10 @@ class SessionApp(App[None]):
                 return
             self._test(self.scan.valve_id, self.scan.pump_serial)
 
+    def on_input_changed(self, event: Input.Changed) -> None:
+        if event.input.id == "entry" and not event.value.strip():
+            self.begun_while_testing = False  # emptied by hand: the next line is typed whole
+
     def _show_prompt(self) -> None:
         """The current step's prompt; mounting names the valve and pump scanned, so a wrong scan shows before the
         test."""
@@ -262,12 +289,18 @@ class SessionApp(App[None]):
         else:
             self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
 
-    def _discard_typed(self) -> str:
-        """Clear what was typed while a test ran and not sent with Enter; the words saying so ('' if nothing)."""
-        entry = self.query_one("#entry", Input)
-        typed = entry.value.strip()
-        entry.value = ""
-        return f"{typed!r}, typed during the test, was not taken: scan it again" if typed else ""
+    def _typed_during_test(self) -> str:
+        """What was typed while a test ran, when its verdict (or its failure) comes: lines sent then were refused
+        and are named again; text still in the entry stays, but its line will be refused whole (the rest of a scan
+        may come after the verdict). The words saying so ('' if nothing)."""
+        words = [f"not taken during the test: {', '.join(repr(t) for t in self.refused_while_testing)}: scan again"
+                 ] if self.refused_while_testing else []
+        self.refused_while_testing = []
+        typed = self.query_one("#entry", Input).value.strip()
+        self.begun_while_testing = bool(typed)
+        if typed:
+            words.append(f"{typed!r} was begun during the test: Enter refuses it, then scan it again")
+        return "; ".join(words)
 
     def action_back(self) -> None:
         self.end_asked_at = None
@@ -291,6 +324,7 @@ class SessionApp(App[None]):
             side.update(Text(f"valve {valve_id}: not tested before at this shop"))
 
     def _clear_verdict(self) -> None:
+        self.verdict_shown = False
         verdict = self.query_one("#verdict", Static)
         verdict.update("")
         verdict.styles.background = None
@@ -301,8 +335,11 @@ class SessionApp(App[None]):
 
     def _test(self, valve_id: str, pump_serial: str) -> None:
         self.testing = True
-        self.query_one("#prompt", Label).update(f"Testing valve {valve_id} ... keys typed now are not taken "
-                                                "(Ctrl+Q ends the shift after it)")
+        self.observer = None  # the last test's panel is not this one's
+        self.query_one("#live", Static).update("")
+        first = "finishing the last valve's report first, then testing" if self.drawing.is_set() else "Testing"
+        self.query_one("#prompt", Label).update(f"{first} valve {valve_id} ... keys typed now are not taken "
+                                                "(the shift can end after its verdict)")
         self._run_valve(valve_id, pump_serial, self.variant)
 
     def _new_observer(self, which: str) -> SnapshotObserver:
@@ -316,7 +353,9 @@ class SessionApp(App[None]):
     @work(thread=True, exclusive=True)
     def _run_valve(self, valve_id: str, pump_serial: str, variant: Any) -> None:
         self.last_valve_id = valve_id
-        self._wait_for_reports()
+        if not self._wait_for_reports():
+            self.call_from_thread(self._not_started, f"the test of valve {valve_id}")
+            return
         try:
             done = self.runner.run_valve(variant, valve_id, pump_serial, observer=self._new_observer)
         except Exception as exc:  # noqa: BLE001 - the shift goes on; what failed is said on the screen
@@ -324,11 +363,18 @@ class SessionApp(App[None]):
             return
         self.call_from_thread(self._show_done, done)
 
-    def _wait_for_reports(self) -> None:
+    def _wait_for_reports(self) -> bool:
         """In a test's worker: the last valve's reports finished first (drawing beside a real-time loop would
-        disturb its ticks; they take seconds, mostly while the next valve is scanned and mounted)."""
+        disturb its ticks; they take seconds, mostly while the next valve is scanned and mounted). False if the
+        shift is ending meanwhile (Ctrl+Q, Ctrl-C, SIGTERM): the test is not started."""
         while self.drawing.is_set():
             time.sleep(0.05)
+        return not (stop_requested() or self.end_when_drawn)
+
+    def _not_started(self, what: str) -> None:
+        self.testing = False
+        self._say(f"{what} was not started: the shift is ending")
+        self._show_prompt()
 
     def _draw_live(self) -> None:
         observer = self.observer
@@ -342,7 +388,7 @@ class SessionApp(App[None]):
 
     def _test_failed(self, valve_id: str, why: str) -> None:
         self.testing = False
-        typed = self._discard_typed()
+        typed = self._typed_during_test()
         self._say(f"the test of valve {valve_id} could not run: {why}. Check the rig and its cable, then scan "
                   f"the valve again.{' ' + typed if typed else ''}")
         self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
@@ -361,8 +407,9 @@ class SessionApp(App[None]):
         verdict.styles.background = VERDICT_COLOURS.get(final, "magenta")
         self.query_one("#words", Static).update(Text(done.words.upper() if final != "INVALID" else done.words))
         self.query_one("#live", Static).update(self._details(done))
-        typed = self._discard_typed()
+        typed = self._typed_during_test()
         self._say("; ".join(p for p in [*(p for t in done.tests for p in t.problems), typed] if p))
+        self.verdict_shown = True
         self.shift.valves.append(ValveEntry(
             done.valve_id, done.pump_serial, done.variant, tuple(t.verdict for t in done.tests), final, done.words,
             tuple(str(t.record_dir) for t in done.tests if t.record_dir is not None), now_local()))
@@ -379,22 +426,28 @@ class SessionApp(App[None]):
     def _draw_reports(self, done: ValveDone, safe_stopped_at: float | None) -> None:
         try:
             drawn = self.runner.draw_reports(done)
-        finally:
-            self.drawing.clear()
+            problems = [p for t in drawn.tests for p in t.problems if p not in {q for t in done.tests
+                                                                                for q in t.problems}]
+        except Exception as exc:  # noqa: BLE001 - the records are kept; a report is drawn again from one
+            drawn, problems = done, [f"the reports could not be drawn ({type(exc).__name__}: {exc}); draw them with: "
+                                     "edc-bench report RECORD_FOLDER"]
         if safe_stopped_at is not None:
             self.report_latencies_s.append(time.monotonic() - safe_stopped_at)
-        said = {p for t in done.tests for p in t.problems}
-        self.call_from_thread(self._reports_drawn, drawn, [p for t in drawn.tests for p in t.problems if p not in said])
+        try:  # drawing ends on the screen's side, so a test waiting for it starts after the end of shift is decided
+            self.call_from_thread(self._reports_drawn, drawn, problems)
+        finally:
+            self.drawing.clear()  # the app gone meanwhile, or the call failed: no one waits on it for ever
 
     def _reports_drawn(self, done: ValveDone, problems: list[str]) -> None:
-        """The valve's reports are drawn (or what failed): its details say so, unless the next test has begun."""
+        """The valve's reports are drawn (or what failed): its details say so while its verdict is on screen."""
+        self.drawing.clear()
         if self.last is not None and self.last.tests[0].record_dir == done.tests[0].record_dir:
             self.last = done
-            if not self.testing:
+            if self.verdict_shown and not self.testing:
                 self.query_one("#live", Static).update(self._details(done))
-        if problems:  # "report ready" is said in the details: the message line may hold a question being asked
-            self._say("; ".join(problems))
-        if self.end_when_drawn:
+        if problems:  # added: the message line may hold a question being asked
+            self._say_too("; ".join(problems))
+        if self.end_when_drawn and not self.testing:
             self._end_shift()
 
     def _details(self, done: ValveDone) -> Text:
@@ -437,6 +490,7 @@ class SessionApp(App[None]):
 
     def _run_selfcheck_now(self) -> None:
         self.testing = True
+        self.observer = None  # no live panel: the last test's would look like this one
         self.query_one("#prompt", Label).update(f"Rig self-check with the reference valve {self.awaiting_reference} "
                                                 "...")
         self.awaiting_reference = ""
@@ -444,7 +498,9 @@ class SessionApp(App[None]):
 
     @work(thread=True, exclusive=True)
     def _run_selfcheck(self) -> None:
-        self._wait_for_reports()
+        if not self._wait_for_reports():
+            self.call_from_thread(self._not_started, "the rig self-check")
+            return
         try:
             words = self.selfcheck.run()
         except Exception as exc:  # noqa: BLE001 - said on the screen; the shift goes on
@@ -453,7 +509,7 @@ class SessionApp(App[None]):
 
     def _selfcheck_done(self, words: SelfCheckWords) -> None:
         self.testing = False
-        typed = self._discard_typed()
+        typed = self._typed_during_test()
         self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, now_local()))
         style = {True: "green", False: "red"}.get(words.go, "yellow")
         line = words.words if words.words.startswith("rig self-check") else f"rig self-check: {words.words}"
@@ -476,20 +532,26 @@ class SessionApp(App[None]):
         done = self.last
         pdfs = [t.report_pdf for t in done.tests if t.report_pdf is not None] if done is not None else []
         if not pdfs:
+            records = [t.record_dir for t in done.tests if t.record_dir is not None] if done is not None else []
             self._say("the report is being drawn: press F5 again when it is ready" if self.drawing.is_set() else
-                      "no report to print yet: test a valve first")
+                      f"the report of {records[-1].name} could not be drawn: edc-bench report {records[-1]} draws it"
+                      if records else "no report to print yet: test a valve first")
             return
         lp = shutil.which("lp")
         if lp is None:
             self._say(f"no printer command (lp) on this station: the report is {pdfs[-1]}")
             return
-        result = subprocess.run([lp, str(pdfs[-1])], capture_output=True, text=True, timeout=30, check=False)
+        try:
+            result = subprocess.run([lp, str(pdfs[-1])], capture_output=True, text=True, timeout=30, check=False)
+        except (subprocess.TimeoutExpired, OSError) as exc:
+            self._say(f"the printer did not take the report ({type(exc).__name__}): it is {pdfs[-1]}")
+            return
         self._say(f"sent to the printer: {pdfs[-1].name}" if result.returncode == 0 else
                   f"the printer refused the report ({(result.stderr or result.stdout).strip()}): it is {pdfs[-1]}")
 
     def action_end_shift(self) -> None:
         if self.testing:
-            self._say("a test is running: the shift ends after its verdict (press Ctrl+Q again then)")
+            self._say("a test is running: end the shift after its verdict (Ctrl+Q twice)")
             return
         asked = self.end_asked_at
         if asked is None or time.monotonic() - asked > END_CONFIRM_S:  # a key next to others: asked, not obeyed
@@ -498,6 +560,10 @@ class SessionApp(App[None]):
                       "summary; scanning goes on as before")
             return
         self._end_shift()
+
+    async def action_quit(self) -> None:
+        """Textual's own quit (its key, a window's close): the shift's end, as Ctrl+Q."""
+        self.action_end_shift()
 
     def _end_shift(self) -> None:
         if self.drawing.is_set():  # a report half drawn is a report lost: the shift ends once it is whole

@@ -1,13 +1,14 @@
-"""What a scanned id looks like at this shop: a pattern per field, from ``[scan]`` in the station's settings::
+r"""What a scanned id looks like at this shop: a pattern per field, from ``[scan]`` in the station's settings::
 
     [scan]
-    valve_id = 'V-\\d{5}'          # a regular expression the whole line must match
-    pump_serial = 'PS-\\d{4,6}'
-    part_number = 'PE-EDC-\\d{4}'  # a line like this that names no pump type is refused, not taken as an id
+    valve_id = 'V-\d{5}'          # a regular expression the whole line must match
+    pump_serial = 'PS-\d{4,6}'
+    part_number = 'PE-EDC-\d{4}'  # a line like this that names no pump type is refused, not taken as an id
 
 A line that does not fit is not refused outright (a label may be new): the session asks for it to be scanned
-again to take it as it is. Where the shop sets no pattern, an id is letters, digits and ``. _ - / = + :``; a line
-with anything else (``;``, ``@``, ``#``, spaces, symbols) is asked about the same way.
+again to take it as it is. Where the shop sets no pattern, an id is ASCII letters, digits and ``. _ - / = + :``; a
+line with anything else (``;``, ``@``, ``#``, spaces, symbols, letters such as ``ß`` that a scanner set to another
+keyboard layout types for ``-``) is asked about the same way. Patterns match ASCII only (``\d`` is 0-9).
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ from edc_bench.errors import ConfigError
 #: The fields a shop may give a pattern for, as they are named in ``[scan]`` and said on screen.
 FIELDS = {"valve_id": "valve id", "pump_serial": "pump serial", "part_number": "part number"}
 #: An id where the shop sets no pattern: a letter or digit, then letters, digits and the marks labels use.
-DEFAULT_ID = re.compile(r"[^\W_][\w./=+:-]*")
+DEFAULT_ID = re.compile(r"[^\W_][\w./=+:-]*", re.ASCII)
+_ID_CHARACTER = re.compile(r"[\w./=+:-]", re.ASCII)
 
 
 @dataclass(frozen=True)
@@ -36,10 +38,10 @@ class ScanRules:
         if pattern is not None:
             if pattern.fullmatch(text):
                 return None
-            return f"{text!r} does not look like a {what} here (the station's pattern {pattern.pattern!r})"
+            return f"{text!r} does not look like a {what} here (the station's pattern {pattern.pattern})"
         if DEFAULT_ID.fullmatch(text):
             return None
-        odd = "".join(dict.fromkeys(c for c in text if not re.fullmatch(r"[\w./=+:-]", c)))
+        odd = "".join(dict.fromkeys(c for c in text if not _ID_CHARACTER.fullmatch(c)))
         shown = " ".join("space" if c == " " else repr(c) for c in odd) if odd else "its first character"
         return f"{text!r} has characters an id rarely has ({shown})"
 
@@ -65,7 +67,7 @@ def scan_rules(section: dict[str, object], where: str) -> ScanRules:
             raise ConfigError(f"{where}: [scan] {key} = {value!r}: give a regular expression as a string, e.g. "
                               f"{key} = 'V-\\d{{5}}'")
         try:
-            patterns[key] = re.compile(value)
+            patterns[key] = re.compile(value, re.ASCII)
         except re.error as exc:
             raise ConfigError(f"{where}: [scan] {key} = {value!r} is not a regular expression ({exc}); in TOML "
                               "write it in single quotes, e.g. 'V-\\d{5}'") from None

@@ -201,10 +201,11 @@ def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is
 
 def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path: Path) -> None:
     """#53: a technician typed during a test; the text stayed in the input and the next scan was appended to it (the
-    history held "V-9999faulty"). Now it is cleared, and the screen says it was not taken."""
+    history held "V-9999faulty"). A review found two more ways: a scan split across the verdict ("V-1" during the
+    test, "23" after it) taken as "23", and a line refused during the test whose words the verdict wiped."""
     db = f"sqlite:///{tmp_path / 'h.sqlite'}"
 
-    async def session() -> tuple[str, str, str]:
+    async def session() -> list[str]:
         app = make_app(None, RigChoice(), tmp_path / "records", db, "bench-1", "Jo")
         app.runner.report = False
         typed = threading.Event()  # each test waits for the keys, so they land while it runs, on any machine
@@ -216,6 +217,7 @@ def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path:
             return real_run_valve(*args, **kwargs)
 
         app.runner.run_valve = run_valve_after_the_keys
+        seen = []
         async with app.run_test(size=(140, 45)) as pilot:
             await pilot.pause()
             await _type(pilot, "new")
@@ -224,26 +226,31 @@ def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path:
             await _type(pilot, "")
             assert app.testing
             await pilot.press(*"V-9999")  # typed during the test, no Enter
-            during = _screen_text(app)
+            seen.append(_screen_text(app))
             typed.set()
             await _wait_for_verdict(app, pilot)
-            after_first = _screen_text(app)
-            assert app.query_one("#entry").value == ""
+            seen.append(_screen_text(app))  # the text is still there, said to be refused at its Enter
+            await _type(pilot, "faulty")  # appended to it, as a scanner would: "V-9999faulty" refused whole
+            seen.append(_screen_text(app))
+            assert app.scan.step.value == "valve id" and app.query_one("#entry").value == ""
             await _type(pilot, "faulty")
             await _type(pilot, "PS-2")
             await _type(pilot, "")
             assert app.testing
             await _type(pilot, "V-8888")  # typed and sent during the test
-            sent = _screen_text(app)
+            seen.append(_screen_text(app))
             typed.set()
             await _wait_for_verdict(app, pilot)
+            seen.append(_screen_text(app))  # said again with the verdict
             await pilot.press("ctrl+q", "ctrl+q")
-        return during, after_first, sent
+        return seen
 
-    during, after_first, sent = asyncio.run(session())
+    during, at_verdict, refused_whole, sent, after_sent = asyncio.run(session())
     assert "keys typed now are not taken" in during
-    assert "'V-9999', typed during the test, was not taken: scan it again" in after_first
+    assert "'V-9999' was begun during the test: Enter refuses it, then scan it again" in at_verdict
+    assert "'V-9999faulty' was begun while the test ran and is not taken whole: scan it again" in refused_whole
     assert "'V-8888' was not taken: a test is running. Scan it again after the verdict." in sent
+    assert "not taken during the test: 'V-8888': scan again" in after_sent
     with HistoryStore(db) as store:
         assert [r["valve_id"] for r in store.list()] == ["new", "faulty"]
 
@@ -277,15 +284,64 @@ def test_the_verdict_is_shown_before_the_report_is_drawn_and_the_screen_says_whe
             await pilot.press("ctrl+q", "ctrl+q")  # the shift ends once the report is whole, not half drawn
             await pilot.pause()
             ending = _screen_text(app)
+            for line in ("new", "PS-2", ""):  # a valve after the end was decided: not taken, never tested
+                await _type(pilot, line)
+            refused = _screen_text(app)
             may_draw.set()
             while app.drawing.is_set() or app.summary_file is None:
                 await asyncio.sleep(0.05)
-            return shown, f5_early, ending, str(app.return_code)
+            assert not app.testing
+            return shown, f5_early, ending + refused, str(app.return_code)
 
     shown, f5_early, ending, _ = asyncio.run(session())
+    assert "the shift is ending: the last report is being finished" in ending
     assert "WORN: REPLACE THE VALVE" in shown and "report being drawn" in shown
     assert "the report is being drawn: press F5 again when it is ready" in f5_early
     assert "finishing the last report: the shift ends then" in ending
     (record,) = [p for p in out.iterdir() if p.is_dir()]
     assert (record / "report.pdf").is_file()
     assert list(out.glob("shift-*.txt"))  # the shift's summary written once the report was
+
+
+def test_a_sigterm_while_the_next_test_waits_for_the_last_report_starts_no_test(tmp_path: Path) -> None:
+    """A review found a SIGTERM that came while the next valve's test waited for the last report still started that
+    test, and the last valve's details came back over the next valve's prompt once its report was drawn."""
+    import json
+    import os
+    import signal
+
+    from edc_bench.runtime.signals import interrupt_guard
+
+    db = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    out = tmp_path / "records"
+
+    async def session() -> tuple[str, str, str]:
+        app = make_app(None, RigChoice(), out, db, "bench-1", "Jo")
+        may_draw = threading.Event()
+        real_draw = app.runner._draw
+        app.runner._draw = lambda test: may_draw.wait(60) and real_draw(test)
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            for line in ("worn", "PS-1", ""):
+                await _type(pilot, line)
+            while app.testing:
+                await asyncio.sleep(0.05)
+            for line in ("new", "PS-2", ""):  # the next valve mounted while the report is drawn
+                await _type(pilot, line)
+            waiting = _screen_text(app)
+            os.kill(os.getpid(), signal.SIGTERM)  # as a shutdown sends it; the guard holds it back
+            await pilot.pause()
+            may_draw.set()
+            while app.summary_file is None:
+                await asyncio.sleep(0.05)
+            return waiting, _screen_text(app), app.summary_file.with_suffix(".json").read_text()
+
+    with interrupt_guard(reraise=False):  # as `edc-bench session` runs the app
+        waiting, ended, summary = asyncio.run(session())
+    assert "finishing the last valve's report first, then testing valve new" in waiting
+    assert "the test of valve new was not started: the shift is ending" in ended
+    assert "report ready" not in ended  # the worn valve's details did not come back over the next valve
+    assert json.loads(summary)["ended_by"] == "interrupt"
+    with HistoryStore(db) as store:
+        assert [r["valve_id"] for r in store.list()] == ["worn"]
+    assert len([p for p in out.iterdir() if p.is_dir()]) == 1
