@@ -116,7 +116,7 @@ class SessionApp(App[None]):
     CSS = """
     Screen { layout: vertical; }
     #status { height: 1; background: $boost; padding: 0 1; }
-    #prompt { height: auto; margin: 1 1 0 1; text-style: bold; }
+    #prompt { width: 1fr; height: auto; margin: 1 1 0 1; text-style: bold; }
     #entry { margin: 0 1; }
     #message { height: auto; margin: 0 1; color: $warning; }
     #verdict { height: 5; content-align: center middle; text-style: bold; margin: 1 1 0 1; }

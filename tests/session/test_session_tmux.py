@@ -44,3 +44,34 @@ def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> 
     assert "EXITED 0" in ended
     assert "valves: 2 (1 PASS, 1 FAIL); tests: 3; retests: 1" in ended
     assert "shift summary: records/shift-" in ended
+
+
+@pytest.mark.slow
+def test_at_80x24_the_prompts_wrap_and_keys_typed_during_a_test_are_held_back(tmp_path: Path) -> None:
+    """#53: at 80 columns the one-line prompt was cut before what to do; keys typed during a test were glued to the
+    next valve id."""
+    env = terminal_env({"EDC_BENCH_DATA_DIR": str(tmp_path / "data")})
+    term = Terminal([sys.executable, "-m", "edc_bench", "session", "--operator", "Anna", "--db",
+                     f"sqlite:///{tmp_path / 'h.sqlite'}"], tmp_path, env, columns=80, rows=24)
+    try:
+        term.wait_for("VALVE ID")
+        term.keys("V-20417", "Enter")
+        term.wait_for("PUMP SERIAL")
+        term.keys("PS-4471", "Enter")
+        mount = term.wait_for("Mount the valve")
+        assert "then press Enter to\n test it" in mount  # wrapped, not cut
+        term.keys("Enter")
+        term.wait_for("keys typed now are not taken")
+        term.keys("V-1")  # during the test
+        begun = term.wait_for("was begun during the test")
+        term.keys("23", "Enter")  # the rest of the scan after the verdict: the line is refused whole
+        refused = term.wait_for("is not taken whole")
+        term.keys("C-q")
+        term.wait_for("End the shift? Press Ctrl+Q again")
+        term.keys("C-q")
+        ended = term.wait_for("EXITED")
+    finally:
+        term.close()
+    assert "'V-1' was begun during the test: Enter refuses it" in begun
+    assert "'V-123' was begun while the test ran" in refused and "VALVE ID" in refused
+    assert "EXITED 0" in ended and "valves: 1 " in ended
