@@ -139,8 +139,13 @@ class SessionRunner:
         if (first.record_dir is None or stop_requested()  # interrupted: no retest is started
                 or not retest_wanted(first.result.verdict, variant.retest)):
             return ValveDone(valve_id, pump_serial, variant.name, (first,), None)
-        second = self.run_test(variant, valve_id, pump_serial, observer("retest") if observer else None,
-                               retest_of=first)
+        try:
+            second = self.run_test(variant, valve_id, pump_serial, observer("retest") if observer else None,
+                                   retest_of=first)
+        except Exception as exc:  # noqa: BLE001 - the first test stands, with its record and report
+            why = f"the retest could not run ({type(exc).__name__}: {exc}): check the rig, then scan the valve again"
+            return ValveDone(valve_id, pump_serial, variant.name, (replace(first, problems=(*first.problems, why)),),
+                             None)
         decision = decide(second.result.verdict, variant.retest, second.result.advice.words)
         return ValveDone(valve_id, pump_serial, variant.name, (first, second), decision)
 

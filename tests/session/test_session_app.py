@@ -345,3 +345,37 @@ def test_a_sigterm_while_the_next_test_waits_for_the_last_report_starts_no_test(
     with HistoryStore(db) as store:
         assert [r["valve_id"] for r in store.list()] == ["worn"]
     assert len([p for p in out.iterdir() if p.is_dir()]) == 1
+
+
+def test_a_retest_that_cannot_run_leaves_the_first_test_shown_with_its_report(tmp_path: Path) -> None:
+    """A review found a retest that raised (a real rig's bus gone between the two) lost the first test from the
+    screen: its record and history row were kept, its report never drawn."""
+    from edc_bench.errors import RigError
+
+    out = tmp_path / "records"
+
+    async def session() -> str:
+        app = make_app(None, RigChoice(), out, f"sqlite:///{tmp_path / 'h.sqlite'}", "bench-1", "Jo")
+        real_run_test, calls = app.runner.run_test, []
+
+        def run_test(*args, **kwargs):
+            calls.append(kwargs.get("retest_of"))
+            if kwargs.get("retest_of") is not None:
+                raise RigError("cannot open the CAN bus (interface=slcan): the adapter is gone")
+            return real_run_test(*args, **kwargs)
+
+        app.runner.run_test = run_test
+        async with app.run_test(size=(140, 45)) as pilot:
+            await pilot.pause()
+            for line in ("clearance=0.185", "PS-1", ""):
+                await _type(pilot, line)
+            await _wait_for_verdict(app, pilot)
+            text = _screen_text(app)
+            await pilot.press("ctrl+q", "ctrl+q")
+        assert len(calls) == 2
+        return text
+
+    text = asyncio.run(session())
+    assert "MARGINAL" in text and "the retest could not run (RigError: cannot open the CAN bus" in text
+    (record,) = [p for p in out.iterdir() if p.is_dir()]
+    assert (record / "report.pdf").is_file()
