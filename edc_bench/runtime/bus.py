@@ -14,6 +14,8 @@ connection that died during the test must not cost the record.
 
 from __future__ import annotations
 
+import os
+import select
 import socket
 import time
 from collections import deque
@@ -171,6 +173,43 @@ class BufferedSlcanBus(slcanBus):
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         """Send ``msg``, waiting at most ``timeout`` (default :attr:`send_timeout_s`) for the peer to take it."""
         super().send(msg, self.send_timeout_s if timeout is None else timeout)
+
+    def _write(self, string: str) -> None:
+        """Write one line (python-can's send calls this); given up only when bytes are still unsent at the send's
+        deadline.
+
+        pyserial's own write looks at the clock after its write and raises its timeout once the time is past, even
+        when every byte went out: a bench that a busy PC held off the CPU for 20 ms lost its test to a "write
+        timeout" of a line that had been sent (CI's run beside two busy loops found it). A socket or a POSIX port
+        is written here; any other port (Windows) by pyserial as before.
+        """
+        port = self.serialPortOrig
+        if not hasattr(self, "_socket"):  # the adapter's set-up lines, written while python-can opens the bus
+            super()._write(string)
+            return
+        target: Any = self._socket if self._socket is not None else getattr(port, "fd", None)
+        if target is None:
+            super()._write(string)
+            return
+        data = memoryview(string.encode() + self.LINE_TERMINATOR)
+        timeout_s = port.write_timeout
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        try:
+            while data:
+                try:
+                    sent = self._socket.send(data) if self._socket is not None else os.write(target, data)
+                except BlockingIOError:
+                    sent = 0
+                data = data[sent:]
+                if not data:
+                    return
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    raise can.CanOperationError(f"slcan send gave up: the adapter took no more bytes within "
+                                                f"{timeout_s * 1e3:g} ms ({len(data)} left unsent)")
+                select.select([], [target], [], left)
+        except OSError as exc:
+            raise can.CanOperationError(f"slcan stream failed: {exc}") from exc
 
     def shutdown(self) -> None:
         """Close the channel and the port; a connection that is already gone is noted, not raised."""

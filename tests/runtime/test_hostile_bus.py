@@ -30,7 +30,7 @@ from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Mode, default_icd
 from edc_bench.protocol.slcan import SlcanFrame, format_frame_line
 from edc_bench.records.record import write_record
-from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, open_bus
+from edc_bench.runtime.bus import BufferedSlcanBus, ClosingBus, close_quietly, open_bus
 from edc_bench.runtime.clock import SimulatedClock
 from edc_bench.runtime.loop import BenchLoop
 from edc_bench.sim.rig import SimulatedRig
@@ -426,3 +426,61 @@ def test_a_hostile_second_host_on_the_rig_server_does_not_disturb_the_test(tmp_p
     doc, folder = _record(result, tmp_path)
     assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
     intruder.close()
+
+
+class _HeldOffSocket:
+    """The bench's socket, with the bench held off the CPU for ``held_s`` inside each send (a busy PC)."""
+
+    def __init__(self, sock, held_s: float) -> None:
+        self.sock, self.held_s = sock, held_s
+
+    def send(self, data) -> int:
+        sent = self.sock.send(data)
+        time.sleep(self.held_s)  # a preemption, not a wait for anything: what a loaded PC does to the bench
+        return sent
+
+    def __getattr__(self, name: str):
+        return getattr(self.sock, name)  # recv, fileno, ...: as they are
+
+
+def _slcan_pair() -> tuple[BufferedSlcanBus, "socket.socket"]:
+    import socket
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    bus = open_bus({"interface": "slcan", "channel": f"socket://127.0.0.1:{listener.getsockname()[1]}"},
+                   default_icd().bitrate)
+    peer, _ = listener.accept()
+    listener.close()
+    return bus, peer
+
+
+def test_a_send_held_off_the_cpu_past_its_timeout_is_not_a_bus_error() -> None:
+    """CI's run beside two busy loops aborted a test with a bus error: pyserial's write raised its 20 ms timeout
+    after the line had gone out, because the bench was off the CPU meanwhile. A sent line is sent."""
+    bus, peer = _slcan_pair()
+    try:
+        # where python-can's slcan and pyserial write, and where the bus reads
+        bus._socket = bus.serialPortOrig._socket = _HeldOffSocket(bus._socket, 3 * BufferedSlcanBus.send_timeout_s)
+        bus.send(can.Message(arbitration_id=BENCH_CMD_ID, data=bytes(8), is_extended_id=False))
+        peer.settimeout(5)
+        received = b""
+        while not received.endswith(b"\r" + format_frame_line(SlcanFrame(BENCH_CMD_ID, bytes(8)))):
+            received += peer.recv(100)  # the adapter's set-up lines, then the frame
+    finally:
+        close_quietly(bus)
+        peer.close()
+
+
+def test_a_peer_that_stops_reading_still_ends_a_send_within_its_timeout() -> None:
+    import socket
+
+    bus, peer = _slcan_pair()
+    try:
+        bus._socket.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        message = can.Message(arbitration_id=BENCH_CMD_ID, data=bytes(8), is_extended_id=False)
+        with pytest.raises(can.CanOperationError, match="slcan send gave up: the adapter took no more bytes"):
+            for _ in range(1_000_000):  # the peer reads nothing: the socket's buffers fill, then a send gives up
+                bus.send(message)
+    finally:
+        close_quietly(bus)
+        peer.close()
