@@ -39,7 +39,7 @@ def _handler(signum: int, frame: object) -> None:
 
 
 def stop_requested() -> bool:
-    """True once Ctrl-C or SIGTERM has arrived inside a guard."""
+    """True once Ctrl-C or SIGTERM has arrived inside a guard, until the outermost guard ends."""
     return _state["count"] > 0
 
 
@@ -65,6 +65,7 @@ def interrupt_guard(*, reraise: bool = True) -> Iterator[None]:
             if signal.getsignal(sig) is not signal.SIG_IGN:
                 _state["previous"][sig] = signal.signal(sig, _handler)
     _state["depth"] += 1
+    interrupted = False
     try:
         yield
     finally:
@@ -74,7 +75,10 @@ def interrupt_guard(*, reraise: bool = True) -> Iterator[None]:
             for sig, previous in _state["previous"].items():
                 signal.signal(sig, signal.SIG_DFL if previous is None else previous)
             _state["previous"] = {}
-    if outermost and reraise and _state["count"] > 0:
+            # said now or never: a stop request must not outlive its guard (a later session or test in this
+            # process would end at once)
+            interrupted, _state["count"] = _state["count"] > 0, 0
+    if outermost and reraise and interrupted:
         raise KeyboardInterrupt
 
 
