@@ -67,9 +67,11 @@ def test_live_view_draws_in_a_child_process_and_never_blocks_the_loop(capfd: pyt
         # a flood of updates while the panel is slow to read: dropped, never waited for
         for _ in range(5000):
             view.tick(2900, loop)
-    if view._proc.returncode == -signal.SIGKILL:  # given 3 s to draw its last frame and end, and killed
+    # given 3 s to draw its last frame and end, then killed and given 1 s more to be reaped (None: not even that,
+    # as CI's 3.13 run beside two busy loops saw)
+    if view._proc.returncode in (-signal.SIGKILL, None):
         pytest.skip("the machine was too busy: the panel's process had not ended 3 s after the test's end "
-                    f"(load {os.getloadavg()[0]:.1f})")
+                    f"(returncode {view._proc.returncode}, load {os.getloadavg()[0]:.1f})")
     assert view._proc.returncode == 0
     out = capfd.readouterr().out
     assert "live view test" in out and "identify" in out and "3 replies missing" in out
