@@ -26,6 +26,26 @@ def perf_run() -> dict:
     return json.loads(done.stdout)
 
 
+@measurement("performance-session", minutes=1, timing=True)
+def session_run() -> dict:
+    """``edc-bench perf --only session --json``: the session's safe stop to its decision on screen, and its report."""
+    done = subprocess.run([sys.executable, "-m", "edc_bench", "perf", "--only", "session", "--json"],
+                          capture_output=True, text=True, check=False)
+    if done.returncode not in (0, 1):  # 1: a target missed, which the figure says
+        raise RuntimeError(f"edc-bench perf failed ({done.returncode}):\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout)
+
+
+def session_latency() -> str:
+    """The stored session figure, in a sentence for docs/station.md."""
+    (figure,) = stored("performance-session")["figures"]
+    met = "within" if figure["met"] else "**not** within"
+    return wrap(f"{measured_on('performance-session')} Worst time from a test's safe stop to its decision on screen: "
+                f"{figure['value']:.2f} s ({met} the 0.5 s target); its reports were drawn {figure['reference']:.1f} s "
+                f"after the safe stop at the worst ({figure['note'].split('; ', 1)[0]}; "
+                f"{figure['note'].split('; ')[2]}).")
+
+
 def _value(value: float | None, unit: str) -> str:
     if value is None:
         return ""
