@@ -94,7 +94,10 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.json:
         print(f"edc-bench perf: {', '.join(groups)}{' (quick)' if args.quick else ''}", file=sys.stderr, flush=True)
-    figures = suite.run(groups, quick=args.quick, variant_name=args.variant, on_figure=announce)
+    from edc_bench.session.latency import session_latency
+
+    figures = suite.run(groups, quick=args.quick, variant_name=args.variant, on_figure=announce,
+                        session_latency=session_latency)
     if args.quick:
         figures = unjudged(figures)
     env["cpu_steal_s"] = cpu_steal_s() - env.pop("cpu_steal_at_start_s")
