@@ -12,6 +12,14 @@ from tmux_terminal import NEEDS_TMUX, Terminal, terminal_env
 pytestmark = NEEDS_TMUX
 
 
+def _end_shift(term: Terminal) -> str:
+    """Ctrl+Q, which asks, then Ctrl+Q again; the screen once the session has exited."""
+    term.keys("C-q")
+    term.wait_for("End the shift? Press Ctrl+Q again")
+    term.keys("C-q")
+    return term.wait_for("EXITED")
+
+
 @pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
 def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> None:
     env = terminal_env({"EDC_BENCH_DATA_DIR": str(tmp_path / "data")})
@@ -35,10 +43,7 @@ def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> 
         term.keys("Enter")
         passed = term.wait_for("REUSABLE: REFIT THE VALVE")
         assert "valves 2, tests 3" in passed
-        term.keys("C-q")
-        term.wait_for("End the shift? Press Ctrl+Q again")
-        term.keys("C-q")
-        ended = term.wait_for("EXITED")
+        ended = _end_shift(term)
     finally:
         term.close()
     assert "EXITED 0" in ended
@@ -66,10 +71,7 @@ def test_at_80x24_the_prompts_wrap_and_keys_typed_during_a_test_are_held_back(tm
         begun = term.wait_for("was begun during the test")
         term.keys("23", "Enter")  # the rest of the scan after the verdict: the line is refused whole
         refused = term.wait_for("is not taken whole")
-        term.keys("C-q")
-        term.wait_for("End the shift? Press Ctrl+Q again")
-        term.keys("C-q")
-        ended = term.wait_for("EXITED")
+        ended = _end_shift(term)
     finally:
         term.close()
     assert "'V-1' was begun during the test: Enter refuses it" in begun
