@@ -22,7 +22,8 @@ One tick, in order::
     sent(k, ...)           the command went out: its counter in flight, its trace row
     receive(...)*          what comes until the next deadline
     check(k)               abort checks -> Abort or None
-    stop_check(k)          the stop rule, at its ticks -> its decision or None
+    stop_check(k)          the stop rule, at its ticks -> its decision or None (in real time the loop runs
+                           stop_rule_call(k) in a worker and hands a decision back with take_stop)
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ class StopRule(Protocol):
     """Decides whether a test may end before its full length (:class:`~edc_bench.verdict.early_stop.EarlyStop`)."""
 
     #: ticks after which :meth:`check` is asked (the ends of whole excitation periods, and steps of work spread
-    #: between them); each call must be short (it runs inside a tick: at most a tick or two late after it)
+    #: between them), in order; in simulated time inside the tick, in real time beside the ticks, in a worker
     check_ticks: Container[int]
     #: when the test is expected to end (trace time, s), for the live view
     expected_end_s: float
@@ -249,6 +250,12 @@ class TickEngine:
         self.last_heartbeat_s = max(self.last_heartbeat_s, sync_s)
         self.ticking = True
 
+    def delay_start(self, t_start_s: float) -> None:
+        """Tick 0 runs no earlier than ``t_start_s`` (clock time): a driver whose clock ran on while :meth:`start`
+        built the controller moves the ticks after it, instead of losing their first ones."""
+        if t_start_s > self.t_start_s:
+            self.t_start_s = self.outcome.ticks_start_s = t_start_s
+
     def finish(self) -> None:
         """The ticks are over: replies that still come (during the safe stop) are no longer the test's."""
         self.ticking = False
@@ -350,6 +357,18 @@ class TickEngine:
 
     def stop_check(self, k: int) -> dict[str, Any] | None:
         """At tick ``k``: the stop rule's decision to end the test now, if it has one (kept in the outcome)."""
+        decision = self.stop_rule_call(k)
+        if decision is not None:
+            self.take_stop(decision, k)
+        return decision
+
+    def stop_rule_call(self, k: int) -> dict[str, Any] | None:
+        """The stop rule's call for tick ``k`` (None at a tick that is not one of its ``check_ticks``), timed.
+
+        It reads only the trace and the rule's own state, so a driver may run it beside the ticks, in another
+        thread (the real-time loop does: its decision costs milliseconds on a slow PC); the driver then hands the
+        decision back with :meth:`take_stop`.
+        """
         rule = self.stop_rule
         if rule is None or k not in rule.check_ticks:
             return None
@@ -359,9 +378,13 @@ class TickEngine:
         decision = rule.check(k, self.trace.columns)
         if timer is not None:
             self.outcome.stop_check_max_s = max(self.outcome.stop_check_max_s, timer() - began)
-        if decision is not None:
-            self.outcome.stop = decision
         return decision
+
+    def take_stop(self, decision: dict[str, Any], k: int) -> None:
+        """The test ends at tick ``k`` on the stop rule's ``decision`` (made at its ``time_s``, a period's end):
+        kept in the outcome with ``decided_s``, the trace time at the end of that tick (``time_s`` when taken
+        inside the tick, as in simulated time)."""
+        self.outcome.stop = {**decision, "decided_s": self.tick_time_s(k + 1) - self.t_start_s}
 
 
 __all__ = ["StopRule", "TickEngine", "reply_flags"]

@@ -148,6 +148,7 @@ class StopSummary(Section):
 
     reason: str = ""
     time_s: float | None = None
+    decided_s: float | None = None  # an early stop: when the loop took the decision (after time_s in real time)
     max_s: float | None = None
     full_length: bool = False
     early_stop: bool | None = None

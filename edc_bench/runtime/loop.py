@@ -39,6 +39,7 @@ from edc_bench.engine.tick import StopRule, TickEngine
 from edc_bench.engine.trace import CanFrameLog, Trace, frame_flags
 from edc_bench.protocol import BENCH_CMD_ID, Icd, RigFeedback, RigState
 from edc_bench.runtime.clock import Clock, cpu_steal_s
+from edc_bench.runtime.stop_worker import StopWorker
 
 if TYPE_CHECKING:
     from can import BusABC
@@ -123,6 +124,8 @@ class BenchLoop:
         self.max_frames_per_tick = budget
         self._t_s = 0.0
         self._sent_any = False
+        # real time: the stop rule's calls run beside the ticks (runtime.stop_worker); simulated time: inside them
+        self._stop_worker = StopWorker(self.engine) if stop_rule is not None and clock.waits_for_replies else None
 
     # what observers and callers read: the engine's
     @property
@@ -260,7 +263,10 @@ class BenchLoop:
         outcome = self.outcome
         self.frames.origin_unix_s = outcome.clock_origin_unix_s = time.time() - self.clock.now_s()
         steal_at_start = cpu_steal_s()
+        worker = self._stop_worker
         try:
+            if worker is not None:
+                worker.start()
             outcome.abort = self._run_phases()
         except _AbortTest as stop:
             outcome.abort = stop.abort
@@ -273,6 +279,8 @@ class BenchLoop:
             outcome.events.append(traceback.format_exc())
         finally:
             self.engine.finish()
+            if worker is not None:
+                worker.cancel()  # no decision after the ticks; the call under way ends while the rig goes safe
             try:
                 self._phase(Phase.SAFE_STOP)
                 if self._sent_any or outcome.abort is None or outcome.abort.kind is not AbortKind.FOREIGN_COMMAND:
@@ -286,6 +294,8 @@ class BenchLoop:
                 outcome.reply_age_ticks = dict(sorted(self.engine.matcher.counts.ages.items()))
                 outcome.replies_too_old = self.engine.matcher.counts.too_old
                 self._note_bus_figures()
+                if worker is not None:
+                    worker.close()
                 if gc_was_enabled:
                     gc.enable()
                 gc.unfreeze()
@@ -328,6 +338,9 @@ class BenchLoop:
         if first is None:
             return False
         engine.start(first, engine.counter, max(self._t_s, self.clock.now_s()) + T, self._t_s)
+        # building the controller takes 20-50 ms on a slow PC: in real time tick 0 comes a period after it is built,
+        # where it cost a test its first 15-21 ticks, lost as a host stall (simulated time stands still meanwhile)
+        engine.delay_start(self.clock.now_s() + T)
         return True
 
     def _skip_stall(self, k: int, lateness_s: float) -> tuple[int, float]:
@@ -352,6 +365,7 @@ class BenchLoop:
         read_margin_s = 0.5 * T
         self._phase(Phase.SOFT_START)
         stop_requested = self.stop_requested
+        worker = self._stop_worker
         k = 0
         while k < self.ticks:
             if stop_requested():
@@ -363,7 +377,11 @@ class BenchLoop:
                 # (the same frames between the same two commands); a sample is used only if young enough at tick k
                 self._drain(clock.now_s())
                 if lateness >= T:
+                    skipped_from = k
                     k, lateness = self._skip_stall(k, lateness)
+                    if worker is not None:  # the rule's calls for the lost ticks are made all the same
+                        for g in range(skipped_from, k):
+                            worker.hand_over(g)
                     if k >= self.ticks:
                         return None
                     t_k = engine.tick_time_s(k)
@@ -384,8 +402,15 @@ class BenchLoop:
                     observer.tick(k, self)
                 if k == identify_from_k:
                     observer.phase(Phase.IDENTIFY)
-            if engine.stop_check(k) is not None:
-                return None
+            if worker is None:
+                if engine.stop_check(k) is not None:
+                    return None
+            else:
+                worker.hand_over(k)
+                taken = worker.decision()
+                if taken is not None:
+                    engine.take_stop(taken[0], k)
+                    return None
             k += 1
         return None
 

@@ -16,8 +16,10 @@ Student's t quantile falls with the periods' degrees of freedom), would
 leave the verdict unchanged.
 
 The loop calls :meth:`EarlyStop.check` at the ticks in
-:attr:`EarlyStop.check_ticks` (bench layer: :func:`edc_bench.bench.run_bench_test`).
-The work is spread so that no call costs more than a tick or two, however
+:attr:`EarlyStop.check_ticks` (bench layer: :func:`edc_bench.bench.run_bench_test`),
+in order: inside the tick in simulated time, in a worker thread beside the
+ticks in real time (:mod:`edc_bench.runtime.stop_worker`).
+The work is spread so that no call costs more than a few ticks' time, however
 long the test and its variant (the record's ``timing.stop_check_max_us``
 gives each test's longest call; docs/bench-test.md the measured range):
 

@@ -21,6 +21,7 @@ from edc_bench.sim.inprocess import InProcessRig
 from edc_bench.sim.lockstep_bus import lockstep_pair
 from edc_bench.sim.rig import RigOptions, SimulatedRig
 from firmware_proto.c_firmware import C_DIR, c_firmware_available, library_path
+from realtime_judge import attempts, disturbance, figures
 
 needs_library = pytest.mark.skipif(not c_firmware_available(), reason=f"the C firmware is not built "
                                    f"({library_path()}): this machine has no make or cc")
@@ -102,23 +103,20 @@ def test_the_c_build_has_no_warnings_at_wall_wextra(tmp_path: Path) -> None:
 @pytest.mark.realtime
 def test_a_real_time_test_over_the_rig_process_with_the_c_firmware_passes_a_new_valve(tmp_path: Path) -> None:
     """`edc-bench test --realtime --firmware c`: the rig process runs the C core; a new valve PASSes, as over the
-    Python firmware. A run the machine disturbed (steal, a tick 10 ms late, the rig process not serving) that did
-    not PASS is skipped with its figures."""
+    Python firmware. Up to three attempts; if every one the machine disturbed (tests/realtime_judge.py) did not
+    PASS, the test is skipped with their figures."""
     import json
 
-    proc = subprocess.run([sys.executable, "-m", "edc_bench", "test", "--realtime", "--firmware", "c", "--valve", "new",
-                           "--json", "--no-figure", "--no-history", "--out", "rec"], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=180)
-    summary = json.loads(proc.stdout)
-    doc = json.loads((tmp_path / summary["record_dir"] / "record.json").read_text())
-    rig = doc["simulation"]["rig_process"]
-    timing = summary["timing"]
-    figures = (f"{summary['verdict']} {summary['reasons']}; steal {timing['cpu_steal_s']:.2f} s, worst tick "
-               f"{(timing['lateness_max_us'] or 0) / 1e3:.1f} ms late, rig's worst serve gap {rig.get('worst_gap_ms')} ms")
-    print(figures)
-    assert rig["firmware"] == "c"
-    disturbed = (timing["cpu_steal_s"] >= 0.15 or (timing["lateness_max_us"] or 0) >= 10_000
-                 or (rig.get("worst_gap_ms") or 0) >= 10.0)
-    if summary["verdict"] != "PASS" and disturbed:
-        pytest.skip(f"the machine got in the way: {figures}")
-    assert proc.returncode == 0 and summary["verdict"] == "PASS", figures
+    def run():
+        proc = subprocess.run([sys.executable, "-m", "edc_bench", "test", "--realtime", "--firmware", "c", "--valve",
+                               "new", "--json", "--no-figure", "--no-history", "--out", "rec"], cwd=tmp_path,
+                              capture_output=True, text=True, timeout=180)
+        summary = json.loads(proc.stdout)
+        doc = json.loads((tmp_path / summary["record_dir"] / "record.json").read_text())
+        rig, loop = doc["simulation"]["rig_process"], doc["loop"]
+        assert rig["firmware"] == "c"
+        passed = proc.returncode == 0 and summary["verdict"] == "PASS"
+        return (passed, f"{summary['verdict']} {summary['reasons']}, {figures(summary['timing'], rig)}",
+                disturbance(summary["timing"], rig, (loop["ticks_lost"], loop["ticks_run"])))
+
+    assert attempts(run, "C firmware, real time"), "an undisturbed real-time test over the C firmware did not PASS"

@@ -7,35 +7,11 @@ from pathlib import Path
 
 import pytest
 from helpers import REPO, edc_bench
+from realtime_judge import attempts, disturbance, figures
 
 from edc_bench.config import load_variant
 from edc_bench.physics.feedforward import feedforward_truth
 from edc_bench.physics.valve import parse_valve_spec, plant_parameters
-
-STEAL_LIMIT_S = 0.15  # CPU steal during one 12 s run above which real-time figures say nothing about the code
-STALL_LIMIT_US = 10_000  # a bench tick this late means the machine did not run the process
-RIG_GAP_LIMIT_MS = 10.0  # the rig process went this long (half its watchdog) without serving: not run by the machine
-# with the shipped acceptance a test ends when 6 commands in a row pass the 4 ms age limit with no reply at all:
-# a rig process that does not serve for 8 ms (less the adapter's round trip) gets there
-LINK_GAP_LIMIT_MS = 8.0
-# a bench process that lost more than 1 tick in 500 to stalls of its own (each a whole period late) was not given
-# its 1 kHz by this machine: the shipped acceptance allows 1 % of ticks, and the stall test spends half of that
-OWN_LOSS_LIMIT = 0.002
-OWN_LOSS_MIN_TICKS = 5  # below this a short (aborted) run's own losses say nothing: one stall of 1 ms is not a machine
-
-
-def lost_too_many(lost: int, ticks_run: int) -> bool:
-    """The bench process lost more ticks to stalls of its own than this machine is allowed to cost it."""
-    return lost > max(OWN_LOSS_LIMIT * ticks_run, OWN_LOSS_MIN_TICKS)
-
-
-def disturbed(timing: dict, rig: dict | None = None) -> bool:
-    """The machine, not the code, decided this run: heavy steal, or either process (bench or rig) not scheduled."""
-    worst = timing["lateness_max_us"]
-    rig_gap = (rig or {}).get("worst_gap_ms")
-    return (timing["cpu_steal_s"] >= STEAL_LIMIT_S or (worst is not None and worst >= STALL_LIMIT_US)
-            or rig_gap is None or rig_gap >= RIG_GAP_LIMIT_MS)
-
 
 @pytest.mark.slow
 @pytest.mark.realtime
@@ -46,72 +22,48 @@ def test_realtime_test_over_slcan_against_the_rig_process(tmp_path: Path) -> Non
     wake-ups); the default acceptance aborts after 5 replies missing in a row. This test
     checks the real-time path, so its variant tolerates 50 in a row; the record still
     counts every missed reply and overrun. Up to three attempts, each reported. A run that
-    does not complete although the machine ran it undisturbed (little CPU steal, no tick
-    10 ms late) fails the test; if every attempt was disturbed, the test is skipped with
-    the measured figures.
+    does not complete although the machine ran it undisturbed (tests/realtime_judge.py)
+    fails the test; if every attempt was disturbed, the test is skipped with the measured
+    figures.
     """
     source = (REPO / "configs" / "p-edc-default.toml").read_text()
     variant_file = tmp_path / "rt.toml"
     variant_file.write_text(source.replace('name = "p-edc-default"', 'name = "rt-test"')
                             + "\n[acceptance]\nmax_missed_replies_in_row = 50\nmax_overrun_fraction = 0.2\n"
                             "max_missed_reply_fraction = 0.2\n")
-    attempts = []
-    for attempt in range(3):
+    last: dict = {}
+
+    def run():
         proc = edc_bench("test", "--realtime", "--variant", str(variant_file), "--valve", "worn",
                          "--duration-s", "12", "--json", "--no-figure", "--out", "rec", cwd=tmp_path)
         assert proc.returncode in (11, 12), proc.stderr  # a worn valve: FAIL, or INVALID if disturbed
         summary = json.loads(proc.stdout)
         timing = summary["timing"]
         doc = json.loads(Path(tmp_path / summary["record_dir"], "record.json").read_text())
-        rig = doc["simulation"]["rig_process"]
-        attempts.append({**timing, "rig_worst_gap_ms": rig.get("worst_gap_ms")})
-        print(f"attempt {attempt + 1}: {summary['verdict']} {summary['reasons']} timing {timing}, rig {rig}")
+        rig, loop = doc["simulation"]["rig_process"], doc["loop"]
         # every run, complete or not, leaves its timing statistics in the record and the rig safe
         assert summary["clock"] == "real-time"
         for key in ("lateness_p50_us", "lateness_p99_us", "lateness_max_us", "ticks_late", "missed_replies",
                     "cpu_steal_s"):
             assert key in timing
         assert doc["timing"] == timing
-        assert doc["loop"]["safe_confirmed"] is True
+        assert loop["safe_confirmed"] is True
         assert doc["firmware_version"] == "1.0"
-        if doc["loop"]["ticks_run"] == 12_000 and not doc["loop"]["abort_reason"]:
-            break  # complete (ticks lost to host stalls are gaps in a complete run, not an end)
-        if not disturbed(timing, rig):
-            pytest.fail(f"real-time test did not complete on an undisturbed machine: {summary['reasons']} {timing} "
-                        f"rig {rig}")
-    else:
-        pytest.skip("every attempt was disturbed by this machine: " + "; ".join(
-            f"{t['ticks']} ticks, steal {t['cpu_steal_s']:.2f} s, worst tick {t['lateness_max_us'] / 1e3:.1f} ms late, "
-            f"rig's worst serve gap {t['rig_worst_gap_ms']} ms"
-            for t in attempts))
+        last.update(summary=summary)
+        # complete: ticks lost to host stalls are gaps in a complete run, not an end
+        completed = loop["ticks_run"] == 12_000 and not loop["abort_reason"]
+        return (completed, f"{summary['verdict']} {summary['reasons']}, {figures(timing, rig)}",
+                disturbance(timing, rig, (loop["ticks_lost"], loop["ticks_run"])))
+
+    assert attempts(run, "real time over slcan"), "the real-time test did not complete on an undisturbed machine"
+    summary = last["summary"]
+    timing = summary["timing"]
     assert timing["missed_replies"] < 1200
     # identification in real time: the rig process runs the worn preset, whose truth is known here
     variant = load_variant()
     truth = feedforward_truth(plant_parameters(variant, parse_valve_spec("worn", variant)))
     assert abs(summary["features"]["af"] / truth.af - 1) < 0.08
     assert abs(summary["features"]["a1"] / truth.a1 - 1) < 0.20
-
-
-def _attempts(run, what: str, tries: int = 3):
-    """Run ``run()`` until an attempt completes or is undisturbed, and return whether it completed; skip if
-    every attempt was disturbed and none completed.
-
-    ``run`` returns (completed, timing, rig, description, machine): ``machine`` names what this machine did to
-    the run beyond :func:`disturbed`'s checks ("" if nothing). A completed attempt passes, disturbed or not (the
-    disturbance excuses a failure, it does not spoil a success; ``run`` has checked the completed run's figures);
-    an undisturbed attempt that did not complete fails; only when every attempt was disturbed and failed is the
-    test skipped, with every attempt's figures.
-    """
-    seen = []
-    for attempt in range(tries):
-        completed, timing, rig, description, machine = run()
-        print(f"{what}, attempt {attempt + 1}: {description}; timing {timing}; rig {rig}; machine: {machine or '-'}")
-        seen.append(f"{description}: steal {timing['cpu_steal_s']:.2f} s, worst tick "
-                    f"{(timing['lateness_max_us'] or 0) / 1e3:.1f} ms late, rig's worst serve gap "
-                    f"{(rig or {}).get('worst_gap_ms')} ms {machine}")
-        if completed or (not disturbed(timing, rig) and not machine):
-            return completed
-    pytest.skip(f"{what}: every attempt was disturbed by this machine: " + "; ".join(seen))
 
 
 @pytest.mark.slow
@@ -134,20 +86,18 @@ def test_realtime_full_test_through_a_usb_adapter_passes_a_new_valve(tmp_path: P
             # ended when the verdict was certain, at the end of a whole period, or at the full 30 s
             stop = doc["stop"]
             assert stop["reason"] in ("verdict certain", "full length"), stop
-            assert loop["ticks_run"] == round(stop["time_s"] * 1000) and loop["safe_confirmed"]
+            # decided beside the ticks, after the period it judged, and ended at the tick that took the decision
+            assert stop["time_s"] <= stop["decided_s"] and loop["safe_confirmed"]
+            assert loop["ticks_run"] == round(stop["decided_s"] * 1000)
             assert stop["reason"] == "verdict certain" or loop["ticks_run"] == 30_000
             assert max(map(int, loop["reply_age_ticks"])) >= 2  # the adapter's latency was there
         rig = doc["simulation"]["rig_process"]
         # the rig process not serving for as many ticks as the missed-reply limit allows in a row can end the
         # test by itself; that is the machine, not the bench
-        machine = " ".join(filter(None, [
-            f"the machine lost {loop['ticks_lost']} ticks to {loop['gaps']} stalls"
-            if lost_too_many(loop["ticks_lost"], loop["ticks_run"]) else "",
-            f"rig process did not serve for {rig.get('worst_gap_ms')} ms"
-            if (rig.get("worst_gap_ms") or 0) >= LINK_GAP_LIMIT_MS else ""]))
-        return completed, summary["timing"], rig, description, machine
+        return (completed, f"{description}, {figures(summary['timing'], rig)}",
+                disturbance(summary["timing"], rig, (loop["ticks_lost"], loop["ticks_run"])))
 
-    assert _attempts(run, "USB adapter, real time"), "an undisturbed real-time run through usb-fs did not PASS"
+    assert attempts(run, "USB adapter, real time"), "an undisturbed real-time run through usb-fs did not PASS"
 
 
 @pytest.mark.slow
@@ -184,13 +134,10 @@ def test_realtime_host_stall_of_5_ms_every_second_leaves_the_test_valid() -> Non
         # ticks the machine lost by itself, beyond the injected stalls (each costs 5 ticks, 6 with the wake-up),
         # spend the overrun budget the injected ones are checked against
         own_lost = outcome.ticks_lost - 6 * clock.stalls
-        machine = " ".join(filter(None, [
-            f"the machine lost {own_lost} ticks by itself" if lost_too_many(own_lost, outcome.ticks_run) else "",
-            f"rig process did not serve for {status.get('worst_gap_ms')} ms"
-            if (status.get("worst_gap_ms") or 0) >= LINK_GAP_LIMIT_MS else ""]))
-        return completed, result.timing, status, description, machine
+        return (completed, f"{description}, {figures(result.timing, status)}",
+                disturbance(result.timing, status, (own_lost, outcome.ticks_run)))
 
-    assert _attempts(run, "5 ms host stalls"), "an undisturbed real-time run with 5 ms stalls was not a valid PASS"
+    assert attempts(run, "5 ms host stalls"), "an undisturbed real-time run with 5 ms stalls was not a valid PASS"
 
 
 @pytest.mark.slow
@@ -213,21 +160,87 @@ def test_following_check_stations_priority_advice_gives_valid_tests(tmp_path: Pa
         pytest.skip("real-time priority is not permitted to this user here (or chrt is missing): the advice is "
                     "the administrator's, not testable")
     assert any("chrt -f 50 edc-bench test" in line for line in advice), advice
-    outcomes = []
-    for attempt in range(3):
+    def run():
         proc = subprocess.run(["chrt", "-f", "50", sys.executable, "-m", "edc_bench", "test", "--realtime",
                                "--valve", "worn", "--duration-s", "12", "--json", "--no-figure", "--no-history",
                                "--out", "rec"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
         summary = json.loads(proc.stdout)
         doc = json.loads(Path(tmp_path / summary["record_dir"], "record.json").read_text())
-        rig = doc["simulation"]["rig_process"]
-        outcomes.append((summary["verdict"], summary["reasons"][:2], summary["timing"], rig))
-        print(f"attempt {attempt + 1}: {summary['verdict']} {summary['reasons'][:2]} timing {summary['timing']}, "
-              f"rig {rig}")
+        rig, loop = doc["simulation"]["rig_process"], doc["loop"]
         if summary["verdict"] == "FAIL":
-            assert proc.returncode == 11
-            return  # valid: a worn valve judged FAIL under the advised priority
-        if not disturbed(summary["timing"], rig):
-            pytest.fail(f"following check-station's advice gave an invalid test on an undisturbed machine: "
-                        f"{summary['reasons']} timing {summary['timing']} rig {rig}")
-    pytest.skip(f"every attempt was disturbed by the machine: {outcomes}")
+            assert proc.returncode == 11  # valid: a worn valve judged FAIL under the advised priority
+        return (summary["verdict"] == "FAIL", f"{summary['verdict']} {summary['reasons'][:2]}, "
+                f"{figures(summary['timing'], rig)}",
+                disturbance(summary["timing"], rig, (loop["ticks_lost"], loop["ticks_run"])))
+
+    assert attempts(run, "check-station's priority advice followed"), \
+        "following check-station's advice gave an invalid test on an undisturbed machine"
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_a_slow_pcs_early_stop_decision_costs_no_ticks_and_never_trips_the_watchdog(monkeypatch) -> None:
+    """A PC on which the early stop's decision at a period's end takes 30 ms of CPU (CI's Xeon took up to 22 ms):
+    inside the tick that tripped the rig's 20 ms watchdog (CI: "rig fault: watchdog tripped") and lost ticks at
+    every period's end. Beside the ticks (runtime.stop_worker) the test completes valid, the decision taken after
+    the period it judged."""
+    import time
+
+    from edc_bench.bench import BenchOptions, run_bench_test
+    from edc_bench.engine.tick import TickEngine
+    from edc_bench.identification.period_fit import FitSetup
+    from edc_bench.protocol import default_icd
+    from edc_bench.runtime.bus import open_bus
+    from edc_bench.runtime.clock import RealTimeClock
+    from edc_bench.sim.process import rig_process
+    from edc_bench.verdict.early_stop import EarlyStop
+
+    check = EarlyStop.check
+    slow_calls = []
+    stalls: list[tuple[int, int]] = []
+
+    def slow_check(self, k, columns):
+        if k in self.period_ends:  # the decision: 30 ms of CPU, holding the interpreter as Python code does
+            began = time.perf_counter()
+            while time.perf_counter() - began < 0.030:
+                pass
+            slow_calls.append(k)
+        return check(self, k, columns)
+
+    skip = TickEngine.skip
+
+    def logged_skip(self, k, lost):
+        stalls.append((k, lost))
+        return skip(self, k, lost)
+
+    monkeypatch.setattr(EarlyStop, "check", slow_check)
+    monkeypatch.setattr(TickEngine, "skip", logged_skip)
+    variant = load_variant()
+    setup = FitSetup.from_variant(variant)
+    period_ends = [setup.end_tick(p) for p in range(1, setup.blocks_in(setup.end_tick(40) + 1) + 1)]
+
+    def run():
+        status: dict[str, float] = {}
+        slow_calls.clear()
+        stalls.clear()
+        with rig_process(None, "new", 0, "none", status) as channel, \
+                open_bus({"interface": "slcan", "channel": channel}, default_icd().bitrate) as bus:
+            result = run_bench_test(bus, RealTimeClock(), variant, BenchOptions())
+        outcome = result.outcome
+        completed = result.verdict == "PASS"
+        if completed:
+            assert slow_calls and result.stop["reason"] == "verdict certain"
+            assert result.stop["time_s"] < result.stop["decided_s"]  # taken beside the ticks, after its period
+            assert outcome.ticks_run == round(result.stop["decided_s"] / variant.controller.period_s)
+        # ticks lost just after a period's end are the decision's (this test's subject), never the machine's
+        machine_stalls = [lost for k, lost in stalls if not any(0 < k - end <= 50 for end in period_ends)]
+        machine_lost = sum(machine_stalls)
+        if any("watchdog" in reason.lower() for reason in result.reasons):
+            # only a stall of 15 ms or more (of the bench or of the rig process) trips its 20 ms watchdog
+            assert max(machine_stalls, default=0) >= 15 or (status.get("worst_gap_ms") or 0) >= 15, \
+                f"the rig's watchdog tripped, and no stall of this machine was long enough to trip it: {result.reasons}"
+        description = (f"{result.verdict} {result.reasons}, {len(slow_calls)} slow decisions, stalls {stalls}, "
+                       f"{figures(result.timing, status)}")
+        return completed, description, disturbance(result.timing, status, (machine_lost, outcome.ticks_run))
+
+    assert attempts(run, "30 ms decisions"), "an undisturbed real-time test with 30 ms decisions was not a valid PASS"
