@@ -10,6 +10,8 @@ with ``pytest -m ""``.
 from __future__ import annotations
 
 import itertools
+import os
+import time
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from typing import NamedTuple
@@ -23,6 +25,11 @@ from hypothesis import settings
 settings.register_profile("default", derandomize=True)
 settings.register_profile("explore", derandomize=False, max_examples=2000)
 settings.load_profile("default")
+
+# People read local time (edc_bench.timefmt): the suite runs in UTC whatever the developer's zone, so that what a
+# test expects to read does not depend on where it runs; tests of other zones set theirs (the time_zone fixture).
+os.environ["TZ"] = "UTC0"
+time.tzset()
 
 from edc_bench.config import Variant, load_variant
 from edc_bench.physics.valve import ValveSpec, parse_valve_spec
@@ -162,3 +169,16 @@ def simulated_bench_factory() -> Iterator[Callable[..., SimBench]]:
             return SimBench(bench, SimulatedClock(InProcessRig(rig_bus, rig)), rig)
 
         yield make
+
+
+@pytest.fixture()
+def time_zone(monkeypatch: pytest.MonkeyPatch):
+    """Set this process's local time zone (a POSIX TZ string: no tz database needed), restored afterwards."""
+
+    def set_zone(zone: str) -> None:
+        monkeypatch.setenv("TZ", zone)
+        time.tzset()
+
+    yield set_zone
+    monkeypatch.undo()
+    time.tzset()

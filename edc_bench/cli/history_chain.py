@@ -11,6 +11,7 @@ from contextlib import AbstractContextManager
 from typing import Any
 
 from edc_bench.cli.common import identity, positive_int, print_quietly_if_closed
+from edc_bench.timefmt import local_column, local_text
 
 #: The longest reason kept with a withdrawal.
 MAX_WHY_CHARS = 2000
@@ -116,7 +117,7 @@ def _withdraw(args: argparse.Namespace) -> int:
     with HistoryStore(args.db, must_exist=True) as store:
         row = store.withdraw_test(args.withdraw, args.why.strip(), by)
     print(f"withdrew test {args.withdraw} (valve {row['valve_id']}, {row['verdict']}, tested "
-          f"{row['started_at'][:16].replace('T', ' ')}): it no longer counts; 'edc-bench history --audit "
+          f"{local_text(row['started_at'])}): it no longer counts; 'edc-bench history --audit "
           f"{row['valve_id']}' shows it and why")
     return 0
 
@@ -141,11 +142,12 @@ def _audit_table(events: list[dict[str, Any]], valve: str) -> None:
     from rich.table import Table
     from rich.text import Text
 
-    table = Table(title=Text(f"valve {valve}: {len(events)} entries, in the order written (times in UTC)"))
+    written, zone = local_column([e["when"] for e in events], seconds=True)
+    table = Table(title=Text(f"valve {valve}: {len(events)} entries, in the order written ({zone})"))
     for col in ("written", "what happened", "id", "details", "by", "database login", "chain"):
         table.add_column(col)
-    for e in events:  # the technicians' text as typed: rich Text, never read as markup
-        table.add_row(e["when"][:19].replace("T", " "), e["event"], str(e["id"]), Text(e["what"]), Text(e["by"]),
+    for e, when in zip(events, written, strict=True):  # the technicians' text as typed: rich Text, never markup
+        table.add_row(when, e["event"], str(e["id"]), Text(e["what"]), Text(e["by"]),
                       Text(e["db_login"] or ""), (e.get("chain_hash") or "")[:16])
     Console(width=None if sys.stdout.isatty() else 160).print(table)
 
@@ -164,7 +166,7 @@ def _verify(args: argparse.Namespace) -> int:
         breaks = store.chain_breaks(args.station)
         gone_heads = store.missing_heads(kept) if kept is not None else []
         restored = [f"the history's append-only triggers were found missing or changed and restored at "
-                    f"{e['happened_at'][:19].replace('T', ' ')} UTC ({e['detail']}): rows may have been changed "
+                    f"{local_text(e['happened_at'], seconds=True)} ({e['detail']}): rows may have been changed "
                     "while they were (the chain above names where)" for e in store.guard_events()]
         where = store.shown_url
     found: list[Finding] = verify(rows) + changed_findings(changes) + model_findings(rows, adoptions,
@@ -243,7 +245,7 @@ def _map_login(args: argparse.Namespace) -> int:
             rows = store.logins()
             for r in rows:
                 print(f"{r['login']}: station {r['station'] or '(none)'}, person {r['person'] or '(the login)'} "
-                      f"(mapped {r['mapped_at'][:16].replace('T', ' ')} by {r['mapped_by']})")
+                      f"(mapped {local_text(r['mapped_at'])} by {r['mapped_by']})")
             if not rows:
                 print("no login is mapped yet: edc-bench history --map-login LOGIN --station NAME")
             return 0

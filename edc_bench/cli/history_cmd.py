@@ -17,6 +17,7 @@ from edc_bench.cli.common import (
     positive_int,
     print_quietly_if_closed,
 )
+from edc_bench.timefmt import local_column, local_text
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -165,7 +166,8 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
     # ids and names are the technicians' text, kept as given: rich Text, never read as markup ("V[/1]" is an id)
     simulated = sum(bool(r.get("simulated")) for r in rows)
     changed = sum(bool(r.get("changes")) for r in rows)
-    table = Table(title=Text(f"{len(rows)} test(s) in {url} (times in UTC)"
+    started, zone = local_column([r["started_at"] for r in rows])
+    table = Table(title=Text(f"{len(rows)} test(s) in {url} ({zone})"
                              + (f"; sim: {simulated} on the simulated rig, out of trends and training" if simulated
                                 else "")
                              + (f"; {changed} CHANGED: indexed again with other content after their first indexing, "
@@ -174,8 +176,8 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
     for col in ("id", "started", "valve", "pump serial", "variant", "sim", "verdict", "af V", "a1 V s/mm", "station",
                 "operator"):
         table.add_column(col, no_wrap=col not in ("station", "operator"))
-    for r in rows:
-        table.add_row(str(r["id"]), _when(r["started_at"]), Text(r["valve_id"]), Text(r["pump_serial"]),
+    for r, when in zip(rows, started, strict=True):
+        table.add_row(str(r["id"]), when, Text(r["valve_id"]), Text(r["pump_serial"]),
                       Text(r["variant"]), "yes" if r.get("simulated") else "",
                       Text(r["verdict"], style=VERDICT_STYLES.get(r["verdict"], ""))
                       + Text(f" CHANGED {r['changes']}x" if r.get("changes") else "", style="bold red"),
@@ -210,19 +212,15 @@ def trend_table(rows: list[dict[str, Any]], valve: str, console: Any = None) -> 
     from rich.table import Table
     from rich.text import Text
 
-    table = Table(title=Text(f"valve {valve}: {len(rows)} visit(s); change against the new-valve baseline"))
+    started, zone = local_column([r["started_at"] for r in rows])
+    table = Table(title=Text(f"valve {valve}: {len(rows)} visit(s); change against the new-valve baseline ({zone})"))
     for col in ("started", "variant", "verdict", "af V", "af change", "a1 V s/mm", "a1 change", "distance"):
         table.add_column(col)
-    for r in rows:
-        table.add_row(_when(r["started_at"]), Text(r["variant"]), Text(r["verdict"]), _fmt(r["af_v"], ".5f"),
+    for r, when in zip(rows, started, strict=True):
+        table.add_row(when, Text(r["variant"]), Text(r["verdict"]), _fmt(r["af_v"], ".5f"),
                       _pct(r["af_rel"]), _fmt(r["a1_v_s_per_mm"], ".6f"), _pct(r["a1_rel"]),
                       _fmt(r["distance"], "+.3f"))
     (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
-
-
-def _when(started_at: str) -> str:
-    """``2026-11-22 05:43`` from an ISO time (UTC)."""
-    return started_at[:16].replace("T", " ")
 
 
 def _pct(rel: float | None) -> str:
@@ -245,7 +243,7 @@ def _plot(rows: list[dict[str, Any]], valve: str, path: Path) -> None:
     ax.set_xlabel("visit")
     ax.set_ylabel("change against a new valve (%)")
     ax.set_title(f"valve {valve}", parse_math=False)  # the id as typed: '$' is not a formula here
-    ax.set_xticks(list(visits), [r["started_at"][:10] for r in rows], rotation=30, fontsize=7)
+    ax.set_xticks(list(visits), [local_text(r["started_at"]) for r in rows], rotation=30, fontsize=7)
     ax.legend()
     fig.tight_layout()
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120))

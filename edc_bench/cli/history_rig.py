@@ -79,22 +79,23 @@ def ledger_tables(found: list[dict[str, Any]], where: str, console: Any = None) 
     from rich.table import Table
     from rich.text import Text
 
-    from edc_bench.cli.history_cmd import _when
+    from edc_bench.timefmt import local_column, local_text
 
     console = console or Console(width=None if sys.stdout.isatty() else 160)
     for entry in found:
         ref, checks = entry["reference"], entry["checks"]
         nogo = sum(c["verdict"] != "GO" for c in checks)
+        checked, zone = local_column([c["checked_at"] for c in checks])
         title = Text(f"station {ref['station']}: reference valve {ref['valve_id']} ({ref['variant']}), registered "
-                     f"{_when(ref['registered_at'])} by {ref['registered_by']}"
+                     f"{local_text(ref['registered_at'])} by {ref['registered_by']}"
                      + (" on the simulated rig" if ref["simulated"] else "")
-                     + f"; {len(checks)} check(s), {nogo} NO-GO; change against the registration (times in UTC, "
+                     + f"; {len(checks)} check(s), {nogo} NO-GO; change against the registration ({zone}, "
                        f"{where})")
         table = Table(title=title)
         for col in ("check", "when", "verdict", *(f"{label} {unit}" for _, label, unit in _COLUMNS), "drifted"):
             table.add_column(col, no_wrap=col != "drifted")
-        for c in checks:
-            table.add_row(str(c["id"]), _when(c["checked_at"]), Text(c["verdict"], style="green" if c["verdict"] ==
+        for c, when in zip(checks, checked, strict=True):
+            table.add_row(str(c["id"]), when, Text(c["verdict"], style="green" if c["verdict"] ==
                                                                     "GO" else "bold red"),
                           *(_change(c["drift"][name], unit) for name, _, unit in _COLUMNS),
                           Text(", ".join(c["causes"])))

@@ -16,6 +16,7 @@ from edc_bench.cli.common import (
     positive_int,
     print_quietly_if_closed,
 )
+from edc_bench.timefmt import local_column, local_text, parse_local_input
 
 #: A plunger clearance beyond this (mm) is a typing error, not a measurement.
 MAX_CLEARANCE_MM = 2.0
@@ -40,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--by", default=None, metavar="NAME", help="who opened the valve (default: the login name)")
     p.add_argument("--date", default=None, metavar="DATE",
                    help="when the valve was opened: YYYY-MM-DD (the whole day: a test that day counts) or "
-                        "YYYY-MM-DDTHH:MM (UTC unless an offset is given) (default: now)")
+                        "YYYY-MM-DDTHH:MM (this PC's local time unless an offset is given) (default: now)")
     add_history_db_argument(p)
     p.add_argument("--new-valve", action="store_true",
                    help="record the finding although the history has no test of this valve (tested elsewhere, or "
@@ -106,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(row, indent=2))
     elif row.get("record_dir"):
-        tested = row["started_at"][:16].replace("T", " ")
+        tested = local_text(row["started_at"])
         print(f"valve {valve_id}: {args.finding} recorded; it labels the test of {tested} "
               f"({row['verdict']}, {row['record_dir']})"
               + ("; that test ran on the simulated rig: training leaves it out unless --include-simulated"
@@ -148,7 +149,8 @@ def _withdraw(args: argparse.Namespace, delete: int | None) -> int:
 
 
 def _teardown_time(text: str | None) -> str:
-    """The teardown's time as stored: a date alone as given, a date-time in UTC; never in the future."""
+    """The teardown's time as stored: a date alone as given, a date-time in UTC (typed in local time unless it
+    gives an offset); never in the future."""
     import datetime as dt
 
     from edc_bench.errors import ConfigError
@@ -156,11 +158,10 @@ def _teardown_time(text: str | None) -> str:
     now = dt.datetime.now(dt.UTC)
     if text is None:
         return now.isoformat(timespec="seconds")
-    hint = "write it as YYYY-MM-DD or YYYY-MM-DDTHH:MM (UTC, or with an offset such as +02:00)"
+    hint = "write it as YYYY-MM-DD or YYYY-MM-DDTHH:MM (local time, or with an offset such as +02:00)"
     try:
         if "T" in text:
-            moment = dt.datetime.fromisoformat(text)
-            moment = moment.replace(tzinfo=dt.UTC) if moment.tzinfo is None else moment.astimezone(dt.UTC)
+            moment = parse_local_input(text).astimezone(dt.UTC)
             value, later = moment.isoformat(timespec="seconds"), moment > now
         else:
             day = dt.date.fromisoformat(text)
@@ -185,15 +186,17 @@ def _print_list(rows: list[dict[str, Any]], as_json: bool) -> None:
     from rich.table import Table
     from rich.text import Text
 
-    table = Table(title=f"{len(rows)} teardown finding(s)")
+    opened, zone = local_column([r["labelled_at"] for r in rows])
+    tested, _ = local_column([r.get("started_at") for r in rows])
+    table = Table(title=f"{len(rows)} teardown finding(s) ({zone})")
     for col in ("id", "opened", "valve", "finding", "clearance mm", "by", "labels the test of", "verdict then",
                 "af/af0", "a1/a1_0"):
         table.add_column(col)
-    for r in rows:
+    for r, opened_at, tested_at in zip(rows, opened, tested, strict=True):
         # ids and names as the technicians typed them: rich Text, never read as markup
-        table.add_row(str(r["teardown_id"]), r["labelled_at"][:16].replace("T", " "), Text(r["valve_id"]),
+        table.add_row(str(r["teardown_id"]), opened_at, Text(r["valve_id"]),
                       r["finding"], "" if r["teardown_clearance_mm"] is None else f"{r['teardown_clearance_mm']:.3f}",
-                      Text(r["labelled_by"]), (r.get("started_at") or "(no judged test)")[:16].replace("T", " "),
+                      Text(r["labelled_by"]), tested_at or "(no judged test)",
                       r.get("verdict") or "", "" if r.get("af_rel") is None else f"{r['af_rel']:.3f}",
                       "" if r.get("a1_rel") is None else f"{r['a1_rel']:.3f}")
     Console(width=None if sys.stdout.isatty() else 160).print(table)

@@ -8,6 +8,7 @@ import sys
 from typing import Any
 
 from edc_bench.cli.exit_codes import ExitCode
+from edc_bench.timefmt import local_text
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -132,7 +133,7 @@ def _register(args: argparse.Namespace, rig: Any, by: str) -> int:
             valve_spec=args.valve if rig.simulated else None, details=details))
     notes = []
     if earlier is not None:
-        notes.append(f"it replaces the registration of {earlier['registered_at'][:16].replace('T', ' ')} UTC (valve "
+        notes.append(f"it replaces the registration of {local_text(earlier['registered_at'])} (valve "
                      f"{earlier['valve_id']}); the ledger keeps both")
     if values.lvdt_at_floor:
         notes.append("the LVDT reads 0 mm or less at rest, the least the rig reports: a zero that moves down "
@@ -204,8 +205,8 @@ def _print_check(check: Any, row: dict[str, Any]) -> None:
     def write() -> None:
         result, reg = check.result, check.registration
         print(result.line())
-        print(f"reference valve {reg.valve_id} ({reg.variant}), registered {reg.registered_at[:16].replace('T', ' ')} "
-              f"UTC; check {row['id']} at station {row['station']}")
+        print(f"reference valve {reg.valve_id} ({reg.variant}), registered {local_text(reg.registered_at)}; "
+              f"check {row['id']} at station {row['station']}")
         print(f"  {'figure':<16}{'registered':>16}{'now':>16}{'change':>12}{'limit':>10}")
         for q in result.quantities:
             mark = " <- " + ("moved with the " + str(q.explained_by) if q.explained_by else "drifted") if q.out else ""

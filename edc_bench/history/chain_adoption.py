@@ -14,6 +14,7 @@ import os
 from typing import TYPE_CHECKING, Any
 
 from edc_bench.errors import ConfigError
+from edc_bench.timefmt import local_text
 
 if TYPE_CHECKING:
     from edc_bench.history.store import HistoryStore
@@ -115,7 +116,7 @@ def chain_model_problem(store: HistoryStore, station: str, model_sha256: str) ->
         return None
     return (f"this station judges with a model (sha256 {model_sha256[:12]}...) that is not the one the chain records "
             f"for station {station!r}: {row['model_name']} (sha256 {row['model_sha256'][:12]}..., adopted by "
-            f"{row['adopted_by']} at {row['adopted_at'][:16].replace('T', ' ')}); {fix}")
+            f"{row['adopted_by']} at {local_text(row['adopted_at'])}); {fix}")
 
 
 __all__ = ["allowed_models", "chain_model_problem", "chain_station", "chain_url", "check_adoption_target"]

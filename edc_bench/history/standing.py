@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from edc_bench.errors import EdcBenchError
 from edc_bench.records.integrity import file_digest
 from edc_bench.records.writer import RECORD_FILE
+from edc_bench.timefmt import local_text
 
 if TYPE_CHECKING:
     from edc_bench.records.schema import Record
@@ -59,7 +60,7 @@ def history_standing(record: Record, folder: Path, url: str | None = None) -> St
     record_file = Path(folder) / RECORD_FILE
     if row["record_sha256"] and record_file.is_file() and file_digest(record_file) != row["record_sha256"]:
         differs = (f"record.json is not the record the history first indexed for this test (history test "
-                   f"{row['id']}, indexed {str(row['indexed_at'] or '')[:16].replace('T', ' ')} UTC at station "
+                   f"{row['id']}, indexed {local_text(row['indexed_at'])} at station "
                    f"{row['station']}, {row['verdict']}): it was changed after it was indexed")
     return Standing(int(row["id"]), str(row["station"]), str(row["indexed_at"] or ""), row.get("row_hash"),
                     int(row["changes"] or 0), differs)

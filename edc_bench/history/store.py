@@ -59,6 +59,7 @@ from edc_bench.history.secrets import redact, secrets_of, shown_url
 from edc_bench.history.url import check_url, default_url
 from edc_bench.records.integrity import file_digest
 from edc_bench.records.writer import RECORD_FILE
+from edc_bench.timefmt import local_text
 from edc_bench.verdict.verdicts import Verdict
 
 if TYPE_CHECKING:
@@ -892,13 +893,13 @@ def audit_events(test_rows: list[dict[str, Any]], teardown_rows: list[dict[str, 
         events.append({"when": t["indexed_at"] or t["started_at"],
                        "event": "record changed after its first indexing (the first stands)" if again
                        else "test indexed", "id": t["id"],
-                       "what": f"{t['verdict']}, tested {t['started_at'][:16]}, {t['record_dir']}",
+                       "what": f"{t['verdict']}, tested {local_text(t['started_at'])}, {t['record_dir']}",
                        "by": t["indexed_by"] or t["operator"], "db_login": t["db_login"],
                        "chain_hash": t.get("row_hash"), "order": (0, t["id"])})
     for f in teardown_rows:
         corrects = f" (corrects finding {f['corrects_id']})" if f["corrects_id"] is not None else ""
         events.append({"when": f["recorded_at"], "event": "finding recorded", "id": f["id"],
-                       "what": f"{f['finding']}, opened {f['labelled_at'][:16]} by {f['labelled_by']}{corrects}",
+                       "what": f"{f['finding']}, opened {local_text(f['labelled_at'])} by {f['labelled_by']}{corrects}",
                        "by": f.get("recorded_by") or f["labelled_by"], "db_login": f["db_login"],
                        "chain_hash": f.get("row_hash"), "order": (1, f["id"])})
     for a in amendment_rows:

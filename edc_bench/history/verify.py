@@ -18,6 +18,7 @@ from typing import Any
 
 from edc_bench.records.integrity import altered, file_digest
 from edc_bench.records.writer import RECORD_FILE
+from edc_bench.timefmt import local_text
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,7 @@ def changed_findings(rows: list[dict[str, Any]]) -> list[Finding]:
     (:meth:`~edc_bench.history.store.HistoryStore.changed_tests`): the first stands, and this is said every time."""
     return [Finding(row["first_id"], row["valve_id"], row["record_dir"], "changed",
                     f"indexed again with other content as row {row['id']} ({row['verdict']}, at "
-                    f"{(row['indexed_at'] or '')[:19]} by database login {row['db_login'] or '(none)'}): the first "
+                    f"{local_text(row['indexed_at'], seconds=True)} by database login {row['db_login'] or '(none)'}): the first "
                     "indexing stands; the record was changed after its test")
             for row in rows]
 

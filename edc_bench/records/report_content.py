@@ -15,6 +15,7 @@ from pathlib import Path
 
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.records.schema import Record
+from edc_bench.timefmt import offset_text
 from edc_bench.verdict.verdicts import Verdict
 
 #: units of the identified parameters, as the parameter table heads them
@@ -39,14 +40,7 @@ def local_time(started_at: str) -> str:
     if when.tzinfo is None:
         return f"{when:%Y-%m-%d %H:%M} (time zone not recorded)"
     local = when.astimezone()
-    return f"{local:%Y-%m-%d %H:%M} (UTC{_offset(local)})"
-
-
-def _offset(when: datetime) -> str:
-    offset = when.utcoffset()
-    minutes = round(offset.total_seconds() / 60) if offset is not None else 0
-    sign = "-" if minutes < 0 else "+"
-    return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+    return f"{local:%Y-%m-%d %H:%M} (UTC{offset_text(local)})"
 
 
 def utc_time(started_at: str) -> str:

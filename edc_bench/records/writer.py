@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.paths import atomic_write
+from edc_bench.timefmt import folder_stamp
 
 # 2: reference values, the judging model's file and SHA-256, the decision plane; absolute CAN-log times
 # 3: the trace as ASAM MDF 4 (trace.mf4, with the CAN frames); the judging model's name
@@ -43,8 +44,9 @@ def json_safe(value: Any) -> Any:
 
 
 def new_record_dir(out_dir: Path, valve_id: str, variant: str, started_at: str) -> Path:
-    """Create a fresh folder for one test's record."""
-    stamp = re.sub(r"[^0-9T]", "", started_at.split("+")[0])
+    """Create a fresh folder for one test's record, named by its local start time with the offset (a person browses
+    the folders; record.json keeps UTC), the variant and the valve."""
+    stamp = folder_stamp(started_at)
     # letters and digits of any script kept ("Ölventil" stays Ölventil); what a file system or a shell would take
     # otherwise (separators, spaces, quotes, control characters) becomes '_'
     safe_id = re.sub(r"[^\w.-]+", "_", valve_id or "valve").strip("_.") or "valve"

@@ -11,6 +11,8 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Any
 
+from edc_bench.timefmt import local_text
+
 
 @dataclass(frozen=True)
 class SelfCheckPolicy:
@@ -96,7 +98,7 @@ def selfcheck_due(last_check: LastCheck | None, tests_since: int, now: dt.dateti
 
 
 def _when(at: dt.datetime) -> str:
-    return at.strftime("%Y-%m-%d %H:%M") + (" UTC" if at.utcoffset() == dt.timedelta(0) else "")
+    return local_text(at)
 
 
 __all__ = ["LastCheck", "SelfCheckPolicy", "selfcheck_due"]

@@ -60,10 +60,7 @@ def history_lines(url: str | None) -> Any:
 
 
 def _local(iso: str) -> str:
-    """A history time (UTC) in this station's local time, to the minute."""
-    import datetime as dt
+    """A history time (UTC) in this station's local time, to the minute, with its offset."""
+    from edc_bench.timefmt import local_text
 
-    try:
-        return dt.datetime.fromisoformat(iso).astimezone().strftime("%Y-%m-%d %H:%M")
-    except ValueError:
-        return iso[:16].replace("T", " ")
+    return local_text(iso)

@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from edc_bench.paths import atomic_write
+from edc_bench.timefmt import folder_stamp, local_text
 
 
 def now_local() -> str:
@@ -74,19 +75,20 @@ class ShiftLog:
         checks = Counter("GO" if c.go else "NO-GO" if c.go is False else "not run" for c in self.rig_checks)
         check_words = ", ".join(f"{n} {what}" for what, n in checks.items()) or "none"
         ended = " (ended by Ctrl-C or SIGTERM)" if self.interrupted else ""
-        return [f"shift of {self.operator or '?'} at {self.station}, {self.rig}, from {self.started} to {now_local()}"
+        return [f"shift of {self.operator or '?'} at {self.station}, {self.rig}, from {local_text(self.started)} to "
+                f"{local_text(now_local())}"
                 f"{ended}",
                 f"valves: {len(self.valves)} ({counted}); tests: {self.tests}; retests: {self.retests}",
                 f"rig self-checks: {check_words}"]
 
     def write(self, folder: Path) -> Path:
         """Write the summary (text, with every valve) and its data (JSON) into ``folder``; the text file."""
-        stamp = self.started.replace(":", "").replace("-", "")[:15]
+        stamp = folder_stamp(self.started)  # as record folders are named
         text_path = folder / f"shift-{stamp}.txt"
         lines = [*self.summary_lines(), ""]
-        lines += [f"{v.at}  {v.valve_id}  pump {v.pump_serial}  {v.variant}  {' then '.join(v.verdicts)}  ->  "
+        lines += [f"{local_text(v.at, seconds=True)}  {v.valve_id}  pump {v.pump_serial}  {v.variant}  {' then '.join(v.verdicts)}  ->  "
                   f"{v.final}: {v.words}  ({', '.join(Path(r).name for r in v.records)})" for v in self.valves]
-        lines += [f"{c.at}  " + (c.words if c.words.startswith("rig self-check") else f"rig self-check: {c.words}")
+        lines += [f"{local_text(c.at, seconds=True)}  " + (c.words if c.words.startswith("rig self-check") else f"rig self-check: {c.words}")
                   for c in self.rig_checks]
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write(text_path, lambda f: f.write("\n".join(lines) + "\n"), mode="w")

@@ -550,7 +550,7 @@ def test_an_odd_valve_id_is_kept_intact_from_the_test_to_the_report(real_station
     folder = Path(json.loads(out)["record_dir"])
     assert json.loads((folder / "record.json").read_text(encoding="utf-8"))["valve_id"] == ODD_ID
     # the folder's name is cleaned: letters of any script kept, nothing a file system or a shell would take
-    assert re.fullmatch(r"[0-9T]+-p-edc-default-[\w.-]+", folder.name) and not set(folder.name) & set("/\\ ;'\"$`")
+    assert re.fullmatch(r"[0-9T]+[+-][0-9]{4}-p-edc-default-[\w.-]+", folder.name) and not set(folder.name) & set("/\\ ;'\"$`")
     steps = {
         "listed": ["history", "--db", url, "--valve-id", ODD_ID],
         "trend": ["history", "--db", url, "--trend", ODD_ID, "--include-simulated", "--plot", "trend.png"],

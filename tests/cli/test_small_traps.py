@@ -28,7 +28,7 @@ def test_a_valve_id_in_another_script_keeps_its_letters_in_the_folder_name(tmp_p
     for valve, shown in (("Ölventil", "Ölventil"), ("V-2040", "V-2040"), ("a/b c", "a_b_c"), ("..", "valve"),
                          ("日本-7", "日本-7"), ("V;DROP TABLE--ä€", "V_DROP_TABLE--ä")):
         folder = new_record_dir(tmp_path, valve, "p-edc-default", "2026-11-27T10:00:00+00:00")
-        assert folder.name == f"20261127T100000-p-edc-default-{shown}", valve
+        assert folder.name == f"20261127T100000+0000-p-edc-default-{shown}", valve
         assert folder.parent == tmp_path
 
 

@@ -105,7 +105,7 @@ def test_label_command_records_lists_and_refuses_bad_input(tmp_path: Path) -> No
     done = edc_bench("label", "V/7", "--finding", "worn", "--clearance-mm", "0.21", "--note", "scored plunger",
                      "--by", "ana", "--date", "2026-05-02", "--db", url)
     assert done.returncode == 0, done.stderr
-    assert "labels the test of 2026-05-01 08:00 (FAIL" in done.stdout
+    assert "labels the test of 2026-05-01 08:00 +00:00 (FAIL" in done.stdout
     listed = edc_bench("label", "--list", "--json", "--db", url)
     rows = json.loads(listed.stdout)
     assert [(r["valve_id"], r["finding"], r["labelled_by"], r["note"]) for r in rows] == \

@@ -77,20 +77,6 @@ def test_the_convergence_plot_shows_the_period_fit_the_verdict_comes_from(tmp_pa
     assert not spans
 
 
-@pytest.fixture()
-def time_zone(monkeypatch: pytest.MonkeyPatch):
-    """Set this process's local time zone (a POSIX TZ string: no tz database needed), restored afterwards."""
-    import time
-
-    def set_zone(zone: str) -> None:
-        monkeypatch.setenv("TZ", zone)
-        time.tzset()
-
-    yield set_zone
-    monkeypatch.undo()
-    time.tzset()
-
-
 @pytest.mark.parametrize(("zone", "shown"), [("CET-1", "2026-11-26 11:04 (UTC+01:00)"),
                                               ("IST-5:30", "2026-11-26 15:34 (UTC+05:30)"),
                                               ("EST+5", "2026-11-26 05:04 (UTC-05:00)"),

@@ -146,12 +146,12 @@ NOW = dt.datetime(2026, 11, 27, 12, 0, tzinfo=dt.UTC)
     (None, 0, SelfCheckPolicy(every_tests=100), "no rig self-check on record"),
     (LastCheck(NOW - dt.timedelta(hours=1), True), 99, SelfCheckPolicy(every_tests=100), None),
     (LastCheck(NOW - dt.timedelta(hours=1), True), 100, SelfCheckPolicy(every_tests=100),
-     "100 tests since the last rig self-check (2026-11-27 11:00 UTC); one is required every 100 tests"),
+     "100 tests since the last rig self-check (2026-11-27 11:00 +00:00); one is required every 100 tests"),
     (LastCheck(NOW - dt.timedelta(hours=7.9), True), 3, SelfCheckPolicy(every_hours=8), None),
     (LastCheck(NOW - dt.timedelta(hours=8), True), 3, SelfCheckPolicy(every_hours=8),
      "8.0 hours since the last rig self-check"),
     (LastCheck(NOW - dt.timedelta(minutes=5), False), 0, SelfCheckPolicy(),
-     "the last rig self-check (2026-11-27 11:55 UTC) was NO-GO"),
+     "the last rig self-check (2026-11-27 11:55 +00:00) was NO-GO"),
 ])
 def test_a_check_is_due_every_n_tests_or_hours_and_after_a_no_go(last: LastCheck | None, tests: int,
                                                                   policy: SelfCheckPolicy, due: str | None) -> None:
