@@ -81,3 +81,61 @@ def advice(verdict: Verdict | str, problems: Problem = Problem.NONE, abort_kind:
         if problem in problems:
             return Advice(Action.CHECK, f"not judged: {check}")
     return Advice(Action.CHECK, f"not judged: {CHECK_PUMP}; {CHECK_RIG}")
+
+
+class Cause(enum.StrEnum):
+    """Who an INVALID test points at: what the customer's page says, and whether a second one escalates."""
+
+    VALVE = "valve"  # the valve itself can do this: a seized or very worn valve does
+    BENCH = "bench"  # the rig, its link or the PC
+    EITHER = "valve or bench"  # a fault the valve or the rig may have caused
+    INTERRUPTED = "interrupted"
+    NOT_SET_UP = "not set up"  # the pump type has no new-valve baseline yet
+
+
+#: aborts a seized or very worn valve causes: the rack does not follow the reference
+_VALVE_ABORTS = frozenset({AbortKind.OFF_REFERENCE})
+#: aborts the valve's coil or the rig may cause (an over-current, a reading out of range)
+_EITHER_ABORTS = frozenset({AbortKind.RIG_FAULT, AbortKind.SAMPLE_OUT_OF_RANGE})
+#: problems a valve that sticks or is far worn causes: the model does not fit it, its figures do not settle, the
+#: rack's movement does not make them identifiable
+_VALVE_PROBLEMS = Problem.MODEL_DOES_NOT_FIT | Problem.DRIFTING | Problem.POORLY_CONDITIONED
+
+
+def invalid_cause(problems: Problem = Problem.NONE, abort_kind: AbortKind | None = None) -> Cause:
+    """Who an INVALID test points at, from its problems and the kind of its abort (typed values only)."""
+    if Problem.NOT_CALIBRATED in problems:
+        return Cause.NOT_SET_UP
+    if abort_kind is not None and Problem.ABORTED in problems:
+        if abort_kind is AbortKind.INTERRUPTED:
+            return Cause.INTERRUPTED
+        if abort_kind in _VALVE_ABORTS:
+            return Cause.VALVE
+        return Cause.EITHER if abort_kind in _EITHER_ABORTS else Cause.BENCH
+    if problems & (Problem.NOT_IDENTIFIED | Problem.TIMING | Problem.REPLIES_MISSING):
+        return Cause.BENCH
+    return Cause.VALVE if problems & _VALVE_PROBLEMS else Cause.EITHER
+
+
+#: what the customer's page says of an INVALID test, by its cause: no figure, no engineer's word
+CUSTOMER_WORDS = {
+    Cause.VALVE: "The valve did not move as a sound valve does, so the bench could not measure it: it may be "
+                 "sticking or badly worn.",
+    Cause.BENCH: "The test bench could not complete the measurement: a fault of the bench or its connections, not "
+                 "a finding on the valve.",
+    Cause.EITHER: "The measurement could not be completed: the valve or the bench may be the cause.",
+    Cause.INTERRUPTED: "The test was stopped before it was complete.",
+    Cause.NOT_SET_UP: "The bench is not yet set up to judge this pump type.",
+}
+
+#: the technician's line when the same valve is INVALID a second time for a cause the valve itself can cause
+SEIZED = "not judged twice, each time for a cause the valve itself can cause: the valve may be seized: replace it, " \
+         "or escalate to the engineer"
+
+
+def escalation(first: Cause | None, second: Cause) -> Advice | None:
+    """The technician's line when a valve INVALID for ``first`` (None: not INVALID) is INVALID again for
+    ``second``: escalated when both times the valve itself can be the cause, else None (the test's own advice)."""
+    if first is Cause.VALVE and second is Cause.VALVE:
+        return Advice(Action.REPLACE, SEIZED)
+    return None

@@ -40,7 +40,7 @@ from edc_bench.records.writer import (
     write_json,
 )
 from edc_bench.records.integrity import manifest
-from edc_bench.records.advice import Advice, advice
+from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
 from edc_bench.verdict.judgement import Judgement
 from edc_bench.verdict.verdicts import Verdict
 
@@ -119,6 +119,12 @@ class BenchResult:
         """What the technician does next (:func:`~edc_bench.records.advice.advice`)."""
         abort = self.outcome.abort
         return advice(self.verdict, self.judgement.problems, abort.kind if abort is not None else None)
+
+    @property
+    def invalid_cause(self) -> Cause:
+        """Who the test points at if INVALID (:func:`~edc_bench.records.advice.invalid_cause`)."""
+        abort = self.outcome.abort
+        return invalid_cause(self.judgement.problems, abort.kind if abort is not None else None)
 
     @property
     def parameters(self) -> dict[str, dict[str, Any]]:

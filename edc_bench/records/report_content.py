@@ -13,6 +13,7 @@ import math
 from datetime import UTC, datetime
 from pathlib import Path
 
+from edc_bench.records.advice import CUSTOMER_WORDS
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.records.schema import Record
 from edc_bench.timefmt import offset_text
@@ -114,12 +115,9 @@ def findings(record: Record) -> list[str]:
         lines.append("Compared with the pump type's data-sheet figures, not with measured new valves: this verdict "
                      "may be wrong until the pump type is calibrated (edc-bench calibrate --append).")
     if record.verdict == Verdict.INVALID:
+        # the customer's words only: the reasons, with their figures, are the engineer's page's
         lines.append("The test could not judge the valve: this report says nothing about its condition.")
-        fit = record.identification.model_fit if record.identification is not None else None
-        if fit is not None and fit.fits is False:  # what to do matters more than the figures (page 2 has them)
-            lines.append(MODEL_DOES_NOT_FIT)
-        elif record.reasons:
-            lines.append(f"Why: {record.reasons[0]}")
+        lines.append(CUSTOMER_WORDS[record.invalid_cause])
     return lines
 
 
@@ -292,8 +290,11 @@ def timing_rows(record: Record) -> list[tuple[str, str]]:
 
 
 def reason_lines(record: Record) -> list[str]:
-    """The verdict's reasons and the test's problems, as recorded."""
+    """The verdict's reasons and the test's problems, as recorded; for a pump the model does not fit, what to check."""
     lines = list(record.reasons)
     if record.problems:
         lines.append("problems: " + ", ".join(record.problems))
+    fit = record.identification.model_fit if record.identification is not None else None
+    if record.verdict == Verdict.INVALID and fit is not None and fit.fits is False:
+        lines.append(MODEL_DOES_NOT_FIT)
     return lines

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
-from edc_bench.records.advice import Advice, advice
+from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -292,6 +292,13 @@ class Record(Section):
         abort = self.loop.abort
         known = [name for name in self.problems if name.upper().replace(" ", "_") in Problem.__members__]
         return advice(self.verdict, Problem.from_names(known), abort.kind if abort is not None else None)
+
+    @property
+    def invalid_cause(self) -> Cause:
+        """Who this test points at if INVALID (:func:`~edc_bench.records.advice.invalid_cause`), as recorded."""
+        abort = self.loop.abort
+        known = [name for name in self.problems if name.upper().replace(" ", "_") in Problem.__members__]
+        return invalid_cause(Problem.from_names(known), abort.kind if abort is not None else None)
 
     @property
     def simulated_rig(self) -> bool:

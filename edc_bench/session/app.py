@@ -400,19 +400,24 @@ class SessionApp(App[None]):
         draw = self.runner.report and any(t.record_dir is not None for t in done.tests)
         if draw:  # before the details are shown, which say so
             self.drawing.set()
-        final = done.final
+        final, cause = done.final, done.cause
+        # the same valve INVALID again, both times for a cause the valve itself can cause: it may be seized
+        seized = self.shift.escalation(done.valve_id, final, cause)
+        words = seized.words if seized is not None else done.words
         verdict = self.query_one("#verdict", Static)
         what = final if done.decision is None else f"{final}  (MARGINAL, retest {done.tests[-1].verdict})"
-        verdict.update(Text(what, style="bold white"))
+        verdict.update(Text(what + ("  (twice: the valve may be seized)" if seized is not None else ""),
+                            style="bold white"))
         verdict.styles.background = VERDICT_COLOURS.get(final, "magenta")
-        self.query_one("#words", Static).update(Text(done.words.upper() if final != "INVALID" else done.words))
+        self.query_one("#words", Static).update(Text(words.upper() if final != "INVALID" or seized else words))
         self.query_one("#live", Static).update(self._details(done))
         typed = self._typed_during_test()
         self._say("; ".join(p for p in [*(p for t in done.tests for p in t.problems), typed] if p))
         self.verdict_shown = True
         self.shift.valves.append(ValveEntry(
-            done.valve_id, done.pump_serial, done.variant, tuple(t.verdict for t in done.tests), final, done.words,
-            tuple(str(t.record_dir) for t in done.tests if t.record_dir is not None), now_local()))
+            done.valve_id, done.pump_serial, done.variant, tuple(t.verdict for t in done.tests), final, words,
+            tuple(str(t.record_dir) for t in done.tests if t.record_dir is not None), now_local(),
+            str(cause) if cause is not None else ""))
         self._show_status()
         self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
         self.query_one("#entry", Input).focus()

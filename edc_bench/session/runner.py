@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from edc_bench.config.models import Variant
+from edc_bench.records.advice import Cause
 from edc_bench.verdict.retest import Decision, decide, retest_wanted
 
 
@@ -84,6 +85,11 @@ class ValveDone:
     def words(self) -> str:
         """What to do."""
         return self.decision.words if self.decision is not None else self.tests[-1].result.advice.words
+
+    @property
+    def cause(self) -> Cause | None:
+        """Who the valve's last test points at, when the technician acts on an INVALID (else None)."""
+        return self.tests[-1].result.invalid_cause if self.final == "INVALID" else None
 
 
 def simulated_valve(variant: Variant, valve_id: str) -> Any:

@@ -11,7 +11,7 @@ from helpers import edc_bench
 
 from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
-from edc_bench.records.advice import Action, advice
+from edc_bench.records.advice import CUSTOMER_WORDS, SEIZED, Action, Advice, Cause, advice, escalation, invalid_cause
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -60,3 +60,32 @@ def test_an_invalid_test_says_what_to_check(tmp_path: Path) -> None:
                      "--no-history", "--out", "rec", "--valve-id", "V-1", cwd=tmp_path)
     assert proc.returncode == 12, proc.stderr
     assert proc.stdout.splitlines()[0].startswith("verdict: INVALID, not judged: check the rig"), proc.stdout
+
+
+@pytest.mark.parametrize(("problems", "abort_kind", "cause"), [
+    (Problem.ABORTED, AbortKind.OFF_REFERENCE, Cause.VALVE),  # the rack does not follow: stuck or far worn
+    (Problem.MODEL_DOES_NOT_FIT, None, Cause.VALVE),
+    (Problem.DRIFTING, None, Cause.VALVE),
+    (Problem.POORLY_CONDITIONED, None, Cause.VALVE),
+    (Problem.ABORTED, AbortKind.SILENCE, Cause.BENCH),
+    (Problem.ABORTED, AbortKind.BUS_ERROR, Cause.BENCH),
+    (Problem.TIMING, None, Cause.BENCH),
+    (Problem.REPLIES_MISSING | Problem.DRIFTING, None, Cause.BENCH),  # the bench's problem explains the rest
+    (Problem.ABORTED, AbortKind.RIG_FAULT, Cause.EITHER),  # an over-current: the coil or the rig
+    (Problem.ABORTED, AbortKind.INTERRUPTED, Cause.INTERRUPTED),
+    (Problem.NOT_CALIBRATED, None, Cause.NOT_SET_UP),
+])
+def test_an_invalid_test_points_at_the_valve_the_bench_or_either(problems: Problem, abort_kind: AbortKind | None,
+                                                                 cause: Cause) -> None:
+    assert invalid_cause(problems, abort_kind) is cause
+    words = CUSTOMER_WORDS[cause]
+    for engineers in ("mm", "ticks", "variant", "polarity", "P(faulty)", "rms"):
+        assert engineers not in words, (cause, engineers)
+
+
+def test_only_a_second_invalid_the_valve_can_cause_both_times_is_escalated() -> None:
+    assert escalation(Cause.VALVE, Cause.VALVE) == Advice(Action.REPLACE, SEIZED)
+    assert "may be seized: replace it, or escalate to the engineer" in SEIZED
+    for first, second in ((None, Cause.VALVE), (Cause.BENCH, Cause.VALVE), (Cause.VALVE, Cause.BENCH),
+                          (Cause.EITHER, Cause.VALVE), (Cause.VALVE, Cause.INTERRUPTED)):
+        assert escalation(first, second) is None, (first, second)
