@@ -17,6 +17,7 @@ from edc_bench.cli.common import (
     positive_int,
     print_quietly_if_closed,
 )
+from edc_bench.history.visits import visits, with_visit_decisions
 from edc_bench.timefmt import local_column, local_text
 from edc_bench.verdict.verdicts import Verdict
 
@@ -109,8 +110,8 @@ def run(args: argparse.Namespace) -> int:
     if args.csv is not None:
         _export(rows, args.csv)
         return 0
-    if args.json:
-        print_quietly_if_closed(lambda: print(json.dumps(rows, indent=2)))
+    if args.json:  # a row per test, each with its visit's decision
+        print_quietly_if_closed(lambda: print(json.dumps(with_visit_decisions(rows), indent=2)))
     else:
         print_quietly_if_closed(lambda: history_table(rows, store.shown_url))
     return 0
@@ -156,7 +157,7 @@ def _fmt(value: Any, spec: str) -> str:
 
 
 def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> None:
-    """Print the listed tests."""
+    """Print the listed tests, a line per visit: a retested MARGINAL's two tests on one line with their decision."""
     from rich.console import Console
     from rich.table import Table
     from rich.text import Text
@@ -164,23 +165,26 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
     from edc_bench.ui.live import VERDICT_STYLES
 
     # ids and names are the technicians' text, kept as given: rich Text, never read as markup ("V[/1]" is an id)
+    shown = visits(rows)
     simulated = sum(bool(r.get("simulated")) for r in rows)
     changed = sum(bool(r.get("changes")) for r in rows)
-    started, zone = local_column([r["started_at"] for r in rows])
-    table = Table(title=Text(f"{len(rows)} test(s) in {url} ({zone})"
+    started, zone = local_column([v.first["started_at"] for v in shown])
+    table = Table(title=Text(f"{len(shown)} visit(s), {len(rows)} test(s) in {url} ({zone})"
                              + (f"; sim: {simulated} on the simulated rig, out of trends and training" if simulated
                                 else "")
                              + (f"; {changed} CHANGED: indexed again with other content after their first indexing, "
                                 "which stands (history --verify, --audit)" if changed else "")))
     # the classifier's figures (P(faulty), distance) are the engineer's: in --json and --csv, not on this screen
-    for col in ("id", "started", "valve", "pump serial", "variant", "sim", "verdict", "af V", "a1 V s/mm", "station",
-                "operator"):
-        table.add_column(col, no_wrap=col not in ("station", "operator"))
-    for r, when in zip(rows, started, strict=True):
-        table.add_row(str(r["id"]), when, Text(r["valve_id"]), Text(r["pump_serial"]),
+    for col in ("id", "started", "valve", "pump serial", "variant", "sim", "tests", "decision", "af V", "a1 V s/mm",
+                "station", "operator"):
+        table.add_column(col, no_wrap=col not in ("station", "operator", "tests"))
+    for visit, when in zip(shown, started, strict=True):
+        r = visit.last  # the test that decided: its figures
+        changes = sum(int(t.get("changes") or 0) for t in visit.tests)
+        table.add_row(visit.ids, when, Text(r["valve_id"]), Text(r["pump_serial"]),
                       Text(r["variant"]), "yes" if r.get("simulated") else "",
-                      Text(r["verdict"], style=VERDICT_STYLES.get(r["verdict"], ""))
-                      + Text(f" CHANGED {r['changes']}x" if r.get("changes") else "", style="bold red"),
+                      Text(visit.verdicts) + Text(f" CHANGED {changes}x" if changes else "", style="bold red"),
+                      Text(visit.decision, style=VERDICT_STYLES.get(visit.decision, "")),
                       _fmt(r["af_v"], ".5f"),
                       _fmt(r["a1_v_s_per_mm"], ".6f"), Text(r["station"]),
                       Text(r["operator"]))
@@ -197,9 +201,9 @@ def _trend(store: Any, args: argparse.Namespace) -> int:
                           "history')" + (f"; {len(simulated)} on the simulated rig: add --include-simulated to see "
                                          "them" if simulated else ""))
     if args.plot is not None:
-        _plot(rows, args.trend, args.plot)
-    if args.json:
-        print_quietly_if_closed(lambda: print(json.dumps(rows, indent=2)))
+        _plot(visits(rows), args.trend, args.plot)
+    if args.json:  # a row per test, each with its visit's decision
+        print_quietly_if_closed(lambda: print(json.dumps(with_visit_decisions(rows), indent=2)))
         return 0
 
     print_quietly_if_closed(lambda: trend_table(rows, args.trend))
@@ -207,17 +211,21 @@ def _trend(store: Any, args: argparse.Namespace) -> int:
 
 
 def trend_table(rows: list[dict[str, Any]], valve: str, console: Any = None) -> None:
-    """Print one valve's visits with the change against the baseline."""
+    """Print one valve's visits with the change against the baseline: a retested MARGINAL is one visit, its
+    retest's figures and the pair's decision."""
     from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
-    started, zone = local_column([r["started_at"] for r in rows])
-    table = Table(title=Text(f"valve {valve}: {len(rows)} visit(s); change against the new-valve baseline ({zone})"))
-    for col in ("started", "variant", "verdict", "af V", "af change", "a1 V s/mm", "a1 change", "distance"):
+    shown = visits(rows)
+    started, zone = local_column([v.first["started_at"] for v in shown])
+    table = Table(title=Text(f"valve {valve}: {len(shown)} visit(s); change against the new-valve baseline ({zone})"))
+    for col in ("started", "variant", "tests", "decision", "af V", "af change", "a1 V s/mm", "a1 change",
+                "distance"):
         table.add_column(col)
-    for r, when in zip(rows, started, strict=True):
-        table.add_row(when, Text(r["variant"]), Text(r["verdict"]), _fmt(r["af_v"], ".5f"),
+    for visit, when in zip(shown, started, strict=True):
+        r = visit.last
+        table.add_row(when, Text(r["variant"]), Text(visit.verdicts), Text(visit.decision), _fmt(r["af_v"], ".5f"),
                       _pct(r["af_rel"]), _fmt(r["a1_v_s_per_mm"], ".6f"), _pct(r["a1_rel"]),
                       _fmt(r["distance"], "+.3f"))
     (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
@@ -227,23 +235,32 @@ def _pct(rel: float | None) -> str:
     return "" if rel is None else f"{rel - 1:+.1%}"
 
 
-def _plot(rows: list[dict[str, Any]], valve: str, path: Path) -> None:
+def _plot(shown: list[Any], valve: str, path: Path) -> None:
+    """One point per visit (its deciding test's figures), marked with its decision, dated in local time."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from edc_bench.paths import atomic_write
+    from edc_bench.records.report_plots import VERDICT_COLOURS
 
     fig, ax = plt.subplots(figsize=(7, 3.5))
-    visits = range(1, len(rows) + 1)
-    for key, label in (("af_rel", "af"), ("a1_rel", "a1")):
-        ax.plot(visits, [100 * ((r[key] or float("nan")) - 1) for r in rows], "o-", label=label)
+    numbers = range(1, len(shown) + 1)
+    for key, label, style in (("af_rel", "af", "-"), ("a1_rel", "a1", "--")):
+        ax.plot(numbers, [100 * ((v.last[key] or float("nan")) - 1) for v in shown], style, color="0.4", lw=1.0,
+                label=label)
+        ax.scatter(numbers, [100 * ((v.last[key] or float("nan")) - 1) for v in shown], zorder=3, s=36,
+                   c=[VERDICT_COLOURS.get(v.decision, "0.5") for v in shown], marker="o" if label == "af" else "s")
+    for n, visit in zip(numbers, shown, strict=True):
+        ax.annotate(visit.decision, (n, 100 * ((visit.last["a1_rel"] or float("nan")) - 1)), fontsize=6,
+                    textcoords="offset points", xytext=(0, 6), ha="center")
     ax.axhline(0.0, color="grey", lw=0.8)
-    ax.set_xlabel("visit")
+    ax.margins(y=0.15)  # room for the decisions above the points
+    ax.set_xlabel("visit (its decision above it)")
     ax.set_ylabel("change against a new valve (%)")
     ax.set_title(f"valve {valve}", parse_math=False)  # the id as typed: '$' is not a formula here
-    ax.set_xticks(list(visits), [local_text(r["started_at"]) for r in rows], rotation=30, fontsize=7)
+    ax.set_xticks(list(numbers), [local_text(v.first["started_at"]) for v in shown], rotation=30, fontsize=7)
     ax.legend()
     fig.tight_layout()
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120))

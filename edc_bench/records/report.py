@@ -29,6 +29,7 @@ from edc_bench.paths import atomic_write
 from edc_bench.records import report_content as content
 from edc_bench.records import report_plots as plots
 from edc_bench.records.reader import load_record, load_trace
+from edc_bench.records.retest_link import find_retest
 from edc_bench.records.report_layout import (
     CONTENT_WIDTH_PT,
     GREY,
@@ -84,6 +85,9 @@ def draw_report(folder: Path, out_dir: Path | None = None, history_note: str | N
     """
     folder = Path(folder)
     record = load_record(folder)
+    retested_by = find_retest(folder, record)  # a MARGINAL's report names what it and its retest decide
+    if retested_by is not None:
+        record = record.model_copy(update={"retested_by": retested_by})
     trace = load_trace(folder)
     out_dir = Path(out_dir) if out_dir is not None else folder
     out_dir.mkdir(parents=True, exist_ok=True)

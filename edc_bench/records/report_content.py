@@ -81,17 +81,25 @@ def pump_rows(record: Record) -> list[tuple[str, str]]:
             ("Valve", record.valve_id or "-")]
 
 
-def shown_verdict(record: Record) -> str:
-    """The verdict the customer is given: a retest's decision (with the test before it), else the test's."""
+def pair_decision(record: Record) -> str:
+    """What a retested MARGINAL and its retest decide, seen from either test's record ("" for a single test)."""
     if record.retest is not None and record.retest.decision:
         return record.retest.decision
-    return str(record.verdict)
+    if record.retested_by is not None and record.retested_by.decision:
+        return record.retested_by.decision
+    return ""
+
+
+def shown_verdict(record: Record) -> str:
+    """The verdict the customer is given: a retest pair's decision (on both tests' reports), else the test's."""
+    return pair_decision(record) or str(record.verdict)
 
 
 def advice_sentence(record: Record) -> str:
     """The technician's line (:mod:`~edc_bench.records.advice`) as a sentence: ``Worn: replace the valve.``; a
-    retest's: what it and the test before it decided."""
-    words = (record.retest.words if record.retest is not None and record.retest.words else record.advice.words).strip()
+    retest pair's (on either test's report): what the two decided."""
+    pair = record.retest if record.retest is not None and record.retest.words else record.retested_by
+    words = (pair.words if pair is not None and pair.words else record.advice.words).strip()
     return (words[:1].upper() + words[1:] + ("" if words.endswith(".") else ".")) if words else ""
 
 
@@ -101,6 +109,10 @@ def findings(record: Record) -> list[str]:
     if record.retest is not None and record.retest.decision:
         lines.append(f"Tested twice: {record.retest.of_verdict or 'MARGINAL'} (near the limit), then {record.verdict} "
                      f"on the retest; together they decide {record.retest.decision}.")
+    elif record.retested_by is not None and record.retested_by.decision:
+        later = record.retested_by
+        lines.append(f"Tested twice: {record.verdict} (near the limit) in this test, then {later.verdict} on the "
+                     f"retest (record {later.record}); together they decide {later.decision}.")
     cls = record.classification
     if cls is not None:
         af, a1 = cls.features_rel.get("af", math.nan), cls.features_rel.get("a1", math.nan)

@@ -16,6 +16,7 @@ from matplotlib.axes import Axes
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from edc_bench.records.report_content import pair_decision
 from edc_bench.records.schema import Record
 from edc_bench.verdict.verdicts import Verdict
 
@@ -102,12 +103,13 @@ def draw_decision(ax: Axes, record: Record) -> list[tuple[object, str]]:
     ax.contourf(af_grid, a1_grid, dist, levels=[-band, band], colors=[_REGION_COLOURS["band"]])
     ax.contour(af_grid, a1_grid, p, levels=[plane.threshold], colors="k", linewidths=1.2)
     nominal = record.baseline is not None and record.baseline.calibrated is False
+    pair = pair_decision(record)  # one decision everywhere: the chart of a retest pair names it
     (new,) = ax.plot([1.0], [1.0], "s", color="C0", ms=7)
     star = _valve_point(ax, cls.features_rel, plane.af_rel_range, plane.a1_rel_range,
                         VERDICT_COLOURS.get(cls.verdict, "k"))
     _style(ax, "friction (af), relative to a new valve", "damping (a1), relative to a new valve")
     entries: list[tuple[object, str]] = [
-        (star, f"this valve: {cls.verdict}"),
+        (star, f"this valve: {cls.verdict}" + (f" (tested twice: {pair})" if pair else "")),
         (new, "new valve (data sheet)" if nominal else "new valve (average)"),
         (Line2D([], [], color="k", lw=1.2), "limit between reusable and worn"),
         (Patch(color=_REGION_COLOURS["pass"]), "PASS: reusable"),

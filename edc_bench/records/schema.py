@@ -227,6 +227,16 @@ class RetestSummary(Section):
     rule: str = ""  # the variant's rule that decided, e.g. "retest.decide.MARGINAL = FAIL"
 
 
+class RetestedBy(Section):
+    """A first test's retest, found beside it when its report is drawn (never in its record.json: the first test
+    was written before its retest ran)."""
+
+    record: str = ""  # the retest's record folder (its name)
+    verdict: str = ""  # the retest's verdict
+    decision: str = ""  # what the pair decides
+    words: str = ""  # the technician's line for the pair
+
+
 class RecordFiles(Section):
     """The record folder's files (None: not written); ``<name>_error`` keys say why one could not be."""
 
@@ -281,6 +291,7 @@ class Record(Section):
     simulation: dict[str, Any] | None = None
     config: dict[str, Any] | None = None
     retest: RetestSummary | None = None  # this test repeats a MARGINAL
+    retested_by: RetestedBy | None = None  # this MARGINAL was retested (found when a report is drawn)
     files: RecordFiles = RecordFiles()
 
     model_config = ConfigDict(frozen=True, extra="allow", populate_by_name=True)

@@ -459,7 +459,9 @@ class SessionApp(App[None]):
         lines = []
         for n, test in enumerate(done.tests):
             label = "test" if n == 0 else "retest"
-            lines.append(f"{label}: {test.verdict}, {test.result.advice.words}")
+            # a pair's tests under its decision: their verdicts only, never a test's own "retest" line beside it
+            lines.append(f"{label}: {test.verdict}" if done.decision is not None
+                         else f"{label}: {test.verdict}, {test.result.advice.words}")
             if test.record_dir is not None:
                 report = (", report ready (F5 prints it)" if test.report_pdf is not None else
                           ", report being drawn" if self.drawing.is_set() else "")

@@ -94,6 +94,7 @@ def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
     assert "FAIL" in worn and "WORN: REPLACE THE VALVE" in worn and "report ready (F5 prints it)" in worn
     assert "FAIL  (MARGINAL, retest MARGINAL)" in marginal and "NEAR THE LIMIT TWICE: REPLACE THE VALVE" in marginal
     assert "retest: MARGINAL" in marginal and "retest.decide.MARGINAL = FAIL" in marginal
+    assert "near the limit: retest" not in marginal  # one decision on screen: not the first test's own line
     assert "pump type switched to p-edc-long" in switched and "valve worn, tested before" in switched
     assert "p-edc-long (PE-EDC-0002)" in again and "WORN: REPLACE THE VALVE" in again
     # what was kept: the operator for the next session, every test with its report in the history

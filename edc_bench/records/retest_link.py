@@ -1,0 +1,55 @@
+"""A MARGINAL's retest, found beside its record: the first test's report names the pair's decision too.
+
+The first test's record.json is written before its retest runs, so it cannot name it; the retest's names the first
+(``retest.of_record``). The two folders sit side by side, the retest's named like the first's at a later time
+(:func:`~edc_bench.records.writer.new_record_dir`): only those later folders of the same pump type and valve are
+read.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from edc_bench.records.schema import Record, RetestedBy
+from edc_bench.records.writer import RECORD_FILE
+
+#: later folders of the same valve read at most (a retest follows its first test at once)
+_LOOKED_AT = 8
+
+
+def _valve_part(name: str, variant: str) -> str | None:
+    """The ``<variant>-<valve>`` part of a record folder's name (without a ``-2`` of a second folder that second)."""
+    marker = f"-{variant}-"
+    at = name.find(marker)
+    return None if at < 0 else name[at + 1:]
+
+
+def find_retest(folder: Path, record: Record) -> RetestedBy | None:
+    """The retest of the record in ``folder``, if one beside it names it (None for a test that was not a MARGINAL
+    retested, or whose retest is not beside it)."""
+    folder = Path(folder)
+    if record.retest is not None or str(record.verdict) != "MARGINAL" or not record.variant:
+        return None
+    own = _valve_part(folder.name, record.variant)
+    if own is None:
+        return None
+    base = own.rsplit("-", 1)[0] if own.rsplit("-", 1)[-1].isdigit() else own
+    try:
+        later = sorted(d for d in folder.parent.iterdir()
+                       if d.name > folder.name and (_valve_part(d.name, record.variant) or "").startswith(base))
+    except OSError:
+        return None
+    for candidate in later[:_LOOKED_AT]:
+        try:
+            doc = json.loads((candidate / RECORD_FILE).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        retest = doc.get("retest") if isinstance(doc, dict) else None
+        if isinstance(retest, dict) and retest.get("of_record") == folder.name:
+            return RetestedBy(record=candidate.name, verdict=str(doc.get("verdict", "")),
+                              decision=str(retest.get("decision", "")), words=str(retest.get("words", "")))
+    return None
+
+
+__all__ = ["find_retest"]

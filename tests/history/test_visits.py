@@ -1,0 +1,63 @@
+"""One decision everywhere (#53 item 3): `history` lists a line per valve visit, a retested MARGINAL's two tests on
+one line with their decision; `--json` gives each test's visit decision; the trend counts a pair as one visit.
+
+Before, `history` listed MARGINAL, MARGINAL and no decision (only `--csv` had it), and a pair was two visits."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from helpers import edc_bench
+
+from edc_bench.history.schema import COLUMNS
+from edc_bench.history.store import HistoryStore
+from edc_bench.history.visits import visits, with_visit_decisions
+
+
+def _row(n: int, valve: str, verdict: str, started: str, retest_of: str | None = None,
+         decision: str | None = None) -> dict:
+    row = {name: "" for name in COLUMNS if name not in ("id", "record_sha256", "indexed_at", "indexed_by")}
+    row.update(record_dir=f"/records/r{n}", started_at=started, valve_id=valve, verdict=verdict, af_v=0.1,
+               a1_v_s_per_mm=0.01, af_rel=1.2, a1_rel=1.4, probability_faulty=None, distance=None, model_name=None,
+               model_sha256=None, coil_r20_ohm=None, coil_in_spec=None, model_fits=None, stop_reason=None,
+               test_s=None, simulated=None, retest_of=retest_of, decision=decision)
+    return row
+
+
+def test_a_retest_joins_its_first_test_in_one_visit_with_the_pairs_decision() -> None:
+    rows = [{**_row(1, "V1", "MARGINAL", "2026-11-27T08:00:00+00:00"), "id": 1},
+            {**_row(2, "V2", "PASS", "2026-11-27T08:01:00+00:00"), "id": 2},
+            {**_row(3, "V1", "MARGINAL", "2026-11-27T08:02:00+00:00", "/records/r1", "FAIL"), "id": 3},
+            {**_row(4, "V3", "MARGINAL", "2026-11-27T08:03:00+00:00", "/records/gone", "PASS"), "id": 4}]
+    shown = visits(rows)
+    assert [(v.ids, v.verdicts, v.decision) for v in shown] == [
+        ("1+3", "MARGINAL then MARGINAL", "FAIL"), ("2", "PASS", "PASS"),
+        ("4", "MARGINAL", "PASS")]  # a retest whose first test is not listed stands alone, with its decision
+    marked = with_visit_decisions(rows)
+    assert [(r["id"], r["visit_decision"], r["visit"]) for r in marked] == [
+        (1, "FAIL", [1, 3]), (2, "PASS", [2]), (3, "FAIL", [1, 3]), (4, "PASS", [4])]
+
+
+def test_history_lists_a_pair_as_one_visit_with_its_decision_and_json_gives_it(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    with HistoryStore(url) as store:
+        store.add_row(_row(1, "V1", "MARGINAL", "2026-11-27T08:00:00+00:00"))
+        store.add_row(_row(2, "V1", "MARGINAL", "2026-11-27T08:00:30+00:00", "/records/r1", "FAIL"))
+        store.add_row(_row(3, "V1", "PASS", "2026-11-28T08:00:00+00:00"))
+    env = {**os.environ, "COLUMNS": "200"}
+    listing = edc_bench("history", "--db", url, env=env)
+    assert listing.returncode == 0, listing.stderr
+    flat = " ".join(listing.stdout.split())
+    assert "2 visit(s), 3 test(s)" in flat, listing.stdout
+    assert "MARGINAL then MARGINAL │ FAIL" in flat and "1+2" in flat, listing.stdout
+    assert "PASS │ PASS" in flat
+    rows = json.loads(edc_bench("history", "--json", "--db", url, env=env).stdout)
+    assert [(r["verdict"], r["decision"], r["visit_decision"]) for r in rows] == [
+        ("MARGINAL", None, "FAIL"), ("MARGINAL", "FAIL", "FAIL"), ("PASS", None, "PASS")]
+    trend = " ".join(edc_bench("history", "--trend", "V1", "--db", url, env=env).stdout.split())
+    assert "valve V1: 2 visit(s)" in trend and "MARGINAL then MARGINAL │ FAIL" in trend, trend
+    plot = tmp_path / "trend.png"
+    assert edc_bench("history", "--trend", "V1", "--plot", str(plot), "--db", url, env=env).returncode == 0
+    assert plot.is_file()
