@@ -24,6 +24,7 @@ from edc_bench.engine.outcome import StopReason
 from edc_bench.identification.analysis import model_fit_line
 from edc_bench.identification.coil_check import coil_line
 from edc_bench.records.baseline_text import baseline_line
+from edc_bench.runtime.loop import Phase
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
 from edc_bench.verdict.verdicts import Verdict
 
@@ -53,6 +54,16 @@ def _settled(history: Sequence[float], points: int = 20) -> str:
     return f"within {spread:.1%} over the last {points / 10:g} s"
 
 
+#: What the bench waits for before the first tick, by phase (#53: the first valve sat on "connect" for 18 s with
+#: nothing else on screen).
+WAITING_FOR = {
+    Phase.CONNECT: "the rig's bus to open and the test to be prepared (the pump type's controller and its gain "
+                   "check, the classifier)",
+    Phase.WAIT_READY: "the rig's READY heartbeat: is the rig powered on, its CAN cable plugged in, no fault latched? "
+                      "(the test gives up after the pump type's acceptance.ready_timeout_s)",
+}
+
+
 def render_snapshot(s: Snapshot, title: str) -> Panel:
     """The live panel for one state of the test."""
     steps = Text()
@@ -67,6 +78,9 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
     grid.add_column(style="bold", justify="right")
     grid.add_column()
     grid.add_row("phase", steps)
+    waiting = WAITING_FOR.get(s.phase) if not s.ticks else None
+    if waiting:  # before the first tick nothing moves on screen: say what the bench waits for
+        grid.add_row("waiting for", Text(waiting))
     if s.ticks:
         bar = ProgressBar(total=s.ticks, completed=s.tick + 1, width=40)
         if s.expected_end_s == s.expected_end_s:  # early stop: when the verdict is expected to be known

@@ -141,3 +141,27 @@ def test_the_live_panel_shows_no_nan_when_ticks_were_lost() -> None:
     columns["lateness_s"][100:] = np.nan
     assert read_tick(199, loop)["worst_lateness_recent_us"] == 0.0  # nothing measured lately: 0, not nan
     assert read_tick(199, loop)["ticks_late_or_lost"] == 50  # the summary's figure
+
+
+def test_before_the_first_tick_the_panel_says_what_the_bench_waits_for() -> None:
+    """#53: the first valve sat on "connect" for 18 s with nothing else on screen. Before the ticks the panel says
+    what the bench waits for, at 80 columns wrapped whole; once the ticks run it gives their figures instead."""
+    from rich.console import Console
+
+    from edc_bench.ui.live import render_snapshot
+    from edc_bench.ui.snapshot import Snapshot
+
+    def shown(snapshot: Snapshot) -> str:
+        console = Console(record=True, width=80, color_system=None)
+        console.print(render_snapshot(snapshot, "valve V-1"))
+        return " ".join(console.export_text().replace("│", " ").split())
+
+    snapshot = Snapshot()
+    assert "waiting for the rig's bus to open and the test to be prepared" in shown(snapshot)
+    snapshot.enter("wait READY")
+    waiting = shown(snapshot)
+    assert "waiting for the rig's READY heartbeat: is the rig powered on, its CAN cable plugged in" in waiting
+    assert "acceptance.ready_timeout_s)" in waiting  # wrapped, never cut
+    snapshot.enter("soft start")
+    snapshot.ticks = 30_000
+    assert "waiting for" not in shown(snapshot)
