@@ -92,15 +92,16 @@ def ledger_tables(found: list[dict[str, Any]], where: str, console: Any = None) 
                      + f"; {len(checks)} check(s), {nogo} NO-GO; change against the registration ({zone}, "
                        f"{where})")
         table = Table(title=title)
-        for col in ("check", "when", "verdict", *(f"{label} {unit}" for _, label, unit in _COLUMNS), "drifted"):
-            table.add_column(col, no_wrap=col != "drifted")
-        for c, when in zip(checks, checked, strict=True):
-            table.add_row(str(c["id"]), when, Text(c["verdict"], style="green" if c["verdict"] ==
-                                                                    "GO" else "bold red"),
+        for col in ("check", "when", "by", "verdict", *(f"{label} {unit}" for _, label, unit in _COLUMNS),
+                    "drifted"):
+            table.add_column(col, no_wrap=col not in ("drifted", "by"))
+        for c, when in zip(checks, checked, strict=True):  # "by": the operator who ran it, as typed: never markup
+            table.add_row(str(c["id"]), when, Text(c.get("checked_by") or ""),
+                          Text(c["verdict"], style="green" if c["verdict"] == "GO" else "bold red"),
                           *(_change(c["drift"][name], unit) for name, _, unit in _COLUMNS),
                           Text(", ".join(c["causes"])))
         per_check = entry["trend_per_check"]
         if any(v is not None for v in per_check.values()):
-            table.add_row("trend", "per check", "", *(_change(per_check[name], unit) for name, _, unit in _COLUMNS),
-                          "")
+            table.add_row("trend", "per check", "", "",
+                          *(_change(per_check[name], unit) for name, _, unit in _COLUMNS), "")
         console.print(table)

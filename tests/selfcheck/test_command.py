@@ -33,7 +33,8 @@ def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.Monke
     assert code == 0, out + err
     assert out.splitlines()[0] == "rig self-check: GO"
 
-    code, out, err = run_cli(["rig-selfcheck", "--rig-drift", "lvdt_offset_mm=0.05", "--json", *db], capsys)
+    code, out, err = run_cli(["rig-selfcheck", "--rig-drift", "lvdt_offset_mm=0.05", "--json", "--by", "Bea Otto",
+                              *db], capsys)
     assert code == ExitCode.RIG_DRIFTED == 17, err
     summary = json.loads(out)
     assert summary["verdict"] == "NO-GO" and summary["causes"] == ["LVDT zero"]
@@ -44,7 +45,7 @@ def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.Monke
     with HistoryStore(db[1]) as store:
         checks = store.rig_checks("bench1")
         assert [(c["verdict"], c["causes"], c["checked_by"]) for c in checks] == [
-            ("GO", "", checks[0]["checked_by"]), ("NO-GO", "LVDT zero", checks[1]["checked_by"])]
+            ("GO", "", checks[0]["checked_by"]), ("NO-GO", "LVDT zero", "Bea Otto")]
         assert checks[1]["lvdt_zero_mm"] == pytest.approx(0.055, abs=0.001) and checks[1]["simulated"]
         assert store.reference("bench1")["registered_by"] == "ana"
 
@@ -53,6 +54,7 @@ def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.Monke
     out = " ".join(out.split())  # the title wraps
     assert "station bench1: reference valve REF-1 (p-edc-default)" in out and "2 check(s), 1 NO-GO" in out
     assert "+0.050" in out and "LVDT zero" in out
+    assert "Bea Otto" in out  # who ran each check: the operator, not the PC's login (#53)
     code, out, err = run_cli(["history", "--rig", "--station", "bench1", "--json", "--db", db[1]], capsys)
     ledger = json.loads(out)
     assert [c["verdict"] for c in ledger[0]["checks"]] == ["GO", "NO-GO"]
