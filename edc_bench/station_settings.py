@@ -1,5 +1,6 @@
 """The station's settings file: ``station.toml`` in the station's data folder, one section per concern
-(``[history]``'s time limits, ``[scan]``'s id patterns). Read only; a shop edits it with any text editor."""
+(``[station]``'s name and the shop it belongs to, ``[history]``'s time limits, ``[scan]``'s id patterns). Read only;
+a shop edits it with any text editor."""
 
 from __future__ import annotations
 
@@ -43,4 +44,49 @@ def settings_section(name: str, data_folder: Path | None = None) -> tuple[dict[s
     return section, path
 
 
-__all__ = ["SETTINGS_FILE", "settings_path", "settings_section"]
+#: ``[station]``'s keys, and how long each may be (characters)
+_STATION_KEYS = {"name": 100, "shop": 100, "shop_address": 300}
+
+
+def station_identity(data_folder: Path | None = None) -> dict[str, str]:
+    """``[station]`` of the station's settings: ``name`` (what reports and the history call this station, instead
+    of the PC's host name), ``shop`` and ``shop_address`` (the customer's page prints them); "" where not set.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown key, or a value that is not text of printable characters within its length, naming the file
+        and the key.
+    """
+    section, path = settings_section("station", data_folder)
+    unknown = sorted(set(section) - set(_STATION_KEYS))
+    if unknown:
+        raise ConfigError(f"the station's settings {path}: [station] has no key {unknown[0]!r}; its keys are "
+                          f"{', '.join(_STATION_KEYS)}")
+    out = {}
+    for key, longest in _STATION_KEYS.items():
+        value = section.get(key, "")
+        # an address may take lines (a newline or '\n'); nothing else unprintable reaches a report or a history row
+        if (not isinstance(value, str) or len(value) > longest
+                or not all(c.isprintable() or c == "\n" for c in value)):
+            raise ConfigError(f"the station's settings {path}: [station] {key} must be text of at most {longest} "
+                              f"printable characters (an address may take lines), not {value!r}")
+        out[key] = value.strip()
+    return out
+
+
+def default_station() -> str:
+    """This station's name: ``[station] name`` of its settings, else the PC's host name."""
+    import socket
+
+    return station_identity()["name"] or socket.gethostname()
+
+
+def shop_identity() -> dict[str, str]:
+    """The shop a record names (``shop``, ``shop_address``: "" where not set), from ``[station]``."""
+    found = station_identity()
+    return {"shop": found["shop"], "shop_address": found["shop_address"]}
+
+
+__all__ = ["SETTINGS_FILE", "default_station", "settings_path", "settings_section", "shop_identity",
+           "station_identity"]

@@ -132,7 +132,7 @@ def _write_baseline(args: argparse.Namespace, variant: Any, target: Path | None,
     """Pool the tests into the baseline, print it with what to do next, and write it where asked."""
     import datetime
     import shlex
-    import socket
+    from edc_bench.station_settings import default_station
 
     from edc_bench import __version__
     from edc_bench.records.baseline_text import baseline_line
@@ -144,7 +144,7 @@ def _write_baseline(args: argparse.Namespace, variant: Any, target: Path | None,
               file=sys.stderr)
     baseline = baseline_from_tests(
         earlier + measured, written_at=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        station=args.station or socket.gethostname(), software=f"edc-bench {__version__}",
+        station=args.station or default_station(), software=f"edc-bench {__version__}",
         command=shlex.join(["edc-bench", *sys.argv[1:]]))
     text = baseline.to_toml(variant.name, f"{len(earlier)} earlier and {len(measured)} new tests"
                             if args.append else "")
@@ -251,9 +251,9 @@ def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, see
 
 def _identity(args: argparse.Namespace) -> dict[str, str]:
     """Who and where, for a calibration test's record."""
-    import socket
+    from edc_bench.station_settings import default_station
 
-    return {"station": args.station or socket.gethostname(), "purpose": "calibration"}
+    return {"station": args.station or default_station(), "purpose": "calibration"}
 
 
 def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str) -> list[Any]:

@@ -66,13 +66,13 @@ def _station(args: argparse.Namespace, store: Any) -> str:
     """The station's name as its history knows it: on a chain, the station its database login is mapped to (the
     name the database writes into its rows), else ``--station``, else the name the chain knows this PC's own login
     by, else the host name."""
-    import socket
+    from edc_bench.station_settings import default_station
 
     from edc_bench.history.chain_adoption import chain_station
 
     if store.station:
         return str(store.station)
-    return args.station or chain_station(store, socket.gethostname())
+    return args.station or chain_station(store, default_station())
 
 
 def run(args: argparse.Namespace) -> int:

@@ -205,7 +205,7 @@ def _check_chain_model(args: argparse.Namespace) -> None:
     url = args.history_db or default_url()
     if not url.startswith("postgresql"):  # a chain's history is a server's, however its URL is spelled
         return
-    import socket
+    from edc_bench.station_settings import default_station
 
     from edc_bench.errors import ConfigError, EdcBenchError
     from edc_bench.history.store import HistoryStore
@@ -214,7 +214,7 @@ def _check_chain_model(args: argparse.Namespace) -> None:
 
     try:
         with HistoryStore(url) as store:
-            station = chain_station(store, args.station or socket.gethostname())
+            station = chain_station(store, args.station or default_station())
             problem = chain_model_problem(store, station, file_sha256(station_model_path()))
     except (EdcBenchError, OSError):  # the chain or the model file cannot be read now: said after the test
         return
@@ -224,13 +224,15 @@ def _check_chain_model(args: argparse.Namespace) -> None:
 
 def _identity(args: argparse.Namespace) -> dict[str, str]:
     import getpass
-    import socket
+
+    from edc_bench.station_settings import default_station, shop_identity
 
     try:
         operator = args.operator or getpass.getuser()
     except (KeyError, OSError):  # no user name in this environment
         operator = ""
-    return {"pump_serial": args.pump_serial or "", "station": args.station or socket.gethostname(), "operator": operator}
+    return {"pump_serial": args.pump_serial or "", "station": args.station or default_station(), "operator": operator,
+            **shop_identity()}
 
 
 def _live(args: argparse.Namespace) -> bool:

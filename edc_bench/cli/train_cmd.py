@@ -270,7 +270,7 @@ def _check_training_inputs(args: argparse.Namespace) -> None:
 
 def _adopt(args: argparse.Namespace) -> int:
     import getpass
-    import socket
+    from edc_bench.station_settings import default_station
 
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import HistoryStore
@@ -294,7 +294,7 @@ def _adopt(args: argparse.Namespace) -> int:
     adopted: list[Any] = []
     # recorded in the history around the station's change: a login that may not adopt changes nothing here
     with HistoryStore(args.db) as store:
-        store.add_adoption(model.name, model.sha256, chain_station(store, socket.gethostname()), by,
+        store.add_adoption(model.name, model.sha256, chain_station(store, default_station()), by,
                            then=lambda: adopted.append(adopt_shipped() if shipped else adopt(Path(args.adopt), by,
                                                                                              model)))
         where = store.shown_url

@@ -64,10 +64,13 @@ def pump_text(record: Record) -> str:
 
 
 def test_rows(record: Record) -> list[tuple[str, str]]:
-    """Page 1's who and when."""
-    rows = [("Date", local_time(record.started_at)),
-            ("Station", record.identity.station or "-"),
-            ("Operator", record.identity.operator or "-")]
+    """Page 1's who and when: the workshop (from the station's settings, when set), the date, station and operator."""
+    identity = record.identity
+    workshop = ", ".join(filter(None, [identity.shop, *identity.shop_address.splitlines()]))
+    rows = [("Workshop", workshop)] if workshop else []
+    rows += [("Date", local_time(record.started_at)),
+             ("Station", identity.station or "-"),
+             ("Operator", identity.operator or "-")]
     if record.simulated_rig:  # a demonstration or a test run: never to be taken for a valve's test on a rig
         rows.append(("Rig", "SIMULATED: no real valve was tested"))
     return rows

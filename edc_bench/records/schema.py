@@ -39,6 +39,8 @@ class Identity(Section):
     pump_serial: str = ""
     station: str = ""
     operator: str = ""
+    shop: str = ""  # the workshop ([station] shop in station.toml): the customer's page prints it
+    shop_address: str = ""
 
 
 class CoilFinding(Section):

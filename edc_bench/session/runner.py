@@ -168,11 +168,12 @@ class SessionRunner:
             return folder[0] / CAN_LOG_FILE
 
         from edc_bench.bench import BenchOptions
+        from edc_bench.station_settings import shop_identity
         from edc_bench.verdict.judgement import default_calibrate_command
 
         options = BenchOptions(
             valve_id=valve_id, identity={"pump_serial": pump_serial, "station": self.station,
-                                         "operator": self.operator},
+                                         "operator": self.operator, **shop_identity()},
             calibrate_command=default_calibrate_command(variant, ["--valve", "new"] if self.rig.simulated else []),
             stream_can_log=stream_target, observer=observer)
         seed = self.rig.first_seed + self.tests_run
