@@ -70,8 +70,11 @@ class StopRule(Protocol):
     """Decides whether a test may end before its full length (:class:`~edc_bench.verdict.early_stop.EarlyStop`)."""
 
     #: ticks after which :meth:`check` is asked (the ends of whole excitation periods, and steps of work spread
-    #: between them), in order; in simulated time inside the tick, in real time beside the ticks, in a worker
+    #: between them), in order
     check_ticks: Container[int]
+    #: those of them whose call decides and costs milliseconds (the periods' ends): in real time the loop makes
+    #: these calls beside the ticks, in a worker thread, and the short ones inside the tick while the worker is idle
+    decision_ticks: Container[int]
     #: when the test is expected to end (trace time, s), for the live view
     expected_end_s: float
 
@@ -379,6 +382,16 @@ class TickEngine:
         if timer is not None:
             self.outcome.stop_check_max_s = max(self.outcome.stop_check_max_s, timer() - began)
         return decision
+
+    def stop_rule_calls(self, k: int) -> bool:
+        """True when the stop rule has a call at tick ``k`` (one of its ``check_ticks``)."""
+        rule = self.stop_rule
+        return rule is not None and k in rule.check_ticks
+
+    def stop_rule_decides(self, k: int) -> bool:
+        """True when the stop rule's call for tick ``k`` is a decision (long: see :class:`StopRule`)."""
+        rule = self.stop_rule
+        return rule is not None and k in rule.decision_ticks
 
     def take_stop(self, decision: dict[str, Any], k: int) -> None:
         """The test ends at tick ``k`` on the stop rule's ``decision`` (made at its ``time_s``, a period's end):

@@ -29,7 +29,7 @@ import gc
 import time
 import traceback
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from edc_bench.canlib import can
 from edc_bench.config.models import Variant
@@ -366,6 +366,7 @@ class BenchLoop:
         self._phase(Phase.SOFT_START)
         stop_requested = self.stop_requested
         worker = self._stop_worker
+        inline_decision: dict[str, Any] | None = None
         k = 0
         while k < self.ticks:
             if stop_requested():
@@ -381,7 +382,8 @@ class BenchLoop:
                     k, lateness = self._skip_stall(k, lateness)
                     if worker is not None:  # the rule's calls for the lost ticks are made all the same
                         for g in range(skipped_from, k):
-                            worker.hand_over(g)
+                            decided = self._stop_rule_call_beside(g, worker)
+                            inline_decision = inline_decision or decided
                     if k >= self.ticks:
                         return None
                     t_k = engine.tick_time_s(k)
@@ -391,7 +393,12 @@ class BenchLoop:
                 sent_s = clock.now_s()
                 self._send(data)
                 engine.sent(k, sent_s, lateness)
-                self._drain(t_k + T - read_margin_s)
+                # real time, a short call of the stop rule to make in this tick: it takes the time the replies are
+                # read in (what comes meanwhile is read first thing next tick), so that it ends before the next
+                # deadline (a feed takes 0.5 ms, about the time left after the read on a slow PC)
+                short_call = (worker is not None and engine.stop_rule_calls(k) and not engine.stop_rule_decides(k)
+                              and worker.idle())
+                self._drain(clock.now_s() if short_call else t_k + T - read_margin_s)
             except _AbortTest as stop:
                 return stop.abort.at(t_k - engine.t_start_s)
             abort = engine.check(k)
@@ -406,13 +413,24 @@ class BenchLoop:
                 if engine.stop_check(k) is not None:
                     return None
             else:
-                worker.hand_over(k)
-                taken = worker.decision()
-                if taken is not None:
-                    engine.take_stop(taken[0], k)
+                inline_decision = inline_decision or self._stop_rule_call_beside(k, worker)
+                made = worker.decision()  # a decision the worker made, and the tick it was made for
+                taken = inline_decision if inline_decision is not None else made[0] if made is not None else None
+                if taken is not None:  # the test ends at this tick, after the tick the decision was made for
+                    engine.take_stop(taken, k)
                     return None
             k += 1
         return None
+
+    def _stop_rule_call_beside(self, k: int, worker: StopWorker) -> dict[str, Any] | None:
+        """Real time: the stop rule's call for tick ``k``: a decision is the worker's to make; a short call is made
+        here, inside the tick, while the worker is idle (the worker holding the interpreter through the ticks costs
+        them more than the call). A decision made here is returned."""
+        engine = self.engine
+        if engine.stop_rule_decides(k) or not worker.idle():
+            worker.hand_over(k)  # in order after the calls handed over before it
+            return None
+        return engine.stop_rule_call(k)
 
 
 __all__ = ["OBSERVE_EVERY", "BenchLoop", "LoopObserver", "LoopOutcome", "Phase", "StopRule"]

@@ -56,6 +56,9 @@ class StopWorker:
         self._ended = threading.Event()
         self._thread = threading.Thread(target=self._run, name="early-stop", daemon=True)
         self._switch_interval_s = sys.getswitchinterval()
+        # ticks handed over, and calls done: each written by one thread only (the loop's, the worker's)
+        self._handed = 0
+        self._done = 0
 
     def start(self) -> None:
         """Start the worker, and cut the switch interval while it runs."""
@@ -64,7 +67,12 @@ class StopWorker:
 
     def hand_over(self, k: int) -> None:
         """Tick ``k`` is over: the rule's call for it, if it has one, is the worker's to make."""
+        self._handed += 1
         self._ticks.put(k)
+
+    def idle(self) -> bool:
+        """True when every call handed over is done: the loop may make a short call itself, in order."""
+        return self._done == self._handed
 
     def decision(self) -> tuple[dict[str, Any], int] | None:
         """The rule's decision and the tick it was made for, once made; a failure of the rule is raised here, in
@@ -88,6 +96,7 @@ class StopWorker:
             if decision is not None:
                 self._decision = (decision, k)
                 return
+            self._done += 1  # after the call: the loop makes none of its own until the rule is left alone
 
     def cancel(self) -> None:
         """No more calls: the worker ends after the one under way (without waiting for it)."""

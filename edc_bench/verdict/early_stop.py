@@ -99,6 +99,8 @@ class EarlyStop:
         self.search_ticks = {k - STEP_TICKS // 2 for k in self.feed_ticks} - set(self.period_ends) - self.feed_ticks
         #: every tick after which :meth:`check` wants to be called
         self.check_ticks = set(self.period_ends) | self.feed_ticks | self.search_ticks
+        # a period's end decides (a fit, its interval, the classifier): in real time beside the ticks
+        self.decision_ticks = set(self.period_ends)
         #: candidate periods each search step tries: enough to finish between two period ends (the fewest steps)
         ends = sorted(self.period_ends)
         steps = min((sum(1 for t in self.search_ticks if a < t < b) for a, b in zip(ends, ends[1:])), default=1)
