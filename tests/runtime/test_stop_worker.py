@@ -104,3 +104,26 @@ def test_a_raw_log_ending_a_little_after_a_whole_period_ended_by_an_early_stop()
     assert _ends_at_a_period(variant, end + 14)  # decided 14 ticks later, as measured in real time here
     assert not _ends_at_a_period(variant, end + EARLY_STOP_LAG_TICKS + 1)
     assert not _ends_at_a_period(variant, end - 1)  # before the minimum whole periods
+
+
+def test_the_worker_is_idle_only_when_every_call_handed_over_is_done() -> None:
+    """The loop calls the rule itself only while the worker is idle: never beside it, never out of order."""
+    import time
+
+    engine = FakeEngine(hold_at=1)
+    worker = StopWorker(engine)
+    worker.start()
+    try:
+        assert worker.idle()
+        worker.hand_over(1)
+        worker.hand_over(2)
+        assert not worker.idle()
+        assert engine.holding.wait(WAIT_S)
+        assert not worker.idle()  # the call for tick 1 is under way
+        engine.release.set()
+        waited = time.monotonic() + WAIT_S
+        while not worker.idle() and time.monotonic() < waited:
+            time.sleep(0.001)  # waiting for the worker, not timing it
+        assert worker.idle() and engine.calls == [1, 2]
+    finally:
+        worker.close()
