@@ -174,21 +174,37 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
                                 else "")
                              + (f"; {changed} CHANGED: indexed again with other content after their first indexing, "
                                 "which stands (history --verify, --audit)" if changed else "")))
-    # the classifier's figures (P(faulty), distance) are the engineer's: in --json and --csv, not on this screen
-    for col in ("id", "started", "valve", "pump serial", "variant", "sim", "tests", "decision", "af V", "a1 V s/mm",
-                "station", "operator"):
-        table.add_column(col, no_wrap=col not in ("station", "operator", "tests"))
+    # the figures (af and a1, P(faulty), the distance) are the engineer's: in --trend, --json and --csv; here the
+    # visits and what was decided. Ids wrap (folded), never cut: a person reads the whole id. A terminal under
+    # 100 columns gets the visit, its tests and decision only (the rest in --json), rather than a table cut short
+    console = console or Console(width=None if sys.stdout.isatty() else 160)
+    wide = console.width >= 100
+    if not wide:
+        table.caption = "pump type, station and operator: in a wider terminal, or with --json"
+    table.add_column("id", no_wrap=True)
+    table.add_column("started", no_wrap=True)
+    for col in ("valve", "pump serial", *(("variant",) if wide else ())):
+        table.add_column(col, overflow="fold", min_width=6)
+    if wide:
+        table.add_column("sim", no_wrap=True)
+    table.add_column("tests", min_width=9)
+    table.add_column("decision", no_wrap=True)
+    if wide:
+        for col in ("station", "operator"):
+            table.add_column(col, overflow="fold", min_width=7)
     for visit, when in zip(shown, started, strict=True):
-        r = visit.last  # the test that decided: its figures
+        r = visit.last  # the test that decided
         changes = sum(int(t.get("changes") or 0) for t in visit.tests)
-        table.add_row(visit.ids, when, Text(r["valve_id"]), Text(r["pump_serial"]),
-                      Text(r["variant"]), "yes" if r.get("simulated") else "",
-                      Text(visit.verdicts) + Text(f" CHANGED {changes}x" if changes else "", style="bold red"),
-                      Text(visit.decision, style=VERDICT_STYLES.get(visit.decision, "")),
-                      _fmt(r["af_v"], ".5f"),
-                      _fmt(r["a1_v_s_per_mm"], ".6f"), Text(r["station"]),
-                      Text(r["operator"]))
-    (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
+        tests_text = (Text(visit.verdicts) + Text(" (sim)" if r.get("simulated") and not wide else "", style="dim")
+                      + Text(f" CHANGED {changes}x" if changes else "", style="bold red"))
+        cells = [visit.ids, when, Text(r["valve_id"]), Text(r["pump_serial"])]
+        if wide:
+            cells += [Text(r["variant"]), "yes" if r.get("simulated") else ""]
+        cells += [tests_text, Text(visit.decision, style=VERDICT_STYLES.get(visit.decision, ""))]
+        if wide:
+            cells += [Text(r["station"]), Text(r["operator"])]
+        table.add_row(*cells)
+    console.print(table)
 
 
 def _trend(store: Any, args: argparse.Namespace) -> int:

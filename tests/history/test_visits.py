@@ -61,3 +61,24 @@ def test_history_lists_a_pair_as_one_visit_with_its_decision_and_json_gives_it(t
     plot = tmp_path / "trend.png"
     assert edc_bench("history", "--trend", "V1", "--plot", str(plot), "--db", url, env=env).returncode == 0
     assert plot.is_file()
+
+
+def test_at_80_columns_the_listing_keeps_the_visit_and_its_decision_whole() -> None:
+    """A technician's terminal of 80 columns: the decision and the whole ids, never a table cut at the edge."""
+    from rich.console import Console
+
+    from edc_bench.cli.history_cmd import history_table
+
+    long_id = "V-2040-REWORKED-BY-BOSCH-SERVICE-0042"
+    rows = [{**_row(1, long_id, "MARGINAL", "2026-11-27T08:00:00+00:00"), "id": 1, "station": "bench-2",
+             "operator": "m.keller", "variant": "p-edc-default", "changes": 0},
+            {**_row(2, long_id, "MARGINAL", "2026-11-27T08:01:00+00:00", "/records/r1", "FAIL"), "id": 2,
+             "station": "bench-2", "operator": "m.keller", "variant": "p-edc-default", "changes": 0}]
+    for width in (80, 120, 200):
+        console = Console(width=width, record=True, color_system=None)
+        history_table(rows, "sqlite:///h.sqlite", console)
+        text = console.export_text()
+        assert max(len(line) for line in text.splitlines()) <= width, text
+        valve_column = "".join(line.split("│")[3].strip() for line in text.splitlines() if line.startswith("│"))
+        assert valve_column == long_id and "FAIL" in text and "MARGINAL" in text, text
+        assert ("bench-2" in text) == (width >= 100), text
