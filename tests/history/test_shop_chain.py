@@ -3,6 +3,7 @@ revisions, --verify, and a password never shown."""
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import os
 import shutil
@@ -309,8 +310,10 @@ def test_a_test_on_the_simulated_rig_is_marked_and_left_out_of_trends_and_traini
     with HistoryStore(url) as store:
         store.add(record, record_dir)
         rig_row = {key: value for key, value in store.list()[0].items() if key != "id"}
+        # a test on a rig a minute after the simulated one (a fixed date stopped being later at midnight)
+        later = (dt.datetime.fromisoformat(record.started_at) + dt.timedelta(minutes=1)).isoformat()
         store.add_row({**rig_row, "record_dir": "/records/on-a-rig", "simulated": False, "test_key": "on-a-rig",
-                       "legacy_key": "on-a-rig", "started_at": "2026-11-27T23:59:59+00:00"})
+                       "legacy_key": "on-a-rig", "started_at": later})
         store.add_teardown(record.valve_id, "worn", labelled_by="ana", labelled_at="2099-01-01")
         assert [r["simulated"] for r in store.list()] == [True, False]  # listed, and marked
         assert [r["simulated"] for r in store.list(Filters(simulated=False))] == [False]
