@@ -300,9 +300,10 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
 
 
 #: In real time the early stop decides beside the ticks (runtime.stop_worker), and the loop ends at the first tick
-#: after the decision: tens of ticks after the period's end on a slow PC. A raw log that ends this close after a
-#: whole period ended there.
-EARLY_STOP_LAG_TICKS = 500
+#: after the decision: 14-80 ticks after the period's end measured on a slow, busy PC. A raw log that ends this close
+#: after a whole period ended there (a log cut by chance this soon after one is taken for an early stop: a tenth of
+#: a period's 2000 ticks).
+EARLY_STOP_LAG_TICKS = 200
 
 
 def _ends_at_a_period(variant: Variant, ticks: int) -> bool:

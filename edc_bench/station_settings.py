@@ -67,8 +67,9 @@ def station_identity(data_folder: Path | None = None) -> dict[str, str]:
     for key, longest in _STATION_KEYS.items():
         value = section.get(key, "")
         # an address may take lines (a newline or '\n'); nothing else unprintable reaches a report or a history row
+        lines_allowed = key == "shop_address"
         if (not isinstance(value, str) or len(value) > longest
-                or not all(c.isprintable() or c == "\n" for c in value)):
+                or not all(c.isprintable() or (c == "\n" and lines_allowed) for c in value)):
             raise ConfigError(f"the station's settings {path}: [station] {key} must be text of at most {longest} "
                               f"printable characters (an address may take lines), not {value!r}")
         out[key] = value.strip()

@@ -15,7 +15,7 @@ from __future__ import annotations
 import datetime as dt
 
 __all__ = ["folder_stamp", "local_column", "local_text", "offset_text", "parse_local_input", "parse_stored",
-           "utc_now_iso"]
+           "utc_bound", "utc_now_iso"]
 
 
 def parse_stored(value: str | dt.datetime | None) -> dt.datetime | None:
@@ -95,6 +95,18 @@ def parse_local_input(text: str) -> dt.datetime:
     """A time a person typed (ISO 8601): local time unless it gives an offset; aware. Raises ValueError."""
     when = dt.datetime.fromisoformat(text.strip())
     return when.astimezone() if when.tzinfo is None else when
+
+
+def utc_bound(text: str, *, end_of_day: bool = False) -> str:
+    """A day or time a person typed, local unless it gives an offset, as the UTC instant the history's stamps are
+    compared with (ISO 8601, to the second): a day's first second, or with ``end_of_day`` its last. Raises
+    ValueError."""
+    if "T" in text:
+        return parse_local_input(text).astimezone(dt.UTC).isoformat(timespec="seconds")
+    day = dt.date.fromisoformat(text)
+    start = dt.datetime.combine(day + dt.timedelta(days=1) if end_of_day else day, dt.time()).astimezone()
+    moment = start - dt.timedelta(seconds=1) if end_of_day else start
+    return moment.astimezone(dt.UTC).isoformat(timespec="seconds")
 
 
 def utc_now_iso() -> str:

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from edc_bench.cli.common import positive_float, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
+from edc_bench.timefmt import local_text
 
 if TYPE_CHECKING:
     from edc_bench.records.schema import Record
@@ -169,9 +170,10 @@ def _why_else(record: Record, baseline: Baseline, classifier: ValveClassifier) -
     then = record.baseline
     if then is not None and then.af_v is not None and then.a1_v_s_per_mm is not None \
             and (then.af_v, then.a1_v_s_per_mm) != (baseline.af_v, baseline.a1_v_s_per_mm):
-        when = then.written_at or then.source or "another"
+        when = local_text(then.written_at) if then.written_at else then.source or "another"
         why.append(f"the test was judged against the baseline of {when} (af0 {then.af_v:.4g} V, a1_0 "
-                   f"{then.a1_v_s_per_mm:.4g} V s/mm), classify against {baseline.written_at or baseline.source} "
+                   f"{then.a1_v_s_per_mm:.4g} V s/mm), classify against "
+                   f"{local_text(baseline.written_at) if baseline.written_at else baseline.source} "
                    f"(af0 {baseline.af_v:.4g} V, a1_0 {baseline.a1_v_s_per_mm:.4g} V s/mm)")
     return "; ".join(why)
 

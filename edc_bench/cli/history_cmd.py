@@ -18,7 +18,7 @@ from edc_bench.cli.common import (
     print_quietly_if_closed,
 )
 from edc_bench.history.visits import visits, with_visit_decisions
-from edc_bench.timefmt import local_column, local_text
+from edc_bench.timefmt import local_column, local_text, utc_bound
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -37,8 +37,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--variant", default=None, help="only this variant (name or part number)")
     p.add_argument("--verdict", default=None, type=str.upper,
                    choices=[v.value for v in Verdict], help="only this verdict")
-    p.add_argument("--since", default=None, metavar="DATE", help="from this day (YYYY-MM-DD) on")
-    p.add_argument("--until", default=None, metavar="DATE", help="up to this day (YYYY-MM-DD), inclusive")
+    p.add_argument("--since", default=None, metavar="DATE",
+                   help="from this day (YYYY-MM-DD, this PC's local day; or YYYY-MM-DDTHH:MM) on")
+    p.add_argument("--until", default=None, metavar="DATE",
+                   help="up to this day (YYYY-MM-DD, local), inclusive; or up to YYYY-MM-DDTHH:MM")
     p.add_argument("--limit", type=positive_int, default=None, metavar="N", help="only the newest N")
     p.add_argument("--trend", type=identity(), default=None, metavar="VALVE_ID",
                    help="one valve's af and a1 over its visits")
@@ -74,6 +76,9 @@ def run(args: argparse.Namespace) -> int:
     if args.csv is not None and args.csv != "-":
         check_output_file(Path(args.csv), "--csv")
     since, until = parse_day(args.since, "--since"), parse_day(args.until, "--until")
+    # typed in local time, as the listing shows the tests: the UTC instants the stored stamps are compared with
+    since = utc_bound(since) if since is not None else None
+    until = utc_bound(until, end_of_day=True) if until is not None else None
     if since is not None and until is not None and since > until:
         raise ConfigError(f"--since {args.since} is after --until {args.until}: give the earlier day first")
     records: list[tuple[Any, Path]] = []

@@ -143,7 +143,8 @@ def _withdraw(args: argparse.Namespace, delete: int | None) -> int:
     by = person_name(args.by, "who withdraws it")
     with HistoryStore(args.db, must_exist=True) as store:
         gone = store.withdraw_teardown(args.withdraw if args.withdraw is not None else delete, why, by)
-    print(f"withdrew finding {gone['id']}: valve {gone['valve_id']}, {gone['finding']}, {gone['labelled_at']} "
+    print(f"withdrew finding {gone['id']}: valve {gone['valve_id']}, {gone['finding']}, "
+          f"{local_text(gone['labelled_at'])} "
           f"({why}); it labels nothing now")
     return 0
 

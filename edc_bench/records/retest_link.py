@@ -2,7 +2,7 @@
 
 The first test's record.json is written before its retest runs, so it cannot name it; the retest's names the first
 (``retest.of_record``). The two folders sit side by side, the retest's named like the first's at a later time
-(:func:`~edc_bench.records.writer.new_record_dir`): only those later folders of the same pump type and valve are
+(:func:`~edc_bench.records.writer.new_record_dir`): only the nearest folders of the same pump type and valve are
 read.
 """
 
@@ -28,7 +28,7 @@ def _valve_part(name: str, variant: str) -> str | None:
 def find_retest(folder: Path, record: Record) -> RetestedBy | None:
     """The retest of the record in ``folder``, if one beside it names it (None for a test that was not a MARGINAL
     retested, or whose retest is not beside it)."""
-    folder = Path(folder)
+    folder = Path(folder).resolve()  # "." names no folder
     if record.retest is not None or str(record.verdict) != "MARGINAL" or not record.variant:
         return None
     own = _valve_part(folder.name, record.variant)
@@ -36,11 +36,16 @@ def find_retest(folder: Path, record: Record) -> RetestedBy | None:
         return None
     base = own.rsplit("-", 1)[0] if own.rsplit("-", 1)[-1].isdigit() else own
     try:
-        later = sorted(d for d in folder.parent.iterdir()
-                       if d.name > folder.name and (_valve_part(d.name, record.variant) or "").startswith(base))
+        same_valve = sorted(d for d in folder.parent.iterdir()
+                            if (_valve_part(d.name, record.variant) or "").startswith(base))
     except OSError:
         return None
-    for candidate in later[:_LOOKED_AT]:
+    # the nearest by name, after it first: a retest follows its test at once, but folders are named in local time,
+    # so across a change of summer time (or of zone) a later test may sort before it
+    at = same_valve.index(folder) if folder in same_valve else len(same_valve)
+    nearest = sorted((d for d in same_valve if d != folder),
+                     key=lambda d: (abs(same_valve.index(d) - at), same_valve.index(d) < at))
+    for candidate in nearest[:_LOOKED_AT]:
         try:
             doc = json.loads((candidate / RECORD_FILE).read_text(encoding="utf-8"))
         except (OSError, ValueError):

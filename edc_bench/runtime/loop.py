@@ -279,8 +279,8 @@ class BenchLoop:
             outcome.events.append(traceback.format_exc())
         finally:
             self.engine.finish()
-            if worker is not None:
-                worker.cancel()  # no decision after the ticks; the call under way ends while the rig goes safe
+            if worker is not None and (outcome.abort is not None or outcome.stop is not None):
+                worker.cancel()  # ended otherwise: no decision after it; the call under way ends as the rig goes safe
             try:
                 self._phase(Phase.SAFE_STOP)
                 if self._sent_any or outcome.abort is None or outcome.abort.kind is not AbortKind.FOREIGN_COMMAND:
@@ -290,16 +290,33 @@ class BenchLoop:
             except can.CanError as exc:
                 outcome.events.append(f"SAFE could not be sent: {exc}")
             finally:
-                outcome.cpu_steal_s = cpu_steal_s() - steal_at_start
-                outcome.reply_age_ticks = dict(sorted(self.engine.matcher.counts.ages.items()))
-                outcome.replies_too_old = self.engine.matcher.counts.too_old
-                self._note_bus_figures()
-                if worker is not None:
-                    worker.close()
-                if gc_was_enabled:
-                    gc.enable()
-                gc.unfreeze()
+                try:
+                    if worker is not None:
+                        self._last_decision(worker)
+                finally:
+                    outcome.cpu_steal_s = cpu_steal_s() - steal_at_start
+                    outcome.reply_age_ticks = dict(sorted(self.engine.matcher.counts.ages.items()))
+                    outcome.replies_too_old = self.engine.matcher.counts.too_old
+                    self._note_bus_figures()
+                    if gc_was_enabled:
+                        gc.enable()
+                    gc.unfreeze()
         return outcome
+
+    def _last_decision(self, worker: StopWorker) -> None:
+        """The worker's last calls, once the rig is safe: a test whose ticks ran to their end takes a decision made
+        for its last tick (the last period's end is the last tick), and a failure of the rule ends the test as one
+        inside the tick would (simulated time's record is the same)."""
+        outcome = self.outcome
+        error = worker.close()
+        if error is not None:
+            if outcome.abort is None:
+                outcome.abort = Abort(AbortKind.INTERNAL_ERROR, {"error": f"{type(error).__name__}: {error}"})
+            outcome.events.append("".join(traceback.format_exception(error)))
+            return
+        made = worker.made()
+        if made is not None and outcome.stop is None and outcome.abort is None:
+            self.engine.take_stop(made[0], outcome.ticks_run - 1)
 
     def _run_phases(self) -> Abort | None:
         """Wait for READY, synchronise, run the ticks; the abort that ended them, if any."""
@@ -366,7 +383,6 @@ class BenchLoop:
         self._phase(Phase.SOFT_START)
         stop_requested = self.stop_requested
         worker = self._stop_worker
-        inline_decision: dict[str, Any] | None = None
         k = 0
         while k < self.ticks:
             if stop_requested():
@@ -382,8 +398,8 @@ class BenchLoop:
                     k, lateness = self._skip_stall(k, lateness)
                     if worker is not None:  # the rule's calls for the lost ticks are made all the same
                         for g in range(skipped_from, k):
-                            decided = self._stop_rule_call_beside(g, worker)
-                            inline_decision = inline_decision or decided
+                            if engine.stop_rule_calls(g):
+                                worker.hand_over(g)  # the tick after a stall has no time to spare
                     if k >= self.ticks:
                         return None
                     t_k = engine.tick_time_s(k)
@@ -413,7 +429,7 @@ class BenchLoop:
                 if engine.stop_check(k) is not None:
                     return None
             else:
-                inline_decision = inline_decision or self._stop_rule_call_beside(k, worker)
+                inline_decision = self._stop_rule_call_beside(k, worker, short_call)
                 made = worker.decision()  # a decision the worker made, and the tick it was made for
                 taken = inline_decision if inline_decision is not None else made[0] if made is not None else None
                 if taken is not None:  # the test ends at this tick, after the tick the decision was made for
@@ -422,12 +438,15 @@ class BenchLoop:
             k += 1
         return None
 
-    def _stop_rule_call_beside(self, k: int, worker: StopWorker) -> dict[str, Any] | None:
+    def _stop_rule_call_beside(self, k: int, worker: StopWorker, inline: bool) -> dict[str, Any] | None:
         """Real time: the stop rule's call for tick ``k``: a decision is the worker's to make; a short call is made
-        here, inside the tick, while the worker is idle (the worker holding the interpreter through the ticks costs
-        them more than the call). A decision made here is returned."""
+        here, inside the tick (``inline``: decided before the tick's reply read, which it replaced, while the worker
+        was idle: the worker holding the interpreter through the ticks costs them more than the call). A decision
+        made here is returned."""
         engine = self.engine
-        if engine.stop_rule_decides(k) or not worker.idle():
+        if not engine.stop_rule_calls(k):
+            return None
+        if not inline:
             worker.hand_over(k)  # in order after the calls handed over before it
             return None
         return engine.stop_rule_call(k)

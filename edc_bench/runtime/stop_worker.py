@@ -55,13 +55,14 @@ class StopWorker:
         self._error: BaseException | None = None
         self._ended = threading.Event()
         self._thread = threading.Thread(target=self._run, name="early-stop", daemon=True)
-        self._switch_interval_s = sys.getswitchinterval()
+        self._switch_interval_s: float | None = None  # the interpreter's, while the worker runs
         # ticks handed over, and calls done: each written by one thread only (the loop's, the worker's)
         self._handed = 0
         self._done = 0
 
     def start(self) -> None:
         """Start the worker, and cut the switch interval while it runs."""
+        self._switch_interval_s = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         self._thread.start()
 
@@ -82,6 +83,10 @@ class StopWorker:
             raise error
         return self._decision
 
+    def made(self) -> tuple[dict[str, Any], int] | None:
+        """The decision, if made (never raises: :meth:`close` returns a failure)."""
+        return self._decision
+
     def _run(self) -> None:
         engine, ticks, ended = self._engine, self._ticks, self._ended
         while True:
@@ -99,16 +104,24 @@ class StopWorker:
             self._done += 1  # after the call: the loop makes none of its own until the rule is left alone
 
     def cancel(self) -> None:
-        """No more calls: the worker ends after the one under way (without waiting for it)."""
+        """No more calls: the worker ends after the one under way (without waiting for it); the calls handed over
+        and not begun are dropped."""
         self._ended.set()
         self._ticks.put(_END)
 
-    def close(self) -> None:
-        """End the worker, waiting for the call under way; restore the interpreter's switch interval."""
-        self.cancel()
-        if self._thread.is_alive():
-            self._thread.join()
-        sys.setswitchinterval(self._switch_interval_s)
+    def close(self) -> BaseException | None:
+        """End the worker, after the calls handed over (all of them, unless :meth:`cancel` dropped them), and
+        restore the interpreter's switch interval; the rule's failure, if one is still to be said."""
+        try:
+            self._ticks.put(_END)
+            if self._thread.is_alive():
+                self._thread.join()
+        finally:
+            if self._switch_interval_s is not None:
+                sys.setswitchinterval(self._switch_interval_s)
+                self._switch_interval_s = None
+        error, self._error = self._error, None
+        return error
 
 
 __all__ = ["SWITCH_INTERVAL_S", "StopWorker"]

@@ -7,6 +7,7 @@ the session and reports gave local time, and record folders named in UTC beside 
 from __future__ import annotations
 
 import datetime as dt
+import json
 import os
 import sys
 from pathlib import Path
@@ -94,9 +95,24 @@ def test_a_records_folder_is_named_in_the_local_time_of_the_test(tmp_path: Path)
                      env={**os.environ, "TZ": "IST-5:30"})
     assert proc.returncode == 0, proc.stderr
     (folder,) = tmp_path.iterdir()
-    import json
 
     started = dt.datetime.fromisoformat(json.loads((folder / "record.json").read_text())["started_at"])
     assert started.utcoffset() == dt.timedelta(0)  # record.json keeps UTC
     local = started.astimezone(dt.timezone(dt.timedelta(hours=5, minutes=30)))
     assert folder.name.startswith(f"{local:%Y%m%dT%H%M%S}+0530-"), folder.name
+
+
+def test_history_since_and_until_are_local_days_as_the_listing_shows_them(tmp_path: Path) -> None:
+    """A test at 00:30 on 27 November in Berlin (23:30 UTC on the 26th) is listed on the 27th: `--since 2026-11-27`
+    finds it and `--until 2026-11-26` does not (a review found the days compared in UTC)."""
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    with HistoryStore(url) as store:
+        store.add_row(_row("V1", "2026-11-26T23:30:00+00:00"))
+    env = {**os.environ, "TZ": BERLIN}
+    since = edc_bench("history", "--since", "2026-11-27", "--json", "--db", url, env=env)
+    until = edc_bench("history", "--until", "2026-11-26", "--json", "--db", url, env=env)
+    assert [r["valve_id"] for r in json.loads(since.stdout)] == ["V1"], since.stderr
+    assert json.loads(until.stdout) == [], until.stderr
+    at = edc_bench("history", "--since", "2026-11-27T00:00+01:00", "--until", "2026-11-27T01:00", "--json", "--db",
+                   url, env=env)
+    assert [r["valve_id"] for r in json.loads(at.stdout)] == ["V1"], at.stderr

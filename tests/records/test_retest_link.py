@@ -78,3 +78,20 @@ def test_only_the_retest_that_names_the_test_is_its_retest(pair: tuple[Path, Pat
     doc["retest"]["of_record"] = "20261127T000000+0000-p-edc-default-clearance_0.185"
     (other / "record.json").write_text(json.dumps(doc))
     assert find_retest(copied, load_record(copied)) is None
+
+
+def test_the_retest_is_found_from_the_folder_itself_and_across_a_change_of_summer_time(
+        pair: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    first, second = pair
+    monkeypatch.chdir(first)
+    assert find_retest(Path("."), load_record(first)) is not None  # `edc-bench report .`
+    # at the end of summer time a test at 02:50 +0200 and its retest at 02:05 +0100: the retest's name sorts first
+    shop = tmp_path / "records"
+    shop.mkdir()
+    before = shutil.copytree(first, shop / "20261025T025000+0200-p-edc-default-clearance_0.185")
+    after = shutil.copytree(second, shop / "20261025T020500+0100-p-edc-default-clearance_0.185")
+    doc = json.loads((after / "record.json").read_text())
+    doc["retest"]["of_record"] = before.name
+    (after / "record.json").write_text(json.dumps(doc))
+    found = find_retest(before, load_record(before))
+    assert found is not None and found.record == after.name

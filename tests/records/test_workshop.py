@@ -46,7 +46,8 @@ def test_a_station_setting_that_cannot_be_used_is_refused_naming_the_file_and_ke
     env = {**os.environ, "EDC_BENCH_DATA_DIR": str(data)}
     for text, said in (('[station]\nshopname = "x"\n', "[station] has no key 'shopname'"),
                        ('[station]\nshop = 5\n', "[station] shop must be text"),
-                       ('[station]\nname = "a\\u0007b"\n', "[station] name must be text")):
+                       ('[station]\nname = "a\\u0007b"\n', "[station] name must be text"),
+                       ('[station]\nname = "bench\\n2"\n', "[station] name must be text")):  # lines: the address only
         (data / "station.toml").write_text(text, encoding="utf-8")
         proc = edc_bench("test", "--valve", "new", "--no-figure", "--no-history", "--out", str(tmp_path / "r"),
                          env=env)

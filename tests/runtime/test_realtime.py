@@ -249,3 +249,36 @@ def test_a_slow_pcs_early_stop_decision_costs_no_ticks_and_never_trips_the_watch
         return completed, description, disturbance(result.timing, status, (machine_lost, outcome.ticks_run))
 
     assert attempts(run, "30 ms decisions"), "an undisturbed real-time test with 30 ms decisions was not a valid PASS"
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_a_decision_for_the_last_tick_is_taken_in_real_time_as_in_simulated_time() -> None:
+    """A test of 10 s: its third period, the first the early stop decides on, ends at its last tick. In simulated
+    time the rule decides inside that tick ("verdict certain" at 10 s); in real time the worker decides after the
+    loop's last poll, and the decision must still be taken, not recorded as "full length" (a review found it was)."""
+    from edc_bench.bench import BenchOptions, run_bench_test, run_simulated_test
+    from edc_bench.protocol import default_icd
+    from edc_bench.runtime.bus import open_bus
+    from edc_bench.runtime.clock import RealTimeClock
+    from edc_bench.sim.process import rig_process
+
+    variant = load_variant()
+    variant = variant.model_copy(update={"excitation": variant.excitation.model_copy(update={"duration_s": 10.0})})
+    simulated = run_simulated_test(variant, "new")
+    assert simulated.stop["reason"] == "verdict certain" and simulated.outcome.ticks_run == 10_000
+
+    def run():
+        status: dict[str, float] = {}
+        with rig_process(None, "new", 0, "none", status) as channel, \
+                open_bus({"interface": "slcan", "channel": channel}, default_icd().bitrate) as bus:
+            result = run_bench_test(bus, RealTimeClock(), variant, BenchOptions())
+        outcome = result.outcome
+        completed = result.verdict == "PASS"
+        if completed:
+            assert result.stop["reason"] == "verdict certain", result.stop
+            assert result.stop["time_s"] == pytest.approx(10.0) and result.stop["decided_s"] == pytest.approx(10.0)
+        return (completed, f"{result.verdict} {result.reasons}, stop {result.stop}, {figures(result.timing, status)}",
+                disturbance(result.timing, status, (outcome.ticks_lost, outcome.ticks_run)))
+
+    assert attempts(run, "a decision at the last tick"), "an undisturbed real-time test of 10 s did not PASS"

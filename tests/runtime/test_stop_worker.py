@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 
 import pytest
 
@@ -66,9 +67,33 @@ def test_a_failure_of_the_rule_is_raised_in_the_loops_thread() -> None:
     for k in range(4):
         worker.hand_over(k)
     assert engine.done.wait(WAIT_S)
-    worker.close()
+    waited = time.monotonic() + WAIT_S
+    while worker._thread.is_alive() and time.monotonic() < waited:
+        time.sleep(0.001)  # waiting for the worker to end, not timing it
     with pytest.raises(ValueError, match="the fit broke"):
-        worker.decision()
+        worker.decision()  # at the loop's next poll, in its thread
+    assert worker.close() is None  # said once
+
+
+def test_a_failure_of_the_rules_last_call_is_returned_when_the_worker_closes() -> None:
+    """The last period's end is the last tick: its call may fail after the loop's last poll; close() says it."""
+    engine = FakeEngine(fail_at=3)
+    worker = StopWorker(engine)
+    worker.start()
+    for k in range(4):
+        worker.hand_over(k)
+    error = worker.close()  # not cancelled: the calls handed over are made first
+    assert isinstance(error, ValueError) and engine.calls == [0, 1, 2, 3]
+
+
+def test_closing_makes_the_calls_handed_over_and_keeps_their_decision() -> None:
+    engine = FakeEngine(decide_at=5)
+    worker = StopWorker(engine)
+    worker.start()
+    for k in range(6):
+        worker.hand_over(k)
+    assert worker.close() is None
+    assert worker.made() == ({"reason": "verdict certain", "time_s": 1.0}, 5)
 
 
 def test_cancel_drops_the_ticks_not_begun_and_close_restores_the_switch_interval() -> None:
@@ -108,8 +133,6 @@ def test_a_raw_log_ending_a_little_after_a_whole_period_ended_by_an_early_stop()
 
 def test_the_worker_is_idle_only_when_every_call_handed_over_is_done() -> None:
     """The loop calls the rule itself only while the worker is idle: never beside it, never out of order."""
-    import time
-
     engine = FakeEngine(hold_at=1)
     worker = StopWorker(engine)
     worker.start()
