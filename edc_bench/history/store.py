@@ -116,8 +116,10 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "retest_of": _retest_of(record, record_dir),
         "decision": None if record.retest is None else _text(record.retest.decision)[:20] or None,
         "test_key": test_key(record),
+        # a stripped copy's match; a retest is not its first test, though both may start in the same second
         "legacy_key": legacy_test_key(_text(record.started_at), _text(record.valve_id),
-                                      _text(identity.pump_serial), _text(identity.station)),
+                                      _text(identity.pump_serial), _text(identity.station),
+                                      _text(record.retest.of_record) if record.retest is not None else ""),
     }
 
 
