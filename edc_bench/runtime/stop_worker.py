@@ -1,20 +1,21 @@
-"""The early stop's work beside the real-time ticks, in a worker thread.
+"""The early stop's decisions beside the real-time ticks, in a worker thread.
 
 A decision at a period's end (a fit, its interval, two classifier calls)
-takes 2 ms on a fast PC and 5-20 ms on a slower one (measured on an Intel
-Xeon VM: 5.2 ms median, 22 ms in real time). Inside a 1 ms tick that lost
-ticks at every period's end, and a 20 ms call tripped the rig's watchdog.
-In real time the loop therefore hands each of the rule's ticks to this
-worker and takes the decision at the first tick after it is made: the test
-ends a few ticks after the period it was decided on (the record's
-``stop.decided_s`` beside ``stop.time_s``), and the verdict's fit takes
-whole periods only, so those ticks change nothing in it.
+took 16-22 ms in real time on CI's Intel Xeon (docs/bench-test.md prints its
+cost in simulated time). Inside a 1 ms tick that lost ticks at every
+period's end, and a 20 ms call tripped the rig's watchdog. In real time the
+loop therefore hands each period's end to this worker and takes the
+decision at the first tick after it is made: the test ends a few ticks
+after the period it was decided on (the record's ``stop.decided_s`` beside
+``stop.time_s``), and the verdict's fit takes whole periods only, so those
+ticks change nothing in it. The short calls (feeds, search steps) stay in
+the tick while the worker is idle (:meth:`StopWorker.idle`); while it is
+not, they are handed to it too, in order.
 
-The worker takes the interpreter only between the loop's waits: while it
-runs, the interpreter's switch interval is cut to :data:`SWITCH_INTERVAL_S`,
-so a wake-up of the loop waits at most that long for it. In simulated time
-the rule runs inside the tick, as before: the same test gives the same
-record.
+While the worker runs, the interpreter's switch interval is cut to
+:data:`SWITCH_INTERVAL_S`, so a wake-up of the loop waits about that long
+for it at most. In simulated time the rule runs inside the tick, as before:
+the same test gives the same record.
 """
 
 from __future__ import annotations
