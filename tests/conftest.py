@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import signal
 import time
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
@@ -30,6 +31,12 @@ settings.load_profile("default")
 # test expects to read does not depend on where it runs; tests of other zones set theirs (the time_zone fixture).
 os.environ["TZ"] = "UTC0"
 time.tzset()
+
+# A suite started in the background (`pytest &`, nohup) inherits SIGINT ignored, and so would every edc-bench it
+# runs: the tests of Ctrl-C would fail for the way the suite was started (a newcomer's trial found 10). Ctrl-C
+# means what it means to a technician, in the suite and in the commands it starts.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 from edc_bench.config import Variant, load_variant
 from edc_bench.physics.valve import ValveSpec, parse_valve_spec
