@@ -88,8 +88,9 @@ class BenchOptions:
     observer : LoopObserver or None
         Told the phases and shown the loop as it runs (live view, log lines).
     stream_can_log : callable or None
-        Returns the file to stream the raw CAN log to while the test runs (called once the test is about to
-        start), so that a killed process leaves a readable log.
+        Given the test's start (UTC, ISO 8601, the record's ``started_at``), returns the file to stream the raw CAN
+        log to while the test runs (called once the test is about to start), so that a killed process leaves a
+        readable log.
     truth : FeedforwardParameters or None
         True parameters, when the rig is simulated.
     describe_rig : callable or None
@@ -108,7 +109,7 @@ class BenchOptions:
     calibrate_command: str | None = None
     full_length: bool = False
     observer: LoopObserver | None = None
-    stream_can_log: Callable[[], Path] | None = None
+    stream_can_log: Callable[[str], Path] | None = None
     truth: FeedforwardParameters | None = None
     describe_rig: Callable[[], dict[str, Any]] | None = None
     icd: Icd | None = None
@@ -155,7 +156,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
     stop_rule = _stop_rule(variant, o, baseline)
     loop = BenchLoop(bus, clock, variant, o.icd or default_icd(), o.observer, stop_requested=stop_requested,
                      stop_rule=stop_rule)
-    outcome, can_log_path = _run_loop(loop, o.stream_can_log)
+    outcome, can_log_path = _run_loop(loop, o.stream_can_log, started)
     trace = loop.trace.view()
     timing = timing_summary(trace, variant.controller.period_s)
     timing["missed_replies"] = outcome.missed_replies
@@ -200,12 +201,14 @@ def _stop_rule(variant: Variant, o: BenchOptions, baseline: Baseline | None) -> 
                      default_classifier(str(o.classifier_path) if o.classifier_path else None, variant))
 
 
-def _run_loop(loop: BenchLoop, stream_can_log: Callable[[], Path] | None) -> tuple[LoopOutcome, Path | None]:
-    """Run the loop, streaming the CAN log where asked; the outcome, and where the log was streamed completely."""
+def _run_loop(loop: BenchLoop, stream_can_log: Callable[[str], Path] | None,
+              started_at: str) -> tuple[LoopOutcome, Path | None]:
+    """Run the loop, streaming the CAN log where asked (the target is given the test's start, which names its
+    folder); the outcome, and where the log was streamed completely."""
     stream = None
     if stream_can_log is not None:
         try:
-            stream = StreamingCanLog(loop.frames, stream_can_log())
+            stream = StreamingCanLog(loop.frames, stream_can_log(started_at))
         except OSError as exc:  # a full disk, a folder that vanished: the frames stay in memory all the same
             loop.outcome.events.append(f"can.log could not be opened for streaming ({type(exc).__name__}: {exc}); "
                                        "every frame is kept in memory and written with the record")

@@ -400,11 +400,9 @@ def _options(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] 
     from edc_bench.bench import BenchOptions
     from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
 
-    def stream_target() -> Path:
-        # the record folder exists from the first frame on: a killed test leaves its CAN log
-        import datetime
-
-        started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    def stream_target(started: str) -> Path:
+        # the record folder exists from the first frame on: a killed test leaves its CAN log; it is named by the
+        # test's own start, the record's started_at
         folder.append(new_record_dir(args.out, valve_id, variant.name, started))
         return folder[0] / CAN_LOG_FILE
 

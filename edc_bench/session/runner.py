@@ -7,7 +7,6 @@ could not be written) comes back as words, never as an exception, so the shift g
 
 from __future__ import annotations
 
-import datetime
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -162,8 +161,7 @@ class SessionRunner:
 
         folder: list[Path] = []
 
-        def stream_target() -> Path:  # the record folder exists from the first frame on
-            started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+        def stream_target(started: str) -> Path:  # the record folder exists from the first frame on
             folder.append(new_record_dir(self.out_dir, valve_id, variant.name, started))
             return folder[0] / CAN_LOG_FILE
 

@@ -228,13 +228,27 @@ def test_a_full_disk_while_streaming_costs_neither_the_verdict_nor_the_log(tmp_p
     folder.mkdir()
     # the streamer writes every 0.1 s of wall-clock time, and once more at the end: past FAULT_AT_S either fails
     result = run_bench_test(bench, clock, variant,
-                            BenchOptions(check_gains=False, stream_can_log=lambda: folder / "can.log"))
+                            BenchOptions(check_gains=False, stream_can_log=lambda _started: folder / "can.log"))
     assert disk_full_after[0] >= 1
     assert ran_to_the_end(result) and result.can_log_path is None
     assert any("can.log could not be streamed" in e and "No space left" in e for e in result.outcome.events)
     # the disk has room again when the record is written: the log is rewritten whole from memory
     write_record(result, tmp_path, figure=False, folder=folder)
     assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count
+
+
+def test_the_streamed_logs_folder_is_named_by_the_records_own_start(tmp_path: Path, simulated_bench) -> None:
+    """CI: the folder was named by a clock read of its own, a second after the record's started_at."""
+    variant = _variant(SHORT_S)
+    bench, clock, _ = simulated_bench(variant, "worn", 1)
+    given: list[str] = []
+
+    def target(started: str) -> Path:
+        given.append(started)
+        return tmp_path / "can.log"
+
+    result = run_bench_test(bench, clock, variant, BenchOptions(check_gains=False, stream_can_log=target))
+    assert given == [result.started_at]
 
 
 # -- defect 6: the CAN log's capacity ------------------------------------------------------------------------------
