@@ -338,6 +338,17 @@ class SlcanRigServer:
                 self._last_to_hosts = self.adapter.delivery_s(at_s, self._rng, self._last_to_hosts)
                 self._to_hosts.append((self._last_to_hosts, line))
 
+    def _next_due_s(self) -> float:
+        """When the rig next has something to do: its firmware's next deadline, or a frame the adapter holds (a
+        USB adapter delivers in its own frames). Sleeping past a held frame delivered each reply only when the next
+        command woke the loop: under SCHED_FIFO (no polling), every reply came one command late."""
+        due = self.rig.firmware.next_deadline_s()
+        if self._to_rig:
+            due = min(due, self._to_rig[0][0])
+        if self._to_hosts:
+            due = min(due, self._to_hosts[0][0])
+        return due
+
     def _deliver_due(self, now: float) -> None:
         """Adapter model: commands that have reached the rig, and the rig's frames that have reached the hosts."""
         while self._to_rig and self._to_rig[0][0] <= now:
@@ -419,7 +430,7 @@ class SlcanRigServer:
             if self._hosts and self.poll_while_connected:
                 wait_s = 0.0  # poll: a sleeping process on a VM can wake milliseconds late
             else:
-                wait_s = min(_MAX_WAIT_S, max(0.0, rig.firmware.next_deadline_s() - self._now()))
+                wait_s = min(_MAX_WAIT_S, max(0.0, self._next_due_s() - self._now()))
         if wait_s > 0:  # a chosen sleep (not while polling): what it took is not a gap in serving
             asleep_from = self._now()
             ready = self._selector.select(timeout=wait_s)

@@ -272,3 +272,44 @@ def test_a_command_the_rig_refuses_wins_no_ownership(served, icd: Icd) -> None:
     replies = [item for item in bench.read() if item.startswith(b"t121")]
     assert len(replies) == 1 and server.rig.firmware.state is RigState.RUNNING  # the bench owns the rig
     assert stats(server, "junk").refused_bench_cmds == 0  # delivered and refused by the rig, not by the server
+
+
+def test_a_rig_that_sleeps_between_frames_delivers_what_its_adapter_holds_on_time(variant: Variant, icd: Icd,
+                                                                                  no_hang: None) -> None:
+    """Under SCHED_FIFO the server sleeps instead of polling; it slept until the firmware's next deadline past the
+    replies a USB adapter held, and each reply went out only when the next command woke it: rig-check failed 7
+    checks (replies paired with the wrong commands)."""
+    import select
+
+    from edc_bench.sim.adapter import parse_adapter
+
+    clock, logs = FakeClock(), []
+    rig = SimulatedRig(variant, parse_valve_spec("new", variant), seed=0)
+    server = SlcanRigServer(rig, clock_s=clock, log=logs.append, host_queue_bytes=4096,
+                            adapter=parse_adapter("usb-fs"))
+    server.poll_while_connected = False  # as under a real-time policy
+    real_select = server._selector.select
+    bench = Host(server, "bench")
+    open_hosts(server, clock, bench)
+    bench.read()
+    sent_s, latencies_s = 0.0, []
+
+    def sleeping_select(timeout: float | None = None) -> list:
+        if select.select([bench.sock], [], [], 0)[0] and len(latencies_s) < k:  # the reply is out: when
+            latencies_s.append(clock.now_s - sent_s)
+        ready = real_select(timeout=0)
+        if not ready:  # nothing came: the whole sleep, in the test's time
+            clock.now_s += timeout or 0.0
+        return ready
+
+    server._selector.select = sleeping_select
+    for k in range(1, 21):
+        sent_s = clock.now_s
+        bench.send_frame(BENCH_CMD_ID, icd.make_bench_cmd(k, Mode.RUN, 1.0, 10.0))
+        replies: list[bytes] = []
+        while not replies and clock.now_s < sent_s + 0.2:
+            server.serve_once()
+            replies = frames_of(bench.read(), b"t121")
+        assert [icd.parse_rig_feedback(d).counter for d in replies] == [k]  # its own reply, before the next command
+        clock.now_s += 0.005
+    assert len(latencies_s) == 20 and max(latencies_s) < 0.01, latencies_s  # usb-fs: a few ms, not the 50 ms sleep
