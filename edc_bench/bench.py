@@ -24,6 +24,7 @@ On any python-can bus (a real rig, or ``edc-bench rig`` over slcan)::
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as _dt
 import itertools
@@ -52,6 +53,7 @@ from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.gain_check import check_variant_gains
 from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase, StopRule
+from edc_bench.runtime.priority import realtime_priority
 from edc_bench.runtime.signals import interrupt_guard, stop_requested
 from edc_bench.runtime.timing import timing_summary
 
@@ -156,12 +158,16 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
     stop_rule = _stop_rule(variant, o, baseline)
     loop = BenchLoop(bus, clock, variant, o.icd or default_icd(), o.observer, stop_requested=stop_requested,
                      stop_rule=stop_rule)
-    outcome, can_log_path = _run_loop(loop, o.stream_can_log, started)
+    # in real time the loop runs at a real-time priority where the PC permits (runtime/priority.py)
+    with contextlib.nullcontext() if isinstance(clock, SimulatedClock) else realtime_priority() as priority:
+        outcome, can_log_path = _run_loop(loop, o.stream_can_log, started)
     trace = loop.trace.view()
     timing = timing_summary(trace, variant.controller.period_s)
     timing["missed_replies"] = outcome.missed_replies
     timing["cpu_steal_s"] = outcome.cpu_steal_s
     timing["first_tick_unix_s"] = outcome.first_tick_unix_s
+    if priority is not None:
+        timing["scheduling"] = priority.describe()
     if stop_rule is not None:  # the early stop's longest call, which a real-time tick had to wait for
         timing["stop_check_max_us"] = outcome.stop_check_max_s * 1e6
     if o.observer is not None:

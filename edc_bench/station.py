@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from edc_bench.runtime.priority import how_to_allow, realtime_permitted, realtime_priority
+
 #: GO needs the p99.9 lateness under this share of the period (the rest is the tick's work and the reply).
 LATENESS_SHARE = 0.3
 
@@ -77,17 +79,11 @@ def _busy_programs(min_share: float = 0.1, sample_s: float = 0.5) -> list[tuple[
 
 def system_facts() -> dict[str, object]:
     """Governor, load, real-time priority permission, power supply (where the OS tells)."""
-    import resource
-
     facts: dict[str, object] = {"cpus": os.cpu_count()}
     facts["governor"] = _read("/sys/devices/system/cpu/cpu0/cpufreq/scaling_governor")
     load = _read("/proc/loadavg")
     facts["load_1min"] = float(load.split()[0]) if load else None
-    try:
-        soft, _hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
-    except (AttributeError, ValueError, OSError):
-        soft = 0
-    facts["realtime_priority_allowed"] = os.geteuid() == 0 or soft > 0
+    facts["realtime_priority_allowed"] = realtime_permitted()
     try:
         facts["realtime_scheduling_now"] = os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
     except (AttributeError, OSError):
@@ -121,12 +117,9 @@ def judge(period_s: float, late_s: np.ndarray, steal_s: float, overrun_limit: fl
                       "(sudo cpupower frequency-set -g performance) so the clock does not slow down between ticks.")
     if facts.get("on_battery"):
         advice.append("The PC runs on battery: plug it in (power saving throttles the CPU).")
-    if not facts.get("realtime_scheduling_now"):
-        if facts.get("realtime_priority_allowed"):
-            advice.append("Real-time priority is permitted here: run tests as 'chrt -f 50 edc-bench test ...'.")
-        else:
-            advice.append("Real-time priority is not permitted for this user: ask the administrator for an rtprio "
-                          "limit in /etc/security/limits.conf, then run tests with 'chrt -f 50'.")
+    if not facts.get("realtime_scheduling_now") and not facts.get("realtime_priority_allowed"):
+        # permitted, the bench raises its own priority for each test (runtime/priority.py): nothing to do
+        advice.append("The bench cannot raise its own priority for its tests: " + how_to_allow() + ".")
     return ("NO-GO" if reasons else "GO"), reasons, advice
 
 
@@ -137,9 +130,10 @@ def check_station(period_s: float, duration_s: float, overrun_limit: float) -> S
 
     busy = _busy_programs()
     steal0 = cpu_steal_s()
-    late, _ = bare_loop(period_s, duration_s)
+    with realtime_priority() as priority:  # at the priority a test runs at
+        late, _ = bare_loop(period_s, duration_s)
     steal = cpu_steal_s() - steal0
-    facts = system_facts()
+    facts = {**system_facts(), "measured_at": priority.describe()}
     verdict, reasons, advice = judge(period_s, late, steal, overrun_limit, facts, busy)
     q = np.percentile(late, [50, 99, 99.9]) * 1e6
     return StationCheck(

@@ -63,6 +63,7 @@ def _report(result: Any, as_json: bool) -> None:
                              f"max {late['max']:.0f} us (tick {result.period_s * 1e6:.0f} us)")
     body.add_row("overruns", f"{result.overruns} of {result.ticks} ticks (a test allows {result.overrun_limit:.1%})")
     body.add_row("CPU steal", f"{result.steal_s:.2f} s")
+    body.add_row("priority", str(result.system.get("measured_at", "")))
     for n, reason in enumerate(result.reasons):
         body.add_row("why" if n == 0 else "", reason)
     for n, line in enumerate(result.advice):

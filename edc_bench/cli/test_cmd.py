@@ -420,6 +420,7 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     from edc_bench.protocol import default_icd
     from edc_bench.runtime.bus import ClosingBus, open_bus
     from edc_bench.runtime.clock import RealTimeClock
+    from edc_bench.runtime.priority import realtime_priority
 
     # the panel's title says it all; a line on stderr would only tear the panel
     quiet = args.json or _live(args)
@@ -445,8 +446,9 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
     rig_status: dict[str, float] = {}
     drift = [] if args.rig_drift is None else ["--rig-drift", args.rig_drift.spec()]
     try:
-        with rig_process(args.variant, args.valve, seed, args.adapter, rig_status,
-                         extra=["--firmware", args.firmware, *drift]) as channel:
+        # raised before the rig process starts: it inherits the policy and is put one above the bench
+        with realtime_priority(), rig_process(args.variant, args.valve, seed, args.adapter, rig_status,
+                                              extra=["--firmware", args.firmware, *drift]) as channel:
             log(f"edc-bench test: variant {variant.name}, simulated rig process at {channel}, real time")
             session = ClosingBus(open_bus({"interface": "slcan", "channel": channel}, icd.bitrate))
             with session as bus:
@@ -633,6 +635,8 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
     if t.get("ticks"):
         print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, ticks late {t['ticks_late']}, "
               f"missed replies {result.outcome.missed_replies}, CPU steal meanwhile {t['cpu_steal_s']:.2f} s")
+        if "scheduling" in t:
+            print(f"priority: {t['scheduling']}")
     if record_dir is None:
         print("record: not written (see the error below)")
         return

@@ -25,6 +25,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Label, Static
 
+from edc_bench.runtime.priority import priority_notice
 from edc_bench.runtime.signals import stop_requested
 from edc_bench.session.rig_selfcheck import SelfCheckWords, SessionSelfCheck
 from edc_bench.session.runner import SessionRunner, ValveDone
@@ -198,12 +199,14 @@ class SessionApp(App[None]):
 
     def _start_of_shift(self) -> None:
         self.query_one("#entry", Input).focus()
-        if self.selfcheck is None:
-            return
-        if self.selfcheck.reference_valve() is None:  # said once; the shift goes on
-            self._selfcheck_done(self.selfcheck.no_reference_words())
-            return
-        self._ask_for_reference("the start of the shift")
+        if self.selfcheck is not None:
+            if self.selfcheck.reference_valve() is None:  # said once; the shift goes on
+                self._selfcheck_done(self.selfcheck.no_reference_words())
+            else:
+                self._ask_for_reference("the start of the shift")
+        notice = priority_notice(self.runner.rig.simulated)
+        if notice:  # once, at the start of the shift
+            self._say_too(notice)
 
     def _show_status(self) -> None:
         variant = self.variant

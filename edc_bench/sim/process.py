@@ -63,7 +63,7 @@ def rig_process(variant: str | None, valve: str, seed: int, adapter: str = "none
 
 def above_the_bench(pid: int) -> int | None:
     """Give the rig process ``pid`` a real-time priority one above this (bench) process's, when the bench runs
-    under one (``chrt -f 50 edc-bench test --realtime``, as check-station advises).
+    under one (as it raises itself to where the PC permits, :mod:`edc_bench.runtime.priority`, or under ``chrt``).
 
     The rig inherits the bench's policy and priority; under SCHED_FIFO a process of equal priority is never
     preempted, so the bench's spinning loop and the rig took turns only when one blocked: the rig went unserved
