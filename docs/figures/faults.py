@@ -195,6 +195,10 @@ def _safe_cell(run: dict[str, Any]) -> str:
 def _rows(variant: Any) -> list[Row]:
     """The rows of the fault table, in the page's order."""
     from edc_bench.engine.outcome import Abort, AbortKind, describe
+    from edc_bench.engine.problems import Problem
+    from edc_bench.records.advice import advice
+    from edc_bench.verdict.pc_stall import pc_stall_reason
+    from edc_bench.verdict.verdicts import Verdict
 
     a = variant.acceptance
     age = f"`max_reply_age_ms` ({a.max_reply_age_ms:g} ms)"
@@ -227,7 +231,9 @@ def _rows(variant: Any) -> list[Row]:
             "ran late, `timing.ticks_late`)"),
         Row(f"host stall longer than the watchdog (`[rig].watchdog_ms`, {variant.rig.watchdog_ms:g} ms)",
             "the rig trips its watchdog", "abort, SAFE (re-arms)", "12", safe="rig at 0 V by its watchdog",
-            says="`" + describe(Abort(AbortKind.RIG_FAULT, {"flags": ["watchdog tripped"]})) + "`"),
+            says="`" + describe(Abort(AbortKind.RIG_FAULT, {"flags": ["watchdog tripped"]})) + "`, and `"
+                 + pc_stall_reason(0.025, 0.0) + "`; the advice names the PC "
+                 "(`" + advice(Verdict.INVALID, Problem.ABORTED | Problem.PC_STALLED).words + "`)"),
         Row("python-can error on send or receive", "`CanOperationError`", "abort, SAFE attempted", "12", "send-error"),
         Row("bus-off", "every send and receive fails", "abort", "12", "bus-off"),
         Row("rig cut off", "replies missing", "abort", "12", "rig-cut-off"),

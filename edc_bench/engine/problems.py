@@ -34,6 +34,9 @@ class Problem(enum.IntFlag):
     NOT_CALIBRATED = enum.auto()
     #: the coil's resistance is out of its spec (not a trust problem: the valve FAILs whatever its wear)
     COIL_OUT_OF_SPEC = enum.auto()
+    #: the PC stalled right before an abort a stall of the bench causes (the rig's watchdog, replies missing): the
+    #: PC, not the rig or the bus, is what to check (not a trust problem: the abort is)
+    PC_STALLED = enum.auto()
 
     @property
     def names(self) -> list[str]:

@@ -75,6 +75,9 @@ def advice(verdict: Verdict | str, problems: Problem = Problem.NONE, abort_kind:
     if Problem.NOT_CALIBRATED in problems:
         return Advice(Action.CALIBRATE, "not judged: this pump type has no new-valve baseline yet: calibrate it "
                                         "(edc-bench calibrate), then retest")
+    if Problem.PC_STALLED in problems:  # the abort names the rig or the bus; a stall of the PC caused it
+        return Advice(Action.CHECK, "not judged: the PC stalled, not the rig: close other programs or run "
+                                    "check-station, then retest")
     if Problem.ABORTED in problems and abort_kind is not None:
         return Advice(Action.CHECK, f"not judged: {what_to_check(abort_kind)}")
     for problem, check in _CHECKS:
@@ -106,6 +109,8 @@ def invalid_cause(problems: Problem = Problem.NONE, abort_kind: AbortKind | None
     """Who an INVALID test points at, from its problems and the kind of its abort (typed values only)."""
     if Problem.NOT_CALIBRATED in problems:
         return Cause.NOT_SET_UP
+    if Problem.PC_STALLED in problems:
+        return Cause.BENCH
     if abort_kind is not None and Problem.ABORTED in problems:
         if abort_kind is AbortKind.INTERRUPTED:
             return Cause.INTERRUPTED

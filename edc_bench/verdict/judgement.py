@@ -27,6 +27,7 @@ from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_proble
 from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
 from edc_bench.verdict.baseline import Baseline, load_baseline
+from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s
 from edc_bench.verdict.classifier import Classification, ValveClassifier, default_classifier
 from edc_bench.verdict.verdicts import Verdict
 
@@ -239,6 +240,10 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
     problems = run_problems(variant, outcome, ident, timing)
     reasons = trust_reasons(variant, outcome, ident, timing, problems)
+    stall_s = pc_stall_s(outcome.abort, trace, variant.controller.period_s)
+    if stall_s > 0:  # the PC, not the rig or the bus, is what the technician checks
+        problems |= Problem.PC_STALLED
+        reasons.append(pc_stall_reason(stall_s, outcome.cpu_steal_s))
     parameters: dict[str, dict[str, Any]] = {}
     inductive = inductive_shares(variant)._asdict()
     r_ref, r_hat = variant.coil.resistance_ohm, measured_resistance_ohm(trace, variant)

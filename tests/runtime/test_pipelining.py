@@ -200,11 +200,50 @@ def test_host_stalls_shorter_than_the_watchdog_are_gaps(variant: Variant, adapte
     assert report.reproduced, report.differences
 
 
-def test_a_stall_longer_than_the_watchdog_ends_invalid(variant: Variant) -> None:
+def test_a_stall_longer_than_the_watchdog_ends_invalid_and_names_the_pc_not_the_rig(variant: Variant,
+                                                                                      tmp_path: Path) -> None:
+    """#53: the rig's watchdog tripped by a stall of the PC told the technician to check the mounting and the rig."""
+    from edc_bench.engine.problems import Problem
+    from edc_bench.records.advice import Cause
+    from edc_bench.records.reader import load_record
+
     result = run_simulated_test(variant, "new", seed=2, clock_wrapper=lambda c: StallingClock(c, 0.025, 5.0, 3.0))
     assert result.verdict == Verdict.INVALID
     assert "watchdog" in result.reasons[0].lower()
     assert result.outcome.safe_confirmed
+    assert Problem.PC_STALLED in result.judgement.problems
+    assert "the PC stalled: the bench stopped for 2" in result.reasons[-1]  # 25 ms, to the tick
+    assert result.advice.words.startswith("not judged: the PC stalled, not the rig")
+    assert "mounting" not in result.advice.words and "check the rig" not in result.advice.words
+    # the record keeps it, and its customer's page blames the bench, not the valve
+    folder = write_record(result, tmp_path, figure=False)
+    record = load_record(folder)
+    assert "pc stalled" in record.problems and record.advice == result.advice
+    assert record.invalid_cause is Cause.BENCH and result.invalid_cause is Cause.BENCH
+    report = replay_record(folder)
+    assert report.reproduced, report.differences
+
+
+def test_a_stall_long_before_an_abort_does_not_blame_the_pc(variant: Variant) -> None:
+    """A rig fault of its own (an over-current), a second after a stall: the rig is what to check."""
+    from edc_bench.engine.outcome import Abort, AbortKind
+    from edc_bench.verdict.pc_stall import pc_stall_s
+
+    period_s = variant.controller.period_s
+    gap = np.zeros(5000, dtype=bool)
+    lateness = np.full(5000, 20e-6)
+    gap[3000:3010] = True
+    lateness[3000:3010] = np.nan
+    trace = {"t_s": np.arange(5000) * period_s, "gap": gap, "lateness_s": lateness}
+    watchdog = Abort(AbortKind.RIG_FAULT, {"flags": ["watchdog tripped"]})
+    assert pc_stall_s(watchdog, trace, period_s) == 0.0  # 2 s before the end: out of the window
+    gap[4800:4830] = True
+    assert pc_stall_s(watchdog, trace, period_s) == pytest.approx(0.031)
+    assert pc_stall_s(Abort(AbortKind.RIG_FAULT, {"flags": ["over-current"]}), trace, period_s) == 0.0
+    assert pc_stall_s(Abort(AbortKind.OFF_REFERENCE, {}), trace, period_s) == 0.0
+    lateness[-3] = 0.004  # a tick 4 ms late, no tick lost
+    gap[:] = False
+    assert pc_stall_s(Abort(AbortKind.SILENCE, {}), trace, period_s) == pytest.approx(0.004)
 
 
 class FloodingBus(can.BusABC):

@@ -1,0 +1,68 @@
+"""Was it the PC? A host stall right before an abort that a stalled bench causes.
+
+A PC that stops the bench for longer than the rig's watchdog trips the rig ("rig fault: watchdog tripped"); one
+that stops it for a while leaves replies unread, late or missing in a row. The abort then names the rig or the
+bus, and the technician checks cables while the PC was the cause. The loop marks each tick a stall cost (the
+trace's ``gap`` column) and each tick's lateness; a stall within :data:`WINDOW_S` before such an abort points at
+the PC. Pure: trace columns and the abort in, a figure out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from edc_bench.engine.outcome import Abort, AbortKind
+
+#: How long before the abort a stall is looked for (s): the longest any of these aborts takes to be decided (the
+#: heartbeat's timeout is the longest of them, a few hundred ms), with room.
+WINDOW_S = 0.5
+
+#: Aborts a stalled bench causes whatever the rig and the bus do.
+_LINK_ABORTS = frozenset({AbortKind.SILENCE, AbortKind.SLOW_LINK, AbortKind.REPLIES_MISSING,
+                          AbortKind.HEARTBEAT_LOST})
+
+
+def a_stall_can_cause(abort: Abort) -> bool:
+    """Whether a stall of the bench can cause ``abort``: the link's aborts, and the rig's watchdog (tripped while
+    the test ran, or found tripped as the amplifier went off)."""
+    if abort.kind in _LINK_ABORTS:
+        return True
+    if abort.kind is AbortKind.RIG_FAULT:
+        return "watchdog tripped" in (abort.figures.get("flags") or [])
+    if abort.kind is AbortKind.AMPLIFIER_OFF:
+        return abort.figures.get("fault_code") == "WATCHDOG"
+    return False
+
+
+def stall_before_end_s(gap: np.ndarray, lateness_s: np.ndarray, period_s: float) -> float:
+    """The longest host stall in the trace's last :data:`WINDOW_S` (s; 0.0: none).
+
+    A run of ``n`` lost ticks (gap rows) stalled the bench for about ``n + 1`` periods; a tick that ran more than a
+    period late, for its lateness.
+    """
+    window = max(1, int(round(WINDOW_S / period_s)))
+    gap = np.asarray(gap, dtype=bool)[-window:]
+    late = np.asarray(lateness_s, dtype=float)[-window:]
+    longest = 0.0
+    if gap.any():
+        flags = np.concatenate(([0], gap.astype(np.int8), [0]))
+        edges = np.flatnonzero(np.diff(flags))
+        longest = float(np.max(edges[1::2] - edges[::2]) + 1) * period_s
+    late = late[np.isfinite(late)]
+    if len(late) and late.max() > period_s:
+        longest = max(longest, float(late.max()))
+    return longest
+
+
+def pc_stall_s(abort: Abort | None, trace: dict[str, np.ndarray], period_s: float) -> float:
+    """The host stall that points at the PC for ``abort`` (s; 0.0: none, or an abort a stall does not cause)."""
+    if abort is None or not a_stall_can_cause(abort) or not len(trace.get("t_s", ())):
+        return 0.0
+    return stall_before_end_s(trace["gap"], trace["lateness_s"], period_s)
+
+
+def pc_stall_reason(stall_s: float, cpu_steal_s: float) -> str:
+    """The reason's sentence for a stall that points at the PC."""
+    steal = (f"; the hypervisor took {cpu_steal_s:.2f} s of CPU during the test" if cpu_steal_s >= 0.005 else "")
+    return (f"the PC stalled: the bench stopped for {stall_s * 1e3:.0f} ms in the {WINDOW_S:g} s before the test "
+            f"ended{steal}; such a stall ends a test this way whatever the rig and the bus do")
