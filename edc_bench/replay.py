@@ -34,6 +34,7 @@ from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
 from edc_bench.protocol.errors import ProtocolError
 from edc_bench.records.reader import LoggedFrame
+from edc_bench.records.consistency import STALL_ROWS_SCHEMA
 from edc_bench.records.schema import Record
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.judgement import Judgement, judge_run
@@ -293,6 +294,11 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            f"whose interval the residual's repeating part (record schema {record.schema_version}); "
                            "today's have them (docs/method.md, section 7), so the parameters' std, and what follows "
                            "from the interval (the early stop), may differ from the recorded ones")
+    if record.schema_version < STALL_ROWS_SCHEMA and (loop.ticks_lost or record.timing.get("ticks_late")):
+        notes_after.append(f"recorded by an edc-bench that made a test INVALID for ticks lost to host stalls beyond "
+                           f"the variant's limit whatever its fit (record schema {record.schema_version}); today's "
+                           "leaves the rows a stall touched out of the fit and judges what remains, so the verdict "
+                           "may differ from the recorded one")
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
     if altered:
         differences.insert(0, f"changed after the test (its integrity manifest): {', '.join(altered)}")

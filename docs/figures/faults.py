@@ -227,8 +227,9 @@ def _rows(variant: Any) -> list[Row]:
                                                                      {"limit": a.max_frames_per_tick})) + "`"),
         Row("host stall shorter than the rig's watchdog", "a tick starts a period or more late", "the lost ticks are "
             "skipped (no burst), marked `gap` in the trace, counted; the test goes on", "verdict", safe="n/a",
-            says="`loop.gaps`, `loop.ticks_lost`; INVALID only past `max_overrun_fraction` (with the ticks that "
-            "ran late, `timing.ticks_late`)"),
+            says="`loop.gaps`, `loop.ticks_lost`; the rows they touched are left out of the fit and what remains "
+            "decides; INVALID for its timing only past `max_overrun_fraction` (with the ticks that ran late, "
+            "`timing.ticks_late`) and without a trusted fit of what remains"),
         Row(f"host stall longer than the watchdog (`[rig].watchdog_ms`, {variant.rig.watchdog_ms:g} ms)",
             "the rig trips its watchdog", "abort, SAFE (re-arms)", "12", safe="rig at 0 V by its watchdog",
             says="`" + describe(Abort(AbortKind.RIG_FAULT, {"flags": ["watchdog tripped"]})) + "`, and `"

@@ -377,7 +377,9 @@ class AcceptanceSection(_Section):
     max_condition_number: Annotated[float, Field(gt=1, allow_inf_nan=False)] = 1e4
     max_missed_replies_in_row: Annotated[int, Field(ge=1, le=100)] = 5
     max_overrun_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = Field(
-        default=0.01, description="share of ticks that may overrun or be lost to host stalls before a test is INVALID",
+        default=0.01, description="share of ticks that may overrun or be lost to host stalls before a test whose fit "
+                                 "is not trusted (or that was cut short) is INVALID for its timing, the PC named: "
+                                 "the fit leaves out the rows a stall touched, and what remains decides",
     )
     max_missed_reply_fraction: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.01
     max_reply_age_ms: Annotated[float, Field(gt=0, le=50, allow_inf_nan=False)] = Field(

@@ -26,7 +26,7 @@ class Problem(enum.IntFlag):
     DRIFTING = enum.auto()
     #: the excitation does not make af and a1 identifiable
     POORLY_CONDITIONED = enum.auto()
-    #: too many ticks late or lost to host stalls
+    #: many ticks late or lost to host stalls, and what the fit kept of the test not trusted (or the test cut short)
     TIMING = enum.auto()
     #: too many replies missing
     REPLIES_MISSING = enum.auto()

@@ -131,6 +131,9 @@ class Identification:
     settled: bool = False
     model_fit: ModelFit | None = None
     nuisance: dict[str, float] | None = None
+    #: periods with rows enough for their own estimate: fewer than :attr:`periods` where a period's rows were left
+    #: out (host stalls, missing replies, a rack that did not slide)
+    periods_estimated: int = 0
 
 
 def settle_times_s(t_s: np.ndarray, values: np.ndarray, start_s: float, band_rel: float) -> np.ndarray:
@@ -202,6 +205,13 @@ def model_fit_problems(variant: Variant, fit: PeriodFit, expected_noise_v: float
     return out
 
 
+def judges_model_fit(variant: Variant, periods: int | np.ndarray, fit: PeriodFit) -> np.ndarray:
+    """Where the model fit is judged: enough periods (``acceptance.min_periods``), that many with their own
+    estimate. The judgement, the early stop and the batch path ask this one rule."""
+    need = variant.acceptance.min_periods
+    return (np.asarray(periods) >= need) & (np.asarray(fit.periods_used) >= need)
+
+
 def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Variant) -> Identification:
     """Quality figures of the identification in ``trace``.
 
@@ -250,10 +260,13 @@ def analyse(trace: dict[str, np.ndarray], controller: FelController, variant: Va
         spread_rel={n: float(fit.spread_rel[n][0]) for n in ("af", "a1")},
         gain_variation_rel=float(fit.gain_variation_rel[0]),
         core_shift_rel={n: float(fit.relative_figures(n)[1][0]) for n in ("af", "a1")},
-        problems=model_fit_problems(variant, fit, noise) if periods >= acc.min_periods else [],
+        # judged on periods that have their own estimate: a fit left without rows (a PC that stalled through
+        # them) has no figures to judge, only too few periods
+        problems=model_fit_problems(variant, fit, noise) if judges_model_fit(variant, periods, fit).all() else [],
     )
     settled = bool(fit.settled[0])
     converged = settled and periods >= acc.min_periods
     nuisance = {name: float(fit.value(name)[0]) for name in GAIN_TERMS}
     return Identification(final, std, settle, converged, cond, int(fit.samples[0]),
-                          float(fit.residual_rms_v[0]), periods, period_s, settled, model_fit, nuisance)
+                          float(fit.residual_rms_v[0]), periods, period_s, settled, model_fit, nuisance,
+                          int(fit.periods_used[0]))

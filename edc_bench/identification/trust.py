@@ -33,7 +33,8 @@ def judged_condition_number(excitation_condition: float, fit_condition: np.ndarr
 def trust_problems(acceptance: AcceptanceSection, *, periods: np.ndarray | int, settled: np.ndarray | bool,
                    misfit: np.ndarray | bool, condition_number: np.ndarray | float,
                    aborted: np.ndarray | bool = False, ticks: np.ndarray | int = 1,
-                   ticks_late_or_lost: np.ndarray | int = 0, missed_replies: np.ndarray | int = 0) -> np.ndarray:
+                   ticks_late_or_lost: np.ndarray | int = 0, missed_replies: np.ndarray | int = 0,
+                   stalls_cost_rows: bool = True) -> np.ndarray:
     """Each test's problems under the trust rule, as :class:`Problem` bits (an int array; 0: trusted).
 
     Parameters
@@ -51,7 +52,12 @@ def trust_problems(acceptance: AcceptanceSection, *, periods: np.ndarray | int, 
     aborted : bool or numpy.ndarray, optional
         The loop was cut short.
     ticks, ticks_late_or_lost, missed_replies : int or numpy.ndarray, optional
-        Ticks that ran; those late or lost to host stalls; commands whose replies never came in time.
+        Ticks that ran; those late or lost to host stalls; commands whose replies never came in time. Ticks lost
+        beyond ``max_overrun_fraction`` make a test INVALID for its timing only where what the fit kept (it leaves
+        out every row a stall touched) is not trusted, or the test was cut short: the PC is then named.
+    stalls_cost_rows : bool, optional
+        False: the rule before record schema 9, where ticks lost beyond the limit made any test INVALID (a record
+        of that time is checked by the rule it was decided by).
 
     Notes
     -----
@@ -64,14 +70,18 @@ def trust_problems(acceptance: AcceptanceSection, *, periods: np.ndarray | int, 
     misfit = enough & np.asarray(misfit, dtype=bool) & ~aborted
     unsettled = ~aborted & ~misfit & ~(enough & np.asarray(settled, dtype=bool))
     ticks = np.maximum(np.asarray(ticks), 1)
+    poorly = ~aborted & ~(np.asarray(condition_number, dtype=float) <= acceptance.max_condition_number)
+    # a host stall costs the rows it touched, not the test: the fit leaves them out (period_fit.rows), so what
+    # remains decides, and a PC that lost ticks still gets a verdict; past the limit the PC is named for a test
+    # whose remaining rows did not give a trusted fit (or that was cut short)
+    disturbed = np.asarray(ticks_late_or_lost) / ticks > acceptance.max_overrun_fraction
     found = (
         (aborted, Problem.ABORTED),
         (misfit, Problem.MODEL_DOES_NOT_FIT),
         (unsettled & ~enough, Problem.TOO_FEW_PERIODS),
         (unsettled & enough, Problem.DRIFTING),
-        (~aborted & ~(np.asarray(condition_number, dtype=float) <= acceptance.max_condition_number),
-         Problem.POORLY_CONDITIONED),
-        (np.asarray(ticks_late_or_lost) / ticks > acceptance.max_overrun_fraction, Problem.TIMING),
+        (poorly, Problem.POORLY_CONDITIONED),
+        (disturbed & (aborted | unsettled | poorly) if stalls_cost_rows else disturbed, Problem.TIMING),
         (np.asarray(missed_replies) / ticks > acceptance.max_missed_reply_fraction, Problem.REPLIES_MISSING),
     )
     flags = np.zeros(np.broadcast_shapes(*(np.shape(bits) for bits, _ in found)), dtype=np.int64)

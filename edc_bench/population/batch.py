@@ -699,7 +699,7 @@ class PeriodResults:
 
     def at(self, periods: int) -> BatchIdentification:
         """Parameters (referred to the reference coil), converged and model-fit flags after ``periods`` periods."""
-        from edc_bench.identification.analysis import model_fits
+        from edc_bench.identification.analysis import judges_model_fit, model_fits
 
         acc = self.variant.acceptance
         fit = solve(self.acc, periods, acc.settle_band_rel)
@@ -716,7 +716,7 @@ class PeriodResults:
                 i = PARAMETER_NAMES.index(name)
                 final[:, i] = referred_from_estimate(inductive[i], fit.value(name), self.r_ref, coil)
         enough = periods >= acc.min_periods
-        fits = (not enough) | model_fits(self.variant, fit, self.noise_v)
+        fits = ~judges_model_fit(self.variant, periods, fit) | model_fits(self.variant, fit, self.noise_v)
         converged = fit.settled & enough
         problems = trust_problems(acc, periods=periods, settled=fit.settled, misfit=~fits,
                                   condition_number=judged_condition_number(self.reference_condition,

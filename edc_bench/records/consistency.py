@@ -41,6 +41,8 @@ from edc_bench.verdict.verdicts import Verdict
 
 #: The record schema from which record.json keeps the verdict's problems as values (before: sentences only).
 PROBLEMS_SCHEMA = 4
+#: The first record schema whose host stalls cost the rows they touched, not the test (the trust rule's timing)
+STALL_ROWS_SCHEMA = 9
 #: Two figures the test computed from one another agree to this (relative): a JSON round trip keeps them exactly.
 SAME_REL = 1e-9
 #: P(faulty) from the model named by the record agrees with the record's to this (onnxruntime on another CPU).
@@ -145,7 +147,7 @@ def _trust(record: Record) -> list[str]:
                 acceptance, periods=ident.periods, settled=ident.settled, misfit=fit is not None and not fit.fits,
                 condition_number=condition, aborted=aborted, ticks=int(record.timing.get("ticks", 0)),
                 ticks_late_or_lost=record.timing.get("ticks_late", 0) + loop.ticks_lost,
-                missed_replies=loop.missed_replies)))
+                missed_replies=loop.missed_replies, stalls_cost_rows=record.schema_version >= STALL_ROWS_SCHEMA)))
         except (TypeError, ValueError):
             return []
     derived &= TRUST_PROBLEMS

@@ -135,6 +135,7 @@ class IdentificationSummary(Section):
     excitation_start_s: float | None = None
     method: str = ""
     periods: int = 0
+    periods_estimated: int | None = None  # periods with rows enough for their own estimate (None: older record)
     period_s: float | None = None
     settled: bool | None = None
     samples_used: int | None = None

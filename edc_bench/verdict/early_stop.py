@@ -47,7 +47,7 @@ from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
 from edc_bench.engine.outcome import StopReason
 from edc_bench.engine.replies import max_reply_age_ticks
-from edc_bench.identification.analysis import model_fit_problems, model_fits
+from edc_bench.identification.analysis import judges_model_fit, model_fit_problems, model_fits
 from edc_bench.identification.period_fit import (
     MISFIT_ALLOWANCE,
     RESIDUAL_ALLOWANCE,
@@ -352,8 +352,7 @@ def stop_flags(variant: Variant, classifier: ValveClassifier, fit: PeriodFit, pe
         (the judgement would trust it); and, trusted, the verdict is the same over the whole box (stop); the
         verdict at each box's centre ("" where no test was trusted: the classifier is not asked then).
     """
-    enough = periods >= variant.acceptance.min_periods
-    misfit = enough & ~model_fits(variant, fit, noise_v)
+    misfit = judges_model_fit(variant, periods, fit) & ~model_fits(variant, fit, noise_v)
     problems = trust_problems(variant.acceptance, periods=periods, settled=fit.settled, misfit=misfit,
                               condition_number=judged_condition_number(reference_condition, fit.condition_number))
     trusted = problems == 0

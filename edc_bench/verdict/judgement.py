@@ -143,7 +143,11 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
     if Problem.TOO_FEW_PERIODS in problems:
         reasons.append(f"not converged: {ident.periods} whole excitation period(s) of {ident.period_s:g} s "
                        f"measured, at least {acc.min_periods} needed after the first (a longer test is needed)")
-    if Problem.DRIFTING in problems:
+    if Problem.DRIFTING in problems and ident.periods_estimated < ident.periods:
+        reasons.append(f"not converged: only {ident.periods_estimated} of {ident.periods} excitation periods kept "
+                       "rows enough for an estimate of their own (the fit leaves out the rows host stalls or "
+                       "missing replies touched, and those where the rack did not slide)")
+    elif Problem.DRIFTING in problems:
         spread = "" if fit is None else (f" (period-to-period spread af {fit.spread_rel['af']:.1%}, "
                                          f"a1 {fit.spread_rel['a1']:.1%})")
         beyond = (f"more than {acc.settle_band_rel:.0%}" if ident.periods < DRIFT_MIN_PERIODS else
@@ -158,8 +162,11 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
     if Problem.TIMING in problems:
         late = timing.get("ticks_late", 0) + outcome.ticks_lost
         lost = f", {outcome.ticks_lost} lost in {outcome.gaps} host stalls" if outcome.ticks_lost else ""
-        reasons.append(f"timing: {late} of {ticks} ticks overran or were lost ({timing.get('ticks_late', 0)} late"
-                       f"{lost}; limit {acc.max_overrun_fraction:.1%})")
+        reasons.append(f"timing: {late} ticks overran or were lost ({timing.get('ticks_late', 0)} late{lost}), "
+                       f"{late / ticks:.1%} of the {ticks} that ran (limit {acc.max_overrun_fraction:.1%}), "
+                       + ("and the test was cut short" if Problem.ABORTED in problems else
+                          "and what the fit kept without them did not give a trusted result")
+                       + ": the PC stalled too often")
     if Problem.REPLIES_MISSING in problems:
         reasons.append(f"bus: {outcome.missed_replies} of {ticks} replies missing "
                        f"(limit {acc.max_missed_reply_fraction:.1%})")

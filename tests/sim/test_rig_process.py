@@ -161,15 +161,20 @@ def test_client_from_dbc_only_drives_the_rig(rig_process, no_gc) -> None:
                 if fb["WatchdogTripped"]:
                     break
                 time.sleep(0.0005)
-            if not replies[-1]["WatchdogTripped"]:
-                break
             steal_s = cpu_steal_s() - steal_before_s
-            message = (f"attempt {attempt + 1}: watchdog tripped after {len(replies)} commands; longest gap between "
+            undisturbed = steal_s < 0.05 and max_gap_s < 0.015 and max_reply_s < 0.015
+            # a rig process held up for tens of ms integrates its plant over the hold at once: the rack "jumps"
+            # (10.4 mm at the fourth reply, seen while two test suites and a CPU load shared 2 cores)
+            jumped = len(replies) > 3 and replies[3]["RackPosition"] >= 5.0
+            if not replies[-1]["WatchdogTripped"] and (undisturbed or not jumped):
+                break
+            what = "watchdog tripped" if replies[-1]["WatchdogTripped"] else "rack jumped at the fourth reply"
+            message = (f"attempt {attempt + 1}: {what} after {len(replies)} commands; longest gap between "
                        f"sends {max_gap_s * 1e3:.1f} ms, longest reply {max_reply_s * 1e3:.1f} ms, CPU steal "
                        f"meanwhile {steal_s * 1e3:.0f} ms")
             print(message)
             # a 20 ms watchdog cannot hold when this machine stalls the processes for longer
-            if steal_s < 0.05 and max_gap_s < 0.015 and max_reply_s < 0.015:
+            if undisturbed:
                 pytest.fail(f"watchdog tripped on an undisturbed machine: {message}")
             disturbances.append(message)
         else:
