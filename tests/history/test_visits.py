@@ -82,3 +82,45 @@ def test_at_80_columns_the_listing_keeps_the_visit_and_its_decision_whole() -> N
         valve_column = "".join(line.split("│")[3].strip() for line in text.splitlines() if line.startswith("│"))
         assert valve_column == long_id and "FAIL" in text and "MARGINAL" in text, text
         assert ("bench-2" in text) == (width >= 100), text
+
+
+def test_the_trend_plot_shows_each_visit_against_the_limit_and_the_marginal_band(tmp_path: Path) -> None:
+    """#53 item 8: the trend plot had no limit line and no verdicts; a pair counted as two visits."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from edc_bench.cli import history_cmd
+
+    rows = []
+    for n, (verdict, distance, day, retest_of, decision) in enumerate((
+            ("PASS", -0.4, "2026-03-02", None, None), ("PASS", -0.1, "2026-06-01", None, None),
+            ("MARGINAL", 0.01, "2026-09-01", None, None), ("MARGINAL", 0.02, "2026-09-01", "/records/r3", "FAIL")),
+            start=1):
+        row = {**_row(n, "V1", verdict, f"{day}T08:00:{n:02d}+00:00", retest_of, decision), "id": n,
+               "distance": distance, "variant": "p-edc-default"}
+        rows.append(row)
+    drawn = []
+    original = plt.Figure.savefig
+
+    def keep(fig, *args, **kwargs):
+        drawn.append(fig)
+        return original(fig, *args, **kwargs)
+
+    plt.Figure.savefig = keep
+    try:
+        history_cmd._plot(visits(rows), "V1", tmp_path / "trend.png")
+    finally:
+        plt.Figure.savefig = original
+    (fig,) = drawn
+    _, limit_ax = fig.axes[:2]
+    labels = limit_ax.get_legend_handles_labels()[1]
+    band = history_cmd._marginal_band("p-edc-default")
+    assert band is not None and 0 < band < 0.5
+    assert labels == ["limit: FAIL above", f"marginal band (+/-{band:g})"]
+    xs, ys = limit_ax.lines[0].get_data()
+    assert list(xs) == [1, 2, 3] and list(ys) == [-0.4, -0.1, 0.02]  # a visit a point; the pair's deciding test
+    assert [t.get_text() for t in fig.axes[0].texts] == ["PASS", "PASS", "FAIL"]
+    assert (tmp_path / "trend.png").stat().st_size > 10_000
+    assert history_cmd._marginal_band("a-variant-this-station-lacks") is None  # the limit alone, no traceback
