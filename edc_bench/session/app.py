@@ -19,10 +19,11 @@ from typing import Any
 
 from rich.text import Text
 from textual import work
-from textual.app import App, ComposeResult
+from textual.app import App, ComposeResult, ScreenStackError
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
+from textual.css.query import NoMatches
 from textual.widgets import Footer, Input, Label, Static
 
 from edc_bench.runtime.priority import priority_notice
@@ -116,11 +117,11 @@ class SessionApp(App[None]):
     ENABLE_COMMAND_PALETTE = False  # its Quit would end the shift without its summary or the report being drawn
     CSS = """
     Screen { layout: vertical; }
-    #status { height: 1; background: $boost; padding: 0 1; }
+    #status { height: auto; background: $boost; padding: 0 1; }
     #prompt { width: 1fr; height: auto; margin: 1 1 0 1; text-style: bold; }
     #entry { margin: 0 1; }
     #message { height: auto; margin: 0 1; color: $warning; }
-    #verdict { height: 5; content-align: center middle; text-style: bold; margin: 1 1 0 1; }
+    #verdict { display: none; height: 5; content-align: center middle; text-style: bold; margin: 1 1 0 1; }
     #words { height: auto; margin: 0 1; text-style: bold; }
     #body { height: 1fr; }
     #live { width: 2fr; }
@@ -130,9 +131,10 @@ class SessionApp(App[None]):
     """
     BINDINGS = [
         Binding("f2", "change_operator", "Operator"),
-        Binding("f5", "print_report", "Print report"),
-        Binding("f6", "rig_selfcheck", "Rig self-check"),
-        Binding("escape", "back", "Back to valve id"),
+        # short labels: the footer holds them all at 80 columns (the longer ones were cut at "esc Back to valv")
+        Binding("f5", "print_report", "Print"),
+        Binding("f6", "rig_selfcheck", "Self-check"),
+        Binding("escape", "back", "Back"),
         Binding("ctrl+q", "end_shift", "End shift", priority=True),
     ]
 
@@ -163,6 +165,21 @@ class SessionApp(App[None]):
         #: seconds from each valve's last safe stop to its decision on screen, and to its reports drawn
         self.decision_latencies_s: list[float] = []
         self.report_latencies_s: list[float] = []
+
+    @property
+    def testing(self) -> bool:
+        """A test (or the rig self-check) is running."""
+        return self._testing
+
+    @testing.setter
+    def testing(self, value: bool) -> None:
+        self._testing = value
+        # the live panel takes the whole width while a test runs: at 80 columns beside the side panel it wrapped,
+        # and its lower half (the estimates, what decides the verdict) fell off a 24-row screen
+        try:
+            self.query_one("#side", Static).display = not value
+        except (NoMatches, ScreenStackError):  # not composed yet
+            pass
 
     # -- layout --------------------------------------------------------------------------------------------------
 
@@ -331,6 +348,7 @@ class SessionApp(App[None]):
         verdict = self.query_one("#verdict", Static)
         verdict.update("")
         verdict.styles.background = None
+        verdict.display = False  # its rows go to the live panel (at 80x24 its lower half was lost)
         self.query_one("#words", Static).update("")
         self.query_one("#live", Static).update("")
 
@@ -408,6 +426,7 @@ class SessionApp(App[None]):
         seized = self.shift.escalation(done.valve_id, final, cause)
         words = seized.words if seized is not None else done.words
         verdict = self.query_one("#verdict", Static)
+        verdict.display = True
         what = final if done.decision is None else f"{final}  (MARGINAL, retest {done.tests[-1].verdict})"
         verdict.update(Text(what + ("  (twice: the valve may be seized)" if seized is not None else ""),
                             style="bold white"))
