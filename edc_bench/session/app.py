@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from rich.text import Text
-from textual import work
+from textual import events, work
 from textual.app import App, ComposeResult, ScreenStackError
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
@@ -86,6 +86,27 @@ class OperatorScreen(ModalScreen[str]):
             self.query_one("#operator-message", Label).update("a name of 1 to 100 printable characters, please")
             return
         self.dismiss(name)
+
+
+class ScanInput(Input):
+    """The scan entry: Enter takes the line and empties the entry at once, in the order the keys came.
+
+    Textual's Input inserts a character as its key arrives, but an Enter goes up to the app's bindings and comes
+    back as a submit later: a scanner's next line, sent right after (a valve label, then the pump's), was typed
+    onto the first meanwhile. In tmux "V-2043" Enter "PS-8" Enter came out as the valve id "V-2043PS-8", or as
+    "V-2043PS" and "-8". Here the Enter is taken where the characters are, and the entry emptied with it: every
+    line is one scan.
+    """
+
+    async def _on_key(self, event: events.Key) -> None:
+        if event.key == "enter":
+            event.stop()
+            event.prevent_default()
+            line = self.value
+            self.post_message(self.Submitted(self, line))  # before the emptying's Changed, which must not overtake it
+            self.value = ""
+            return
+        await super()._on_key(event)
 
 
 class SessionApp(App[None]):
@@ -186,7 +207,7 @@ class SessionApp(App[None]):
     def compose(self) -> ComposeResult:
         yield Static("", id="status")
         yield Label(PROMPTS[Step.VALVE_ID], id="prompt")
-        yield Input(placeholder="scan or type, then Enter", id="entry")
+        yield ScanInput(placeholder="scan or type, then Enter", id="entry")
         yield Static("", id="message")
         yield Static("", id="verdict")
         yield Static("", id="words")
@@ -247,12 +268,10 @@ class SessionApp(App[None]):
             return
         self.end_asked_at = None  # the shift goes on: a later Ctrl+Q asks again
         if self.end_when_drawn:
-            event.input.value = ""
             self._say("the shift is ending: the last report is being finished")
             return
         if self.testing:  # never kept for the next prompt: it would be glued to the next scan
             typed = event.value.strip()
-            event.input.value = ""
             if typed:
                 self.refused_while_testing.append(typed)
             self._say(f"{typed!r} was not taken: a test is running. Scan it again after the verdict." if typed else
@@ -261,12 +280,10 @@ class SessionApp(App[None]):
         if self.begun_while_testing:  # its first keys were typed during the test: part of it may be lost
             self.begun_while_testing = False
             typed = event.value.strip()
-            event.input.value = ""
             if typed:
                 self._say(f"{typed!r} was begun while the test ran and is not taken whole: scan it again")
                 return
         if self.awaiting_reference:
-            event.input.value = ""
             if event.value.strip():
                 self._say(f"mount the reference valve {self.awaiting_reference} and press Enter alone (Esc skips "
                           "the check until it is due again)")
@@ -274,7 +291,6 @@ class SessionApp(App[None]):
             self._run_selfcheck_now()
             return
         answer = read_line(self.scan, event.value, ScanContext(self.part_numbers, self.scan_rules, self.shift.judged()))
-        event.input.value = ""
         self._say(answer.message)
         if answer.switched_variant:
             self.variant = self.variant_loader(answer.scan.variant)

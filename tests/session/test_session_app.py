@@ -415,3 +415,42 @@ def test_a_valve_invalid_twice_for_a_cause_it_can_cause_itself_is_escalated(tmp_
     assert [(v["final"], v["cause"]) for v in data["valves"]] == [("INVALID", "valve"), ("PASS", ""),
                                                                 ("INVALID", "valve")]
     assert "may be seized" in data["valves"][2]["words"] and "may be seized" not in data["valves"][0]["words"]
+
+
+def test_a_scan_sent_right_after_another_is_a_line_of_its_own() -> None:
+    """#53, found in tmux after a verdict: Textual's Input inserts characters as their keys come but submits on
+    Enter only after the key went up to the app's bindings; "V-2043" Enter "PS-8" Enter, sent at once, came out as
+    "V-2043PS-8" (or "V-2043PS" and "-8")."""
+    from textual import events
+    from textual.app import App
+    from textual.widgets import Input
+
+    from edc_bench.session.app import ScanInput
+
+    class Entry(App[None]):
+        def __init__(self, entry: Input) -> None:
+            super().__init__()
+            self.entry, self.lines = entry, []
+
+        def compose(self):
+            yield self.entry
+
+        def on_input_submitted(self, event: Input.Submitted) -> None:
+            self.lines.append(event.value)
+
+    def keys(text: str) -> list[events.Key]:
+        return [events.Key("enter", "\r") if c == "\n" else events.Key(c, c) for c in text]
+
+    async def typed(entry: Input) -> list[str]:
+        app = Entry(entry)
+        async with app.run_test() as pilot:
+            entry.focus()
+            await pilot.pause()
+            for key in keys("V-2043\nPS-8\n"):  # all at once, as a scanner's two lines reach a busy app
+                entry.post_message(key)
+            await pilot.pause()
+            await pilot.pause()
+        return app.lines
+
+    assert asyncio.run(typed(ScanInput())) == ["V-2043", "PS-8"]
+    assert asyncio.run(typed(Input())) != ["V-2043", "PS-8"]  # what Textual's own Input does: the bug it fixes
