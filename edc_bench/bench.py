@@ -159,7 +159,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
     loop = BenchLoop(bus, clock, variant, o.icd or default_icd(), o.observer, stop_requested=stop_requested,
                      stop_rule=stop_rule)
     # in real time the loop runs at a real-time priority where the PC permits (runtime/priority.py)
-    with contextlib.nullcontext() if isinstance(clock, SimulatedClock) else realtime_priority() as priority:
+    # (a wrapped simulated clock, StallingClock, is simulated time too: it waits for no reply)
+    with realtime_priority() if clock.waits_for_replies else contextlib.nullcontext() as priority:
         outcome, can_log_path = _run_loop(loop, o.stream_can_log, started)
     trace = loop.trace.view()
     timing = timing_summary(trace, variant.controller.period_s)

@@ -294,7 +294,10 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            f"whose interval the residual's repeating part (record schema {record.schema_version}); "
                            "today's have them (docs/method.md, section 7), so the parameters' std, and what follows "
                            "from the interval (the early stop), may differ from the recorded ones")
-    if record.schema_version < STALL_ROWS_SCHEMA and (loop.ticks_lost or record.timing.get("ticks_late")):
+    ticks_run = max(int(record.timing.get("ticks", 0) or 0), 1)
+    over_limit = (int(record.timing.get("ticks_late", 0) or 0) + loop.ticks_lost) / ticks_run \
+        > variant.acceptance.max_overrun_fraction
+    if record.schema_version < STALL_ROWS_SCHEMA and over_limit:  # only where the rules can differ
         notes_after.append(f"recorded by an edc-bench that made a test INVALID for ticks lost to host stalls beyond "
                            f"the variant's limit whatever its fit (record schema {record.schema_version}); today's "
                            "leaves the rows a stall touched out of the fit and judges what remains, so the verdict "

@@ -133,7 +133,8 @@ def check_station(period_s: float, duration_s: float, overrun_limit: float) -> S
     with realtime_priority() as priority:  # at the priority a test runs at
         late, _ = bare_loop(period_s, duration_s)
     steal = cpu_steal_s() - steal0
-    facts = {**system_facts(), "measured_at": priority.describe()}
+    # what the raise did, not what the limits predict (a cgroup without a real-time budget refuses it too)
+    facts = {**system_facts(), "measured_at": priority.describe(), "realtime_priority_allowed": priority.realtime}
     verdict, reasons, advice = judge(period_s, late, steal, overrun_limit, facts, busy)
     q = np.percentile(late, [50, 99, 99.9]) * 1e6
     return StationCheck(

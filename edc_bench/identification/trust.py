@@ -81,7 +81,7 @@ def trust_problems(acceptance: AcceptanceSection, *, periods: np.ndarray | int, 
         (unsettled & ~enough, Problem.TOO_FEW_PERIODS),
         (unsettled & enough, Problem.DRIFTING),
         (poorly, Problem.POORLY_CONDITIONED),
-        (disturbed & (aborted | unsettled | poorly) if stalls_cost_rows else disturbed, Problem.TIMING),
+        (disturbed & (aborted | misfit | unsettled | poorly) if stalls_cost_rows else disturbed, Problem.TIMING),
         (np.asarray(missed_replies) / ticks > acceptance.max_missed_reply_fraction, Problem.REPLIES_MISSING),
     )
     flags = np.zeros(np.broadcast_shapes(*(np.shape(bits) for bits, _ in found)), dtype=np.int64)

@@ -21,6 +21,10 @@ from dataclasses import dataclass
 #: never holds off the network card or the USB adapter it waits on; what ``chrt -f 50`` (the old advice) gave.
 BENCH_PRIORITY = 50
 
+#: How a test at normal priority for want of permission is recorded (what to do: :func:`how_to_allow`; the record
+#: does not carry the login)
+NOT_PERMITTED = "not permitted: the OS refused a real-time priority (edc-bench check-station says what to allow)"
+
 #: The group a shop's administrator makes for the bench's users (:func:`how_to_allow`).
 BENCH_GROUP = "edc-bench"
 
@@ -81,12 +85,12 @@ def realtime_priority(priority: int = BENCH_PRIORITY) -> Iterator[Priority]:
         yield Priority(False, "not available: this OS has no real-time policy the bench can ask for")
         return
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except OSError:  # EPERM: no rtprio limit, no CAP_SYS_NICE
-        yield Priority(False, "not permitted: " + how_to_allow())
-        return
-    _raised.priority = Priority(True, f"SCHED_FIFO {priority}, raised by the bench")
-    try:
+        try:  # inside the try whose finally restores: an interrupt right after the raise leaves nothing raised
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        except OSError:  # EPERM: no rtprio limit, no CAP_SYS_NICE, a cgroup without a real-time budget
+            yield Priority(False, NOT_PERMITTED)
+            return
+        _raised.priority = Priority(True, f"SCHED_FIFO {priority}, raised by the bench")
         yield _raised.priority
     finally:
         _raised.priority = None
@@ -145,8 +149,12 @@ def priority_notice(simulated: bool, *, permitted: bool | None = None, realtime:
     default."""
     if simulated:
         return None
-    if (realtime_now() if realtime is None else realtime) or (realtime_permitted() if permitted is None
-                                                              else permitted):
+    if realtime_now() if realtime is None else realtime:
+        return None
+    if permitted is None:  # asked of the OS, raised and given back at once: the limits do not tell it all
+        with realtime_priority() as probe:
+            permitted = probe.realtime
+    if permitted:
         return None
     return ("tests run at normal priority on this PC, where a busy moment can make a test INVALID; "
             + how_to_allow())

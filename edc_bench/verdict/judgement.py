@@ -247,7 +247,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
     problems = run_problems(variant, outcome, ident, timing)
     reasons = trust_reasons(variant, outcome, ident, timing, problems)
-    stall_s = pc_stall_s(outcome.abort, trace, variant.controller.period_s)
+    stall_s = pc_stall_s(outcome.abort, trace, variant)
     if stall_s > 0:  # the PC, not the rig or the bus, is what the technician checks
         problems |= Problem.PC_STALLED
         reasons.append(pc_stall_reason(stall_s, outcome.cpu_steal_s))

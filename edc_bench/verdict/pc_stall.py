@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from edc_bench.config.models import Variant
 from edc_bench.engine.outcome import Abort, AbortKind
 
 #: How long before the abort a stall is looked for (s): the longest any of these aborts takes to be decided (the
@@ -54,11 +55,27 @@ def stall_before_end_s(gap: np.ndarray, lateness_s: np.ndarray, period_s: float)
     return longest
 
 
-def pc_stall_s(abort: Abort | None, trace: dict[str, np.ndarray], period_s: float) -> float:
-    """The host stall that points at the PC for ``abort`` (s; 0.0: none, or an abort a stall does not cause)."""
+def shortest_cause_s(abort: Abort, variant: Variant) -> float:
+    """The shortest stall of the bench that can cause ``abort`` (s): a stall shorter than this did not, and the
+    abort's own cause (a cable, the rig) is what to check."""
+    period_s = variant.controller.period_s
+    figures = abort.figures
+    if abort.kind in (AbortKind.RIG_FAULT, AbortKind.AMPLIFIER_OFF):  # the watchdog, less the ticks it takes
+        return max(variant.rig.watchdog_ms * 1e-3 - 2 * period_s, period_s)
+    if abort.kind in (AbortKind.SILENCE, AbortKind.SLOW_LINK):  # the replies of the stalled ticks, in a row
+        return float(figures.get("limit", variant.acceptance.max_missed_replies_in_row)) * period_s
+    if abort.kind is AbortKind.HEARTBEAT_LOST:  # the heartbeats go unread for half the timeout at least
+        return float(figures.get("limit_ms", 0.0)) * 1e-3 / 2
+    return variant.acceptance.max_missed_replies_in_row * period_s  # replies missing: a run of them
+
+
+def pc_stall_s(abort: Abort | None, trace: dict[str, np.ndarray], variant: Variant) -> float:
+    """The host stall that points at the PC for ``abort`` (s; 0.0: none, one too short to cause it, or an abort a
+    stall does not cause)."""
     if abort is None or not a_stall_can_cause(abort) or not len(trace.get("t_s", ())):
         return 0.0
-    return stall_before_end_s(trace["gap"], trace["lateness_s"], period_s)
+    stall_s = stall_before_end_s(trace["gap"], trace["lateness_s"], variant.controller.period_s)
+    return stall_s if stall_s >= shortest_cause_s(abort, variant) else 0.0
 
 
 def pc_stall_reason(stall_s: float, cpu_steal_s: float) -> str:

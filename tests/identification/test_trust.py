@@ -51,6 +51,10 @@ def test_timing_and_missing_replies_count_against_the_ticks_that_ran(variant: Va
     aborted = trust_problems(acc, periods=acc.min_periods, settled=True, misfit=False, condition_number=10.0,
                              aborted=True, ticks=ticks, ticks_late_or_lost=just_over)
     assert Problem(int(aborted)) == Problem.ABORTED | Problem.TIMING
+    # a misfit of what remained, after many ticks lost: the PC is named beside it (not the valve alone)
+    misfit = trust_problems(acc, periods=acc.min_periods, settled=True, misfit=True, condition_number=10.0,
+                            ticks=ticks, ticks_late_or_lost=just_over)
+    assert Problem(int(misfit)) == Problem.MODEL_DOES_NOT_FIT | Problem.TIMING
     # a record of schema 8 and before was decided by the old rule, and is checked by it
     old_rule = trust_problems(acc, periods=acc.min_periods, settled=True, misfit=False, condition_number=10.0,
                               ticks=ticks, ticks_late_or_lost=just_over, stalls_cost_rows=False)

@@ -277,14 +277,20 @@ def test_a_stall_long_before_an_abort_does_not_blame_the_pc(variant: Variant) ->
     lateness[3000:3010] = np.nan
     trace = {"t_s": np.arange(5000) * period_s, "gap": gap, "lateness_s": lateness}
     watchdog = Abort(AbortKind.RIG_FAULT, {"flags": ["watchdog tripped"]})
-    assert pc_stall_s(watchdog, trace, period_s) == 0.0  # 2 s before the end: out of the window
+    assert pc_stall_s(watchdog, trace, variant) == 0.0  # 2 s before the end: out of the window
     gap[4800:4830] = True
-    assert pc_stall_s(watchdog, trace, period_s) == pytest.approx(0.031)
-    assert pc_stall_s(Abort(AbortKind.RIG_FAULT, {"flags": ["over-current"]}), trace, period_s) == 0.0
-    assert pc_stall_s(Abort(AbortKind.OFF_REFERENCE, {}), trace, period_s) == 0.0
-    lateness[-3] = 0.004  # a tick 4 ms late, no tick lost
+    assert pc_stall_s(watchdog, trace, variant) == pytest.approx(0.031)
+    assert pc_stall_s(Abort(AbortKind.RIG_FAULT, {"flags": ["over-current"]}), trace, variant) == 0.0
+    assert pc_stall_s(Abort(AbortKind.OFF_REFERENCE, {}), trace, variant) == 0.0
     gap[:] = False
-    assert pc_stall_s(Abort(AbortKind.SILENCE, {}), trace, period_s) == pytest.approx(0.004)
+    gap[4800:4810] = True  # 11 ms: too short to trip a 20 ms watchdog, which a cable or the rig then did
+    assert pc_stall_s(watchdog, trace, variant) == 0.0
+    gap[:] = False
+    silence = Abort(AbortKind.SILENCE, {"limit": 5})
+    lateness[-3] = 0.004  # a tick 4 ms late: not the 5 replies in a row that ended the test
+    assert pc_stall_s(silence, trace, variant) == 0.0
+    lateness[-3] = 0.006
+    assert pc_stall_s(silence, trace, variant) == pytest.approx(0.006)
 
 
 class FloodingBus(can.BusABC):

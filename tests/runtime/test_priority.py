@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import subprocess
 import sys
 
@@ -27,35 +26,40 @@ def test_the_bench_raises_its_thread_for_the_block_and_gives_it_back() -> None:
     assert not realtime_now()
 
 
+#: run in a fresh single-threaded Python (a drop in preexec_fn could deadlock a threaded test process): no rtprio
+#: limit and, for root, CAP_SYS_NICE out of the bounding set, then exec the code given, which then lacks it
+_DROP_THEN_EXEC = """
+import ctypes, os, resource, sys
+resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0))
+if os.geteuid() == 0 and ctypes.CDLL(None, use_errno=True).prctl(24, 23, 0, 0, 0) != 0:  # PR_CAPBSET_DROP, SYS_NICE
+    raise SystemExit("prctl(PR_CAPBSET_DROP) refused")
+os.execv(sys.executable, [sys.executable, "-c", sys.argv[1]])
+"""
+
+
 def _refused_child(code: str) -> subprocess.CompletedProcess:
-    """``code`` in a Python that may not have real-time priority: no rtprio limit and, run by root, without the
-    CAP_SYS_NICE capability (dropped from the bounding set, so the Python it execs lacks it)."""
-    def drop() -> None:
-        resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0))
-        if os.geteuid() == 0:
-            import ctypes
-
-            pr_capbset_drop, cap_sys_nice = 24, 23
-            if ctypes.CDLL(None, use_errno=True).prctl(pr_capbset_drop, cap_sys_nice, 0, 0, 0) != 0:
-                raise OSError(ctypes.get_errno(), "prctl(PR_CAPBSET_DROP) refused")
-
+    """``code`` in a Python that may not have real-time priority."""
     env = {**os.environ, "USER": "someone-else"}  # the login named is the process's, not $USER
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                          preexec_fn=drop, env=env)
+    return subprocess.run([sys.executable, "-c", _DROP_THEN_EXEC, code], capture_output=True, text=True,
+                          timeout=120, env=env)
 
 
 def test_where_the_os_refuses_the_test_runs_at_normal_priority_and_says_what_the_administrator_runs() -> None:
     proc = _refused_child(
-        "import json; from edc_bench.runtime.priority import realtime_priority, realtime_permitted, realtime_now\n"
+        "import json\n"
+        "from edc_bench.runtime.priority import how_to_allow, priority_notice, realtime_now, realtime_permitted,"
+        " realtime_priority\n"
         "with realtime_priority() as p: print(json.dumps([p.realtime, p.describe(), realtime_now(),"
-        " realtime_permitted()]))")
+        " realtime_permitted(), how_to_allow(), priority_notice(False)]))")
     assert proc.returncode == 0, proc.stderr
-    realtime, words, now, permitted = json.loads(proc.stdout)
+    realtime, words, now, permitted, allow, notice = json.loads(proc.stdout)
     assert (realtime, now, permitted) == (False, False, False)
-    assert words.startswith("normal (not permitted: real-time priority is not permitted for the user '")
-    assert "someone-else" not in words
-    assert "@edc-bench - rtprio 50" in words and "/etc/security/limits.d/edc-bench.conf" in words
-    assert "log in again" in words and "check-station" in words
+    assert words == "normal (not permitted: the OS refused a real-time priority (edc-bench check-station says " \
+                    "what to allow))"  # the record's words: no login in them
+    assert allow.startswith("real-time priority is not permitted for the user '") and "someone-else" not in allow
+    assert "@edc-bench - rtprio 50" in allow and "/etc/security/limits.d/edc-bench.conf" in allow
+    assert "log in again" in allow and "check-station" in allow
+    assert notice is not None and notice.endswith(allow)  # a session on a real rig is told, found by trying
 
 
 def test_how_to_allow_names_the_user_the_group_and_the_limit() -> None:
