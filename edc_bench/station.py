@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from edc_bench.runtime.priority import how_to_allow, realtime_permitted, realtime_priority
+from edc_bench.runtime.priority import how_to_allow, realtime_now, realtime_permitted, realtime_priority
 
 #: GO needs the p99.9 lateness under this share of the period (the rest is the tick's work and the reply).
 LATENESS_SHARE = 0.3
@@ -84,10 +84,7 @@ def system_facts() -> dict[str, object]:
     load = _read("/proc/loadavg")
     facts["load_1min"] = float(load.split()[0]) if load else None
     facts["realtime_priority_allowed"] = realtime_permitted()
-    try:
-        facts["realtime_scheduling_now"] = os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
-    except (AttributeError, OSError):
-        facts["realtime_scheduling_now"] = False
+    facts["realtime_scheduling_now"] = realtime_now()
     online = [_read(str(p / "online")) for p in Path("/sys/class/power_supply").glob("A*")] \
         if Path("/sys/class/power_supply").exists() else []
     facts["on_battery"] = bool(online) and all(v == "0" for v in online)
