@@ -70,6 +70,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
     p.add_argument("--pump-serial", type=identity(), default=None, metavar="SERIAL",
                    help="serial number of the pump, for the record")
+    p.add_argument("--job-ref", type=identity(), default=None, metavar="REF",
+                   help="the shop's job or vehicle reference, printed on the customer's page of the report")
     p.add_argument("--operator", type=identity(), default=None,
                    help="who ran the test (default: the login name)")
     p.add_argument("--station", type=identity(), default=None,
@@ -174,6 +176,10 @@ def summary(result: Any, record_dir: Path | None, decision: Any = None) -> dict[
         out["truth"] = result.truth._asdict()
     if decision is not None:
         out["decision"] = decision.as_dict()
+    from edc_bench.records.escalation_link import recorded_escalation
+
+    escalated = recorded_escalation(record_dir)
+    out["escalation"] = None if escalated is None else escalated.model_dump()
     return json_safe(out)
 
 
@@ -232,7 +238,7 @@ def _identity(args: argparse.Namespace) -> dict[str, str]:
     except (KeyError, OSError):  # no user name in this environment
         operator = ""
     return {"pump_serial": args.pump_serial or "", "station": args.station or default_station(), "operator": operator,
-            **shop_identity()}
+            **shop_identity(), "job_ref": args.job_ref or ""}
 
 
 def _live(args: argparse.Namespace) -> bool:
@@ -504,6 +510,7 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
               f"the record {record_dir} holds the data and the traceback.", file=sys.stderr)
         return record_dir, ExitCode.INTERNAL_ERROR
     _report(args, result, record_dir)  # the verdict first: the history (a server, perhaps slow) comes after it
+    _report_escalation(args, record_dir)
     if not (args.no_history or saved_elsewhere):
         from edc_bench.history.url import default_url
 
@@ -520,6 +527,18 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
               file=sys.stderr)
         return record_dir, ExitCode.RECORD_NOT_WRITTEN
     return record_dir, exit_code_for(result.verdict)
+
+
+def _report_escalation(args: argparse.Namespace, record_dir: Path) -> None:
+    """The same valve not judged twice, both times for a cause the valve itself can cause: said under the verdict
+    (``--json``: in the summary)."""
+    from edc_bench.records.escalation_link import recorded_escalation
+
+    escalated = recorded_escalation(record_dir)
+    if escalated is None or args.json:
+        return
+    print_quietly_if_closed(lambda: print(f"\nESCALATE: {escalated.words} (the earlier test: record "
+                                          f"{escalated.of_record})"))
 
 
 def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> None:

@@ -158,8 +158,9 @@ class BenchResult:
 
 
 def record_dict(result: BenchResult, files: dict[str, str | None],
-                retest: dict[str, str] | None = None) -> dict[str, Any]:
-    """The content of record.json (``retest``: this test repeats a MARGINAL, :class:`~.schema.RetestSummary`)."""
+                retest: dict[str, str] | None = None, escalation: dict[str, str] | None = None) -> dict[str, Any]:
+    """The content of record.json (``retest``: this test repeats a MARGINAL, :class:`~.schema.RetestSummary`;
+    ``escalation``: the same valve INVALID twice, :class:`~.schema.EscalationSummary`)."""
     ident = result.identification
     outcome = result.outcome.as_dict()
     return {
@@ -209,6 +210,7 @@ def record_dict(result: BenchResult, files: dict[str, str | None],
         "simulation": result.simulation,
         "config": result.variant.model_dump(mode="json"),
         "retest": retest,
+        "escalation": escalation,
         "files": files,
     }
 
@@ -238,6 +240,10 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     Each file is written on its own: one that cannot be written (a full disk) is named with its error in
     record.json's ``files`` (``trace_error``, ``can_log_error``, ``figure_error``), and record.json, the
     smallest, is still written last.
+
+    An INVALID test of a valve whose last test here was INVALID too, both times for a cause the valve itself can
+    cause, is written with its ``escalation`` (:mod:`~edc_bench.records.escalation_link`): every front end that
+    writes a record says it, and reads it back from the record.
 
     Returns
     -------
@@ -278,7 +284,11 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
             files["figure"] = FIGURE_FILE
         except Exception as exc:  # noqa: BLE001 - a figure is never worth losing the record
             files["figure_error"] = f"{type(exc).__name__}: {exc}"
-    doc = record_dict(result, files, retest)
+    from edc_bench.records.escalation_link import find_escalation
+
+    escalated = find_escalation(folder, result.valve_id, result.variant.name, result.started_at, str(result.verdict),
+                                result.invalid_cause)
+    doc = record_dict(result, files, retest, None if escalated is None else escalated.model_dump())
     doc["loop"]["events"] = [*doc["loop"]["events"], *notes]
     doc = json_safe(doc)
     # what the test wrote, as it wrote it: every reader checks it (records.integrity)

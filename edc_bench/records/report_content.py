@@ -81,7 +81,8 @@ def pump_rows(record: Record) -> list[tuple[str, str]]:
     return [("Pump type", pump_text(record)),
             ("Part number", record.part_number or "-"),
             ("Pump serial", record.identity.pump_serial or "-"),
-            ("Valve", record.valve_id or "-")]
+            ("Valve", record.valve_id or "-")] + ([("Job / vehicle", record.identity.job_ref)]
+                                                  if record.identity.job_ref else [])
 
 
 def pair_decision(record: Record) -> str:
@@ -98,9 +99,18 @@ def shown_verdict(record: Record) -> str:
     return pair_decision(record) or str(record.verdict)
 
 
+#: page 1's line for a valve not judged twice, both times for a cause the valve itself can cause (the technician's
+#: is :data:`~edc_bench.records.advice.SEIZED`)
+SEIZED_FOR_CUSTOMER = ("Tested twice, and both times the valve did not move as a sound valve does: it may be seized. "
+                       "Replace the valve, or have it examined by an engineer.")
+
+
 def advice_sentence(record: Record) -> str:
     """The technician's line (:mod:`~edc_bench.records.advice`) as a sentence: ``Worn: replace the valve.``; a
-    retest pair's (on either test's report): what the two decided."""
+    retest pair's (on either test's report): what the two decided; a valve not judged twice for its own cause: that
+    it may be seized, in a customer's words."""
+    if record.escalation is not None and record.verdict == Verdict.INVALID:
+        return SEIZED_FOR_CUSTOMER
     pair = record.retest if record.retest is not None and record.retest.words else record.retested_by
     words = (pair.words if pair is not None and pair.words else record.advice.words).strip()
     return (words[:1].upper() + words[1:] + ("" if words.endswith(".") else ".")) if words else ""
@@ -133,6 +143,9 @@ def findings(record: Record) -> list[str]:
         # the customer's words only: the reasons, with their figures, are the engineer's page's
         lines.append("The test could not judge the valve: this report says nothing about its condition.")
         lines.append(CUSTOMER_WORDS[record.invalid_cause])
+        if record.escalation is not None:
+            lines.append(f"The same valve's test before this one could not judge it either (record "
+                         f"{record.escalation.of_record}).")
     return lines
 
 
@@ -251,6 +264,11 @@ def test_details_rows(record: Record) -> list[tuple[str, str]]:
         rows.append(("Period fit", fit))
     if ident is not None and ident.estimator:
         rows.append(("Estimator", ident.estimator))
+    if record.escalation is not None:
+        escalated = record.escalation
+        rows.append(("Escalated", f"the valve may be seized: {escalated.of_verdict or 'INVALID'} before too, both "
+                                  f"times for its own cause ({escalated.of_cause or '?'}); the earlier test: "
+                                  f"{escalated.of_record}"))
     rows.append(("Versions", f"edc-bench {record.software_version or '?'}, ICD {record.icd_version or '?'}, "
                              f"rig firmware {record.firmware_version or 'not recorded'}"))
     return rows

@@ -41,6 +41,7 @@ class Identity(Section):
     operator: str = ""
     shop: str = ""  # the workshop ([station] shop in station.toml): the customer's page prints it
     shop_address: str = ""
+    job_ref: str = ""  # the job or vehicle reference scanned with the valve ('' if none): the customer's page prints it
 
 
 class CoilFinding(Section):
@@ -230,6 +231,16 @@ class RetestSummary(Section):
     rule: str = ""  # the variant's rule that decided, e.g. "retest.decide.MARGINAL = FAIL"
 
 
+class EscalationSummary(Section):
+    """A second INVALID of the same valve, both times for a cause the valve itself can cause
+    (:mod:`edc_bench.records.escalation_link`): it may be seized."""
+
+    of_record: str = ""  # the earlier test's record folder (its name)
+    of_verdict: str = ""  # the earlier test's verdict (INVALID)
+    of_cause: str = ""  # who the earlier test pointed at (records.advice.Cause)
+    words: str = ""  # the technician's line (records.advice.SEIZED)
+
+
 class RetestedBy(Section):
     """A first test's retest, found beside it when its report is drawn (never in its record.json: the first test
     was written before its retest ran)."""
@@ -295,6 +306,7 @@ class Record(Section):
     config: dict[str, Any] | None = None
     retest: RetestSummary | None = None  # this test repeats a MARGINAL
     retested_by: RetestedBy | None = None  # this MARGINAL was retested (found when a report is drawn)
+    escalation: EscalationSummary | None = None  # the same valve INVALID twice: it may be seized
     files: RecordFiles = RecordFiles()
 
     model_config = ConfigDict(frozen=True, extra="allow", populate_by_name=True)

@@ -38,6 +38,8 @@ from edc_bench.ui.snapshot import Snapshot
 #: Colours of each verdict's block (white text on them).
 #: A second Ctrl+Q within this many seconds of the first ends the shift.
 END_CONFIRM_S = 10.0
+#: why a rig self-check is asked for when the technician pressed F6 (not due: a skip of it is not kept)
+ASKED_FOR = "asked for"
 VERDICT_COLOURS = {"PASS": "green", "MARGINAL": "#b58900", "FAIL": "red", "INVALID": "magenta"}
 
 
@@ -109,6 +111,42 @@ class ScanInput(Input):
         await super()._on_key(event)
 
 
+class WorkshopScreen(ModalScreen[tuple[str, str] | None]):
+    """Asks the workshop's name and address once per station, for the customer's page of every report (kept in the
+    station's settings, ``[station] shop`` and ``shop_address``; Enter alone in both: none is printed). One entry,
+    one line at a time, as the scans are taken: a line typed at once after the name's Enter is the address whole."""
+
+    ASKED = ("The customer's reports name your workshop. Type the WORKSHOP's NAME, then Enter (Enter alone: none)",
+             "Now its ADDRESS on one line, then Enter (Enter alone: none)")
+    LONGEST = (100, 300)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.answers: list[str] = []
+
+    def compose(self) -> ComposeResult:
+        with Vertical(id="operator-box"):
+            yield Label(self.ASKED[0], id="workshop-asked")
+            yield ScanInput(placeholder="workshop name", id="workshop-line")
+            yield Label("", id="workshop-message")
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        event.stop()  # the scan entry's handler is the app's: not this line's
+        value = event.value.strip()
+        longest = self.LONGEST[len(self.answers)]
+        if len(value) > longest or not value.isprintable():
+            self.query_one("#workshop-message", Label).update(f"at most {longest} printable characters, please: "
+                                                              "type it again")
+            return
+        self.answers.append(value)
+        self.query_one("#workshop-message", Label).update("")
+        if len(self.answers) == 2:
+            self.dismiss((self.answers[0], self.answers[1]))
+            return
+        self.query_one("#workshop-asked", Label).update(self.ASKED[1])
+        self.query_one("#workshop-line", Input).placeholder = "street, town"
+
+
 class SessionApp(App[None]):
     """A shift at the bench.
 
@@ -132,6 +170,9 @@ class SessionApp(App[None]):
         The station's rig self-check: run at the start of the shift and whenever it is due (None: none).
     shift_folder : pathlib.Path
         Where the shift summary is written.
+    remember_workshop : callable, optional
+        Keeps the workshop's name and address in the station's settings: given where they are not set yet, and the
+        session asks for them once, after the operator (None: not asked).
     """
 
     TITLE = "edc-bench session"
@@ -148,7 +189,8 @@ class SessionApp(App[None]):
     #live { width: 2fr; }
     #side { width: 1fr; padding: 0 1; border-left: solid $panel; }
     #operator-box { width: 70; height: auto; border: thick $accent; padding: 1 2; background: $surface; }
-    OperatorScreen { align: center middle; }
+    #operator-box Label { width: 1fr; }
+    OperatorScreen, WorkshopScreen { align: center middle; }
     """
     BINDINGS = [
         Binding("f2", "change_operator", "Operator"),
@@ -162,13 +204,16 @@ class SessionApp(App[None]):
     def __init__(self, runner: SessionRunner, variant_loader: Callable[[str | None], Any], variant_name: str | None,
                  part_numbers: Mapping[str, str], operator: str, remember_operator: Callable[[str], None],
                  history_of: Callable[[str], list[str]], shift_folder: Path,
-                 selfcheck: SessionSelfCheck | None = None, scan_rules: ScanRules | None = None) -> None:
+                 selfcheck: SessionSelfCheck | None = None, scan_rules: ScanRules | None = None,
+                 remember_workshop: Callable[[str, str], Any] | None = None) -> None:
         super().__init__()
+        self.remember_workshop = remember_workshop
         self.scan_rules = scan_rules or ScanRules()
         self.runner, self.variant_loader, self.part_numbers = runner, variant_loader, part_numbers
         self.remember, self.history_of, self.shift_folder = remember_operator, history_of, shift_folder
         self.selfcheck = selfcheck
         self.awaiting_reference = ""  # the reference valve's id while the session waits for it to be mounted
+        self.awaiting_why = ""  # and why it is asked for
         self.variant = variant_loader(variant_name)
         self.scan = Scan(variant=self.variant.name)
         self.shift = ShiftLog(operator=operator, station=runner.station, rig=runner.rig.describe())
@@ -223,7 +268,7 @@ class SessionApp(App[None]):
         if not self.shift.operator:
             self.push_screen(OperatorScreen(""), self._operator_named)
         else:
-            self._start_of_shift()
+            self._ask_workshop()
 
     def _operator_named(self, name: str | None) -> None:
         if name:
@@ -232,8 +277,27 @@ class SessionApp(App[None]):
             self.remember(name)
             self._show_status()
             if first:
-                self._start_of_shift()
+                self._ask_workshop()
         self.query_one("#entry", Input).focus()
+
+    def _ask_workshop(self) -> None:
+        """Once per station, after the operator: the workshop the customer's reports name."""
+        if self.remember_workshop is None:
+            self._start_of_shift()
+            return
+        self.push_screen(WorkshopScreen(), self._workshop_named)
+
+    def _workshop_named(self, workshop: tuple[str, str] | None) -> None:
+        remember, self.remember_workshop = self.remember_workshop, None
+        if workshop is not None and remember is not None:
+            try:
+                path = remember(*workshop)
+            except Exception as exc:  # noqa: BLE001 - the shift goes on; asked again next session
+                self._say(f"the workshop could not be kept ({exc}): the reports name none until it is")
+            else:
+                self._say(f"workshop kept in {path} for every report ([station] shop and shop_address there "
+                          "change it)")
+        self._start_of_shift()
 
     def _start_of_shift(self) -> None:
         self.query_one("#entry", Input).focus()
@@ -298,6 +362,9 @@ class SessionApp(App[None]):
         self.scan = answer.scan
         if answer.refused and self.scan.pending and self.scan.step is Step.VALVE_ID:
             self._show_history(self.scan.pending)  # asked about: what the history knows of it helps decide
+        if answer.noted:
+            self._show_prompt()
+            return
         if answer.refused or answer.switched_variant:
             return
         if self.scan.step is Step.PUMP_SERIAL:  # a new valve: the last verdict gives way to it
@@ -310,7 +377,9 @@ class SessionApp(App[None]):
                 self.scan = replace(self.scan, step=Step.MOUNT)
                 self._ask_for_reference(why)
                 return
-            self._test(self.scan.valve_id, self.scan.pump_serial)
+            job_ref = self.scan.job_ref
+            self.scan = replace(self.scan, job_ref="")  # this valve's: the next valve's job is scanned with it
+            self._test(self.scan.valve_id, self.scan.pump_serial, job_ref)
 
     def on_input_changed(self, event: Input.Changed) -> None:
         if event.input.id == "entry" and not event.value.strip():
@@ -320,7 +389,8 @@ class SessionApp(App[None]):
         """The current step's prompt; mounting names the valve and pump scanned, so a wrong scan shows before the
         test."""
         if self.scan.step is Step.MOUNT:
-            self.query_one("#prompt", Label).update(f"Valve {self.scan.valve_id} on pump {self.scan.pump_serial}. "
+            job = f" (job {self.scan.job_ref})" if self.scan.job_ref else ""
+            self.query_one("#prompt", Label).update(f"Valve {self.scan.valve_id} on pump {self.scan.pump_serial}{job}. "
                                                     f"{PROMPTS[Step.MOUNT]}")
         else:
             self.query_one("#prompt", Label).update(PROMPTS[self.scan.step])
@@ -344,8 +414,14 @@ class SessionApp(App[None]):
             return
         if self.awaiting_reference:
             self.awaiting_reference = ""
+            why = self.awaiting_why
+            # a due check skipped is kept in the rig's ledger; one asked for by F6 was not due: nothing to keep
+            kept = self.selfcheck.skip(why) if why != ASKED_FOR and self.selfcheck is not None else ""
             self.shift.rig_checks.append(RigCheckEntry(None, "skipped by the operator", now_local()))
-            self.query_one("#side", Static).update(Text("rig self-check skipped: it is asked for again when due",
+            due_still = self.selfcheck is not None and why != ASKED_FOR and self.selfcheck.due()
+            again = ("it is due: asked for again before the next valve's test" if due_still else
+                     "asked for again when due; F6 runs it now")
+            self.query_one("#live", Static).update(Text(f"{kept or 'rig self-check skipped'}; {again}",
                                                          style="bold yellow"))
         self.scan = Scan(variant=self.variant.name)
         self.query_one("#prompt", Label).update(PROMPTS[Step.VALVE_ID])
@@ -370,14 +446,14 @@ class SessionApp(App[None]):
 
     # -- a test --------------------------------------------------------------------------------------------------
 
-    def _test(self, valve_id: str, pump_serial: str) -> None:
+    def _test(self, valve_id: str, pump_serial: str, job_ref: str = "") -> None:
         self.testing = True
         self.observer = None  # the last test's panel is not this one's
         self.query_one("#live", Static).update("")
         first = "finishing the last valve's report first, then testing" if self.drawing.is_set() else "Testing"
         self.query_one("#prompt", Label).update(f"{first} valve {valve_id} ... keys typed now are not taken "
                                                 "(the shift can end after its verdict)")
-        self._run_valve(valve_id, pump_serial, self.variant)
+        self._run_valve(valve_id, pump_serial, self.variant, job_ref)
 
     def _new_observer(self, which: str) -> SnapshotObserver:
         self.observer = SnapshotObserver()
@@ -388,13 +464,14 @@ class SessionApp(App[None]):
         return self.observer
 
     @work(thread=True, exclusive=True)
-    def _run_valve(self, valve_id: str, pump_serial: str, variant: Any) -> None:
+    def _run_valve(self, valve_id: str, pump_serial: str, variant: Any, job_ref: str = "") -> None:
         self.last_valve_id = valve_id
         if not self._wait_for_reports():
             self.call_from_thread(self._not_started, f"the test of valve {valve_id}")
             return
         try:
-            done = self.runner.run_valve(variant, valve_id, pump_serial, observer=self._new_observer)
+            done = self.runner.run_valve(variant, valve_id, pump_serial, observer=self._new_observer,
+                                         job_ref=job_ref)
         except Exception as exc:  # noqa: BLE001 - the shift goes on; what failed is said on the screen
             self.call_from_thread(self._test_failed, valve_id, f"{type(exc).__name__}: {exc}")
             return
@@ -438,9 +515,10 @@ class SessionApp(App[None]):
         if draw:  # before the details are shown, which say so
             self.drawing.set()
         final, cause = done.final, done.cause
-        # the same valve INVALID again, both times for a cause the valve itself can cause: it may be seized
-        seized = self.shift.escalation(done.valve_id, final, cause)
-        words = seized.words if seized is not None else done.words
+        # the same valve INVALID again, both times for a cause the valve itself can cause: it may be seized (as its
+        # record says: the report and `edc-bench test` say the same)
+        seized = done.escalation or None
+        words = seized or done.words
         verdict = self.query_one("#verdict", Static)
         verdict.display = True
         what = final if done.decision is None else f"{final}  (MARGINAL, retest {done.tests[-1].verdict})"
@@ -522,7 +600,7 @@ class SessionApp(App[None]):
         reference = self.selfcheck.reference_valve() if self.selfcheck is not None else None
         if reference is None:
             return
-        self.awaiting_reference = reference
+        self.awaiting_reference, self.awaiting_why = reference, why
         self.query_one("#prompt", Label).update(f"Rig self-check ({why}): mount the reference valve {reference}, "
                                                 "then press Enter")
 
@@ -531,7 +609,7 @@ class SessionApp(App[None]):
             if self.selfcheck.reference_valve() is None:
                 self._selfcheck_done(self.selfcheck.no_reference_words())
             else:
-                self._ask_for_reference("asked for")
+                self._ask_for_reference(ASKED_FOR)
 
     def _run_selfcheck_now(self) -> None:
         self.testing = True
@@ -558,7 +636,8 @@ class SessionApp(App[None]):
         self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, now_local()))
         style = {True: "green", False: "red"}.get(words.go, "yellow")
         line = words.words if words.words.startswith("rig self-check") else f"rig self-check: {words.words}"
-        self.query_one("#side", Static).update(Text(line, style=f"bold {style}"))
+        # in the wide panel (no test's figures are on it now): a NO-GO's words whole at 80x24, not in a narrow column
+        self.query_one("#live", Static).update(Text(line, style=f"bold {style}"))
         self._show_prompt()
         self.query_one("#entry", Input).focus()
         if words.go is False:

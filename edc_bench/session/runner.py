@@ -58,6 +58,7 @@ class TestDone:
     report_pdf: Path | None  # None until :meth:`SessionRunner.draw_reports` has drawn it
     problems: tuple[str, ...]  # what went wrong on the way (record, report, history), in words
     indexed: bool = False  # its history row was written
+    escalation: str = ""  # its record's escalation: the same valve INVALID twice, it may be seized ("" if not)
 
     @property
     def verdict(self) -> str:
@@ -84,6 +85,12 @@ class ValveDone:
     def words(self) -> str:
         """What to do."""
         return self.decision.words if self.decision is not None else self.tests[-1].result.advice.words
+
+    @property
+    def escalation(self) -> str:
+        """The technician's line when the valve's last test escalates (INVALID twice, both times for a cause the
+        valve itself can cause: it may be seized), as its record says; "" if not."""
+        return self.tests[-1].escalation if self.final == "INVALID" else ""
 
     @property
     def cause(self) -> Cause | None:
@@ -129,7 +136,7 @@ class SessionRunner:
         self.tests_run = 0
 
     def run_valve(self, variant: Variant, valve_id: str, pump_serial: str,
-                  observer: Callable[[str], Any] | None = None) -> ValveDone:
+                  observer: Callable[[str], Any] | None = None, job_ref: str = "") -> ValveDone:
         """Test a mounted valve; a MARGINAL is tested again at once and the variant's rule decides the pair.
 
         Parameters
@@ -137,16 +144,19 @@ class SessionRunner:
         observer : callable, optional
             Called with ``"test"`` or ``"retest"`` before each test; returns the test's
             :class:`~edc_bench.runtime.loop.LoopObserver` (or None).
+        job_ref : str, optional
+            The job or vehicle reference scanned with the valve, for both tests' records.
         """
         from edc_bench.runtime.signals import stop_requested
 
-        first = self.run_test(variant, valve_id, pump_serial, observer("test") if observer else None)
+        first = self.run_test(variant, valve_id, pump_serial, observer("test") if observer else None,
+                              job_ref=job_ref)
         if (first.record_dir is None or stop_requested()  # interrupted: no retest is started
                 or not retest_wanted(first.result.verdict, variant.retest)):
             return ValveDone(valve_id, pump_serial, variant.name, (first,), None)
         try:
             second = self.run_test(variant, valve_id, pump_serial, observer("retest") if observer else None,
-                                   retest_of=first)
+                                   retest_of=first, job_ref=job_ref)
         except Exception as exc:  # noqa: BLE001 - the first test stands, with its record and report
             why = f"the retest could not run ({type(exc).__name__}: {exc}): check the rig, then scan the valve again"
             return ValveDone(valve_id, pump_serial, variant.name, (replace(first, problems=(*first.problems, why)),),
@@ -155,7 +165,7 @@ class SessionRunner:
         return ValveDone(valve_id, pump_serial, variant.name, (first, second), decision)
 
     def run_test(self, variant: Variant, valve_id: str, pump_serial: str, observer: Any = None,
-                 retest_of: TestDone | None = None) -> TestDone:
+                 retest_of: TestDone | None = None, job_ref: str = "") -> TestDone:
         """One test: run it, write its record, add it to the history (its report is drawn by :meth:`draw_reports`)."""
         from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
 
@@ -171,7 +181,7 @@ class SessionRunner:
 
         options = BenchOptions(
             valve_id=valve_id, identity={"pump_serial": pump_serial, "station": self.station,
-                                         "operator": self.operator, **shop_identity()},
+                                         "operator": self.operator, **shop_identity(), "job_ref": job_ref},
             calibrate_command=default_calibrate_command(variant, ["--valve", "new"] if self.rig.simulated else []),
             stream_can_log=stream_target, observer=observer)
         seed = self.rig.first_seed + self.tests_run
@@ -220,7 +230,7 @@ class SessionRunner:
             indexed = False
             problems.append(redact(f"the history was not updated ({type(exc).__name__}: {exc}); add it later with: "
                                    f"edc-bench history --add {record_dir}", known_secrets(self.history_url)))
-        return TestDone(result, record_dir, None, tuple(problems), indexed)
+        return TestDone(result, record_dir, None, tuple(problems), indexed, _escalation(record_dir))
 
     def draw_reports(self, done: ValveDone) -> ValveDone:
         """Draw the report of each of the valve's tests (after its verdict is shown: a report takes seconds, which
@@ -255,6 +265,14 @@ class SessionRunner:
             return replace(test, problems=(*test.problems, f"the report could not be drawn ({type(exc).__name__}: "
                                                            f"{exc}); draw it with: edc-bench report {test.record_dir}"))
         return replace(test, report_pdf=report_pdf)
+
+
+def _escalation(record_dir: Path) -> str:
+    """The technician's line of the record's escalation ("" if none)."""
+    from edc_bench.records.escalation_link import recorded_escalation
+
+    escalated = recorded_escalation(record_dir)
+    return escalated.words if escalated is not None else ""
 
 
 __all__ = ["RigChoice", "SessionRunner", "TestDone", "ValveDone", "simulated_valve"]

@@ -9,7 +9,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from edc_bench.paths import atomic_write
-from edc_bench.records.advice import Advice, Cause, escalation
 from edc_bench.timefmt import folder_stamp, local_text
 
 
@@ -53,16 +52,6 @@ class ShiftLog:
     valves: list[ValveEntry] = field(default_factory=list)
     rig_checks: list[RigCheckEntry] = field(default_factory=list)
     interrupted: bool = False  # ended by Ctrl-C or SIGTERM, not by the operator's Ctrl+Q
-
-    def escalation(self, valve_id: str, final: str, cause: Cause | None) -> Advice | None:
-        """The technician's line when this valve, INVALID now for ``cause``, was INVALID before in this shift for
-        a cause the valve itself can cause both times (:func:`~edc_bench.records.advice.escalation`), else None."""
-        if final != "INVALID" or cause is None:
-            return None
-        earlier = next((v for v in reversed(self.valves) if v.valve_id == valve_id), None)
-        if earlier is None or earlier.final != "INVALID" or earlier.cause not in Cause.__members__.values():
-            return None
-        return escalation(Cause(earlier.cause), cause)
 
     @property
     def tests(self) -> int:
