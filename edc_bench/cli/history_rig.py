@@ -15,16 +15,21 @@ _COLUMNS = (("lvdt_zero_mm", "LVDT zero", "mm"), ("current_zero_a", "current zer
             ("a1_v_s_per_mm", "a1", "%"))
 
 
+_VERDICT_STYLES = {"GO": "green", "SKIPPED": "bold yellow"}
+
+
 def ledger(store: Any, station: str | None) -> list[dict[str, Any]]:
     """Every registration (of one station if given), oldest first, each with its checks and each figure's trend."""
     out = []
     for reference in store.references(station):
         checks = []
         for row in store.rig_checks(reference["station"], reference["id"]):
-            figures = json.loads(row["details"] or "{}").get("figures", {})
+            details = json.loads(row["details"] or "{}")
+            figures = details.get("figures", {})
             checks.append({"id": row["id"], "checked_at": row["checked_at"], "verdict": row["verdict"],
                            "causes": [c for c in row["causes"].split(",") if c], "words": row["words"],
                            "checked_by": row["checked_by"], "simulated": row["simulated"],
+                           "due": details.get("due") if row["verdict"] == "SKIPPED" else None,
                            "drift": {name: figures.get(name, {}).get("drift") for name, _, _ in _COLUMNS},
                            "measured": {name: row[name] for name, _, _ in _COLUMNS}})
         out.append({"reference": {key: reference[key] for key in (
@@ -39,8 +44,9 @@ def trend(checks: list[dict[str, Any]]) -> dict[str, float | None]:
     import numpy as np
 
     out: dict[str, float | None] = {}
+    measured = [c for c in checks if c["verdict"] != "SKIPPED"]  # a skip measured nothing: no step of the trend
     for name, _, _ in _COLUMNS:
-        points = [(k, c["drift"][name]) for k, c in enumerate(checks) if c["drift"].get(name) is not None]
+        points = [(k, c["drift"][name]) for k, c in enumerate(measured) if c["drift"].get(name) is not None]
         out[name] = (float(np.polyfit([k for k, _ in points], [d for _, d in points], 1)[0]) if len(points) >= 3
                      else None)
     return out
@@ -84,12 +90,15 @@ def ledger_tables(found: list[dict[str, Any]], where: str, console: Any = None) 
     console = console or Console(width=None if sys.stdout.isatty() else 160)
     for entry in found:
         ref, checks = entry["reference"], entry["checks"]
-        nogo = sum(c["verdict"] != "GO" for c in checks)
+        nogo = sum(c["verdict"] == "NO-GO" for c in checks)
+        skipped = sum(c["verdict"] == "SKIPPED" for c in checks)
         checked, zone = local_column([c["checked_at"] for c in checks])
         title = Text(f"station {ref['station']}: reference valve {ref['valve_id']} ({ref['variant']}), registered "
                      f"{local_text(ref['registered_at'])} by {ref['registered_by']}"
                      + (" on the simulated rig" if ref["simulated"] else "")
-                     + f"; {len(checks)} check(s), {nogo} NO-GO; change against the registration ({zone}, "
+                     + f"; {len(checks) - skipped} check(s), {nogo} NO-GO"
+                     + (f", {skipped} due check(s) skipped by the technician" if skipped else "")
+                     + f"; change against the registration ({zone}, "
                        f"{where})")
         table = Table(title=title)
         for col in ("check", "when", "by", "verdict", *(f"{label} {unit}" for _, label, unit in _COLUMNS),
@@ -97,9 +106,9 @@ def ledger_tables(found: list[dict[str, Any]], where: str, console: Any = None) 
             table.add_column(col, no_wrap=col not in ("drifted", "by"))
         for c, when in zip(checks, checked, strict=True):  # "by": the operator who ran it, as typed: never markup
             table.add_row(str(c["id"]), when, Text(c.get("checked_by") or ""),
-                          Text(c["verdict"], style="green" if c["verdict"] == "GO" else "bold red"),
+                          Text(c["verdict"], style=_VERDICT_STYLES.get(c["verdict"], "bold red")),
                           *(_change(c["drift"][name], unit) for name, _, unit in _COLUMNS),
-                          Text(", ".join(c["causes"])))
+                          Text(", ".join(c["causes"]) if c["verdict"] != "SKIPPED" else f"skipped; it was due: {c['due']}"))
         per_check = entry["trend_per_check"]
         if any(v is not None for v in per_check.values()):
             table.add_row("trend", "per check", "", "",

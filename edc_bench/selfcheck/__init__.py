@@ -297,6 +297,23 @@ def rig_check_row(check: SelfCheck, station: str, by: str) -> dict[str, Any]:
             "checked_by": by}
 
 
+#: the ``verdict`` of a ledger row that records a due self-check the technician skipped (Esc), not a measurement
+SKIPPED = "SKIPPED"
+#: the verdicts of rows that measured the rig
+MEASURED = ("GO", "NO-GO")
+
+
+def skip_row(registration: Registration, station: str, by: str, why_due: str) -> dict[str, Any]:
+    """The history row of a due self-check the technician skipped: kept in the rig's ledger beside the checks, with
+    no figures; it changes nothing of when the next check is due (:func:`last_check` reads measured rows only)."""
+    from edc_bench import __version__
+
+    return {"station": station, "reference_id": registration.id, "verdict": SKIPPED, "causes": "",
+            "words": f"rig self-check skipped by {by or 'the operator'} (it was due: {why_due})",
+            "simulated": registration.simulated, "details": json.dumps({"skipped": True, "due": why_due}),
+            "software_version": __version__, "checked_by": by}
+
+
 def _json_float(value: float) -> float | None:
     import math
 
@@ -304,9 +321,9 @@ def _json_float(value: float) -> float | None:
 
 
 def last_check(store: Any, registration: Registration) -> LastCheck:
-    """The station's latest self-check against ``registration``, or the registration itself (a check that passed)
-    if none was made since; for :func:`selfcheck_due`."""
-    checks = store.rig_checks(registration.station, registration.id)
+    """The station's latest self-check against ``registration`` (a skip is none), or the registration itself (a
+    check that passed) if none was made since; for :func:`selfcheck_due`."""
+    checks = [row for row in store.rig_checks(registration.station, registration.id) if row["verdict"] in MEASURED]
     if checks:
         return LastCheck(dt.datetime.fromisoformat(checks[-1]["checked_at"]), checks[-1]["verdict"] == "GO")
     return LastCheck(dt.datetime.fromisoformat(registration.registered_at), True)
@@ -336,6 +353,6 @@ def check_due(store: Any, registration: Registration, policy: SelfCheckPolicy, n
     return selfcheck_due(last, tests, now, policy)
 
 
-__all__ = ["REGISTER_COMMAND", "Cause", "LastCheck", "Registration", "Rig", "SelfCheck", "SelfCheckPolicy",
+__all__ = ["MEASURED", "REGISTER_COMMAND", "SKIPPED", "Cause", "LastCheck", "Registration", "Rig", "SelfCheck", "SelfCheckPolicy",
            "SelfCheckResult", "check_due", "last_check", "measure_reference", "no_reference_line", "registration_row",
-           "rig_check_row", "run_selfcheck", "selfcheck_due", "tolerances_of", "values_of"]
+           "rig_check_row", "run_selfcheck", "selfcheck_due", "skip_row", "tolerances_of", "values_of"]

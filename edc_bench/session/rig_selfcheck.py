@@ -82,6 +82,21 @@ class SessionSelfCheck:
         self.checks += 1
         return SelfCheckWords(check.result.go, check.result.line())
 
+    def skip(self, why_due: str) -> str:
+        """The technician skipped a due check (Esc): kept in the rig's ledger; the words for the screen."""
+        from edc_bench.history.store import HistoryStore
+        from edc_bench.selfcheck import skip_row
+
+        try:
+            with HistoryStore(self.history_url) as store:
+                registration = self._registration(store)
+                if registration is None:
+                    return "rig self-check skipped"
+                store.add_rig_check(skip_row(registration, self.station, self.by(), why_due))
+        except Exception as exc:  # noqa: BLE001 - the shift goes on; the skip is in the shift's summary still
+            return f"rig self-check skipped; the rig's ledger could not keep the skip ({type(exc).__name__}: {exc})"
+        return "rig self-check skipped: kept in the rig's ledger (edc-bench history --rig)"
+
     def due(self) -> str | None:
         """Why a check must run before the next test (the pump type's policy, or a NO-GO), else None."""
         from edc_bench.config import load_variant

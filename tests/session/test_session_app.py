@@ -200,6 +200,54 @@ def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is
     assert [c["verdict"] for c in checks] == ["GO", "NO-GO"]
 
 
+def test_a_due_rig_self_check_skipped_with_esc_is_kept_in_the_rigs_ledger(tmp_path: Path, capsys) -> None:
+    """#53 item 12: the technician's skips of due checks were missing from the rig's ledger. Esc at a due check
+    (here the start of the shift's) writes a SKIPPED row, by the operator, with why it was due; it measures nothing,
+    so it changes neither when the next check is due nor the trend. A check asked for by F6 was not due: its Esc is
+    not kept."""
+    from helpers import run_cli
+
+    from edc_bench.selfcheck import Registration, last_check
+
+    db = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    _register_reference(tmp_path, db, "bench-3")
+
+    async def shift() -> list[str]:
+        app = make_app(None, RigChoice(), tmp_path / "records", db, "bench-3", "Anna")
+        seen = []
+        async with app.run_test(size=(80, 24)) as pilot:
+            await pilot.pause()
+            seen.append(_screen_text(app))
+            await pilot.press("escape")
+            await pilot.pause()
+            seen.append(_screen_text(app))
+            await pilot.press("f6")  # asked for, not due
+            await pilot.pause()
+            await pilot.press("escape")
+            await pilot.pause()
+            seen.append(_screen_text(app))
+            await pilot.press("ctrl+q", "ctrl+q")
+        return seen
+
+    asked, skipped, skipped_f6 = asyncio.run(shift())
+    assert "Rig self-check (the start of the shift): mount the reference valve REF-1, then press Enter" in " ".join(
+        asked.split())
+    assert "kept in the rig's ledger" in " ".join(skipped.split())
+    assert "F6 runs it now" in " ".join(skipped_f6.split())
+    with HistoryStore(db) as store:
+        rows = store.rig_checks("bench-3")
+        registration = Registration.of(store.reference("bench-3"))
+        last = last_check(store, registration)
+    assert [(r["verdict"], r["checked_by"]) for r in rows] == [("SKIPPED", "Anna")]  # the F6 one is not kept
+    assert "it was due: the start of the shift" in rows[0]["words"]
+    assert last.go and last.at.isoformat(timespec="seconds") == registration.registered_at  # a skip is no check
+    code, out, _ = run_cli(["history", "--rig", "--db", db, "--json"], capsys)
+    (entry,) = json.loads(out)
+    assert code == 0 and [(c["verdict"], c["due"]) for c in entry["checks"]] == [("SKIPPED", "the start of the shift")]
+    code, out, _ = run_cli(["history", "--rig", "--db", db], capsys)
+    assert "0 check(s), 0 NO-GO, 1 due check(s) skipped by the technician" in " ".join(out.split())
+
+
 def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path: Path) -> None:
     """#53: a technician typed during a test; the text stayed in the input and the next scan was appended to it (the
     history held "V-9999faulty"). A review found two more ways: a scan split across the verdict ("V-1" during the
