@@ -6,6 +6,9 @@ live panel in the middle of a test, the verdict panels, the report page, the
 history and a valve's trend, a replay and check-station. Terminal screens
 are rich's own SVG export of exactly what the commands print.
 
+``python docs/make_images.py reports`` makes page 1 of a PASS, a MARGINAL pair and a valve not judged twice
+(:func:`report_pictures`).
+
 ``python docs/make_images.py session`` makes only the screens of ``edc-bench session``: the real app, driven
 headless by Textual's pilot as a technician drives it, each screen Textual's own SVG of what it shows.
 """
@@ -117,6 +120,51 @@ def main() -> None:
     shutil.rmtree(scratch, ignore_errors=True)
 
 
+def report_pictures() -> None:
+    """Page 1 of the reports docs/station.md describes, beside the FAIL's (``report-page.png``): a PASS, both tests
+    of a MARGINAL pair, and a valve not judged twice (its second test's pages 1 and 2), at a workshop in central
+    Europe, with a job reference."""
+    scratch = Path(tempfile.mkdtemp(prefix="edc-bench-docs-reports-"))
+    os.environ["EDC_BENCH_DATA_DIR"] = str(scratch / "station")
+    os.environ["TZ"] = "CET-1CEST,M3.5.0,M10.5.0/3"
+    time.tzset()
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant
+    from edc_bench.records.record import write_record
+    from edc_bench.records.report import draw_report
+    from edc_bench.verdict.retest import decide
+
+    variant = load_variant()
+    identity = {"pump_serial": "PS-20231", "station": "bench-2", "operator": "m.keller",
+                "shop": "Diesel Müller GmbH", "shop_address": "Hauptstraße 5\n80331 München",
+                "job_ref": "JOB-004711"}
+    records = scratch / "records"
+
+    def page(folder: Path, name: str, pages: tuple[int, ...] = (0,)) -> None:
+        _, pngs = draw_report(folder, scratch / "report" / folder.name)
+        for n in pages:
+            target = name if n == 0 else name.replace(".png", "-2.png")
+            shutil.copyfile(pngs[n], IMAGES / target)
+            print(f"wrote docs/images/{target}")
+
+    passed = run_simulated_test(variant, "new", 3, valve_id="V-1187", identity=identity)
+    page(write_record(passed, records, figure=False), "report-pass.png")
+    first = run_simulated_test(variant, "clearance=0.185", 0, valve_id="V-2218", identity=identity)
+    first_dir = write_record(first, records, figure=False)
+    second = run_simulated_test(variant, "clearance=0.185", 1, valve_id="V-2218", identity=identity)
+    decision = decide(second.verdict, variant.retest, second.advice.words)
+    second_dir = write_record(second, records, figure=False,
+                              retest=decision.record_entry(first_dir.name, str(first.verdict)))
+    page(first_dir, "report-pair-first.png")
+    page(second_dir, "report-pair-retest.png")
+    stiff = "clearance=0.2,friction_scale=8"  # the model does not fit it: INVALID for a cause the valve can cause
+    for seed in (1, 2):
+        result = run_simulated_test(variant, stiff, seed, valve_id="V-3305", identity=identity)
+        folder = write_record(result, records, figure=False)
+    page(folder, "report-invalid-twice.png", pages=(0, 1))
+    shutil.rmtree(scratch, ignore_errors=True)
+
+
 def session_screens() -> None:
     """The session's screens (docs/station.md): the start with its rig self-check, a valve seen before, a MARGINAL
     retested and decided, the next valve's PASS."""
@@ -183,4 +231,5 @@ def session_screens() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(session_screens() if sys.argv[1:] == ["session"] else main())
+    sys.exit(session_screens() if sys.argv[1:] == ["session"] else report_pictures() if sys.argv[1:] == ["reports"]
+             else main())

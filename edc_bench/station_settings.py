@@ -89,5 +89,53 @@ def shop_identity() -> dict[str, str]:
     return {"shop": found["shop"], "shop_address": found["shop_address"]}
 
 
-__all__ = ["SETTINGS_FILE", "default_station", "settings_path", "settings_section", "shop_identity",
+def workshop_asked(data_folder: Path | None = None) -> bool:
+    """Whether the station's settings name the workshop (``[station] shop``, even as ""): the session asks for it
+    once, where they do not. A settings file that cannot be read counts as asked (its own error is said where it is
+    read)."""
+    try:
+        section, _ = settings_section("station", data_folder)
+    except ConfigError:
+        return True
+    return "shop" in section
+
+
+def remember_workshop(shop: str, address: str, data_folder: Path | None = None) -> Path:
+    """Write the workshop's name and address into ``[station]`` of the station's settings (created if missing; its
+    other settings and comments kept); the file.
+
+    Raises
+    ------
+    ConfigError
+        For a value :func:`station_identity` would refuse, or a settings file that cannot be read or written.
+    """
+    import tomlkit
+
+    from edc_bench.paths import atomic_write
+
+    for key, value in (("shop", shop), ("shop_address", address)):
+        longest = _STATION_KEYS[key]
+        if len(value) > longest or not value.isprintable():
+            raise ConfigError(f"the workshop's {key.replace('_', ' ')} must be at most {longest} printable "
+                              "characters")
+    path = settings_path(data_folder)
+    try:
+        document = tomlkit.parse(path.read_text(encoding="utf-8")) if path.is_file() else tomlkit.document()
+    except (OSError, UnicodeDecodeError, ValueError) as exc:  # tomlkit's parse errors are ValueErrors
+        raise ConfigError(f"the station's settings {path} cannot be read ({exc}): correct or remove it") from None
+    station = document.get("station")
+    if station is None:
+        station = tomlkit.table()
+        document["station"] = station
+    station["shop"] = shop.strip()
+    station["shop_address"] = address.strip()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, lambda f: f.write(tomlkit.dumps(document)), mode="w")
+    except OSError as exc:
+        raise ConfigError(f"the station's settings {path} cannot be written ({exc})") from None
+    return path
+
+
+__all__ = ["SETTINGS_FILE", "default_station", "remember_workshop", "workshop_asked", "settings_path", "settings_section", "shop_identity",
            "station_identity"]

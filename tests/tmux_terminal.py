@@ -25,6 +25,14 @@ def terminal_env(extra: Mapping[str, str]) -> dict[str, str]:
     return env
 
 
+def set_up_station(data_dir: Path) -> Path:
+    """A station data folder whose settings name the workshop already (``[station] shop``): the session does not
+    ask for it (a test of that question starts from an empty folder); the folder."""
+    data_dir.mkdir(parents=True, exist_ok=True)
+    (data_dir / "station.toml").write_text('[station]\nshop = "Diesel Müller GmbH"\n', encoding="utf-8")
+    return data_dir
+
+
 class Terminal:
     """A tmux session of its own, ``columns`` x ``rows``, running one command; ``EXITED <code>`` shown when it ends.
 

@@ -49,7 +49,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the session; print the shift's summary when it ends."""
-    from edc_bench.station_settings import default_station
+    from edc_bench.station_settings import default_station, workshop_asked
 
     from edc_bench.cli.common import bus_settings, check_history_url, check_output_folder
     from edc_bench.config import load_variant
@@ -75,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--rig-drift describes the simulated rig: leave it out on a bus")
     rig = RigChoice(bus_config=bus_config, first_seed=args.seed, rig_drift=args.rig_drift)
     app = make_app(args.variant, rig, args.out, args.db,
-                   args.station or default_station(), args.operator or remembered_operator())
+                   args.station or default_station(), args.operator or remembered_operator(),
+                   ask_workshop=not workshop_asked())
     from edc_bench.runtime.signals import interrupt_guard, stop_requested
 
     # Ctrl-C or SIGTERM sent to the session (kill, a shutdown) is held back: a test running ends as an abort (SAFE,

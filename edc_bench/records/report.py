@@ -3,9 +3,9 @@
 Page 1 is for the customer and the shop: who tested (station, operator),
 what (pump type, part number, pump serial, valve), when (local time with
 its offset from UTC), the verdict in large type with what to do, the
-rack's tracking of the test command and the valve's point against the
-boundary between reusable and worn valves, all in plain words. Page 2 is
-for the engineer: the parameter table with uncertainties and references
+valve's point against the boundary between reusable and worn valves
+(the one chart: the rack's trace told a customer nothing), all in plain
+words. Page 2 is for the engineer: the parameter table with uncertainties and references
 (the new-valve baseline for af and a1, the data-sheet nominal for the
 others, as the paper's Table 1 compares valves), the classifier (model,
 file, SHA-256, P(faulty), distance), baseline, coil, test and timing,
@@ -127,31 +127,22 @@ def write_pdf(pages: list[Page], record: Record, path: Path) -> Path:
 
 def customer_page(record: Record, trace: dict[str, np.ndarray], folder_name: str,
                   history_note: str | None = None) -> Page:
-    """Who, what, when, the verdict and what to do, the tracking plot and the valve against the boundary."""
+    """Who, what, when, the verdict and what to do, and one chart: this valve against the limit.
+
+    The rack's trace against the test command is not on it: it looks the same for a sound valve and a worn one and
+    told a customer nothing (the engineer's page shows the tracking error; the record keeps the trace).
+    """
     page = Page()
     y = _header(page, "Solenoid valve test report", 1)
     y = _identity(page, record, y + 10.0)
     page.rule(y + 9.0)
     y = _verdict(page, record, y + 18.0)
     page.rule(y + 9.0)
-    tracking_pt, decision_pt = _plot_heights(record, y + 18.0)
-    y = _tracking(page, trace, y + 18.0, tracking_pt)
-    _decision(page, record, y + 14.0, decision_pt)
+    _decision(page, record, y + 18.0)
     # the history's hash before the folder's name: a long valve id in the name can only cut the line's end
     _footer(page, f"Technical details on page 2  \u00b7  edc-bench {record.software_version or '?'}  \u00b7  "
                   + (f"{history_note}  \u00b7  " if history_note else "") + f"record {folder_name}")
     return page
-
-
-def _plot_heights(record: Record, top_pt: float) -> tuple[float, float]:
-    """The tracking plot's and the decision plot's heights: the page's room below the verdict shared out, the
-    decision plot square up to where its legend still fits beside it, the tracking plot taking the rest."""
-    titles_and_labels_pt = 2 * (10.0 + 7.0 + _PLOT_BELOW_PT) + 14.0
-    room_pt = _FOOTER_BASELINE_PT - 12.0 - top_pt - titles_and_labels_pt
-    if record.classification is None or record.decision_plane is None:
-        return float(np.clip(room_pt - 70.0, 100.0, 200.0)), 70.0
-    decision_pt = float(np.clip(room_pt - 112.0, 120.0, 285.0))
-    return float(np.clip(room_pt - decision_pt, 100.0, 170.0)), decision_pt
 
 
 def _header(page: Page, title: str, number: int) -> float:
@@ -203,21 +194,21 @@ def _plot_title(page: Page, x_pt: float, top_pt: float, title: str, width_pt: fl
     return page.lines(x_pt, top_pt, fit_text(title, width_pt, size_pt, min_size_pt=8.0), bold=True) + 7.0
 
 
-def _tracking(page: Page, trace: dict[str, np.ndarray], top_pt: float, height_pt: float) -> float:
-    """The tracking plot across the page; returns the bottom of its axis labels."""
-    y = _plot_title(page, MARGIN_PT, top_pt, plots.tracking_title(trace), CONTENT_WIDTH_PT)
-    plots.draw_tracking(page.axes(_PLOT_LEFT_PT, y, _RIGHT_PT - _PLOT_LEFT_PT, height_pt), trace)
-    return y + height_pt + _PLOT_BELOW_PT
+#: the chart's largest side: beside it the legend and the caption keep a column of their own
+_DECISION_MAX_PT = 300.0
 
 
-def _decision(page: Page, record: Record, top_pt: float, height_pt: float) -> None:
-    """The valve against the boundary, its legend and a few plain sentences beside it (or why there is none)."""
+def _decision(page: Page, record: Record, top_pt: float) -> None:
+    """The valve against the boundary, as large as the page's room allows, its legend and a few plain sentences
+    beside it (or, for a test not judged, why there is no chart)."""
     y = _plot_title(page, MARGIN_PT, top_pt, "This valve compared with new valves and worn valves", CONTENT_WIDTH_PT)
     bottom_pt = _FOOTER_BASELINE_PT - 12.0 - _PLOT_BELOW_PT
     if record.classification is None or record.decision_plane is None:
-        plots.draw_decision(page.axes(MARGIN_PT, y, CONTENT_WIDTH_PT, min(height_pt, bottom_pt - y)), record)
+        why = ("The test did not judge the valve, so there is nothing to compare." if record.classification is None
+               else "This record holds no chart of new and worn valves to compare with.")
+        page.paragraph(MARGIN_PT, y, why, CONTENT_WIDTH_PT, 9.0, colour=GREY)
         return
-    size_pt = max(min(bottom_pt - y, height_pt), 120.0)
+    size_pt = float(np.clip(bottom_pt - y, 120.0, _DECISION_MAX_PT))
     ax = page.axes(_PLOT_LEFT_PT, y, size_pt, size_pt)
     entries = plots.draw_decision(ax, record)
     side_x = _PLOT_LEFT_PT + size_pt + 18.0

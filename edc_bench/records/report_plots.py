@@ -1,10 +1,8 @@
-"""The report's plots, drawn from the record and its trace: tracking and the valve against the boundary (page 1),
-the estimates' convergence and the tracking error (page 2).
+"""The report's plots, drawn from the record and its trace: the valve against the boundary (page 1), the estimates'
+convergence and the tracking error (page 2).
 
 Each function draws into axes the page has placed; the page draws the
-title, so that it is fitted like every other text. Titles say what the
-plot shows (:func:`tracking_title` names the window the tracking plot really
-covers).
+title, so that it is fitted like every other text.
 """
 
 from __future__ import annotations
@@ -22,7 +20,6 @@ from edc_bench.verdict.verdicts import Verdict
 
 VERDICT_COLOURS = {Verdict.PASS: "#2e7d32", Verdict.MARGINAL: "#f9a825", Verdict.FAIL: "#c62828",
                    Verdict.INVALID: "#6a1b9a"}
-TRACKING_WINDOW_S = 2.0  # a few excitation periods: the rack and the command told apart by eye
 TICK_PT, LABEL_PT, LEGEND_PT = 7.0, 8.0, 7.0
 _REGION_COLOURS = {"pass": "#e8f5e9", "band": "0.85", "fail": "#ffebee"}
 
@@ -45,41 +42,6 @@ def no_data(ax: Axes, message: str) -> None:
     ax.set_xticks([])
     ax.set_yticks([])
     ax.text(0.5, 0.5, message, ha="center", va="center", fontsize=9, transform=ax.transAxes, parse_math=False)
-
-
-def tracking_title(trace: dict[str, np.ndarray]) -> str:
-    """What the tracking plot covers: the last seconds of the test, or all of a short one."""
-    t = trace["t_s"]
-    if not len(t):
-        return "Rack position against the test command"
-    duration_s = float(t[-1] - t[0])
-    if duration_s <= TRACKING_WINDOW_S:
-        return f"Rack position against the test command, the whole {duration_s:.1f} s test"
-    return (f"Rack position against the test command, last {TRACKING_WINDOW_S:g} s of the "
-            f"{round(duration_s, 1):g} s test")
-
-
-def draw_tracking(ax: Axes, trace: dict[str, np.ndarray]) -> None:
-    """The command and the measured rack position over the last :data:`TRACKING_WINDOW_S`."""
-    t = trace["t_s"]
-    if not len(t):
-        no_data(ax, "no samples recorded")
-        return
-    window = t >= t[-1] - TRACKING_WINDOW_S
-    command, rack = trace["reference_mm"][window], trace["position_mm"][window]
-    shown = np.concatenate([command, rack])
-    shown = shown[np.isfinite(shown)]
-    if not shown.size:
-        no_data(ax, "no rack position recorded in the last seconds")
-        return
-    ax.plot(t[window], command, "k--", lw=0.9, label="test command")
-    ax.plot(t[window], rack, "C0", lw=1.0, label="measured rack position")
-    low, high = float(shown.min()), float(shown.max())
-    span = max(high - low, 0.1)
-    ax.set_ylim(low - 0.08 * span, high + 0.45 * span)  # room above the curves for the legend
-    ax.set_xlim(float(t[window][0]), float(t[window][-1]))
-    ax.legend(fontsize=LEGEND_PT, loc="upper right", ncol=2, frameon=False)
-    _style(ax, "time since the start of the test (s)", "rack position (mm)")
 
 
 def draw_decision(ax: Axes, record: Record) -> list[tuple[object, str]]:

@@ -2,7 +2,9 @@
 
 A barcode scanner is a keyboard that types a line and Enter, so the order is fixed and every prompt ends with
 Enter: the valve id, then the pump serial, then "mount the valve, then Enter". A pump part number of the variant
-library, scanned at any prompt, switches the pump type instead of answering the prompt.
+library, scanned at any prompt, switches the pump type instead of answering the prompt; a line that fits the shop's
+job pattern (``[scan] job``), scanned at any prompt, is the job or vehicle reference of the valve being scanned (the
+customer's page prints it), kept until that valve's test starts.
 
 A line that may be a mistake is not taken at once: an id that does not fit the station's pattern
 (:mod:`edc_bench.session.scan_rules`), a pump serial equal to the valve id (the same label scanned twice), a
@@ -46,6 +48,7 @@ class Scan:
     valve_id: str = ""
     pump_serial: str = ""
     variant: str = ""  # the variant's name
+    job_ref: str = ""  # the job or vehicle reference scanned for this valve ("" if none)
     pending: str = ""  # a line asked about: scanned again, it is taken
 
 
@@ -58,6 +61,7 @@ class Answer:
     start_test: bool = False
     switched_variant: bool = False
     refused: bool = False
+    noted: bool = False  # a job or vehicle reference: the prompt stays as it was
 
 
 @dataclass(frozen=True)
@@ -91,6 +95,9 @@ def read_line(scan: Scan, line: str, context: ScanContext) -> Answer:
         variant = context.part_numbers[text]
         return Answer(replace(scan, variant=variant, pending=""),
                       f"pump type switched to {variant} (part number {text})", switched_variant=True)
+    if len(text) <= MAX_ID_CHARS and text.isprintable() and context.rules.looks_like_job(text):
+        return Answer(replace(scan, job_ref=text, pending=""), f"job or vehicle reference {text} noted for this valve",
+                      noted=True)
     if scan.step is Step.MOUNT:
         if text:
             return Answer(scan, f"{text!r} is not a pump part number: mount the valve and press Enter alone "

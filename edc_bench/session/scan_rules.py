@@ -4,6 +4,7 @@ r"""What a scanned id looks like at this shop: a pattern per field, from ``[scan
     valve_id = 'V-\d{5}'          # a regular expression the whole line must match
     pump_serial = 'PS-\d{4,6}'
     part_number = 'PE-EDC-\d{4}'  # a line like this that names no pump type is refused, not taken as an id
+    job = 'JOB-\d{6}'             # a line like this, at any prompt, is the job or vehicle reference of the valve
 
 A line that does not fit is not refused outright (a label may be new): the session asks for it to be scanned
 again to take it as it is. Where the shop sets no pattern, an id is ASCII letters, digits and ``. _ - / = + :``; a
@@ -19,7 +20,8 @@ from dataclasses import dataclass, field
 from edc_bench.errors import ConfigError
 
 #: The fields a shop may give a pattern for, as they are named in ``[scan]`` and said on screen.
-FIELDS = {"valve_id": "valve id", "pump_serial": "pump serial", "part_number": "part number"}
+FIELDS = {"valve_id": "valve id", "pump_serial": "pump serial", "part_number": "part number",
+          "job": "job or vehicle reference"}
 #: An id where the shop sets no pattern: a letter or digit, then letters, digits and the marks labels use.
 DEFAULT_ID = re.compile(r"[^\W_][\w./=+:-]*", re.ASCII)
 _ID_CHARACTER = re.compile(r"[\w./=+:-]", re.ASCII)
@@ -47,7 +49,14 @@ class ScanRules:
 
     def looks_like_part_number(self, text: str) -> bool:
         """True where the shop's part-number pattern matches ``text``."""
-        pattern = self.patterns.get("part_number")
+        return self._matches("part_number", text)
+
+    def looks_like_job(self, text: str) -> bool:
+        """True where the shop's job-reference pattern matches ``text`` (no pattern: no line is a job reference)."""
+        return self._matches("job", text)
+
+    def _matches(self, field_name: str, text: str) -> bool:
+        pattern = self.patterns.get(field_name)
         return pattern is not None and pattern.fullmatch(text) is not None
 
 

@@ -54,3 +54,67 @@ def test_a_station_setting_that_cannot_be_used_is_refused_naming_the_file_and_ke
         assert proc.returncode == 2, (text, proc.stderr)
         assert said in proc.stderr and str(data / "station.toml") in proc.stderr, proc.stderr
         assert "Traceback" not in proc.stderr
+
+
+def test_the_workshop_typed_once_is_kept_in_the_settings_with_what_they_held(tmp_path: Path) -> None:
+    """The session asks for the workshop once (``workshop_asked`` false until it is written, even as ""); writing it
+    keeps the settings' other keys and comments, and a value the settings would refuse is refused before."""
+    import pytest
+
+    from edc_bench.errors import ConfigError
+    from edc_bench.station_settings import remember_workshop, station_identity, workshop_asked
+
+    data = tmp_path / "station-data"
+    assert not workshop_asked(data)
+    remember_workshop("", "", data)  # Enter alone in both: asked, and none printed
+    assert workshop_asked(data) and station_identity(data)["shop"] == ""
+    (data / "station.toml").write_text('# bench 2\n[station]\nname = "Bench 2"  # hall B\n\n[scan]\n'
+                                       "valve_id = 'V-\\d{5}'\n", encoding="utf-8")
+    assert not workshop_asked(data)
+    remember_workshop("Diesel Müller GmbH", "Hauptstraße 5, 80331 München", data)
+    text = (data / "station.toml").read_text(encoding="utf-8")
+    assert "# bench 2" in text and "# hall B" in text and "valve_id = 'V-\\d{5}'" in text
+    assert station_identity(data) == {"name": "Bench 2", "shop": "Diesel Müller GmbH",
+                                      "shop_address": "Hauptstraße 5, 80331 München"}
+    with pytest.raises(ConfigError, match="at most 100 printable characters"):
+        remember_workshop("x" * 101, "", data)
+
+
+def test_the_session_asks_for_the_workshop_once_after_the_operator(tmp_path: Path, monkeypatch) -> None:
+    """Where the station's settings name no workshop, the session asks for its name and address (at 80x24, each
+    instruction whole) before the shift's first prompt, and keeps them; the next session does not ask."""
+    import asyncio
+
+    from edc_bench.session.build import make_app
+    from edc_bench.session.runner import RigChoice
+    from edc_bench.station_settings import station_identity, workshop_asked
+
+    data = tmp_path / "station-data"
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(data))
+
+    async def session() -> tuple[str, str, str]:
+        app = make_app(None, RigChoice(), tmp_path / "records", f"sqlite:///{tmp_path / 'h.sqlite'}", "bench-1", "",
+                       ask_workshop=not workshop_asked())
+        async with app.run_test(size=(80, 24)) as pilot:
+            await pilot.pause()
+            await pilot.press(*"Jo", "enter")  # the operator first
+            await pilot.pause()
+            asked = " ".join(str(w.render()) for w in app.screen.query("Label"))
+            # typed at once after the name's Enter, as a fast typist or a scanner does: the address whole
+            await pilot.press(*"Diesel Müller GmbH", "enter", *"Hauptstraße 5, 80331 München")
+            asked += " " + " ".join(str(w.render()) for w in app.screen.query("Label"))
+            await pilot.press("enter")
+            await pilot.pause()
+            prompt = str(app.query_one("#prompt").render())
+            message = app.message
+            await pilot.press("ctrl+q", "ctrl+q")
+        return asked, prompt, message
+
+    asked, prompt, message = asyncio.run(session())
+    assert "Type the WORKSHOP's NAME, then Enter (Enter alone: none)" in asked
+    assert "ADDRESS on one line, then Enter" in asked
+    assert prompt == "Scan or type the VALVE ID, then Enter"
+    assert "workshop kept in" in message
+    assert station_identity(data)["shop"] == "Diesel Müller GmbH"
+    assert station_identity(data)["shop_address"] == "Hauptstraße 5, 80331 München"
+    assert workshop_asked()

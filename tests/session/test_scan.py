@@ -95,8 +95,27 @@ def test_the_stations_patterns_ask_about_misfits_and_refuse_unknown_part_numbers
     assert read_line(Scan(), "PE-EDC-0002", context).switched_variant
 
 
+def test_a_job_reference_scanned_at_any_prompt_is_noted_for_the_valve_and_keeps_the_prompt() -> None:
+    """#53 item 8: the job or vehicle reference, scanned with the valve, reaches the customer's page. A line that
+    fits the shop's ``[scan] job`` pattern is it, at any prompt; without a pattern no line is one."""
+    rules = scan_rules({"job": r"JOB-\d{6}"}, "station.toml")
+    context = ScanContext(PARTS.part_numbers, rules)
+    for scan in (Scan(), Scan(step=Step.PUMP_SERIAL, valve_id="V-1"),
+                 Scan(step=Step.MOUNT, valve_id="V-1", pump_serial="PS-1")):
+        answer = read_line(scan, "JOB-004711", context)
+        assert answer.noted and not answer.refused and not answer.start_test
+        assert answer.scan == Scan(step=scan.step, valve_id=scan.valve_id, pump_serial=scan.pump_serial,
+                                   job_ref="JOB-004711")
+        assert answer.message == "job or vehicle reference JOB-004711 noted for this valve"
+    kept = read_line(read_line(Scan(job_ref="JOB-004711"), "V-1", context).scan, "PS-1", context).scan
+    assert kept.job_ref == "JOB-004711" and kept.step is Step.MOUNT
+    assert read_line(kept, "", context).start_test
+    unset = read_line(Scan(), "JOB-004711", ScanContext(PARTS.part_numbers, scan_rules({}, "station.toml")))
+    assert not unset.noted and unset.scan.valve_id == "JOB-004711"  # no pattern: an id like any other
+
+
 @pytest.mark.parametrize(("section", "words"), [
-    ({"valve": "V"}, "[scan] valve is not a field; the fields are valve_id, pump_serial, part_number"),
+    ({"valve": "V"}, "[scan] valve is not a field; the fields are valve_id, pump_serial, part_number, job"),
     ({"valve_id": "V-("}, "is not a regular expression"),
     ({"valve_id": 5}, "give a regular expression as a string"),
 ])

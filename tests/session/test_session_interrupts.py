@@ -15,7 +15,7 @@ from pathlib import Path
 
 import can
 import pytest
-from tmux_terminal import NEEDS_TMUX, Terminal, terminal_env
+from tmux_terminal import NEEDS_TMUX, Terminal, set_up_station, terminal_env
 
 from edc_bench.history.store import HistoryStore
 from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
@@ -35,7 +35,7 @@ class Session(Terminal):
         self.cwd, self.url = cwd, f"sqlite:///{cwd / 'h.sqlite'}"
         command = ["sh", "-c", 'echo $$ > session.pid; exec "$@"', "sh", sys.executable, "-m", "edc_bench", "session",
                    "--operator", "Anna", "--db", self.url]
-        super().__init__(command, cwd, terminal_env({"EDC_BENCH_DATA_DIR": str(cwd / "data")}))
+        super().__init__(command, cwd, terminal_env({"EDC_BENCH_DATA_DIR": str(set_up_station(cwd / "data"))}))
 
     def send(self, sig: int) -> None:
         """Send ``sig`` to the session's process (the shell exec'd it: the pid it wrote is the app's)."""

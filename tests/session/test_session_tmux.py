@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from tmux_terminal import NEEDS_TMUX, Terminal, terminal_env
+from tmux_terminal import NEEDS_TMUX, Terminal, set_up_station, terminal_env
 
 pytestmark = NEEDS_TMUX
 
@@ -28,6 +28,9 @@ def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> 
     try:
         term.wait_for("Type your NAME")
         term.keys("Anna", "Enter")
+        term.wait_for("Type the WORKSHOP's")  # a station new to the session: asked once, after the operator
+        term.keys("Diesel Müller GmbH", "Enter", "Hauptstraße 5, 80331 München", "Enter")
+        term.wait_for("workshop kept in")
         term.wait_for("operator Anna")
         term.keys("clearance=0.185", "Enter")
         term.wait_for("PUMP SERIAL")
@@ -55,7 +58,7 @@ def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> 
 def test_at_80x24_the_prompts_wrap_and_keys_typed_during_a_test_are_held_back(tmp_path: Path) -> None:
     """#53: at 80 columns the one-line prompt was cut before what to do; keys typed during a test were glued to the
     next valve id."""
-    env = terminal_env({"EDC_BENCH_DATA_DIR": str(tmp_path / "data")})
+    env = terminal_env({"EDC_BENCH_DATA_DIR": str(set_up_station(tmp_path / "data"))})
     term = Terminal([sys.executable, "-m", "edc_bench", "session", "--operator", "Anna", "--db",
                      f"sqlite:///{tmp_path / 'h.sqlite'}"], tmp_path, env, columns=80, rows=24)
     try:

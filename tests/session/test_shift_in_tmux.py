@@ -88,6 +88,10 @@ def _pdf_page1(folder: Path) -> str:
 def test_a_shift_of_ten_valves_records_exactly_what_was_scanned_and_one_decision_everywhere(
         tmp_path: Path, columns: int, rows: int) -> None:
     db = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    (tmp_path / "data").mkdir()
+    # the workshop set (the session asks for it only where it is not), and the shop's job labels
+    (tmp_path / "data" / "station.toml").write_text('[station]\nshop = "Diesel Müller GmbH"\n\n[scan]\n'
+                                                    "job = 'JOB-\\d{6}'\n", encoding="utf-8")
     env = terminal_env({"EDC_BENCH_DATA_DIR": str(tmp_path / "data")})
     term = Terminal([sys.executable, "-m", "edc_bench", "session", "--operator", "Anna", "--db", db, "--out",
                      str(tmp_path / "records")], tmp_path, env, columns=columns, rows=rows)
@@ -105,14 +109,17 @@ def test_a_shift_of_ten_valves_records_exactly_what_was_scanned_and_one_decision
         shift.wait_for_tests(1)
         assert "Scan it again after the verdict" in flat(refused)
 
-        # 2. the valve's label scanned again as the pump serial: asked, then the right serial
+        # 2. the job's label first; the valve's label scanned again as the pump serial: asked, then the right serial
         shift.prompt_whole("Scan or type the VALVE ID, then Enter")
+        shift.scan("JOB-004711")
+        shift.shows("job or vehicle reference JOB-004711 noted for this valve")
         shift.scan("worn")
         shift.prompt_whole("Scan or type the PUMP SERIAL, then Enter")
         shift.scan("worn")
         shift.shows("the pump serial 'worn' is the valve id again (the same label scanned twice?)")
         shift.scan("PS-2")
-        shift.prompt_whole("Valve worn on pump PS-2. Mount the valve on the rig, then press Enter to test it")
+        shift.prompt_whole("Valve worn on pump PS-2 (job JOB-004711). Mount the valve on the rig, then press Enter to "
+                           "test it")
         term.keys("Enter")
         failed = shift.wait_for_tests(2)
         assert "WORN: REPLACE THE VALVE" in failed
@@ -199,3 +206,74 @@ def test_a_shift_of_ten_valves_records_exactly_what_was_scanned_and_one_decision
     for row in pair_rows:
         page1 = flat(_pdf_page1(Path(row["record_dir"])))
         assert "FAIL" in page1 and "tested twice" in page1, page1
+    # the job on its valve's page only; the seized valve's second report says what the screen said
+    (worn,) = [r for r in rows if r["valve_id"] == "worn"]
+    assert "Job / vehicle JOB-004711" in flat(_pdf_page1(Path(worn["record_dir"])))
+    assert all("JOB-004711" not in flat(_pdf_page1(Path(r["record_dir"]))) for r in rows if r["valve_id"] == "new")
+    first_seized, second_seized = sorted((r for r in rows if r["valve_id"] == SEIZED), key=lambda r: r["started_at"])
+    assert "may be seized" not in flat(_pdf_page1(Path(first_seized["record_dir"])))
+    assert "it may be seized. Replace the valve, or have it examined" in flat(
+        _pdf_page1(Path(second_seized["record_dir"])))
+
+
+@pytest.mark.parametrize("columns, rows", [(80, 24), (200, 60)])
+def test_a_rig_no_go_at_the_start_of_a_shift_holds_every_valve_and_says_the_next_step_whole(
+        tmp_path: Path, columns: int, rows: int) -> None:
+    """#53 item 2 and its done-when, on a rig whose current sensor reads 3 % high: the workshop asked once, the
+    reference valve asked for at the start of the shift (Ctrl+Q there asks, Enter checks), NO-GO; a valve scanned
+    after it is held while the reference valve is mounted and checked again (NO-GO again); Esc at the next ask is a
+    skip kept in the rig's ledger. Every instruction is on screen whole, at 80x24 and at 200x60, and no valve is
+    tested on the drifted rig."""
+    db = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    data = tmp_path / "data"
+    env = terminal_env({"EDC_BENCH_DATA_DIR": str(data), "TZ": "Europe/Berlin"})
+    registered = edc_bench("rig-selfcheck", "--register", "--valve-id", "REF-1", "--station", "bench-3", "--db", db,
+                           "--by", "Eng", cwd=tmp_path, env=env)
+    assert registered.returncode == 0, registered.stderr
+    term = Terminal([sys.executable, "-m", "edc_bench", "session", "--operator", "Anna", "--station", "bench-3",
+                     "--rig-drift", "current_gain=1.03", "--db", db, "--out", str(tmp_path / "records")], tmp_path, env,
+                    columns=columns, rows=rows)
+    shift = Shift(term)
+    reference = "mount the reference valve REF-1, then press Enter"
+    try:
+        asked = shift.shows("Type the WORKSHOP's")  # in a box: its border between the lines
+        assert "(Enter alone: none)" in asked
+        term.keys("Diesel Müller GmbH", "Enter", "Hauptstraße 5, 80331 München", "Enter")
+        shift.prompt_whole(f"Rig self-check (the start of the shift): {reference}")
+        term.keys("C-q")
+        shift.shows("End the shift? Press Ctrl+Q again within 10 s")
+        term.keys("Enter")  # the reference valve is mounted
+        shift.shows("rig self-check: NO-GO")
+        no_go = shift.prompt_whole("the rig is not fit to judge valves: do what the self-check says, then F6 to check "
+                                   "again")
+        assert "calibrate the current sensor against a reference shunt, then run the self-check again" in flat(no_go)
+
+        shift.prompt_whole("Scan or type the VALVE ID, then Enter")
+        shift.scan("V-1")
+        shift.scan("PS-1")
+        shift.prompt_whole("Valve V-1 on pump PS-1. Mount the valve on the rig, then press Enter to test it")
+        term.keys("Enter")
+        shift.prompt_whole(f"was NO-GO: the rig must pass one before it tests valves): {reference}")
+        term.keys("Enter")  # mounted again, checked again
+        again = shift.prompt_whole("Valve V-1 on pump PS-1. Mount the valve on the rig, then press Enter to test it")
+        assert "rig self-check: NO-GO" in flat(again)
+        term.keys("Enter")
+        shift.prompt_whole(f"was NO-GO: the rig must pass one before it tests valves): {reference}")
+        term.keys("Escape")
+        skipped = shift.prompt_whole("Scan or type the VALVE ID, then Enter")
+        # beside the valve's history in the side panel: its lines are read one by one
+        shift.shows("rig self-check skipped: kept in the rig's ledger")
+        shift.shows("again before the next valve's test")
+        assert shift.counts() == (0, 0), skipped
+        term.keys("C-q")
+        shift.shows("End the shift? Press Ctrl+Q again")
+        term.keys("C-q")
+        ended = term.wait_for("EXITED", 120)
+    finally:
+        term.close()
+    assert "EXITED 0" in ended and "rig self-checks: 2 NO-GO, 1 not run" in flat(ended), ended
+    ledger = json.loads(edc_bench("history", "--rig", "--json", "--db", db, env=env).stdout)
+    assert [(c["verdict"], c["checked_by"]) for c in ledger[0]["checks"]] == [
+        ("NO-GO", "Anna"), ("NO-GO", "Anna"), ("SKIPPED", "Anna")]
+    assert json.loads(edc_bench("history", "--json", "--db", db, env=env).stdout) == []  # no valve judged
+    assert "shop = \"Diesel Müller GmbH\"" in (data / "station.toml").read_text(encoding="utf-8")
