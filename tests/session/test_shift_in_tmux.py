@@ -223,7 +223,8 @@ def test_a_rig_no_go_at_the_start_of_a_shift_holds_every_valve_and_says_the_next
     reference valve asked for at the start of the shift (Ctrl+Q there asks, Enter checks), NO-GO; a valve scanned
     after it is held while the reference valve is mounted and checked again (NO-GO again); Esc at the next ask is a
     skip kept in the rig's ledger. Every instruction is on screen whole, at 80x24 and at 200x60, and no valve is
-    tested on the drifted rig."""
+    tested on the drifted rig. The sensor calibrated, the next shift's check with the reference valve is GO and the
+    valve is judged."""
     db = f"sqlite:///{tmp_path / 'h.sqlite'}"
     data = tmp_path / "data"
     env = terminal_env({"EDC_BENCH_DATA_DIR": str(data), "TZ": "Europe/Berlin"})
@@ -272,8 +273,27 @@ def test_a_rig_no_go_at_the_start_of_a_shift_holds_every_valve_and_says_the_next
     finally:
         term.close()
     assert "EXITED 0" in ended and "rig self-checks: 2 NO-GO, 1 not run" in flat(ended), ended
+    assert json.loads(edc_bench("history", "--json", "--db", db, env=env).stdout) == []  # no valve judged
+
+    # the current sensor calibrated: the next shift mounts the reference valve, GO, and valves are judged again
+    term = Terminal([sys.executable, "-m", "edc_bench", "session", "--operator", "Anna", "--station", "bench-3",
+                     "--db", db, "--out", str(tmp_path / "records")], tmp_path, env, columns=columns, rows=rows)
+    shift = Shift(term)
+    try:
+        shift.prompt_whole(f"Rig self-check (the start of the shift): {reference}")  # the workshop not asked again
+        term.keys("Enter")
+        shift.shows("rig self-check: GO")
+        judged = shift.valve("V-1", "PS-1")
+        assert "WORN" in judged or "REUSABLE" in judged or "NEAR THE LIMIT" in judged, judged
+        term.keys("C-q")
+        shift.shows("End the shift? Press Ctrl+Q again")
+        term.keys("C-q")
+        ended = term.wait_for("EXITED", 120)
+    finally:
+        term.close()
+    assert "EXITED 0" in ended and "rig self-checks: 1 GO" in flat(ended), ended
     ledger = json.loads(edc_bench("history", "--rig", "--json", "--db", db, env=env).stdout)
     assert [(c["verdict"], c["checked_by"]) for c in ledger[0]["checks"]] == [
-        ("NO-GO", "Anna"), ("NO-GO", "Anna"), ("SKIPPED", "Anna")]
-    assert json.loads(edc_bench("history", "--json", "--db", db, env=env).stdout) == []  # no valve judged
+        ("NO-GO", "Anna"), ("NO-GO", "Anna"), ("SKIPPED", "Anna"), ("GO", "Anna")]
+    assert [r["valve_id"] for r in json.loads(edc_bench("history", "--json", "--db", db, env=env).stdout)] == ["V-1"]
     assert "shop = \"Diesel Müller GmbH\"" in (data / "station.toml").read_text(encoding="utf-8")
