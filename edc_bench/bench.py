@@ -51,6 +51,7 @@ from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
+from edc_bench.runtime.clock_kind import ClockKind
 from edc_bench.runtime.gain_check import check_variant_gains
 from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase, StopRule
 from edc_bench.runtime.priority import realtime_priority
@@ -176,7 +177,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=o.truth, classify=o.classify,
                           classifier_path=o.classifier_path, coil_temp_c=o.coil_temp_c,
                           nominal_baseline=o.nominal_baseline, calibrate_command=o.calibrate_command,
-                          baseline=baseline, real_rig=not isinstance(clock, SimulatedClock))
+                          baseline=baseline, real_rig=clock.kind is ClockKind.REAL_TIME)
     return BenchResult(
         stop=stop_summary(variant, outcome, o.full_length, stop_rule is not None),
         judgement=judgement,
@@ -187,7 +188,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
         valve_id=o.valve_id,
         started_at=started,
         test_id=test_id,
-        clock="simulated" if isinstance(clock, SimulatedClock) else "real-time",
+        clock=str(clock.kind),
         trace=trace,
         frames=loop.frames,
         truth=o.truth,

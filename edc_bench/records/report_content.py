@@ -16,13 +16,14 @@ from pathlib import Path
 from edc_bench.records.advice import CUSTOMER_WORDS
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.records.schema import Record
+from edc_bench.runtime.clock_kind import ClockKind
 from edc_bench.timefmt import offset_text
 from edc_bench.verdict.verdicts import Verdict
 
 #: units of the identified parameters, as the parameter table heads them
 UNITS = {"a3": "V s\u00b3/mm", "a2": "V s\u00b2/mm", "a1": "V s/mm", "a0": "V/mm", "b": "V", "af": "V"}
 #: the record's clock, as the engineer's page says it
-_CLOCKS = {"simulated": "simulated time", "real-time": "real time"}
+_CLOCKS = {ClockKind.SIMULATED: "simulated time", ClockKind.REAL_TIME: "real time"}
 #: the parameters in the table's order: the two diagnosis features first
 PARAMETER_ORDER = ("af", "a1", "a0", "a2", "b", "a3")
 

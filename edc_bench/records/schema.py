@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
 from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
+from edc_bench.runtime.clock_kind import ClockKind
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -334,7 +335,7 @@ class Record(Section):
     @property
     def real_time(self) -> bool:
         """The test ran on the wall clock (a rig on a bus), not in simulated time."""
-        return self.clock == "real-time"
+        return self.clock == ClockKind.REAL_TIME
 
 
 def undeclared_keys(record: Record) -> list[str]:

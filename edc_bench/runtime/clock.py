@@ -15,6 +15,8 @@ from typing import Protocol
 
 from mypy_extensions import mypyc_attr
 
+from edc_bench.runtime.clock_kind import ClockKind
+
 
 def cpu_steal_s() -> float:
     """CPU time the hypervisor has taken from this machine (all cores), from /proc/stat.
@@ -50,6 +52,9 @@ class Clock(ABC):
     #: in a wheel the loop is compiled (hatch_build.py) and reads the
     #: instance's value, never a subclass's class attribute.
     waits_for_replies: bool = True
+    #: Simulated or real time: what the record says of the test (a wrapper sets its inner clock's, on the
+    #: instance, as above).
+    kind: ClockKind = ClockKind.REAL_TIME
 
     def start(self) -> None:
         """Make now time 0."""
@@ -82,6 +87,7 @@ class SimulatedClock(Clock):
     """
 
     waits_for_replies = False
+    kind = ClockKind.SIMULATED
 
     def __init__(self, rig: LockstepRig | None = None) -> None:
         self.rig = rig

@@ -417,7 +417,7 @@ class SessionApp(App[None]):
             why = self.awaiting_why
             # a due check skipped is kept in the rig's ledger; one asked for by F6 was not due: nothing to keep
             kept = self.selfcheck.skip(why) if why != ASKED_FOR and self.selfcheck is not None else ""
-            self.shift.rig_checks.append(RigCheckEntry(None, "skipped by the operator", now_local()))
+            self.shift.rig_checks.append(RigCheckEntry(None, "rig self-check: skipped by the operator", now_local()))
             due_still = self.selfcheck is not None and why != ASKED_FOR and self.selfcheck.due()
             again = ("it is due: asked for again before the next valve's test" if due_still else
                      "asked for again when due; F6 runs it now")
@@ -627,7 +627,7 @@ class SessionApp(App[None]):
         try:
             words = self.selfcheck.run()
         except Exception as exc:  # noqa: BLE001 - said on the screen; the shift goes on
-            words = SelfCheckWords(False, f"the rig self-check could not run ({type(exc).__name__}: {exc})")
+            words = SelfCheckWords(False, f"rig self-check: could not run ({type(exc).__name__}: {exc})")
         self.call_from_thread(self._selfcheck_done, words)
 
     def _selfcheck_done(self, words: SelfCheckWords) -> None:
@@ -635,7 +635,7 @@ class SessionApp(App[None]):
         typed = self._typed_during_test()
         self.shift.rig_checks.append(RigCheckEntry(words.go, words.words, now_local()))
         style = {True: "green", False: "red"}.get(words.go, "yellow")
-        line = words.words if words.words.startswith("rig self-check") else f"rig self-check: {words.words}"
+        line = words.words  # a whole line, "rig self-check: ..." (SelfCheckWords)
         # in the wide panel (no test's figures are on it now): a NO-GO's words whole at 80x24, not in a narrow column
         self.query_one("#live", Static).update(Text(line, style=f"bold {style}"))
         self._show_prompt()

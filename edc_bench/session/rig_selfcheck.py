@@ -14,7 +14,8 @@ from edc_bench.session.runner import RigChoice
 
 @dataclass(frozen=True)
 class SelfCheckWords:
-    """A rig self-check as the session shows it: GO (True), NO-GO (False) or not run (None), and its words."""
+    """A rig self-check as the session shows it: GO (True), NO-GO (False) or not run (None), and its words: a whole
+    line that names the check ("rig self-check: ..."), shown and kept as it is."""
 
     go: bool | None
     words: str
@@ -76,7 +77,7 @@ class SessionSelfCheck:
             rig = Rig(bus=self.rig.bus_config, drift=self.rig.rig_drift)
             check = run_selfcheck(rig, registration, variant, seed=seed)
             if stop_requested():  # Ctrl-C or SIGTERM cut the reference valve's test: its figures judge nothing
-                return SelfCheckWords(None, "rig self-check interrupted (Ctrl-C or SIGTERM): not stored; run it "
+                return SelfCheckWords(None, "rig self-check: interrupted (Ctrl-C or SIGTERM): not stored; run it "
                                             "again")
             store.add_rig_check(rig_check_row(check, self.station, self.by()))
         self.checks += 1

@@ -89,8 +89,7 @@ class ShiftLog:
         lines = [*self.summary_lines(), ""]
         lines += [f"{local_text(v.at, seconds=True)}  {v.valve_id}  pump {v.pump_serial}  {v.variant}  {' then '.join(v.verdicts)}  ->  "
                   f"{v.final}: {v.words}  ({', '.join(Path(r).name for r in v.records)})" for v in self.valves]
-        lines += [f"{local_text(c.at, seconds=True)}  " + (c.words if c.words.startswith("rig self-check") else f"rig self-check: {c.words}")
-                  for c in self.rig_checks]
+        lines += [f"{local_text(c.at, seconds=True)}  {c.words}" for c in self.rig_checks]
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write(text_path, lambda f: f.write("\n".join(lines) + "\n"), mode="w")
         data = {"operator": self.operator, "station": self.station, "rig": self.rig, "started": self.started,

@@ -35,6 +35,7 @@ class StallingClock(Clock):
         self.next_stall_s = every_s if first_s is None else first_s
         self.stalls = 0
         self.waits_for_replies = inner.waits_for_replies
+        self.kind = inner.kind  # a stalled simulated test is simulated time still
 
     def start(self) -> None:
         """Start the inner clock."""

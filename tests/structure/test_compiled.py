@@ -113,4 +113,6 @@ def test_the_compiled_modules_give_the_records_of_the_source() -> None:
     compiled = _digest_in_process()
     assert from_source.pop("tick_module").endswith(".py") and not compiled.pop("tick_module").endswith(".py")
     assert json.loads(compiled["new-host-stalls"]["record_json"])["loop"]["gaps"] > 0  # the stalls cost ticks
+    # a wrapped simulated clock is simulated time: once recorded as "real-time", with a false caution (#54)
+    assert json.loads(compiled["new-host-stalls"]["record_json"])["clock"] == "simulated"
     assert from_source == compiled
