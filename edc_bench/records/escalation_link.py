@@ -36,6 +36,14 @@ def _parse(started_at: str) -> dt.datetime | None:
     return when if when.tzinfo is not None else None
 
 
+def _folder_time(name: str) -> dt.datetime | None:
+    """The local start a record folder's name begins with (``20261126T110400+0100``), None if it has none."""
+    try:
+        return dt.datetime.strptime(name[:20], "%Y%m%dT%H%M%S%z")
+    except ValueError:
+        return None
+
+
 def find_escalation(folder: Path, valve_id: str, variant: str, started_at: str, verdict: str,
                     cause: Cause | None) -> EscalationSummary | None:
     """The escalation of a test about to be written into ``folder``, or None.
@@ -73,6 +81,11 @@ def find_escalation(folder: Path, valve_id: str, variant: str, started_at: str, 
         return None
     earlier: list[tuple[dt.datetime, Path, object]] = []
     for candidate in candidates:
+        named = _folder_time(candidate.name)
+        # a station's records folder may hold hundreds of one id's tests ("new"): only those its name puts near
+        # the window are read (an hour's slack either side for a clock or zone change)
+        if named is not None and not (dt.timedelta(hours=-1) <= now - named <= dt.timedelta(hours=WINDOW_H + 1)):
+            continue
         try:
             record = load_record(candidate)
         except Exception:  # noqa: BLE001 - a damaged neighbour escalates nothing; its own reader says what it lacks

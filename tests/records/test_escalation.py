@@ -63,3 +63,13 @@ def test_an_invalid_after_a_judged_test_or_of_another_valve_is_not_escalated(tmp
     assert code == 12 and json.loads(out)["escalation"] is None
     code, out, other = _test(tmp_path, capsys, STIFF, "V-10", 3, "--json")
     assert code == 12 and json.loads(out)["escalation"] is None
+
+
+def test_only_records_whose_names_lie_near_the_window_are_read(tmp_path: Path, capsys) -> None:
+    """A station's folder may hold hundreds of one id's tests: the earlier test is looked for only among folders
+    named within the window (here the stiff valve's first record, renamed as if three days old, is not read)."""
+    code, _, first = _test(tmp_path, capsys, STIFF, "V-11", 1, "--json")
+    assert code == 12
+    first.rename(first.with_name("20000101T000000+0000" + first.name[20:]))
+    code, out, _ = _test(tmp_path, capsys, STIFF, "V-11", 2, "--json")
+    assert code == 12 and json.loads(out)["escalation"] is None
