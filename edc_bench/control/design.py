@@ -19,7 +19,8 @@ from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.coil import averaging_window_s
 from edc_bench.control.estimators import Estimator, NormalisedGradient, RecursiveLeastSquares
 from edc_bench.control.fel import FelController
-from edc_bench.control.pid import Pid, PidGains, derivative_filter_coefficients
+from edc_bench.control.law import derivative_filter_coefficients
+from edc_bench.control.pid import Pid, PidGains
 from edc_bench.control.reference import Reference, Tone
 from edc_bench.physics.feedforward import nominal_parameters
 

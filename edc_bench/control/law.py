@@ -93,6 +93,17 @@ ARRAYS = ArrayOps()
 
 # -- the PID -------------------------------------------------------------------------------------------------------
 
+def derivative_filter_coefficients(gains: Any, period_s: float) -> tuple[float, float]:
+    """Coefficients ``(a, b)`` of the backward-Euler filtered derivative ``d_k = a d_{k-1} + b (e_k - e_{k-1})``,
+    from the gains (:class:`~edc_bench.control.pid.PidGains`: its ``kd_v_s_per_mm`` and ``derivative_filter_hz``).
+
+    The one discretisation of the derivative: the PID, its vectorised twin in
+    the batch path and the gain check's loop model all take it from here.
+    """
+    tau = 1.0 / (2.0 * math.pi * gains.derivative_filter_hz)
+    return tau / (tau + period_s), gains.kd_v_s_per_mm / (tau + period_s)
+
+
 @dataclass(frozen=True)
 class PidCoefficients:
     """The PID's numbers for one period: gains, the derivative filter's coefficients, the output limit."""
@@ -107,8 +118,6 @@ class PidCoefficients:
     @classmethod
     def of(cls, gains: Any, period_s: float, limit_v: float) -> PidCoefficients:
         """From the gains (:class:`~edc_bench.control.pid.PidGains`), the period and the drive limit."""
-        from edc_bench.control.pid import derivative_filter_coefficients
-
         a, b = derivative_filter_coefficients(gains, period_s)
         return cls(gains.kp_v_per_mm, gains.ki_v_per_mm_s, period_s, a, b, limit_v)
 

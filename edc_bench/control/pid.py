@@ -31,16 +31,6 @@ class PidGains:
     derivative_filter_hz: float
 
 
-def derivative_filter_coefficients(gains: PidGains, period_s: float) -> tuple[float, float]:
-    """Coefficients ``(a, b)`` of the backward-Euler filtered derivative ``d_k = a d_{k-1} + b (e_k - e_{k-1})``.
-
-    The one discretisation of the derivative: the PID, its vectorised twin in
-    the batch path and the gain check's loop model all take it from here.
-    """
-    tau = 1.0 / (2.0 * math.pi * gains.derivative_filter_hz)
-    return tau / (tau + period_s), gains.kd_v_s_per_mm / (tau + period_s)
-
-
 class Pid:
     """Parallel PID: ``u = kp e + ki int(e) + kd D(e)``, D a filtered derivative.
 

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from edc_bench.config.models import Variant
-from edc_bench.control.pid import PidGains, derivative_filter_coefficients
+from edc_bench.control.law import derivative_filter_coefficients
+from edc_bench.control.pid import PidGains
 from edc_bench.errors import ConfigError
 from edc_bench.physics.parameters import PlantParameters
 

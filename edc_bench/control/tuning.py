@@ -28,7 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edc_bench.control.pid import PidGains, derivative_filter_coefficients
+from edc_bench.control.law import derivative_filter_coefficients
+from edc_bench.control.pid import PidGains
 from edc_bench.control.stability import LoopMargins, delayed_plant, discrete_pid, loop_margins
 from edc_bench.errors import ConfigError
 from edc_bench.physics.parameters import PlantParameters

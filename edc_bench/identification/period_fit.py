@@ -827,7 +827,8 @@ def expected_drive_noise_v(variant: Variant) -> float:
     ``d_k = a d_{k-1} + b (e_k - e_{k-1})``, then through the fit's smoothing: sigma^2 times the sum of the squared
     impulse response. The integrator's share is negligible at the tick rate.
     """
-    from edc_bench.control.pid import PidGains, derivative_filter_coefficients
+    from edc_bench.control.law import derivative_filter_coefficients
+    from edc_bench.control.pid import PidGains
 
     c = variant.controller
     lvdt = variant.sensors.lvdt

@@ -23,14 +23,11 @@ section 14). Pure arithmetic: floats or numpy arrays alike.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, TypeVar
+from typing import TypeVar
 
 import numpy as np
 
 from edc_bench.config.models import Variant
-
-if TYPE_CHECKING:
-    from edc_bench.physics.feedforward import FeedforwardParameters
 
 #: The temperature the coil spec and the nominal resistance are stated at.
 REFERENCE_TEMP_C = 20.0
@@ -54,22 +51,6 @@ def temperature_after_c(temp_c: Number, power_w: Number, dt_s: float, ambient_c:
     steady = ambient_c + power_w * resistance_k_per_w
     decay = math.exp(-dt_s / (capacity_j_per_k * resistance_k_per_w))
     return steady + (temp_c - steady) * decay
-
-
-def inductive_shares(variant: Variant) -> FeedforwardParameters:
-    """The share of each feedforward parameter that comes from the coil's inductance, not its resistance.
-
-    ``a3 = L m / K``, ``a2`` has ``L c / K`` (c: the nominal new valve's damping), ``a1`` has ``L k' / K``;
-    ``a0``, ``b`` and ``af`` have none. With the variant's nominal inductance.
-    """
-    from edc_bench.physics.feedforward import FeedforwardParameters  # valve -> coil: imported when used
-    from edc_bench.physics.valve import nominal_plant
-
-    p = nominal_plant(variant)
-    gain = p.amplifier_gain * p.force_constant_n_per_a
-    l_h = p.inductance_h
-    return FeedforwardParameters(a3=l_h * p.mass_n_s2_per_mm / gain, a2=l_h * p.damping_n_s_per_mm / gain,
-                                 a1=l_h * p.net_stiffness_n_per_mm / gain, a0=0.0, b=0.0, af=0.0)
 
 
 def referred_from_estimate(inductive_v: float, estimate: Number, reference_ohm: float,

@@ -77,3 +77,16 @@ def feedforward_truth(params: PlantParameters) -> FeedforwardParameters:
 def nominal_parameters(variant: Variant) -> FeedforwardParameters:
     """Feedforward parameters of the variant's nominal plant, from the data-sheet physics."""
     return feedforward_truth(nominal_plant(variant))
+
+
+def inductive_shares(variant: Variant) -> FeedforwardParameters:
+    """The share of each feedforward parameter that comes from the coil's inductance, not its resistance.
+
+    ``a3 = L m / K``, ``a2`` has ``L c / K`` (c: the nominal new valve's damping), ``a1`` has ``L k' / K``;
+    ``a0``, ``b`` and ``af`` have none. With the variant's nominal inductance.
+    """
+    p = nominal_plant(variant)
+    gain = p.amplifier_gain * p.force_constant_n_per_a
+    l_h = p.inductance_h
+    return FeedforwardParameters(a3=l_h * p.mass_n_s2_per_mm / gain, a2=l_h * p.damping_n_s_per_mm / gain,
+                                 a1=l_h * p.net_stiffness_n_per_mm / gain, a0=0.0, b=0.0, af=0.0)

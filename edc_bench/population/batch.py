@@ -42,12 +42,11 @@ from edc_bench.identification.period_fit import (
 )
 from edc_bench.identification.trust import Problem, judged_condition_number, trust_problems
 from edc_bench.physics.coil import (
-    inductive_shares,
     referred_from_estimate,
     resistance_at_ohm,
     temperature_after_c,
 )
-from edc_bench.physics.feedforward import feedforward_truth
+from edc_bench.physics.feedforward import feedforward_truth, inductive_shares
 from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink

@@ -51,7 +51,8 @@ def reference_values(variant: Variant, rest: RestReading, result: Any,
     -------
     ReferenceValues
     """
-    from edc_bench.physics.coil import inductive_shares, resistance_20c_ohm, volts_at_coil
+    from edc_bench.physics.coil import resistance_20c_ohm, volts_at_coil
+    from edc_bench.physics.feedforward import inductive_shares
     from edc_bench.verdict.judgement import measured_resistance_ohm
     from edc_bench.verdict.verdicts import Verdict
 

@@ -62,7 +62,8 @@ from edc_bench.identification.period_fit import (
 )
 from edc_bench.identification.student_t import t_quantile
 from edc_bench.identification.trust import judged_condition_number, trust_problems
-from edc_bench.physics.coil import inductive_shares, referred_from_estimate
+from edc_bench.physics.coil import referred_from_estimate
+from edc_bench.physics.feedforward import inductive_shares
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.classifier import ValveClassifier
 

@@ -24,7 +24,8 @@ from edc_bench.identification.analysis import Identification, ModelFit, analyse
 from edc_bench.identification.coil_check import coil_finding, coil_reason
 from edc_bench.identification.period_fit import DRIFT_MIN_PERIODS
 from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_problems
-from edc_bench.physics.coil import inductive_shares, referred_from_estimate, volts_at_coil
+from edc_bench.physics.coil import referred_from_estimate, volts_at_coil
+from edc_bench.physics.feedforward import inductive_shares
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s

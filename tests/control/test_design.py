@@ -8,7 +8,7 @@ import pytest
 from edc_bench.config import Variant
 from edc_bench.config.models import PARAMETER_NAMES
 from edc_bench.control.design import START_AT_ZERO, ControllerDesign
-from edc_bench.control.pid import derivative_filter_coefficients
+from edc_bench.control.law import derivative_filter_coefficients
 from edc_bench.perf.compute import lean_tick
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.physics.valve import ValveSpec
