@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from edc_bench.records.integrity import altered, file_digest
+from edc_bench.records.integrity import Change, altered, file_digest
 from edc_bench.records.writer import RECORD_FILE
 from edc_bench.timefmt import local_text
 
@@ -44,7 +44,7 @@ def check_row(row: dict[str, Any]) -> Finding | None:
         return finding("missing", "the record folder is gone")
     if not path.is_file():
         return finding("missing", f"{RECORD_FILE} is gone")
-    changes: list[str] = []
+    changes: list[Change] = []
     if row.get("record_manifest"):
         try:
             doc = json.loads(path.read_text(encoding="utf-8"))
@@ -53,10 +53,10 @@ def check_row(row: dict[str, Any]) -> Finding | None:
         # held to the manifest kept when it was indexed, not to the one in the folder now (which may be rewritten)
         manifest = json.loads(row["record_manifest"])
         changes = altered({**doc, "integrity": manifest}, folder) if isinstance(doc, dict) else \
-            [f"{RECORD_FILE} (not readable)"]
+            [Change(f"{RECORD_FILE} (not readable)", RECORD_FILE)]
     if row.get("record_sha256") and file_digest(path) != row["record_sha256"] \
-            and not any(change.startswith(RECORD_FILE) for change in changes):
-        changes.insert(0, f"{RECORD_FILE} (not the file indexed)")
+            and not any(change.file == RECORD_FILE for change in changes):
+        changes.insert(0, Change(f"{RECORD_FILE} (not the file indexed)", RECORD_FILE))
     return finding("altered", "; ".join(changes)) if changes else None
 
 

@@ -82,6 +82,16 @@ class LabelledTests:
         return Dataset(columns, provenance)
 
 
+
+def _training_data(metadata: dict[str, str]) -> dict[str, object]:
+    """A model's training-data provenance (its ``edc_bench.training_data`` metadata, JSON), as a mapping; {} for a
+    model without one or with one that is not a JSON object."""
+    try:
+        found = json.loads(metadata.get("edc_bench.training_data", "{}"))
+    except ValueError:
+        return {}
+    return found if isinstance(found, dict) else {}
+
 def check_enough(labels: np.ndarray, valves: np.ndarray | None = None) -> None:
     """Refuse, with the counts, when there are too few labels to train and cross-validate on.
 
@@ -235,7 +245,7 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
     candidate = _export(np.vstack([prior_x, x]), np.concatenate([prior_y, y]),
                         _weights(len(prior_x), len(y), prior_weight), seed, metadata, current)
     # a current model that learnt from shop labels (an adopted candidate) has likely seen these very tests
-    learnt_from_labels = "labels_sha256" in current.metadata.get("edc_bench.training_data", "")
+    learnt_from_labels = "labels_sha256" in _training_data(current.metadata)
     return ShopTraining(candidate=candidate, name=name,
                         candidate_cv=score(f"{name} (cross-validated)", cv_verdicts.astype(str), cv_decisions, y),
                         current=score(current.name, now_verdicts, now_decisions, y, learnt_from_labels), folds=FOLDS,

@@ -26,6 +26,8 @@ import re
 from pathlib import Path
 from typing import Any
 
+from edc_bench.records.writer import RECORD_FILE
+
 #: The record schema from which record.json must carry its manifest.
 INTEGRITY_SCHEMA = 5
 ALGORITHM = "sha256"
@@ -70,7 +72,19 @@ def manifest(doc: dict[str, Any], folder: Path, files: list[str]) -> dict[str, A
             "sections": {key: section_digest(value) for key, value in doc.items() if key != "integrity"}}
 
 
-def altered(doc: dict[str, Any], folder: Path) -> list[str]:
+class Change(str):
+    """One change found in a record, as a person reads it (``record.json's 'verdict'``), and the file it is in
+    (``file``): a caller asks which file, never the words."""
+
+    file: str
+
+    def __new__(cls, words: str, file: str) -> Change:
+        made = super().__new__(cls, words)
+        made.file = file
+        return made
+
+
+def altered(doc: dict[str, Any], folder: Path) -> list[Change]:
     """What changed in a record since its test wrote it (empty: nothing, or a record too old to carry a manifest).
 
     ``doc`` is record.json's content as read, before any upgrade.
@@ -83,26 +97,27 @@ def altered(doc: dict[str, Any], folder: Path) -> list[str]:
         signs = manifest_writer_signs(doc)
         if signs:  # a lowered schema, the manifest removed: the record says who wrote it
             shown = " and ".join(signs[:2]) + (f" (and {len(signs) - 2} more)" if len(signs) > 2 else "")
-            return [f"record.json's integrity manifest (removed: its schema says {doc.get('schema')!r}, but it holds "
-                    f"{shown}, written only by an edc-bench that writes a manifest)"]
+            return [Change(f"record.json's integrity manifest (removed: its schema says {doc.get('schema')!r}, but it "
+                           f"holds {shown}, written only by an edc-bench that writes a manifest)", RECORD_FILE)]
         return []  # an older record: nothing to check it against (a lowered schema with a manifest is checked)
     kept = doc.get("integrity")
     if not isinstance(kept, dict) or not isinstance(kept.get("sections"), dict) \
             or not isinstance(kept.get("files"), dict):
-        return ["record.json's integrity manifest (removed or damaged)"]
-    changes = []
+        return [Change("record.json's integrity manifest (removed or damaged)", RECORD_FILE)]
+    changes: list[Change] = []
     sections = kept["sections"]
     for key in sorted(set(doc) - {"integrity"} | set(sections)):
         if key not in doc:
-            changes.append(f"record.json's {key!r} (removed)")
+            changes.append(Change(f"record.json's {key!r} (removed)", RECORD_FILE))
         elif sections.get(key) != section_digest(doc[key]):
-            changes.append(f"record.json's {key!r}" + (" (added)" if key not in sections else ""))
+            added = " (added)" if key not in sections else ""
+            changes.append(Change(f"record.json's {key!r}{added}", RECORD_FILE))
     for name, digest in sorted(kept["files"].items()):
         path = folder / name
         if not path.is_file():
-            changes.append(f"{name} (missing)")
+            changes.append(Change(f"{name} (missing)", name))
         elif file_digest(path) != digest:
-            changes.append(name)
+            changes.append(Change(name, name))
     return changes
 
 
