@@ -162,12 +162,12 @@ def profile_batch() -> dict:
 
     from edc_bench.config import load_variant
     from edc_bench.population import batch
-    from edc_bench.population.batch_stop import StopRule
+    from edc_bench.population.batch_stop import BatchStopRule
     from edc_bench.population.valves import draw_population
 
     variant = load_variant("p-edc-default")
     valves = draw_population(variant, 1000, 7)
-    rule = StopRule.shipped(variant)
+    rule = BatchStopRule.shipped(variant)
     batch.run_batch(variant, valves[:4], list(range(4)), stop=rule)  # warm: imports, the compiled kernels
     spent: dict[str, float] = defaultdict(float)
     spent_in_tail: dict[str, float] = defaultdict(float)

@@ -155,7 +155,7 @@ def _audit_table(events: list[dict[str, Any]], valve: str) -> None:
 def _verify(args: argparse.Namespace) -> int:
     from edc_bench.cli.exit_codes import ExitCode
     from edc_bench.history.store import HistoryStore
-    from edc_bench.history.verify import Finding, changed_findings, model_findings, verify
+    from edc_bench.history.verify import RecordFinding, changed_findings, model_findings, verify
     from edc_bench.verdict.classifier import shipped_model_hashes
 
     kept = _read_heads(args.heads) if args.heads is not None else None
@@ -169,7 +169,7 @@ def _verify(args: argparse.Namespace) -> int:
                     f"{local_text(e['happened_at'], seconds=True)} ({e['detail']}): rows may have been changed "
                     "while they were (the chain above names where)" for e in store.guard_events()]
         where = store.shown_url
-    found: list[Finding] = verify(rows) + changed_findings(changes) + model_findings(rows, adoptions,
+    found: list[RecordFinding] = verify(rows) + changed_findings(changes) + model_findings(rows, adoptions,
                                                                                     shipped_model_hashes())
     chain = [b.line() for b in breaks] + gone_heads + restored
     if args.json:

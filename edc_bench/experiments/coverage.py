@@ -34,7 +34,7 @@ from edc_bench.learning.evaluation import verdict_counts
 from edc_bench.physics.valve import ValveSpec
 from edc_bench.physics.wear import is_faulty
 from edc_bench.population.batch import run_batch
-from edc_bench.population.batch_stop import StopOutcome, StopRule
+from edc_bench.population.batch_stop import StopOutcome, BatchStopRule
 from edc_bench.population.calibrate import population_run
 from edc_bench.population.valves import draw_population
 from edc_bench.verdict.baseline import Baseline, baseline_from_tests
@@ -130,7 +130,7 @@ def coverage_study(population: CoveragePopulation, classifier: ValveClassifier |
     shop = shop_baseline(variant, calibration_valves, seed + 1)
     valves = population.draw(variant, count, seed)
     result = run_batch(variant, valves, [seed * 100_000 + n for n in range(count)],
-                       stop=StopRule.of(variant, classifier, shop.measured))
+                       stop=BatchStopRule.of(variant, classifier, shop.measured))
     assert result.stop is not None  # a run with a stop rule records its stops
     labels = np.array([is_faulty(variant, v) for v in valves])
     figures = coverage_figures(result.stop, result.parameters, result.truth, shop, classifier, labels)

@@ -21,7 +21,7 @@ from edc_bench.physics.wear import (
     resisting_force_n,
 )
 from edc_bench.population.batch import BatchResult, run_batch
-from edc_bench.population.batch_stop import StopOutcome, StopRule
+from edc_bench.population.batch_stop import StopOutcome, BatchStopRule
 from edc_bench.population.valves import draw_population, new_valves
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.classifier import ValveClassifier, judge_of
@@ -36,7 +36,7 @@ def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassi
 
     The period fit after each number of whole periods is what a test stopped then would have found
     (:class:`~edc_bench.population.batch.PeriodResults`), so the rule
-    (:class:`~edc_bench.population.batch_stop.StopRule`, the loop's) is applied period by period. A batch run with
+    (:class:`~edc_bench.population.batch_stop.BatchStopRule`, the loop's) is applied period by period. A batch run with
     that rule (``run_batch(..., stop=...)``) stops each test there itself and finds the same.
 
     Returns
@@ -46,7 +46,7 @@ def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassi
         the baseline then, and whether it stopped because the model does not fit.
     """
     periods = result.periods
-    rule = StopRule.of(variant, classifier, baseline)
+    rule = BatchStopRule.of(variant, classifier, baseline)
     n = len(result.parameters)
     stopped = StopOutcome(n)
     running = np.ones(n, dtype=bool)
@@ -159,7 +159,7 @@ def gain_sweep(classifier: ValveClassifier | None, variations_rel: list[float], 
     for variation in variations_rel:
         variant = with_gain_variation(base_variant, variation)
         # each test stops where the bench's would, with its figures then
-        result = run_batch(variant, valves, seeds, stop=StopRule.of(variant, classifier, baseline))
+        result = run_batch(variant, valves, seeds, stop=BatchStopRule.of(variant, classifier, baseline))
         stopped = result.stop
         trusted, features, misfit = stopped.trusted, stopped.features_rel, stopped.misfit
         gain = stopped.gain_variation_rel

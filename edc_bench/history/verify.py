@@ -22,7 +22,7 @@ from edc_bench.timefmt import local_text
 
 
 @dataclass(frozen=True)
-class Finding:
+class RecordFinding:
     """One indexed test whose folder is not as it was indexed."""
 
     test_id: int
@@ -32,13 +32,13 @@ class Finding:
     detail: str
 
 
-def check_row(row: dict[str, Any]) -> Finding | None:
+def check_row(row: dict[str, Any]) -> RecordFinding | None:
     """What is wrong with one indexed test's folder (None: as indexed, as far as the history can tell)."""
     folder = Path(row["record_dir"])
     path = folder / RECORD_FILE
 
-    def finding(problem: str, detail: str) -> Finding:
-        return Finding(row["id"], row["valve_id"], row["record_dir"], problem, detail)
+    def finding(problem: str, detail: str) -> RecordFinding:
+        return RecordFinding(row["id"], row["valve_id"], row["record_dir"], problem, detail)
 
     if not folder.is_dir():
         return finding("missing", "the record folder is gone")
@@ -60,7 +60,7 @@ def check_row(row: dict[str, Any]) -> Finding | None:
     return finding("altered", "; ".join(changes)) if changes else None
 
 
-def verify(rows: list[dict[str, Any]]) -> list[Finding]:
+def verify(rows: list[dict[str, Any]]) -> list[RecordFinding]:
     """The findings over every indexed test as it stands (:meth:`~edc_bench.history.store.HistoryStore.indexed`).
 
     A folder that cannot be read (a file the system refuses, record.json damaged beyond reading) is a finding of
@@ -71,24 +71,24 @@ def verify(rows: list[dict[str, Any]]) -> list[Finding]:
         try:
             problem = check_row(row)
         except (OSError, ValueError, TypeError, AttributeError) as exc:
-            problem = Finding(row["id"], row["valve_id"], row["record_dir"], "altered",
+            problem = RecordFinding(row["id"], row["valve_id"], row["record_dir"], "altered",
                               f"not readable ({type(exc).__name__}: {exc})")
         if problem is not None:
             found.append(problem)
     return found
 
 
-def changed_findings(rows: list[dict[str, Any]]) -> list[Finding]:
+def changed_findings(rows: list[dict[str, Any]]) -> list[RecordFinding]:
     """One finding per row that indexed a test again with other content than its first indexing
     (:meth:`~edc_bench.history.store.HistoryStore.changed_tests`): the first stands, and this is said every time."""
-    return [Finding(row["first_id"], row["valve_id"], row["record_dir"], "changed",
+    return [RecordFinding(row["first_id"], row["valve_id"], row["record_dir"], "changed",
                     f"indexed again with other content as row {row['id']} ({row['verdict']}, at "
                     f"{local_text(row['indexed_at'], seconds=True)} by database login {row['db_login'] or '(none)'}): the first "
                     "indexing stands; the record was changed after its test")
             for row in rows]
 
 
-def model_findings(rows: list[dict[str, Any]], adoptions: list[dict[str, Any]], shipped: set[str]) -> list[Finding]:
+def model_findings(rows: list[dict[str, Any]], adoptions: list[dict[str, Any]], shipped: set[str]) -> list[RecordFinding]:
     """One finding per test judged by a model that is neither shipped nor adopted for its station in the history
     before it was indexed (an adoption that bypassed the chain, or a model put in the station's folder by hand).
 
@@ -110,7 +110,7 @@ def model_findings(rows: list[dict[str, Any]], adoptions: list[dict[str, Any]], 
         if any(a["station"] == row["station"] and a["model_sha256"] == sha and a["adopted_at"] <= when
                for a in adoptions):
             continue
-        found.append(Finding(row["id"], row["valve_id"], row["record_dir"], "model",
+        found.append(RecordFinding(row["id"], row["valve_id"], row["record_dir"], "model",
                              f"judged by a model (sha256 {sha[:12]}..., {row.get('model_name') or 'unnamed'}) the "
                              f"history records no adoption of for station {row['station']!r} before the test was "
                              "indexed: an adoption that bypassed the history, or a model put in by hand"))

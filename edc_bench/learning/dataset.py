@@ -29,7 +29,7 @@ from edc_bench.paths import atomic_write
 from edc_bench.physics.valve import ValveSpec
 from edc_bench.physics.wear import is_faulty, resisting_force_n
 from edc_bench.population.batch import run_batch
-from edc_bench.population.batch_stop import StopRule
+from edc_bench.population.batch_stop import BatchStopRule
 from edc_bench.population.valves import draw_population
 from edc_bench.verdict.baseline import load_baseline
 
@@ -109,7 +109,7 @@ class Dataset:
 
 def _chunk_worker(args: tuple[Variant, list[ValveSpec], list[int], bool]) -> tuple[np.ndarray, np.ndarray]:
     variant, valves, seeds, early_stop = args
-    result = run_batch(variant, valves, seeds, stop=StopRule.shipped(variant) if early_stop else None)
+    result = run_batch(variant, valves, seeds, stop=BatchStopRule.shipped(variant) if early_stop else None)
     return result.parameters[:, [5, 2]], result.trusted
 
 
@@ -118,7 +118,7 @@ def run_population(variant: Variant, valves: list[ValveSpec], seeds: list[int], 
     """Batch tests of ``valves`` in chunks of ``chunk`` valves, over ``workers`` processes.
 
     With ``early_stop``, each test stops where the bench's would (the packaged classifier and baseline,
-    :class:`~edc_bench.population.batch_stop.StopRule`), with its figures then; by default every test runs its
+    :class:`~edc_bench.population.batch_stop.BatchStopRule`), with its figures then; by default every test runs its
     full length (training data: the classifier is what decides a stop).
 
     Returns

@@ -22,13 +22,13 @@ def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, floa
     from edc_bench.config import load_variant
     from edc_bench.learning.dataset import run_population
     from edc_bench.population.batch import run_batch
-    from edc_bench.population.batch_stop import StopRule
+    from edc_bench.population.batch_stop import BatchStopRule
     from edc_bench.population.valves import draw_population
 
     variant = load_variant(variant_name)
     population = draw_population(variant, valves, 7)
     seeds = list(range(valves))
-    rule = StopRule.shipped(variant)
+    rule = BatchStopRule.shipped(variant)
     # once per process, not per test: numba's import and the compiled kernels (compiled on a station's first batch)
     run_batch(variant, population[:2], seeds[:2], stop=rule)
     t0 = time.perf_counter()

@@ -50,7 +50,7 @@ from edc_bench.physics.feedforward import feedforward_truth, inductive_shares
 from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink
-from edc_bench.population.batch_stop import StopOutcome, StopRule
+from edc_bench.population.batch_stop import StopOutcome, BatchStopRule
 from edc_bench.population.rig_kernels import advance, dissipate, pump_constants, quantised_reading
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
@@ -458,7 +458,7 @@ class _Controller:
 
 def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
               sensor_noise: bool = True, adapter: AdapterModel | None = None,
-              stop: StopRule | None = None) -> BatchResult:
+              stop: BatchStopRule | None = None) -> BatchResult:
     """Run one simulated bench test per valve, vectorised.
 
     Parameters
@@ -475,7 +475,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         A CAN adapter between bench and rig (:mod:`edc_bench.population.batch_link`): commands take effect and
         samples are taken when it delivers them, and the PID uses the newest sample young enough
         (``acceptance.max_reply_age_ms``), holding its output otherwise. Instant by default.
-    stop : StopRule, optional
+    stop : BatchStopRule, optional
         The bench's early stop (:mod:`edc_bench.population.batch_stop`): each test ends after the period where the
         loop's would, and the result holds what it had found then (``BatchResult.stop``; no ``periods``). By
         default every test runs its full length.
@@ -513,7 +513,7 @@ class _BatchRun:
 
     def __init__(self, design: ControllerDesign, plant: _VectorPlant, sensors: _Sensors, controller: _Controller,
                  link: BatchLink | None, feeder: _RowFeeder, lag: int, periods: PeriodResults,
-                 stop: StopRule | None) -> None:
+                 stop: BatchStopRule | None) -> None:
         self.design, self.plant, self.sensors, self.controller = design, plant, sensors, controller
         self.reference = controller.reference
         self.link, self.feeder, self.lag, self.periods = link, feeder, lag, periods

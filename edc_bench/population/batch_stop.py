@@ -6,7 +6,7 @@ certain or the model does not fit; so does the batch, with the same function
 leaves the batch, which then runs on with the others only: a population costs what its tests' real lengths
 cost, not the full length each.
 
-:class:`StopRule` decides; :class:`StopOutcome` keeps what each valve's test had found when it stopped.
+:class:`BatchStopRule` decides; :class:`StopOutcome` keeps what each valve's test had found when it stopped.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ class StopDecision:
 
 
 @dataclass(frozen=True)
-class StopRule:
+class BatchStopRule:
     """The loop's early stop for a batch: the classifier and the baseline a bench test of ``variant`` uses.
 
     Build it with :meth:`of` (or :meth:`shipped` for the model the variant's valves are judged by and the packaged
@@ -55,14 +55,14 @@ class StopRule:
     interval: Interval
 
     @classmethod
-    def of(cls, variant: Variant, classifier: ValveClassifier, baseline: Baseline) -> StopRule:
+    def of(cls, variant: Variant, classifier: ValveClassifier, baseline: Baseline) -> BatchStopRule:
         """The rule for ``variant``'s tests, judged by ``classifier`` against ``baseline``."""
         design = ControllerDesign.from_variant(variant)
         max_periods = FitSetup.from_variant(variant).blocks_in(design.ticks)
         return cls(variant, classifier, baseline, Interval.of(variant, max_periods))
 
     @classmethod
-    def shipped(cls, variant: Variant) -> StopRule:
+    def shipped(cls, variant: Variant) -> BatchStopRule:
         """The rule with the model ``variant``'s valves are judged by and ``variant``'s packaged baseline."""
         return cls.of(variant, default_classifier(variant=variant), load_baseline(variant, station=False))
 
@@ -148,4 +148,4 @@ class StopOutcome:
         self.coil_end_ohm[which] = coil_end_ohm[stop]
 
 
-__all__ = ["StopDecision", "StopOutcome", "StopRule"]
+__all__ = ["BatchStopRule", "StopDecision", "StopOutcome"]

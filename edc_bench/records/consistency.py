@@ -36,7 +36,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from edc_bench.engine.problems import Problem
-from edc_bench.records.schema import Classification, Record
+from edc_bench.records.schema import ClassificationSummary, Record
 from edc_bench.verdict.verdicts import Verdict
 
 #: The record schema from which record.json keeps the verdict's problems as values (before: sentences only).
@@ -182,7 +182,7 @@ def _coil(record: Record) -> list[str]:
     return found
 
 
-def _limits(record: Record, c: Classification) -> tuple[float, float] | None:
+def _limits(record: Record, c: ClassificationSummary) -> tuple[float, float] | None:
     """The classifier's threshold and marginal band as the record keeps them (None: it keeps neither)."""
     plane = record.decision_plane
     threshold = c.threshold if c.threshold is not None else (plane.threshold if plane is not None else None)
@@ -268,7 +268,7 @@ def _model(record: Record) -> list[str]:
     return []
 
 
-def _plane(record: Record, c: Classification, rel: tuple[float, float]) -> list[str]:
+def _plane(record: Record, c: ClassificationSummary, rel: tuple[float, float]) -> list[str]:
     """6 without the model: the valve's side of the boundary in the decision plane, where its grid cell is all on
     one side (P(faulty) at each corner of the cell the valve is in)."""
     plane = record.decision_plane

@@ -62,7 +62,7 @@ class CoilFinding(Section):
     inductance_source: str = ""
 
 
-class Classification(Section):
+class ClassificationSummary(Section):
     """The classifier's judgement of the features, naming the model exactly."""
 
     verdict: Verdict
@@ -115,7 +115,7 @@ class ParameterEstimate(Section):
     error_rel: float | None = None
 
 
-class ModelFit(Section):
+class ModelFitSummary(Section):
     """How well the pump model fits the measurement (and, when it does not, why)."""
 
     residual_rms_v: float | None = None
@@ -143,7 +143,7 @@ class IdentificationSummary(Section):
     samples_used: int | None = None
     condition_number: float | None = None
     residual_rms_v: float | None = None
-    model_fit: ModelFit | None = None
+    model_fit: ModelFitSummary | None = None
     gain_terms: dict[str, float | None] | None = None
     online_settle_s: dict[str, float | None] | None = None
 
@@ -291,7 +291,7 @@ class Record(Section):
     features: dict[str, float | None] = Field(default_factory=dict)
     features_volt: dict[str, float | None] = Field(default_factory=dict)
     coil: CoilFinding | None = None
-    classification: Classification | None = None
+    classification: ClassificationSummary | None = None
     baseline: BaselineSummary | None = None
     reference_values: dict[str, ReferenceValue] = Field(default_factory=dict)
     decision_plane: DecisionPlane | None = None

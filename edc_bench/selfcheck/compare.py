@@ -173,7 +173,7 @@ class QuantityCheck:
 
 
 @dataclass(frozen=True)
-class Finding:
+class DriftFinding:
     """One drift named: its cause and the words for the technician (what moved, the limit, what to do)."""
 
     cause: Cause
@@ -188,12 +188,12 @@ class SelfCheckResult:
     ----------
     quantities : tuple of QuantityCheck
         Every figure, in the order of :data:`QUANTITIES`.
-    findings : tuple of Finding
+    findings : tuple of DriftFinding
         The drifts named (empty for GO).
     """
 
     quantities: tuple[QuantityCheck, ...]
-    findings: tuple[Finding, ...] = field(default_factory=tuple)
+    findings: tuple[DriftFinding, ...] = field(default_factory=tuple)
 
     @property
     def go(self) -> bool:
@@ -259,9 +259,9 @@ def compare(measured: ReferenceValues, registered: ReferenceValues, tolerances: 
     trusted = not measured.test_problems
     checks = {name: _check(name, getattr(measured, name), getattr(registered, name), tolerances.of(name),
                            trusted or name in REST_QUANTITIES) for name in QUANTITIES}
-    findings: list[Finding] = []
+    findings: list[DriftFinding] = []
     if trusted is False:
-        findings.append(Finding(Cause.TEST, "the reference test was not trustworthy (" + "; ".join(
+        findings.append(DriftFinding(Cause.TEST, "the reference test was not trustworthy (" + "; ".join(
             measured.test_problems[:2]) + "): check the reference valve's mounting and the rig as the reasons say, "
             + _AGAIN))
 
@@ -271,21 +271,21 @@ def compare(measured: ReferenceValues, registered: ReferenceValues, tolerances: 
         drift = 0.0 - registered.lvdt_zero_mm
         checks["lvdt_zero_mm"] = zero = QuantityCheck(zero.name, zero.measured, zero.registered, drift,
                                                       zero.tolerance, True)
-        findings.append(Finding(Cause.LVDT_ZERO, f"LVDT zero moved down to 0.000 mm or below (registered "
+        findings.append(DriftFinding(Cause.LVDT_ZERO, f"LVDT zero moved down to 0.000 mm or below (registered "
                                 f"{registered.lvdt_zero_mm:.3f} mm, limit {zero.limit_text()}; the rig reports no "
                                 f"less than 0 mm): check the LVDT's mounting and zero it, {_AGAIN}"))
     elif zero.out:
-        findings.append(Finding(Cause.LVDT_ZERO, f"LVDT zero moved {zero.drift_text()} (limit {zero.limit_text()}): "
+        findings.append(DriftFinding(Cause.LVDT_ZERO, f"LVDT zero moved {zero.drift_text()} (limit {zero.limit_text()}): "
                                 f"check the LVDT's mounting and zero it, {_AGAIN}"))
     current_zero = checks["current_zero_a"]
     if current_zero.out:
-        findings.append(Finding(Cause.CURRENT_ZERO, f"current sensor zero moved {current_zero.drift_text()} (limit "
+        findings.append(DriftFinding(Cause.CURRENT_ZERO, f"current sensor zero moved {current_zero.drift_text()} (limit "
                                 f"{current_zero.limit_text()}): zero the current sensor (its offset adjustment), "
                                 + _AGAIN))
 
     coil, a0, af, a1 = (checks[n] for n in ("coil_r20_ohm", "a0_v_per_mm", "af_v", "a1_v_s_per_mm"))
     if coil.out:
-        findings.append(Finding(Cause.CURRENT_GAIN, f"coil resistance measured {coil.drift_text()} (limit "
+        findings.append(DriftFinding(Cause.CURRENT_GAIN, f"coil resistance measured {coil.drift_text()} (limit "
                                 f"{coil.limit_text()}): the current sensor's gain has changed (or the reference "
                                 f"valve's coil is warmer than stated: let it rest); calibrate the current sensor "
                                 f"against a reference shunt, {_AGAIN}"))
@@ -299,7 +299,7 @@ def compare(measured: ReferenceValues, registered: ReferenceValues, tolerances: 
         explained = ["af_v", "a0_v_per_mm"] + (["a1_v_s_per_mm"] if a1.out and together(a0, a1) else [])
         for name in explained:
             checks[name] = _explained(checks[name], Cause.DRIVE)
-        findings.append(Finding(Cause.DRIVE, f"friction af, spring rate a0{' and damping a1' if len(explained) > 2 else ''} "
+        findings.append(DriftFinding(Cause.DRIVE, f"friction af, spring rate a0{' and damping a1' if len(explained) > 2 else ''} "
                                 f"moved alike, {a0.drift_text()} (limit {a0.limit_text()}): the drive amplifier's gain "
                                 f"or the supply has changed, or the reference valve's coil is warmer than stated (let "
                                 f"it rest); check the amplifier against a voltmeter, {_AGAIN}"))
@@ -308,13 +308,13 @@ def compare(measured: ReferenceValues, registered: ReferenceValues, tolerances: 
         moved_with = a1.out and together(a0, a1)
         if moved_with:
             checks["a1_v_s_per_mm"] = _explained(a1, Cause.LVDT_GAIN)
-        findings.append(Finding(Cause.LVDT_GAIN, f"LVDT gain changed: the spring rate measured moved "
+        findings.append(DriftFinding(Cause.LVDT_GAIN, f"LVDT gain changed: the spring rate measured moved "
                                 f"{a0.drift_text()}{' and damping a1 with it' if moved_with else ''} (limit "
                                 f"{a0.limit_text()}): calibrate the LVDT's scale against gauge blocks, {_AGAIN}"))
     valve = [checks[n] for n in ("af_v", "a1_v_s_per_mm") if checks[n].out and checks[n].explained_by is None]
     if valve:
         what = " and ".join(f"{LABELS[q.name][0]} {q.drift_text()} (limit {q.limit_text()})" for q in valve)
-        findings.append(Finding(Cause.VALVE, f"the reference valve measures differently: {what}: check its "
+        findings.append(DriftFinding(Cause.VALVE, f"the reference valve measures differently: {what}: check its "
                                 "mounting and the rig's mechanics (rack guides, lubrication); if the reference valve "
                                 f"itself has changed, an engineer registers it again; {_AGAIN}"))
     return SelfCheckResult(tuple(checks[n] for n in QUANTITIES), tuple(findings))
@@ -326,5 +326,5 @@ def _explained(check: QuantityCheck, cause: Cause) -> QuantityCheck:
     return replace(check, explained_by=cause)
 
 
-__all__ = ["LABELS", "QUANTITIES", "Cause", "Finding", "QuantityCheck", "ReferenceValues", "SelfCheckResult",
+__all__ = ["LABELS", "QUANTITIES", "Cause", "DriftFinding", "QuantityCheck", "ReferenceValues", "SelfCheckResult",
            "Tolerances", "compare"]

@@ -8,7 +8,7 @@ import pytest
 from edc_bench.config import load_variant
 from edc_bench.experiments.studies import early_outcome, with_gain_variation
 from edc_bench.population.batch import run_batch
-from edc_bench.population.batch_stop import A1, AF, StopRule
+from edc_bench.population.batch_stop import A1, AF, BatchStopRule
 from edc_bench.population.valves import draw_population
 from edc_bench.sim.adapter import parse_adapter
 from edc_bench.verdict.early_stop import relative_box
@@ -16,10 +16,10 @@ from edc_bench.verdict.early_stop import relative_box
 
 def _both(variant_name: str, count: int, seed: int, adapter: str | None = None, gain_variation: float = 0.0):
     variant = load_variant(variant_name)
-    rule = StopRule.shipped(variant)
+    rule = BatchStopRule.shipped(variant)
     if gain_variation:
         variant = with_gain_variation(variant, gain_variation)
-        rule = StopRule.of(variant, rule.classifier, rule.baseline)
+        rule = BatchStopRule.of(variant, rule.classifier, rule.baseline)
     valves = draw_population(variant, count, seed)
     seeds = [seed * 1000 + n for n in range(count)]
     link = parse_adapter(adapter) if adapter else None
@@ -75,8 +75,8 @@ def test_a_batch_whose_tests_all_run_full_length_is_the_full_batch() -> None:
     """A rule that never finds a verdict certain (a band nothing leaves) ends every test at its full length with
     the full run's figures, to the bit."""
     variant = load_variant("p-edc-default")
-    rule = StopRule.shipped(variant)
-    never = StopRule(variant, _Undecided(rule.classifier), rule.baseline, rule.interval)
+    rule = BatchStopRule.shipped(variant)
+    never = BatchStopRule(variant, _Undecided(rule.classifier), rule.baseline, rule.interval)
     valves = draw_population(variant, 6, 9)
     full = run_batch(variant, valves, list(range(6)))
     stopped = run_batch(variant, valves, list(range(6)), stop=never)
