@@ -194,8 +194,9 @@ def _plot_title(page: Page, x_pt: float, top_pt: float, title: str, width_pt: fl
     return page.lines(x_pt, top_pt, fit_text(title, width_pt, size_pt, min_size_pt=8.0), bold=True) + 7.0
 
 
-#: the chart's largest side: beside it the legend and the caption keep a column of their own
-_DECISION_MAX_PT = 300.0
+#: the chart's largest side: beside it the legend (its longest entry "this valve: MARGINAL (tested twice: FAIL)") and
+#: the caption keep a column of their own
+_DECISION_MAX_PT = 280.0
 
 
 def _decision(page: Page, record: Record, top_pt: float) -> None:
