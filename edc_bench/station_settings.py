@@ -1,6 +1,6 @@
 """The station's settings file: ``station.toml`` in the station's data folder, one section per concern
-(``[station]``'s name and the shop it belongs to, ``[history]``'s time limits, ``[scan]``'s id patterns). Read only;
-a shop edits it with any text editor."""
+(``[station]``'s name and the shop it belongs to, ``[history]``'s time limits, ``[scan]``'s id patterns). A shop
+edits it with any text editor; the session writes only the workshop into it, once (:func:`remember_workshop`)."""
 
 from __future__ import annotations
 
@@ -113,6 +113,7 @@ def remember_workshop(shop: str, address: str, data_folder: Path | None = None) 
 
     from edc_bench.paths import atomic_write
 
+    shop, address = shop.strip(), address.strip()
     for key, value in (("shop", shop), ("shop_address", address)):
         longest = _STATION_KEYS[key]
         if len(value) > longest or not value.isprintable():

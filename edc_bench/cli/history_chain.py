@@ -47,7 +47,8 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
     chain.add_argument("--rig", action="store_true",
                        help="the rig self-check's ledger: each reference valve registered, each 'edc-bench "
                             "rig-selfcheck', GO or NO-GO, what drifted, and each figure's change against the "
-                            "registration with its trend per check (--station: one station's)")
+                            "registration with its trend per check, and each due check skipped (SKIPPED) "
+                            "(--station: one station's)")
     chain.add_argument("--station", type=identity(), default=None, metavar="NAME",
                        help="with --rig or --verify: only this station's; with --map-login: the login's station")
     chain.add_argument("--schema", action="store_true",

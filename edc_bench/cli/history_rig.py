@@ -108,7 +108,7 @@ def ledger_tables(found: list[dict[str, Any]], where: str, console: Any = None) 
             table.add_row(str(c["id"]), when, Text(c.get("checked_by") or ""),
                           Text(c["verdict"], style=_VERDICT_STYLES.get(c["verdict"], "bold red")),
                           *(_change(c["drift"][name], unit) for name, _, unit in _COLUMNS),
-                          Text(", ".join(c["causes"]) if c["verdict"] != "SKIPPED" else f"skipped; it was due: {c['due']}"))
+                          Text(", ".join(c["causes"]) if c["verdict"] != "SKIPPED" else f"skipped; it was due: {c['due'] or 'not recorded'}"))
         per_check = entry["trend_per_check"]
         if any(v is not None for v in per_check.values()):
             table.add_row("trend", "per check", "", "",

@@ -153,7 +153,7 @@ def _check(args: argparse.Namespace, rig: Any, by: str) -> int:
     from edc_bench.config import load_variant
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import HistoryStore
-    from edc_bench.selfcheck import Registration, no_reference_line, rig_check_row, run_selfcheck
+    from edc_bench.selfcheck import MEASURED, Registration, no_reference_line, rig_check_row, run_selfcheck
 
     with HistoryStore(args.db) as store:
         station = _station(args, store)
@@ -172,7 +172,8 @@ def _check(args: argparse.Namespace, rig: Any, by: str) -> int:
         valve = args.valve if rig.simulated and args.valve != "new" else None  # a simulated valve swapped in
         seed = args.seed
         if seed is None:  # a new day's noise: one more than the last check's, counted from the registration's
-            seed = (registration.seed or 0) + 1 + len(store.rig_checks(station, registration.id))
+            measured = [r for r in store.rig_checks(station, registration.id) if r["verdict"] in MEASURED]
+            seed = (registration.seed or 0) + 1 + len(measured)  # a skip measured nothing: no new noise
         _say(args, f"edc-bench rig-selfcheck: reference valve {registration.valve_id} ({registration.variant}) on the "
                    f"{rig.describe()}")
         check = run_selfcheck(rig, registration, variant, seed=seed, valve=valve, coil_temp_c=args.coil_temp_c,

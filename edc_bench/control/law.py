@@ -250,4 +250,5 @@ class CoilAverage:
 
 
 __all__ = ["ARRAYS", "SCALAR", "ArrayOps", "CoilAverage", "Ops", "PidCoefficients", "PidState", "adapting",
+           "derivative_filter_coefficients",
            "feedforward_v", "gradient_update", "pid_update", "rls_update", "saturate"]

@@ -12,7 +12,8 @@ import enum
 
 #: The order, as the error says it.
 ORDER = ("start(sync, ...); then per tick: command(k), sent(k, ...), check(k) and stop_check(k) (skip(k, lost) "
-         "for ticks a host stall cost); finish(); receive(...) and safe_command() at any time")
+         "for ticks a host stall cost); finish(); receive(...), safe_command() and take_stop(..., k) of a tick run "
+         "at any time after start")
 
 
 class EnginePhase(enum.IntEnum):

@@ -18,7 +18,8 @@ changes is said by a new row naming the row it concerns:
 - ``reference_valves``: a station's reference valve for the rig self-check and its figures when registered; a
   registration again is a new row, and the station's newest stands.
 - ``rig_checks``: each rig self-check (``edc-bench rig-selfcheck``): GO or NO-GO, the drifts named, its
-  figures, and the registration it was compared with (the ledger, ``history --rig``).
+  figures, and the registration it was compared with (the ledger, ``history --rig``); and each due check the
+  technician skipped (SKIPPED, no figures).
 
 Every row is hash-chained (``prev_hash``, ``row_hash``: :mod:`edc_bench.history.chain`).
 

@@ -132,6 +132,8 @@ class WorkshopScreen(ModalScreen[tuple[str, str] | None]):
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         event.stop()  # the scan entry's handler is the app's: not this line's
+        if len(self.answers) >= len(self.LONGEST):  # an Enter queued behind the last answer: the screen is closing
+            return
         value = event.value.strip()
         longest = self.LONGEST[len(self.answers)]
         if len(value) > longest or not value.isprintable():
@@ -214,6 +216,7 @@ class SessionApp(App[None]):
         self.selfcheck = selfcheck
         self.awaiting_reference = ""  # the reference valve's id while the session waits for it to be mounted
         self.awaiting_why = ""  # and why it is asked for
+        self.awaiting_due = False  # it is due (the policy, a NO-GO, the shift's start): a skip of it is kept
         self.variant = variant_loader(variant_name)
         self.scan = Scan(variant=self.variant.name)
         self.shift = ShiftLog(operator=operator, station=runner.station, rig=runner.rig.describe())
@@ -414,11 +417,11 @@ class SessionApp(App[None]):
             return
         if self.awaiting_reference:
             self.awaiting_reference = ""
-            why = self.awaiting_why
+            why, due = self.awaiting_why, self.awaiting_due
             # a due check skipped is kept in the rig's ledger; one asked for by F6 was not due: nothing to keep
-            kept = self.selfcheck.skip(why) if why != ASKED_FOR and self.selfcheck is not None else ""
+            kept = self.selfcheck.skip(why) if due and self.selfcheck is not None else ""
             self.shift.rig_checks.append(RigCheckEntry(None, "rig self-check: skipped by the operator", now_local()))
-            due_still = self.selfcheck is not None and why != ASKED_FOR and self.selfcheck.due()
+            due_still = self.selfcheck is not None and due and self.selfcheck.due()
             again = ("it is due: asked for again before the next valve's test" if due_still else
                      "asked for again when due; F6 runs it now")
             self.query_one("#live", Static).update(Text(f"{kept or 'rig self-check skipped'}; {again}",
@@ -596,11 +599,13 @@ class SessionApp(App[None]):
         if why:
             self._ask_for_reference(why)
 
-    def _ask_for_reference(self, why: str) -> None:
+    def _ask_for_reference(self, why: str, due: bool = True) -> None:
         reference = self.selfcheck.reference_valve() if self.selfcheck is not None else None
         if reference is None:
             return
-        self.awaiting_reference, self.awaiting_why = reference, why
+        if self.awaiting_reference and self.awaiting_due and not due:  # F6 on a due check: it stays the due one
+            return
+        self.awaiting_reference, self.awaiting_why, self.awaiting_due = reference, why, due
         self.query_one("#prompt", Label).update(f"Rig self-check ({why}): mount the reference valve {reference}, "
                                                 "then press Enter")
 
@@ -609,7 +614,7 @@ class SessionApp(App[None]):
             if self.selfcheck.reference_valve() is None:
                 self._selfcheck_done(self.selfcheck.no_reference_words())
             else:
-                self._ask_for_reference(ASKED_FOR)
+                self._ask_for_reference(ASKED_FOR, due=False)
 
     def _run_selfcheck_now(self) -> None:
         self.testing = True

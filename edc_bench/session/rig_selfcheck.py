@@ -62,7 +62,7 @@ class SessionSelfCheck:
         from edc_bench.config import load_variant
         from edc_bench.history.store import HistoryStore
         from edc_bench.runtime.signals import stop_requested
-        from edc_bench.selfcheck import Rig, no_reference_line, rig_check_row, run_selfcheck
+        from edc_bench.selfcheck import MEASURED, Rig, no_reference_line, rig_check_row, run_selfcheck
 
         with HistoryStore(self.history_url) as store:
             registration = self._registration(store)
@@ -73,7 +73,8 @@ class SessionSelfCheck:
                 return SelfCheckWords(None, f"rig self-check: the reference valve {registration.valve_id} was "
                                             f"registered on {where}: not checked on this rig")
             variant = load_variant(registration.variant)
-            seed = (registration.seed or 0) + 1 + len(store.rig_checks(self.station, registration.id))
+            measured = [r for r in store.rig_checks(self.station, registration.id) if r["verdict"] in MEASURED]
+            seed = (registration.seed or 0) + 1 + len(measured)  # a skip measured nothing: no new noise
             rig = Rig(bus=self.rig.bus_config, drift=self.rig.rig_drift)
             check = run_selfcheck(rig, registration, variant, seed=seed)
             if stop_requested():  # Ctrl-C or SIGTERM cut the reference valve's test: its figures judge nothing

@@ -118,3 +118,35 @@ def test_the_session_asks_for_the_workshop_once_after_the_operator(tmp_path: Pat
     assert station_identity(data)["shop"] == "Diesel Müller GmbH"
     assert station_identity(data)["shop_address"] == "Hauptstraße 5, 80331 München"
     assert workshop_asked()
+
+
+def test_enter_pressed_fast_at_the_workshop_question_takes_none_and_never_fails(tmp_path: Path, monkeypatch) -> None:
+    """Three Enters in one burst (Enter alone twice, and one more queued while the screen closes, as a scanner's CR
+    LF gives): no workshop is printed, the session goes on (the third once raised IndexError)."""
+    import asyncio
+
+    from edc_bench.session.build import make_app
+    from edc_bench.session.runner import RigChoice
+    from edc_bench.station_settings import station_identity, workshop_asked
+
+    data = tmp_path / "station-data"
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(data))
+
+    async def session() -> str:
+        app = make_app(None, RigChoice(), tmp_path / "records", f"sqlite:///{tmp_path / 'h.sqlite'}", "bench-1", "Jo",
+                       ask_workshop=True)
+        async with app.run_test(size=(80, 24)) as pilot:
+            await pilot.pause()
+            from textual.widgets import Input
+
+            line = app.screen.query_one("#workshop-line", Input)
+            for _ in range(3):  # queued together, as a burst of keys is, before the screen can close
+                line.post_message(Input.Submitted(line, ""))
+            await pilot.pause()
+            await pilot.pause()
+            prompt = str(app.query_one("#prompt").render())
+            await pilot.press("ctrl+q", "ctrl+q")
+        return prompt
+
+    assert asyncio.run(session()) == "Scan or type the VALVE ID, then Enter"
+    assert workshop_asked(data) and station_identity(data)["shop"] == ""

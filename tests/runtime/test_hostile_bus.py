@@ -317,6 +317,7 @@ def test_sent_frames_carry_the_time_they_were_sent(simulated_bench) -> None:
         def __init__(self, inner: SimulatedClock) -> None:
             self.inner = inner
             self.waits_for_replies = True  # on the instance: the compiled loop reads that (Clock's docstring)
+            self.kind = inner.kind  # simulated time still
 
         def now_s(self) -> float:
             return self.inner.now_s()
