@@ -59,6 +59,9 @@ from edc_bench.protocol.errors import ProtocolError
 # flag bits of trace column rig_flags
 FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8, 16
 
+#: The engine's phases as plain ints: compared at every call of the tick, where an IntEnum's lookup is not free
+_IDLE, _TICKING, _FINISHED = int(EnginePhase.IDLE), int(EnginePhase.TICKING), int(EnginePhase.FINISHED)
+
 #: How many of its own commands the engine remembers, to tell an interface's echo from another host's command.
 _OWN_COMMANDS_KEPT = 1024
 
@@ -129,7 +132,7 @@ class TickEngine:
         self.drive_v = math.nan  # the last command's drive
         self.foreign_command = False  # another host's BENCH_CMD was seen
         self.ticking = False  # between start() and finish(): replies are matched to the ticks' commands
-        self.phase = int(EnginePhase.IDLE)
+        self.phase = _IDLE
         self.expected_k = 0  # the next tick to command (or skip)
         self.commanded_k = -1  # the tick whose command was made and is not yet marked sent (-1: none)
         self._sent_s = [0.0] * ticks
@@ -251,7 +254,7 @@ class TickEngine:
 
         Tick k's command carries counter ``sync_counter + 1 + k`` and runs at ``t_start_s + k T``.
         """
-        if self.phase != EnginePhase.IDLE:
+        if self.phase != _IDLE:
             raise order_error("start()", self.phase, self.expected_k, self.commanded_k)
         self.position_mm, self.current_a = sync.position_mm, sync.current_a
         self.run_base = (sync_counter + 1) & 0xFF
@@ -261,12 +264,12 @@ class TickEngine:
         self.outcome.ticks_start_s = t_start_s
         self.last_heartbeat_s = max(self.last_heartbeat_s, sync_s)
         self.ticking = True
-        self.phase = int(EnginePhase.TICKING)
+        self.phase = _TICKING
 
     def delay_start(self, t_start_s: float) -> None:
         """Tick 0 runs no earlier than ``t_start_s`` (clock time): a driver whose clock ran on while :meth:`start`
         built the controller moves the ticks after it, instead of losing their first ones."""
-        if self.phase != EnginePhase.TICKING or self.expected_k != 0 or self.commanded_k >= 0:
+        if self.phase != _TICKING or self.expected_k != 0 or self.commanded_k >= 0:
             raise order_error("delay_start()", self.phase, self.expected_k, self.commanded_k)
         if t_start_s > self.t_start_s:
             self.t_start_s = self.outcome.ticks_start_s = t_start_s
@@ -275,7 +278,7 @@ class TickEngine:
         """The ticks are over: replies that still come (during the safe stop) are no longer the test's. Legal at
         any time (a test may end before its ticks start, or inside a tick)."""
         self.ticking = False
-        self.phase = int(EnginePhase.FINISHED)
+        self.phase = _FINISHED
 
     def _controller(self) -> FelController:
         """The controller, once :meth:`start` built it."""
@@ -292,7 +295,7 @@ class TickEngine:
 
         Skipped, never sent late in a burst.
         """
-        if self.phase != EnginePhase.TICKING or self.commanded_k >= 0 or k != self.expected_k or lost < 1:
+        if self.phase != _TICKING or self.commanded_k >= 0 or k != self.expected_k or lost < 1:
             raise order_error(f"skip({k}, {lost})", self.phase, self.expected_k, self.commanded_k)
         self.expected_k = k + lost
         trace, ctl, t0 = self.trace, self._controller(), self.t_start_s
@@ -307,7 +310,7 @@ class TickEngine:
 
     def command(self, k: int) -> bytes:
         """The controller's step for tick ``k``: the RUN command's payload (its drive in :attr:`drive_v`)."""
-        if self.phase != EnginePhase.TICKING or self.commanded_k >= 0 or k != self.expected_k:
+        if self.phase != _TICKING or self.commanded_k >= 0 or k != self.expected_k:
             raise order_error(f"command({k})", self.phase, self.expected_k, self.commanded_k)
         self.commanded_k = k
         ctl = self._controller()
@@ -317,7 +320,7 @@ class TickEngine:
 
     def sent(self, k: int, sent_s: float, lateness_s: float) -> None:
         """Tick ``k``'s command went out at ``sent_s`` (clock time), ``lateness_s`` after its deadline."""
-        if self.phase != EnginePhase.TICKING or k != self.commanded_k:
+        if self.phase != _TICKING or k != self.commanded_k:
             raise order_error(f"sent({k})", self.phase, self.expected_k, self.commanded_k)
         self.commanded_k = -1
         self.expected_k = k + 1
@@ -334,14 +337,14 @@ class TickEngine:
         self.next_tick = k + 1
 
     # -- decisions -------------------------------------------------------------------------------------------
-    def _after_tick(self, call: str, k: int) -> None:
+    def _after_tick(self, method: str, k: int) -> None:
         """A call that belongs after tick ``k`` was run (commanded and sent) and before the next."""
-        if self.phase != EnginePhase.TICKING or self.commanded_k >= 0 or k != self.expected_k - 1:
-            raise order_error(call, self.phase, self.expected_k, self.commanded_k)
+        if self.phase != _TICKING or self.commanded_k >= 0 or k != self.expected_k - 1:
+            raise order_error(f"{method}({k})", self.phase, self.expected_k, self.commanded_k)
 
     def check(self, k: int) -> Abort | None:
         """After tick ``k``'s reads: the abort that ends the test now, or None."""
-        self._after_tick(f"check({k})", k)
+        self._after_tick("check", k)  # the call's words made only for an error: this runs every tick
         outcome, counts = self.outcome, self.matcher.counts
         outcome.missed_replies = counts.missed
         outcome.max_missed_in_row = counts.max_missed_in_row
@@ -390,7 +393,7 @@ class TickEngine:
 
     def stop_check(self, k: int) -> dict[str, Any] | None:
         """At tick ``k``: the stop rule's decision to end the test now, if it has one (kept in the outcome)."""
-        self._after_tick(f"stop_check({k})", k)
+        self._after_tick("stop_check", k)
         decision = self.stop_rule_call(k)
         if decision is not None:
             self.take_stop(decision, k)
@@ -428,7 +431,7 @@ class TickEngine:
         """The test ends at tick ``k`` on the stop rule's ``decision`` (made at its ``time_s``, a period's end):
         kept in the outcome with ``decided_s``, the trace time at the end of that tick (``time_s`` when taken
         inside the tick, as in simulated time)."""
-        if self.phase == EnginePhase.IDLE or not 0 <= k < self.expected_k:
+        if self.phase == _IDLE or not 0 <= k < self.expected_k:
             raise order_error(f"take_stop(..., {k})", self.phase, self.expected_k, self.commanded_k)
         self.outcome.stop = {**decision, "decided_s": self.tick_time_s(k + 1) - self.t_start_s}
 

@@ -68,6 +68,13 @@ class Shift:
         assert flat(instruction) in flat(screen) and "^q End shift" in screen, screen
         return screen
 
+    def end(self) -> str:
+        """Ctrl+Q, which asks, then Ctrl+Q again; the terminal once the session has exited."""
+        self.term.keys("C-q")
+        self.shows("End the shift? Press Ctrl+Q again")
+        self.term.keys("C-q")
+        return self.term.wait_for("EXITED", 180)
+
     def valve(self, valve_id: str, serial: str, *, tests: int = 1) -> str:
         """Scan a valve and its pump, mount it, test it; the screen with its verdict."""
         self.prompt_whole("Scan or type the VALVE ID, then Enter")
@@ -184,10 +191,7 @@ def test_a_shift_of_ten_valves_records_exactly_what_was_scanned_and_one_decision
         shift.valve("faulty", "PS-10")
         assert shift.counts() == (10, shift.tests)
 
-        term.keys("C-q")
-        shift.shows("End the shift? Press Ctrl+Q again")
-        term.keys("C-q")
-        ended = term.wait_for("EXITED", 180)
+        ended = shift.end()
     finally:
         term.close()
     assert "EXITED 0" in ended and "valves: 10 " in ended
@@ -266,10 +270,7 @@ def test_a_rig_no_go_at_the_start_of_a_shift_holds_every_valve_and_says_the_next
         shift.shows("rig self-check skipped: kept in the rig's ledger")
         shift.shows("again before the next valve's test")
         assert shift.counts() == (0, 0), skipped
-        term.keys("C-q")
-        shift.shows("End the shift? Press Ctrl+Q again")
-        term.keys("C-q")
-        ended = term.wait_for("EXITED", 120)
+        ended = shift.end()
     finally:
         term.close()
     assert "EXITED 0" in ended and "rig self-checks: 2 NO-GO, 1 not run" in flat(ended), ended
@@ -285,10 +286,7 @@ def test_a_rig_no_go_at_the_start_of_a_shift_holds_every_valve_and_says_the_next
         shift.shows("rig self-check: GO")
         judged = shift.valve("V-1", "PS-1")
         assert "WORN" in judged or "REUSABLE" in judged or "NEAR THE LIMIT" in judged, judged
-        term.keys("C-q")
-        shift.shows("End the shift? Press Ctrl+Q again")
-        term.keys("C-q")
-        ended = term.wait_for("EXITED", 120)
+        ended = shift.end()
     finally:
         term.close()
     assert "EXITED 0" in ended and "rig self-checks: 1 GO" in flat(ended), ended
