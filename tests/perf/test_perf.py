@@ -25,8 +25,10 @@ def test_perf_quick_prints_every_group_and_leaves_the_history_alone(tmp_path: Pa
     station = tmp_path / "station"
     env = {**os.environ, "EDC_BENCH_DATA_DIR": str(station)}
     env.pop("EDC_BENCH_HISTORY_URL", None)
+    # run from outside the checkout: `python -m` puts the working folder first on sys.path, and from the checkout's
+    # root it would time the source tree, not the package this process imports (CI installs a compiled wheel)
     proc = subprocess.run([sys.executable, "-m", "edc_bench", "perf", "--quick", "--json"],
-                          capture_output=True, text=True, timeout=600, env=env)
+                          capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     # its simulated tests (the first-tick runs of `edc-bench test`) went to a scratch history, not the station's
     assert not (station / "history.sqlite").exists()
@@ -43,10 +45,11 @@ def test_perf_quick_prints_every_group_and_leaves_the_history_alone(tmp_path: Pa
         # every figure has a target; a quick run's figures are too short to be judged against it, and say so
         assert f["target"] and f["met"] is None and "target not judged: a quick run is too short" in f["note"], f
     assert report["environment"]["quick"] is True
-    # the build it timed, as this process imports it: a module from a .py file is the source, else compiled
-    from edc_bench.engine import tick
-
-    assert report["environment"]["compiled"] is (Path(tick.__file__).suffix != ".py")
+    # the build it timed, as the same interpreter imports it from the same folder: a module from a .py file is the
+    # source, else compiled (this process may import another: `python -m pytest` puts the checkout first)
+    where = subprocess.run([sys.executable, "-c", "import edc_bench.engine.tick as t; print(t.__file__)"],
+                           capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path, check=True)
+    assert report["environment"]["compiled"] is (Path(where.stdout.strip()).suffix != ".py")
 
 
 @pytest.mark.parametrize("kind", ["rls", "gradient"])
