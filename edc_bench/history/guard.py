@@ -13,8 +13,23 @@ from edc_bench.history.secrets import redact
 
 #: PostgreSQL's SQLSTATE for a privilege the login lacks.
 INSUFFICIENT_PRIVILEGE = "42501"
-#: What SQLite says of a damaged file.
-_DAMAGED = ("malformed", "not a database", "disk image", "file is encrypted")
+#: Where PostgreSQL says an error came from when a PL/pgSQL ``RAISE`` made it (its diagnostics' source function):
+#: only the history's own triggers raise, so their refusal is shown in their own words.
+PLPGSQL_RAISE = "exec_stmt_raise"
+#: SQLite's codes: a trigger's ``RAISE(ABORT, ...)`` (only the history's own triggers raise), a damaged file.
+SQLITE_CONSTRAINT_TRIGGER = 1811
+SQLITE_DAMAGED = frozenset({11, 26})  # SQLITE_CORRUPT, SQLITE_NOTADB
+#: How the history's own triggers begin a refusal (0006's; the append-only ones say 'edc-bench history is ...').
+_OWN_PREFIX = "edc-bench history:"
+
+
+def raised_by_history(orig: BaseException) -> bool:
+    """Whether the driver's error is one of the history's own triggers refusing a change (by the error's codes,
+    not its words: a trigger's text may change, a login's message may hold anything)."""
+    diag = getattr(orig, "diag", None)
+    if diag is not None and getattr(diag, "source_function", None) == PLPGSQL_RAISE:
+        return True
+    return getattr(orig, "sqlite_errorcode", None) == SQLITE_CONSTRAINT_TRIGGER
 
 
 def problem(exc: sa.exc.DBAPIError, action: str, shown_url: str, login: str | None = None) -> str:
@@ -22,13 +37,11 @@ def problem(exc: sa.exc.DBAPIError, action: str, shown_url: str, login: str | No
     orig = exc.orig
     text = str(orig).strip()
     first = text.splitlines()[0] if text else type(orig).__name__
-    if first.startswith("edc-bench history:"):  # the database's own words (revision 0006's triggers)
-        return first.removeprefix("edc-bench history:").strip()
+    if raised_by_history(orig):  # the database's own words (the history's triggers)
+        return first.removeprefix(_OWN_PREFIX).strip()
     if getattr(orig, "sqlstate", None) == INSUFFICIENT_PRIVILEGE:
         return refusal(action, login)
-    if "append-only" in first:  # the history's own triggers
-        return first
-    if shown_url.startswith("sqlite") and any(words in first for words in _DAMAGED):  # a station's file, damaged
+    if getattr(orig, "sqlite_errorcode", None) in SQLITE_DAMAGED:  # a station's file, damaged
         from edc_bench.history.url import damaged_advice
 
         path = shown_url.removeprefix("sqlite:///")
