@@ -21,6 +21,7 @@ from pathlib import Path
 
 from edc_bench.records.advice import Cause, escalation
 from edc_bench.records.schema import EscalationSummary
+from edc_bench.records.writer import RECORD_FILE
 from edc_bench.verdict.verdicts import Verdict
 
 #: how long after a valve's INVALID a second INVALID of it escalates (a valve tested again the next day is a new
@@ -42,6 +43,14 @@ def _folder_time(name: str) -> dt.datetime | None:
         return dt.datetime.strptime(name[:20], "%Y%m%dT%H%M%S%z")
     except ValueError:
         return None
+
+
+def _written_ns(folder: Path) -> int:
+    """When the folder's record.json was written (ns since the epoch; 0 if that cannot be read)."""
+    try:
+        return (folder / RECORD_FILE).stat().st_mtime_ns
+    except OSError:
+        return 0
 
 
 def find_escalation(folder: Path, valve_id: str, variant: str, started_at: str, verdict: str,
@@ -79,7 +88,7 @@ def find_escalation(folder: Path, valve_id: str, variant: str, started_at: str, 
                       if d != folder and d.is_dir() and (d.name.endswith(marker) or f"{marker}-" in d.name)]
     except OSError:
         return None
-    earlier: list[tuple[dt.datetime, Path, object]] = []
+    earlier: list[tuple[dt.datetime, int, Path, object]] = []
     for candidate in candidates:
         named = _folder_time(candidate.name)
         # a station's records folder may hold hundreds of one id's tests ("new"): only those its name puts near
@@ -93,10 +102,12 @@ def find_escalation(folder: Path, valve_id: str, variant: str, started_at: str, 
         when = _parse(record.started_at)
         if (record.valve_id == valve_id and record.variant == variant and when is not None
                 and dt.timedelta(0) <= now - when <= dt.timedelta(hours=WINDOW_H)):
-            earlier.append((when, candidate, record))
+            # two tests may start within one second (started_at keeps seconds): the later written is the later
+            written_ns = _written_ns(candidate)
+            earlier.append((when, written_ns, candidate, record))
     if not earlier:
         return None
-    _, last_folder, last = max(earlier, key=lambda entry: entry[0])
+    _, _, last_folder, last = max(earlier, key=lambda entry: (entry[0], entry[1]))
     first_cause = last.invalid_cause if last.verdict == Verdict.INVALID else None  # type: ignore[attr-defined]
     advice = escalation(first_cause, cause)
     if advice is None:

@@ -5,6 +5,7 @@ the second test's report said "check the mounting" again."""
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import shutil
 import subprocess
@@ -30,8 +31,25 @@ def _test(tmp_path: Path, capsys, valve: str, valve_id: str, seed: int, *flags: 
     return code, out, new
 
 
+class _OneSecond(dt.datetime):
+    """Every test starts in the same second (as CI's three did): started_at cannot tell them apart."""
+
+    frozen = dt.datetime.now(dt.UTC).replace(microsecond=0)
+
+    @classmethod
+    def now(cls, tz: dt.tzinfo | None = None) -> dt.datetime:  # type: ignore[override]
+        return cls.frozen if tz is not None else cls.frozen.replace(tzinfo=None)
+
+
+@pytest.mark.parametrize("listing", ["by name", "by name, reversed"])
 def test_the_second_invalid_of_a_stiff_valve_is_escalated_in_the_output_the_record_and_the_report(
-        tmp_path: Path, capsys) -> None:
+        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, listing: str) -> None:
+    import edc_bench.bench
+
+    monkeypatch.setattr(edc_bench.bench._dt, "datetime", _OneSecond)
+    # the folders listed in either order (a file system lists them in its own): the later test is still the last
+    iterdir = Path.iterdir
+    monkeypatch.setattr(Path, "iterdir", lambda self: iter(sorted(iterdir(self), reverse=listing.endswith("reversed"))))
     code, out, first = _test(tmp_path, capsys, STIFF, "V-7", 1, "--plain")
     assert code == 12 and "ESCALATE" not in out and load_record(first).escalation is None
 
