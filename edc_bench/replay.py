@@ -270,7 +270,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     nominal = recorded is not None and recorded.calibrated is False
     # judged against the baseline the record was judged against, whatever the station holds now
     baseline = Baseline.from_summary(recorded.model_dump()) if recorded is not None and recorded.af_v else None
-    if Problem.NOT_CALIBRATED in Problem.from_names(record.problems):
+    if Problem.NOT_CALIBRATED in record.problem_flags:
         nominal_figures = nominal_parameters(variant)  # refused then: refused again, even if calibrated since
         baseline = Baseline(nominal_figures.af, nominal_figures.a1)
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,

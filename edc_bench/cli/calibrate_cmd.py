@@ -10,6 +10,7 @@ from typing import Any
 
 from edc_bench.cli.common import add_bus_arguments, count_up_to, identity, seed_number
 from edc_bench.cli.exit_codes import ExitCode
+from edc_bench.verdict.baseline_source import BaselineSource
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -226,7 +227,7 @@ def _rig_tests(args: argparse.Namespace, config: dict[str, Any], variant: Any, t
         for n in range(tests):
             result = run_bench_test(bus, RealTimeClock(), variant, BenchOptions(
                 valve_id=args.valve_id or "calibration", identity=_identity(args), classify=False))
-            out.extend(_keep(args, result, n, tests, "rig"))
+            out.extend(_keep(args, result, n, tests, BaselineSource.RIG))
             if stop_requested():  # Ctrl-C ended this test (INVALID, recorded): run no more
                 raise KeyboardInterrupt
     return out
@@ -243,7 +244,7 @@ def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, see
     for n in range(tests):
         result = run_simulated_test(variant, valve, seed + n, valve_id=args.valve_id or f"{args.valve} (simulated)",
                                     identity=_identity(args), classify=False)
-        out.extend(_keep(args, result, n, tests, "simulated rig"))
+        out.extend(_keep(args, result, n, tests, BaselineSource.SIMULATED_RIG))
         if stop_requested():
             raise KeyboardInterrupt
     return out
@@ -256,7 +257,7 @@ def _identity(args: argparse.Namespace) -> dict[str, str]:
     return {"station": args.station or default_station(), "purpose": "calibration"}
 
 
-def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: str) -> list[Any]:
+def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: BaselineSource) -> list[Any]:
     """Write the test's record and print its line; the test as a baseline entry if it converged."""
 
     from edc_bench.errors import RecordNotWrittenError

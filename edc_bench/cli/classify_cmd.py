@@ -156,11 +156,13 @@ def not_as_recorded(record: Record, verdict: str, found: list[str], why: str = "
 def _why_else(record: Record, baseline: Baseline, classifier: ValveClassifier) -> str:
     """What differs between the test's judgement of ``record`` and classify's against ``baseline`` with
     ``classifier``: the coil, the model, the baseline (empty: none of them)."""
+    from edc_bench.engine.problems import Problem
+
     why = []
-    if "coil out of spec" in record.problems or (record.coil is not None and record.coil.in_spec is False):
+    if Problem.COIL_OUT_OF_SPEC in record.problem_flags or (record.coil is not None and record.coil.in_spec is False):
         why.append("its coil is out of spec, which fails the valve whatever its wear and which classify does not "
                    "judge")
-    if "not calibrated" in record.problems:
+    if Problem.NOT_CALIBRATED in record.problem_flags:
         why.append("the test had no measured baseline for its variant")
     kept = record.classification
     if kept is not None and kept.model_sha256 and kept.model_sha256 != classifier.sha256:

@@ -22,6 +22,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 
+class RigFaultFlag(enum.StrEnum):
+    """A fault bit of the rig's feedback, as a rig-fault abort's ``flags`` name it (the values are what record.json
+    stores and people read)."""
+
+    WATCHDOG_TRIPPED = "watchdog tripped"
+    OVER_CURRENT = "over-current"
+    LVDT_FAULT = "LVDT fault"
+    TRAVEL_LIMIT = "travel limit"
+
+
 class AbortKind(enum.StrEnum):
     """Why a test was cut short. The values are what record.json stores (``loop.abort.kind``)."""
 

@@ -40,7 +40,7 @@ from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
 from edc_bench.engine.order import EnginePhase, order_error
-from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome
+from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, RigFaultFlag
 from edc_bench.engine.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks, stale_limit_ticks
 from edc_bench.engine.trace import Trace
 from edc_bench.engine.tracking import OffReferenceRun
@@ -359,9 +359,10 @@ class TickEngine:
         """The rig's and the link's checks, in the order they are asked."""
         reply, counts, acceptance = self.newest_reply, self.matcher.counts, self.variant.acceptance
         if reply is not None and reply.any_fault:
-            flags = [name for name, bit in (("watchdog tripped", reply.watchdog_tripped),
-                                            ("over-current", reply.over_current), ("LVDT fault", reply.lvdt_fault),
-                                            ("travel limit", reply.travel_limit)) if bit]
+            flags = [str(flag) for flag, bit in ((RigFaultFlag.WATCHDOG_TRIPPED, reply.watchdog_tripped),
+                                                 (RigFaultFlag.OVER_CURRENT, reply.over_current),
+                                                 (RigFaultFlag.LVDT_FAULT, reply.lvdt_fault),
+                                                 (RigFaultFlag.TRAVEL_LIMIT, reply.travel_limit)) if bit]
             return Abort(AbortKind.RIG_FAULT, {"flags": flags})
         if reply is not None and not reply.amp_enabled:
             return Abort(AbortKind.AMPLIFIER_OFF, {"state": self.rig_state.name if self.rig_state else "unknown",

@@ -10,8 +10,7 @@ from edc_bench.config.models import Variant
 from edc_bench.population.batch import BatchResult, run_batch
 from edc_bench.population.valves import new_valves
 from edc_bench.verdict.baseline import UNCERTAINTY_KEYS, BaselineTest
-
-SIMULATED_POPULATION = "simulated population"
+from edc_bench.verdict.baseline_source import BaselineSource
 
 
 def population_run(variant: Variant, tests: int, seed: int) -> tuple[list[BaselineTest], BatchResult]:
@@ -31,7 +30,7 @@ def population_run(variant: Variant, tests: int, seed: int) -> tuple[list[Baseli
         (figures[0], figures[2]), (figures[1], figures[3]) = fit.relative_figures("af"), fit.relative_figures("a1")
         figures[4] = fit.systematic_rms_v
     kept = [BaselineTest(float(af[n]), float(a1[n]), valve_id=f"{valves[n].label} (seed {seed})",
-                         source=SIMULATED_POPULATION, **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))))
+                         source=BaselineSource.SIMULATED_POPULATION, **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))))
             for n in range(tests) if result.trusted[n]]
     return kept, result
 

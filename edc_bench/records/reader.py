@@ -79,17 +79,39 @@ def typed_record(record: dict[str, Any], source: Path | str) -> Record:
 
 
 def upgraded(record: dict[str, Any]) -> dict[str, Any]:
-    """A record of an older schema in today's form, so that every reader reads one form.
+    """A record of an older schema in today's form, so that every reader reads one form: each schema's step in
+    turn (:func:`_to_schema_4`, :func:`_to_schema_10`). This module is the one place that knows an older record's
+    wording."""
+    version = int(record.get("schema") or 0)
+    if version < 4:
+        record = _to_schema_4(record)
+    if version < 10:
+        record = _to_schema_10(record)
+    return record
 
-    Schema 4 gave as values what older records held only as sentences: the verdict's ``problems``, whether
+
+def _to_schema_10(record: dict[str, Any]) -> dict[str, Any]:
+    """Schema 10 keeps where the baseline's tests ran as values (``baseline.sources``); an older record names them
+    only in its ``baseline.source`` sentence, read here once."""
+    baseline = record.get("baseline")
+    if not isinstance(baseline, dict) or "sources" in baseline:
+        return record
+    from edc_bench.verdict.baseline_source import BaselineSource, sources_of_text
+
+    tests = baseline.get("tests")
+    sources = ({BaselineSource.NOMINAL} if not tests
+               else sources_of_text(baseline.get("source") if isinstance(baseline.get("source"), str) else ""))
+    return {**record, "baseline": {**baseline, "sources": sorted(str(source) for source in sources)}}
+
+
+def _to_schema_4(record: dict[str, Any]) -> dict[str, Any]:
+    """Schema 4 gave as values what older records held only as sentences: the verdict's ``problems``, whether
     the coil's temperature was given (``coil.temp_given``), the abort's kind (``loop.abort``; an older one
     becomes kind ``recorded``, its sentence kept), and the timing's ``ticks_late`` (formerly ``overruns``).
     Reading those sentences is this function's alone: it is the one place that knows the old wording. An older
     record's ``problems`` hold ``aborted`` and ``not calibrated``, what its values and that wording show; the trust
     rule's other problems stay in its reasons only.
     """
-    if int(record.get("schema") or 0) >= 4:
-        return record
     from edc_bench.engine.outcome import abort_from_record
 
     record = dict(record)

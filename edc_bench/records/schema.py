@@ -25,6 +25,7 @@ from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
 from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
 from edc_bench.runtime.clock_kind import ClockKind
+from edc_bench.verdict.baseline_source import BaselineSource
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -90,7 +91,8 @@ class BaselineSummary(Section):
     af_uncertainty_v: float | None = None
     a1_uncertainty_v_s_per_mm: float | None = None
     tests: int = 0
-    source: str = ""
+    source: str = ""  # in words, for people
+    sources: list[BaselineSource] = Field(default_factory=list)  # where its tests ran (schema 10 on; upgraded)
     calibrated: bool | None = None
     written_at: str | None = None
     station: str | None = None
@@ -313,19 +315,24 @@ class Record(Section):
     model_config = ConfigDict(frozen=True, extra="allow", populate_by_name=True)
 
     @property
+    def problem_flags(self) -> Problem:
+        """The recorded problems as values (a name this edc-bench does not know, a newer one's, left out: the
+        record's consistency check names it)."""
+        known = [name for name in self.problems if name.upper().replace(" ", "_") in Problem.__members__]
+        return Problem.from_names(known)
+
+    @property
     def advice(self) -> Advice:
         """What the technician does next (:func:`~edc_bench.records.advice.advice`), from the verdict, the problems
         and the abort's kind as recorded."""
         abort = self.loop.abort
-        known = [name for name in self.problems if name.upper().replace(" ", "_") in Problem.__members__]
-        return advice(self.verdict, Problem.from_names(known), abort.kind if abort is not None else None)
+        return advice(self.verdict, self.problem_flags, abort.kind if abort is not None else None)
 
     @property
     def invalid_cause(self) -> Cause:
         """Who this test points at if INVALID (:func:`~edc_bench.records.advice.invalid_cause`), as recorded."""
         abort = self.loop.abort
-        known = [name for name in self.problems if name.upper().replace(" ", "_") in Problem.__members__]
-        return invalid_cause(Problem.from_names(known), abort.kind if abort is not None else None)
+        return invalid_cause(self.problem_flags, abort.kind if abort is not None else None)
 
     @property
     def simulated_rig(self) -> bool:

@@ -31,13 +31,14 @@ from edc_bench.config.loader import station_variant_dir, variant_dirs
 from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
 from edc_bench.physics.feedforward import nominal_parameters
+from edc_bench.verdict.baseline_source import BaselineSource, sources_of_text, sources_text
 
 BASELINE_DIR = "baselines"
 #: Earlier baselines of a folder are kept here when a new one replaces them.
 EARLIER_DIR = "earlier"
 #: Fewer tests than this and calibrate says the baseline is thin (the spread between new valves is about 8 %).
 RECOMMENDED_TESTS = 5
-NOMINAL_SOURCE = "nominal physics (uncalibrated)"
+NOMINAL_SOURCE = str(BaselineSource.NOMINAL)
 #: A [[test]] table's optional figures for the baseline's own uncertainty (:meth:`Baseline.noise_rel`,
 #: :meth:`Baseline.core_shift_rel`, :meth:`Baseline.systematic_rms_v`).
 UNCERTAINTY_KEYS = ("af_se_rel", "a1_se_rel", "af_core_shift_rel", "a1_core_shift_rel", "systematic_rms_v")
@@ -53,8 +54,8 @@ class BaselineTest:
         Its identified af and a1 (referred to the reference coil).
     valve_id : str
         The valve tested.
-    source : str
-        ``rig``, ``simulated rig`` or ``simulated population``.
+    source : BaselineSource or None
+        Where it ran (None: not said, as in older files); a word is read as its :class:`BaselineSource`.
     started_at : str
         When the test started (ISO 8601), empty if not known.
     record : str
@@ -72,7 +73,7 @@ class BaselineTest:
     af_v: float
     a1_v_s_per_mm: float
     valve_id: str = ""
-    source: str = ""
+    source: BaselineSource | None = None
     started_at: str = ""
     record: str = ""
     af_se_rel: float | None = None
@@ -80,6 +81,10 @@ class BaselineTest:
     af_core_shift_rel: float | None = None
     a1_core_shift_rel: float | None = None
     systematic_rms_v: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.source is not None and not isinstance(self.source, BaselineSource):  # a file's or caller's word
+            object.__setattr__(self, "source", BaselineSource.parse(str(self.source)) if self.source else None)
 
     @property
     def uncertainty_known(self) -> bool:
@@ -100,13 +105,15 @@ class Baseline:
     tests : int
         Number of tests behind the figures (0: nominal physics, uncalibrated).
     source : str
-        Where the figures come from.
+        Where the figures come from, in words (a file's or record's ``source``; :attr:`sources` decides).
     written_at, station, software, command : str
         When, where, by which edc-bench and with which command the baseline was written.
     path : str
         The file it was read from (empty if computed).
     test_list : tuple of BaselineTest
         The tests behind it, each with its record (empty in files that do not list them).
+    sources : frozenset of BaselineSource
+        Where its tests ran: from its tests when it lists them, else as its file or record says.
     """
 
     af_v: float
@@ -121,6 +128,7 @@ class Baseline:
     command: str = ""
     path: str = ""
     test_list: tuple[BaselineTest, ...] = field(default=(), repr=False)
+    sources: frozenset[BaselineSource] = frozenset({BaselineSource.NOMINAL})
 
     @property
     def calibrated(self) -> bool:
@@ -165,16 +173,26 @@ class Baseline:
     @property
     def measured_on_rig(self) -> bool:
         """True if any test behind it ran on a real rig (not the simulated rig or a simulated population)."""
-        sources = {t.source for t in self.test_list} or {part.strip() for part in self.source.split(" and ")}
-        return "rig" in sources
+        return BaselineSource.RIG in self.sources
 
     @classmethod
     def from_summary(cls, summary: dict[str, Any]) -> Baseline:
-        """A baseline from its figures and provenance (a record's :meth:`summary`, or a baseline file's keys)."""
+        """A baseline from its figures and provenance (a record's :meth:`summary`, or a baseline file's keys).
+
+        Its :attr:`sources` are the summary's ``sources`` (a record since schema 10); a file, or an older record,
+        names them only in its ``source`` sentence, read once here (:func:`sources_of_text`)."""
+        tests = int(summary.get("tests", 0))
+        listed = summary.get("sources")
+        if isinstance(listed, (list, tuple)) and listed:
+            sources = frozenset(BaselineSource.parse(str(word)) for word in listed)
+        elif tests == 0:
+            sources = frozenset({BaselineSource.NOMINAL})
+        else:
+            sources = sources_of_text(_text(summary, "source"))
         return cls(float(summary["af_v"]), float(summary["a1_v_s_per_mm"]), float(summary.get("af_sd_v", 0.0)),
-                   float(summary.get("a1_sd_v_s_per_mm", 0.0)), int(summary.get("tests", 0)),
+                   float(summary.get("a1_sd_v_s_per_mm", 0.0)), tests,
                    *(_text(summary, key) for key in ("source", "written_at", "station", "software", "command",
-                                                      "path")))
+                                                      "path")), sources=sources)
 
     def relative(self, af: float, a1: float) -> tuple[float, float]:
         """``(af / af0, a1 / a1_0)``."""
@@ -185,7 +203,8 @@ class Baseline:
         return {"af_v": self.af_v, "a1_v_s_per_mm": self.a1_v_s_per_mm, "af_sd_v": self.af_sd_v,
                 "a1_sd_v_s_per_mm": self.a1_sd_v_s_per_mm, "af_uncertainty_v": self.af_uncertainty_v,
                 "a1_uncertainty_v_s_per_mm": self.a1_uncertainty_v_s_per_mm, "tests": self.tests,
-                "source": self.source, "calibrated": self.calibrated, "written_at": self.written_at,
+                "source": self.source, "sources": sorted(str(source) for source in self.sources),
+                "calibrated": self.calibrated, "written_at": self.written_at,
                 "station": self.station, "software": self.software, "path": self.path}
 
     def to_toml(self, variant: str, note: str = "") -> str:
@@ -213,7 +232,7 @@ class Baseline:
             tests = tomlkit.aot()
             for test in self.test_list:
                 table = (tomlkit.table().add("af_v", test.af_v).add("a1_v_s_per_mm", test.a1_v_s_per_mm)
-                         .add("valve_id", test.valve_id).add("source", test.source)
+                         .add("valve_id", test.valve_id).add("source", str(test.source or ""))
                          .add("started_at", test.started_at).add("record", test.record))
                 for key in UNCERTAINTY_KEYS:
                     value = getattr(test, key)
@@ -245,10 +264,9 @@ def baseline_from_tests(tests: list[BaselineTest], *, written_at: str = "", stat
         return mean, sd
 
     (af_mean, af_sd), (a1_mean, a1_sd) = mean_sd(af), mean_sd(a1)
-    sources = sorted({t.source for t in tests if t.source})
-    source = " and ".join(sources) if sources else "unknown"
-    return Baseline(af_mean, a1_mean, af_sd, a1_sd, n, source, written_at, station,
-                    software, command, "", tuple(tests))
+    sources = frozenset(t.source or BaselineSource.UNKNOWN for t in tests)
+    return Baseline(af_mean, a1_mean, af_sd, a1_sd, n, sources_text(sources), written_at, station,
+                    software, command, "", tuple(tests), sources)
 
 
 def station_baseline_path(variant_name: str) -> Path:
@@ -307,7 +325,10 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
                                    _text(t, "source"), _text(t, "started_at"), _text(t, "record"),
                                    *(_number(t, key) for key in UNCERTAINTY_KEYS))
                       for t in data.get("test", []))
-        baseline = dataclasses.replace(Baseline.from_summary(data), path=str(path), test_list=tests)
+        baseline = Baseline.from_summary(data)
+        # a file that lists its tests: where they ran decides, not the file's sentence
+        sources = frozenset(t.source or BaselineSource.UNKNOWN for t in tests) if tests else baseline.sources
+        baseline = dataclasses.replace(baseline, path=str(path), test_list=tests, sources=sources)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise ConfigError(f"{path}: baseline needs af_v and a1_v_s_per_mm as numbers, and numbers in each "
                           f"[[test]] ({exc})") from None

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from edc_bench.config.models import Variant
-from edc_bench.engine.outcome import Abort, AbortKind
+from edc_bench.engine.outcome import Abort, AbortKind, RigFaultFlag
 
 #: How long before the abort a stall is looked for (s): the longest any of these aborts takes to be decided (the
 #: heartbeat's timeout is the longest of them, a few hundred ms), with room.
@@ -29,7 +29,7 @@ def a_stall_can_cause(abort: Abort) -> bool:
     if abort.kind in _LINK_ABORTS:
         return True
     if abort.kind is AbortKind.RIG_FAULT:
-        return "watchdog tripped" in (abort.figures.get("flags") or [])
+        return RigFaultFlag.WATCHDOG_TRIPPED in (abort.figures.get("flags") or [])
     if abort.kind is AbortKind.AMPLIFIER_OFF:
         return abort.figures.get("fault_code") == "WATCHDOG"
     return False

@@ -127,3 +127,30 @@ def test_a_test_entry_with_a_negative_standard_error_is_refused_with_what_to_do(
     with pytest.raises(ConfigError, match=r"\[\[test\]\] 1: af_se_rel must be a number of at least 0, not -0.01; "
                                           "delete the line"):
         read_baseline(path)
+
+
+def test_where_a_baselines_tests_ran_is_a_value_an_older_sentence_read_once() -> None:
+    """#54: 'measured on a rig' was decided by splitting the baseline's sentence on ' and '."""
+    from edc_bench.records.reader import typed_record, upgraded
+    from edc_bench.verdict.baseline import Baseline, BaselineTest, baseline_from_tests
+    from edc_bench.verdict.baseline_source import BaselineSource
+
+    mixed = baseline_from_tests([BaselineTest(0.07, 0.004, "A", BaselineSource.RIG),
+                                 BaselineTest(0.08, 0.004, "B", "simulated rig")])  # a file's word is read as a value
+    assert mixed.sources == {BaselineSource.RIG, BaselineSource.SIMULATED_RIG} and mixed.measured_on_rig
+    assert mixed.source == "rig and simulated rig"
+    # a record's summary keeps the values; a summary without them (an older record, a file) is read from its sentence
+    assert Baseline.from_summary(mixed.summary()).sources == mixed.sources
+    older = {key: value for key, value in mixed.summary().items() if key != "sources"}
+    assert Baseline.from_summary(older).measured_on_rig
+    assert not Baseline.from_summary({**older, "source": "simulated rig"}).measured_on_rig
+    assert Baseline.from_summary({**older, "source": "the rigs of another shop"}).sources == {BaselineSource.UNKNOWN}
+    assert Baseline.from_summary({**older, "tests": 0}).sources == {BaselineSource.NOMINAL}
+    # the summary's values win over its words
+    assert not Baseline.from_summary({**mixed.summary(), "sources": ["simulated population"],
+                                      "source": "rig"}).measured_on_rig
+    # an older record's baseline is upgraded on read, once, in the reader
+    record = typed_record(upgraded({"schema": 9, "verdict": "PASS", "baseline": {**older, "source": "rig"}}), "x")
+    assert record.baseline is not None and record.baseline.sources == [BaselineSource.RIG]
+    nominal = typed_record(upgraded({"schema": 9, "verdict": "PASS", "baseline": {**older, "tests": 0}}), "x")
+    assert nominal.baseline is not None and nominal.baseline.sources == [BaselineSource.NOMINAL]
