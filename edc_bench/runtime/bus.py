@@ -26,6 +26,10 @@ from can.interfaces.slcan import slcanBus
 
 from edc_bench.errors import RigError
 from edc_bench.protocol.slcan import MAX_LINE, parse_frame_line
+from edc_bench.runtime.adapter_counts import AdapterCounts
+
+#: slcan's line ends: CR after a line, BEL for an error answer (its own here: python-can's are private)
+_CR, _BEL = b"\r", b"\a"
 
 
 class BufferedSlcanBus(slcanBus):
@@ -51,6 +55,11 @@ class BufferedSlcanBus(slcanBus):
         BEL (error) answers of the adapter.
     shutdown_error : str or None
         Why closing the connection failed, if it did.
+
+    python-can's slcan bus is used through its public interface (its constructor opens the port and sets the
+    bitrate; ``serialPortOrig`` is the port) and one hook: it writes every line through ``_write``, overridden
+    here so that a send is given up only when bytes are left unsent (see :meth:`_write`). A ``socket://`` port is
+    read straight from pyserial's socket (``_socket``: pyserial offers no other way to read all waiting bytes).
     """
 
     #: how long a send may wait for the peer to take the bytes: the rig's watchdog time, after which it is safe anyway
@@ -63,12 +72,17 @@ class BufferedSlcanBus(slcanBus):
         self.device_errors = 0
         self.shutdown_error: str | None = None
         self._lines: deque[bytes] = deque()
+        self._pending = bytearray()  # bytes read but not yet a whole line
         self._discarding = False  # dropping the rest of an overlong line
         super().__init__(channel, **kwargs)
         # a socket:// channel is read straight from its socket: pyserial's in_waiting says only 0 or 1 for it
         self._socket: socket.socket | None = getattr(self.serialPortOrig, "_socket", None)
         if self._socket is not None:
             self._socket.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+    def adapter_counts(self) -> AdapterCounts:
+        """What was skipped so far (:class:`~edc_bench.runtime.adapter_counts.CountsAdapterErrors`)."""
+        return AdapterCounts(self.bad_lines, tuple(self.bad_line_samples), self.device_errors)
 
     def _bad(self, line: bytes) -> None:
         self.bad_lines += 1
@@ -87,9 +101,9 @@ class BufferedSlcanBus(slcanBus):
 
     def _split_lines(self) -> None:
         """Move every complete line of the buffer to the line queue (a BEL answer ends a line too)."""
-        buffer = self._buffer
+        buffer = self._pending
         while True:
-            cr, bel = buffer.find(self._OK), buffer.find(self._ERROR)
+            cr, bel = buffer.find(_CR), buffer.find(_BEL)
             end = cr if bel < 0 or 0 <= cr < bel else bel
             if end < 0:
                 if len(buffer) > MAX_LINE:  # noise without a line end: counted once, dropped up to the next end
@@ -107,8 +121,14 @@ class BufferedSlcanBus(slcanBus):
             if line:
                 self._lines.append(line)
 
+    def flush(self) -> None:
+        """Drop what was read but not yet taken, and the port's input (python-can's flush)."""
+        self._pending.clear()
+        self._lines.clear()
+        super().flush()
+
     def _take(self, chunk: bytes) -> None:
-        self._buffer.extend(chunk)
+        self._pending.extend(chunk)
         self._split_lines()
 
     def _read_line(self, timeout: float | None) -> bytes | None:

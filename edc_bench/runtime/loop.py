@@ -38,6 +38,7 @@ from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome
 from edc_bench.engine.tick import StopRule, TickEngine
 from edc_bench.engine.trace import CanFrameLog, Trace, frame_flags
 from edc_bench.protocol import BENCH_CMD_ID, Icd, RigFeedback, RigState
+from edc_bench.runtime.adapter_counts import adapter_counts
 from edc_bench.runtime.clock import Clock, cpu_steal_s
 from edc_bench.runtime.stop_worker import StopWorker
 
@@ -336,9 +337,10 @@ class BenchLoop:
         if frames.dropped:
             outcome.events.append(f"CAN log full: {frames.dropped} frames after the first {frames.count} were "
                                   "counted but not stored")
-        outcome.bus_bad_lines = int(getattr(self.bus, "bad_lines", 0))
-        outcome.bus_bad_line_samples = [repr(line) for line in getattr(self.bus, "bad_line_samples", [])]
-        outcome.bus_device_errors = int(getattr(self.bus, "device_errors", 0))
+        counts = adapter_counts(self.bus)
+        outcome.bus_bad_lines = counts.bad_lines
+        outcome.bus_bad_line_samples = [repr(line) for line in counts.bad_line_samples]
+        outcome.bus_device_errors = counts.device_errors
         if outcome.bus_device_errors and outcome.abort is not None:
             outcome.abort = outcome.abort.with_figures(adapter_refused=outcome.bus_device_errors)
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import socket
 from collections.abc import Iterator
+from pathlib import Path
 
 import can
 import pytest
@@ -98,7 +99,7 @@ def test_a_stream_of_noise_without_line_ends_cannot_hold_the_reader(reader) -> N
     import threading
 
     bus, conn = reader
-    bus._buffer.clear()
+    bus._pending.clear()
     bus._lines.clear()
     noise = b"\x80" * 300_000 + b"\a" * 1000
     sender = threading.Thread(target=conn.sendall, args=(noise,))
@@ -129,3 +130,14 @@ def test_a_peer_that_stops_reading_makes_a_send_fail_not_hang() -> None:
     bus.shutdown()
     conn.close()
     listener.close()
+
+
+def test_the_loop_reads_what_the_adapter_skipped_through_one_typed_interface() -> None:
+    """#54: the loop read the slcan bus's counters by getattr; a bus that keeps none gives zeros."""
+    from edc_bench.runtime.adapter_counts import AdapterCounts, CountsAdapterErrors, adapter_counts
+    from edc_bench.runtime.bus import BufferedSlcanBus
+
+    assert issubclass(BufferedSlcanBus, CountsAdapterErrors)
+    assert adapter_counts(object()) == AdapterCounts()
+    loop_source = (Path(__file__).parents[2] / "edc_bench" / "runtime" / "loop.py").read_text(encoding="utf-8")
+    assert "getattr(self.bus" not in loop_source
