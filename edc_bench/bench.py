@@ -49,6 +49,7 @@ if TYPE_CHECKING:
 from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
+from edc_bench.records.schema import StabilityMargins
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.clock_kind import ClockKind
@@ -183,7 +184,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
         judgement=judgement,
         timing=timing,
         outcome=outcome,
-        margins=margins,
+        margins=None if margins is None else StabilityMargins(**dataclasses.asdict(margins)),
         variant=variant,
         valve_id=o.valve_id,
         started_at=started,

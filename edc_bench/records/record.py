@@ -11,7 +11,6 @@ plane), so the report reads the folder alone.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +20,6 @@ import numpy as np
 
 from edc_bench import __version__
 from edc_bench.config.models import Variant
-from edc_bench.control.stability import LoopMargins
 from edc_bench.engine.outcome import LoopOutcome
 from edc_bench.engine.trace import CanFrameLog
 from edc_bench.identification.analysis import Identification
@@ -58,8 +56,8 @@ class BenchResult:
         Tick lateness percentiles, ticks late, missed replies, CPU steal.
     outcome : LoopOutcome
         What happened in the loop (aborts, replies, heartbeats).
-    margins : LoopMargins or None
-        The gain check's margins (None if it was skipped).
+    margins : StabilityMargins or None
+        The gain check's margins (None if it was skipped), as the record keeps them.
     variant : Variant
         The variant as the test ran it.
     valve_id, started_at, clock : str
@@ -89,7 +87,7 @@ class BenchResult:
     judgement: Judgement
     timing: dict[str, float]
     outcome: LoopOutcome
-    margins: LoopMargins | None
+    margins: StabilityMargins | None
     variant: Variant
     valve_id: str
     started_at: str
@@ -205,7 +203,7 @@ def record_dict(result: BenchResult, files: dict[str, str | None],
         "stop": result.stop,
         "timing": result.timing,
         "loop": outcome,
-        "stability_margins": None if result.margins is None else dataclasses.asdict(result.margins),
+        "stability_margins": None if result.margins is None else result.margins.model_dump(),
         "truth": None if result.truth is None else result.truth._asdict(),
         "simulation": result.simulation,
         "config": result.variant.model_dump(mode="json"),

@@ -171,6 +171,18 @@ class StopSummary(Section):
     problems: list[str] = Field(default_factory=list)
 
 
+class StabilityMargins(Section):
+    """The gain check's margins of the feedback loop before the test (:func:`edc_bench.control.stability.loop_margins`;
+    an infinite margin, which JSON cannot hold, reads as None)."""
+
+    gain_margin_db: float | None = None
+    phase_margin_deg: float | None = None
+    crossover_hz: float | None = None
+    closed_loop_stable: bool | None = None
+    max_pole_radius: float | None = None
+    delay_ticks: int = 1
+
+
 class DecisionPlane(Section):
     """P(faulty) on a grid of relative features, for the report to draw the boundary without the model."""
 
@@ -303,7 +315,7 @@ class Record(Section):
     stop: StopSummary | None = None
     timing: dict[str, Any] = Field(default_factory=dict)
     loop: LoopSummary = LoopSummary()
-    stability_margins: dict[str, Any] | None = None
+    stability_margins: StabilityMargins | None = None
     truth: dict[str, float] | None = None
     simulation: dict[str, Any] | None = None
     config: dict[str, Any] | None = None
