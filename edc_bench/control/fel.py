@@ -12,8 +12,7 @@ k-1 when every reply comes within its tick; earlier through a USB adapter):
    same USB frame, the first was late, and using only the second would hide
    the late samples from the PID while the rack feels the late drives; the
    PID then sees a lag the rack does not have, and its velocity-proportional
-   output shows up in a1 (+0.6 % at the worst frame phase, noise-free;
-   docs/method.md).
+   output shows up in a1 (docs/method.md).
 2. regressor W = [r''', r'', r', r, 1, sgn(r')] at t_k + T/2, the middle of
    the interval over which the drive is held (zero-order hold).
 3. feedforward u1 = W . a_hat; drive u = sat(u1 + u2).
@@ -29,8 +28,8 @@ the coil's resistance R_hat (:mod:`edc_bench.control.coil`). The parameters
 are kept *referred to the reference coil* (the variant's nominal R_ref): the
 feedforward is ``rho W . a_hat`` with ``rho = R_hat / R_ref``, and the
 estimator's target is ``u / rho``. A coil that warms during the test (its
-drive rises 3 % in 30 s on the default variant) then leaves the regression
-alone; without this the drift leaked into af as a +/-2 % wobble. The
+drive rises with its resistance) then leaves the regression alone; without
+this the drift leaked into af as a wobble (docs/method.md). The
 inductive shares of a3, a2 and a1, which do not scale with R, are put right
 after the test (:func:`edc_bench.physics.coil.referred_from_estimate`).
 R_hat is averaged over the excitation's longest period before use.

@@ -1,9 +1,10 @@
 """Opening and closing the bench's CAN bus, the python-can way, with a faster and stricter slcan reader.
 
 python-can's ``slcan`` interface reads its serial stream one byte per call;
-over ``socket://`` each byte costs a select and a recv (about 15 us here), so a
-reply frame takes some 350 us to read and a 1 kHz loop falls behind as soon
-as one reply is late. :class:`BufferedSlcanBus` is python-can's slcan bus
+over ``socket://`` each byte costs a select and a recv, so reading one reply
+frame takes a good part of a 1 kHz tick and the loop falls behind as soon as
+one reply is late (``edc-bench perf --only realtime`` times the loop over
+the rig's socket). :class:`BufferedSlcanBus` is python-can's slcan bus
 reading every byte waiting in one call, parsing every line strictly and
 never raising on a bad one (python-can's parser raises on a bad hex digit or
 a byte that is not ASCII). Socket channels also get TCP_NODELAY.
@@ -200,7 +201,7 @@ class BufferedSlcanBus(slcanBus):
 
         pyserial's own write looks at the clock after its write and raises its timeout once the time is past, even
         when every byte went out: a bench that a busy PC held off the CPU for 20 ms lost its test to a "write
-        timeout" of a line that had been sent (CI's run beside two busy loops found it). A socket or a POSIX port
+        timeout" of a line that had been sent. A socket or a POSIX port
         is written here; any other port (Windows) by pyserial as before.
         """
         port = self.serialPortOrig

@@ -12,8 +12,8 @@ Units: x in mm, x' in mm/s, i in A, u in V, forces in N, mass in kg (used as
 Integration is exact for the linear part: between friction events the state
 ``z = [x, x', i]`` obeys ``z' = A z + B w`` with a constant input
 ``w = [k_A u, -(F_pre + F_c s)]``, and one step is ``z <- Phi z + Gamma w``
-with ``Phi, Gamma`` from the matrix exponential (the stiff coil, L/R ~ 1 ms,
-needs no small steps). A whole command period is taken in one step unless the
+with ``Phi, Gamma`` from the matrix exponential (the stiff coil, its L/R
+near a command period, needs no small steps). A whole command period is taken in one step unless the
 velocity changes sign or the rack sits stuck; then the period is replayed in
 quanta of ``quantum_s`` (0.1 ms) with a Karnopp stick/slip rule, so that
 stick-slip at reversals ("chattering", paper Figs. 4c and 5c) is resolved.
@@ -27,8 +27,8 @@ speed-dependent friction enter the constant-force input, held over each
 step (a period, or a quantum near reversals). The pull's difference is taken
 at the step's middle (the position a half step on at the starting speed):
 taken at its start, it would lag half a step behind the rack, and a lagging
-position-dependent force acts as damping (on ``p-edc-hard`` 2 % of a new
-valve's a1, which the identification then found and the truth did not hold).
+position-dependent force acts as damping, which the identification then
+found in a1 and the truth did not hold.
 The friction is taken at the starting speed.
 
 The coil warms with the heat ``R i^2`` it dissipates: every
