@@ -143,5 +143,5 @@ def source_checkout() -> Path | None:
 
     root = Path(edc_bench.__file__).resolve().parent.parent
     installed = any(part in ("site-packages", "dist-packages") for part in root.parts)
-    return root if not installed and (root / "pyproject.toml").is_file() and (root / "hatch_build.py").is_file() \
+    return root if not installed and (root / "pyproject.toml").is_file() and (root / "configs").is_dir() \
         else None

@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from mypy_extensions import mypyc_attr
 
 from edc_bench.protocol import (
     BENCH_CMD_ID,
@@ -110,7 +109,6 @@ class FirmwareCounters:
     faults: dict[str, int] = field(default_factory=dict)
 
 
-@mypyc_attr(allow_interpreted_subclasses=True)  # compiled in a wheel; the simulator's broken rigs derive from it
 class RigFirmware:
     """The rig's ICD logic.
 

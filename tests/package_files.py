@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import hashlib
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -26,8 +25,8 @@ def package_digest(folders: tuple[Path, ...] | None = None) -> dict[str, str]:
 
 
 def install_wheel(base: Path) -> Path:
-    """The package as ``pip install .`` lays it out: a wheel built from this repository (sources only:
-    ``EDC_BENCH_PURE_PYTHON=1``, minutes less than compiling), installed with ``pip --target`` into ``base/site``.
+    """The package as ``pip install .`` lays it out: a wheel built from this repository, installed with
+    ``pip --target`` into ``base/site``.
 
     Run it with this interpreter and ``PYTHONPATH=base/site`` (its dependencies are this environment's). Built
     once for all test processes (``base`` shared, a lock file around the build); returns ``base/site``.
@@ -48,5 +47,5 @@ def install_wheel(base: Path) -> Path:
 
 def _pip(*args: str) -> None:
     done = subprocess.run([sys.executable, "-m", "pip", *args, "--quiet"], capture_output=True, text=True,
-                          env={**os.environ, "EDC_BENCH_PURE_PYTHON": "1"}, timeout=1800)
+                          timeout=1800)
     assert done.returncode == 0, f"pip {args[0]}: {done.stdout[-3000:]}{done.stderr[-3000:]}"

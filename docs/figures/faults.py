@@ -61,8 +61,7 @@ class _DriveWatch:
 def _watch_drive(rig: Any) -> list[tuple[float, float]]:
     """Log every drive the rig's firmware sets, with the rig's time: [(time_s, drive_v), ...].
 
-    The firmware is given a watching hardware; the hardware's own method cannot be replaced where the simulated
-    rig is compiled (hatch_build.py).
+    The firmware is given a watching hardware (the rig's own object stays as it is).
     """
     watch = _DriveWatch(rig)
     rig.firmware.hw = watch

@@ -72,9 +72,7 @@ def perf_table() -> str:
 def perf_environment() -> str:
     """When and where the stored run was made, and how much CPU the hypervisor took meanwhile."""
     env = stored("performance-perf")["environment"]
-    build = ("the tick's modules compiled (a wheel)" if env.get("compiled")
-             else "the tick's modules from source (an editable install, or a wheel built without compiling)")
-    return wrap(f"{measured_on('performance-perf')} edc-bench {env['edc_bench']}, {build}; `{env['command']}` "
+    return wrap(f"{measured_on('performance-perf')} edc-bench {env['edc_bench']}; `{env['command']}` "
                 f"started at {env['date']}; the hypervisor took {env['cpu_steal_s']:.1f} s of CPU during the run "
                 f"(CPU steal, as /proc/stat counts it).")
 
@@ -97,16 +95,9 @@ PROFILE_PARTS = (
 
 @measurement("performance-profile", minutes=0.5, timing=True)
 def profile_simulated_test() -> dict:
-    """Share of a full-length default simulated test's own time (cProfile's tottime) by the code's job, of the
-    source: cProfile does not see into the wheel's compiled modules."""
+    """Share of a full-length default simulated test's own time (cProfile's tottime) by the code's job."""
     from edc_bench.bench import run_simulated_test
     from edc_bench.config import load_variant
-    from edc_bench.perf import tick_compiled
-
-    if tick_compiled():
-        raise RuntimeError("the tick's modules are compiled here (a wheel): profile the source, from an editable "
-                           "install (pip install -e .)")
-
     variant = load_variant("p-edc-default")
     run_simulated_test(variant, "new", 1, full_length=True)  # warm: imports, the gain check's cache
     profiler = cProfile.Profile()

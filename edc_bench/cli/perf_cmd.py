@@ -36,7 +36,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _environment(quick: bool) -> dict[str, Any]:
     from edc_bench import __version__
-    from edc_bench.perf import tick_compiled
     from edc_bench.runtime.clock import cpu_steal_s
 
     return {
@@ -44,7 +43,6 @@ def _environment(quick: bool) -> dict[str, Any]:
         "edc_bench": __version__, "python": platform.python_version(), "machine": platform.machine(),
         "cpus": os.cpu_count(), "quick": quick, "cpu_steal_at_start_s": cpu_steal_s(),
         "command": "edc-bench perf" + (" --quick" if quick else ""),
-        "compiled": tick_compiled(),
     }
 
 
@@ -52,8 +50,7 @@ def _table(figures: list[Any], env: dict[str, Any]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    build = "the tick's modules compiled" if env["compiled"] else "the tick's modules from source"
-    table = Table(title=f"edc-bench perf, {env['date']} ({env['cpus']} CPUs, Python {env['python']}, {build}"
+    table = Table(title=f"edc-bench perf, {env['date']} ({env['cpus']} CPUs, Python {env['python']}"
                         f"{', quick' if env['quick'] else ''})", show_lines=False)
     for col in ("group", "figure", "measured", "reference", "target", "met", "notes"):
         table.add_column(col, overflow="fold")

@@ -2,10 +2,8 @@
 
 :mod:`~edc_bench.control.law` writes the controller in these primitives and
 implements them again for numpy arrays (``ArrayOps``); this module is the
-float side, alone so that a wheel compiles it (``hatch_build.py``): a dot
-product or the covariance's rank-one update is then a C loop over doubles, in
-the same order, with the same roundings. The law itself stays interpreted, so
-that one change there reaches every caller.
+float side: a dot product or the covariance's rank-one update over Python
+floats, in the order the array side keeps, so both round alike.
 """
 
 from __future__ import annotations
@@ -13,10 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from mypy_extensions import mypyc_attr
 
 
-@mypyc_attr(allow_interpreted_subclasses=True)  # law.ArrayOps derives from it
 class Ops:
     """The primitives the law is written in, for Python floats and lists (one test).
 

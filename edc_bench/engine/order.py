@@ -3,7 +3,7 @@
 A wrong order of :class:`~edc_bench.engine.tick.TickEngine`'s calls once gave other numbers instead of an error
 (a command not marked sent, a check of a tick not run). The engine now keeps its :class:`EnginePhase` and the
 tick it expects, and refuses a call that does not fit, as h11's ``Connection`` refuses an event its state does not
-allow. Not compiled (hatch_build.py): an exception class of its own is plain Python.
+allow.
 """
 
 from __future__ import annotations

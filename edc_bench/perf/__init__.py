@@ -9,12 +9,3 @@ to its decision on screen and to its report. Benchmarks print figures; no test a
 #: The groups, in the order they run (here, not in the suite: the command line lists them without importing it).
 GROUPS = ("tick", "codec", "simulated", "realtime", "throughput", "session")
 
-
-def tick_compiled() -> bool:
-    """Whether the tick's modules run compiled here: a wheel built with ``hatch_build.py``, not an editable install
-    (nor a wheel built with ``EDC_BENCH_PURE_PYTHON=1``). A figure says which it timed."""
-    import importlib.machinery
-
-    from edc_bench.engine import tick
-
-    return (tick.__file__ or "").endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES))

@@ -69,9 +69,11 @@ def _simulated(variant_name: str | None, sizes: Sizes) -> list[Figure]:
     out = []
     for full_length, name in ((True, "full-length"), (False, "early-stopped (the technician's)")):
         m = simulated_test(variant, sizes.simulated_repeats, full_length)
+        # no target: one simulated test's speed served no user (it once made the tick's modules compiled at
+        # install, #54); the suite's and CI's time are what it adds up to, and they are watched instead
         out.append(Figure(
             "simulated", f"simulated {name} test of {m['simulated_s']:g} s, wall (best)", m["best_s"], "s",
-            m["simulated_s"] / 50.0, "50x faster than real time", ">= 50x real time", m["speed_x_real_time"] >= 50.0,
+            m["simulated_s"], "real time", "", None,
             f"{m['speed_x_real_time']:.0f}x real time; median {m['median_s']:.2f} s of {m['repeats']}; ended: "
             f"{m['stop']}; codec, lockstep bus, rig firmware, plant, controller, recording, analysis"))
     return out

@@ -18,6 +18,7 @@ and evaluate a classifier on.
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
@@ -51,7 +52,7 @@ from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink
 from edc_bench.population.batch_stop import StopOutcome, BatchStopRule
-from edc_bench.population.rig_kernels import advance, dissipate, pump_constants, quantised_reading
+from edc_bench.population.rig_kernels import advance, dissipate, pump_constants, quantised_reading, speed_note
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
@@ -456,6 +457,18 @@ class _Controller:
         return u, rho, r1
 
 
+_speed_said = False
+
+
+def _say_speed_once() -> None:
+    """Say once per process when the batch path runs slower here (:func:`~.rig_kernels.speed_note`)."""
+    global _speed_said
+    note = speed_note()
+    if note is not None and not _speed_said:
+        _speed_said = True
+        print(f"edc-bench: note: {note}", file=sys.stderr)
+
+
 def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
               sensor_noise: bool = True, adapter: AdapterModel | None = None,
               stop: BatchStopRule | None = None) -> BatchResult:
@@ -487,6 +500,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     n = len(valves)
     if n == 0 or len(seeds) != n:
         raise ValueError("one seed per valve, and at least one valve")
+    _say_speed_once()
     design = ControllerDesign.from_variant(variant)
     plant = _VectorPlant(variant, valves, stiction, design.period_s)
     sensors = _Sensors(variant, plant, seeds, sensor_noise)

@@ -13,6 +13,10 @@ same to the bit (``tests/population/test_rig_kernels.py`` holds the kernels to t
 call, the Stribeck curve's exponential, is the C library's, as the simulated rig's plant takes it; numpy's own
 (vectorised where the CPU has AVX-512) differs from it in the last bit for some arguments, so a Stribeck pump's
 state can differ from the numpy version's in its last bits (the hard variant's model still rebuilt byte for byte).
+
+Where numba has no wheel (a machine or Python it does not support) edc-bench installs without it and these
+kernels run as the Python they are written in: the same results, far slower (:data:`COMPILED` is False and the
+batch path says so once, :func:`speed_note`).
 """
 
 from __future__ import annotations
@@ -21,11 +25,33 @@ import math
 import tempfile
 from pathlib import Path
 
-import numba
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
-from numba import njit
 
 from edc_bench.paths import cache_dir
+
+try:
+    import numba
+    from numba import njit
+except ImportError:  # no numba for this machine (pyproject installs it only where it has wheels)
+    numba = None
+
+    def njit(*_args: Any, **_options: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:  # type: ignore[no-redef]
+        """numba's decorator where numba is not installed: the function as written."""
+        return lambda function: function
+
+#: The kernels run compiled by numba (False: as Python, where numba is not installed).
+COMPILED = numba is not None
+
+
+def speed_note() -> str | None:
+    """What a person running a batch should know of its speed here (None where the kernels are compiled)."""
+    if COMPILED:
+        return None
+    return ("numba is not installed on this machine (it has no wheel for it): the batch path's simulated rig runs "
+            "as Python, with the same results, many times slower; install numba where it installs to speed it up")
 
 
 def _cache_folder() -> bool:
@@ -35,6 +61,8 @@ def _cache_folder() -> bool:
     refuses the module at import. Where the folder cannot be written the kernels are compiled in each process
     instead (False).
     """
+    if numba is None:
+        return False
     folder = Path(numba.config.CACHE_DIR or cache_dir() / "numba")
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -13,7 +13,6 @@ import time
 from abc import ABC, abstractmethod
 from typing import Protocol
 
-from mypy_extensions import mypyc_attr
 
 from edc_bench.runtime.clock_kind import ClockKind
 
@@ -42,18 +41,13 @@ class LockstepRig(Protocol):
     def advance_to(self, t_s: float) -> None: ...
 
 
-@mypyc_attr(allow_interpreted_subclasses=True)  # compiled in a wheel; tests' clocks (stalls) derive from it
 class Clock(ABC):
     """Time as the bench loop sees it."""
 
     #: True if replies arrive only after waiting (real time); False if the
-    #: rig has answered by the time ``after_send`` returns (lockstep). A
-    #: subclass outside the package sets it on the instance, in ``__init__``:
-    #: in a wheel the loop is compiled (hatch_build.py) and reads the
-    #: instance's value, never a subclass's class attribute.
+    #: rig has answered by the time ``after_send`` returns (lockstep).
     waits_for_replies: bool = True
-    #: Simulated or real time: what the record says of the test (a wrapper sets its inner clock's, on the
-    #: instance, as above).
+    #: Simulated or real time: what the record says of the test (a wrapper gives its inner clock's).
     kind: ClockKind = ClockKind.REAL_TIME
 
     def start(self) -> None:

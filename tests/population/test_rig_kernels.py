@@ -170,3 +170,37 @@ def test_the_kernels_run_where_no_cache_folder_can_be_written(tmp_path) -> None:
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, check=False)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["False", "1.3"]
+
+
+_BATCH = """
+import sys
+if sys.argv[1] == "without":
+    sys.modules["numba"] = None  # as on a machine numba has no wheel for: its import fails
+import numpy as np
+from edc_bench.config import load_variant
+from edc_bench.population import rig_kernels
+from edc_bench.population.batch import run_batch
+from edc_bench.population.valves import draw_population
+
+variant = load_variant("p-edc-default")
+variant = variant.model_copy(update={"excitation": variant.excitation.model_copy(update={"duration_s": 4.0})})
+result = run_batch(variant, draw_population(variant, 2, 5), [1, 2])
+print(rig_kernels.COMPILED, result.feature("af").tobytes().hex(), result.feature("a1").tobytes().hex())
+"""
+
+
+def test_the_batch_path_runs_without_numba_to_the_same_bits_and_says_it_is_slower() -> None:
+    """#54: the package installs and runs where numba has no wheel (pyproject installs it only where it has)."""
+    import subprocess
+    import sys
+
+    runs = {how: subprocess.run([sys.executable, "-c", _BATCH, how], capture_output=True, text=True, timeout=600)
+            for how in ("with", "without")}
+    for how, done in runs.items():
+        assert done.returncode == 0, (how, done.stderr[-2000:])
+    compiled, *with_numba = runs["with"].stdout.split()
+    python, *without_numba = runs["without"].stdout.split()
+    assert (compiled, python) == ("True", "False")
+    assert without_numba == with_numba  # the same arithmetic, to the bit (a linear pump)
+    assert "numba is not installed" in runs["without"].stderr and "slower" in runs["without"].stderr
+    assert "numba" not in runs["with"].stderr

@@ -132,7 +132,7 @@ def test_a_bug_in_the_tick_still_ends_safe_with_the_data(tmp_path: Path, monkeyp
     calls = []
 
     def failing_feedforward(*args, **kwargs):
-        # the controller's law is looked up at every call, compiled controller or not (hatch_build.py)
+        # the controller's law is looked up at every call
         calls.append(1)
         if len(calls) == 1501:  # tick 1500's step
             raise ZeroDivisionError("injected bug")

@@ -278,7 +278,6 @@ def test_frames_beyond_the_log_maximum_are_reported(tmp_path: Path, monkeypatch:
     from edc_bench import bench as bench_module
 
     def with_a_small_log(*args, **kwargs) -> BenchLoop:
-        # the loop's own module may be compiled (hatch_build.py): its names cannot be patched, its attributes can
         loop = BenchLoop(*args, **kwargs)
         loop.frames = CanFrameLog(3000)
         return loop
@@ -316,7 +315,7 @@ def test_sent_frames_carry_the_time_they_were_sent(simulated_bench) -> None:
 
         def __init__(self, inner: SimulatedClock) -> None:
             self.inner = inner
-            self.waits_for_replies = True  # on the instance: the compiled loop reads that (Clock's docstring)
+            self.waits_for_replies = True
             self.kind = inner.kind  # simulated time still
 
         def now_s(self) -> float:

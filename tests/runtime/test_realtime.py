@@ -215,7 +215,7 @@ def test_a_slow_pcs_early_stop_decision_costs_no_ticks_and_never_trips_the_watch
             slow_calls.append(k)
         return check(self, k, columns)
 
-    monkeypatch.setattr(EarlyStop, "check", slow_check)  # early_stop is interpreted in the compiled wheel too
+    monkeypatch.setattr(EarlyStop, "check", slow_check)
     variant = load_variant()
     setup = FitSetup.from_variant(variant)
     period_ends = [setup.end_tick(p) for p in range(1, setup.blocks_in(setup.end_tick(40) + 1) + 1)]
