@@ -19,6 +19,7 @@ from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.coil import averaging_window_s
 from edc_bench.control.estimators import Estimator, NormalisedGradient, RecursiveLeastSquares
 from edc_bench.control.fel import FelController
+from edc_bench.control import law
 from edc_bench.control.law import derivative_filter_coefficients
 from edc_bench.control.pid import Pid, PidGains
 from edc_bench.control.reference import Reference, Tone
@@ -142,6 +143,13 @@ class ControllerDesign:
     def derivative_filter(self) -> tuple[float, float]:
         """The PID's filtered-derivative coefficients ``(a, b)``."""
         return derivative_filter_coefficients(self.pid_gains, self.period_s)
+
+    def composition(self) -> law.Composition:
+        """How each tick is composed (:func:`edc_bench.control.law.feedforward_tick`): the one the loop's controller,
+        the batch path and the benchmark's floor all use."""
+        return law.Composition(self.estimated, tuple(1.0 / self.scales[i] for i in self.estimated),
+                               tuple((i, self.nominal[i]) for i in self.fixed), self.drive_limit_v,
+                               self.adapt_from_s, self.reversal_speed_mm_s)
 
     def reference(self, start_mm: float) -> Reference:
         """The test's reference, starting at the measured rack position ``start_mm``."""

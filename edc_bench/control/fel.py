@@ -121,8 +121,7 @@ class FelController:
             design.adapt_from_s
         self.reversal_speed_mm_s = design.reversal_speed_mm_s
         self._w = [0.0] * len(design.nominal)
-        self._w_est = [0.0] * len(self.estimated)
-        self._inv_scales = [1.0 / design.scales[i] for i in self.estimated]
+        self._composition = design.composition()
         self._saturated = 0
         self.table = reference_table(reference, design.period_s, design.ticks)
         self.reference_mm = reference.at(0.0)[0]
@@ -229,25 +228,16 @@ class FelController:
         else:
             r, r1, r2, r3 = self.reference.at(t + 0.5 * T)
             r_now = self.reference.at(t)[0]
-        w = self._w
-        w[0], w[1], w[2], w[3], w[4] = r3, r2, r1, r, 1.0
-        w[5] = 1.0 if r1 > 0.0 else (-1.0 if r1 < 0.0 else 0.0)
-        w_est = self._w_est
-        for j, i in enumerate(self.estimated):
-            w_est[j] = w[i] * self._inv_scales[j]
-        fixed_part = 0.0
-        for i in self.fixed:
-            fixed_part += self.nominal[i] * w[i]
+        ops, w = law.SCALAR, self._w
+        law.regressors(ops, w, r, r1, r2, r3)
         # the parameters are the reference coil's; this coil needs rho times the drive
         if k < len(self._drives):
             self.coil_resistance_ohm = self._coil_average.add(self.coil.resistance_ohm)
         rho = self.coil_resistance_ohm / self.reference_resistance_ohm
-        ops = law.SCALAR
-        u1 = law.feedforward_v(ops, self.estimator.theta, w_est, fixed_part, rho)
-        u, self._saturated = law.saturate(ops, u1 + u2, self.drive_limit_v)
-        self.adapting = law.adapting(self._saturated, t, r1, self.adapt_from_s, self.reversal_speed_mm_s)
+        u1, u, self._saturated, self.adapting, w_est, fixed_part = law.feedforward_tick(
+            ops, self._composition, self.estimator.theta, w, u2, rho, t)
         if self.adapting:
-            self.estimator.update(w_est, u / rho - fixed_part)
+            self.estimator.update(w_est, law.estimator_target(u, rho, fixed_part))
 
         if k < len(self._drives):
             self._drives[k] = u

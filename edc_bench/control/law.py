@@ -1,9 +1,12 @@
 """The controller's arithmetic, written once, for one test (floats) or thousands at once (numpy arrays).
 
 Every tick the bench computes the PID's share of the drive, the
-feedforward's, the saturated drive, whether the estimator may learn from
-it, and the estimator's update. This module is the one place that says
-how. Three callers run it:
+regressors and their split into estimated and fixed parameters, the
+feedforward for this coil, the saturated drive, whether the estimator may
+learn from it, its target and its update (:func:`regressors`,
+:func:`feedforward_tick`, :func:`estimator_target`: the tick's composition,
+fixed per design by :class:`Composition`). This module is the one place
+that says how. Three callers run it:
 
 - the loop's controller (:class:`~edc_bench.control.fel.FelController`, via
   :class:`~edc_bench.control.pid.Pid` and :mod:`~edc_bench.control.estimators`),
@@ -46,6 +49,19 @@ class ArrayOps(Ops):
     @staticmethod
     def any(x: np.ndarray) -> bool:
         return bool(np.any(x))
+
+    sign = staticmethod(np.sign)
+
+    @staticmethod
+    def scaled_rows(w: np.ndarray, rows: tuple[int, ...], scales: tuple[float, ...]) -> np.ndarray:
+        return w[list(rows)] * np.array(scales)[:, None]
+
+    @staticmethod
+    def weighted_rows(w: np.ndarray, weights: tuple[tuple[int, float], ...]) -> Any:
+        out: Any = 0.0
+        for i, a in weights:
+            out = out + a * w[i]
+        return out
 
     @staticmethod
     def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -165,6 +181,64 @@ def pid_update(ops: Ops, c: PidCoefficients, s: PidState, error_mm: Any, saturat
         s.proportional_v = ops.where(usable, proportional, s.proportional_v)
         s.output_v = ops.where(usable, output, s.output_v)
     return s.output_v
+
+
+# -- the tick's composition: regressors, their split, the feedforward, the drive, the estimator's target -------
+
+@dataclass(frozen=True)
+class Composition:
+    """What a controller design fixes of how each tick is composed (built by
+    :meth:`~edc_bench.control.design.ControllerDesign.composition`, the same for the loop, the batch path and the
+    benchmark's floor).
+
+    Attributes
+    ----------
+    estimated : tuple of int
+        The regressors whose parameters are estimated, in the estimator's order.
+    inv_scales : tuple of float
+        One over each estimated parameter's scale (the estimator works on normalised parameters).
+    fixed : tuple of (int, float)
+        The other regressors, each with its parameter's nominal value.
+    drive_limit_v, adapt_from_s, reversal_speed_mm_s : float
+        The drive's limit, when the estimator may start, and the reference speed under which it does not learn.
+    """
+
+    estimated: tuple[int, ...]
+    inv_scales: tuple[float, ...]
+    fixed: tuple[tuple[int, float], ...]
+    drive_limit_v: float
+    adapt_from_s: float
+    reversal_speed_mm_s: float
+
+
+def regressors(ops: Ops, w: Any, r: Any, r1: Any, r2: Any, r3: Any) -> None:
+    """The regressors ``[r3, r2, r1, r, 1, sgn(r1)]`` (r1 to r3: the reference's first to third derivatives) into
+    ``w`` (six entries, or rows), at the middle of the tick's interval (where the drive is held)."""
+    w[0], w[1], w[2], w[3], w[4] = r3, r2, r1, r, 1.0
+    w[5] = ops.sign(r1)
+
+
+def feedforward_tick(ops: Ops, c: Composition, theta: Any, w: Any, feedback_v: Any, rho: Any,
+                     t_s: float) -> tuple[Any, Any, Any, Any, Any, Any]:
+    """One tick's feedforward and drive from the regressors ``w`` (:func:`regressors`).
+
+    Returns ``(u1, u, saturated, adapting, w_est, fixed_part)``: the feedforward, the saturated drive with the
+    feedback ``feedback_v`` added, which way it saturated, whether the estimator learns from this tick, the
+    estimated parameters' normalised regressors, and the fixed parameters' part of the feedforward (of the
+    reference coil; ``rho`` scales both to this coil). The estimator's target is :func:`estimator_target`.
+    """
+    w_est = ops.scaled_rows(w, c.estimated, c.inv_scales)
+    fixed_part = ops.weighted_rows(w, c.fixed)
+    u1 = feedforward_v(ops, theta, w_est, fixed_part, rho)
+    u, saturated = saturate(ops, u1 + feedback_v, c.drive_limit_v)
+    learn = adapting(saturated, t_s, w[2], c.adapt_from_s, c.reversal_speed_mm_s)
+    return u1, u, saturated, learn, w_est, fixed_part
+
+
+def estimator_target(drive_v: Any, rho: Any, fixed_part: Any) -> Any:
+    """What the estimated parameters should explain: the drive sent, referred to the reference coil, less the
+    fixed parameters' part (so the estimator's error is the feedback's share: feedback-error learning)."""
+    return drive_v / rho - fixed_part
 
 
 # -- feedforward, drive, adaptation ----------------------------------------------------------------------------

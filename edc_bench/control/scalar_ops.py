@@ -46,6 +46,24 @@ class Ops:
         return bool(x)
 
     @staticmethod
+    def sign(x: float) -> float:
+        """+1, -1 or 0 as ``x`` is positive, negative or zero."""
+        return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+    @staticmethod
+    def scaled_rows(w: list[float], rows: tuple[int, ...], scales: tuple[float, ...]) -> list[float]:
+        """``[w[rows[j]] * scales[j]]``: the chosen entries, each scaled."""
+        return [w[i] * s for i, s in zip(rows, scales)]
+
+    @staticmethod
+    def weighted_rows(w: list[float], weights: tuple[tuple[int, float], ...]) -> float:
+        """``sum(a w[i])`` over the ``(i, a)`` pairs, from 0 and in their order (0 with no pair)."""
+        out = 0.0
+        for i, a in weights:
+            out += a * w[i]
+        return out
+
+    @staticmethod
     def dot(a: list[float], b: list[float]) -> float:
         """``sum(a_j b_j)``."""
         out = 0.0

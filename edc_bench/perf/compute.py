@@ -61,42 +61,31 @@ def lean_tick(design: ControllerDesign, start_mm: float) -> Callable[[int, float
     ops = law.SCALAR
     pid_c = law.PidCoefficients.of(design.pid_gains, design.period_s, design.drive_limit_v)
     pid = law.PidState()
-    limit = design.drive_limit_v
     rls = design.estimator_kind == "rls"
     theta = list(design.theta0)
     P = [[s * s if i == j else 0.0 for j, s in enumerate(design.prior_std)] for i in range(len(theta))]
     lam = design.forgetting_factor
     gains_t = [g * design.period_s for g in design.gradient_gains_per_s]
-    idx = design.estimated
-    inv_scale = [1.0 / design.scales[i] for i in idx]
-    fixed = [(i, design.nominal[i]) for i in design.fixed]
+    composition = design.composition()
     coil = CoilEstimator(design.amplifier_gain, design.reference_resistance_ohm, design.period_s)
     coil_average = law.CoilAverage(design.coil_window_ticks, design.reference_resistance_ohm)
     r_ref = design.reference_resistance_ohm
-    T, adapt_from_s, reversal = design.period_s, design.adapt_from_s, design.reversal_speed_mm_s
+    T = design.period_s
     state = [0, reference.at(0.0)[0]]  # saturated, the reference the next sample is compared with
     w = [0.0] * 6
-    we = [0.0] * len(idx)
 
     def tick(k: int, measured_mm: float) -> float:
         saturated, r_prev = state
         u2 = law.pid_update(ops, pid_c, pid, r_prev - measured_mm, saturated)
         r, r1, r2, r3, r_now = table[k]
-        w[0], w[1], w[2], w[3], w[4] = r3, r2, r1, r, 1.0
-        w[5] = 1.0 if r1 > 0.0 else (-1.0 if r1 < 0.0 else 0.0)
-        for j, i in enumerate(idx):
-            we[j] = w[i] * inv_scale[j]
-        fixed_part = 0.0
-        for i, a in fixed:
-            fixed_part += a * w[i]
+        law.regressors(ops, w, r, r1, r2, r3)
         rho = coil_average.add(coil.resistance_ohm) / r_ref
-        u1 = law.feedforward_v(ops, theta, we, fixed_part, rho)
-        u, saturated = law.saturate(ops, u1 + u2, limit)
-        if law.adapting(saturated, k * T, r1, adapt_from_s, reversal):
+        _, u, saturated, learn, we, fixed_part = law.feedforward_tick(ops, composition, theta, w, u2, rho, k * T)
+        if learn:
             if rls:
-                law.rls_update(ops, theta, P, we, u / rho - fixed_part, lam, MAX_COVARIANCE_TRACE)
+                law.rls_update(ops, theta, P, we, law.estimator_target(u, rho, fixed_part), lam, MAX_COVARIANCE_TRACE)
             else:
-                law.gradient_update(ops, theta, gains_t, we, u / rho - fixed_part)
+                law.gradient_update(ops, theta, gains_t, we, law.estimator_target(u, rho, fixed_part))
         state[0], state[1] = saturated, r_now
         return u
 

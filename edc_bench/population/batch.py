@@ -408,9 +408,7 @@ class _Controller:
 
     def __init__(self, design: ControllerDesign, reference: _Reference, n: int, r_ref: float) -> None:
         self.design, self.reference, self.r_ref = design, reference, r_ref
-        self.est_idx, self.fixed_idx = list(design.estimated), list(design.fixed)
-        self.nominal = np.array(design.nominal)
-        self.inv_w_est_scale = (1.0 / np.array(design.scales)[self.est_idx])[:, None]
+        self.composition = design.composition()
         # valves along the last axis: every update is a contiguous pass over n values
         self.theta = np.tile(np.array(design.theta0)[:, None], (1, n))
         self.P = np.tile(np.diag(np.array(design.prior_std) ** 2)[:, :, None], (1, 1, n))
@@ -420,8 +418,6 @@ class _Controller:
         self.saturated = np.zeros(n)
         self.coil = CoilEstimator(design.amplifier_gain, np.full(n, r_ref), design.period_s)
         self.coil_average = law.CoilAverage(design.coil_window_ticks, np.full(n, r_ref))
-        # the design's derived figures, worked out once (reversal_speed_mm_s builds a reference each time)
-        self.adapt_from_s, self.reversal_speed_mm_s = design.adapt_from_s, design.reversal_speed_mm_s
 
     def take(self, keep: np.ndarray) -> None:
         """Keep the valves ``keep`` (indices) only."""
@@ -437,18 +433,15 @@ class _Controller:
         ops, design = law.ARRAYS, self.design
         rho = self.coil_average.add(self.coil.resistance_ohm) / self.r_ref
         u2 = law.pid_update(ops, self.pid_c, self.pid, error_mm, self.saturated, usable)
-        w_all = np.empty((6, len(error_mm)))  # a row each: r''', r'', r', r, 1, sgn(r'), the regressors
-        self.reference.at_mid_tick(k, w_all[:4])
+        mid = np.empty((4, len(error_mm)))  # the reference's third, second, first derivative and itself, per valve
+        self.reference.at_mid_tick(k, mid)
+        w_all = np.empty((6, len(error_mm)))  # a row per regressor
+        law.regressors(ops, w_all, mid[3], mid[2], mid[1], mid[0])
+        _, u, self.saturated, adapting, w_est, fixed_part = law.feedforward_tick(
+            ops, self.composition, self.theta, w_all, u2, rho, k * design.period_s)
         r1 = w_all[2]
-        w_all[4] = 1.0
-        np.sign(r1, out=w_all[5])
-        w_est, nominal = w_all[self.est_idx] * self.inv_w_est_scale, self.nominal
-        fixed_part = sum(nominal[i] * w_all[i] for i in self.fixed_idx) if self.fixed_idx else np.zeros(len(r1))
-        u1 = law.feedforward_v(ops, self.theta, w_est, fixed_part, rho)
-        u, self.saturated = law.saturate(ops, u1 + u2, design.drive_limit_v)
-        adapting = law.adapting(self.saturated, k * design.period_s, r1, self.adapt_from_s, self.reversal_speed_mm_s)
         if adapting.any():
-            y = u / rho - fixed_part
+            y = law.estimator_target(u, rho, fixed_part)
             if design.estimator_kind == "rls":
                 law.rls_update(ops, self.theta, self.P, w_est, y, design.forgetting_factor, MAX_COVARIANCE_TRACE,
                                adapting)
@@ -514,7 +507,7 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     fit_acc = BlockAccumulator(setup, max(blocks, 1), n)
     lag = 0 if link is None else RING - 2  # through an adapter, command j's sample is read from the link later
     coil_at_blocks = np.full((max(blocks, 1) + 1, n), controller.r_ref)
-    periods = PeriodResults(variant, setup, fit_acc, blocks, coil_at_blocks, controller.nominal, controller.r_ref)
+    periods = PeriodResults(variant, setup, fit_acc, blocks, coil_at_blocks, np.array(design.nominal), controller.r_ref)
     run = _BatchRun(design, plant, sensors, controller, link, _RowFeeder(setup, fit_acc, n, lag), lag, periods,
                     stop)
     run.all_ticks(setup)
@@ -535,7 +528,7 @@ class _BatchRun:
         n = len(self.reference.start)
         self.history = np.zeros((design.ticks // HISTORY_EVERY + 1, 2, n))
         self.hist_rows = 0
-        est_idx = controller.est_idx
+        est_idx = list(controller.composition.estimated)
         self._h_af = est_idx.index(PARAMETER_NAMES.index("af"))
         self._h_a1 = est_idx.index(PARAMETER_NAMES.index("a1"))
         self._r_prev = self.reference.start.copy()  # the reference at the previous tick (r(0) = start)

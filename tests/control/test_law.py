@@ -36,17 +36,27 @@ def _drives(variant: Variant) -> dict[str, np.ndarray]:
     return {"loop": loop.trace["drive_v"], "batch": batch.parameters, "floor": floor_drives, "result": loop}
 
 
+def _pid_bias(original):  # one PID detail: 20 mV more feedback
+    def changed(*args: object, **kwargs: object) -> object:
+        return original(*args, **kwargs) + 0.02
+    return changed
+
+
+def _regressors_swapped(original):  # one step of the tick's composition: the 2nd and 3rd derivatives trade places
+    def changed(ops: object, w: object, r: object, r1: object, r2: object, r3: object) -> None:
+        original(ops, w, r, r1, r3, r2)
+    return changed
+
+
 @pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it
-def test_one_pid_detail_changed_in_one_place_changes_the_loop_replay_the_batch_and_the_floor(
-        short: Variant, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize(("name", "change"), [("pid_update", _pid_bias), ("regressors", _regressors_swapped)])
+def test_one_detail_changed_in_one_place_changes_the_loop_replay_the_batch_and_the_floor(
+        short: Variant, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str, change) -> None:
+    """#54: the PID's arithmetic, and the tick's composition (regressors, their split, the coil ratio, the
+    estimator's target: law.feedforward_tick), are each written once."""
     before = _drives(short)
     folder = write_record(before["result"], tmp_path / "before", figure=False)
-    original = law.pid_update
-
-    def with_a_bias(*args: object, **kwargs: object) -> object:  # one PID detail: 20 mV more feedback
-        return original(*args, **kwargs) + 0.02
-
-    monkeypatch.setattr(law, "pid_update", with_a_bias)
+    monkeypatch.setattr(law, name, change(getattr(law, name)))
     after = _drives(short)
     for part in ("loop", "batch", "floor"):
         assert not np.array_equal(before[part], after[part]), part
@@ -55,6 +65,31 @@ def test_one_pid_detail_changed_in_one_place_changes_the_loop_replay_the_batch_a
     assert replay_record(changed).reproduced
     with pytest.raises(ConfigError, match="replayed drives differ"):
         replay_record(folder)
+
+
+def test_the_floats_and_the_arrays_compose_a_tick_alike(variant: Variant) -> None:
+    """The loop's controller (floats) and the batch path (arrays) compose a tick from the same regressors to the
+    same bits: the one composition, two backends."""
+    design = ControllerDesign.from_variant(variant)
+    c = design.composition()
+    rng = np.random.default_rng(3)
+    theta = rng.normal(size=(len(c.estimated), 4))
+    mid = rng.normal(size=(4, 4)) * [[1e3], [1e2], [10.0], [1.0]]
+    mid[2, 0] = 0.0  # sgn(0)
+    rho, feedback, t_s = np.array([1.0, 1.1, 0.9, 1.05]), rng.normal(size=4), variant.excitation.move_s + 1.0
+    w_arrays = np.empty((6, 4))
+    law.regressors(law.ARRAYS, w_arrays, mid[3], mid[2], mid[1], mid[0])
+    arrays = law.feedforward_tick(law.ARRAYS, c, theta, w_arrays, feedback, rho, t_s)
+    for n in range(4):
+        w = [0.0] * 6
+        law.regressors(law.SCALAR, w, *(float(mid[row, n]) for row in (3, 2, 1, 0)))
+        assert w == w_arrays[:, n].tolist()
+        u1, u, saturated, learn, w_est, fixed_part = law.feedforward_tick(
+            law.SCALAR, c, theta[:, n].tolist(), w, float(feedback[n]), float(rho[n]), t_s)
+        assert (u1, u, saturated, bool(learn)) == (arrays[0][n], arrays[1][n], arrays[2][n], bool(arrays[3][n]))
+        assert w_est == arrays[4][:, n].tolist() and fixed_part == np.broadcast_to(arrays[5], 4)[n]
+        assert law.estimator_target(u, float(rho[n]), fixed_part) == \
+            law.estimator_target(arrays[1], rho, arrays[5])[n]
 
 
 def test_floats_and_arrays_give_the_same_pid(variant: Variant) -> None:
