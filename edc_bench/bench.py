@@ -238,7 +238,7 @@ def stop_summary(variant: Variant, outcome: LoopOutcome, full_length: bool, earl
     """Why and when the test ended, for the record."""
     max_s = variant.excitation.duration_s
     if outcome.stop is not None:
-        out = dict(outcome.stop)
+        out = outcome.stop.as_dict()
     elif outcome.abort is not None:
         out = {"reason": StopReason.ABORTED, "time_s": outcome.abort_time_s if outcome.abort_time_s is not None else
                outcome.ticks_run * variant.controller.period_s}

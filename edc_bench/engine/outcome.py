@@ -12,11 +12,12 @@ Hierarchy::
     LoopOutcome          what the loop (or replay) saw, beyond the trace
     ├── abort: Abort     why the test was cut short, if it was
     │   └── kind: AbortKind
-    └── stop: dict       the stop rule's decision (reason: StopReason), if it ended the test early
+    └── stop: StopDecision  the stop rule's decision (reason: StopReason), if it ended the test early
 """
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 from dataclasses import dataclass, field
 from typing import Any
@@ -64,6 +65,62 @@ class StopReason(enum.StrEnum):
     MODEL_DOES_NOT_FIT = "model does not fit"
     FULL_LENGTH = "full length"
     ABORTED = "aborted"
+
+
+@dataclass(frozen=True)
+class StopDecision:
+    """The stop rule's decision to end a test at a period's end, with the figures it rests on (the record's ``stop``
+    section holds it, :meth:`as_dict`).
+
+    Attributes
+    ----------
+    reason : StopReason
+        :attr:`StopReason.VERDICT_CERTAIN` or :attr:`StopReason.MODEL_DOES_NOT_FIT`.
+    time_s : float
+        The trace time of the period's end it was decided at.
+    periods : int
+        The whole excitation periods it rests on.
+    verdict : str or None
+        The verdict it is certain of (a certain verdict only).
+    confidence : float or None
+        The variant's verdict confidence the interval was drawn at (a certain verdict only).
+    features_rel, half_width_rel, misfit_half_width_rel, baseline_half_width_rel, residual_half_width_rel : dict
+        af's and a1's ratio to the baseline, the interval's half width and its parts (a certain verdict only).
+    problems : tuple of str
+        Why the model does not fit (that reason only).
+    decided_s : float or None
+        When the loop took the decision (after ``time_s`` in real time: the rule's work spreads over ticks); set
+        by :meth:`with_decided`.
+    """
+
+    reason: StopReason
+    time_s: float
+    periods: int
+    verdict: str | None = None
+    confidence: float | None = None
+    features_rel: dict[str, float] | None = None
+    half_width_rel: dict[str, float] | None = None
+    misfit_half_width_rel: dict[str, float] | None = None
+    baseline_half_width_rel: dict[str, float] | None = None
+    residual_half_width_rel: dict[str, float] | None = None
+    problems: tuple[str, ...] = ()
+    decided_s: float | None = None
+
+    def with_decided(self, decided_s: float) -> StopDecision:
+        """The same decision, taken by the loop at trace time ``decided_s``."""
+        return dataclasses.replace(self, decided_s=decided_s)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The record's form: every figure it has (a figure of the other reason left out)."""
+        out: dict[str, Any] = {"reason": self.reason, "time_s": self.time_s, "periods": self.periods}
+        if self.reason is StopReason.MODEL_DOES_NOT_FIT:
+            out["problems"] = list(self.problems)
+        for name in ("verdict", "confidence", "features_rel", "half_width_rel", "misfit_half_width_rel",
+                     "baseline_half_width_rel", "residual_half_width_rel", "decided_s"):
+            value = getattr(self, name)
+            if value is not None:
+                out[name] = dict(value) if isinstance(value, dict) else value
+        return out
 
 
 #: What a technician checks, by the kind of abort: the rig and its link, the PC, or the pump on it.
@@ -246,7 +303,7 @@ class LoopOutcome:
     bus_device_errors: int = 0  # the adapter answered BEL: it refused a command of ours (slcan)
     frames_dropped: int = 0  # frames beyond the CAN log's maximum, counted but not stored
     events: list[str] = field(default_factory=list)
-    stop: dict | None = None  # the stop rule's decision, when it ended the test early
+    stop: StopDecision | None = None  # the stop rule's decision, when it ended the test early
     stop_check_max_s: float = 0.0  # the stop rule's longest call (wall time, perf_counter)
 
     @property
@@ -266,7 +323,8 @@ class LoopOutcome:
 
     def as_dict(self) -> dict[str, Any]:
         """The record's ``loop`` entry: every field, the abort as its kind and figures and its sentence."""
-        out = {name: getattr(self, name) for name in self.__dataclass_fields__ if name != "abort"}
+        out = {name: getattr(self, name) for name in self.__dataclass_fields__ if name not in ("abort", "stop")}
+        out["stop"] = None if self.stop is None else self.stop.as_dict()
         out["reply_age_ticks"] = dict(self.reply_age_ticks)
         out["events"] = list(self.events)
         out["bus_bad_line_samples"] = list(self.bus_bad_line_samples)
@@ -285,4 +343,4 @@ def abort_from_record(loop: dict[str, Any]) -> Abort | None:
     return None
 
 
-__all__ = ["Abort", "AbortKind", "LoopOutcome", "StopReason", "abort_from_record", "describe", "what_to_check"]
+__all__ = ["Abort", "AbortKind", "LoopOutcome", "StopDecision", "StopReason", "abort_from_record", "describe", "what_to_check"]

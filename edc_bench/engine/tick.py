@@ -40,7 +40,7 @@ from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
 from edc_bench.engine.order import EnginePhase, order_error
-from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, RigFaultFlag
+from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, RigFaultFlag, StopDecision
 from edc_bench.engine.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks, stale_limit_ticks
 from edc_bench.engine.trace import Trace
 from edc_bench.engine.tracking import OffReferenceRun
@@ -85,8 +85,8 @@ class StopRule(Protocol):
     #: when the test is expected to end (trace time, s), for the live view
     expected_end_s: float
 
-    def check(self, k: int, columns: dict) -> dict | None:
-        """At tick ``k``: the reason to stop now (a dict with ``reason`` and ``time_s``), or None."""
+    def check(self, k: int, columns: dict) -> StopDecision | None:
+        """At tick ``k``: the decision to stop now, or None."""
 
 
 class TickEngine:
@@ -392,7 +392,7 @@ class TickEngine:
                 "position_max_mm": high, "current_max_a": over_current_a})
         return None
 
-    def stop_check(self, k: int) -> dict[str, Any] | None:
+    def stop_check(self, k: int) -> StopDecision | None:
         """At tick ``k``: the stop rule's decision to end the test now, if it has one (kept in the outcome)."""
         self._after_tick("stop_check", k)
         decision = self.stop_rule_call(k)
@@ -400,7 +400,7 @@ class TickEngine:
             self.take_stop(decision, k)
         return decision
 
-    def stop_rule_call(self, k: int) -> dict[str, Any] | None:
+    def stop_rule_call(self, k: int) -> StopDecision | None:
         """The stop rule's call for tick ``k`` (None at a tick that is not one of its ``check_ticks``), timed.
 
         It reads only the trace and the rule's own state, so a driver may run it beside the ticks, in another
@@ -428,13 +428,13 @@ class TickEngine:
         rule = self.stop_rule
         return rule is not None and k in rule.decision_ticks
 
-    def take_stop(self, decision: dict[str, Any], k: int) -> None:
+    def take_stop(self, decision: StopDecision, k: int) -> None:
         """The test ends at tick ``k`` on the stop rule's ``decision`` (made at its ``time_s``, a period's end):
         kept in the outcome with ``decided_s``, the trace time at the end of that tick (``time_s`` when taken
         inside the tick, as in simulated time)."""
         if self.phase == _IDLE or not 0 <= k < self.expected_k:
             raise order_error(f"take_stop(..., {k})", self.phase, self.expected_k, self.commanded_k)
-        self.outcome.stop = {**decision, "decided_s": self.tick_time_s(k + 1) - self.t_start_s}
+        self.outcome.stop = decision.with_decided(self.tick_time_s(k + 1) - self.t_start_s)
 
 
 __all__ = ["StopRule", "TickEngine", "reply_flags"]

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from edc_bench.canlib import can
 from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
-from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome
+from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, StopDecision
 from edc_bench.engine.tick import StopRule, TickEngine
 from edc_bench.engine.trace import CanFrameLog, Trace, frame_flags
 from edc_bench.protocol import BENCH_CMD_ID, Icd, RigFeedback, RigState
@@ -440,7 +440,7 @@ class BenchLoop:
             k += 1
         return None
 
-    def _stop_rule_call_beside(self, k: int, worker: StopWorker, inline: bool) -> dict[str, Any] | None:
+    def _stop_rule_call_beside(self, k: int, worker: StopWorker, inline: bool) -> StopDecision | None:
         """Real time: the stop rule's call for tick ``k``: a decision is the worker's to make; a short call is made
         here, inside the tick (``inline``: decided before the tick's reply read, which it replaced, while the worker
         was idle: the worker holding the interpreter through the ticks costs them more than the call). A decision

@@ -25,6 +25,8 @@ import sys
 import threading
 from typing import Any, Protocol
 
+from edc_bench.engine.outcome import StopDecision
+
 #: The interpreter's switch interval while the worker runs (Python's default, 5 ms, would let the worker hold
 #: the interpreter through five ticks).
 SWITCH_INTERVAL_S = 100e-6
@@ -33,7 +35,7 @@ _END = -1
 
 
 class _Engine(Protocol):
-    def stop_rule_call(self, k: int) -> dict[str, Any] | None: ...
+    def stop_rule_call(self, k: int) -> StopDecision | None: ...
 
 
 class StopWorker:
@@ -52,7 +54,7 @@ class StopWorker:
     def __init__(self, engine: _Engine) -> None:
         self._engine = engine
         self._ticks: queue.SimpleQueue[int] = queue.SimpleQueue()
-        self._decision: tuple[dict[str, Any], int] | None = None
+        self._decision: tuple[StopDecision, int] | None = None
         self._error: BaseException | None = None
         self._ended = threading.Event()
         self._thread = threading.Thread(target=self._run, name="early-stop", daemon=True)
@@ -76,7 +78,7 @@ class StopWorker:
         """True when every call handed over is done: the loop may make a short call itself, in order."""
         return self._done == self._handed
 
-    def decision(self) -> tuple[dict[str, Any], int] | None:
+    def decision(self) -> tuple[StopDecision, int] | None:
         """The rule's decision and the tick it was made for, once made; a failure of the rule is raised here, in
         the loop's thread, as it would have been inside the tick."""
         if self._error is not None:
@@ -84,7 +86,7 @@ class StopWorker:
             raise error
         return self._decision
 
-    def made(self) -> tuple[dict[str, Any], int] | None:
+    def made(self) -> tuple[StopDecision, int] | None:
         """The decision, if made (never raises: :meth:`close` returns a failure)."""
         return self._decision
 

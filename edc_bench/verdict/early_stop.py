@@ -45,7 +45,7 @@ import numpy as np
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
-from edc_bench.engine.outcome import StopReason
+from edc_bench.engine.outcome import StopDecision, StopReason
 from edc_bench.engine.replies import max_reply_age_ticks
 from edc_bench.identification.analysis import judges_model_fit, model_fit_problems, model_fits
 from edc_bench.identification.period_fit import (
@@ -174,7 +174,7 @@ class EarlyStop:
             self.expected_end_s = self.setup.end_s(min(after, self.max_periods))
             self._search = (centre, statistical, fixed, periods, after)
 
-    def check(self, k: int, columns: dict[str, np.ndarray]) -> dict[str, Any] | None:
+    def check(self, k: int, columns: dict[str, np.ndarray]) -> StopDecision | None:
         """At tick ``k`` (one of :attr:`check_ticks`): the reason to stop now, with its figures, or None."""
         periods = self.period_ends.get(k)
         if periods is None:
@@ -208,16 +208,16 @@ class EarlyStop:
                        "verdict": str(verdicts[0])}
         time_s = setup.end_s(periods)
         if misfit[0]:
-            return {"reason": StopReason.MODEL_DOES_NOT_FIT, "time_s": time_s, "periods": periods,
-                    "problems": model_fit_problems(self.variant, fit, self._noise_v)}
+            return StopDecision(StopReason.MODEL_DOES_NOT_FIT, time_s, periods,
+                                problems=tuple(model_fit_problems(self.variant, fit, self._noise_v)))
         if certain[0]:
-            return {"reason": StopReason.VERDICT_CERTAIN, "time_s": time_s, "periods": periods, "verdict": str(verdicts[0]),
-                    "confidence": acc.verdict_confidence,
-                    "features_rel": {"af": float(centre[0, 0]), "a1": float(centre[0, 1])},
-                    "half_width_rel": {"af": float(half_width[0, 0]), "a1": float(half_width[0, 1])},
-                    "misfit_half_width_rel": {"af": float(box.misfit[0, 0]), "a1": float(box.misfit[0, 1])},
-                    "baseline_half_width_rel": {"af": float(box.baseline[0, 0]), "a1": float(box.baseline[0, 1])},
-                    "residual_half_width_rel": {"af": float(box.residual[0, 0]), "a1": float(box.residual[0, 1])}}
+            def pair(figures: np.ndarray) -> dict[str, float]:
+                return {"af": float(figures[0, 0]), "a1": float(figures[0, 1])}
+
+            return StopDecision(StopReason.VERDICT_CERTAIN, time_s, periods, verdict=str(verdicts[0]),
+                                confidence=acc.verdict_confidence, features_rel=pair(centre),
+                                half_width_rel=pair(half_width), misfit_half_width_rel=pair(box.misfit),
+                                baseline_half_width_rel=pair(box.baseline), residual_half_width_rel=pair(box.residual))
         if not trusted[0]:  # not settled or conditioned yet: at the next period at the earliest
             self.expected_end_s = setup.end_s(min(periods + 1, self.max_periods))
             return None

@@ -9,6 +9,7 @@ from collections.abc import Callable
 import pytest
 
 from edc_bench.config import Variant
+from edc_bench.engine.outcome import StopDecision, StopReason
 from edc_bench.engine.order import ORDER, EngineOrderError
 from edc_bench.engine.tick import TickEngine
 from edc_bench.protocol import RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, RigState
@@ -66,7 +67,7 @@ WRONG: list[tuple[str, Setup, Call, str]] = [
     ("a check before start", nothing, lambda e, i: e.check(0), "the ticks have not started"),
     ("a stop check before start", nothing, lambda e, i: e.stop_check(0), "the ticks have not started"),
     ("a skip before start", nothing, lambda e, i: e.skip(0, 1), "the ticks have not started"),
-    ("a stop taken before start", nothing, lambda e, i: e.take_stop({}, 0), "the ticks have not started"),
+    ("a stop taken before start", nothing, lambda e, i: e.take_stop(StopDecision(StopReason.VERDICT_CERTAIN, 0.006, 3), 0), "the ticks have not started"),
     ("start twice", started, lambda e, i: _start(e, i), "no tick has run yet"),
     ("sent without a command", started, lambda e, i: e.sent(0, 0.0, 0.0), "no tick has run yet"),
     ("a tick ahead of its turn", started, lambda e, i: e.command(1), "the next is tick 0"),
@@ -82,7 +83,7 @@ WRONG: list[tuple[str, Setup, Call, str]] = [
     ("a skip of the wrong ticks", one_tick, lambda e, i: e.skip(5, 1), "the next is tick 1"),
     ("a skip of no tick", one_tick, lambda e, i: e.skip(1, 0), "the next is tick 1"),
     ("a start delayed after a tick", one_tick, lambda e, i: e.delay_start(1.0), "the last tick run is 0"),
-    ("a stop taken for a tick not run", one_tick, lambda e, i: e.take_stop({}, 3), "the last tick run is 0"),
+    ("a stop taken for a tick not run", one_tick, lambda e, i: e.take_stop(StopDecision(StopReason.VERDICT_CERTAIN, 0.006, 3), 3), "the last tick run is 0"),
     ("a command after finish", finished, lambda e, i: e.command(1), "the ticks are finished"),
     ("a check after finish", finished, lambda e, i: e.check(0), "the ticks are finished"),
     ("start after finish", finished, lambda e, i: _start(e, i), "the ticks are finished"),
@@ -114,8 +115,9 @@ def test_the_legal_orders_run(variant: Variant, icd: Icd) -> None:
     engine.skip(3, 4)
     _tick(engine, 7)
     engine.check(7)
-    engine.take_stop({"reason": "verdict certain", "time_s": 0.006}, 7)
+    engine.take_stop(StopDecision(StopReason.VERDICT_CERTAIN, 0.006, 3), 7)
+    assert engine.outcome.stop is not None and engine.outcome.stop.decided_s is not None  # typed, with when taken
     engine.finish()
-    engine.take_stop({"reason": "verdict certain", "time_s": 0.006}, 7)  # the worker's decision, after the ticks
+    engine.take_stop(StopDecision(StopReason.VERDICT_CERTAIN, 0.006, 3), 7)  # the worker's decision, after the ticks
     engine.safe_command()
     assert engine.outcome.ticks_lost == 4 and engine.outcome.ticks_run == 8
