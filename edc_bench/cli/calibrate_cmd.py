@@ -10,7 +10,7 @@ from typing import Any
 
 from edc_bench.cli.common import add_bus_arguments, count_up_to, identity, seed_number
 from edc_bench.cli.exit_codes import ExitCode
-from edc_bench.verdict.baseline_source import BaselineSource
+from edc_bench.verdict.baseline_source import BaselineSource, sources_text
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -139,9 +139,9 @@ def _write_baseline(args: argparse.Namespace, variant: Any, target: Path | None,
     from edc_bench.records.baseline_text import baseline_line
     from edc_bench.verdict.baseline import RECOMMENDED_TESTS, baseline_from_tests, write_baseline
 
-    sources = {t.source for t in earlier} | {t.source for t in measured}
+    sources = frozenset(t.source or BaselineSource.UNKNOWN for t in [*earlier, *measured])
     if len(sources) > 1:
-        print(f"edc-bench calibrate: warning: the baseline mixes tests from {' and '.join(sorted(sources))}",
+        print(f"edc-bench calibrate: warning: the baseline mixes tests from {sources_text(sources)}",
               file=sys.stderr)
     baseline = baseline_from_tests(
         earlier + measured, written_at=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),

@@ -112,9 +112,8 @@ class StopDecision:
 
     def as_dict(self) -> dict[str, Any]:
         """The record's form: every figure it has (a figure of the other reason left out)."""
-        out: dict[str, Any] = {"reason": self.reason, "time_s": self.time_s, "periods": self.periods}
-        if self.reason is StopReason.MODEL_DOES_NOT_FIT:
-            out["problems"] = list(self.problems)
+        why = {"problems": list(self.problems)} if self.reason is StopReason.MODEL_DOES_NOT_FIT else {}
+        out: dict[str, Any] = {"reason": self.reason, "time_s": self.time_s, "periods": self.periods, **why}
         for name in ("verdict", "confidence", "features_rel", "half_width_rel", "misfit_half_width_rel",
                      "baseline_half_width_rel", "residual_half_width_rel", "decided_s"):
             value = getattr(self, name)
@@ -323,8 +322,9 @@ class LoopOutcome:
 
     def as_dict(self) -> dict[str, Any]:
         """The record's ``loop`` entry: every field, the abort as its kind and figures and its sentence."""
-        out = {name: getattr(self, name) for name in self.__dataclass_fields__ if name not in ("abort", "stop")}
-        out["stop"] = None if self.stop is None else self.stop.as_dict()
+        # every field in its place (record.json's order), the stop decision in its record form
+        out = {name: (self.stop.as_dict() if name == "stop" and self.stop is not None else getattr(self, name))
+               for name in self.__dataclass_fields__ if name != "abort"}
         out["reply_age_ticks"] = dict(self.reply_age_ticks)
         out["events"] = list(self.events)
         out["bus_bad_line_samples"] = list(self.bus_bad_line_samples)

@@ -18,7 +18,7 @@ INSUFFICIENT_PRIVILEGE = "42501"
 PLPGSQL_RAISE = "exec_stmt_raise"
 #: SQLite's codes: a trigger's ``RAISE(ABORT, ...)`` (only the history's own triggers raise), a damaged file.
 SQLITE_CONSTRAINT_TRIGGER = 1811
-SQLITE_DAMAGED = frozenset({11, 26})  # SQLITE_CORRUPT, SQLITE_NOTADB
+SQLITE_DAMAGED = frozenset({11, 26})  # SQLITE_CORRUPT, SQLITE_NOTADB (primary codes: the low byte of the extended)
 #: How the history's own triggers begin a refusal (0006's; the append-only ones say 'edc-bench history is ...').
 _OWN_PREFIX = "edc-bench history:"
 
@@ -41,7 +41,7 @@ def problem(exc: sa.exc.DBAPIError, action: str, shown_url: str, login: str | No
         return first.removeprefix(_OWN_PREFIX).strip()
     if getattr(orig, "sqlstate", None) == INSUFFICIENT_PRIVILEGE:
         return refusal(action, login)
-    if getattr(orig, "sqlite_errorcode", None) in SQLITE_DAMAGED:  # a station's file, damaged
+    if ((getattr(orig, "sqlite_errorcode", None) or 0) & 0xFF) in SQLITE_DAMAGED:  # a station's file, damaged
         from edc_bench.history.url import damaged_advice
 
         path = shown_url.removeprefix("sqlite:///")

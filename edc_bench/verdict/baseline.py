@@ -264,7 +264,7 @@ def baseline_from_tests(tests: list[BaselineTest], *, written_at: str = "", stat
         return mean, sd
 
     (af_mean, af_sd), (a1_mean, a1_sd) = mean_sd(af), mean_sd(a1)
-    sources = frozenset(t.source or BaselineSource.UNKNOWN for t in tests)
+    sources = frozenset(t.source for t in tests if t.source) or frozenset({BaselineSource.UNKNOWN})
     return Baseline(af_mean, a1_mean, af_sd, a1_sd, n, sources_text(sources), written_at, station,
                     software, command, "", tuple(tests), sources)
 
@@ -327,7 +327,8 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
                       for t in data.get("test", []))
         baseline = Baseline.from_summary(data)
         # a file that lists its tests: where they ran decides, not the file's sentence
-        sources = frozenset(t.source or BaselineSource.UNKNOWN for t in tests) if tests else baseline.sources
+        sources = (frozenset(t.source for t in tests if t.source) or frozenset({BaselineSource.UNKNOWN})) if tests \
+            else baseline.sources
         baseline = dataclasses.replace(baseline, path=str(path), test_list=tests, sources=sources)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise ConfigError(f"{path}: baseline needs af_v and a1_v_s_per_mm as numbers, and numbers in each "
