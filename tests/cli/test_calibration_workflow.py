@@ -25,6 +25,7 @@ def _station(tmp_path: Path, name: str = "p-edc-uncal", extra: str = "", duratio
     return {**os.environ, "EDC_BENCH_VARIANTS_DIR": str(folder)}
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_a_test_on_an_uncalibrated_variant_is_invalid_with_the_calibrate_command(tmp_path) -> None:
     env = _station(tmp_path)
     common = ("test", "--variant", "p-edc-uncal", "--duration-s", "15", "--no-history", "--no-figure",

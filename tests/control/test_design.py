@@ -53,6 +53,7 @@ def test_a_changed_design_changes_the_floor_and_the_controller_alike(variant: Va
     assert base.controller(1.0).step(0, 1.0) != changed.controller(1.0).step(0, 1.0)
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_batch_path_identifies_like_the_loop_from_the_same_design(variant: Variant) -> None:
     """On the noise-free model plant the only difference left is the codec's 1 um / 1 mV quantisation in the loop.
 

@@ -24,6 +24,7 @@ from figures import common  # noqa: E402
 REGISTRY = common.load_all()
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_every_page_says_what_the_code_prints(capsys):
     status = regenerate.run_cog(check=True)
     assert status == 0, "a page's generated figures are out of date (diff above): run `python docs/regenerate.py`"

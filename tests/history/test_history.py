@@ -110,6 +110,7 @@ def test_a_writer_killed_mid_transaction_leaves_no_trace(db_url: str, tmp_path: 
         assert len(store.list()) == 2
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_two_bench_tests_finishing_at_once_and_an_aborted_one_are_all_indexed(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'station.sqlite'}"
     env = {**os.environ, "EDC_BENCH_HISTORY_URL": url}

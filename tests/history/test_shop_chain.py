@@ -169,6 +169,7 @@ def test_the_owner_sees_and_applies_each_schema_change(new_postgres_database: Ca
         assert "Traceback" not in newer.stderr
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_sqlite_refuses_changes_and_the_audit_shows_withdrawals_and_corrections(record_dir: Path,
                                                                                tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'h.sqlite'}"

@@ -50,6 +50,7 @@ def test_batch_is_deterministic_per_seed() -> None:
     assert np.array_equal(a.parameters, b.parameters)
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_the_period_fit_taken_a_few_tests_at_a_time_gives_the_same_sums(monkeypatch: pytest.MonkeyPatch) -> None:
     """The rows are made and summed a slice of the tests at a time (for the CPU's cache): to the bit the same."""
     from edc_bench.population import batch

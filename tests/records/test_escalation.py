@@ -41,6 +41,7 @@ class _OneSecond(dt.datetime):
         return cls.frozen if tz is not None else cls.frozen.replace(tzinfo=None)
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 @pytest.mark.parametrize("listing", ["by name", "by name, reversed"])
 def test_the_second_invalid_of_a_stiff_valve_is_escalated_in_the_output_the_record_and_the_report(
         tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, listing: str) -> None:

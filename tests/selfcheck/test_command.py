@@ -13,6 +13,7 @@ from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.history.store import HistoryStore
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                        capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(tmp_path / "data"))

@@ -50,6 +50,7 @@ async def _wait_for_verdict(app, pilot) -> None:
     await pilot.pause()
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
     db = f"sqlite:///{tmp_path / 'history.sqlite'}"
     out = tmp_path / "records"
@@ -308,6 +309,7 @@ def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path:
         assert [r["valve_id"] for r in store.list()] == ["new", "faulty"]
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_the_verdict_is_shown_before_the_report_is_drawn_and_the_screen_says_when_it_is_ready(tmp_path: Path) -> None:
     """#53: the report (seconds on a loaded PC) was drawn before the verdict was shown; the panel sat on "classify".
     Here drawing is held until the verdict has been read off the screen."""
@@ -356,6 +358,7 @@ def test_the_verdict_is_shown_before_the_report_is_drawn_and_the_screen_says_whe
     assert list(out.glob("shift-*.txt"))  # the shift's summary written once the report was
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_a_sigterm_while_the_next_test_waits_for_the_last_report_starts_no_test(tmp_path: Path) -> None:
     """A review found a SIGTERM that came while the next valve's test waited for the last report still started that
     test, and the last valve's details came back over the next valve's prompt once its report was drawn."""
@@ -400,6 +403,7 @@ def test_a_sigterm_while_the_next_test_waits_for_the_last_report_starts_no_test(
     assert len([p for p in out.iterdir() if p.is_dir()]) == 1
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_a_retest_that_cannot_run_leaves_the_first_test_shown_with_its_report(tmp_path: Path) -> None:
     """A review found a retest that raised (a real rig's bus gone between the two) lost the first test from the
     screen: its record and history row were kept, its report never drawn."""
@@ -434,6 +438,7 @@ def test_a_retest_that_cannot_run_leaves_the_first_test_shown_with_its_report(tm
     assert (record / "report.pdf").is_file()
 
 
+@pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
 def test_a_valve_invalid_twice_for_a_cause_it_can_cause_itself_is_escalated(tmp_path: Path) -> None:
     """#53: a very stiff valve looped on INVALID ("not judged: check the mounting...", twice, same valve, no
     escalation). The second INVALID of the same valve, both for a cause the valve itself can cause (here the model
