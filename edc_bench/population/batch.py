@@ -433,10 +433,11 @@ class _Controller:
         ops, design = law.ARRAYS, self.design
         rho = self.coil_average.add(self.coil.resistance_ohm) / self.r_ref
         u2 = law.pid_update(ops, self.pid_c, self.pid, error_mm, self.saturated, usable)
-        mid = np.empty((4, len(error_mm)))  # the reference's third, second, first derivative and itself, per valve
-        self.reference.at_mid_tick(k, mid)
         w_all = np.empty((6, len(error_mm)))  # a row per regressor
-        law.regressors(ops, w_all, mid[3], mid[2], mid[1], mid[0])
+        # the reference's third, second, first derivative and itself, per valve, straight into their rows: the
+        # composition then writes each of those rows onto itself
+        self.reference.at_mid_tick(k, w_all[:4])
+        law.regressors(ops, w_all, w_all[3], w_all[2], w_all[1], w_all[0])
         _, u, self.saturated, adapting, w_est, fixed_part = law.feedforward_tick(
             ops, self.composition, self.theta, w_all, u2, rho, k * design.period_s)
         r1 = w_all[2]
