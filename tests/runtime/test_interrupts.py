@@ -78,6 +78,13 @@ def test_sigkill_mid_test_leaves_rig_tripped_and_can_log_readable(tmp_path: Path
         if test.poll() is not None:
             pytest.skip(f"the real-time test ended by itself before the kill (this machine stalled it): "
                         f"{test.communicate()[0][-300:]}")
+        # a monitor on the same rig, connected before the kill, sees heartbeats say RUNNING, then the watchdog
+        # trip after the kill. (A CI run connected it after the kill and took the first heartbeat: RUNNING, on a
+        # loaded machine, where the rig read the bench's last commands late and tripped a watchdog time later.)
+        monitor = socket.create_connection(("127.0.0.1", port))
+        monitor.settimeout(0.5)
+        monitor.sendall(b"O\r")
+        time.sleep(0.25)  # a heartbeat or two of the running test (one each 100 ms) before the kill
         test.send_signal(signal.SIGKILL)
         test.wait(timeout=10)
         frames = list(can.LogReader(str(folder / "can.log")))
@@ -85,20 +92,26 @@ def test_sigkill_mid_test_leaves_rig_tripped_and_can_log_readable(tmp_path: Path
         modes = [icd.bench_cmd.decode(bytes(f.data))[2] for f in frames if f.arbitration_id == BENCH_CMD_ID]
         first_run = modes.index(Mode.RUN) if Mode.RUN in modes else len(modes)
         if Mode.SAFE in modes[first_run:]:
+            monitor.close()
             pytest.skip("the real-time test had aborted by itself (SAFE sent) before the kill: this machine "
                         "stalled it; the SIGKILL found no running test")
-        # the rig noticed: a monitor on the same rig sees its watchdog trip
-        monitor = socket.create_connection(("127.0.0.1", port))
-        monitor.sendall(b"O\r")
-        buffer, state = b"", None
+        buffer, states = b"", []
         deadline = time.monotonic() + 3.0
-        while time.monotonic() < deadline and state is None:
-            buffer += monitor.recv(4096)
-            for line in re.findall(rb"t720(\d)([0-9A-F]+)\r", buffer):
+        while time.monotonic() < deadline and ("FAULT", "WATCHDOG") not in states:
+            try:
+                buffer += monitor.recv(65536)
+            except TimeoutError:
+                continue
+            lines = re.findall(rb"t720(\d)([0-9A-F]+)\r", buffer)
+            buffer = buffer[buffer.rfind(b"\r") + 1:]
+            for line in lines:
                 beat = icd.parse_heartbeat(bytes.fromhex(line[1].decode()))
-                state = (beat.state.name, beat.fault_code.name)
+                states.append((beat.state.name, beat.fault_code.name))
         monitor.close()
-        assert state == ("FAULT", "WATCHDOG")
+        print(f"heartbeats the monitor saw: {states}")
+        assert ("FAULT", "WATCHDOG") in states, states
+        # latched: once tripped, no heartbeat says RUNNING again (nobody sent SAFE)
+        assert "RUNNING" not in [state for state, _ in states[states.index(("FAULT", "WATCHDOG")):]], states
         # the CAN log written so far reads back, and holds the test's frames
         print(f"{len(frames)} frames readable after SIGKILL")
         assert len(frames) > 100
