@@ -52,7 +52,7 @@ from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink
 from edc_bench.population.batch_stop import StopOutcome, BatchStopRule
-from edc_bench.population.rig_kernels import advance, dissipate, pump_constants, quantised_reading, speed_note
+from edc_bench.sim.kernels import advance, dissipate, pump_constants, quantised_reading, speed_note
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
@@ -191,7 +191,7 @@ class _VectorPlant:
         self._tables = None
 
     def advance_period(self, drive_v: np.ndarray) -> None:
-        """Every valve's plant over one period under its drive (compiled: :mod:`~edc_bench.population.rig_kernels`)."""
+        """Every valve's plant over one period under its drive (compiled: :mod:`~edc_bench.sim.kernels`)."""
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v, self.pump.amplifier_limit_v)
         n = len(self.x)
         if len(self._every) != n:  # the whole batch, each valve a whole period (rebuilt as valves leave)
@@ -455,7 +455,7 @@ _speed_said = False
 
 
 def _say_speed_once() -> None:
-    """Say once per process when the batch path runs slower here (:func:`~.rig_kernels.speed_note`)."""
+    """Say once per process when the batch path runs slower here (:func:`~edc_bench.sim.kernels.speed_note`)."""
     global _speed_said
     note = speed_note()
     if note is not None and not _speed_said:

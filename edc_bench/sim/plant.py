@@ -31,6 +31,9 @@ position-dependent force acts as damping, which the identification then
 found in a1 and the truth did not hold.
 The friction is taken at the starting speed.
 
+The step itself, exact or in quanta, is :func:`edc_bench.sim.kernels.step_valve`, the one definition the
+batch path's N valves take too (compiled by numba where it is installed).
+
 The coil warms with the heat ``R i^2`` it dissipates: every
 ``THERMAL_STEP_S`` of plant time its temperature is stepped (first order,
 :func:`~edc_bench.physics.coil.temperature_after_c`) with the mean power since
@@ -47,6 +50,7 @@ import numpy as np
 from edc_bench.physics.coil import resistance_at_ohm, temperature_after_c
 from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.parameters import PlantParameters
+from edc_bench.sim.kernels import pump_constants, step_valve
 
 DEFAULT_QUANTUM_S = 1e-4
 # Karnopp dead band: below this speed a rack whose forces are within stiction
@@ -57,18 +61,20 @@ THERMAL_STEP_S = 0.1
 
 
 class _Step:
-    """Precomputed exact discretisation for a step of n quanta, as floats."""
+    """Precomputed exact discretisation for a step of n quanta: Phi (9, 1) and Gamma (6, 1), as the kernel takes
+    them (one valve's column)."""
 
-    __slots__ = ("g", "half_s", "p")
+    __slots__ = ("dt_s", "gam", "phi", "quanta")
 
-    def __init__(self, a: np.ndarray, b: np.ndarray, dt_s: float) -> None:
-        self.half_s = 0.5 * dt_s
+    def __init__(self, a: np.ndarray, b: np.ndarray, quanta: int, quantum_s: float) -> None:
+        self.quanta = quanta
+        self.dt_s = quanta * quantum_s
         aug = np.zeros((5, 5))
         aug[:3, :3] = a
         aug[:3, 3:] = b
-        e = expm(aug * dt_s)
-        self.p = tuple(float(v) for v in e[:3, :3].ravel())
-        self.g = tuple(float(v) for v in e[:3, 3:].ravel())
+        e = expm(aug * self.dt_s)
+        self.phi = np.ascontiguousarray(e[:3, :3].reshape(9, 1))
+        self.gam = np.ascontiguousarray(e[:3, 3:].reshape(6, 1))
 
 
 class Plant:
@@ -107,10 +113,11 @@ class Plant:
         self._fpre = p.preload_n
         self._fc = p.coulomb_friction_n
         self._fs = p.stiction_friction_n
-        self._stroke = p.stroke_mm
-        self._nonlinear = not p.linear
         self._slope = p.force_constant_slope_per_mm
         self._x_mid = p.force_constant_mid_mm
+        self._pump = pump_constants(p.linear, p.preload_n, p.stribeck_velocity_mm_s, p.force_constant_n_per_a,
+                                    p.force_constant_slope_per_mm, p.force_constant_mid_mm, p.net_stiffness_n_per_mm,
+                                    p.stroke_mm, STICK_SPEED_MM_S)
         self.coil_temp_c = p.coil_temp_c
         self.resistance_ohm = p.resistance_ohm
         self._r20 = p.resistance_20c_ohm
@@ -126,14 +133,18 @@ class Plant:
     def _step(self, n: int) -> _Step:
         step = self._steps.get(n)
         if step is None:
-            step = _Step(self._a, self._b, n * self.quantum_s)
+            step = _Step(self._a, self._b, n, self.quantum_s)
             self._steps[n] = step
         return step
 
     def prepare(self, max_quanta: int) -> None:
-        """Precompute steps of 1..max_quanta quanta (avoids a first-use delay in real time)."""
+        """Precompute steps of 1..max_quanta quanta and take one step aside, so that numba loads the compiled step
+        now (a first-use delay of a few hundred ms, not to be paid in real time)."""
         for n in range(1, max_quanta + 1):
             self._step(n)
+        step = self._quantum
+        step_valve(step.phi, step.gam, 0, step.dt_s, 1, self.x_mm, self.v_mm_s, self.i_a, self.stuck, step.phi,
+                   step.gam, 0, 0.0, self._fc, self._fs, self.quantum_s, self._pump)  # its result is not kept
 
     def set_drive_v(self, drive_v: float) -> None:
         """Set the amplifier input (held until changed); clipped to the amplifier limit."""
@@ -162,17 +173,13 @@ class Plant:
             return
         self.elapsed_quanta += n_quanta
         coil_v = self.params.amplifier_gain * self.drive_v
-        fine = True
-        if not self.stuck:
-            sign = 1.0 if self.v_mm_s > 0.0 else -1.0
-            x, v, i = self._propagate(self._step(n_quanta), coil_v, sign)
-            if v * sign > STICK_SPEED_MM_S and 0.0 < x < self._stroke:
-                self.x_mm, self.v_mm_s, self.i_a = x, v, i
-                fine = False
-        if fine:
-            # A reversal, a stop, or a stuck rack inside this period: replay finely.
-            for _ in range(n_quanta):
-                self._advance_quantum(coil_v)
+        step, quantum = self._step(n_quanta), self._quantum
+        x, v, i, stuck, sticks = step_valve(step.phi, step.gam, 0, step.dt_s, n_quanta, self.x_mm, self.v_mm_s,
+                                            self.i_a, self.stuck, quantum.phi, quantum.gam, 0, coil_v, self._fc,
+                                            self._fs, self.quantum_s, self._pump)
+        # floats and a bool, also where numba is not installed and the kernel runs as Python on numpy's scalars
+        self.x_mm, self.v_mm_s, self.i_a, self.stuck = float(x), float(v), float(i), bool(stuck)
+        self.stick_events += int(sticks)
         self._heat_j += self.resistance_ohm * self.i_a * self.i_a * n_quanta * self.quantum_s
         if self.elapsed_quanta >= self._next_thermal:
             self._step_temperature()
@@ -192,54 +199,6 @@ class Plant:
         self._a[2, 2] = -self.resistance_ohm / p.inductance_h
         self._steps.clear()
         self._quantum = self._step(1)
-
-    def _propagate(self, step: _Step, coil_v: float, sign: float) -> tuple[float, float, float]:
-        p, g = step.p, step.g
-        x, v, i = self.x_mm, self.v_mm_s, self.i_a
-        if self._nonlinear:
-            # the departures from the linear model, held over the step (module docstring)
-            friction = self.params.sliding_friction_n(abs(v))
-            f = self._ki * self._slope * (x + step.half_s * v - self._x_mid) * i - (self._fpre + friction * sign)
-        else:
-            f = -(self._fpre + self._fc * sign)
-        return (
-            p[0] * x + p[1] * v + p[2] * i + g[0] * coil_v + g[1] * f,
-            p[3] * x + p[4] * v + p[5] * i + g[2] * coil_v + g[3] * f,
-            p[6] * x + p[7] * v + p[8] * i + g[4] * coil_v + g[5] * f,
-        )
-
-    def _advance_quantum(self, coil_v: float) -> None:
-        q = self._quantum
-        if self.stuck:
-            net = self.net_force_at_rest_n()
-            at_low = self.x_mm <= 0.0 and net <= 0.0
-            at_high = self.x_mm >= self._stroke and net >= 0.0
-            if abs(net) <= self._fs or at_low or at_high:
-                # rack held by stiction or a stop; only the coil current evolves
-                self.i_a = q.p[8] * self.i_a + q.g[4] * coil_v
-                return
-            sign = 1.0 if net > 0.0 else -1.0
-        else:
-            sign = 1.0 if self.v_mm_s > 0.0 else -1.0
-        x0, v0 = self.x_mm, self.v_mm_s
-        x, v, i = self._propagate(q, coil_v, sign)
-        self.stuck = False
-        if v * sign <= 0.0:
-            # velocity reached zero inside the quantum: stop there (Karnopp)
-            frac = v0 / (v0 - v) if v0 != v else 0.0
-            x = x0 + frac * (x - x0)
-            v = 0.0
-            self.stuck = True
-            self.stick_events += 1
-        elif abs(v) < STICK_SPEED_MM_S and abs(self._pull_n(x, i) - self._k * x - self._fpre) <= self._fs:
-            v = 0.0
-            self.stuck = True
-            self.stick_events += 1
-        if x <= 0.0:
-            x, v, self.stuck = 0.0, 0.0, True
-        elif x >= self._stroke:
-            x, v, self.stuck = self._stroke, 0.0, True
-        self.x_mm, self.v_mm_s, self.i_a = x, v, i
 
     def natural_frequency_rad_s(self) -> float:
         """Undamped natural frequency of the linearised mechanics, sqrt(k'/m)."""

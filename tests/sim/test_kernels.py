@@ -1,23 +1,23 @@
-"""The simulated rig's compiled arithmetic: the exact step for a sliding valve, the Karnopp replay for a held one, a
-sensor's reading.
+"""The simulated rig's arithmetic, one definition (:mod:`edc_bench.sim.kernels`): the exact step for a sliding valve,
+the Karnopp replay for a held one, a sensor's reading; the batch path's N valves held to N rig plants to the bit.
 
-(The whole batch against the simulated rig's plant: ``tests/identification/test_real_solenoids.py`` and
+(The whole batch against the simulated rig's loop: ``tests/identification/test_real_solenoids.py`` and
 ``tests/population/test_batch.py``; the same bits as before it was compiled: the shipped models rebuild byte for
 byte, ``tests/learning/test_train.py``.)
 """
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
 
 from edc_bench.config import load_variant
 from edc_bench.population.batch import QUANTA_PER_PERIOD, _VectorPlant
-from edc_bench.population.rig_kernels import quantised_reading
 from edc_bench.population.valves import draw_population
-from edc_bench.sim.plant import STICK_SPEED_MM_S
+from edc_bench.physics.valve import plant_parameters
+from edc_bench.sim.kernels import quantised_reading
+from edc_bench.sim.plant import Plant
 
 
 def _plant(n: int = 2) -> _VectorPlant:
@@ -71,90 +71,64 @@ def test_a_reading_rounds_half_to_even_as_numpy_does() -> None:
     assert np.array_equal(quantised_reading(value, 0.01, noise, 1e-3), numpy_reading)
 
 
-# -- the numpy version the kernels replaced, kept as the oracle of "the same to the bit" ---------------------------
-# (the Stribeck curve's exponential taken elementwise from the C library, as the kernels take it)
+# -- the oracle: the simulated rig's own plant, one valve at a time ---------------------------------------------------
 
 
-def _numpy_propagate(plant, phi, gam, x, v, i, coil_v, sign, fc, fs, dt_s):  # noqa: ANN001, ANN202
-    pump = plant.pump
-    if pump.linear:
-        f = -(pump.preload_n + fc * sign)
-    else:
-        friction = fc
-        if pump.stribeck_velocity_mm_s > 0.0:
-            q = v / pump.stribeck_velocity_mm_s
-            friction = fc + (fs - fc) * np.array([math.exp(t) for t in -(q * q)])
-        mid_mm = x + 0.5 * dt_s * v
-        f = (pump.force_constant_n_per_a * pump.force_constant_slope_per_mm * (mid_mm - pump.force_constant_mid_mm)
-             * i - (pump.preload_n + friction * sign))
-    xn = phi[0] * x + phi[1] * v + phi[2] * i + gam[0] * coil_v + gam[1] * f
-    vn = phi[3] * x + phi[4] * v + phi[5] * i + gam[2] * coil_v + gam[3] * f
-    return xn, vn, phi[8] * i + gam[4] * coil_v
-
-
-def _numpy_fine(plant, x, v, i, stuck, coil_v, quanta):  # noqa: ANN001, ANN202
-    pump = plant.pump
-    k, ki, fpre, stroke = pump.net_stiffness_n_per_mm, pump.force_constant_n_per_a, pump.preload_n, pump.stroke_mm
-    slope, x_mid = pump.force_constant_slope_per_mm, pump.force_constant_mid_mm
-    phi, gam = plant.phi_q, plant.gam_q
-    for step in range(int(quanta.max(initial=0))):
-        net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
-        hold = stuck & ((np.abs(net) <= plant.fs) | ((x <= 0.0) & (net <= 0.0)) | ((x >= stroke) & (net >= 0.0)))
-        sign = np.where(stuck, np.where(net > 0.0, 1.0, -1.0), np.where(v > 0.0, 1.0, -1.0))
-        xn, vn, i_n = _numpy_propagate(plant, phi, gam, x, v, i, coil_v, sign, plant.fc, plant.fs,
-                                       plant._period_s / QUANTA_PER_PERIOD)
-        i_hold = phi[8] * i + gam[4] * coil_v
-        reversed_ = vn * sign <= 0.0
-        frac = np.where(v != vn, v / np.where(v != vn, v - vn, 1.0), 0.0)
-        x_rev = x + frac * (xn - x)
-        pull = ki * (1.0 + slope * (xn - x_mid)) * i_n
-        slow = ~reversed_ & (np.abs(vn) < STICK_SPEED_MM_S) & (np.abs(pull - k * xn - fpre) <= plant.fs)
-        new_stuck = reversed_ | slow
-        xn = np.where(reversed_, x_rev, xn)
-        vn = np.where(new_stuck, 0.0, vn)
-        low, high = xn <= 0.0, xn >= stroke
-        xn = np.where(low, 0.0, np.where(high, stroke, xn))
-        vn = np.where(low | high, 0.0, vn)
-        new_stuck = new_stuck | low | high
-        done = step >= quanta
-        xn, vn, i_n, new_stuck = np.where(done, x, xn), np.where(done, v, vn), np.where(done, i, i_n), \
-            np.where(done, stuck, new_stuck)
-        hold = hold & ~done
-        x, v, i, stuck = np.where(hold, x, xn), np.where(hold, 0.0, vn), np.where(hold, i_hold, i_n), \
-            np.where(hold, True, new_stuck)
-    return x, v, i, stuck
-
-
-def _numpy_period(plant, drive_v):  # noqa: ANN001, ANN202
-    """One period of every valve, as the batch path stepped it in numpy (no adapter: every valve a whole period)."""
-    pump = plant.pump
-    coil_v = pump.amplifier_gain * np.minimum(np.maximum(drive_v, -pump.amplifier_limit_v), pump.amplifier_limit_v)
-    sign = np.where(plant.v > 0.0, 1.0, -1.0)
-    xn, vn, i_n = _numpy_propagate(plant, plant.phi, plant.gam, plant.x, plant.v, plant.i, coil_v, sign, plant.fc,
-                                   plant.fs, plant._period_s)
-    ok = ~plant.stuck & (vn * sign > STICK_SPEED_MM_S) & (xn > 0.0) & (xn < pump.stroke_mm)
-    fx, fv, fi, fstuck = _numpy_fine(plant, plant.x, plant.v, plant.i, plant.stuck, coil_v,
-                                     np.full(len(plant.x), QUANTA_PER_PERIOD))
-    return np.where(ok, xn, fx), np.where(ok, vn, fv), np.where(ok, i_n, fi), np.where(ok, plant.stuck, fstuck)
+def _drives(rng: np.random.Generator, k: int, n: int) -> np.ndarray:
+    """Reversals at several frequencies, noise, and two drives past the limit (the stops)."""
+    drive_v = 2.0 + 1.5 * np.sin(2 * np.pi * rng.uniform(1.0, 9.0, n) * k * 1e-3) + rng.normal(0.0, 0.8, n)
+    return drive_v + (40.0 if k == 50 else -40.0 if k == 300 else 0.0)
 
 
 @pytest.mark.parametrize("variant_name", ["p-edc-default", "p-edc-hard"])
-def test_the_compiled_step_is_the_numpy_step_to_the_bit(variant_name: str) -> None:
+def test_the_batchs_valves_step_as_the_simulated_rigs_plant_to_the_bit(variant_name: str) -> None:
+    """#54: the plant is stepped by one definition; N valves in the batch are N rig plants, tick after tick, through
+    exact steps, the Karnopp replay, the stops and the coil's warming (a Stribeck pump with its varying pull too).
+    Before, the batch's kernel and the rig's plant were two copies, and a third (numpy) was the tests' oracle."""
     variant = load_variant(variant_name)
-    plant = _VectorPlant(variant, draw_population(variant, 8, 7), True, 1e-3)
+    valves = draw_population(variant, 8, 7)
+    batch = _VectorPlant(variant, valves, True, 1e-3)
+    rigs = [Plant(plant_parameters(variant, valve, stiction=True), quantum_s=1e-3 / QUANTA_PER_PERIOD)
+            for valve in valves]
     rng = np.random.default_rng(1)
-    held, stops = 0, 0
-    for k in range(600):  # reversals at several frequencies, noise, two drives past the limit (the stops)
-        drive_v = 2.0 + 1.5 * np.sin(2 * np.pi * rng.uniform(1.0, 9.0, 8) * k * 1e-3) + rng.normal(0.0, 0.8, 8)
-        drive_v += 40.0 if k == 50 else -40.0 if k == 300 else 0.0
-        expected = _numpy_period(plant, drive_v)
-        plant.advance_period(drive_v)
-        for got, want in zip((plant.x, plant.v, plant.i, plant.stuck), expected):
-            assert np.array_equal(got, want), f"tick {k}"
-        plant.add_heat(1e-3)
-        held += int(plant.stuck.sum())
-        stops += int(((plant.x == 0.0) | (plant.x == plant.pump.stroke_mm)).sum())
+    held = stops = 0
+    for k in range(600):
+        drive_v = _drives(rng, k, len(valves))
+        batch.advance_period(drive_v)
+        batch.add_heat(1e-3)
+        for plant, drive in zip(rigs, drive_v):
+            plant.set_drive_v(float(drive))
+            plant.advance(QUANTA_PER_PERIOD)
+        for got, want in zip((batch.x, batch.v, batch.i, batch.stuck),
+                             zip(*[(p.x_mm, p.v_mm_s, p.i_a, p.stuck) for p in rigs])):
+            assert np.array_equal(got, np.array(want)), f"tick {k}"
+        held += int(batch.stuck.sum())
+        stops += int(((batch.x == 0.0) | (batch.x == batch.pump.stroke_mm)).sum())
     assert held > 0 and stops > 0  # the run went through the Karnopp replay and the stops, not only the exact step
+    assert sum(p.stick_events for p in rigs) > 0
+    assert not np.array_equal(batch.resistance_ohm, [p.params.resistance_ohm for p in rigs])  # the coils warmed
+
+
+def test_steps_of_part_of_a_period_are_the_rig_plants_too() -> None:
+    """The batch's steps of a few quanta (an adapter's timing moves the drive mid-period) against the rig's plant
+    stepped the same quanta (the coils kept at one temperature: the batch warms them a period at a time, and a
+    rig plant advanced by uneven quanta takes its thermal steps elsewhere in the period)."""
+    variant = load_variant("p-edc-default")
+    variant = variant.model_copy(update={"coil": variant.coil.model_copy(update={"temperature_coefficient_per_k": 0.0})})
+    valves = draw_population(variant, 6, 2)
+    batch = _VectorPlant(variant, valves, True, 1e-3)
+    rigs = [Plant(plant_parameters(variant, valve, stiction=True), quantum_s=1e-3 / QUANTA_PER_PERIOD)
+            for valve in valves]
+    rng = np.random.default_rng(4)
+    for k in range(300):
+        drive_v = _drives(rng, k, len(valves))
+        quanta = rng.integers(0, QUANTA_PER_PERIOD + 1, len(valves))
+        batch.advance_quanta(quanta, drive_v)
+        for plant, drive, m in zip(rigs, drive_v, quanta):
+            plant.set_drive_v(float(drive))
+            plant.advance(int(m))
+        assert np.array_equal(batch.x, [p.x_mm for p in rigs]), f"tick {k}"
+        assert np.array_equal(batch.v, [p.v_mm_s for p in rigs]) and np.array_equal(batch.i, [p.i_a for p in rigs])
 
 
 def test_the_kernels_run_where_no_cache_folder_can_be_written(tmp_path) -> None:  # noqa: ANN001
@@ -165,7 +139,7 @@ def test_the_kernels_run_where_no_cache_folder_can_be_written(tmp_path) -> None:
     not_a_folder = tmp_path / "a file"
     not_a_folder.write_text("")  # a folder under it cannot be made, not even by root
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"} | {"EDC_BENCH_CACHE_DIR": str(not_a_folder)}
-    probe = ("import numpy as np; from edc_bench.population import rig_kernels as k; "
+    probe = ("import numpy as np; from edc_bench.sim import kernels as k; "
              "print(k._CACHE, k.quantised_reading(np.array([1.26]), 0.0, np.zeros(1), 0.1)[0])")
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, check=False)
     assert done.returncode == 0, done.stderr
@@ -178,14 +152,14 @@ if sys.argv[1] == "without":
     sys.modules["numba"] = None  # as on a machine numba has no wheel for: its import fails
 import numpy as np
 from edc_bench.config import load_variant
-from edc_bench.population import rig_kernels
+from edc_bench.sim import kernels
 from edc_bench.population.batch import run_batch
 from edc_bench.population.valves import draw_population
 
 variant = load_variant("p-edc-default")
 variant = variant.model_copy(update={"excitation": variant.excitation.model_copy(update={"duration_s": 4.0})})
 result = run_batch(variant, draw_population(variant, 2, 5), [1, 2])
-print(rig_kernels.COMPILED, result.feature("af").tobytes().hex(), result.feature("a1").tobytes().hex())
+print(kernels.COMPILED, result.feature("af").tobytes().hex(), result.feature("a1").tobytes().hex())
 """
 
 

@@ -1,22 +1,23 @@
-"""The simulated rig's arithmetic per valve, compiled: the plant's step, the coils' heating, the sensors' reading.
+"""The simulated rig's arithmetic, one definition for one valve and for many: the plant's step, the coils'
+heating, the sensors' reading.
 
-:class:`~edc_bench.population.batch._VectorPlant` and ``_Sensors`` hold N valves' state and coefficients as
-arrays; these kernels work on them. A valve that slides through the whole step takes it exactly (Phi and Gamma
-of the period); one that sticks, reverses or reaches a stop is replayed in quanta with the Karnopp rule of
-:class:`~edc_bench.sim.plant.Plant`. In numpy that replay was a few dozen array operations per quantum over the
-valves concerned, each paying numpy's call cost for a handful of values. Compiled by numba, each valve is a few
-hundred floating-point operations, and a reading or the heat of a tick is one call instead of four or five.
+:func:`step_valve` is the plant's step (paper eqs. 1-4 with stiction, :mod:`edc_bench.sim.plant`): a valve that
+slides through the whole step takes it exactly (Phi and Gamma of the step); one that sticks, reverses or reaches a
+stop is replayed in quanta with the Karnopp rule. :class:`~edc_bench.sim.plant.Plant`, the simulated rig's one
+valve, calls it for every step it takes; the batch path's N valves (:class:`~edc_bench.population.batch._VectorPlant`)
+call it through :func:`advance`. There is no other copy: the tests hold the batch's plant to N rig plants to the
+bit (``tests/sim/test_kernels.py``).
 
-The arithmetic is the numpy version's, operation for operation and in the same order (no fused multiply-add, no
-reassociation: numba's defaults; numba's rounding is numpy's, half to even), so a linear pump's results are the
-same to the bit (``tests/population/test_rig_kernels.py`` holds the kernels to the numpy version). The one function
-call, the Stribeck curve's exponential, is the C library's, as the simulated rig's plant takes it; numpy's own
-(vectorised where the CPU has AVX-512) differs from it in the last bit for some arguments, so a Stribeck pump's
-state can differ from the numpy version's in its last bits (the hard variant's model still rebuilt byte for byte).
+Compiled by numba where it is installed: in numpy the batch's Karnopp replay was a few dozen array operations per
+quantum over the valves concerned, each paying numpy's call cost for a handful of values; compiled, each valve is
+a few hundred floating-point operations, and a reading or the heat of a tick is one call instead of four or five.
+numba keeps the arithmetic as written (no fused multiply-add, no reassociation: its defaults; its rounding is
+numpy's, half to even). The one function call, the Stribeck curve's exponential, is the C library's, as Python's
+``math.exp`` is.
 
 Where numba has no wheel (a machine or Python it does not support) edc-bench installs without it and these
-kernels run as the Python they are written in: the same results, far slower (:data:`COMPILED` is False and the
-batch path says so once, :func:`speed_note`).
+kernels run as the Python they are written in: the same results, slower (:data:`COMPILED` is False and the batch
+path says so once, :func:`speed_note`).
 """
 
 from __future__ import annotations
@@ -114,9 +115,11 @@ def pump_constants(linear: bool, preload_n: float, stribeck_velocity_mm_s: float
 @njit(cache=_CACHE, nogil=True)
 def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool, phi_q: np.ndarray,
                   gam_q: np.ndarray, coil_v: float, fc: float, fs: float, quantum_s: float,
-                  pump: np.ndarray) -> tuple[float, float, float, bool]:
-    """Karnopp stepping of valve ``j`` in ``steps`` quanta."""
+                  pump: np.ndarray) -> tuple[float, float, float, bool, int]:
+    """Karnopp stepping of valve ``j`` in ``steps`` quanta; the last item: how often it came to stick (a
+    reversal inside a quantum, or too slow against stiction; not the stops)."""
     ki, slope, x_mid, k, fpre, stroke, stick_speed = pump[5], pump[6], pump[4], pump[7], pump[1], pump[8], pump[9]
+    sticks = 0
     for _ in range(steps):
         net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
         hold = stuck and (abs(net) <= fs or (x <= 0.0 and net <= 0.0) or (x >= stroke and net >= 0.0))
@@ -140,12 +143,59 @@ def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool,
             xn = x + frac * (xn - x)
         if new_stuck:
             vn = 0.0
+            sticks += 1
         if xn <= 0.0 or xn >= stroke:
             xn = 0.0 if xn <= 0.0 else stroke
             vn = 0.0
             new_stuck = True
         x, v, i, stuck = xn, vn, i_n, new_stuck
-    return x, v, i, stuck
+    return x, v, i, stuck, sticks
+
+
+@njit(cache=_CACHE, nogil=True)
+def step_valve(phi: np.ndarray, gam: np.ndarray, m: int, dt_s: float, quanta: int, x: float, v: float, i: float,
+               stuck: bool, phi_q: np.ndarray, gam_q: np.ndarray, j: int, coil_v: float, fc: float, fs: float,
+               quantum_s: float, pump: np.ndarray) -> tuple[float, float, float, bool, int]:
+    """One valve's plant over a step of ``quanta`` quanta (``dt_s``) under the coil voltage ``coil_v`` held.
+
+    Parameters
+    ----------
+    phi, gam : numpy.ndarray
+        (9, M) and (6, M): the exact step's Phi and Gamma (rows of the 3x3 and 3x2 matrices), column ``m``.
+    m : int
+        The step's column in ``phi`` and ``gam``.
+    dt_s : float
+        The step's length (``quanta`` quanta).
+    quanta : int
+        The step in quanta, replayed one by one where the exact step does not hold.
+    x, v, i, stuck
+        The valve's state: rack position (mm), speed (mm/s), coil current (A), held by stiction or a stop.
+    phi_q, gam_q : numpy.ndarray
+        A quantum's Phi and Gamma, column ``j``.
+    j : int
+        The valve's column in ``phi_q`` and ``gam_q``.
+    coil_v : float
+        The coil's voltage (the amplifier's output).
+    fc, fs : float
+        Coulomb and stiction friction (N).
+    quantum_s : float
+        A quantum's length.
+    pump : numpy.ndarray
+        The pump's constants, as :func:`pump_constants` packs them.
+
+    Returns
+    -------
+    x, v, i, stuck
+        The state after the step.
+    sticks : int
+        How often the valve came to stick within the step (0 when it slid through).
+    """
+    sign = 1.0 if v > 0.0 else -1.0
+    if not stuck:
+        xn, vn, i_n = _propagate(phi, gam, m, x, v, i, coil_v, sign, fc, fs, dt_s, pump)
+        if vn * sign > pump[9] and xn > 0.0 and xn < pump[8]:
+            return xn, vn, i_n, False, 0
+    return _advance_fine(j, quanta, x, v, i, stuck, phi_q, gam_q, coil_v, fc, fs, quantum_s, pump)
 
 
 @njit(cache=_CACHE, nogil=True)
@@ -157,19 +207,12 @@ def advance(valves: np.ndarray, quanta: np.ndarray, phi: np.ndarray, gam: np.nda
     ``phi``, ``gam`` (9 and 6 rows), ``dt_s`` and ``coil_v`` are per entry of ``valves`` (the exact step over
     those quanta, and the coil voltage held); the state ``x``, ``v``, ``i``, ``stuck`` and ``phi_q``, ``gam_q``
     (a quantum's step), ``fc``, ``fs`` are per valve of the batch. A valve that slides through takes the exact
-    step; otherwise its quanta are replayed one by one from where it was.
+    step; otherwise its quanta are replayed one by one from where it was (:func:`step_valve`, each).
     """
-    stroke, stick_speed = pump[8], pump[9]
     for m in range(len(valves)):
         j = valves[m]
-        xj, vj, ij = x[j], v[j], i[j]
-        sign = 1.0 if vj > 0.0 else -1.0
-        xn, vn, i_n = _propagate(phi, gam, m, xj, vj, ij, coil_v[m], sign, fc[j], fs[j], dt_s[m], pump)
-        if not stuck[j] and vn * sign > stick_speed and xn > 0.0 and xn < stroke:
-            x[j], v[j], i[j] = xn, vn, i_n
-        else:
-            x[j], v[j], i[j], stuck[j] = _advance_fine(j, quanta[m], xj, vj, ij, stuck[j], phi_q, gam_q, coil_v[m],
-                                                       fc[j], fs[j], quantum_s, pump)
+        x[j], v[j], i[j], stuck[j], _ = step_valve(phi, gam, m, dt_s[m], quanta[m], x[j], v[j], i[j], stuck[j],
+                                                   phi_q, gam_q, j, coil_v[m], fc[j], fs[j], quantum_s, pump)
 
 
 @njit(cache=_CACHE, nogil=True)
