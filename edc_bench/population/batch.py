@@ -52,7 +52,7 @@ from edc_bench.physics.matrix_exponential import expm
 from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.population.batch_link import RING, BatchLink
 from edc_bench.population.batch_stop import StopOutcome, BatchStopRule
-from edc_bench.sim.kernels import advance, dissipate, pump_constants, quantised_reading, speed_note
+from edc_bench.sim.kernels import compiled, pump_constants, speed_note
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
@@ -173,7 +173,7 @@ class _VectorPlant:
 
     def add_heat(self, dt_s: float) -> None:
         """The coils dissipated R i^2 for ``dt_s``; every THERMAL_STEP_S, step their temperature and resistance."""
-        dissipate(self._heat_j, self.resistance_ohm, self.i, dt_s)
+        compiled().dissipate(self._heat_j, self.resistance_ohm, self.i, dt_s)
         self._heat_s += dt_s
         if self._heat_s < THERMAL_STEP_S - 1e-9:
             return
@@ -198,7 +198,7 @@ class _VectorPlant:
             self._every = np.arange(n)
             self._whole_period = np.full(n, QUANTA_PER_PERIOD)
             self._period_dt = np.full(n, self._period_s)
-        advance(self._every, self._whole_period, self.phi, self.gam, self._period_dt, self.x, self.v, self.i,
+        compiled().advance(self._every, self._whole_period, self.phi, self.gam, self._period_dt, self.x, self.v, self.i,
                 self.stuck, self.phi_q, self.gam_q, coil_v, self.fc, self.fs, self._period_s / QUANTA_PER_PERIOD,
                 self._pump)
 
@@ -217,7 +217,7 @@ class _VectorPlant:
         phi_t, gam_t = self._tables
         phi, gam = np.ascontiguousarray(phi_t[m, :, moving].T), np.ascontiguousarray(gam_t[m, :, moving].T)
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v[moving], self.pump.amplifier_limit_v)
-        advance(moving, m, phi, gam, m * (self._period_s / QUANTA_PER_PERIOD), self.x, self.v, self.i, self.stuck,
+        compiled().advance(moving, m, phi, gam, m * (self._period_s / QUANTA_PER_PERIOD), self.x, self.v, self.i, self.stuck,
                 self.phi_q, self.gam_q, coil_v, self.fc, self.fs, self._period_s / QUANTA_PER_PERIOD, self._pump)
 
 
@@ -355,7 +355,7 @@ class _Sensors:
 
     def read(self, true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
         """The LVDT's reading of rack positions ``true_mm`` with the given noise."""
-        return quantised_reading(true_mm, self._offset, noise_mm, self._resolution)
+        return compiled().quantised_reading(true_mm, self._offset, noise_mm, self._resolution)
 
     def sample(self) -> np.ndarray:
         """The rack position now, as the LVDT reads it."""
@@ -363,7 +363,7 @@ class _Sensors:
 
     def current(self) -> np.ndarray:
         """The coil current now, as the current sensor reads it."""
-        return quantised_reading(self.plant.i, self._current_offset, self._current_noise.next(), self._current_step)
+        return compiled().quantised_reading(self.plant.i, self._current_offset, self._current_noise.next(), self._current_step)
 
 
 class _Reference:

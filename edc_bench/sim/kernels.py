@@ -8,62 +8,77 @@ valve, calls it for every step it takes; the batch path's N valves (:class:`~edc
 call it through :func:`advance`. There is no other copy: the tests hold the batch's plant to N rig plants to the
 bit (``tests/sim/test_kernels.py``).
 
-Compiled by numba where it is installed: in numpy the batch's Karnopp replay was a few dozen array operations per
+For the batch path, compiled by numba where it is installed: in numpy the batch's Karnopp replay was a few dozen array operations per
 quantum over the valves concerned, each paying numpy's call cost for a handful of values; compiled, each valve is
 a few hundred floating-point operations, and a reading or the heat of a tick is one call instead of four or five.
 numba keeps the arithmetic as written (no fused multiply-add, no reassociation: its defaults; its rounding is
 numpy's, half to even). The one function call, the Stribeck curve's exponential, is the C library's, as Python's
 ``math.exp`` is.
 
-Where numba has no wheel (a machine or Python it does not support) edc-bench installs without it and these
-kernels run as the Python they are written in: the same results, slower (:data:`COMPILED` is False and the batch
-path says so once, :func:`speed_note`).
+The functions below are plain Python: the simulated rig runs them so. :func:`compiled` gives the batch path the
+same functions compiled by numba. Where numba has no wheel (a machine or Python it does not support) edc-bench
+installs without it and the batch runs them as Python too: the same results, slower (``compiled().compiled`` is
+False and the batch path says so once, :func:`speed_note`).
 """
 
 from __future__ import annotations
 
+import builtins
+import functools
 import math
 import tempfile
+import types
 from pathlib import Path
-
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from edc_bench.paths import cache_dir
 
-try:
-    import numba
-    from numba import njit
-except ImportError:  # no numba for this machine (pyproject installs it only where it has wheels)
-    numba = None
+#: The kernels, callees before callers (the order a compiled set is built in).
+_KERNELS = ("_propagate", "_advance_fine", "step_valve", "advance", "dissipate", "quantised_reading")
 
-    def njit(*_args: Any, **_options: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:  # type: ignore[no-redef]
-        """numba's decorator where numba is not installed: the function as written."""
-        return lambda function: function
 
-#: The kernels run compiled by numba (False: as Python, where numba is not installed).
-COMPILED = numba is not None
+@functools.cache
+def compiled() -> types.SimpleNamespace:
+    """The kernels compiled by numba, for the batch path: a namespace of :func:`step_valve`, :func:`advance`,
+    :func:`dissipate`, :func:`quantised_reading` (and ``compiled``, True). Where numba is not installed, the Python
+    functions of this module (``compiled`` False).
+
+    Compiled on first call, not at import: the simulated rig's one valve runs the Python functions (numba's import
+    and the compiled code's loading, over half a second with SciPy, are kept out of a test's start; its single
+    valve's step costs microseconds either way). Each kernel is compiled from its own code, with the compiled
+    versions of the kernels it calls: one definition, two ways to run it.
+    """
+    try:
+        import numba
+    except ImportError:  # no numba for this machine (pyproject installs it only where it has wheels)
+        return types.SimpleNamespace(compiled=False, **{name: globals()[name] for name in _KERNELS})
+    cache = _cache_folder(numba)
+    namespace: dict[str, object] = {"__builtins__": builtins, "math": math, "np": np}
+    for name in _KERNELS:
+        function = globals()[name]
+        copy = types.FunctionType(function.__code__, namespace, name, function.__defaults__)
+        copy.__qualname__, copy.__module__, copy.__doc__ = function.__qualname__, function.__module__, function.__doc__
+        namespace[name] = numba.njit(cache=cache, nogil=True)(copy)
+    return types.SimpleNamespace(compiled=True, **{name: namespace[name] for name in _KERNELS})
 
 
 def speed_note() -> str | None:
     """What a person running a batch should know of its speed here (None where the kernels are compiled)."""
-    if COMPILED:
+    if compiled().compiled:
         return None
     return ("numba is not installed on this machine (it has no wheel for it): the batch path's simulated rig runs "
             "as Python, with the same results, many times slower; install numba where it installs to speed it up")
 
 
-def _cache_folder() -> bool:
+def _cache_folder(numba: Any) -> bool:
     """Keep the compiled kernels in edc-bench's cache folder (``EDC_BENCH_CACHE_DIR``; ``NUMBA_CACHE_DIR`` if set).
 
     numba's own choice, beside this file or in the user's cache, may be read-only on a station, and then it
-    refuses the module at import. Where the folder cannot be written the kernels are compiled in each process
-    instead (False).
+    refuses the kernels. Where the folder cannot be written the kernels are compiled in each process instead
+    (False).
     """
-    if numba is None:
-        return False
     folder = Path(numba.config.CACHE_DIR or cache_dir() / "numba")
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -75,10 +90,6 @@ def _cache_folder() -> bool:
     return True
 
 
-_CACHE = _cache_folder()
-
-
-@njit(cache=_CACHE, nogil=True)
 def _propagate(phi: np.ndarray, gam: np.ndarray, j: int, x: float, v: float, i: float, coil_v: float,
                sign: float, fc: float, fs: float, dt_s: float, pump: np.ndarray) -> tuple[float, float, float]:
     """One exact step of valve ``j`` (columns of Phi and Gamma) under friction ``sign``; ``pump`` as
@@ -112,7 +123,6 @@ def pump_constants(linear: bool, preload_n: float, stribeck_velocity_mm_s: float
                      stick_speed_mm_s])
 
 
-@njit(cache=_CACHE, nogil=True)
 def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool, phi_q: np.ndarray,
                   gam_q: np.ndarray, coil_v: float, fc: float, fs: float, quantum_s: float,
                   pump: np.ndarray) -> tuple[float, float, float, bool, int]:
@@ -152,7 +162,6 @@ def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool,
     return x, v, i, stuck, sticks
 
 
-@njit(cache=_CACHE, nogil=True)
 def step_valve(phi: np.ndarray, gam: np.ndarray, m: int, dt_s: float, quanta: int, x: float, v: float, i: float,
                stuck: bool, phi_q: np.ndarray, gam_q: np.ndarray, j: int, coil_v: float, fc: float, fs: float,
                quantum_s: float, pump: np.ndarray) -> tuple[float, float, float, bool, int]:
@@ -198,7 +207,6 @@ def step_valve(phi: np.ndarray, gam: np.ndarray, m: int, dt_s: float, quanta: in
     return _advance_fine(j, quanta, x, v, i, stuck, phi_q, gam_q, coil_v, fc, fs, quantum_s, pump)
 
 
-@njit(cache=_CACHE, nogil=True)
 def advance(valves: np.ndarray, quanta: np.ndarray, phi: np.ndarray, gam: np.ndarray, dt_s: np.ndarray,
             x: np.ndarray, v: np.ndarray, i: np.ndarray, stuck: np.ndarray, phi_q: np.ndarray, gam_q: np.ndarray,
             coil_v: np.ndarray, fc: np.ndarray, fs: np.ndarray, quantum_s: float, pump: np.ndarray) -> None:
@@ -215,14 +223,12 @@ def advance(valves: np.ndarray, quanta: np.ndarray, phi: np.ndarray, gam: np.nda
                                                    phi_q, gam_q, j, coil_v[m], fc[j], fs[j], quantum_s, pump)
 
 
-@njit(cache=_CACHE, nogil=True)
 def dissipate(heat_j: np.ndarray, resistance_ohm: np.ndarray, i: np.ndarray, dt_s: float) -> None:
     """Add each coil's ``R i^2`` over ``dt_s`` to ``heat_j``, in place (one call a tick instead of four numpy ones)."""
     for j in range(len(heat_j)):
         heat_j[j] += resistance_ohm[j] * i[j] * i[j] * dt_s
 
 
-@njit(cache=_CACHE, nogil=True)
 def quantised_reading(value: np.ndarray, offset: float, noise: np.ndarray, step: float) -> np.ndarray:
     """A sensor's reading of ``value``: offset and noise added, rounded (half to even) to its ``step``."""
     out = np.empty(len(value))

@@ -61,8 +61,12 @@ THERMAL_STEP_S = 0.1
 
 
 class _Step:
-    """Precomputed exact discretisation for a step of n quanta: Phi (9, 1) and Gamma (6, 1), as the kernel takes
-    them (one valve's column)."""
+    """Precomputed exact discretisation for a step of n quanta: Phi and Gamma as the kernel indexes them,
+    ``phi[row, valve]``, for one valve (column 0).
+
+    The kernel runs here as Python: a mapping from (row, 0) to a float answers ``phi[row, 0]`` faster than a numpy
+    array, whose elements would also make every product a numpy scalar's (the same bits, slower).
+    """
 
     __slots__ = ("dt_s", "gam", "phi", "quanta")
 
@@ -73,8 +77,8 @@ class _Step:
         aug[:3, :3] = a
         aug[:3, 3:] = b
         e = expm(aug * self.dt_s)
-        self.phi = np.ascontiguousarray(e[:3, :3].reshape(9, 1))
-        self.gam = np.ascontiguousarray(e[:3, 3:].reshape(6, 1))
+        self.phi = {(row, 0): float(value) for row, value in enumerate(e[:3, :3].ravel())}
+        self.gam = {(row, 0): float(value) for row, value in enumerate(e[:3, 3:].ravel())}
 
 
 class Plant:
@@ -115,9 +119,9 @@ class Plant:
         self._fs = p.stiction_friction_n
         self._slope = p.force_constant_slope_per_mm
         self._x_mid = p.force_constant_mid_mm
-        self._pump = pump_constants(p.linear, p.preload_n, p.stribeck_velocity_mm_s, p.force_constant_n_per_a,
-                                    p.force_constant_slope_per_mm, p.force_constant_mid_mm, p.net_stiffness_n_per_mm,
-                                    p.stroke_mm, STICK_SPEED_MM_S)
+        self._pump = tuple(float(value) for value in pump_constants(
+            p.linear, p.preload_n, p.stribeck_velocity_mm_s, p.force_constant_n_per_a, p.force_constant_slope_per_mm,
+            p.force_constant_mid_mm, p.net_stiffness_n_per_mm, p.stroke_mm, STICK_SPEED_MM_S))
         self.coil_temp_c = p.coil_temp_c
         self.resistance_ohm = p.resistance_ohm
         self._r20 = p.resistance_20c_ohm
@@ -138,13 +142,9 @@ class Plant:
         return step
 
     def prepare(self, max_quanta: int) -> None:
-        """Precompute steps of 1..max_quanta quanta and take one step aside, so that numba loads the compiled step
-        now (a first-use delay of a few hundred ms, not to be paid in real time)."""
+        """Precompute steps of 1..max_quanta quanta (avoids a first-use delay in real time)."""
         for n in range(1, max_quanta + 1):
             self._step(n)
-        step = self._quantum
-        step_valve(step.phi, step.gam, 0, step.dt_s, 1, self.x_mm, self.v_mm_s, self.i_a, self.stuck, step.phi,
-                   step.gam, 0, 0.0, self._fc, self._fs, self.quantum_s, self._pump)  # its result is not kept
 
     def set_drive_v(self, drive_v: float) -> None:
         """Set the amplifier input (held until changed); clipped to the amplifier limit."""
@@ -177,9 +177,8 @@ class Plant:
         x, v, i, stuck, sticks = step_valve(step.phi, step.gam, 0, step.dt_s, n_quanta, self.x_mm, self.v_mm_s,
                                             self.i_a, self.stuck, quantum.phi, quantum.gam, 0, coil_v, self._fc,
                                             self._fs, self.quantum_s, self._pump)
-        # floats and a bool, also where numba is not installed and the kernel runs as Python on numpy's scalars
-        self.x_mm, self.v_mm_s, self.i_a, self.stuck = float(x), float(v), float(i), bool(stuck)
-        self.stick_events += int(sticks)
+        self.x_mm, self.v_mm_s, self.i_a, self.stuck = x, v, i, stuck
+        self.stick_events += sticks
         self._heat_j += self.resistance_ohm * self.i_a * self.i_a * n_quanta * self.quantum_s
         if self.elapsed_quanta >= self._next_thermal:
             self._step_temperature()

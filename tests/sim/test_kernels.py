@@ -16,7 +16,7 @@ from edc_bench.config import load_variant
 from edc_bench.population.batch import QUANTA_PER_PERIOD, _VectorPlant
 from edc_bench.population.valves import draw_population
 from edc_bench.physics.valve import plant_parameters
-from edc_bench.sim.kernels import quantised_reading
+from edc_bench.sim.kernels import compiled
 from edc_bench.sim.plant import Plant
 
 
@@ -63,12 +63,12 @@ def test_a_valve_held_by_stiction_keeps_its_place_while_its_current_rises() -> N
 
 def test_a_reading_rounds_half_to_even_as_numpy_does() -> None:
     value = np.array([0.5, 1.5, 2.5, -0.5, -2.5, 3.2, -0.0, np.nan])  # in steps of 1: the halves go to the even
-    assert np.array_equal(quantised_reading(value, 0.0, np.zeros(len(value)), 1.0),
+    assert np.array_equal(compiled().quantised_reading(value, 0.0, np.zeros(len(value)), 1.0),
                           np.array([0.0, 2.0, 2.0, 0.0, -2.0, 3.0, 0.0, np.nan]), equal_nan=True)
     rng = np.random.default_rng(5)
     value, noise = rng.uniform(0.0, 12.0, 1000), rng.normal(0.0, 2e-3, 1000)
     numpy_reading = np.round((value + 0.01 + noise) / 1e-3) * 1e-3
-    assert np.array_equal(quantised_reading(value, 0.01, noise, 1e-3), numpy_reading)
+    assert np.array_equal(compiled().quantised_reading(value, 0.01, noise, 1e-3), numpy_reading)
 
 
 # -- the oracle: the simulated rig's own plant, one valve at a time ---------------------------------------------------
@@ -139,11 +139,11 @@ def test_the_kernels_run_where_no_cache_folder_can_be_written(tmp_path) -> None:
     not_a_folder = tmp_path / "a file"
     not_a_folder.write_text("")  # a folder under it cannot be made, not even by root
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"} | {"EDC_BENCH_CACHE_DIR": str(not_a_folder)}
-    probe = ("import numpy as np; from edc_bench.sim import kernels as k; "
-             "print(k._CACHE, k.quantised_reading(np.array([1.26]), 0.0, np.zeros(1), 0.1)[0])")
+    probe = ("import numba, numpy as np; from edc_bench.sim import kernels as k; ns = k.compiled(); "
+             "print(k._cache_folder(numba), ns.compiled, ns.quantised_reading(np.array([1.26]), 0.0, np.zeros(1), 0.1)[0])")
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, check=False)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["False", "1.3"]
+    assert done.stdout.split() == ["False", "True", "1.3"]
 
 
 _BATCH = """
@@ -159,7 +159,7 @@ from edc_bench.population.valves import draw_population
 variant = load_variant("p-edc-default")
 variant = variant.model_copy(update={"excitation": variant.excitation.model_copy(update={"duration_s": 4.0})})
 result = run_batch(variant, draw_population(variant, 2, 5), [1, 2])
-print(kernels.COMPILED, result.feature("af").tobytes().hex(), result.feature("a1").tobytes().hex())
+print(kernels.compiled().compiled, result.feature("af").tobytes().hex(), result.feature("a1").tobytes().hex())
 """
 
 
