@@ -31,8 +31,7 @@ from edc_bench.engine.tick import TickEngine
 from edc_bench.errors import ConfigError
 from edc_bench.identification.trust import Problem
 from edc_bench.physics.feedforward import nominal_parameters
-from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, Icd, Mode, default_icd
-from edc_bench.protocol.errors import ProtocolError
+from edc_bench.protocol import BENCH_CMD_ID, Icd, Mode, default_icd
 from edc_bench.records.reader import LoggedFrame
 from edc_bench.records.consistency import STALL_ROWS_SCHEMA
 from edc_bench.records.schema import Record
@@ -56,28 +55,6 @@ class ReplayedRun:
     gaps: int = 0
     ticks_lost: int = 0
     notes: list[str] = field(default_factory=list)
-
-
-def _find_sync(frames: list[LoggedFrame], icd: Icd) -> tuple[Any, int]:
-    """The synchronising SAFE command's reply, and the index of the first RUN command (-1 if none)."""
-    sync_reply = pending_safe = None
-    for n, (_, can_id, data) in enumerate(frames):
-        if can_id == BENCH_CMD_ID:
-            try:
-                cmd = icd.parse_bench_cmd(data)
-            except ProtocolError:
-                continue
-            if cmd.mode == Mode.RUN:
-                return sync_reply, n
-            pending_safe = cmd  # the last SAFE before the first RUN synchronises
-        elif can_id == RIG_FEEDBACK_ID and pending_safe is not None:
-            try:
-                reply = icd.parse_rig_feedback(data)
-            except ProtocolError:
-                continue
-            if reply.counter == pending_safe.counter:
-                sync_reply = reply
-    return sync_reply, -1
 
 
 def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s: float = 0.0,
@@ -110,41 +87,46 @@ def replay_frames(frames: list[LoggedFrame], variant: Variant, *, ticks_start_s:
         ones logged (another variant, another software version).
     """
     icd = icd or default_icd()
-    sync, first_run = _find_sync(frames, icd)
-    if sync is None or first_run < 0:
-        raise ConfigError("the CAN log holds no bench test (no synchronising SAFE reply followed by RUN commands)")
     capacity = int(round(variant.excitation.duration_s / variant.controller.period_s))
     engine = TickEngine(variant, icd, capacity)
     worst = 0.0
     first_off: int | None = None
-    k, first_counter = -1, None
-    for _, can_id, data in frames[first_run:]:
+    k = -1
+    # every frame goes to the engine, as the loop handed it over: the rig's frames through receive() (the log's
+    # times are not the loop's clock: a reply's latency is not known here), the bench's own commands through
+    # logged_command(), which knows the synchronising SAFE and numbers each RUN's tick by its counter
+    for _, can_id, data in frames:
         if can_id != BENCH_CMD_ID:
-            if k >= 0:  # the log's times are not the loop's clock: a reply's latency is not known here
-                engine.receive(can_id, data, math.nan)
+            engine.receive(can_id, data, math.nan)
             continue
-        try:
-            cmd = icd.parse_bench_cmd(data)
-        except ProtocolError:
+        logged = engine.logged_command(data)
+        if logged is None:
             continue
-        if cmd.mode != Mode.RUN:
-            break  # the safe stop: the ticks are over
-        if first_counter is None:
-            first_counter = cmd.counter
-            engine.start(sync, (first_counter - 1) & 0xFF, ticks_start_s)
-        tick = k + 1 + (cmd.counter - (first_counter + k + 1)) % 256  # a jump: ticks lost to a stall
+        if logged.mode != Mode.RUN:
+            if engine.ticking:
+                break  # the safe stop: the ticks are over
+            continue
+        if not engine.ticking:
+            if engine.sync_reply is None or engine.safe_counter is None:
+                break
+            engine.start(engine.sync_reply, engine.safe_counter, ticks_start_s)
+        tick = logged.tick
+        if tick is None:  # a RUN always has one (logged_command)
+            continue
         if tick >= capacity:
             raise ConfigError(f"the CAN log has more than the variant's {capacity} ticks: "
                               "give the variant the test ran with")
         if tick > k + 1:
             engine.skip(k + 1, tick - k - 1)
         k = tick
-        engine.command(k)
-        off = abs(engine.drive_v - cmd.drive_v)
+        made = engine.command(k)
+        off = abs(made.drive_v - logged.drive_v)
         if off > DRIVE_TOLERANCE_V and first_off is None:
             first_off = k
         worst = max(worst, off)
         engine.sent(k, math.nan, math.nan)
+    if k < 0:
+        raise ConfigError("the CAN log holds no bench test (no synchronising SAFE reply followed by RUN commands)")
     if worst > DRIVE_TOLERANCE_V:
         where = f"replayed drives differ from the logged commands from tick {first_off} on, by up to " \
                 f"{worst * 1e3:.1f} mV"

@@ -11,14 +11,18 @@ h11's ``Connection``), so every driver runs the same sequence:
   frames from its bus and passes them to :meth:`TickEngine.receive`, sends
   what :meth:`TickEngine.command` returns, and tells :meth:`TickEngine.sent`;
 - :func:`~edc_bench.replay.replay_frames` passes a CAN log's frames in the
-  order the loop logged them, and compares each command it gets with the
-  one logged.
+  order the loop logged them (its own commands through :meth:`TickEngine.logged_command`, which finds the
+  synchronising SAFE and the tick of each RUN as the loop numbered them), and compares each command it gets with
+  the one logged.
+
+Commands come out as :class:`~edc_bench.engine.commands.BenchCommand` values: the payload, its counter (the reply
+it expects), its tick and deadline, and the last time its reply is of use.
 
 One tick, in order::
 
     receive(...)*          what came since the last tick (replies matched for use from ``next_tick``)
     skip(k, lost)          only after a host stall: the lost ticks, as gap rows
-    command(k)             controller step -> BENCH_CMD payload (sent by the driver)
+    command(k)             controller step -> a BenchCommand (its payload sent by the driver)
     sent(k, ...)           the command went out: its counter in flight, its trace row
     receive(...)*          what comes until the next deadline
     check(k)               abort checks -> Abort or None
@@ -39,6 +43,7 @@ from typing import Any, Protocol
 from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
+from edc_bench.engine.commands import BenchCommand
 from edc_bench.engine.order import EnginePhase, order_error
 from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, RigFaultFlag, StopDecision
 from edc_bench.engine.replies import SYNC_TICK, ReplyMatcher, max_reply_age_ticks, stale_limit_ticks
@@ -135,6 +140,9 @@ class TickEngine:
         self.phase = _IDLE
         self.expected_k = 0  # the next tick to command (or skip)
         self.commanded_k = -1  # the tick whose command was made and is not yet marked sent (-1: none)
+        self.safe_counter: int | None = None  # the last SAFE's counter before the ticks: the one that synchronises
+        self.sync_reply: RigFeedback | None = None  # the reply to it, once read
+        self._reply_age_ticks = max_reply_age_ticks(variant)
         self._sent_s = [0.0] * ticks
         self._own: deque[bytes] = deque(maxlen=_OWN_COMMANDS_KEPT)
         self._limits()
@@ -187,6 +195,8 @@ class TickEngine:
                 return None
             if self.ticking:
                 self._match(reply, now_s)
+            elif self.phase == _IDLE and reply.counter == self.safe_counter:
+                self.sync_reply = reply  # the reply the ticks start from (the loop's or a log's last SAFE)
             return reply
         if can_id == RIG_HEARTBEAT_ID:
             self._heartbeat(data, now_s)
@@ -238,10 +248,49 @@ class TickEngine:
         return bytes(data) not in self._own  # rare: searched only when a command comes in
 
     # -- commands out ----------------------------------------------------------------------------------------
-    def safe_command(self) -> bytes:
-        """The payload of a SAFE command with the next counter (outside the ticks)."""
-        self.counter = (self.counter + 1) & 0xFF
-        return self._encode(Mode.SAFE, 0.0, 0.0)
+    def safe_command(self, now_s: float = math.nan, reply_within_s: float = math.nan) -> BenchCommand:
+        """A SAFE command with the next counter (outside the ticks).
+
+        Parameters
+        ----------
+        now_s : float, optional
+            Clock time it is made (its :attr:`~BenchCommand.deadline_s`).
+        reply_within_s : float, optional
+            How long the driver waits for its reply (:attr:`~BenchCommand.reply_by_s` is ``now_s`` plus this).
+
+        Before the ticks, the last SAFE is the one that synchronises: its reply, when :meth:`receive` reads it, is
+        :attr:`sync_reply`.
+        """
+        self.counter = counter = (self.counter + 1) & 0xFF
+        if self.phase == _IDLE:
+            self.safe_counter, self.sync_reply = counter, None
+        return BenchCommand(self._encode(Mode.SAFE, 0.0, 0.0), counter, Mode.SAFE, 0.0, 0.0, None, now_s,
+                            now_s + reply_within_s)
+
+    def logged_command(self, data: bytes | bytearray) -> BenchCommand | None:
+        """A command this bench sent, read back from its CAN log (replay), as :meth:`safe_command` and
+        :meth:`command` made it: a SAFE before the ticks becomes the synchronising one; a RUN gets the tick the loop
+        numbered it by (its counter counted from the synchronising SAFE's; a jump is ticks a host stall cost).
+        None for a payload that is no valid command, and for a RUN with no SAFE before it.
+        """
+        try:
+            cmd = self.icd.parse_bench_cmd(data)
+        except ProtocolError:
+            return None
+        if cmd.mode != Mode.RUN:
+            if self.phase == _IDLE:
+                self.safe_counter, self.sync_reply = cmd.counter, None
+            return BenchCommand(bytes(data), cmd.counter, Mode(cmd.mode), cmd.drive_v, cmd.reference_mm, None,
+                                math.nan, math.nan)
+        if self.phase == _IDLE:
+            if self.safe_counter is None:
+                return None
+            tick = (cmd.counter - self.safe_counter - 1) & 0xFF
+        else:
+            k = self.expected_k
+            tick = k + ((cmd.counter - self.run_base - k) & 0xFF)
+        return BenchCommand(bytes(data), cmd.counter, Mode.RUN, cmd.drive_v, cmd.reference_mm, tick, math.nan,
+                            math.nan)
 
     def _encode(self, mode: int, drive_v: float, reference_mm: float) -> bytes:
         data = self.icd.make_bench_cmd(self.counter, mode, drive_v, min(max(reference_mm, 0.0), 65.535))
@@ -308,15 +357,18 @@ class TickEngine:
         else:
             self.outcome.ticks_run = self.ticks
 
-    def command(self, k: int) -> bytes:
-        """The controller's step for tick ``k``: the RUN command's payload (its drive in :attr:`drive_v`)."""
+    def command(self, k: int) -> BenchCommand:
+        """The controller's step for tick ``k``: the RUN command (its drive also in :attr:`drive_v`)."""
         if self.phase != _TICKING or self.commanded_k >= 0 or k != self.expected_k:
             raise order_error(f"command({k})", self.phase, self.expected_k, self.commanded_k)
         self.commanded_k = k
         ctl = self._controller()
-        self.drive_v = ctl.step(k, newest_usable=self.matcher.usable(k))
-        self.counter = (self.run_base + k) & 0xFF
-        return self._encode(Mode.RUN, self.drive_v, ctl.reference_mm)
+        self.drive_v = drive_v = ctl.step(k, newest_usable=self.matcher.usable(k))
+        self.counter = counter = (self.run_base + k) & 0xFF
+        reference_mm = min(max(ctl.reference_mm, 0.0), 65.535)
+        deadline_s = self.t_start_s + k * self.period_s
+        return BenchCommand(self._encode(Mode.RUN, drive_v, reference_mm), counter, Mode.RUN, drive_v, reference_mm,
+                            k, deadline_s, deadline_s + self._reply_age_ticks * self.period_s)
 
     def sent(self, k: int, sent_s: float, lateness_s: float) -> None:
         """Tick ``k``'s command went out at ``sent_s`` (clock time), ``lateness_s`` after its deadline."""

@@ -18,7 +18,7 @@ the lost ticks are marked in the trace and skipped, never sent late in a
 burst.
 
 Per tick little is allocated beyond what python-can and the codec must (the
-estimator's two five-element vectors; the garbage collector is off during
+estimator's two five-element vectors, the typed command; the garbage collector is off during
 the loop): the trace and the frame log are preallocated arrays.
 """
 
@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import enum
 import gc
+import math
 import time
 import traceback
 from collections.abc import Callable
@@ -34,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from edc_bench.canlib import can
 from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
+from edc_bench.engine.commands import BenchCommand
 from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, StopDecision
 from edc_bench.engine.tick import StopRule, TickEngine
 from edc_bench.engine.trace import CanFrameLog, Trace, frame_flags
@@ -150,11 +152,14 @@ class BenchLoop:
         return self.engine.stop_rule
 
     # -- frames ----------------------------------------------------------------
-    def _send(self, data: bytes) -> None:
+    def _send(self, command: BenchCommand) -> BenchCommand:
+        """Send ``command`` and log it; returns it (to await its reply)."""
+        data = command.payload
         self._sent_any = True
         self.bus.send(can.Message(arbitration_id=BENCH_CMD_ID, data=data, is_extended_id=False))
         self.frames.add(self.clock.now_s() if self.clock.waits_for_replies else self._t_s, BENCH_CMD_ID, data, False)
         self.clock.after_send(self._t_s)
+        return command
 
     def _read(self, until_s: float, replies_expected: bool = True) -> tuple[bool, RigFeedback | None]:
         """Read the next frame, waiting at most until ``until_s`` (never, in lockstep), log it and hand it to the
@@ -173,21 +178,23 @@ class BenchLoop:
                                          other=msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame,
                                          replies_expected=replies_expected)
 
-    def _receive(self, counter: int | None, deadline_s: float) -> RigFeedback | None:
-        """Outside the ticks: read until the reply to ``counter`` (none: only heartbeats are wanted) or the deadline,
-        at most a tick's frame budget of frames."""
+    def _receive(self, command: BenchCommand | None, deadline_s: float = -math.inf) -> RigFeedback | None:
+        """Outside the ticks: read until the reply to ``command`` or its :attr:`~BenchCommand.reply_by_s` (none: only
+        heartbeats are wanted, until ``deadline_s``), at most a tick's frame budget of frames."""
+        if command is not None:
+            deadline_s = command.reply_by_s
         frames = 0
         while frames < self.max_frames_per_tick:
-            came, reply = self._read(deadline_s, replies_expected=counter is not None)
+            came, reply = self._read(deadline_s, replies_expected=command is not None)
             if not came:
-                if counter is None or self.clock.waits_for_replies or self._t_s >= deadline_s:
+                if command is None or self.clock.waits_for_replies or self._t_s >= deadline_s:
                     return None
                 # simulated time: let it pass in small steps, so a reply on its way through an adapter arrives
                 self._t_s = min(deadline_s, self._t_s + 0.25 * self.period_s)
                 self.clock.wait_until(self._t_s)
                 continue
             frames += 1
-            if reply is not None and reply.counter == counter:
+            if command is not None and command.is_reply(reply):
                 return reply
         self.outcome.events.append(f"more than {self.max_frames_per_tick} frames while waiting for a reply")
         return None
@@ -230,8 +237,7 @@ class BenchLoop:
                 return True
             if engine.rig_state in (RigState.FAULT, RigState.RUNNING) and not rearmed:
                 self.outcome.events.append(f"rig was {engine.rig_state.name} at start: sent SAFE to re-arm")
-                self._send(engine.safe_command())
-                self._receive(engine.counter, self._t_s + step * 0.5)
+                self._receive(self._send(engine.safe_command(self._t_s, step * 0.5)))
                 rearmed = True
         return False
 
@@ -241,8 +247,7 @@ class BenchLoop:
         for _ in range(5):
             self._t_s = max(self._t_s + self.period_s, self.clock.now_s())
             self.clock.wait_until(self._t_s)
-            self._send(engine.safe_command())
-            reply = self._receive(engine.counter, self._t_s + 0.02)
+            reply = self._receive(self._send(engine.safe_command(self._t_s, 0.02)))
             if reply is not None and not reply.amp_enabled:
                 self.outcome.safe_confirmed = True
                 return
@@ -349,14 +354,14 @@ class BenchLoop:
         engine, T = self.engine, self.period_s
         self._t_s += T
         self.clock.wait_until(self._t_s)
-        self._send(engine.safe_command())
         # not time-critical: frames queued since connecting may come first
-        first = self._receive(engine.counter, self._t_s + 0.1)
+        sync = self._send(engine.safe_command(self._t_s, 0.1))
+        first = self._receive(sync)
         if engine.foreign_command:
             raise _AbortTest(Abort(AbortKind.FOREIGN_COMMAND))
         if first is None:
             return False
-        engine.start(first, engine.counter, max(self._t_s, self.clock.now_s()) + T, self._t_s)
+        engine.start(first, sync.counter, max(self._t_s, self.clock.now_s()) + T, self._t_s)
         # building the controller takes 20-50 ms on a slow PC: in real time tick 0 comes a period after it is built,
         # where it cost a test its first 15-21 ticks, lost as a host stall (simulated time stands still meanwhile)
         engine.delay_start(self.clock.now_s() + T)
@@ -407,9 +412,9 @@ class BenchLoop:
                     t_k = engine.tick_time_s(k)
                 if k == 0:
                     self.outcome.first_tick_unix_s = time.time()
-                data = engine.command(k)
+                command = engine.command(k)
                 sent_s = clock.now_s()
-                self._send(data)
+                self._send(command)
                 engine.sent(k, sent_s, lateness)
                 # real time, a short call of the stop rule to make in this tick: it takes the time the replies are
                 # read in (what comes meanwhile is read first thing next tick), so that it ends before the next

@@ -33,9 +33,13 @@ def _started(variant: Variant, icd: Icd, ticks: int = 2000) -> TickEngine:
 def _run(engine: TickEngine, icd: Icd, ticks: int, answer: bool = True, heartbeat_every: int = 100) -> Abort | None:
     """Ticks 0..ticks-1 as a rig that answers each command within its tick, at the reference."""
     for k in range(ticks):
-        data = engine.command(k)
-        cmd = icd.parse_bench_cmd(data)
+        command = engine.command(k)
+        cmd = icd.parse_bench_cmd(command.payload)
         assert cmd.counter == (SYNC_COUNTER + 1 + k) & 0xFF and cmd.mode == Mode.RUN
+        # the typed command says what its bytes say, and when it is due
+        assert (command.counter, command.mode, command.tick) == (cmd.counter, Mode.RUN, k)
+        assert command.drive_v == pytest.approx(cmd.drive_v, abs=1e-3) and command.drive_v == engine.drive_v
+        assert command.deadline_s == engine.tick_time_s(k)
         now = engine.tick_time_s(k)
         engine.sent(k, now, 0.0)
         if answer:
@@ -74,7 +78,7 @@ def test_a_silent_rig_ends_the_test_with_a_typed_abort_after_the_limit(variant: 
 
 def _run_from(engine: TickEngine, icd: Icd, first: int, last: int, answer: bool) -> Abort | None:
     for k in range(first, last):
-        data = engine.command(k)
+        data = engine.command(k).payload
         engine.sent(k, engine.tick_time_s(k), 0.0)
         if answer:
             engine.receive(RIG_FEEDBACK_ID, _feedback(icd, icd.parse_bench_cmd(data).counter, 10.0),
@@ -87,7 +91,7 @@ def _run_from(engine: TickEngine, icd: Icd, first: int, last: int, answer: bool)
 
 def test_a_fault_flag_in_a_reply_is_a_rig_fault_naming_it(variant: Variant, icd: Icd) -> None:
     engine = _started(variant, icd)
-    data = engine.command(0)
+    data = engine.command(0).payload
     engine.sent(0, engine.tick_time_s(0), 0.0)
     engine.receive(RIG_FEEDBACK_ID, _feedback(icd, icd.parse_bench_cmd(data).counter, 10.0, travel_limit=True), 0.0)
     abort = engine.check(0)
@@ -97,7 +101,7 @@ def test_a_fault_flag_in_a_reply_is_a_rig_fault_naming_it(variant: Variant, icd:
 
 def test_another_hosts_command_is_seen_and_our_own_echo_is_not(variant: Variant, icd: Icd) -> None:
     engine = _started(variant, icd)
-    ours = engine.command(0)
+    ours = engine.command(0).payload
     engine.receive(BENCH_CMD_ID, ours, 0.0)  # an interface that echoes what we send, marked as received
     assert not engine.foreign_command
     engine.receive(BENCH_CMD_ID, b"\x00" * 8, 0.0)  # damaged: no rig would obey it, so no second host
@@ -111,7 +115,7 @@ def test_a_host_stall_is_a_gap_of_rows_never_a_burst(variant: Variant, icd: Icd)
     assert _run(engine, icd, 10) is None
     engine.skip(10, 5)
     assert engine.outcome.gaps == 1 and engine.outcome.ticks_lost == 5
-    data = engine.command(15)
+    data = engine.command(15).payload
     assert icd.parse_bench_cmd(data).counter == (SYNC_COUNTER + 1 + 15) & 0xFF  # the counter tells replay the jump
     engine.sent(15, engine.tick_time_s(15), 0.0)
     trace = engine.trace.view()
@@ -120,11 +124,47 @@ def test_a_host_stall_is_a_gap_of_rows_never_a_burst(variant: Variant, icd: Icd)
 
 def test_replies_after_the_ticks_are_not_the_tests(variant: Variant, icd: Icd) -> None:
     engine = _started(variant, icd)
-    data = engine.command(0)
+    data = engine.command(0).payload
     engine.sent(0, 0.002, 0.0)
     engine.finish()
     engine.receive(RIG_FEEDBACK_ID, _feedback(icd, icd.parse_bench_cmd(data).counter, 12.0), 0.003)
     assert engine.matcher.counts.matched == 0 and not engine.trace.view()["reply_ok"][0]
+
+
+def test_a_command_says_the_reply_it_expects_and_until_when(variant: Variant, icd: Icd) -> None:
+    """#54 item 4: a typed command (as moteus's make_* builders return), not bytes the driver must decode."""
+    engine = _started(variant, icd)
+    command = engine.command(0)
+    T = variant.controller.period_s
+    age_ticks = math.ceil(variant.acceptance.max_reply_age_ms * 1e-3 / T - 1e-9)
+    assert command.reply_by_s == pytest.approx(engine.tick_time_s(0) + age_ticks * T)
+    assert command.is_reply(icd.parse_rig_feedback(_feedback(icd, command.counter, 10.0)))
+    assert not command.is_reply(icd.parse_rig_feedback(_feedback(icd, command.counter + 1, 10.0)))
+    assert not command.is_reply(None)
+    with pytest.raises(AttributeError):  # immutable: what was sent stays what it says
+        command.counter = 3  # type: ignore[misc]
+
+
+def test_the_last_safe_before_the_ticks_synchronises_for_the_loop_and_for_replay(variant: Variant, icd: Icd) -> None:
+    """The engine, not its drivers, knows which SAFE's reply the ticks start from: the loop's own SAFE commands
+    and a log's, read back by replay, go the same way (an earlier SAFE's late reply does not synchronise)."""
+    loop = TickEngine(variant, icd, 10)
+    rearm = loop.safe_command(0.0, 0.02)
+    sync = loop.safe_command(0.05, 0.1)
+    assert (sync.counter, sync.reply_by_s, sync.tick) == ((rearm.counter + 1) & 0xFF, pytest.approx(0.15), None)
+    loop.receive(RIG_FEEDBACK_ID, _feedback(icd, rearm.counter, 3.0), 0.06)  # the re-arm's reply, late
+    assert loop.sync_reply is None
+    loop.receive(RIG_FEEDBACK_ID, _feedback(icd, sync.counter, 4.0), 0.07)
+    assert loop.sync_reply is not None and loop.sync_reply.position_mm == pytest.approx(4.0)
+    replay = TickEngine(variant, icd, 10)
+    for payload in (rearm.payload, sync.payload):
+        assert replay.logged_command(payload).mode == Mode.SAFE
+    replay.receive(RIG_FEEDBACK_ID, _feedback(icd, sync.counter, 4.0), math.nan)
+    assert replay.sync_reply == loop.sync_reply and replay.safe_counter == loop.safe_counter
+    # a logged RUN gets the tick the loop gave it, from the synchronising SAFE's counter (2: two ticks lost first)
+    run = icd.make_bench_cmd((sync.counter + 3) & 0xFF, Mode.RUN, 1.0, 5.0)
+    assert replay.logged_command(run).tick == 2
+    assert replay.logged_command(b"\x00" * 8) is None  # no valid command
 
 
 def test_every_abort_kind_has_a_sentence_and_something_to_check() -> None:
