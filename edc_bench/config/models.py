@@ -12,6 +12,7 @@ without tripping over-current) are checked in :class:`Variant`.
 
 from __future__ import annotations
 
+import enum
 import re
 from typing import Annotated, Any, ClassVar, Literal, NamedTuple, get_args
 
@@ -308,6 +309,13 @@ ParameterName = Literal["a3", "a2", "a1", "a0", "b", "af"]
 PARAMETER_NAMES: tuple[str, ...] = get_args(ParameterName)
 
 
+class EstimatorKind(enum.StrEnum):
+    """The online estimator's law (``[estimator] kind``): recursive least squares, or a gradient law."""
+
+    RLS = "rls"
+    GRADIENT = "gradient"
+
+
 class EstimatorSection(_Section):
     """Online estimation of the feedforward parameters.
 
@@ -320,7 +328,7 @@ class EstimatorSection(_Section):
         "gradient_gains_per_s": Plausible(1e-6, 1e5, "1/s", "a gradient law's gain is"),
     }
 
-    kind: Literal["rls", "gradient"] = "rls"
+    kind: EstimatorKind = EstimatorKind.RLS
     estimate: Annotated[list[ParameterName], Field(min_length=1)] = [
         "a2", "a1", "a0", "b", "af",
     ]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.config.models import PARAMETER_NAMES, EstimatorKind, Variant
 from edc_bench.control.coil import averaging_window_s
 from edc_bench.control.estimators import Estimator, NormalisedGradient, RecursiveLeastSquares
 from edc_bench.control.fel import FelController
@@ -59,8 +59,8 @@ class ControllerDesign:
         Starting estimates of the estimated parameters (normalised).
     prior_std : tuple of float
         Their prior standard deviations (normalised; RLS's P0 = diag(std^2)).
-    estimator_kind : str
-        ``"rls"`` or ``"gradient"``.
+    estimator_kind : EstimatorKind
+        Recursive least squares or a gradient law.
     forgetting_factor : float
         RLS's lambda.
     gradient_gains_per_s : tuple of float
@@ -84,7 +84,7 @@ class ControllerDesign:
     estimated: tuple[int, ...]
     theta0: tuple[float, ...]
     prior_std: tuple[float, ...]
-    estimator_kind: str
+    estimator_kind: EstimatorKind
     forgetting_factor: float
     gradient_gains_per_s: tuple[float, ...]
     mid_mm: float
@@ -161,7 +161,7 @@ class ControllerDesign:
 
     def estimator(self) -> Estimator:
         """A fresh estimator at the starting estimates."""
-        if self.estimator_kind == "rls":
+        if self.estimator_kind is EstimatorKind.RLS:
             return RecursiveLeastSquares(self.theta0, self.prior_std, self.forgetting_factor)
         return NormalisedGradient(self.theta0, self.gradient_gains_per_s, self.period_s)
 

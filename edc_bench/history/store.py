@@ -114,7 +114,7 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "test_s": None if stop is None else _finite(stop.time_s),
         "simulated": record.simulated_rig,
         "retest_of": _retest_of(record, record_dir),
-        "decision": None if record.retest is None else _text(record.retest.decision)[:20] or None,
+        "decision": None if record.retest is None or record.retest.decision is None else str(record.retest.decision),
         "test_key": test_key(record),
         # a stripped copy's match; a retest is not its first test, though both may start in the same second
         "legacy_key": legacy_test_key(_text(record.started_at), _text(record.valve_id),

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from edc_bench.config.models import Variant
+from edc_bench.config.models import EstimatorKind, Variant
 from edc_bench.control import law
 from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.design import ControllerDesign
@@ -61,7 +61,7 @@ def lean_tick(design: ControllerDesign, start_mm: float) -> Callable[[int, float
     ops = law.SCALAR
     pid_c = law.PidCoefficients.of(design.pid_gains, design.period_s, design.drive_limit_v)
     pid = law.PidState()
-    rls = design.estimator_kind == "rls"
+    rls = design.estimator_kind is EstimatorKind.RLS
     theta = list(design.theta0)
     P = [[s * s if i == j else 0.0 for j, s in enumerate(design.prior_std)] for i in range(len(theta))]
     lam = design.forgetting_factor

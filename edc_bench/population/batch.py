@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from edc_bench.config.models import PARAMETER_NAMES, Variant
+from edc_bench.config.models import PARAMETER_NAMES, EstimatorKind, Variant
 from edc_bench.control import law
 from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.design import ControllerDesign
@@ -443,7 +443,7 @@ class _Controller:
         r1 = w_all[2]
         if adapting.any():
             y = law.estimator_target(u, rho, fixed_part)
-            if design.estimator_kind == "rls":
+            if design.estimator_kind is EstimatorKind.RLS:
                 law.rls_update(ops, self.theta, self.P, w_est, y, design.forgetting_factor, MAX_COVARIANCE_TRACE,
                                adapting)
             else:

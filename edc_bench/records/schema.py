@@ -17,9 +17,9 @@ as the mappings they are.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
@@ -27,6 +27,14 @@ from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
 from edc_bench.runtime.clock_kind import ClockKind
 from edc_bench.verdict.baseline_source import BaselineSource
 from edc_bench.verdict.verdicts import Verdict
+
+
+def _none_if_empty(value: Any) -> Any:
+    return None if value == "" else value
+
+
+#: A verdict a section names, or None where there is none; older records wrote "" for none.
+MaybeVerdict = Annotated[Verdict | None, BeforeValidator(_none_if_empty)]
 
 
 class Section(BaseModel):
@@ -240,8 +248,8 @@ class RetestSummary(Section):
     """A retest's record: the test it repeats and what the two decide (:mod:`edc_bench.verdict.retest`)."""
 
     of_record: str = ""  # the first test's record folder (its name: the two sit side by side)
-    of_verdict: str = ""  # the first test's verdict (MARGINAL)
-    decision: str = ""  # what the pair decides: PASS, FAIL or INVALID
+    of_verdict: MaybeVerdict = None  # the first test's verdict (MARGINAL)
+    decision: MaybeVerdict = None  # what the pair decides: PASS, FAIL or INVALID
     words: str = ""  # the technician's line for the pair
     rule: str = ""  # the variant's rule that decided, e.g. "retest.decide.MARGINAL = FAIL"
 
@@ -251,8 +259,8 @@ class EscalationSummary(Section):
     (:mod:`edc_bench.records.escalation_link`): it may be seized."""
 
     of_record: str = ""  # the earlier test's record folder (its name)
-    of_verdict: str = ""  # the earlier test's verdict (INVALID)
-    of_cause: str = ""  # who the earlier test pointed at (records.advice.Cause)
+    of_verdict: MaybeVerdict = None  # the earlier test's verdict (INVALID)
+    of_cause: Cause | None = None  # who the earlier test pointed at
     words: str = ""  # the technician's line (records.advice.SEIZED)
 
 
@@ -261,8 +269,8 @@ class RetestedBy(Section):
     was written before its retest ran)."""
 
     record: str = ""  # the retest's record folder (its name)
-    verdict: str = ""  # the retest's verdict
-    decision: str = ""  # what the pair decides
+    verdict: MaybeVerdict = None  # the retest's verdict
+    decision: MaybeVerdict = None  # what the pair decides
     words: str = ""  # the technician's line for the pair
 
 

@@ -93,11 +93,14 @@ def test_written_copy_round_trips(tmp_path: Path) -> None:
         (lambda d: d["valve"].update(clearance_spec_mm=0.05), r"clearance_spec_mm \(0.05\) must not be below"),
         (lambda d: d["diagnosis"]["population"].update(clearance_max_mm=0.05), r"clearance_max_mm must exceed"),
         (lambda d: d["excitation"].update(move_s=5.0, fade_s=5.0, duration_s=9.0), r"must exceed move_s \+ fade_s"),
+        # the estimator's law is a value (EstimatorKind), named with the ones there are
+        (lambda d: d.setdefault("estimator", {}).update(kind="RLS please"),
+         r"\[estimator\]\.kind = 'RLS please': Input should be 'rls' or 'gradient'"),
     ],
     ids=["negative", "unknown-key", "missing", "wrong-type", "unknown-section", "retired-key", "travel", "mid-stroke",
          "unstable", "drive-limit", "over-current", "preset", "stiction", "name", "nested",
          "swing-above", "swing-below", "too-short", "tone-too-fast", "coil-spec", "supply", "hold-voltage",
-         "clearance-spec", "population", "move-fade"],
+         "clearance-spec", "population", "move-fade", "estimator-kind"],
 )
 def test_bad_variant_is_refused_naming_file_field_and_value(tmp_path: Path, mutate, expected: str) -> None:
     data = _raw()

@@ -129,3 +129,19 @@ def test_a_record_needs_a_verdict_it_knows(tmp_path: Path) -> None:
     (tmp_path / "record.json").write_text('{"verdict": "GOOD"}', encoding="utf-8")
     with pytest.raises(ConfigError, match=r"verdict holds 'GOOD'.*'PASS'"):
         load_record(tmp_path)
+
+
+def test_a_retests_decision_is_a_verdict_and_an_older_empty_one_is_none(tmp_path: Path) -> None:
+    """#54: the retest's decision, the verdicts it pairs and an escalation's cause are values, not free text: a
+    record's "" (older records wrote it for none) reads as None, a word that is no verdict is refused naming it."""
+    from edc_bench.records.advice import Cause
+    from edc_bench.records.reader import typed_record
+
+    base = {"verdict": "FAIL", "retest": {"of_record": "a", "of_verdict": "MARGINAL", "decision": "FAIL"},
+            "escalation": {"of_record": "b", "of_verdict": "INVALID", "of_cause": "valve"}}
+    record = typed_record(base, tmp_path)
+    assert record.retest.decision is Verdict.FAIL and record.retest.of_verdict is Verdict.MARGINAL
+    assert record.escalation.of_cause is Cause.VALVE
+    assert typed_record({**base, "retest": {"of_record": "a", "decision": ""}}, tmp_path).retest.decision is None
+    with pytest.raises(ConfigError, match=r"retest.decision holds 'FAIL, probably'"):
+        typed_record({**base, "retest": {"decision": "FAIL, probably"}}, tmp_path)
