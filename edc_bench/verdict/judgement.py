@@ -38,9 +38,9 @@ DECISION_PLANE_POINTS = 60
 DECISION_PLANE_MIN, DECISION_PLANE_MAX = 0.5, 2.6
 
 
-@dataclass
+@dataclass(frozen=True)
 class Judgement:
-    """The verdict of one run and everything behind it.
+    """The verdict of one run and everything behind it (frozen: :func:`judge_run` builds it once, when it knows all).
 
     Attributes
     ----------
@@ -272,41 +272,42 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     coil = coil_finding(variant, trace, coil_temp_c)
     bad_coil = coil_reason(coil) if coil is not None else None
     problems |= Problem.COIL_OUT_OF_SPEC if bad_coil else Problem.NONE
-    judgement = Judgement(
-        verdict=verdict_of(problems, None),
-        reasons=(reasons or ["test trustworthy; classification switched off"]) + ([bad_coil] if bad_coil else []),
-        parameters=parameters, features=features,
-        converged=bool(ident and ident.converged and not outcome.aborted),
-        identification=ident, reference_values=reference_values(variant, None),
-        features_volt={n: volts_at_coil(inductive[n], features[n], r_ref, r_hat) for n in ("af", "a1")},
-        coil=coil, problems=problems,
-    )
-    if not reasons and bad_coil:
-        judgement.reasons = [bad_coil]  # a FAIL (verdict_of): the coil is replaced or repaired first
-    if not reasons and classify:
-        baseline = baseline if baseline is not None else load_baseline(variant)
-        judgement.baseline = baseline.summary()
-        if not baseline.calibrated and not nominal_baseline:
-            judgement.problems |= Problem.NOT_CALIBRATED
-            judgement.verdict = verdict_of(judgement.problems, None)
-            judgement.baseline = None  # nothing was compared with it
-            judgement.reasons = ([bad_coil] if bad_coil else []) + [not_calibrated_reason(variant, calibrate_command)]
-            return judgement
-        judged, classifier = classify_against(baseline, features["af"], features["a1"], classifier_path, variant)
-        judgement.verdict = verdict_of(judgement.problems, Verdict(judged.verdict))
-        judgement.classification = classification_dict(judged, classifier)
-        judgement.reference_values = reference_values(variant, baseline)
-        judgement.decision_plane = decision_plane(classifier, judged.features_rel)
-        judgement.reasons = [
-            f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
-            f"{judged.distance:+.3f} (marginal band {classifier.marginal_band:g})"]
-        if bad_coil:
-            judgement.reasons = [bad_coil, f"the valve itself: {judged.verdict}; " + judgement.reasons[0]]
-        if not baseline.calibrated:
-            judgement.reasons.insert(0, nominal_baseline_warning(variant, calibrate_command))
-        else:
-            judgement.reasons += baseline_cautions(baseline, variant, calibrate_command, real_rig)
-    return judgement
+    converged = bool(ident and ident.converged and not outcome.aborted)
+    features_volt = {n: volts_at_coil(inductive[n], features[n], r_ref, r_hat) for n in ("af", "a1")}
+    # built once, at the end of the branch that decides it: a Judgement is frozen
+    if reasons or not classify:
+        if reasons:  # not trusted: why, and the coil
+            said = reasons + ([bad_coil] if bad_coil else [])
+        else:  # a coil out of spec fails the valve (verdict_of): it is replaced or repaired first
+            said = [bad_coil] if bad_coil else ["test trustworthy; classification switched off"]
+        return Judgement(
+            verdict=verdict_of(problems, None), reasons=said,
+            parameters=parameters, features=features, converged=converged, identification=ident,
+            reference_values=reference_values(variant, None), features_volt=features_volt, coil=coil,
+            problems=problems)
+    baseline = baseline if baseline is not None else load_baseline(variant)
+    if not baseline.calibrated and not nominal_baseline:
+        problems |= Problem.NOT_CALIBRATED
+        return Judgement(
+            verdict=verdict_of(problems, None),
+            reasons=([bad_coil] if bad_coil else []) + [not_calibrated_reason(variant, calibrate_command)],
+            parameters=parameters, features=features, converged=converged, identification=ident,
+            reference_values=reference_values(variant, None), features_volt=features_volt, coil=coil,
+            problems=problems)  # no baseline: nothing was compared with it
+    judged, classifier = classify_against(baseline, features["af"], features["a1"], classifier_path, variant)
+    classified = (f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
+                  f"{judged.distance:+.3f} (marginal band {classifier.marginal_band:g})")
+    said = [bad_coil, f"the valve itself: {judged.verdict}; {classified}"] if bad_coil else [classified]
+    if not baseline.calibrated:
+        said.insert(0, nominal_baseline_warning(variant, calibrate_command))
+    else:
+        said += baseline_cautions(baseline, variant, calibrate_command, real_rig)
+    return Judgement(
+        verdict=verdict_of(problems, Verdict(judged.verdict)), reasons=said, parameters=parameters,
+        features=features, converged=converged, identification=ident,
+        reference_values=reference_values(variant, baseline), classification=classification_dict(judged, classifier),
+        baseline=baseline.summary(), decision_plane=decision_plane(classifier, judged.features_rel),
+        features_volt=features_volt, coil=coil, problems=problems)
 
 
 def baseline_cautions(baseline: Baseline, variant: Variant, calibrate_command: str | None,
