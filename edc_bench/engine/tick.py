@@ -67,6 +67,9 @@ FLAG_AMP, FLAG_WATCHDOG, FLAG_OVER_CURRENT, FLAG_LVDT, FLAG_TRAVEL = 1, 2, 4, 8,
 #: The engine's phases as plain ints: compared at every call of the tick, where an IntEnum's lookup is not free
 _IDLE, _TICKING, _FINISHED = int(EnginePhase.IDLE), int(EnginePhase.TICKING), int(EnginePhase.FINISHED)
 
+#: The modes this bench sends
+_MODES = frozenset(int(mode) for mode in Mode)
+
 #: How many of its own commands the engine remembers, to tell an interface's echo from another host's command.
 _OWN_COMMANDS_KEPT = 1024
 
@@ -271,11 +274,14 @@ class TickEngine:
         """A command this bench sent, read back from its CAN log (replay), as :meth:`safe_command` and
         :meth:`command` made it: a SAFE before the ticks becomes the synchronising one; a RUN gets the tick the loop
         numbered it by (its counter counted from the synchronising SAFE's; a jump is ticks a host stall cost).
-        None for a payload that is no valid command, and for a RUN with no SAFE before it.
+        None for a payload that is no valid command (its CRC, or a mode the bench never sends), and for a RUN with no
+        SAFE before it.
         """
         try:
             cmd = self.icd.parse_bench_cmd(data)
         except ProtocolError:
+            return None
+        if cmd.mode not in _MODES:  # a mode this bench never sends (the field has 8 bits): not its command
             return None
         if cmd.mode != Mode.RUN:
             if self.phase == _IDLE:

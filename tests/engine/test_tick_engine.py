@@ -165,6 +165,13 @@ def test_the_last_safe_before_the_ticks_synchronises_for_the_loop_and_for_replay
     run = icd.make_bench_cmd((sync.counter + 3) & 0xFF, Mode.RUN, 1.0, 5.0)
     assert replay.logged_command(run).tick == 2
     assert replay.logged_command(b"\x00" * 8) is None  # no valid command
+    # a mode the bench never sends (the field has 8 bits; a valid CRC over it): not its command
+    from edc_bench.protocol.crc import e2e_crc
+
+    body = bytearray(icd.make_bench_cmd(9, Mode.SAFE, 0.0, 0.0))
+    body[2] = 7
+    body[0] = e2e_crc(icd.bench_cmd_data_id, bytes(body))
+    assert icd.parse_bench_cmd(bytes(body)).mode == 7 and replay.logged_command(bytes(body)) is None
 
 
 def test_every_abort_kind_has_a_sentence_and_something_to_check() -> None:
