@@ -26,6 +26,7 @@ from edc_bench.config import parse_variant
 from edc_bench.config.loader import without_retired_keys
 from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
+from edc_bench.engine.abort_figures import LogEndsFigures
 from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome
 from edc_bench.engine.tick import TickEngine
 from edc_bench.errors import ConfigError
@@ -320,7 +321,7 @@ def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,
     run = replay_frames(frames, variant)
     planned = int(round(variant.excitation.duration_s / variant.controller.period_s))
     abort = None if run.ticks == planned or _ends_at_a_period(variant, run.ticks) else \
-        Abort(AbortKind.LOG_ENDS, {"ticks": run.ticks, "planned": planned})
+        Abort(AbortKind.LOG_ENDS, LogEndsFigures(ticks=run.ticks, planned=planned))
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
                           gaps=run.gaps, ticks_lost=run.ticks_lost, abort=abort)
     timing = {"ticks": run.ticks, "ticks_late": 0}

@@ -22,6 +22,26 @@ import enum
 from dataclasses import dataclass, field
 from typing import Any
 
+from edc_bench.engine.abort_figures import (
+    AbortFigures,
+    AmplifierOffFigures,
+    BusFloodedFigures,
+    ErrorFigures,
+    HeartbeatLostFigures,
+    LogEndsFigures,
+    NoFigures,
+    OffReferenceFigures,
+    RecordedFigures,
+    RepliesMissingFigures,
+    RigFaultFigures,
+    RigFaultStateFigures,
+    RigNotReadyFigures,
+    SampleOutOfRangeFigures,
+    SilenceFigures,
+    SlowLinkFigures,
+    figures_from,
+)
+
 
 class RigFaultFlag(enum.StrEnum):
     """A fault bit of the rig's feedback, as a rig-fault abort's ``flags`` name it (the values are what record.json
@@ -56,6 +76,29 @@ class AbortKind(enum.StrEnum):
     LOG_ENDS = "log ends"
     #: an abort read from a record written before aborts had kinds: known only by its sentence
     RECORDED = "recorded"
+
+
+#: Each kind's figures (:mod:`edc_bench.engine.abort_figures`).
+FIGURES: dict[AbortKind, type[AbortFigures]] = {
+    AbortKind.RIG_NOT_READY: RigNotReadyFigures,
+    AbortKind.NO_SYNC_REPLY: NoFigures,
+    AbortKind.RIG_FAULT: RigFaultFigures,
+    AbortKind.AMPLIFIER_OFF: AmplifierOffFigures,
+    AbortKind.RIG_FAULT_STATE: RigFaultStateFigures,
+    AbortKind.SILENCE: SilenceFigures,
+    AbortKind.SLOW_LINK: SlowLinkFigures,
+    AbortKind.REPLIES_MISSING: RepliesMissingFigures,
+    AbortKind.HEARTBEAT_LOST: HeartbeatLostFigures,
+    AbortKind.SAMPLE_OUT_OF_RANGE: SampleOutOfRangeFigures,
+    AbortKind.OFF_REFERENCE: OffReferenceFigures,
+    AbortKind.BUS_FLOODED: BusFloodedFigures,
+    AbortKind.FOREIGN_COMMAND: NoFigures,
+    AbortKind.BUS_ERROR: ErrorFigures,
+    AbortKind.INTERRUPTED: NoFigures,
+    AbortKind.INTERNAL_ERROR: ErrorFigures,
+    AbortKind.LOG_ENDS: LogEndsFigures,
+    AbortKind.RECORDED: RecordedFigures,
+}
 
 
 class StopReason(enum.StrEnum):
@@ -137,15 +180,27 @@ class Abort:
     ----------
     kind : AbortKind
         What happened; code branches on this.
-    figures : dict
-        The numbers and names behind it (limits, counts, flags), as plain JSON values.
+    figures : AbortFigures
+        The numbers and names behind it (limits, counts, flags): the kind's own class (:data:`FIGURES`);
+        :class:`~edc_bench.engine.abort_figures.NoFigures` for a kind that has none.
     time_s : float or None
         Trace time at which the abort was decided (None before the ticks began).
+
+    Raises
+    ------
+    TypeError
+        If ``figures`` is not the kind's class (a bug in the code that made the abort).
     """
 
     kind: AbortKind
-    figures: dict[str, Any] = field(default_factory=dict)
+    figures: AbortFigures = field(default_factory=NoFigures)
     time_s: float | None = None
+
+    def __post_init__(self) -> None:
+        expected = FIGURES[self.kind]
+        if type(self.figures) is not expected:
+            raise TypeError(f"an abort of kind {self.kind.name} carries {expected.__name__}, "
+                            f"not {type(self.figures).__name__}")
 
     @property
     def sentence(self) -> str:
@@ -159,82 +214,82 @@ class Abort:
 
     def as_dict(self) -> dict[str, Any]:
         """The record's form: ``{"kind", "figures", "time_s"}``."""
-        return {"kind": str(self.kind), "figures": dict(self.figures), "time_s": self.time_s}
+        return {"kind": str(self.kind), "figures": self.figures.as_dict(), "time_s": self.time_s}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Abort:
         """The abort a record holds (:meth:`as_dict`)."""
-        return cls(AbortKind(data["kind"]), dict(data.get("figures") or {}), data.get("time_s"))
+        kind = AbortKind(data["kind"])
+        return cls(kind, figures_from(FIGURES[kind], data.get("figures")), data.get("time_s"))
 
     def at(self, time_s: float | None) -> Abort:
         """The same abort, decided at trace time ``time_s``."""
         return Abort(self.kind, self.figures, time_s)
 
-    def with_figures(self, **figures: Any) -> Abort:
-        """The same abort with more figures."""
-        return Abort(self.kind, {**self.figures, **figures}, self.time_s)
+    def with_adapter_refused(self, frames: int) -> Abort:
+        """The same abort, the CAN adapter having refused ``frames`` of ours."""
+        return Abort(self.kind, dataclasses.replace(self.figures, adapter_refused=frames), self.time_s)
 
 
-def _silence(f: dict[str, Any]) -> str:
-    why = (f"no valid reply ({f['bad_replies']} failed their CRC check in this test)" if f.get("bad_replies")
+def _silence(f: SilenceFigures) -> str:
+    why = (f"no valid reply ({f.bad_replies} failed their CRC check in this test)" if f.bad_replies
            else "the rig stopped answering")
-    text = f"{f['in_row']} replies missing in a row (limit {f['limit']}): {why}"
-    if f.get("too_old"):
-        text += f" ({f['too_old']} replies came earlier, too old to use)"
+    text = f"{f.in_row} replies missing in a row (limit {f.limit}): {why}"
+    if f.too_old:
+        text += f" ({f.too_old} replies came earlier, too old to use)"
     return text
 
 
-def _slow_link(f: dict[str, Any]) -> str:
-    source = "the rig's watchdog time" if f["limit_from_watchdog"] else "acceptance.max_missed_replies_in_row"
-    return (f"no usable reply for {f['in_row']} ticks in a row (limit {f['limit']}, {source}); {f['too_old']} "
-            f"replies came, but older than acceptance.max_reply_age_ms ({f['max_reply_age_ms']:g} ms): the link is "
+def _slow_link(f: SlowLinkFigures) -> str:
+    source = "the rig's watchdog time" if f.limit_from_watchdog else "acceptance.max_missed_replies_in_row"
+    return (f"no usable reply for {f.in_row} ticks in a row (limit {f.limit}, {source}); {f.too_old} "
+            f"replies came, but older than acceptance.max_reply_age_ms ({f.max_reply_age_ms:g} ms): the link is "
             "slower than the variant's gains are checked for (raise max_reply_age_ms and retune the gains for that "
             "delay)")
 
 
-def _off_reference(f: dict[str, Any]) -> str:
-    if f["moved_mm"] < 0.5 * f["max_error_mm"]:
+def _off_reference(f: OffReferenceFigures) -> str:
+    if f.moved_mm < 0.5 * f.max_error_mm:
         why = "stuck rack or sensor"
     else:
         why = ("it moves, but the loop cannot hold it: the variant's gains or model do not fit this pump, "
                "or the drive's polarity is reversed")
-    return (f"rack does not follow its reference: more than {f['max_error_mm']:g} mm off for {f['ticks']} "
-            f"ticks, moving {f['moved_mm']:.2f} mm meanwhile ({why})")
+    return (f"rack does not follow its reference: more than {f.max_error_mm:g} mm off for {f.ticks} "
+            f"ticks, moving {f.moved_mm:.2f} mm meanwhile ({why})")
 
 
-_SENTENCES = {
-    AbortKind.RIG_NOT_READY: lambda f: f"rig not READY within {f['timeout_s']:g} s ({f['state']})",
+_SENTENCES: dict[AbortKind, Any] = {  # each kind's sentence from its own figures (FIGURES)
+    AbortKind.RIG_NOT_READY: lambda f: f"rig not READY within {f.timeout_s:g} s ({f.state})",
     AbortKind.NO_SYNC_REPLY: lambda f: "no reply to the first SAFE command",
-    AbortKind.RIG_FAULT: lambda f: "rig fault: " + ", ".join(f["flags"]),
-    AbortKind.AMPLIFIER_OFF: lambda f: (f"rig amplifier off while running (rig state {f['state']}, "
-                                        f"fault code {f['fault_code']})"),
-    AbortKind.RIG_FAULT_STATE: lambda f: f"rig reported FAULT (fault code {f['fault_code']})",
+    AbortKind.RIG_FAULT: lambda f: "rig fault: " + ", ".join(f.flags),
+    AbortKind.AMPLIFIER_OFF: lambda f: (f"rig amplifier off while running (rig state {f.state}, "
+                                        f"fault code {f.fault_code})"),
+    AbortKind.RIG_FAULT_STATE: lambda f: f"rig reported FAULT (fault code {f.fault_code})",
     AbortKind.SILENCE: _silence,
     AbortKind.SLOW_LINK: _slow_link,
-    AbortKind.REPLIES_MISSING: lambda f: (f"{f['missed']} of {f['ticks']} replies missing "
-                                          f"(limit {f['limit_fraction']:.1%})"),
-    AbortKind.HEARTBEAT_LOST: lambda f: (f"rig heartbeat lost: none for {f['silent_ms']:.0f} ms "
-                                         f"(limit {f['limit_ms']:.0f} ms)"),
+    AbortKind.REPLIES_MISSING: lambda f: f"{f.missed} of {f.ticks} replies missing (limit {f.limit_fraction:.1%})",
+    AbortKind.HEARTBEAT_LOST: lambda f: (f"rig heartbeat lost: none for {f.silent_ms:.0f} ms "
+                                         f"(limit {f.limit_ms:.0f} ms)"),
     AbortKind.SAMPLE_OUT_OF_RANGE: lambda f: (
-        f"sample out of range: rack {f['position_mm']:.3f} mm, coil {f['current_a']:.3f} A "
-        f"(plausible {f['position_min_mm']:g}..{f['position_max_mm']:g} mm, |i| <= {f['current_max_a']:g} A)"),
+        f"sample out of range: rack {f.position_mm:.3f} mm, coil {f.current_a:.3f} A "
+        f"(plausible {f.position_min_mm:g}..{f.position_max_mm:g} mm, |i| <= {f.current_max_a:g} A)"),
     AbortKind.OFF_REFERENCE: _off_reference,
-    AbortKind.BUS_FLOODED: lambda f: (f"bus flooded: more than {f['limit']} frames within one tick "
+    AbortKind.BUS_FLOODED: lambda f: (f"bus flooded: more than {f.limit} frames within one tick "
                                       "(acceptance.max_frames_per_tick)"),
     AbortKind.FOREIGN_COMMAND: lambda f: ("another host is sending BENCH_CMD on the bus: a second bench or tool is "
                                           "driving the rig; stop it, then test again"),
-    AbortKind.BUS_ERROR: lambda f: f"bus error: {f['error']}",
+    AbortKind.BUS_ERROR: lambda f: f"bus error: {f.error}",
     AbortKind.INTERRUPTED: lambda f: "interrupted by the operator",
-    AbortKind.INTERNAL_ERROR: lambda f: f"internal error: {f['error']}",
-    AbortKind.LOG_ENDS: lambda f: f"the log ends after {f['ticks']} of {f['planned']} ticks",
-    AbortKind.RECORDED: lambda f: f["sentence"],
+    AbortKind.INTERNAL_ERROR: lambda f: f"internal error: {f.error}",
+    AbortKind.LOG_ENDS: lambda f: f"the log ends after {f.ticks} of {f.planned} ticks",
+    AbortKind.RECORDED: lambda f: f.sentence,
 }
 
 
 def describe(abort: Abort) -> str:
     """The sentence a person reads for ``abort``: the one place an abort becomes words."""
-    text = _SENTENCES[abort.kind](abort.figures)
-    refused = abort.figures.get("adapter_refused")
+    text: str = _SENTENCES[abort.kind](abort.figures)
+    refused = abort.figures.adapter_refused
     if refused:
         text += (f"; the CAN adapter refused {refused} of our frames (BEL): with edc-bench rig, another host may "
                  "own the rig")
@@ -339,8 +394,8 @@ def abort_from_record(loop: dict[str, Any]) -> Abort | None:
     if loop.get("abort"):
         return Abort.from_dict(loop["abort"])
     if loop.get("abort_reason"):
-        return Abort(AbortKind.RECORDED, {"sentence": str(loop["abort_reason"])}, loop.get("abort_time_s"))
+        return Abort(AbortKind.RECORDED, RecordedFigures(sentence=str(loop["abort_reason"])), loop.get("abort_time_s"))
     return None
 
 
-__all__ = ["Abort", "AbortKind", "LoopOutcome", "StopDecision", "StopReason", "abort_from_record", "describe", "what_to_check"]
+__all__ = ["FIGURES", "Abort", "AbortKind", "LoopOutcome", "StopDecision", "StopReason", "abort_from_record", "describe", "what_to_check"]

@@ -43,6 +43,16 @@ from typing import Any, Protocol
 from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller
 from edc_bench.control.fel import FelController
+from edc_bench.engine.abort_figures import (
+    AmplifierOffFigures,
+    HeartbeatLostFigures,
+    RepliesMissingFigures,
+    RigFaultFigures,
+    RigFaultStateFigures,
+    SampleOutOfRangeFigures,
+    SilenceFigures,
+    SlowLinkFigures,
+)
 from edc_bench.engine.commands import BenchCommand
 from edc_bench.engine.order import EnginePhase, order_error
 from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, RigFaultFlag, StopDecision
@@ -417,37 +427,39 @@ class TickEngine:
         """The rig's and the link's checks, in the order they are asked."""
         reply, counts, acceptance = self.newest_reply, self.matcher.counts, self.variant.acceptance
         if reply is not None and reply.any_fault:
-            flags = [str(flag) for flag, bit in ((RigFaultFlag.WATCHDOG_TRIPPED, reply.watchdog_tripped),
-                                                 (RigFaultFlag.OVER_CURRENT, reply.over_current),
-                                                 (RigFaultFlag.LVDT_FAULT, reply.lvdt_fault),
-                                                 (RigFaultFlag.TRAVEL_LIMIT, reply.travel_limit)) if bit]
-            return Abort(AbortKind.RIG_FAULT, {"flags": flags})
+            flags = tuple(str(flag) for flag, bit in ((RigFaultFlag.WATCHDOG_TRIPPED, reply.watchdog_tripped),
+                                                      (RigFaultFlag.OVER_CURRENT, reply.over_current),
+                                                      (RigFaultFlag.LVDT_FAULT, reply.lvdt_fault),
+                                                      (RigFaultFlag.TRAVEL_LIMIT, reply.travel_limit)) if bit)
+            return Abort(AbortKind.RIG_FAULT, RigFaultFigures(flags=flags))
         if reply is not None and not reply.amp_enabled:
-            return Abort(AbortKind.AMPLIFIER_OFF, {"state": self.rig_state.name if self.rig_state else "unknown",
-                                                   "fault_code": FaultCode(self.rig_fault_code).name})
+            return Abort(AbortKind.AMPLIFIER_OFF, AmplifierOffFigures(
+                state=self.rig_state.name if self.rig_state else "unknown",
+                fault_code=FaultCode(self.rig_fault_code).name))
         if counts.unanswered_in_row > self._max_in_row:
-            return Abort(AbortKind.SILENCE, {"in_row": counts.unanswered_in_row, "limit": self._max_in_row,
-                                             "bad_replies": self.outcome.bad_replies, "too_old": counts.too_old})
+            return Abort(AbortKind.SILENCE, SilenceFigures(
+                in_row=counts.unanswered_in_row, limit=self._max_in_row, bad_replies=self.outcome.bad_replies,
+                too_old=counts.too_old))
         if counts.missed_in_row > self._max_stale_in_row:
-            return Abort(AbortKind.SLOW_LINK, {
-                "in_row": counts.missed_in_row, "limit": self._max_stale_in_row, "too_old": counts.too_old,
-                "limit_from_watchdog": self._max_stale_in_row > self._max_in_row,
-                "max_reply_age_ms": acceptance.max_reply_age_ms})
+            return Abort(AbortKind.SLOW_LINK, SlowLinkFigures(
+                in_row=counts.missed_in_row, limit=self._max_stale_in_row, too_old=counts.too_old,
+                limit_from_watchdog=self._max_stale_in_row > self._max_in_row,
+                max_reply_age_ms=acceptance.max_reply_age_ms))
         if k >= 1000 and counts.missed > acceptance.max_missed_reply_fraction * (k + 1):
-            return Abort(AbortKind.REPLIES_MISSING, {"missed": counts.missed, "ticks": k + 1,
-                                                     "limit_fraction": acceptance.max_missed_reply_fraction})
+            return Abort(AbortKind.REPLIES_MISSING, RepliesMissingFigures(
+                missed=counts.missed, ticks=k + 1, limit_fraction=acceptance.max_missed_reply_fraction))
         silent_s = self.tick_time_s(k) - self.last_heartbeat_s
         if silent_s > self._heartbeat_timeout_s:
-            return Abort(AbortKind.HEARTBEAT_LOST, {"silent_ms": silent_s * 1e3,
-                                                    "limit_ms": self._heartbeat_timeout_s * 1e3})
+            return Abort(AbortKind.HEARTBEAT_LOST, HeartbeatLostFigures(
+                silent_ms=silent_s * 1e3, limit_ms=self._heartbeat_timeout_s * 1e3))
         if self.rig_state is RigState.FAULT:
-            return Abort(AbortKind.RIG_FAULT_STATE, {"fault_code": FaultCode(self.rig_fault_code).name})
+            return Abort(AbortKind.RIG_FAULT_STATE, RigFaultStateFigures(fault_code=FaultCode(self.rig_fault_code).name))
         low, high = self._position_range
         over_current_a = self.variant.rig.over_current_a
         if not (low <= self.position_mm <= high) or abs(self.current_a) > over_current_a:
-            return Abort(AbortKind.SAMPLE_OUT_OF_RANGE, {
-                "position_mm": self.position_mm, "current_a": self.current_a, "position_min_mm": low,
-                "position_max_mm": high, "current_max_a": over_current_a})
+            return Abort(AbortKind.SAMPLE_OUT_OF_RANGE, SampleOutOfRangeFigures(
+                position_mm=self.position_mm, current_a=self.current_a, position_min_mm=low, position_max_mm=high,
+                current_max_a=over_current_a))
         return None
 
     def stop_check(self, k: int) -> StopDecision | None:

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from edc_bench.engine.abort_figures import OffReferenceFigures
+
 
 @dataclass
 class OffReferenceRun:
@@ -50,9 +52,9 @@ class OffReferenceRun:
         """How far the rack moved (peak to peak) during the current run, mm."""
         return self._high_mm - self._low_mm if self.ticks else 0.0
 
-    def figures(self) -> dict[str, float]:
+    def figures(self) -> OffReferenceFigures:
         """The current run as an abort's figures (:attr:`~edc_bench.engine.outcome.AbortKind.OFF_REFERENCE`)."""
-        return {"max_error_mm": self.max_error_mm, "ticks": self.ticks, "moved_mm": self.moved_mm}
+        return OffReferenceFigures(max_error_mm=self.max_error_mm, ticks=self.ticks, moved_mm=self.moved_mm)
 
 
 __all__ = ["OffReferenceRun"]

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from edc_bench.canlib import can
 from edc_bench.config.models import Variant
 from edc_bench.control.fel import FelController
+from edc_bench.engine.abort_figures import BusFloodedFigures, ErrorFigures, RigNotReadyFigures
 from edc_bench.engine.commands import BenchCommand
 from edc_bench.engine.outcome import Abort, AbortKind, LoopOutcome, StopDecision
 from edc_bench.engine.tick import StopRule, TickEngine
@@ -214,7 +215,7 @@ class BenchLoop:
                 return
             if engine.foreign_command:
                 raise _AbortTest(Abort(AbortKind.FOREIGN_COMMAND))
-        raise _AbortTest(Abort(AbortKind.BUS_FLOODED, {"limit": self.max_frames_per_tick}))
+        raise _AbortTest(Abort(AbortKind.BUS_FLOODED, BusFloodedFigures(limit=self.max_frames_per_tick)))
 
     # -- phases ----------------------------------------------------------------
     def _wait_ready(self) -> bool:
@@ -279,9 +280,9 @@ class BenchLoop:
         except KeyboardInterrupt:
             outcome.abort = Abort(AbortKind.INTERRUPTED)
         except can.CanError as exc:
-            outcome.abort = Abort(AbortKind.BUS_ERROR, {"error": f"{type(exc).__name__}: {exc}"})
+            outcome.abort = Abort(AbortKind.BUS_ERROR, ErrorFigures(error=f"{type(exc).__name__}: {exc}"))
         except Exception as exc:  # noqa: BLE001 - a bug must not cost the rig's safety or the data
-            outcome.abort = Abort(AbortKind.INTERNAL_ERROR, {"error": f"{type(exc).__name__}: {exc}"})
+            outcome.abort = Abort(AbortKind.INTERNAL_ERROR, ErrorFigures(error=f"{type(exc).__name__}: {exc}"))
             outcome.events.append(traceback.format_exc())
         finally:
             self.engine.finish()
@@ -317,7 +318,7 @@ class BenchLoop:
         error = worker.close()
         if error is not None:
             if outcome.abort is None:
-                outcome.abort = Abort(AbortKind.INTERNAL_ERROR, {"error": f"{type(error).__name__}: {error}"})
+                outcome.abort = Abort(AbortKind.INTERNAL_ERROR, ErrorFigures(error=f"{type(error).__name__}: {error}"))
             outcome.events.append("".join(traceback.format_exception(error)))
             return
         made = worker.made()
@@ -329,8 +330,8 @@ class BenchLoop:
         self._phase(Phase.WAIT_READY)
         if not self._wait_ready():
             state = self.engine.rig_state.name if self.engine.rig_state else "no heartbeat"
-            return Abort(AbortKind.RIG_NOT_READY, {"timeout_s": self.variant.acceptance.ready_timeout_s,
-                                                   "state": state})
+            return Abort(AbortKind.RIG_NOT_READY, RigNotReadyFigures(
+                timeout_s=self.variant.acceptance.ready_timeout_s, state=state))
         if not self._synchronise():
             return Abort(AbortKind.NO_SYNC_REPLY)
         return self._run_ticks()
@@ -347,7 +348,7 @@ class BenchLoop:
         outcome.bus_bad_line_samples = [repr(line) for line in counts.bad_line_samples]
         outcome.bus_device_errors = counts.device_errors
         if outcome.bus_device_errors and outcome.abort is not None:
-            outcome.abort = outcome.abort.with_figures(adapter_refused=outcome.bus_device_errors)
+            outcome.abort = outcome.abort.with_adapter_refused(outcome.bus_device_errors)
 
     def _synchronise(self) -> bool:
         """A SAFE command to synchronise the counter and read where the rack is; False if it got no reply."""

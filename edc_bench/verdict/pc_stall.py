@@ -9,10 +9,20 @@ the PC. Pure: trace columns and the abort in, a figure out.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from edc_bench.config.models import Variant
+from edc_bench.engine.abort_figures import (
+    AmplifierOffFigures,
+    HeartbeatLostFigures,
+    RigFaultFigures,
+    SilenceFigures,
+    SlowLinkFigures,
+)
 from edc_bench.engine.outcome import Abort, AbortKind, RigFaultFlag
+from edc_bench.protocol import FaultCode
 
 #: How long before the abort a stall is looked for (s): the longest any of these aborts takes to be decided (the
 #: heartbeat's timeout is the longest of them, a few hundred ms), with room.
@@ -29,9 +39,9 @@ def a_stall_can_cause(abort: Abort) -> bool:
     if abort.kind in _LINK_ABORTS:
         return True
     if abort.kind is AbortKind.RIG_FAULT:
-        return RigFaultFlag.WATCHDOG_TRIPPED in (abort.figures.get("flags") or [])
+        return isinstance(abort.figures, RigFaultFigures) and RigFaultFlag.WATCHDOG_TRIPPED in abort.figures.flags
     if abort.kind is AbortKind.AMPLIFIER_OFF:
-        return abort.figures.get("fault_code") == "WATCHDOG"
+        return isinstance(abort.figures, AmplifierOffFigures) and abort.figures.fault_code == FaultCode.WATCHDOG.name
     return False
 
 
@@ -63,9 +73,12 @@ def shortest_cause_s(abort: Abort, variant: Variant) -> float:
     if abort.kind in (AbortKind.RIG_FAULT, AbortKind.AMPLIFIER_OFF):  # the watchdog, less the ticks it takes
         return max(variant.rig.watchdog_ms * 1e-3 - 2 * period_s, period_s)
     if abort.kind in (AbortKind.SILENCE, AbortKind.SLOW_LINK):  # the replies of the stalled ticks, in a row
-        return float(figures.get("limit", variant.acceptance.max_missed_replies_in_row)) * period_s
+        limit = figures.limit if isinstance(figures, (SilenceFigures, SlowLinkFigures)) and figures.limit else \
+            variant.acceptance.max_missed_replies_in_row
+        return float(limit) * period_s
     if abort.kind is AbortKind.HEARTBEAT_LOST:  # the heartbeats go unread for half the timeout at least
-        return float(figures.get("limit_ms", 0.0)) * 1e-3 / 2
+        limit_ms = figures.limit_ms if isinstance(figures, HeartbeatLostFigures) else 0.0
+        return (limit_ms if math.isfinite(limit_ms) else 0.0) * 1e-3 / 2
     return variant.acceptance.max_missed_replies_in_row * period_s  # replies missing: a run of them
 
 

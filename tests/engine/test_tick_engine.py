@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from edc_bench.config import Variant
-from edc_bench.engine.outcome import Abort, AbortKind, describe, what_to_check
+from edc_bench.engine.abort_figures import RigFaultFigures, SilenceFigures
+from edc_bench.engine.outcome import FIGURES, Abort, AbortKind, describe, what_to_check
 from edc_bench.engine.tick import TickEngine
 from edc_bench.protocol import BENCH_CMD_ID, RIG_FEEDBACK_ID, RIG_HEARTBEAT_ID, FaultCode, Icd, Mode, RigState
 
@@ -71,7 +72,8 @@ def test_a_silent_rig_ends_the_test_with_a_typed_abort_after_the_limit(variant: 
     abort = _run_from(engine, icd, 100, 200, answer=False)
     assert abort is not None and abort.kind is AbortKind.SILENCE
     limit = variant.acceptance.max_missed_replies_in_row
-    assert abort.figures["in_row"] == limit + 1 and abort.figures["limit"] == limit
+    assert isinstance(abort.figures, SilenceFigures)
+    assert abort.figures.in_row == limit + 1 and abort.figures.limit == limit
     assert abort.sentence == f"{limit + 1} replies missing in a row (limit {limit}): the rig stopped answering"
     assert abort.time_s == pytest.approx(engine.outcome.ticks_run * variant.controller.period_s - 0.001)
 
@@ -95,7 +97,7 @@ def test_a_fault_flag_in_a_reply_is_a_rig_fault_naming_it(variant: Variant, icd:
     engine.sent(0, engine.tick_time_s(0), 0.0)
     engine.receive(RIG_FEEDBACK_ID, _feedback(icd, icd.parse_bench_cmd(data).counter, 10.0, travel_limit=True), 0.0)
     abort = engine.check(0)
-    assert abort.kind is AbortKind.RIG_FAULT and abort.figures == {"flags": ["travel limit"]}
+    assert abort.kind is AbortKind.RIG_FAULT and abort.figures == RigFaultFigures(flags=("travel limit",))
     assert abort.sentence == "rig fault: travel limit" and "mounting" in abort.check
 
 
@@ -195,9 +197,24 @@ def test_every_abort_kind_has_a_sentence_and_something_to_check() -> None:
         AbortKind.RECORDED: {"sentence": "as an older record said"},
     }
     for kind in AbortKind:
-        abort = Abort(kind, figures.get(kind, {}))
-        assert describe(abort) and "{" not in describe(abort) and what_to_check(kind)
+        typed = FIGURES[kind](**{name: tuple(v) if isinstance(v, list) else v
+                                 for name, v in figures.get(kind, {}).items()})
+        abort = Abort(kind, typed)
+        assert describe(abort) and "{" not in describe(abort) and "nan" not in describe(abort) and what_to_check(kind)
         assert Abort.from_dict(abort.as_dict()) == abort  # the record's form reads back as the same value
-    refused = Abort(AbortKind.SILENCE, figures[AbortKind.SILENCE]).with_figures(adapter_refused=3)
+        assert abort.as_dict()["figures"] == figures.get(kind, {})  # and it is what record.json always held
+    refused = Abort(AbortKind.SILENCE, SilenceFigures(in_row=6, limit=5, bad_replies=2,
+                                                      too_old=1)).with_adapter_refused(3)
     assert refused.sentence.endswith("the CAN adapter refused 3 of our frames (BEL): with edc-bench rig, another "
                                      "host may own the rig")
+
+
+def test_an_abort_carries_its_own_kinds_figures_only() -> None:
+    """#54: typed per kind; figures of another kind (or none where the kind has some) are a bug, said at once."""
+    with pytest.raises(TypeError, match="SILENCE carries SilenceFigures, not RigFaultFigures"):
+        Abort(AbortKind.SILENCE, RigFaultFigures(flags=("over-current",)))
+    with pytest.raises(TypeError, match="OFF_REFERENCE carries OffReferenceFigures, not NoFigures"):
+        Abort(AbortKind.OFF_REFERENCE)
+    # a record's figures: unknown keys left out, a missing one its default (an older record's SILENCE had no too_old)
+    older = Abort.from_dict({"kind": "rig silent", "figures": {"in_row": 6, "limit": 5, "newer": 1}, "time_s": 3.0})
+    assert older.figures == SilenceFigures(in_row=6, limit=5) and older.sentence.startswith("6 replies missing")

@@ -267,6 +267,7 @@ def test_a_stall_longer_than_the_watchdog_ends_invalid_and_names_the_pc_not_the_
 
 def test_a_stall_long_before_an_abort_does_not_blame_the_pc(variant: Variant) -> None:
     """A rig fault of its own (an over-current), a second after a stall: the rig is what to check."""
+    from edc_bench.engine.abort_figures import OffReferenceFigures, RigFaultFigures, SilenceFigures
     from edc_bench.engine.outcome import Abort, AbortKind
     from edc_bench.verdict.pc_stall import pc_stall_s
 
@@ -276,17 +277,17 @@ def test_a_stall_long_before_an_abort_does_not_blame_the_pc(variant: Variant) ->
     gap[3000:3010] = True
     lateness[3000:3010] = np.nan
     trace = {"t_s": np.arange(5000) * period_s, "gap": gap, "lateness_s": lateness}
-    watchdog = Abort(AbortKind.RIG_FAULT, {"flags": ["watchdog tripped"]})
+    watchdog = Abort(AbortKind.RIG_FAULT, RigFaultFigures(flags=("watchdog tripped",)))
     assert pc_stall_s(watchdog, trace, variant) == 0.0  # 2 s before the end: out of the window
     gap[4800:4830] = True
     assert pc_stall_s(watchdog, trace, variant) == pytest.approx(0.031)
-    assert pc_stall_s(Abort(AbortKind.RIG_FAULT, {"flags": ["over-current"]}), trace, variant) == 0.0
-    assert pc_stall_s(Abort(AbortKind.OFF_REFERENCE, {}), trace, variant) == 0.0
+    assert pc_stall_s(Abort(AbortKind.RIG_FAULT, RigFaultFigures(flags=("over-current",))), trace, variant) == 0.0
+    assert pc_stall_s(Abort(AbortKind.OFF_REFERENCE, OffReferenceFigures()), trace, variant) == 0.0
     gap[:] = False
     gap[4800:4810] = True  # 11 ms: too short to trip a 20 ms watchdog, which a cable or the rig then did
     assert pc_stall_s(watchdog, trace, variant) == 0.0
     gap[:] = False
-    silence = Abort(AbortKind.SILENCE, {"limit": 5})
+    silence = Abort(AbortKind.SILENCE, SilenceFigures(limit=5))
     lateness[-3] = 0.004  # a tick 4 ms late: not the 5 replies in a row that ended the test
     assert pc_stall_s(silence, trace, variant) == 0.0
     lateness[-3] = 0.006

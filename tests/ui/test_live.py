@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 from pathlib import Path
@@ -41,7 +42,9 @@ def test_live_panel_renders_every_phase() -> None:
     text = console.export_text()
     assert "PASS" in text and "edc-bench report records/x" in text and "replies missing" in text
     assert "measured on 20 new-valve tests" in text  # the shipped baseline, with its uncertainty
-    result.judgement.baseline = {**result.judgement.baseline, "calibrated": False}  # as --nominal-baseline leaves it
+    # as --nominal-baseline leaves it (a Judgement is frozen: a copy with that baseline)
+    result = dataclasses.replace(result, judgement=dataclasses.replace(
+        result.judgement, baseline={**result.judgement.baseline, "calibrated": False}))
     console.print(verdict_panel(result, Path("records/x")))
     assert "NOMINAL baseline: the variant is not calibrated" in console.export_text()
 

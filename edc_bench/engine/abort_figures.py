@@ -1,0 +1,177 @@
+"""The figures behind an abort, typed per kind: what :func:`~edc_bench.engine.outcome.describe` says and code reads.
+
+Each :class:`~edc_bench.engine.outcome.AbortKind` has its own frozen class of figures (:data:`FIGURES`), so a
+sentence, the PC-stall rule and a test read named attributes, never a mapping's string keys. The record keeps them
+as a mapping (:meth:`AbortFigures.as_dict`, ``loop.abort.figures`` in record.json) and reads them back with
+:func:`figures_from` (a figure an older record lacks takes its default: NaN, 0, "" or none).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, kw_only=True)
+class AbortFigures:
+    """Figures every abort may carry.
+
+    Attributes
+    ----------
+    adapter_refused : int
+        Frames of ours the CAN adapter refused (BEL) during the test (0: none; slcan only).
+    """
+
+    adapter_refused: int = 0
+
+    def as_dict(self) -> dict[str, object]:
+        """The record's form: each figure by its name (``adapter_refused`` last, and only when there were some)."""
+        out: dict[str, object] = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)
+                                  if f.name != "adapter_refused"}
+        if self.adapter_refused:
+            out["adapter_refused"] = self.adapter_refused
+        return out
+
+
+def _plain(value: object) -> object:
+    return list(value) if isinstance(value, tuple) else value
+
+
+@dataclass(frozen=True, kw_only=True)
+class NoFigures(AbortFigures):
+    """An abort that needs no figures (no reply to the first SAFE, another host, interrupted)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RigNotReadyFigures(AbortFigures):
+    """The rig did not report READY in time."""
+
+    timeout_s: float = math.nan
+    state: str = ""  # the rig's last state, or "no heartbeat"
+
+
+@dataclass(frozen=True, kw_only=True)
+class RigFaultFigures(AbortFigures):
+    """Fault flags in a reply (:class:`~edc_bench.engine.outcome.RigFaultFlag` values)."""
+
+    flags: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
+class AmplifierOffFigures(AbortFigures):
+    """The amplifier went off while running."""
+
+    state: str = ""
+    fault_code: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RigFaultStateFigures(AbortFigures):
+    """The rig's heartbeat said FAULT."""
+
+    fault_code: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class SilenceFigures(AbortFigures):
+    """Commands in a row with no reply at all."""
+
+    in_row: int = 0
+    limit: int = 0
+    bad_replies: int = 0  # replies that failed their CRC check in the test
+    too_old: int = 0  # replies that came, too old to use
+
+
+@dataclass(frozen=True, kw_only=True)
+class SlowLinkFigures(AbortFigures):
+    """Commands in a row without a usable reply, the replies coming too old."""
+
+    in_row: int = 0
+    limit: int = 0
+    too_old: int = 0
+    limit_from_watchdog: bool = False  # the limit is the rig's watchdog time, not max_missed_replies_in_row
+    max_reply_age_ms: float = math.nan
+
+
+@dataclass(frozen=True, kw_only=True)
+class RepliesMissingFigures(AbortFigures):
+    """Too many replies missing over the test."""
+
+    missed: int = 0
+    ticks: int = 0
+    limit_fraction: float = math.nan
+
+
+@dataclass(frozen=True, kw_only=True)
+class HeartbeatLostFigures(AbortFigures):
+    """No heartbeat for longer than the timeout."""
+
+    silent_ms: float = math.nan
+    limit_ms: float = math.nan
+
+
+@dataclass(frozen=True, kw_only=True)
+class SampleOutOfRangeFigures(AbortFigures):
+    """A sample no rig can give."""
+
+    position_mm: float = math.nan
+    current_a: float = math.nan
+    position_min_mm: float = math.nan
+    position_max_mm: float = math.nan
+    current_max_a: float = math.nan
+
+
+@dataclass(frozen=True, kw_only=True)
+class OffReferenceFigures(AbortFigures):
+    """The rack off its reference for too long (:class:`~edc_bench.engine.tracking.OffReferenceRun`)."""
+
+    max_error_mm: float = math.nan
+    ticks: int = 0
+    moved_mm: float = math.nan
+
+
+@dataclass(frozen=True, kw_only=True)
+class BusFloodedFigures(AbortFigures):
+    """More frames in one tick than the budget."""
+
+    limit: int = 0
+
+
+@dataclass(frozen=True, kw_only=True)
+class ErrorFigures(AbortFigures):
+    """A bus error or an internal error: the exception, as ``Type: message``."""
+
+    error: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class LogEndsFigures(AbortFigures):
+    """A raw CAN log that ends before the test could (replay)."""
+
+    ticks: int = 0
+    planned: int = 0
+
+
+@dataclass(frozen=True, kw_only=True)
+class RecordedFigures(AbortFigures):
+    """An abort read from a record written before aborts had kinds: its sentence only."""
+
+    sentence: str = ""
+
+
+def figures_from(cls: type[AbortFigures], data: Mapping[str, object] | None) -> AbortFigures:
+    """The figures of class ``cls`` a record's mapping holds: keys it does not know are left out, a figure it
+    lacks takes its default, a list becomes a tuple."""
+    data = data or {}
+    known = {f.name for f in dataclasses.fields(cls)}
+    values = {name: tuple(value) if isinstance(value, list) else value
+              for name, value in data.items() if name in known}
+    return cls(**values)  # type: ignore[arg-type]
+
+
+__all__ = ["AbortFigures", "AmplifierOffFigures", "BusFloodedFigures", "ErrorFigures", "HeartbeatLostFigures",
+           "LogEndsFigures", "NoFigures", "OffReferenceFigures", "RecordedFigures", "RepliesMissingFigures",
+           "RigFaultFigures", "RigFaultStateFigures", "RigNotReadyFigures", "SampleOutOfRangeFigures",
+           "SilenceFigures", "SlowLinkFigures", "figures_from"]
