@@ -82,10 +82,11 @@ def _first_safe_s(result: Any, after_s: float) -> float | None:
 
 def _sentence(abort: Any) -> str:
     """The record's reason; a bus error's python-can text (the fault injector's words here) left out."""
+    from edc_bench.engine.abort_figures import ErrorFigures
     from edc_bench.engine.outcome import Abort, AbortKind, describe
 
     if abort.kind is AbortKind.BUS_ERROR:
-        return describe(Abort(abort.kind, {"error": abort.figures["error"].split(":")[0] + ": ..."}))
+        return describe(Abort(abort.kind, ErrorFigures(error=abort.figures.error.split(":")[0] + ": ...")))
     return abort.sentence
 
 
@@ -193,6 +194,7 @@ def _safe_cell(run: dict[str, Any]) -> str:
 
 def _rows(variant: Any) -> list[Row]:
     """The rows of the fault table, in the page's order."""
+    from edc_bench.engine.abort_figures import BusFloodedFigures, ErrorFigures, RigFaultFigures
     from edc_bench.engine.outcome import Abort, AbortKind, describe
     from edc_bench.engine.problems import Problem
     from edc_bench.records.advice import advice
@@ -222,8 +224,8 @@ def _rows(variant: Any) -> list[Row]:
             safe="n/a", says="verdict as usual"),
         Row(f"a bus that floods (more than `max_frames_per_tick`, {a.max_frames_per_tick}, frames in one tick)",
             "frame budget per tick", "abort, SAFE at the next tick; every read stays bounded", "12",
-            safe="SAFE at the next tick", says="`" + describe(Abort(AbortKind.BUS_FLOODED,
-                                                                     {"limit": a.max_frames_per_tick})) + "`"),
+            safe="SAFE at the next tick", says="`" + describe(Abort(AbortKind.BUS_FLOODED, BusFloodedFigures(
+                limit=a.max_frames_per_tick))) + "`"),
         Row("host stall shorter than the rig's watchdog", "a tick starts a period or more late", "the lost ticks are "
             "skipped (no burst), marked `gap` in the trace, counted; the test goes on", "verdict", safe="n/a",
             says="`loop.gaps`, `loop.ticks_lost`; the rows they touched are left out of the fit and what remains "
@@ -231,7 +233,7 @@ def _rows(variant: Any) -> list[Row]:
             "`timing.ticks_late`) and without a trusted fit of what remains"),
         Row(f"host stall longer than the watchdog (`[rig].watchdog_ms`, {variant.rig.watchdog_ms:g} ms)",
             "the rig trips its watchdog", "abort, SAFE (re-arms)", "12", safe="rig at 0 V by its watchdog",
-            says="`" + describe(Abort(AbortKind.RIG_FAULT, {"flags": ["watchdog tripped"]})) + "`, and `"
+            says="`" + describe(Abort(AbortKind.RIG_FAULT, RigFaultFigures(flags=("watchdog tripped",)))) + "`, and `"
                  + pc_stall_reason(0.025, 0.0) + "`; the advice names the PC "
                  "(`" + advice(Verdict.INVALID, Problem.ABORTED | Problem.PC_STALLED).words + "`)"),
         Row("python-can error on send or receive", "`CanOperationError`", "abort, SAFE attempted", "12", "send-error"),
@@ -258,7 +260,7 @@ def _rows(variant: Any) -> list[Row]:
             safe="SAFE at the next tick", says="`" + describe(Abort(AbortKind.INTERRUPTED)) + "`"),
         Row("a bug in the bench (an exception in the tick)", "caught by the loop", "abort, SAFE; record with the "
             "traceback; exit 70", "70", safe="SAFE at the next tick",
-            says="`" + describe(Abort(AbortKind.INTERNAL_ERROR, {"error": "..."})) + "`"),
+            says="`" + describe(Abort(AbortKind.INTERNAL_ERROR, ErrorFigures(error="..."))) + "`"),
         Row("test process killed (SIGKILL)", "the rig's watchdog", "rig: 0 V, FAULT (WATCHDOG) until SAFE",
             "none (killed)", safe="rig at 0 V by its watchdog",
             says="no record.json; `can.log` readable up to the last 0.1 s"),

@@ -113,7 +113,9 @@ class ControllerDesign:
             period_s=c.period_s, ticks=int(round(ex.duration_s / c.period_s)), drive_limit_v=variant.rig.drive_limit_v,
             pid_gains=PidGains(c.kp_v_per_mm, c.ki_v_per_mm_s, c.kd_v_s_per_mm, c.derivative_filter_hz),
             nominal=nominal, scales=scales, estimated=estimated, theta0=theta0, prior_std=prior_std,
-            estimator_kind=est.kind, forgetting_factor=est.forgetting_factor, gradient_gains_per_s=per_param,
+            # EstimatorKind(...): a variant copied with model_copy(update=...) keeps a plain str there
+            estimator_kind=EstimatorKind(est.kind), forgetting_factor=est.forgetting_factor,
+            gradient_gains_per_s=per_param,
             mid_mm=variant.rack.mid_stroke_mm, tones=tones, move_s=ex.move_s, fade_s=ex.fade_s,
             reversal_exclusion=est.reversal_exclusion, amplifier_gain=variant.coil.amplifier_gain,
             reference_resistance_ohm=variant.coil.resistance_ohm,

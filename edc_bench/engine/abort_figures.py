@@ -162,13 +162,34 @@ class RecordedFigures(AbortFigures):
 
 
 def figures_from(cls: type[AbortFigures], data: Mapping[str, object] | None) -> AbortFigures:
-    """The figures of class ``cls`` a record's mapping holds: keys it does not know are left out, a figure it
-    lacks takes its default, a list becomes a tuple."""
-    data = data or {}
-    known = {f.name for f in dataclasses.fields(cls)}
-    values = {name: tuple(value) if isinstance(value, list) else value
-              for name, value in data.items() if name in known}
+    """The figures of class ``cls`` a record's mapping holds: keys it does not know are left out; a figure it
+    lacks, or holds as something its type cannot be made from (a hand-edited record), takes its default."""
+    data = data if isinstance(data, Mapping) else {}
+    values = {}
+    for f in dataclasses.fields(cls):
+        if f.name in data:
+            value = _as(type(f.default), data[f.name])  # every figure has a default, of the figure's type
+            if value is not None:
+                values[f.name] = value
     return cls(**values)  # type: ignore[arg-type]
+
+
+def _as(kind: type, value: object) -> object:
+    """``value`` as a figure of type ``kind`` (float, int, bool, str or a tuple of str), or None if it cannot be."""
+    try:
+        if kind is float:
+            return float(value)  # type: ignore[arg-type]
+        if kind is bool:
+            return value if isinstance(value, bool) else None
+        if kind is int:
+            return int(value) if not isinstance(value, float) or value.is_integer() else None  # type: ignore[arg-type]
+        if kind is str:
+            return value if isinstance(value, str) else None
+        if kind is tuple:
+            return tuple(str(v) for v in value) if isinstance(value, (list, tuple)) else None
+    except (TypeError, ValueError):
+        return None
+    return None
 
 
 __all__ = ["AbortFigures", "AmplifierOffFigures", "BusFloodedFigures", "ErrorFigures", "HeartbeatLostFigures",

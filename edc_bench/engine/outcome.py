@@ -398,4 +398,5 @@ def abort_from_record(loop: dict[str, Any]) -> Abort | None:
     return None
 
 
-__all__ = ["FIGURES", "Abort", "AbortKind", "LoopOutcome", "StopDecision", "StopReason", "abort_from_record", "describe", "what_to_check"]
+__all__ = ["FIGURES", "Abort", "AbortKind", "LoopOutcome", "StopDecision", "StopReason", "abort_from_record",
+           "describe", "what_to_check"]

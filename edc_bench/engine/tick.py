@@ -453,7 +453,8 @@ class TickEngine:
             return Abort(AbortKind.HEARTBEAT_LOST, HeartbeatLostFigures(
                 silent_ms=silent_s * 1e3, limit_ms=self._heartbeat_timeout_s * 1e3))
         if self.rig_state is RigState.FAULT:
-            return Abort(AbortKind.RIG_FAULT_STATE, RigFaultStateFigures(fault_code=FaultCode(self.rig_fault_code).name))
+            return Abort(AbortKind.RIG_FAULT_STATE,
+                         RigFaultStateFigures(fault_code=FaultCode(self.rig_fault_code).name))
         low, high = self._position_range
         over_current_a = self.variant.rig.over_current_a
         if not (low <= self.position_mm <= high) or abs(self.current_a) > over_current_a:

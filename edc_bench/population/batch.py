@@ -198,9 +198,9 @@ class _VectorPlant:
             self._every = np.arange(n)
             self._whole_period = np.full(n, QUANTA_PER_PERIOD)
             self._period_dt = np.full(n, self._period_s)
-        compiled().advance(self._every, self._whole_period, self.phi, self.gam, self._period_dt, self.x, self.v, self.i,
-                self.stuck, self.phi_q, self.gam_q, coil_v, self.fc, self.fs, self._period_s / QUANTA_PER_PERIOD,
-                self._pump)
+        compiled().advance(self._every, self._whole_period, self.phi, self.gam, self._period_dt, self.x, self.v,
+                           self.i, self.stuck, self.phi_q, self.gam_q, coil_v, self.fc, self.fs,
+                           self._period_s / QUANTA_PER_PERIOD, self._pump)
 
     def advance_quanta(self, quanta: np.ndarray, drive_v: np.ndarray) -> None:
         """Advance each valve by its own number of quanta (0..QUANTA_PER_PERIOD) under a constant drive.
@@ -217,8 +217,9 @@ class _VectorPlant:
         phi_t, gam_t = self._tables
         phi, gam = np.ascontiguousarray(phi_t[m, :, moving].T), np.ascontiguousarray(gam_t[m, :, moving].T)
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v[moving], self.pump.amplifier_limit_v)
-        compiled().advance(moving, m, phi, gam, m * (self._period_s / QUANTA_PER_PERIOD), self.x, self.v, self.i, self.stuck,
-                self.phi_q, self.gam_q, coil_v, self.fc, self.fs, self._period_s / QUANTA_PER_PERIOD, self._pump)
+        compiled().advance(moving, m, phi, gam, m * (self._period_s / QUANTA_PER_PERIOD), self.x, self.v, self.i,
+                           self.stuck, self.phi_q, self.gam_q, coil_v, self.fc, self.fs,
+                           self._period_s / QUANTA_PER_PERIOD, self._pump)
 
 
 def _coefficients(augmented: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -363,7 +364,8 @@ class _Sensors:
 
     def current(self) -> np.ndarray:
         """The coil current now, as the current sensor reads it."""
-        return compiled().quantised_reading(self.plant.i, self._current_offset, self._current_noise.next(), self._current_step)
+        return compiled().quantised_reading(self.plant.i, self._current_offset, self._current_noise.next(),
+                                            self._current_step)
 
 
 class _Reference:

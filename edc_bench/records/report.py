@@ -255,8 +255,8 @@ def _engineer_text(page: Page, record: Record, folder_name: str, size_pt: float)
             ("Verdict", f"{record.verdict}, tested {content.local_time(record.started_at)}"),
             ("Record folder", folder_name)]
     if record.retest is not None:  # the pair's decision, the rule that made it and the first test's record
-        rows.append(("Retest of", f"{record.retest.of_record} ({record.retest.of_verdict}); decision "
-                                  f"{record.retest.decision} by {record.retest.rule}"))
+        rows.append(("Retest of", f"{record.retest.of_record} ({record.retest.of_verdict or '?'}); decision "
+                                  f"{record.retest.decision or '?'} by {record.retest.rule}"))
     y = key_value_rows(page, MARGIN_PT, y + 8.0, rows, label_width_pt=70.0, value_width_pt=CONTENT_WIDTH_PT - 70.0,
         size_pt=size_pt, max_lines=2, min_size_pt=min(size_pt, _DETAIL_MIN_PT))
     y = _parameter_table(page, record, y + 14.0, size_pt)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from edc_bench.records.schema import Record, RetestedBy
 from edc_bench.records.writer import RECORD_FILE
+from edc_bench.verdict.verdicts import Verdict
 
 #: later folders of the same valve read at most (a retest follows its first test at once)
 _LOOKED_AT = 8
@@ -52,9 +53,18 @@ def find_retest(folder: Path, record: Record) -> RetestedBy | None:
             continue
         retest = doc.get("retest") if isinstance(doc, dict) else None
         if isinstance(retest, dict) and retest.get("of_record") == folder.name:
-            return RetestedBy(record=candidate.name, verdict=str(doc.get("verdict", "")),
-                              decision=str(retest.get("decision", "")), words=str(retest.get("words", "")))
+            # the neighbour's words, as far as they are a verdict: its damaged record does not stop this report
+            return RetestedBy(record=candidate.name, verdict=_verdict(doc.get("verdict")),
+                              decision=_verdict(retest.get("decision")), words=str(retest.get("words", "")))
     return None
+
+
+def _verdict(value: object) -> Verdict | None:
+    """``value`` as a verdict, or None where it is none (missing, damaged)."""
+    try:
+        return Verdict(value)
+    except ValueError:
+        return None
 
 
 __all__ = ["find_retest"]

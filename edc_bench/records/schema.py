@@ -260,7 +260,7 @@ class EscalationSummary(Section):
 
     of_record: str = ""  # the earlier test's record folder (its name)
     of_verdict: MaybeVerdict = None  # the earlier test's verdict (INVALID)
-    of_cause: Cause | None = None  # who the earlier test pointed at
+    of_cause: Annotated[Cause | None, BeforeValidator(_none_if_empty)] = None  # who the earlier test pointed at
     words: str = ""  # the technician's line (records.advice.SEIZED)
 
 

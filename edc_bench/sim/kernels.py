@@ -8,9 +8,10 @@ valve, calls it for every step it takes; the batch path's N valves (:class:`~edc
 call it through :func:`advance`. There is no other copy: the tests hold the batch's plant to N rig plants to the
 bit (``tests/sim/test_kernels.py``).
 
-For the batch path, compiled by numba where it is installed: in numpy the batch's Karnopp replay was a few dozen array operations per
-quantum over the valves concerned, each paying numpy's call cost for a handful of values; compiled, each valve is
-a few hundred floating-point operations, and a reading or the heat of a tick is one call instead of four or five.
+For the batch path, compiled by numba where it is installed: in numpy the batch's Karnopp replay was a few dozen
+array operations per quantum over the valves concerned, each paying numpy's call cost for a handful of values;
+compiled, each valve is a few hundred floating-point operations, and a reading or the heat of a tick is one call
+instead of four or five.
 numba keeps the arithmetic as written (no fused multiply-add, no reassociation: its defaults; its rounding is
 numpy's, half to even). The one function call, the Stribeck curve's exponential, is the C library's, as Python's
 ``math.exp`` is.

@@ -69,3 +69,14 @@ def test_batch_path_identifies_like_the_loop_from_the_same_design(variant: Varia
         assert batch.feature(name)[0] == pytest.approx(loop.parameters[name]["value"], rel=1e-3), name
     # the period fit's normal equations see the codec's quantisation in the loop only: equal to 0.1 %
     assert np.isclose(batch.condition_number, loop.identification.condition_number, rtol=1e-3)
+
+
+@pytest.mark.parametrize("kind", ["rls", "gradient"])
+def test_the_estimators_law_is_a_value_however_the_variant_was_made(variant: Variant, kind: str) -> None:
+    """A variant copied with model_copy(update=...) keeps the plain word (pydantic does not validate updates): the
+    design makes it the EstimatorKind the loop, the batch and the perf floor compare by identity (the perf
+    figure 'PID + feedforward + rls' once measured the gradient law that way)."""
+    from edc_bench.config.models import EstimatorKind
+
+    copied = variant.model_copy(update={"estimator": variant.estimator.model_copy(update={"kind": kind})})
+    assert ControllerDesign.from_variant(copied).estimator_kind is EstimatorKind(kind)

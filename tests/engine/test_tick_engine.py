@@ -218,3 +218,17 @@ def test_an_abort_carries_its_own_kinds_figures_only() -> None:
     # a record's figures: unknown keys left out, a missing one its default (an older record's SILENCE had no too_old)
     older = Abort.from_dict({"kind": "rig silent", "figures": {"in_row": 6, "limit": 5, "newer": 1}, "time_s": 3.0})
     assert older.figures == SilenceFigures(in_row=6, limit=5) and older.sentence.startswith("6 replies missing")
+
+
+def test_a_hand_edited_records_abort_figures_read_as_their_types_or_their_defaults() -> None:
+    """A figure a record holds as something its type cannot be made from takes its default; one that can (a number
+    written as text) is read as its type: the PC-stall rule and the sentence never meet a wrong type."""
+    from edc_bench.engine.abort_figures import HeartbeatLostFigures
+
+    hand = Abort.from_dict({"kind": "rig fault flags", "figures": {"flags": None}})
+    assert hand.figures == RigFaultFigures() and hand.sentence == "rig fault: "
+    lost = Abort.from_dict({"kind": "heartbeat lost", "figures": {"silent_ms": "501", "limit_ms": [1]}})
+    assert lost.figures == HeartbeatLostFigures(silent_ms=501.0) and "none for 501 ms" in lost.sentence
+    silent = Abort.from_dict({"kind": "rig silent", "figures": {"in_row": "many", "limit": 5.0, "too_old": 2.5}})
+    assert silent.figures == SilenceFigures(limit=5)
+    assert Abort.from_dict({"kind": "rig silent", "figures": "not a mapping"}).figures == SilenceFigures()

@@ -145,3 +145,19 @@ def test_a_retests_decision_is_a_verdict_and_an_older_empty_one_is_none(tmp_path
     assert typed_record({**base, "retest": {"of_record": "a", "decision": ""}}, tmp_path).retest.decision is None
     with pytest.raises(ConfigError, match=r"retest.decision holds 'FAIL, probably'"):
         typed_record({**base, "retest": {"decision": "FAIL, probably"}}, tmp_path)
+
+
+def test_a_neighbours_damaged_retest_does_not_stop_the_first_tests_report(tmp_path: Path) -> None:
+    """The first test's report looks beside it for its retest; a retest whose decision is no verdict (a damaged
+    record) is named without one, never a validation error."""
+    from edc_bench.records.retest_link import find_retest
+
+    first = tmp_path / "20261128T100000+0000-p-edc-default-V1"
+    second = tmp_path / "20261128T100100+0000-p-edc-default-V1"
+    for folder in (first, second):
+        folder.mkdir()
+    (second / "record.json").write_text(json.dumps({"verdict": "PASS", "retest": {
+        "of_record": first.name, "decision": None, "words": "w"}}), encoding="utf-8")
+    record = Record.model_validate({"verdict": "MARGINAL", "variant": "p-edc-default"})
+    found = find_retest(first, record)
+    assert found is not None and found.verdict is Verdict.PASS and found.decision is None
