@@ -32,7 +32,7 @@ found in a1 and the truth did not hold.
 The friction is taken at the starting speed.
 
 The step itself, exact or in quanta, is :func:`edc_bench.sim.kernels.step_valve`, the one definition the
-batch path's N valves take too (compiled by numba where it is installed).
+batch path's N valves take too (there compiled by numba where it is installed; here run as Python).
 
 The coil warms with the heat ``R i^2`` it dissipates: every
 ``THERMAL_STEP_S`` of plant time its temperature is stepped (first order,
@@ -68,10 +68,9 @@ class _Step:
     array, whose elements would also make every product a numpy scalar's (the same bits, slower).
     """
 
-    __slots__ = ("dt_s", "gam", "phi", "quanta")
+    __slots__ = ("dt_s", "gam", "phi")
 
     def __init__(self, a: np.ndarray, b: np.ndarray, quanta: int, quantum_s: float) -> None:
-        self.quanta = quanta
         self.dt_s = quanta * quantum_s
         aug = np.zeros((5, 5))
         aug[:3, :3] = a
