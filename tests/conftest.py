@@ -70,7 +70,19 @@ def keep_compiled_kernels_out_of_the_users_cache(config: pytest.Config) -> None:
         folder = cache.mkdir("numba") if cache is not None else None
     except OSError:  # pytest itself only warns that it cannot write its cache
         folder = None
-    os.environ["NUMBA_CACHE_DIR"] = str(folder or tempfile.mkdtemp(prefix="edc-bench-numba-"))
+    if folder is None:
+        folder = tempfile.mkdtemp(prefix="edc-bench-numba-")
+        remove_at_exit(folder)
+    os.environ["NUMBA_CACHE_DIR"] = str(folder)
+
+
+def remove_at_exit(folder: str | os.PathLike[str]) -> None:
+    """Remove a temporary folder of this test process when it exits (a loaded library may stay mapped: Linux
+    keeps an unlinked file's pages until it is unmapped)."""
+    import atexit
+    import shutil
+
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
 
 
 def build_c_firmware() -> None:
@@ -94,6 +106,7 @@ def build_c_firmware() -> None:
     if not (shutil.which("make") and shutil.which("cc")):
         return
     build = Path(tempfile.mkdtemp(prefix="edc-bench-c-firmware-"))
+    remove_at_exit(build)  # one per test process: left behind, CI's runs filled the disk's temporary folder
     proc = subprocess.run(["make", "-C", str(C_DIR), f"BUILD={build}", f"PYTHON={sys.executable}"],
                           capture_output=True, text=True)
     if proc.returncode == 0:
