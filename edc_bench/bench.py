@@ -57,6 +57,7 @@ from edc_bench.runtime.gain_check import check_variant_gains
 from edc_bench.runtime.loop import BenchLoop, LoopObserver, Phase, StopRule
 from edc_bench.runtime.priority import realtime_priority
 from edc_bench.runtime.signals import interrupt_guard, stop_requested
+from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.runtime.timing import timing_summary
 
 __all__ = ["BenchResult", "BenchOptions", "run_bench_test", "run_simulated_test"]
@@ -165,14 +166,12 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
     with realtime_priority() if clock.waits_for_replies else contextlib.nullcontext() as priority:
         outcome, can_log_path = _run_loop(loop, o.stream_can_log, started)
     trace = loop.trace.view()
-    timing = timing_summary(trace, variant.controller.period_s)
-    timing["missed_replies"] = outcome.missed_replies
-    timing["cpu_steal_s"] = outcome.cpu_steal_s
-    timing["first_tick_unix_s"] = outcome.first_tick_unix_s
-    if priority is not None:
-        timing["scheduling"] = priority.describe()
-    if stop_rule is not None:  # the early stop's longest call, which a real-time tick had to wait for
-        timing["stop_check_max_us"] = outcome.stop_check_max_s * 1e6
+    timing = TickTiming(
+        **timing_summary(trace, variant.controller.period_s), missed_replies=outcome.missed_replies,
+        cpu_steal_s=outcome.cpu_steal_s, first_tick_unix_s=outcome.first_tick_unix_s,
+        scheduling=None if priority is None else priority.describe(),
+        # the early stop's longest call, which a real-time tick had to wait for
+        stop_check_max_us=None if stop_rule is None else outcome.stop_check_max_s * 1e6)
     if o.observer is not None:
         o.observer.phase(Phase.CLASSIFY)
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=o.truth, classify=o.classify,

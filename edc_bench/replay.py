@@ -36,6 +36,7 @@ from edc_bench.protocol import BENCH_CMD_ID, Icd, Mode, default_icd
 from edc_bench.records.reader import LoggedFrame
 from edc_bench.records.consistency import STALL_ROWS_SCHEMA
 from edc_bench.records.schema import Record
+from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.judgement import Judgement, judge_run
 from edc_bench.verdict.verdicts import Verdict
@@ -244,7 +245,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                           abort=abort, gaps=run.gaps, ticks_lost=run.ticks_lost)
     if "missed_replies" in loop.model_fields_set and loop.missed_replies != run.missed_replies:
         run.notes.append(f"missed replies: recorded {loop.missed_replies}, found {run.missed_replies} in the log")
-    timing = dict(record.timing)
+    timing = record.timing
     classify = record.verdict != Verdict.UNCLASSIFIED
     coil = record.coil
     given = coil.temp_start_c if coil is not None and coil.temp_given else None
@@ -277,8 +278,8 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            f"whose interval the residual's repeating part (record schema {record.schema_version}); "
                            "today's have them (docs/method.md, section 7), so the parameters' std, and what follows "
                            "from the interval (the early stop), may differ from the recorded ones")
-    ticks_run = max(int(record.timing.get("ticks", 0) or 0), 1)
-    over_limit = (int(record.timing.get("ticks_late", 0) or 0) + loop.ticks_lost) / ticks_run \
+    ticks_run = max(record.timing.ticks, 1)
+    over_limit = (record.timing.ticks_late + loop.ticks_lost) / ticks_run \
         > variant.acceptance.max_overrun_fraction
     if record.schema_version < STALL_ROWS_SCHEMA and over_limit:  # only where the rules can differ
         notes_after.append(f"recorded by an edc-bench that made a test INVALID for ticks lost to host stalls beyond "
@@ -324,7 +325,7 @@ def replay_can_log(path: Any, variant: Variant, classifier_path: Any = None,
         Abort(AbortKind.LOG_ENDS, LogEndsFigures(ticks=run.ticks, planned=planned))
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
                           gaps=run.gaps, ticks_lost=run.ticks_lost, abort=abort)
-    timing = {"ticks": run.ticks, "ticks_late": 0}
+    timing = TickTiming(ticks=run.ticks)
     run.notes.append("raw CAN log: tick timing is not in it and was not judged")
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classifier_path=classifier_path,
                        nominal_baseline=nominal_baseline)

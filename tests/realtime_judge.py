@@ -12,6 +12,8 @@ from typing import Any
 
 import pytest
 
+from edc_bench.engine.tick_timing import TickTiming
+
 STEAL_LIMIT_S = 0.15  # CPU steal during one run above which real-time figures say nothing about the code
 STALL_LIMIT_US = 10_000  # a bench tick this late means the machine did not run the process
 # with the shipped acceptance a test ends when 6 commands in a row pass the 4 ms age limit with no reply at all:
@@ -28,10 +30,11 @@ def lost_too_many(lost: int, ticks_run: int) -> bool:
     return lost > max(OWN_LOSS_LIMIT * ticks_run, OWN_LOSS_MIN_TICKS)
 
 
-def disturbance(timing: Mapping[str, Any], rig: Mapping[str, Any] | None,
+def disturbance(timing: Mapping[str, Any] | TickTiming, rig: Mapping[str, Any] | None,
                 lost: tuple[int, int] | None = None) -> str:
     """What this machine did to a run ("" if nothing): from its ``timing`` (the record's), the rig process's
     status ``rig`` (``worst_gap_ms``) and ``lost`` = (ticks the bench lost to stalls of its own, ticks run)."""
+    timing = dict(timing)  # a record's mapping, or a result's TickTiming
     found = []
     if timing["cpu_steal_s"] >= STEAL_LIMIT_S:
         found.append(f"CPU steal {timing['cpu_steal_s']:.2f} s")
@@ -48,8 +51,9 @@ def disturbance(timing: Mapping[str, Any], rig: Mapping[str, Any] | None,
     return "; ".join(found)
 
 
-def figures(timing: Mapping[str, Any], rig: Mapping[str, Any] | None) -> str:
+def figures(timing: Mapping[str, Any] | TickTiming, rig: Mapping[str, Any] | None) -> str:
     """The run's timing figures, as a failure or skip message prints them."""
+    timing = dict(timing)  # a record's mapping, or a result's TickTiming
     return (f"steal {timing['cpu_steal_s']:.2f} s, worst tick {(timing.get('lateness_max_us') or 0) / 1e3:.1f} ms "
             f"late, stop check {(timing.get('stop_check_max_us') or 0) / 1e3:.1f} ms, rig's worst serve gap "
             f"{(rig or {}).get('worst_gap_ms')} ms")

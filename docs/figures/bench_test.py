@@ -493,7 +493,7 @@ def stop_check_cost() -> dict[str, Any]:
     with isolated_station(), timed_stop_checks(calls):
         for name in VARIANTS:
             for valve in VALVES:
-                longest.append(simulated_test(load_variant(name), valve).timing["stop_check_max_us"] / 1000)
+                longest.append(simulated_test(load_variant(name), valve).timing.stop_check_max_us / 1000)
     by_kind = {}
     for kind in ("feed", "search", "decision"):
         ms = np.array([s for k, s in calls if k == kind]) * 1000

@@ -651,11 +651,11 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
     if result.stop is not None:
         print(f"stopped: {result.stop['reason']} at {result.stop['time_s']:.1f} s")
     t = result.timing
-    if t.get("ticks"):
-        print(f"timing: {t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, ticks late {t['ticks_late']}, "
-              f"missed replies {result.outcome.missed_replies}, CPU steal meanwhile {t['cpu_steal_s']:.2f} s")
-        if "scheduling" in t:
-            print(f"priority: {t['scheduling']}")
+    if t.ticks:
+        print(f"timing: {t.ticks} ticks, lateness p99 {t.lateness_p99_us:.0f} us, ticks late {t.ticks_late}, "
+              f"missed replies {result.outcome.missed_replies}, CPU steal meanwhile {t.cpu_steal_s:.2f} s")
+        if t.scheduling is not None:
+            print(f"priority: {t.scheduling}")
     if record_dir is None:
         print("record: not written (see the error below)")
         return

@@ -238,7 +238,11 @@ def link_test(variant_name: str | None, duration_s: float, *, adapter: str = "no
         ticks_lost=outcome.ticks_lost, stalls_injected=getattr(clock, "stalls", 0),
         late_after_gap_us=float(np.nanmax(late_after)) if len(late_after) else float("nan"),
         steal_s=outcome.cpu_steal_s, rig_worst_gap_ms=status.get("worst_gap_ms"),
-        stop_check_max_us=result.timing.get("stop_check_max_us", float("nan")), stop_reason=result.stop["reason"])
+        stop_check_max_us=_or_nan(result.timing.stop_check_max_us), stop_reason=result.stop["reason"])
+
+
+def _or_nan(value: float | None) -> float:
+    return float("nan") if value is None else value
 
 
 def age_percentile(ages: dict[int, int], q: float) -> float:

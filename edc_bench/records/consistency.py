@@ -145,8 +145,8 @@ def _trust(record: Record) -> list[str]:
         try:
             derived = Problem(int(trust_problems(
                 acceptance, periods=ident.periods, settled=ident.settled, misfit=fit is not None and not fit.fits,
-                condition_number=condition, aborted=aborted, ticks=int(record.timing.get("ticks", 0)),
-                ticks_late_or_lost=record.timing.get("ticks_late", 0) + loop.ticks_lost,
+                condition_number=condition, aborted=aborted, ticks=record.timing.ticks,
+                ticks_late_or_lost=record.timing.ticks_late + loop.ticks_lost,
                 missed_replies=loop.missed_replies, stalls_cost_rows=record.schema_version >= STALL_ROWS_SCHEMA)))
         except (TypeError, ValueError):
             return []

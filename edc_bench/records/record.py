@@ -11,10 +11,10 @@ plane), so the report reads the folder alone.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from edc_bench.engine.trace import CanFrameLog
 from edc_bench.identification.analysis import Identification
 from edc_bench.physics.feedforward import FeedforwardParameters
 from edc_bench.protocol import default_icd
+from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.records.mdf import write_trace_mf4
 from edc_bench.records.writer import (
     CAN_LOG_FILE,
@@ -39,8 +40,30 @@ from edc_bench.records.writer import (
 )
 from edc_bench.records.integrity import manifest
 from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
+from edc_bench.records.schema import (
+    BaselineSummary,
+    ClassificationSummary,
+    CoilFinding,
+    DecisionPlane,
+    EscalationSummary,
+    IdentificationSummary,
+    Identity,
+    LoopSummary,
+    ModelFitSummary,
+    ParameterEstimate,
+    Record,
+    RecordFiles,
+    ReferenceValue,
+    RetestSummary,
+    Section,
+    StabilityMargins,
+    StopSummary,
+)
 from edc_bench.verdict.judgement import Judgement
 from edc_bench.verdict.verdicts import Verdict
+
+
+SectionT = TypeVar("SectionT", bound=Section)
 
 
 @dataclass(frozen=True)
@@ -52,7 +75,7 @@ class BenchResult:
     judgement : Judgement
         The verdict, its reasons, the identified parameters and features,
         and what they were compared with (see also the shortcuts below).
-    timing : dict
+    timing : TickTiming
         Tick lateness percentiles, ticks late, missed replies, CPU steal.
     outcome : LoopOutcome
         What happened in the loop (aborts, replies, heartbeats).
@@ -85,7 +108,7 @@ class BenchResult:
     """
 
     judgement: Judgement
-    timing: dict[str, float]
+    timing: TickTiming
     outcome: LoopOutcome
     margins: StabilityMargins | None
     variant: Variant
@@ -155,66 +178,99 @@ class BenchResult:
         return self.judgement.baseline
 
 
-def record_dict(result: BenchResult, files: dict[str, str | None],
-                retest: dict[str, str] | None = None, escalation: dict[str, str] | None = None) -> dict[str, Any]:
-    """The content of record.json (``retest``: this test repeats a MARGINAL, :class:`~.schema.RetestSummary`;
-    ``escalation``: the same valve INVALID twice, :class:`~.schema.EscalationSummary`)."""
+def build_record(result: BenchResult, files: RecordFiles, retest: RetestSummary | None = None,
+                 escalation: EscalationSummary | None = None, notes: Sequence[str] = ()) -> Record:
+    """The record of ``result`` as the one model every reader reads (:class:`~.schema.Record`), built once:
+    record.json is its serialisation (:func:`record_json`).
+
+    Parameters
+    ----------
+    result : BenchResult
+        The test.
+    files : RecordFiles
+        The folder's files as written (None: not written, with ``<name>_error`` saying why).
+    retest : RetestSummary, optional
+        This test repeats a MARGINAL: the first test and what the two decide.
+    escalation : EscalationSummary, optional
+        The same valve INVALID twice (:mod:`~edc_bench.records.escalation_link`).
+    notes : sequence of str, optional
+        What happened after the test that the record should say, after the loop's own events.
+
+    Raises
+    ------
+    pydantic.ValidationError
+        If a section does not fit its model (a bug in the code that made it: the record is not written wrong).
+    """
+    judgement = result.judgement
     ident = result.identification
-    outcome = result.outcome.as_dict()
-    return {
-        "schema": RECORD_SCHEMA,
-        "verdict": result.verdict,
-        "reasons": result.reasons,
-        "problems": result.judgement.problems.names,
-        "valve_id": result.valve_id,
-        "identity": result.identity,
-        "variant": result.variant.name,
-        "part_number": result.variant.pump.part_number,
-        "started_at": result.started_at,
-        "test_id": result.test_id,
-        "clock": result.clock,
-        "software_version": result.software_version,
-        "firmware_version": result.outcome.fw_version,
-        "icd_version": ".".join(str(v) for v in default_icd().version),
-        "features": result.features,
-        "features_volt": result.judgement.features_volt,
-        "coil": result.judgement.coil,
-        "classification": result.classification,
-        "baseline": result.baseline,
-        "reference_values": result.judgement.reference_values,
-        "decision_plane": result.judgement.decision_plane,
-        "parameters": result.parameters,
-        "converged": result.converged,
-        "identification": None if ident is None else {
-            "estimator": result.variant.estimator.kind,
-            "excitation_start_s": result.variant.excitation.move_s,
-            "method": "least squares over whole excitation periods, on the smoothed rack trajectory",
-            "periods": ident.periods,
-            "periods_estimated": ident.periods_estimated,
-            "period_s": ident.period_s,
-            "settled": ident.settled,
-            "samples_used": ident.samples_used,
-            "condition_number": ident.condition_number,
-            "residual_rms_v": ident.residual_rms_v,
-            "model_fit": None if ident.model_fit is None else ident.model_fit.as_dict(),
-            "gain_terms": ident.nuisance,
-            "online_settle_s": ident.settle_s,
-        },
-        "stop": result.stop,
-        "timing": result.timing,
-        "loop": outcome,
-        "stability_margins": None if result.margins is None else result.margins.model_dump(),
-        "truth": None if result.truth is None else result.truth._asdict(),
-        "simulation": result.simulation,
-        "config": result.variant.model_dump(mode="json"),
-        "retest": retest,
-        "escalation": escalation,
-        "files": files,
-    }
+    loop = LoopSummary.model_validate(result.outcome.as_dict())
+    if notes:
+        loop = loop.model_copy(update={"events": [*loop.events, *notes]})
+    return Record(
+        schema=RECORD_SCHEMA,
+        verdict=result.verdict,
+        reasons=list(result.reasons),
+        problems=judgement.problems.names,
+        valve_id=result.valve_id,
+        identity=Identity.model_validate(result.identity),
+        variant=result.variant.name,
+        part_number=result.variant.pump.part_number,
+        started_at=result.started_at,
+        test_id=result.test_id,
+        clock=result.clock,
+        software_version=result.software_version,
+        firmware_version=result.outcome.fw_version,
+        icd_version=".".join(str(v) for v in default_icd().version),
+        features=result.features,
+        features_volt=judgement.features_volt,
+        coil=_section(CoilFinding, judgement.coil),
+        classification=_section(ClassificationSummary, result.classification),
+        baseline=_section(BaselineSummary, result.baseline),
+        reference_values={name: ReferenceValue.model_validate(value)
+                          for name, value in judgement.reference_values.items()},
+        decision_plane=_section(DecisionPlane, judgement.decision_plane),
+        parameters={name: ParameterEstimate.model_validate(value) for name, value in result.parameters.items()},
+        converged=result.converged,
+        identification=None if ident is None else IdentificationSummary(
+            estimator=result.variant.estimator.kind,
+            excitation_start_s=result.variant.excitation.move_s,
+            method="least squares over whole excitation periods, on the smoothed rack trajectory",
+            periods=ident.periods,
+            periods_estimated=ident.periods_estimated,
+            period_s=ident.period_s,
+            settled=ident.settled,
+            samples_used=ident.samples_used,
+            condition_number=ident.condition_number,
+            residual_rms_v=ident.residual_rms_v,
+            model_fit=None if ident.model_fit is None else ModelFitSummary.model_validate(ident.model_fit.as_dict()),
+            gain_terms=ident.nuisance,
+            online_settle_s=ident.settle_s,
+        ),
+        stop=_section(StopSummary, result.stop),
+        timing=result.timing,
+        loop=loop,
+        stability_margins=result.margins,
+        truth=None if result.truth is None else result.truth._asdict(),
+        simulation=result.simulation,
+        config=result.variant.model_dump(mode="json"),
+        retest=retest,
+        escalation=escalation,
+        files=files,
+    )
+
+
+def _section(model: type[SectionT], value: Mapping[str, Any] | None) -> SectionT | None:
+    return None if value is None else model.model_validate(value)
+
+
+def record_json(record: Record) -> dict[str, Any]:
+    """record.json's content: ``record`` serialised (every field it declares, ``schema`` by that name; the fields
+    only read, never written, left out), its ``integrity`` section aside (added over this content)."""
+    return json_safe(record.model_dump(mode="json", by_alias=True, exclude={"integrity"}))
 
 
 def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder: Path | None = None,
-                 notes: Sequence[str] = (), retest: dict[str, str] | None = None) -> Path:
+                 notes: Sequence[str] = (), retest: Mapping[str, str] | None = None) -> Path:
     """Write the record folder of ``result`` under ``out_dir``.
 
     Parameters
@@ -286,9 +342,9 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
 
     escalated = find_escalation(folder, result.valve_id, result.variant.name, result.started_at, str(result.verdict),
                                 result.invalid_cause)
-    doc = record_dict(result, files, retest, None if escalated is None else escalated.model_dump())
-    doc["loop"]["events"] = [*doc["loop"]["events"], *notes]
-    doc = json_safe(doc)
+    record = build_record(result, RecordFiles.model_validate(files),
+                          None if retest is None else RetestSummary.model_validate(retest), escalated, notes)
+    doc = record_json(record)
     # what the test wrote, as it wrote it: every reader checks it (records.integrity)
     doc["integrity"] = manifest(doc, folder, [files[key] for key in ("trace", "can_log", "figure") if files.get(key)])
     write_json(folder / RECORD_FILE, doc)

@@ -312,12 +312,12 @@ def timing_rows(record: Record) -> list[tuple[str, str]]:
     loop, timing = record.loop, record.timing
     planned = f" of {loop.ticks_planned} planned" if loop.ticks_planned else ""
     rows = [("Ticks", f"{loop.ticks_run}{planned}; {loop.ticks_late} late, {loop.missed_replies} replies missing")]
-    lateness = [timing.get(key) for key in ("lateness_p50_us", "lateness_p99_us", "lateness_max_us")]
-    if all(isinstance(value, (int, float)) for value in lateness):
+    lateness = timing.lateness_us
+    if lateness is not None:
         rows.append(("Lateness", "p50 {:.0f} \u00b5s, p99 {:.0f} \u00b5s, max {:.0f} \u00b5s".format(*lateness)))
-    steal = timing.get("cpu_steal_s", loop.cpu_steal_s)
-    if isinstance(steal, (int, float)):
-        rows.append(("CPU steal", f"{steal:.2f} s"))
+    # an older record without the figure in its timing: the loop's
+    steal = timing.cpu_steal_s if "cpu_steal_s" in timing.model_fields_set else loop.cpu_steal_s
+    rows.append(("CPU steal", f"{steal:.2f} s"))
     if loop.abort_reason:
         rows.append(("Aborted", loop.abort_reason))
     return rows

@@ -6,13 +6,15 @@ first), so no reader looks a figure up by a string key or guards against a
 section that is missing or of the wrong type: a record that does not fit
 is refused once, with the field and what is wrong with it.
 
-Every section accepts keys it does not know (``extra="allow"``): a record a
-newer edc-bench wrote is still read by this one. The other way round, every
-key :func:`edc_bench.records.record.record_dict` writes is declared here
-(a test holds that for every kind of record), so the schema and the writer
-cannot drift apart silently. Sections nobody reads field by field (the
-variant as run, the simulation's ground truth, the loop's timing) are kept
-as the mappings they are.
+The writer builds the same model (:func:`edc_bench.records.record.build_record`, once, from the test's
+result) and record.json is its serialisation: one shape to build, write and read, so a field declared here is
+written, read back and covered by the record's integrity manifest without another file edited (a field only
+read, never written, is declared ``exclude=True``: ``retested_by``). Older schemas are brought to today's form
+in one place on read (:func:`edc_bench.records.reader.upgraded`).
+
+Every section accepts keys it does not know (``extra="allow"``): a record a newer edc-bench wrote is still read
+by this one. Sections nobody reads field by field (the variant as run, the simulation's ground truth) are kept as
+the mappings they are.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
 from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
 from edc_bench.runtime.clock_kind import ClockKind
+from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline_source import BaselineSource
 from edc_bench.verdict.verdicts import Verdict
 
@@ -230,7 +233,7 @@ class LoopSummary(Section):
     gaps: int = 0
     ticks_lost: int = 0
     ticks_late: int = 0
-    reply_age_ticks: dict[str, int] = Field(default_factory=dict)
+    reply_age_ticks: dict[int, int] = Field(default_factory=dict)  # reply age in ticks -> replies
     other_frames: int = 0
     bus_bad_lines: int = 0
     bus_bad_line_samples: list[str] = Field(default_factory=list)
@@ -321,14 +324,15 @@ class Record(Section):
     converged: bool | None = None
     identification: IdentificationSummary | None = None
     stop: StopSummary | None = None
-    timing: dict[str, Any] = Field(default_factory=dict)
+    timing: TickTiming = TickTiming()
     loop: LoopSummary = LoopSummary()
     stability_margins: StabilityMargins | None = None
     truth: dict[str, float] | None = None
     simulation: dict[str, Any] | None = None
     config: dict[str, Any] | None = None
     retest: RetestSummary | None = None  # this test repeats a MARGINAL
-    retested_by: RetestedBy | None = None  # this MARGINAL was retested (found when a report is drawn)
+    # this MARGINAL was retested: found beside it when a report is drawn, never written (exclude)
+    retested_by: RetestedBy | None = Field(None, exclude=True)
     escalation: EscalationSummary | None = None  # the same valve INVALID twice: it may be seized
     files: RecordFiles = RecordFiles()
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from edc_bench.paths import atomic_write
 from edc_bench.timefmt import folder_stamp
@@ -42,6 +43,8 @@ def json_safe(value: Any) -> Any:
         return [json_safe(v) for v in value]
     if isinstance(value, np.generic):
         return json_safe(value.item())
+    if isinstance(value, BaseModel):  # a record's section: its serialisation
+        return json_safe(value.model_dump(mode="json", by_alias=True))
     return value
 
 

@@ -169,9 +169,9 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
         body.add_row("model fit", Text(model_fit_line(fit, ratio_decimals=1) + ("" if fit.fits else ": DOES NOT FIT"),
                                        style="" if fit.fits else "bold magenta"))
     t = result.timing
-    if t.get("ticks"):
-        body.add_row("timing", f"{t['ticks']} ticks, lateness p99 {t['lateness_p99_us']:.0f} us, "
-                               f"{t['ticks_late'] + result.outcome.ticks_lost} ticks late or lost, {result.outcome.missed_replies} replies missing")
+    if t.ticks:
+        body.add_row("timing", f"{t.ticks} ticks, lateness p99 {t.lateness_p99_us:.0f} us, "
+                               f"{t.ticks_late + result.outcome.ticks_lost} ticks late or lost, {result.outcome.missed_replies} replies missing")
     if record_dir is not None:
         body.add_row("record", Text(str(record_dir)))
         body.add_row("next", Text(f"edc-bench report {record_dir}"))

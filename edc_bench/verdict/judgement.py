@@ -27,6 +27,7 @@ from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_proble
 from edc_bench.physics.coil import referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import inductive_shares
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
+from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s
 from edc_bench.verdict.classifier import Classification, ValveClassifier, default_classifier
@@ -115,7 +116,7 @@ def verdict_of(problems: Problem, classified: Verdict | None) -> Verdict:
 
 
 def run_problems(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
-                 timing: dict[str, float]) -> Problem:
+                 timing: TickTiming) -> Problem:
     """The trust rule (:func:`~edc_bench.identification.trust.trust_problems`) for one run."""
     if ident is None:
         aborted = Problem.ABORTED if outcome.aborted else Problem.NONE
@@ -123,13 +124,13 @@ def run_problems(variant: Variant, outcome: LoopOutcome, ident: Identification |
     fit = ident.model_fit
     flags = trust_problems(
         variant.acceptance, periods=ident.periods, settled=ident.settled, misfit=fit is not None and not fit.fits,
-        condition_number=ident.condition_number, aborted=outcome.aborted, ticks=int(timing.get("ticks", 0)),
-        ticks_late_or_lost=timing.get("ticks_late", 0) + outcome.ticks_lost, missed_replies=outcome.missed_replies)
+        condition_number=ident.condition_number, aborted=outcome.aborted, ticks=timing.ticks,
+        ticks_late_or_lost=timing.ticks_late + outcome.ticks_lost, missed_replies=outcome.missed_replies)
     return Problem(int(flags))
 
 
 def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification | None,
-                  timing: dict[str, float], problems: Problem | None = None) -> list[str]:
+                  timing: TickTiming, problems: Problem | None = None) -> list[str]:
     """Why the run is not to be trusted, in words (empty if it is): the sentences of :func:`run_problems`."""
     problems = run_problems(variant, outcome, ident, timing) if problems is None else problems
     acc = variant.acceptance
@@ -159,11 +160,11 @@ def trust_reasons(variant: Variant, outcome: LoopOutcome, ident: Identification 
     if Problem.POORLY_CONDITIONED in problems:
         reasons.append(f"poorly conditioned regression: condition number {ident.condition_number:.3g} "
                        f"> {acc.max_condition_number:.3g} (excitation not rich enough)")
-    ticks = max(int(timing.get("ticks", 0)), 1)
+    ticks = max(timing.ticks, 1)
     if Problem.TIMING in problems:
-        late = timing.get("ticks_late", 0) + outcome.ticks_lost
+        late = timing.ticks_late + outcome.ticks_lost
         lost = f", {outcome.ticks_lost} lost in {outcome.gaps} host stalls" if outcome.ticks_lost else ""
-        reasons.append(f"timing: {late} ticks overran or were lost ({timing.get('ticks_late', 0)} late{lost}), "
+        reasons.append(f"timing: {late} ticks overran or were lost ({timing.ticks_late} late{lost}), "
                        f"{late / ticks:.1%} of the {ticks} that ran (limit {acc.max_overrun_fraction:.1%}), "
                        + ("and the test was cut short" if Problem.ABORTED in problems else
                           "and what the fit kept without them did not give a trusted result")
@@ -205,7 +206,7 @@ def measured_resistance_ohm(trace: dict[str, np.ndarray], variant: Variant) -> f
 
 
 def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelController | None,
-              outcome: LoopOutcome, timing: dict[str, float], *, truth: FeedforwardParameters | None = None,
+              outcome: LoopOutcome, timing: TickTiming, *, truth: FeedforwardParameters | None = None,
               classify: bool = True, classifier_path: Path | None = None,
               coil_temp_c: float | None = None, nominal_baseline: bool = False,
               calibrate_command: str | None = None, baseline: Baseline | None = None,
@@ -222,7 +223,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         The controller that ran (None if the run ended before the first tick).
     outcome : LoopOutcome
         What happened in the loop.
-    timing : dict
+    timing : TickTiming
         Tick timing (``ticks``, ``ticks_late``).
     truth : FeedforwardParameters, optional
         The simulated plant's true parameters.

@@ -230,7 +230,7 @@ def test_an_early_stop_gives_the_full_length_verdict_on_the_hard_variant(hard) -
 
 def test_a_test_not_classified_runs_its_full_length_and_says_why() -> None:
     result = run_simulated_test(load_variant(), "new", 0, classify=False)
-    assert result.timing["ticks"] == 30_000
+    assert result.timing.ticks == 30_000
     assert result.stop["reason"] == "full length" and "not classified" in result.stop["why_full_length"]
 
 

@@ -173,7 +173,7 @@ def test_bus_error_mid_test_ends_invalid_with_the_data_so_far(tmp_path: Path, si
     result = run_bench_test(FailingBus(bench, 3000), clock, variant, BenchOptions(check_gains=False))
     assert result.verdict == "INVALID"
     assert any("bus error: CanOperationError" in r for r in result.reasons)
-    assert 2900 < result.timing["ticks"] < 3000  # what was measured before the fault is kept
+    assert 2900 < result.timing.ticks < 3000  # what was measured before the fault is kept
     folder = write_record(result, tmp_path)
     assert json.loads((folder / "record.json").read_text())["verdict"] == "INVALID"
     assert len(list(can.LogReader(str(folder / "can.log")))) == result.frames.count

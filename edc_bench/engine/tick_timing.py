@@ -1,0 +1,53 @@
+"""How a run kept its tick deadlines, as one value: what the verdict's trust rule counts and the record keeps."""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict
+
+
+class TickTiming(BaseModel):
+    """How the loop kept its tick deadlines: the record's ``timing`` section, read and written as this model.
+
+    Attributes
+    ----------
+    ticks : int
+        Ticks that ran (a tick lost to a host stall did not).
+    lateness_p50_us, lateness_p99_us, lateness_p999_us, lateness_max_us : float or None
+        Percentiles of how late the ticks that ran started (NaN, None in a record: no tick ran).
+    ticks_late : int
+        Ticks that started more than a period late.
+    missed_replies : int
+        Ticks whose reply did not come in time.
+    cpu_steal_s : float
+        CPU time the hypervisor took from this machine during the test.
+    first_tick_unix_s : float or None
+        When the first tick ran, wall-clock time.
+    scheduling : str or None
+        The loop thread's scheduling (real-time runs only).
+    stop_check_max_us : float or None
+        The early stop's longest call (tests with an early stop only).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="allow")  # a newer edc-bench's figures kept, not refused
+
+    ticks: int = 0
+    lateness_p50_us: float | None = None
+    lateness_p99_us: float | None = None
+    lateness_p999_us: float | None = None
+    lateness_max_us: float | None = None
+    ticks_late: int = 0
+    missed_replies: int = 0
+    cpu_steal_s: float = 0.0
+    first_tick_unix_s: float | None = None
+    scheduling: str | None = None
+    stop_check_max_us: float | None = None
+
+    @property
+    def lateness_us(self) -> tuple[float, float, float] | None:
+        """p50, p99 and max lateness (us); None if a figure is missing or not a number (no tick ran)."""
+        figures = (self.lateness_p50_us, self.lateness_p99_us, self.lateness_max_us)
+        if any(value is None or math.isnan(value) for value in figures):
+            return None
+        return figures  # type: ignore[return-value]

@@ -1,0 +1,86 @@
+"""record.json is the serialisation of one model (records/schema.py's Record), built once by the writer: a field
+declared there is written, read back, covered by the integrity manifest and read as its default from an older
+record, with no other file edited."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from pydantic import create_model
+
+from edc_bench.bench import run_simulated_test
+from edc_bench.config import load_variant, parse_variant
+from edc_bench.engine.tick_timing import TickTiming
+from edc_bench.errors import ConfigError
+from edc_bench.records import reader, record
+from edc_bench.records.reader import load_record
+from edc_bench.records.record import build_record, record_json, write_record
+from edc_bench.records.schema import Record, RecordFiles
+from edc_bench.records.writer import RECORD_FILE
+
+
+@pytest.fixture(scope="module")
+def result():
+    data = load_variant().model_dump()
+    data["excitation"]["duration_s"] = 8.0
+    return run_simulated_test(parse_variant(data), "worn", 2, check_gains=False)
+
+
+def with_field(monkeypatch: pytest.MonkeyPatch) -> type[Record]:
+    """Record with one more field, as if declared in records/schema.py (the modules that name Record see it)."""
+    extended = create_model("Record", __base__=Record, bench_humidity_pct=(float | None, 41.5))
+    monkeypatch.setattr(record, "Record", extended)
+    monkeypatch.setattr(reader, "Record", extended)
+    return extended
+
+
+def test_a_field_added_to_the_model_is_written_read_back_and_covered_by_the_manifest(
+        result, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    with_field(monkeypatch)
+    folder = write_record(result, tmp_path, figure=False)
+    doc = json.loads((folder / RECORD_FILE).read_text())
+    assert doc["bench_humidity_pct"] == 41.5
+    assert "bench_humidity_pct" in doc["integrity"]["sections"]
+    assert load_record(folder).bench_humidity_pct == 41.5
+    doc["bench_humidity_pct"] = 90.0  # changed after the test: refused, naming the field
+    (folder / RECORD_FILE).write_text(json.dumps(doc))
+    with pytest.raises(ConfigError, match="bench_humidity_pct"):
+        load_record(folder)
+
+
+def test_a_record_written_before_the_field_existed_reads_with_its_default(
+        result, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    folder = write_record(result, tmp_path, figure=False)  # today's model
+    assert "bench_humidity_pct" not in json.loads((folder / RECORD_FILE).read_text())
+    with_field(monkeypatch)
+    assert load_record(folder).bench_humidity_pct == 41.5
+
+
+def test_record_json_is_the_models_serialisation_and_reads_back_equal(result, tmp_path: Path) -> None:
+    """What is written is the built model, and reading it gives the model back (NaN figures aside: JSON holds
+    them as null)."""
+    folder = write_record(result, tmp_path, figure=False)
+    written = json.loads((folder / RECORD_FILE).read_text())
+    read = load_record(folder)
+    built = build_record(result, read.files)
+    assert {key: value for key, value in written.items() if key != "integrity"} == record_json(built)
+    assert record_json(read) == record_json(built)
+    assert isinstance(read.timing, TickTiming) and read.timing.ticks == result.timing.ticks > 0
+    assert "retested_by" not in written  # declared for reading only
+
+
+def test_a_section_that_does_not_fit_its_model_is_not_written(result, tmp_path: Path) -> None:
+    """A bug that hands the writer a wrong figure fails at build time, before any record.json exists."""
+    from dataclasses import replace
+
+    from pydantic import ValidationError
+
+    wrong = replace(result, identity={"station": ["not", "a", "name"]})
+    with pytest.raises(ValidationError, match="Identity\nstation"):
+        build_record(wrong, RecordFiles())
+    with pytest.raises(ValidationError):
+        write_record(wrong, tmp_path, figure=False)
+    (folder,) = tmp_path.iterdir()
+    assert not (folder / RECORD_FILE).exists() and (folder / "can.log").stat().st_size > 0  # the data kept
