@@ -49,7 +49,7 @@ if TYPE_CHECKING:
 from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
-from edc_bench.records.schema import StabilityMargins
+from edc_bench.records.schema import StabilityMargins, StopSummary
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.clock_kind import ClockKind
@@ -233,21 +233,22 @@ def _run_loop(loop: BenchLoop, stream_can_log: Callable[[str], Path] | None,
     return outcome, stream.path if stream.complete else None
 
 
-def stop_summary(variant: Variant, outcome: LoopOutcome, full_length: bool, early_stop: bool) -> dict:
+def stop_summary(variant: Variant, outcome: LoopOutcome, full_length: bool, early_stop: bool) -> StopSummary:
     """Why and when the test ended, for the record."""
-    max_s = variant.excitation.duration_s
+    period_s = variant.controller.period_s
     if outcome.stop is not None:
-        out = outcome.stop.as_dict()
+        figures = outcome.stop.as_dict()
     elif outcome.abort is not None:
-        out = {"reason": StopReason.ABORTED, "time_s": outcome.abort_time_s if outcome.abort_time_s is not None else
-               outcome.ticks_run * variant.controller.period_s}
+        figures = {"reason": StopReason.ABORTED,
+                   "time_s": outcome.abort_time_s if outcome.abort_time_s is not None else outcome.ticks_run * period_s}
     else:
-        out = {"reason": StopReason.FULL_LENGTH, "time_s": outcome.ticks_run * variant.controller.period_s}
-    out.update(max_s=max_s, full_length=full_length, early_stop=early_stop)
-    if out["reason"] is StopReason.FULL_LENGTH and not full_length:
-        out["why_full_length"] = ("no early stop: the test is not classified against a calibrated baseline"
-                                  if not early_stop else "the verdict was not certain before the maximum duration")
-    return out
+        figures = {"reason": StopReason.FULL_LENGTH, "time_s": outcome.ticks_run * period_s}
+    why_full_length = None
+    if figures["reason"] is StopReason.FULL_LENGTH and not full_length:
+        why_full_length = ("no early stop: the test is not classified against a calibrated baseline"
+                           if not early_stop else "the verdict was not certain before the maximum duration")
+    return StopSummary(**figures, max_s=variant.excitation.duration_s, full_length=full_length,
+                       early_stop=early_stop, why_full_length=why_full_length)
 
 
 _channels = itertools.count()

@@ -127,9 +127,9 @@ def accuracy_row(variant_name: str, valve: str, plant: str, options: dict[str, A
     return {
         "variant": variant_name, "valve": valve, "plant": plant,
         "error_rel": {n: rounded(parameters[n]["error_rel"]) for n in ACCURACY_PARAMETERS},
-        "verdict": result.verdict.value, "stop_s": rounded(result.stop["time_s"], 3),
-        "stop_reason": str(result.stop["reason"]),
-        "half_width_rel": {n: rounded(v) for n, v in (result.stop.get("half_width_rel") or {}).items()},
+        "verdict": result.verdict.value, "stop_s": rounded(result.stop.time_s, 3),
+        "stop_reason": str(result.stop.reason),
+        "half_width_rel": {n: rounded(v) for n, v in (result.stop.half_width_rel or {}).items()},
         "residual_ratio": rounded(fit.residual_ratio, 3), "repeating_ratio": rounded(fit.systematic_ratio, 3),
         "spread_rel": rounded(max(fit.spread_rel.values())), "gain_variation_rel": rounded(fit.gain_variation_rel, 4),
         "condition_number": rounded(ident.condition_number, 1),
@@ -150,7 +150,7 @@ def accuracy() -> dict[str, Any]:
                 for v in VARIANTS for valve in VALVES for plant, options in PLANTS]
         full = simulated_test(load_variant("p-edc-long"), "new", stiction=False, sensor_noise=False, full_length=True)
     return {"seed": SEED, "rows": rows,
-            "long_new_model_full_length": {"duration_s": rounded(full.stop["time_s"], 3),
+            "long_new_model_full_length": {"duration_s": rounded(full.stop.time_s, 3),
                                            "error_rel": {n: rounded(full.parameters[n]["error_rel"])
                                                          for n in ACCURACY_PARAMETERS}}}
 
@@ -267,7 +267,7 @@ def high_gain_test() -> dict[str, Any]:
     variant = with_section(load_variant("p-edc-default"), "controller", kp_v_per_mm=HIGH_KP_V_PER_MM)
     result = simulated_test(variant, "new", adapter="usb-fs", check_gains=False)
     return {"kp_v_per_mm": HIGH_KP_V_PER_MM, "verdict": result.verdict.value, "reasons": list(result.reasons),
-            "stop_s": rounded(result.stop["time_s"], 3)}
+            "stop_s": rounded(result.stop.time_s, 3)}
 
 
 @measurement("bench-test-choices", minutes=1.5)
@@ -588,8 +588,8 @@ def hard_variant() -> dict[str, Any]:
             for valve in VALVES:
                 result = simulated_test(variant, valve, 0, nominal_baseline=True)
                 unfit.append({"variation_rel": sign * UNFITTABLE_VARIATION_REL, "valve": valve,
-                              "verdict": result.verdict.value, "stop": str(result.stop["reason"]),
-                              "stop_s": rounded(result.stop["time_s"], 3)})
+                              "verdict": result.verdict.value, "stop": str(result.stop.reason),
+                              "stop_s": rounded(result.stop.time_s, 3)})
         out["beyond_the_model"] = unfit
         variant = with_gain_variation(hard, UNFITTABLE_VARIATION_REL)
         out["stick_slip"] = [{"seed": s, **stick_slip(simulated_test(variant, "faulty", s, nominal_baseline=True))}
@@ -601,7 +601,7 @@ def hard_variant() -> dict[str, Any]:
         shorter = simulated_test(half, "faulty", example, nominal_baseline=True)
         out["half_the_wait"] = {"seed": example, "ticks": half.acceptance.tracking_error_ticks,
                                 "verdict": shorter.verdict.value,
-                                "reasons": list(shorter.reasons), "stop_s": rounded(shorter.stop["time_s"], 3)}
+                                "reasons": list(shorter.reasons), "stop_s": rounded(shorter.stop.time_s, 3)}
     return out
 
 

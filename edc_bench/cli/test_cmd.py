@@ -649,7 +649,7 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
             fit = ident.model_fit
             print(f"model fit: {model_fit_line(fit)}" + ("" if fit.fits else " - DOES NOT FIT"))
     if result.stop is not None:
-        print(f"stopped: {result.stop['reason']} at {result.stop['time_s']:.1f} s")
+        print(f"stopped: {result.stop.reason} at {result.stop.time_s:.1f} s")
     t = result.timing
     if t.ticks:
         print(f"timing: {t.ticks} ticks, lateness p99 {t.lateness_p99_us:.0f} us, ticks late {t.ticks_late}, "

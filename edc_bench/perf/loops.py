@@ -57,7 +57,7 @@ def simulated_test(variant: Variant, repeats: int, full_length: bool) -> dict[st
     best = int(np.argmin(walls))
     return {"best_s": walls[best], "median_s": float(np.median(walls)), "simulated_s": covered[best],
             "speed_x_real_time": covered[best] / walls[best], "repeats": repeats, "verdict": result.verdict,
-            "stop": str(result.stop["reason"])}
+            "stop": str(result.stop.reason)}
 
 
 class StealSampler:
@@ -238,7 +238,7 @@ def link_test(variant_name: str | None, duration_s: float, *, adapter: str = "no
         ticks_lost=outcome.ticks_lost, stalls_injected=getattr(clock, "stalls", 0),
         late_after_gap_us=float(np.nanmax(late_after)) if len(late_after) else float("nan"),
         steal_s=outcome.cpu_steal_s, rig_worst_gap_ms=status.get("worst_gap_ms"),
-        stop_check_max_us=_or_nan(result.timing.stop_check_max_us), stop_reason=result.stop["reason"])
+        stop_check_max_us=_or_nan(result.timing.stop_check_max_us), stop_reason=result.stop.reason)
 
 
 def _or_nan(value: float | None) -> float:

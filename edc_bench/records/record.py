@@ -98,9 +98,9 @@ class BenchResult:
         The simulated valve and rig, when the rig was simulated.
     can_log_path : pathlib.Path or None
         Where the CAN log was streamed while the test ran, if it was.
-    stop : dict or None
-        Why and when the test ended: ``reason`` (``verdict certain``, ``model does not fit``, ``full length``,
-        ``aborted``), ``time_s``, ``full_length`` (the fixed length was asked for), ``max_s``.
+    stop : StopSummary or None
+        Why and when the test ended: ``reason`` (a :class:`~edc_bench.engine.outcome.StopReason`), ``time_s``,
+        ``full_length`` (the fixed length was asked for), ``max_s``, and an early stop's figures.
     identity : dict
         Who and where: ``pump_serial``, ``station``, ``operator``.
 
@@ -120,7 +120,7 @@ class BenchResult:
     truth: FeedforwardParameters | None = None
     simulation: dict[str, Any] | None = None
     can_log_path: Path | None = None
-    stop: dict[str, Any] | None = None
+    stop: StopSummary | None = None
     software_version: str = __version__
     identity: dict[str, str] = field(default_factory=dict)
     test_id: str = ""
@@ -246,7 +246,7 @@ def build_record(result: BenchResult, files: RecordFiles, retest: RetestSummary 
             gain_terms=ident.nuisance,
             online_settle_s=ident.settle_s,
         ),
-        stop=_section(StopSummary, result.stop),
+        stop=result.stop,
         timing=result.timing,
         loop=loop,
         stability_margins=result.margins,

@@ -23,7 +23,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
-from edc_bench.engine.outcome import AbortKind
+from edc_bench.engine.outcome import AbortKind, StopReason
 from edc_bench.engine.problems import Problem
 from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
 from edc_bench.runtime.clock_kind import ClockKind
@@ -164,7 +164,7 @@ class IdentificationSummary(Section):
 class StopSummary(Section):
     """Why and when the test ended, and the longest it could have run."""
 
-    reason: str = ""
+    reason: StopReason | str = ""  # a StopReason; a str only in a record that holds none of them
     time_s: float | None = None
     decided_s: float | None = None  # an early stop: when the loop took the decision (after time_s in real time)
     max_s: float | None = None

@@ -24,6 +24,7 @@ from edc_bench.engine.outcome import StopReason
 from edc_bench.identification.analysis import model_fit_line
 from edc_bench.identification.coil_check import coil_line
 from edc_bench.records.baseline_text import baseline_line
+from edc_bench.records.schema import StopSummary
 from edc_bench.runtime.loop import Phase
 from edc_bench.ui.snapshot import PHASES, Snapshot, read_tick
 from edc_bench.verdict.verdicts import Verdict
@@ -122,17 +123,17 @@ def period_fit_line(fit: dict | None) -> Text:
                 f"+/-{fit['a1_half_width_rel']:.1%} against a new valve, {fit['periods']} periods{verdict}")
 
 
-def stop_line(stop: dict) -> str:
+def stop_line(stop: StopSummary) -> str:
     """Why and when a test ended, in words."""
-    at = f"after {stop['time_s']:.1f} s of at most {stop['max_s']:g} s"
-    reason = StopReason(stop["reason"])
-    if reason is StopReason.VERDICT_CERTAIN:
-        return f"{at}: af and a1 known well enough that the verdict cannot change ({stop.get('periods')} periods)"
-    if reason is StopReason.MODEL_DOES_NOT_FIT:
+    at = f"after {stop.time_s:.1f} s of at most {stop.max_s:g} s"
+    reason = stop.reason
+    if reason == StopReason.VERDICT_CERTAIN:
+        return f"{at}: af and a1 known well enough that the verdict cannot change ({stop.periods} periods)"
+    if reason == StopReason.MODEL_DOES_NOT_FIT:
         return f"{at}: the model does not fit this pump; a longer test would not help"
-    if reason is StopReason.FULL_LENGTH:
-        return f"{at}: full length" + (" (--full-length)" if stop.get("full_length") else
-                                       f" ({stop['why_full_length']})" if stop.get("why_full_length") else "")
+    if reason == StopReason.FULL_LENGTH:
+        return f"{at}: full length" + (" (--full-length)" if stop.full_length else
+                                       f" ({stop.why_full_length})" if stop.why_full_length else "")
     return f"{at}: aborted"
 
 
@@ -160,7 +161,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     if result.judgement.baseline is not None:
         nominal = result.judgement.baseline.get("calibrated") is False
         body.add_row("baseline", Text(baseline_line(result.judgement.baseline), style="bold magenta" if nominal else ""))
-    stop = getattr(result, "stop", None)
+    stop = result.stop
     if stop is not None:
         body.add_row("ended", stop_line(stop))
     ident = result.identification

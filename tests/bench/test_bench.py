@@ -91,10 +91,10 @@ def test_default_test_lasts_30_s_at_most_and_stops_when_the_verdict_is_certain()
         assert load_variant(name).excitation.duration_s <= 30.0
     result = run_simulated_test(load_variant("p-edc-default"), "new", 0, full_length=True)
     assert result.timing.ticks == 30_000
-    assert result.stop["reason"] == "full length" and result.stop["full_length"] is True
+    assert result.stop.reason == "full length" and result.stop.full_length is True
     # without --full-length: the verdict is certain after three whole periods of 2 s (10 s), the same verdict
     early = run_simulated_test(load_variant("p-edc-default"), "new", 0)
-    assert early.stop["reason"] == "verdict certain" and early.stop["time_s"] == pytest.approx(10.0, abs=1e-9)
+    assert early.stop.reason == "verdict certain" and early.stop.time_s == pytest.approx(10.0, abs=1e-9)
     assert early.timing.ticks == 10_000 and early.verdict == result.verdict == Verdict.PASS
     assert early.features["af"] == pytest.approx(result.features["af"], rel=0.01)
     assert early.features["a1"] == pytest.approx(result.features["a1"], rel=0.02)

@@ -163,8 +163,8 @@ def test_a_plant_the_model_cannot_fit_ends_invalid_with_the_model_fit_reason_ear
         assert reason.startswith("the feedforward model does not fit this pump: ")
         assert "a longer test will not help" in reason
         assert not any(r.startswith("not converged") for r in result.reasons)
-        assert result.stop["reason"] == "model does not fit"
-        assert result.stop["time_s"] < variant.excitation.duration_s
+        assert result.stop.reason == "model does not fit"
+        assert result.stop.time_s < variant.excitation.duration_s
         assert not result.judgement.identification.model_fit.fits
         # the stick-slip the tracking check must ride out (docs/bench-test.md)
         if valve == "faulty" and variation_rel > 0:
@@ -222,7 +222,7 @@ def test_every_record_carries_the_model_fit(tmp_path: Path) -> None:
 def test_an_early_stop_gives_the_full_length_verdict_on_the_hard_variant(hard) -> None:
     for valve in VALVES:
         early = run_simulated_test(hard, valve, 2)
-        assert early.stop["reason"] == "verdict certain" and early.stop["time_s"] <= 12.0
+        assert early.stop.reason == "verdict certain" and early.stop.time_s <= 12.0
         assert early.verdict in (Verdict.PASS, Verdict.FAIL)
         assert (early.verdict == Verdict.FAIL) == (valve != "new")
         assert abs(early.parameters["af"]["error_rel"]) < 0.05 and abs(early.parameters["a1"]["error_rel"]) < 0.10
@@ -231,7 +231,7 @@ def test_an_early_stop_gives_the_full_length_verdict_on_the_hard_variant(hard) -
 def test_a_test_not_classified_runs_its_full_length_and_says_why() -> None:
     result = run_simulated_test(load_variant(), "new", 0, classify=False)
     assert result.timing.ticks == 30_000
-    assert result.stop["reason"] == "full length" and "not classified" in result.stop["why_full_length"]
+    assert result.stop.reason == "full length" and "not classified" in result.stop.why_full_length
 
 
 @pytest.mark.slow
@@ -287,7 +287,7 @@ def test_a_pump_the_model_fits_is_judged_through_a_usb_adapter(name: str) -> Non
         usb = run_simulated_test(variant, valve, 0, adapter="usb-fs")
         fit = usb.judgement.identification.model_fit
         print(f"{name} {valve}: residual {fit.residual_ratio:.2f}x, repeating {fit.systematic_ratio:.2f}x; "
-              f"{lockstep.verdict.value} -> {usb.verdict.value} at {usb.stop['time_s']:.1f} s")
+              f"{lockstep.verdict.value} -> {usb.verdict.value} at {usb.stop.time_s:.1f} s")
         assert fit.fits, usb.reasons
         assert fit.systematic_ratio < 0.8 * variant.acceptance.max_residual_ratio  # a margin, not a coin toss
         assert usb.verdict == lockstep.verdict != Verdict.INVALID

@@ -216,7 +216,7 @@ def test_a_pc_that_loses_4_percent_of_its_ticks_still_gets_the_right_verdict(var
     assert result.verdict == undisturbed.verdict == verdict, result.reasons
     for name in ("af", "a1"):
         assert result.features[name] == pytest.approx(undisturbed.features[name], rel=0.01)
-    assert result.stop["time_s"] >= undisturbed.stop["time_s"]  # what the stalls took, it took longer to learn
+    assert result.stop.time_s >= undisturbed.stop.time_s  # what the stalls took, it took longer to learn
     folder = write_record(result, tmp_path, figure=False)
     assert disagreements(load_record(folder)) == []  # the record's problems follow from its figures
     report = replay_record(folder)

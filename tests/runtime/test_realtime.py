@@ -127,7 +127,7 @@ def test_realtime_host_stall_of_5_ms_every_second_leaves_the_test_valid() -> Non
                        f"{outcome.ticks_lost} ticks lost, reply ages {outcome.reply_age_ticks}")
         completed = result.verdict == "PASS"
         if completed:
-            assert result.stop["reason"] == "full length"
+            assert result.stop.reason == "full length"
             assert outcome.ticks_run == 15_000 and clock.stalls >= 12
             assert outcome.gaps >= clock.stalls  # every injected stall shows as a gap (the machine may add some)
             assert 4 * clock.stalls <= outcome.ticks_lost
@@ -230,9 +230,9 @@ def test_a_slow_pcs_early_stop_decision_costs_no_ticks_and_never_trips_the_watch
         stalls = gap_runs(result.trace["gap"])
         completed = result.verdict == "PASS"
         if completed:
-            assert slow_calls and result.stop["reason"] == "verdict certain"
-            assert result.stop["time_s"] < result.stop["decided_s"]  # taken beside the ticks, after its period
-            assert outcome.ticks_run == round(result.stop["decided_s"] / variant.controller.period_s)
+            assert slow_calls and result.stop.reason == "verdict certain"
+            assert result.stop.time_s < result.stop.decided_s  # taken beside the ticks, after its period
+            assert outcome.ticks_run == round(result.stop.decided_s / variant.controller.period_s)
         # ticks lost just after a period's end are the decision's (this test's subject), never the machine's
         machine_stalls = [lost for k, lost in stalls if not any(0 < k - end <= 50 for end in period_ends)]
         machine_lost = sum(machine_stalls)
@@ -262,7 +262,7 @@ def test_a_decision_for_the_last_tick_is_taken_in_real_time_as_in_simulated_time
     variant = load_variant()
     variant = variant.model_copy(update={"excitation": variant.excitation.model_copy(update={"duration_s": 10.0})})
     simulated = run_simulated_test(variant, "new")
-    assert simulated.stop["reason"] == "verdict certain" and simulated.outcome.ticks_run == 10_000
+    assert simulated.stop.reason == "verdict certain" and simulated.outcome.ticks_run == 10_000
 
     def run():
         status: dict[str, float] = {}
@@ -272,8 +272,8 @@ def test_a_decision_for_the_last_tick_is_taken_in_real_time_as_in_simulated_time
         outcome = result.outcome
         completed = result.verdict == "PASS"
         if completed:
-            assert result.stop["reason"] == "verdict certain", result.stop
-            assert result.stop["time_s"] == pytest.approx(10.0) and result.stop["decided_s"] == pytest.approx(10.0)
+            assert result.stop.reason == "verdict certain", result.stop
+            assert result.stop.time_s == pytest.approx(10.0) and result.stop.decided_s == pytest.approx(10.0)
         return (completed, f"{result.verdict} {result.reasons}, stop {result.stop}, {figures(result.timing, status)}",
                 disturbance(result.timing, status, (outcome.ticks_lost, outcome.ticks_run)))
 

@@ -116,9 +116,9 @@ def test_cancel_drops_the_ticks_not_begun_and_close_restores_the_switch_interval
 def test_in_simulated_time_the_rule_decides_inside_the_tick() -> None:
     """Simulated time keeps the rule in the tick (the same test, the same record): decided when it ended."""
     result = run_simulated_test(load_variant(), "new")
-    assert result.stop["reason"] == "verdict certain"
-    assert result.stop["decided_s"] == pytest.approx(result.stop["time_s"])
-    assert result.outcome.ticks_run == round(result.stop["time_s"] / load_variant().controller.period_s)
+    assert result.stop.reason == "verdict certain"
+    assert result.stop.decided_s == pytest.approx(result.stop.time_s)
+    assert result.outcome.ticks_run == round(result.stop.time_s / load_variant().controller.period_s)
 
 
 def test_a_raw_log_ending_a_little_after_a_whole_period_ended_by_an_early_stop() -> None:

@@ -110,7 +110,7 @@ def test_the_live_panel_shows_what_the_verdict_rests_on_and_whether_the_time_lef
     watch = Watch()
     # a valve near the marginal band's edge: not certain after three periods, so the rule searches for when
     result = run_simulated_test(load_variant(), "clearance=0.18", 0, observer=watch)
-    assert result.stop["reason"] == "verdict certain" and result.stop["periods"] > 3
+    assert result.stop.reason == "verdict certain" and result.stop.periods > 3
     before = [text for k, (text, latest, _, _) in watch.panels.items() if latest is None]
     assert before and all("at least" in text and "from the first decision on" in text for text in before)
     guesses = [(k, text, latest, end_s) for k, (text, latest, end_s, earliest) in watch.panels.items()

@@ -92,15 +92,15 @@ def spread_run():
 
 def test_a_slow_to_decide_valve_runs_several_periods_and_stops_certain(spread_run) -> None:
     result, _, _, boxes = spread_run
-    assert result.stop["reason"] == "verdict certain" and result.stop["periods"] >= 6
+    assert result.stop.reason == "verdict certain" and result.stop.periods >= 6
     searched = [b for b in boxes if b[3] and not b[4]]  # trusted, not yet certain: the expected end is searched
     assert len(searched) >= 3
     # the stop records the box's fixed parts, the residual's among them; the whole is the last box the rule judged
     box = boxes[-1][2]
     for part in ("misfit", "baseline", "residual"):
-        recorded = result.stop[f"{part}_half_width_rel"]
+        recorded = getattr(result.stop, f"{part}_half_width_rel")
         np.testing.assert_allclose([recorded["af"], recorded["a1"]], getattr(box, part)[0], rtol=1e-12)
-    np.testing.assert_allclose([result.stop["half_width_rel"]["af"], result.stop["half_width_rel"]["a1"]],
+    np.testing.assert_allclose([result.stop.half_width_rel["af"], result.stop.half_width_rel["a1"]],
                                (box.statistical + box.misfit + box.baseline + box.residual)[0], rtol=1e-12)
 
 
@@ -108,7 +108,7 @@ def test_no_call_smooths_more_than_a_step_of_rows_or_asks_the_classifier_more_th
     result, watch, calls, _ = spread_run
     rule = watch.rule
     window = rule.setup.window
-    assert len(calls) > 10 * result.stop["periods"]
+    assert len(calls) > 10 * result.stop.periods
     assert sum(asked for _, _, asked, _ in calls) >= 5 * 6  # the classifier was asked, and counted
     for k, span, asked, full in calls:
         assert span <= early_stop.STEP_TICKS + window + 1, (k, span)  # a step's rows and their smoothing margins
@@ -151,7 +151,7 @@ def test_rows_fed_a_step_at_a_time_sum_to_the_rows_of_the_whole_trace(adapter) -
     watch = _Watch()
     result = run_simulated_test(load_variant(), SLOW_TO_DECIDE, 0, observer=watch, adapter=adapter)
     rule = watch.rule
-    periods = result.stop.get("periods", rule.max_periods)  # the slow valve may run its full length
+    periods = result.stop.periods if result.stop.periods is not None else rule.max_periods  # the slow valve may run its full length
     assert periods >= 4
     whole, _ = trace_blocks(rule.setup, result.trace, rule.variant.coil.resistance_ohm)
     done = periods - 1  # the last period's final rows were only added for the decision, then taken out
