@@ -49,7 +49,7 @@ if TYPE_CHECKING:
 from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
-from edc_bench.records.schema import StabilityMargins, StopSummary
+from edc_bench.records.schema import Identity, StabilityMargins, StopSummary
 from edc_bench.records.stream import StreamingCanLog
 from edc_bench.runtime.clock import Clock, SimulatedClock
 from edc_bench.runtime.clock_kind import ClockKind
@@ -71,8 +71,9 @@ class BenchOptions:
     ----------
     valve_id : str
         Identity of the valve under test, for the record.
-    identity : Mapping
-        Who and where (``pump_serial``, ``station``, ``operator``), for the record and the history.
+    identity : Identity or Mapping
+        Who and where (``pump_serial``, ``station``, ``operator``, the workshop, ``job_ref``), for the record and the
+        history; a mapping is read as an :class:`~edc_bench.records.schema.Identity` (an unknown key kept).
     classify : bool
         Judge a trustworthy test with the classifier (default); off for baseline calibration.
     classifier_path : pathlib.Path or None
@@ -105,7 +106,7 @@ class BenchOptions:
     """
 
     valve_id: str = ""
-    identity: Mapping[str, str] = field(default_factory=dict)
+    identity: Identity | Mapping[str, str] = field(default_factory=dict)
     classify: bool = True
     classifier_path: Path | None = None
     check_gains: bool = True
@@ -193,7 +194,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
         frames=loop.frames,
         truth=o.truth,
         can_log_path=can_log_path,
-        identity=dict(o.identity),
+        identity=Identity.model_validate(o.identity),
         simulation=o.describe_rig() if o.describe_rig is not None else None,
     )
 

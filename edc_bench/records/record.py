@@ -101,8 +101,8 @@ class BenchResult:
     stop : StopSummary or None
         Why and when the test ended: ``reason`` (a :class:`~edc_bench.engine.outcome.StopReason`), ``time_s``,
         ``full_length`` (the fixed length was asked for), ``max_s``, and an early stop's figures.
-    identity : dict
-        Who and where: ``pump_serial``, ``station``, ``operator``.
+    identity : Identity
+        Who and where: the pump's serial, the station, the operator, the workshop, the job.
 
     Built once, complete, by :func:`edc_bench.bench.run_bench_test`; :func:`write_record` writes it as it is.
     """
@@ -122,7 +122,7 @@ class BenchResult:
     can_log_path: Path | None = None
     stop: StopSummary | None = None
     software_version: str = __version__
-    identity: dict[str, str] = field(default_factory=dict)
+    identity: Identity = Identity()
     test_id: str = ""
 
     @property

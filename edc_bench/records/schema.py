@@ -55,6 +55,7 @@ class Identity(Section):
     shop: str = ""  # the workshop ([station] shop in station.toml): the customer's page prints it
     shop_address: str = ""
     job_ref: str = ""  # the job or vehicle reference scanned with the valve ('' if none): the customer's page prints it
+    purpose: str = ""  # "calibration" for a baseline's test (edc-bench calibrate), '' for a valve's
 
 
 class CoilFinding(Section):
