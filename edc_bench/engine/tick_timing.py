@@ -4,7 +4,19 @@ from __future__ import annotations
 
 import math
 
-from pydantic import BaseModel, ConfigDict
+from typing import Annotated, Any
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict
+
+
+def _zero_if_none(value: Any) -> Any:
+    return 0 if value is None else value
+
+
+# A count or a time that a damaged or hand-edited record holds as null reads as none counted (as the record's
+# readers took it when timing was a plain mapping), not as a record refused.
+CountOrZero = Annotated[int, BeforeValidator(_zero_if_none)]
+SecondsOrZero = Annotated[float, BeforeValidator(_zero_if_none)]
 
 
 class TickTiming(BaseModel):
@@ -32,14 +44,14 @@ class TickTiming(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="allow")  # a newer edc-bench's figures kept, not refused
 
-    ticks: int = 0
+    ticks: CountOrZero = 0
     lateness_p50_us: float | None = None
     lateness_p99_us: float | None = None
     lateness_p999_us: float | None = None
     lateness_max_us: float | None = None
-    ticks_late: int = 0
-    missed_replies: int = 0
-    cpu_steal_s: float = 0.0
+    ticks_late: CountOrZero = 0
+    missed_replies: CountOrZero = 0
+    cpu_steal_s: SecondsOrZero = 0.0
     first_tick_unix_s: float | None = None
     scheduling: str | None = None
     stop_check_max_us: float | None = None

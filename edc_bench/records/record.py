@@ -12,7 +12,7 @@ plane), so the report reads the folder alone.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -21,11 +21,11 @@ import numpy as np
 from edc_bench import __version__
 from edc_bench.config.models import Variant
 from edc_bench.engine.outcome import LoopOutcome
+from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.engine.trace import CanFrameLog
 from edc_bench.identification.analysis import Identification
 from edc_bench.physics.feedforward import FeedforwardParameters
 from edc_bench.protocol import default_icd
-from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.records.mdf import write_trace_mf4
 from edc_bench.records.writer import (
     CAN_LOG_FILE,
@@ -308,6 +308,9 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     ------
     OSError
         If the folder or record.json cannot be written.
+    pydantic.ValidationError
+        If a section does not fit the record's model (a bug in the code that made it): record.json is not written,
+        the data files already written are kept.
     """
     if folder is None:
         folder = new_record_dir(Path(out_dir), result.valve_id, result.variant.name, result.started_at)

@@ -165,7 +165,9 @@ class IdentificationSummary(Section):
 class StopSummary(Section):
     """Why and when the test ended, and the longest it could have run."""
 
-    reason: StopReason | str = ""  # a StopReason; a str only in a record that holds none of them
+    # a StopReason; a str only for a reason this edc-bench does not know (left_to_right: a known reason read from
+    # JSON is the enum, not the plain str a smart union would pick)
+    reason: StopReason | str = Field("", union_mode="left_to_right")
     time_s: float | None = None
     decided_s: float | None = None  # an early stop: when the loop took the decision (after time_s in real time)
     max_s: float | None = None

@@ -84,3 +84,20 @@ def test_a_section_that_does_not_fit_its_model_is_not_written(result, tmp_path: 
         write_record(wrong, tmp_path, figure=False)
     (folder,) = tmp_path.iterdir()
     assert not (folder / RECORD_FILE).exists() and (folder / "can.log").stat().st_size > 0  # the data kept
+
+
+def test_a_stop_reason_read_back_is_the_enum_and_an_unknown_one_is_kept_as_text() -> None:
+    from edc_bench.engine.outcome import StopReason
+    from edc_bench.records.schema import StopSummary
+
+    assert StopSummary.model_validate({"reason": "verdict certain"}).reason is StopReason.VERDICT_CERTAIN
+    assert StopSummary.model_validate({"reason": "a newer reason"}).reason == "a newer reason"
+
+
+def test_a_timing_holding_null_counts_reads_as_none_counted(result, tmp_path: Path) -> None:
+    """A damaged record's null counts were read as 0 when timing was a mapping: still read, not refused."""
+    folder = write_record(result, tmp_path, figure=False)
+    doc = json.loads((folder / RECORD_FILE).read_text())
+    doc["timing"].update(ticks=None, ticks_late=None, missed_replies=None, cpu_steal_s=None)
+    timing = reader.typed_record(reader.upgraded(doc), folder).timing
+    assert (timing.ticks, timing.ticks_late, timing.missed_replies, timing.cpu_steal_s) == (0, 0, 0, 0.0)
