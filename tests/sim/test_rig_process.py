@@ -193,6 +193,7 @@ def test_client_from_dbc_only_drives_the_rig(rig_process, no_gc) -> None:
         assert 8.5 < positions[-1] < 11.5  # 2.8 V holds about mid-stroke
 
         # bad CRC and a repeated counter: no reply
+        steal_before_trip_s = cpu_steal_s()
         message = client.db.get_message_by_name("BENCH_CMD")
         good = bytearray(message.encode({"CRC": 0, "Counter": (counter + 1) % 256, "Mode": 1, "DriveVoltage": 2.8,
                                          "RackReference": 10.0}))
@@ -206,8 +207,19 @@ def test_client_from_dbc_only_drives_the_rig(rig_process, no_gc) -> None:
         delay_ms = (tripped_at - last_valid_command) * 1e3
         print(f"watchdog FAULT seen {delay_ms:.1f} ms after the last valid command (ICD: 20 ms)")
         assert beat["FaultCode"] == 1  # WATCHDOG
-        # the rig's own 20 ms is exact in simulated time (test_firmware); here allow for scheduling
-        assert 19.0 < delay_ms < 120.0
+        # the rig's own 20 ms is exact in simulated time (test_firmware); here allow for scheduling. Early is a bug
+        # whatever the machine did; late is the machine's doing when it was oversubscribed or its CPU stolen (130 ms
+        # seen on CI's 3.13 suite: two workers and a CPU load on two cores), which skips at the end, saying so
+        assert delay_ms > 19.0
+        late = ""
+        if delay_ms >= 120.0:
+            load = os.getloadavg()[0]
+            steal_s = cpu_steal_s() - steal_before_trip_s
+            cores = os.cpu_count() or 1
+            late = (f"watchdog FAULT seen {delay_ms:.1f} ms after the last valid command (bound 120 ms), with a load "
+                    f"of {load:.1f} on {cores} cores and {steal_s * 1e3:.0f} ms CPU steal")
+            if load <= cores and steal_s < 0.05:
+                pytest.fail(f"on an undisturbed machine: {late}")
         # RUN now is answered with WatchdogTripped and the amplifier off; the coil current
         # (tau = L/R, about 1.4 ms) dies away: 0 V is applied
         currents = []
@@ -226,6 +238,8 @@ def test_client_from_dbc_only_drives_the_rig(rig_process, no_gc) -> None:
         client.send("BENCH_CMD", Counter=(counter + 2) % 256, Mode=1, DriveVoltage=2.8, RackReference=10.0)
         _, fb = client.wait_for("RIG_FEEDBACK", 1.0)
         assert fb["AmpEnabled"] == 1 and fb["WatchdogTripped"] == 0
+        if late:  # everything else held: only the watchdog's timing went unjudged
+            pytest.skip(f"the machine got in the way: {late}")
     finally:
         client.close()
 
