@@ -97,11 +97,12 @@ class SlowLinkFigures(AbortFigures):
 
 @dataclass(frozen=True, kw_only=True)
 class RepliesMissingFigures(AbortFigures):
-    """Too many replies missing over the test."""
+    """More replies missing than the test may lose in all."""
 
     missed: int = 0
-    ticks: int = 0
+    ticks: int = 0  # run when it ended
     limit_fraction: float = math.nan
+    planned: int = 0  # the test's length in ticks, that the limit is a fraction of (0: a record before 2026-11-28)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -267,7 +267,9 @@ _SENTENCES: dict[AbortKind, Any] = {  # each kind's sentence from its own figure
     AbortKind.RIG_FAULT_STATE: lambda f: f"rig reported FAULT (fault code {f.fault_code})",
     AbortKind.SILENCE: _silence,
     AbortKind.SLOW_LINK: _slow_link,
-    AbortKind.REPLIES_MISSING: lambda f: f"{f.missed} of {f.ticks} replies missing (limit {f.limit_fraction:.1%})",
+    AbortKind.REPLIES_MISSING: lambda f: (
+        f"{f.missed} replies missing in {f.ticks} ticks: more than {f.limit_fraction:.1%} of the test's {f.planned} ticks"
+        if f.planned else f"{f.missed} of {f.ticks} replies missing (limit {f.limit_fraction:.1%})"),
     AbortKind.HEARTBEAT_LOST: lambda f: (f"rig heartbeat lost: none for {f.silent_ms:.0f} ms "
                                          f"(limit {f.limit_ms:.0f} ms)"),
     AbortKind.SAMPLE_OUT_OF_RANGE: lambda f: (
