@@ -114,6 +114,7 @@ def test_replay_refuses_logs_it_cannot_explain(tmp_path: Path) -> None:
         replay_can_log(empty, load_variant())
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_a_record_replays_from_its_log_converted_to_asc_and_blf_and_from_its_mf4(tmp_path: Path) -> None:
     # the log a technician sends converted by python-can's own tool, or the frames in trace.mf4: same verdict,
     # same parameters, bit for bit (these formats round timestamps; replay goes by the frames' order)

@@ -99,6 +99,7 @@ def test_calibrate_append_valve_by_valve_keeps_every_test_and_its_record(tmp_pat
     assert replayed.returncode == ExitCode.OK, replayed.stdout + replayed.stderr
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_every_invalid_calibration_test_shows_its_reason(tmp_path) -> None:
     # a limit no test can meet: every test is INVALID, poorly conditioned
     env = _station(tmp_path, "p-edc-strict", "\n[acceptance]\nmax_condition_number = 2.0\n", duration_s=12.0)

@@ -43,6 +43,7 @@ def test_refusal_names_tune_and_tune_write_fixes_the_gains(tmp_path) -> None:
     assert f"{gains['kp_v_per_mm']:.4g}" in proposed
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_tune_that_cannot_write_says_so_and_leaves_the_file_whole(tmp_path) -> None:
     path = write_new_pump_type(tmp_path / "variants")
     before = path.read_text(encoding="utf-8")

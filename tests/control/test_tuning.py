@@ -49,6 +49,7 @@ def test_proposed_gains_follow_at_least_as_fast_as_the_hand_tuned_ones(name: str
     assert tuned.closed_loop_bandwidth_hz >= 0.95 * shipped_bandwidth_hz
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_margins_no_pid_can_keep_are_refused_with_what_to_change() -> None:
     variant = load_variant("p-edc-default")
     with pytest.raises(ConfigError, match=r"no PID gains keep 60 dB and 30 deg .* 4 ticks of transport delay"):

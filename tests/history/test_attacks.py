@@ -300,6 +300,7 @@ def test_the_schema_downgrade_trick_is_refused_by_the_reader_and_named_by_verify
     _verify_says(station_url, "altered: test", "record.json")
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_the_report_prints_the_tests_chain_hash_on_the_customers_page(fail_dir: Path, tmp_path: Path) -> None:
     from pdfminer.high_level import extract_text
 
@@ -335,6 +336,7 @@ def _add_all(url: str, folders: list[Path]) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_four_concurrent_adds_of_the_same_folders_store_each_test_once(fail_dir: Path, tmp_path: Path,
                                                                         station_url: str) -> None:
     folders = []
@@ -532,6 +534,7 @@ def test_an_engineer_files_a_finding_only_as_itself(chain: dict[str, str]) -> No
     assert "opened 2026-11-20 by Chief Engineer Weber" in audit[-1]["what"]
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_a_withdrawn_tests_copy_stripped_to_look_old_stays_withdrawn(fail_dir: Path, tmp_path: Path,
                                                                      station_url: str) -> None:
     folder = tmp_path / "record"
@@ -580,6 +583,7 @@ def test_a_negative_zero_is_no_false_alarm(tmp_path: Path) -> None:
         assert store.chain_breaks() == []
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_an_adoption_made_out_of_the_chains_sight_is_refused_before_a_test_and_named_by_verify(
         chain: dict[str, str], tmp_path: Path) -> None:
     from edc_bench.verdict.classifier import packaged_model_path

@@ -103,6 +103,7 @@ def test_roles_hold_in_the_database_itself(postgres_db: str, record_dir: Path, t
             conn.rollback()
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_a_database_owner_that_is_no_superuser_sets_the_chain_up(postgres_url: str, record_dir: Path) -> None:
     """docs/shop-network.md's steps: an owner login with CREATEROLE, its own database, --upgrade, --setup-roles."""
     admin = sa.create_engine(postgres_url, isolation_level="AUTOCOMMIT")
@@ -123,6 +124,7 @@ def test_a_database_owner_that_is_no_superuser_sets_the_chain_up(postgres_url: s
     assert refused.returncode == 2 and "may not withdraw" in refused.stderr
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_the_owner_sees_and_applies_each_schema_change(new_postgres_database: Callable[..., str]) -> None:
     url = new_postgres_database(upgrade=False)
     station = _create_login(url, "bench4", "pg_read_all_data")
@@ -256,7 +258,8 @@ def _free_port() -> int:
 
 @pytest.mark.parametrize(("form", "every_command"), [
     pytest.param("userinfo", True, marks=pytest.mark.slow),  # 30 processes: CI's slow pass; the others every run
-    ("userinfo", False), pytest.param("query", False, marks=pytest.mark.slow),
+    pytest.param("userinfo", False, marks=pytest.mark.slow),  # 7 s; tests/history/test_passwords.py every run
+    pytest.param("query", False, marks=pytest.mark.slow),
     pytest.param("slash", False, marks=pytest.mark.slow)])
 def test_no_command_shows_the_database_password(record_dir: Path, tmp_path: Path, form: str,
                                                 every_command: bool) -> None:

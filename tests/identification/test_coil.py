@@ -32,6 +32,7 @@ def new_valve_on_each_coil(variant):
                                      coil_temp_c=80.0 if "coil_temp_c=80" in coil else None) for coil in COILS}
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_features_of_one_valve_move_less_than_2_percent_across_the_coil_range(new_valve_on_each_coil) -> None:
     af = np.array([r.features["af"] for r in new_valve_on_each_coil.values()])
     a1 = np.array([r.features["a1"] for r in new_valve_on_each_coil.values()])
@@ -42,6 +43,7 @@ def test_features_of_one_valve_move_less_than_2_percent_across_the_coil_range(ne
     assert np.ptp(volt_af) / volt_af.mean() > 0.3
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_the_measured_resistance_is_within_1_percent_of_the_coil(new_valve_on_each_coil) -> None:
     for coil, result in new_valve_on_each_coil.items():
         truth = result.simulation["coil"]

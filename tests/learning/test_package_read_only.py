@@ -114,6 +114,7 @@ def _replays(folders: list[Path]) -> None:
         assert report.reproduced, (folder.name, report.differences)
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_every_form_of_train_leaves_the_installed_package_as_it_was_and_earlier_records_replay(
         station: Path, dataset: Path, earlier_records: list[Path], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:

@@ -34,6 +34,7 @@ def _check(registration: Registration, drift: str | None = None, seed: int = 3):
     return run_selfcheck(rig, registration, load_variant(registration.variant), seed=seed).result
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_the_simulated_rig_is_go_with_other_noise_than_the_registrations(registration: Registration) -> None:
     result = _check(registration)
     assert result.go and result.line() == "rig self-check: GO", result.line()

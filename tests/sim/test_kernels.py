@@ -163,6 +163,7 @@ print(kernels.compiled().compiled, result.feature("af").tobytes().hex(), result.
 """
 
 
+@pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_the_batch_path_runs_without_numba_to_the_same_bits_and_says_it_is_slower() -> None:
     """#54: the package installs and runs where numba has no wheel (pyproject installs it only where it has)."""
     import subprocess
