@@ -46,8 +46,8 @@ from edc_bench.sim.inprocess import InProcessRig
 from edc_bench.sim.lockstep_bus import lockstep_pair
 from edc_bench.sim.rig import RigOptions, SimulatedRig
 
-#: the history tests' PostgreSQL server and databases (tests/pg_server.py)
-pytest_plugins = ["pg_server"]
+#: the history tests' PostgreSQL server and databases (tests/pg_server.py), the web view's site (tests/web_site.py)
+pytest_plugins = ["pg_server", "web_site"]
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -18,7 +18,7 @@ from edc_bench.cli.exit_codes import ExitCode
 
 COMMANDS = ("test", "rig", "variants", "tune", "calibrate", "train", "classify", "evaluate", "paper", "study-boundary",
             "perf", "replay", "history", "label", "report", "check-station", "rig-check", "session",
-            "rig-selfcheck")
+            "rig-selfcheck", "web")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -96,6 +96,7 @@ COMMAND_CODES: dict[str, tuple[int, ...]] = {
     "rig-check": (ExitCode.OK, ExitCode.RIG_NOT_CONFORMING, ExitCode.RIG_ERROR),
     "session": (ExitCode.OK,),
     "rig-selfcheck": (ExitCode.OK, ExitCode.RIG_ERROR, ExitCode.RIG_DRIFTED, ExitCode.NO_REFERENCE_VALVE),
+    "web": (ExitCode.OK,),
 }
 
 #: Codes any command can return: bad input (argparse too), a bug, a full disk, Ctrl-C or SIGTERM.

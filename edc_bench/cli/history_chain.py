@@ -50,7 +50,8 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
                             "registration with its trend per check, and each due check skipped (SKIPPED) "
                             "(--station: one station's)")
     chain.add_argument("--station", type=identity(), default=None, metavar="NAME",
-                       help="with --rig or --verify: only this station's; with --map-login: the login's station")
+                       help="a listing, --summary, --rig or --verify: only this station's; with --map-login: the "
+                            "login's station")
     chain.add_argument("--schema", action="store_true",
                        help="the database's schema revision and the changes --upgrade would make")
     chain.add_argument("--upgrade", action="store_true",
@@ -74,8 +75,12 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
                                       ("--heads", args.heads is not None and not args.verify)) if flag]
     if len(chosen) > 1:
         raise ConfigError(f"{' and '.join(chosen)} are separate actions: give one at a time")
-    if args.station is not None and not (args.rig or args.verify or args.map_login is not None):
-        raise ConfigError("--station goes with --rig, --verify (one station's) or --map-login (the login's station)")
+    if args.station is not None and not (args.rig or args.verify or args.map_login is not None
+                                         or args.summary or not chosen):
+        raise ConfigError("--station goes with a listing or --summary (one station's tests), --rig, --verify (one "
+                          "station's) or --map-login (the login's station)")
+    if args.summary and chosen:
+        raise ConfigError(f"--summary and {' and '.join(chosen)} are separate actions: give one at a time")
     if args.person is not None and args.map_login is None:
         raise ConfigError("--person goes with --map-login LOGIN (the person that database login is)")
     if args.verify and args.heads == "-":

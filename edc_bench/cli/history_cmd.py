@@ -44,7 +44,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--limit", type=positive_int, default=None, metavar="N", help="only the newest N")
     p.add_argument("--trend", type=identity(), default=None, metavar="VALVE_ID",
                    help="one valve's af and a1 over its visits")
-    add_include_simulated_argument(p, "with --trend: show")
+    add_include_simulated_argument(p, "with --trend or --summary: show")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG", help="with --trend: also draw it (a .png file)")
     p.add_argument("--csv", default=None, metavar="FILE", help="write the listed tests as CSV ('-': stdout)")
     p.add_argument("--add", nargs="+", type=Path, default=None, metavar="RECORD_DIR",
@@ -52,6 +52,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "each good one is indexed, each bad one listed (exit 2)")
     p.add_argument("--json", action="store_true", help="print only JSON")
     from edc_bench.cli.history_chain import add_chain_arguments
+    from edc_bench.cli.history_summary import add_summary_arguments
+
+    add_summary_arguments(p)
 
     add_chain_arguments(p)
     p.set_defaults(run=run)
@@ -110,7 +113,17 @@ def run(args: argparse.Namespace) -> int:
         if args.trend is not None:
             return _trend(store, args)
         filters = Filters(valve_id=args.valve_id, pump_serial=args.pump_serial, variant=args.variant,
-                          verdict=args.verdict, since=since, until=until)
+                          verdict=args.verdict, since=since, until=until, station=args.station,
+                          operator=args.operator)
+        if args.summary:  # as the web view's chain page: a rig's tests, the simulated rig's only if asked for
+            from dataclasses import replace
+
+            from edc_bench.cli.history_summary import print_summary
+            from edc_bench.history.summary import chain_summary
+
+            print_summary(chain_summary(store, replace(filters, simulated=None if args.include_simulated else False)),
+                          args.json)
+            return 0
         rows = store.list(filters, args.limit)
     if args.csv is not None:
         _export(rows, args.csv)
@@ -256,59 +269,11 @@ def _pct(rel: float | None) -> str:
     return "" if rel is None else f"{rel - 1:+.1%}"
 
 
-def _marginal_band(variant_name: str) -> float | None:
-    """The marginal band of the model that judges ``variant_name``'s valves (None: a variant or model this station
-    cannot load; the plot then draws the limit alone)."""
-    try:
-        from edc_bench.config import load_variant
-        from edc_bench.verdict.classifier import default_classifier
-
-        return float(default_classifier(variant=load_variant(variant_name)).marginal_band)
-    except Exception:  # noqa: BLE001 - a plot without its band lines is still the trend
-        return None
-
-
 def _plot(shown: list[Any], valve: str, path: Path) -> None:
-    """One point per visit (its deciding test's figures), marked with its decision, dated in local time: af's and
-    a1's change, and below it the valve's distance to the FAIL limit with the marginal band around it."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """Draw one valve's trend (:func:`edc_bench.history.trend_plot.trend_figure`) to a PNG file."""
+    from edc_bench.history.trend_plot import close, trend_figure
     from edc_bench.paths import atomic_write
-    from edc_bench.records.report_plots import VERDICT_COLOURS
 
-    fig, (ax, limit_ax) = plt.subplots(2, 1, figsize=(7, 5.2), sharex=True, height_ratios=(3, 2))
-    numbers = list(range(1, len(shown) + 1))
-    colours = [VERDICT_COLOURS.get(v.decision, "0.5") for v in shown]
-    for key, label, style in (("af_rel", "af", "-"), ("a1_rel", "a1", "--")):
-        ax.plot(numbers, [100 * ((v.last[key] or float("nan")) - 1) for v in shown], style, color="0.4", lw=1.0,
-                label=label)
-        ax.scatter(numbers, [100 * ((v.last[key] or float("nan")) - 1) for v in shown], zorder=3, s=36,
-                   c=colours, marker="o" if label == "af" else "s")
-    for n, visit in zip(numbers, shown, strict=True):
-        ax.annotate(visit.decision, (n, 100 * ((visit.last["a1_rel"] or float("nan")) - 1)), fontsize=6,
-                    textcoords="offset points", xytext=(0, 6), ha="center")
-    ax.axhline(0.0, color="grey", lw=0.8)
-    ax.margins(y=0.15)  # room for the decisions above the points
-    ax.set_ylabel("change against\na new valve (%)")
-    ax.set_title(f"valve {valve}", parse_math=False)  # the id as typed: '$' is not a formula here
-    ax.legend()
-    # the classifier's signed distance: 0 is the limit (FAIL beyond it), the band around it MARGINAL
-    distances = [v.last.get("distance") for v in shown]
-    limit_ax.plot(numbers, [float("nan") if d is None else d for d in distances], "-", color="0.4", lw=1.0)
-    limit_ax.scatter(numbers, [float("nan") if d is None else d for d in distances], zorder=3, s=36, c=colours)
-    limit_ax.axhline(0.0, color=VERDICT_COLOURS.get("FAIL", "red"), lw=1.2, label="limit: FAIL above")
-    band = _marginal_band(str(shown[-1].last.get("variant") or ""))
-    if band is not None:
-        limit_ax.axhspan(-band, band, color=VERDICT_COLOURS.get("MARGINAL", "orange"), alpha=0.25, lw=0,
-                         label=f"marginal band (+/-{band:g})")
-    limit_ax.set_ylabel("distance to\nthe limit")
-    limit_ax.legend(fontsize=7, loc="best")
-    limit_ax.set_xlabel("visit, local time (its decision above its points)")
-    limit_ax.set_xticks(numbers, [local_text(v.first["started_at"]) for v in shown], rotation=30, fontsize=7,
-                        ha="right")  # the date ends under its point, never past the figure's edge
-    fig.tight_layout()
+    fig = trend_figure(shown, valve)
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120))
-    plt.close(fig)
+    close(fig)

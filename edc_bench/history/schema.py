@@ -87,6 +87,11 @@ tests = sa.Table(
     # copy stripped of its id is still the same test
     sa.Column("legacy_key", sa.String(200), index=True),
     *_chain(),
+    # where an INVALID test points the technician (edc_bench.records.advice.Area; None for other verdicts and in rows
+    # indexed before revision 0007)
+    sa.Column("invalid_area", sa.String(20)),
+    # a station's tests by time: the chain's figures per station and day, and each station's latest test
+    sa.Index("ix_tests_station_started_at", "station", "started_at"),
 )
 
 teardowns = sa.Table(

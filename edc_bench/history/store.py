@@ -115,6 +115,7 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "simulated": record.simulated_rig,
         "retest_of": _retest_of(record, record_dir),
         "decision": None if record.retest is None or record.retest.decision is None else str(record.retest.decision),
+        "invalid_area": None if record.invalid_area is None else str(record.invalid_area),
         "test_key": test_key(record),
         # a stripped copy's match; a retest is not its first test, though both may start in the same second
         "legacy_key": legacy_test_key(_text(record.started_at), _text(record.valve_id),
@@ -152,6 +153,39 @@ class Filters:
     until: str | None = None
     #: None: every test; False: only tests on a rig (the simulated rig's left out, as trends and training do)
     simulated: bool | None = None
+    station: str | None = None
+    #: the technician (the record's operator)
+    operator: str | None = None
+
+
+def filter_clauses(f: Filters) -> list[sa.ColumnElement[bool]]:
+    """The conditions on ``tests`` that ``f`` asks for (every listing and every figure of the chain uses these)."""
+    clauses: list[sa.ColumnElement[bool]] = []
+    for column, value in ((tests.c.valve_id, f.valve_id), (tests.c.pump_serial, f.pump_serial),
+                          (tests.c.verdict, f.verdict), (tests.c.station, f.station),
+                          (tests.c.operator, f.operator)):
+        if value is not None:
+            clauses.append(column == value)
+    if f.variant is not None:
+        clauses.append(sa.or_(tests.c.variant == f.variant, tests.c.part_number == f.variant))
+    if f.simulated is not None:
+        clauses.append(_simulated(f.simulated))
+    if f.since is not None:
+        clauses.append(tests.c.started_at >= f.since)
+    if f.until is not None:
+        # a day given alone includes the whole day
+        clauses.append(tests.c.started_at <= (f.until if "T" in f.until else f.until + "T99"))
+    return clauses
+
+
+def standing_tests() -> sa.ColumnElement[bool]:
+    """The rows that are tests as they stand: each test's first row (what it said when first indexed), unless the
+    test was withdrawn."""
+    # no earlier row of the same test: a probe of the test_key index per row the rest of the query selects, not a
+    # grouping of the whole table (a million rows) for every listing
+    earlier = tests.alias("earlier")
+    first = ~sa.exists().where(earlier.c.test_key == tests.c.test_key, earlier.c.id < tests.c.id)
+    return sa.and_(first, tests.c.test_key.not_in(_withdrawn_keys()))
 
 
 def parse_day(text: str | None, name: str) -> str | None:
@@ -260,6 +294,12 @@ class HistoryStore:
     def _guard(self, action: str) -> AbstractContextManager[None]:
         """Database errors as one line a person can act on: a refused right names whose login has it."""
         return database_errors(action, self.shown_url, self._secrets, self.login)
+
+    @contextmanager
+    def reading(self) -> Iterator[sa.Connection]:
+        """A connection to read with, its database errors said as one line (a login refused names who may)."""
+        with self._guard("read"), self.engine.connect() as conn:
+            yield conn
 
     @contextmanager
     def _writing(self, action: str) -> Iterator[sa.Connection]:
@@ -377,10 +417,8 @@ class HistoryStore:
         return "new" if not before else "changed"
 
     def _current_tests(self) -> sa.ColumnElement[bool]:
-        """The rows that are tests as they stand: each test's first row (what it said when first indexed), unless
-        the test was withdrawn."""
-        first = sa.select(sa.func.min(tests.c.id)).group_by(tests.c.test_key)
-        return sa.and_(tests.c.id.in_(first), tests.c.test_key.not_in(_withdrawn_keys()))
+        """The rows that are tests as they stand (:func:`standing_tests`)."""
+        return standing_tests()
 
     @staticmethod
     def _changes() -> sa.ScalarSelect[Any]:
@@ -394,22 +432,7 @@ class HistoryStore:
         """Tests as they stand matching ``filters``, oldest first (the newest ``limit`` if given)."""
         query = sa.select(*(tests.c[name] for name in COLUMNS), self._changes().label("changes"),
                           tests.c.row_hash.label("chain_hash")).where(self._current_tests())
-        f = filters
-        for column, value in ((tests.c.valve_id, f.valve_id), (tests.c.pump_serial, f.pump_serial),
-                              (tests.c.verdict, f.verdict)):
-            if value is not None:
-                query = query.where(column == value)
-        if f.variant is not None:
-            query = query.where(sa.or_(tests.c.variant == f.variant, tests.c.part_number == f.variant))
-        if f.simulated is not None:
-            query = query.where(_simulated(f.simulated))
-        if f.since is not None:
-            query = query.where(tests.c.started_at >= f.since)
-        if f.until is not None:
-            # a day given alone includes the whole day
-            bound = f.until if "T" in f.until else f.until + "T99"
-            query = query.where(tests.c.started_at <= bound)
-        query = query.order_by(tests.c.started_at.desc(), tests.c.id.desc())
+        query = query.where(*filter_clauses(filters)).order_by(tests.c.started_at.desc(), tests.c.id.desc())
         if limit is not None:
             query = query.limit(limit)
         return self._rows(query)[::-1]

@@ -7,9 +7,12 @@ whose ``record_dir`` that is. Pure: rows in, visits out.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
+
+#: A test's history row as read (a listing's dict, or a database row's mapping): visits only read it.
+TestRow = Mapping[str, Any]
 
 
 @dataclass(frozen=True)
@@ -22,15 +25,15 @@ class Visit:
         Its tests' history rows, oldest first (two for a retested MARGINAL).
     """
 
-    tests: tuple[dict[str, Any], ...]
+    tests: tuple[TestRow, ...]
 
     @property
-    def first(self) -> dict[str, Any]:
+    def first(self) -> TestRow:
         """The visit's first test."""
         return self.tests[0]
 
     @property
-    def last(self) -> dict[str, Any]:
+    def last(self) -> TestRow:
         """The test that decided (a retest, else the only test)."""
         return self.tests[-1]
 
@@ -50,7 +53,7 @@ class Visit:
         return "+".join(str(t["id"]) for t in self.tests)
 
 
-def visits(rows: Iterable[dict[str, Any]]) -> list[Visit]:
+def visits(rows: Iterable[TestRow]) -> list[Visit]:
     """The visits of history rows (oldest first): a retest joins its first test when both are listed."""
     ordered = list(rows)
     by_folder = {str(r.get("record_dir")): n for n, r in enumerate(ordered) if r.get("record_dir")}

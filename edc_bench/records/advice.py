@@ -122,6 +122,50 @@ def invalid_cause(problems: Problem = Problem.NONE, abort_kind: AbortKind | None
     return Cause.VALVE if problems & _VALVE_PROBLEMS else Cause.EITHER
 
 
+class Area(enum.StrEnum):
+    """Where an INVALID test points the technician: the first thing to check (the chain's ranking of INVALID causes,
+    indexed as ``tests.invalid_area``). The values are what the history stores."""
+
+    RIG = "rig"
+    MOUNTING = "mounting"
+    BUS = "bus"
+    PC = "PC"
+    CALIBRATION = "calibration"
+    INTERRUPTED = "interrupted"
+    OTHER = "other"
+
+
+#: each abort's area: the first check :func:`~edc_bench.engine.outcome.what_to_check` names for it
+_ABORT_AREAS = {
+    AbortKind.RIG_NOT_READY: Area.RIG, AbortKind.NO_SYNC_REPLY: Area.RIG, AbortKind.AMPLIFIER_OFF: Area.RIG,
+    AbortKind.RIG_FAULT_STATE: Area.RIG, AbortKind.SILENCE: Area.RIG, AbortKind.HEARTBEAT_LOST: Area.RIG,
+    AbortKind.RIG_FAULT: Area.MOUNTING, AbortKind.SAMPLE_OUT_OF_RANGE: Area.MOUNTING,
+    AbortKind.OFF_REFERENCE: Area.MOUNTING,
+    AbortKind.SLOW_LINK: Area.BUS, AbortKind.REPLIES_MISSING: Area.BUS, AbortKind.BUS_FLOODED: Area.BUS,
+    AbortKind.FOREIGN_COMMAND: Area.BUS, AbortKind.BUS_ERROR: Area.BUS,
+    AbortKind.INTERRUPTED: Area.INTERRUPTED,
+}
+
+#: each trust problem's area, in the order :func:`advice` checks them
+_PROBLEM_AREAS = ((Problem.NOT_IDENTIFIED, Area.RIG), (Problem.MODEL_DOES_NOT_FIT, Area.MOUNTING),
+                  (Problem.TIMING, Area.PC), (Problem.REPLIES_MISSING, Area.BUS), (Problem.DRIFTING, Area.MOUNTING),
+                  (Problem.POORLY_CONDITIONED, Area.MOUNTING))
+
+
+def invalid_area(problems: Problem = Problem.NONE, abort_kind: AbortKind | None = None) -> Area:
+    """Where an INVALID test points the technician, by the same rule as its :func:`advice` (typed values only)."""
+    if Problem.NOT_CALIBRATED in problems:
+        return Area.CALIBRATION
+    if Problem.PC_STALLED in problems:
+        return Area.PC
+    if Problem.ABORTED in problems and abort_kind is not None:
+        return _ABORT_AREAS.get(abort_kind, Area.OTHER)
+    for problem, area in _PROBLEM_AREAS:
+        if problem in problems:
+            return area
+    return Area.OTHER
+
+
 #: what the customer's page says of an INVALID test, by its cause: no figure, no engineer's word
 CUSTOMER_WORDS = {
     Cause.VALVE: "The valve did not move as a sound valve does, so the bench could not measure it: it may be "

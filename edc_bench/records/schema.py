@@ -25,7 +25,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 from edc_bench.engine.outcome import AbortKind, StopReason
 from edc_bench.engine.problems import Problem
-from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
+from edc_bench.records.advice import Advice, Area, Cause, advice, invalid_area, invalid_cause
 from edc_bench.runtime.clock_kind import ClockKind
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline_source import BaselineSource
@@ -360,6 +360,15 @@ class Record(Section):
         """Who this test points at if INVALID (:func:`~edc_bench.records.advice.invalid_cause`), as recorded."""
         abort = self.loop.abort
         return invalid_cause(self.problem_flags, abort.kind if abort is not None else None)
+
+    @property
+    def invalid_area(self) -> Area | None:
+        """Where this test points the technician if INVALID (:func:`~edc_bench.records.advice.invalid_area`); None
+        for any other verdict."""
+        if self.verdict != Verdict.INVALID:
+            return None
+        abort = self.loop.abort
+        return invalid_area(self.problem_flags, abort.kind if abort is not None else None)
 
     @property
     def simulated_rig(self) -> bool:

@@ -310,7 +310,12 @@ CORPUS: dict[str, Case] = {
     "test-rig-drift-not-a-number": case("test --rig-drift lvdt_gain=abc", BAD, "--rig-drift", "not a number"),
     "rig-rig-drift-twice": case("rig --listen 127.0.0.1:0 --rig-drift lvdt_gain=1.1,lvdt_gain=1.2", BAD,
                                 "--rig-drift", "given twice"),
-    "history-station-without-rig": case("history --station bench1", BAD, "--station goes with --rig"),
+    "history-station-with-trend": case("history --station bench1 --trend V-1", BAD,
+                                       "--station goes with a listing or --summary"),
+    "web-certfile-alone": case("web --certfile cert.pem", BAD, "--certfile and --keyfile go together"),
+    "web-sqlite-on-every-address": case("web --db sqlite:///h.sqlite --host 0.0.0.0", BAD,
+                                        "served on 127.0.0.1 only", "--allow-remote", files={"h.sqlite": b""}),
+    "history-summary-with-trend": case("history --summary --trend V-1", BAD, "--summary and --trend are separate"),
     # -- a second corpus, a newcomer's: what the system refuses, absurd counts, look-alike ids, mistyped URLs ----------
     "test-out-name-too-long": case(("test", "--out", "a" * 300), BAD, "too long", "shorter"),
     "test-variant-name-too-long": case(("test", "--variant", "a" * 300 + ".toml"), BAD, "too long", "shorter"),

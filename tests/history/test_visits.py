@@ -92,6 +92,7 @@ def test_the_trend_plot_shows_each_visit_against_the_limit_and_the_marginal_band
     import matplotlib.pyplot as plt
 
     from edc_bench.cli import history_cmd
+    from edc_bench.history import trend_plot
 
     rows = []
     for n, (verdict, distance, day, retest_of, decision) in enumerate((
@@ -116,11 +117,11 @@ def test_the_trend_plot_shows_each_visit_against_the_limit_and_the_marginal_band
     (fig,) = drawn
     _, limit_ax = fig.axes[:2]
     labels = limit_ax.get_legend_handles_labels()[1]
-    band = history_cmd._marginal_band("p-edc-default")
+    band = trend_plot.marginal_band("p-edc-default")
     assert band is not None and 0 < band < 0.5
     assert labels == ["limit: FAIL above", f"marginal band (+/-{band:g})"]
     xs, ys = limit_ax.lines[0].get_data()
     assert list(xs) == [1, 2, 3] and list(ys) == [-0.4, -0.1, 0.02]  # a visit a point; the pair's deciding test
     assert [t.get_text() for t in fig.axes[0].texts] == ["PASS", "PASS", "FAIL"]
     assert (tmp_path / "trend.png").stat().st_size > 10_000
-    assert history_cmd._marginal_band("a-variant-this-station-lacks") is None  # the limit alone, no traceback
+    assert trend_plot.marginal_band("a-variant-this-station-lacks") is None  # the limit alone, no traceback

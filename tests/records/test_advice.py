@@ -11,7 +11,19 @@ from helpers import edc_bench
 
 from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
-from edc_bench.records.advice import CUSTOMER_WORDS, SEIZED, Action, Advice, Cause, advice, escalation, invalid_cause
+from edc_bench.engine.outcome import CHECK_BUS, CHECK_PC, CHECK_PUMP, CHECK_RIG, what_to_check
+from edc_bench.records.advice import (
+    CUSTOMER_WORDS,
+    SEIZED,
+    Action,
+    Advice,
+    Area,
+    Cause,
+    advice,
+    escalation,
+    invalid_area,
+    invalid_cause,
+)
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -89,3 +101,33 @@ def test_only_a_second_invalid_the_valve_can_cause_both_times_is_escalated() -> 
     for first, second in ((None, Cause.VALVE), (Cause.BENCH, Cause.VALVE), (Cause.VALVE, Cause.BENCH),
                           (Cause.EITHER, Cause.VALVE), (Cause.VALVE, Cause.INTERRUPTED)):
         assert escalation(first, second) is None, (first, second)
+
+
+_FIRST_CHECK = {CHECK_RIG: Area.RIG, CHECK_PUMP: Area.MOUNTING, CHECK_BUS: Area.BUS, CHECK_PC: Area.PC}
+
+
+@pytest.mark.parametrize("kind", list(AbortKind))
+def test_an_aborts_area_is_the_first_thing_its_advice_says_to_check(kind: AbortKind) -> None:
+    """#55: the chain ranks INVALID tests by where to look; that is what the technician was told to check first."""
+    area = invalid_area(Problem.ABORTED, kind)
+    first = next((a for check, a in _FIRST_CHECK.items() if what_to_check(kind).startswith(check)), None)
+    expected = first or (Area.INTERRUPTED if kind is AbortKind.INTERRUPTED else Area.OTHER)
+    assert area is expected, (kind, what_to_check(kind))
+
+
+@pytest.mark.parametrize(("problems", "area"), [
+    (Problem.NOT_CALIBRATED, Area.CALIBRATION), (Problem.PC_STALLED | Problem.ABORTED, Area.PC),
+    (Problem.TIMING, Area.PC), (Problem.REPLIES_MISSING, Area.BUS), (Problem.NOT_IDENTIFIED, Area.RIG),
+    (Problem.MODEL_DOES_NOT_FIT, Area.MOUNTING), (Problem.TOO_FEW_PERIODS, Area.OTHER),
+])
+def test_a_trust_problems_area_follows_the_advice(problems: Problem, area: Area) -> None:
+    assert invalid_area(problems, AbortKind.SILENCE if Problem.ABORTED in problems else None) is area
+
+
+def test_the_history_indexes_where_an_invalid_test_points(tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    proc = edc_bench("test", "--interface", "virtual", "--channel", "edc-bench-nobody-here", "--plain",
+                     "--db", db, "--out", "rec", "--valve-id", "V-1", cwd=tmp_path)
+    assert proc.returncode == 12, proc.stderr
+    listed = edc_bench("history", "--db", db, "--summary", "--json", cwd=tmp_path)
+    assert json.loads(listed.stdout)["invalid_areas"] == [["rig", 1]], listed.stdout

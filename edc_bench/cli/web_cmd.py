@@ -1,0 +1,120 @@
+"""``edc-bench web``: the history in a browser, read-only (docs/web.md)."""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import secrets
+import sys
+from pathlib import Path
+
+from edc_bench.cli.common import add_history_db_argument, positive_int
+
+#: Hosts a station's SQLite history is served on without --allow-remote.
+LOOPBACK = ("127.0.0.1", "::1", "localhost")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "web", help="the chain's history in a browser: verdicts, rigs' health, every valve's story",
+        description="Serve the history (the station's SQLite, or the chain's PostgreSQL named by --db or "
+                    "EDC_BENCH_HISTORY_URL) as web pages, read-only. On PostgreSQL each person signs in with their "
+                    "database login; a station's SQLite is served on 127.0.0.1 only, to whoever has the access "
+                    "token printed at start (docs/web.md).")
+    add_history_db_argument(p)
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1, this PC only)")
+    p.add_argument("--port", type=positive_int, default=8080, help="port (default: 8080)")
+    p.add_argument("--records", type=Path, default=Path("records"), metavar="DIR",
+                   help="the records folder: a test's PDF report is served only from inside it (default: ./records)")
+    p.add_argument("--allow-remote", action="store_true",
+                   help="serve a station's SQLite history on an address other than this PC's (another PC then "
+                        "signs in with the access token)")
+    p.add_argument("--certfile", type=Path, default=None, metavar="PEM",
+                   help="serve HTTPS with this certificate (with --keyfile): needed for sign-in from other PCs, "
+                        "whose browsers keep the secure session cookie only over HTTPS")
+    p.add_argument("--keyfile", type=Path, default=None, metavar="PEM", help="the certificate's private key")
+    p.add_argument("--idle-minutes", type=positive_int, default=30,
+                   help="a session ends after this many minutes without a page (default: 30)")
+    p.add_argument("--token-file", type=Path, default=None, metavar="FILE",
+                   help="SQLite: read the access token from FILE instead of making a new one")
+    p.set_defaults(run=run)
+
+
+def _loopback(host: str) -> bool:
+    if host in LOOPBACK:
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check the options, open the history once (its errors said before serving), and serve until Ctrl-C."""
+    from edc_bench.errors import ConfigError
+    from edc_bench.history.url import check_url, default_url
+    from edc_bench.web.app import WebConfig
+
+    if (args.certfile is None) != (args.keyfile is None):
+        raise ConfigError("--certfile and --keyfile go together: give both, or neither for plain HTTP")
+    for name, path in (("--certfile", args.certfile), ("--keyfile", args.keyfile)):
+        if path is not None and not path.is_file():
+            raise ConfigError(f"{name} {path}: no such file")
+    url = args.db or default_url()
+    check_url(url, must_exist=True)
+    config = WebConfig(url=url, records_dir=args.records.resolve() if args.records.is_dir() else None,
+                       secure_cookies=True, idle_minutes=float(args.idle_minutes))
+    if config.is_sqlite:
+        if not _loopback(args.host) and not args.allow_remote:
+            raise ConfigError(f"--host {args.host}: a station's SQLite history is served on 127.0.0.1 only; add "
+                              "--allow-remote to serve it to other PCs (with --certfile/--keyfile: HTTPS)")
+        token = _token(args.token_file)
+        config = WebConfig(**{**config.__dict__, "token": token})
+        from edc_bench.history.store import HistoryStore
+
+        HistoryStore(url, must_exist=True).close()  # its problems said now, not at the first sign-in
+    elif not args.certfile and not _loopback(args.host):
+        print("edc-bench web: warning: plain HTTP to other PCs: their browsers will not keep the session cookie; "
+              "serve HTTPS (--certfile, --keyfile) or put a TLS proxy in front (docs/web.md)", file=sys.stderr)
+    if config.records_dir is None:
+        print(f"edc-bench web: warning: no records folder {args.records}: reports will not be served (--records DIR)",
+              file=sys.stderr)
+    scheme = "https" if args.certfile else "http"
+    host = f"[{args.host}]" if ":" in args.host else args.host
+    print(f"edc-bench web: serving {config.url if config.is_sqlite else _shown(url)} on {scheme}://{host}:{args.port}/"
+          + (f"  access token: {config.token}" if config.is_sqlite else "  (sign in with your database login)"),
+          flush=True)
+    return _serve(config, args)
+
+
+def _shown(url: str) -> str:
+    from edc_bench.history.secrets import shown_url
+
+    return shown_url(url)
+
+
+def _token(path: Path | None) -> str:
+    from edc_bench.errors import ConfigError
+
+    if path is None:
+        return secrets.token_urlsafe(18)
+    try:
+        token = path.read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"--token-file {path}: cannot read it ({exc})") from None
+    if len(token) < 16:
+        raise ConfigError(f"--token-file {path}: the token is {len(token)} characters; give at least 16")
+    return token
+
+
+def _serve(config: object, args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from edc_bench.web.app import create_app
+
+    app = create_app(config)  # type: ignore[arg-type]
+    uvicorn.run(app, host=args.host, port=args.port, log_level="warning",
+                ssl_certfile=str(args.certfile) if args.certfile else None,
+                ssl_keyfile=str(args.keyfile) if args.keyfile else None)
+    return 0

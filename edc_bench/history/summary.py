@@ -1,0 +1,162 @@
+"""The chain's figures for a filter: tests per day and station, the verdict mix, the first-pass and MARGINAL rates,
+INVALID tests by where they point, and the stations that went quiet.
+
+Every figure is one aggregate query over the tests as they stand (each test's first indexing, withdrawn tests left
+out: :func:`~edc_bench.history.store.standing_tests`), so a chain of a million tests is never read into Python.
+``edc-bench history --summary`` prints these figures and the web view's chain page shows them: both call
+:func:`chain_summary`, so the two cannot disagree.
+
+- *first tests*: tests that repeat no other (a MARGINAL's retest is not a first test);
+- *first-pass rate*: the share of first tests that were PASS;
+- *MARGINAL rate*: the share of first tests that were MARGINAL (each calls for a retest), and the retests done;
+- *quiet*: a station whose latest test is older than ``quiet_days`` before ``now`` (a self-check is no test: a
+  station that only checks its rig has stopped testing).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections import Counter
+from dataclasses import dataclass
+
+import sqlalchemy as sa
+
+from edc_bench.history.schema import edc_logins, reference_valves, rig_checks, tests
+from edc_bench.history.store import Filters, HistoryStore, filter_clauses, standing_tests
+from edc_bench.verdict.verdicts import Verdict
+
+#: A station with no test for this many days is listed as quiet.
+QUIET_DAYS = 7
+
+#: the area an INVALID row indexed before revision 0007 has: its record was not read again
+NOT_RECORDED = "not recorded"
+
+
+@dataclass(frozen=True)
+class DayCount:
+    """Tests of one station on one day (the day as the test's start time writes it: UTC)."""
+
+    day: str
+    station: str
+    tests: int
+
+
+@dataclass(frozen=True)
+class StationActivity:
+    """A station's tests in the filter, its latest test and self-check (ISO times, UTC; None: never), and whether it
+    went quiet (no test for :data:`QUIET_DAYS`)."""
+
+    station: str
+    tests: int
+    last_test_at: str | None
+    last_check_at: str | None
+    quiet: bool
+
+
+@dataclass(frozen=True)
+class ChainSummary:
+    """The chain's figures for one filter (:func:`chain_summary`)."""
+
+    tests: int
+    verdicts: tuple[tuple[str, int], ...]
+    first_tests: int
+    first_pass: int
+    first_marginal: int
+    retests: int
+    invalid_areas: tuple[tuple[str, int], ...]
+    per_day: tuple[DayCount, ...]
+    stations: tuple[StationActivity, ...]
+
+    @property
+    def first_pass_rate(self) -> float | None:
+        """PASS among first tests (None: no first test)."""
+        return self.first_pass / self.first_tests if self.first_tests else None
+
+    @property
+    def marginal_rate(self) -> float | None:
+        """MARGINAL among first tests (None: no first test)."""
+        return self.first_marginal / self.first_tests if self.first_tests else None
+
+    def count(self, verdict: str) -> int:
+        """How many tests had ``verdict``."""
+        return dict(self.verdicts).get(verdict, 0)
+
+
+def chain_summary(store: HistoryStore, filters: Filters, now: dt.datetime | None = None,
+                  quiet_days: int = QUIET_DAYS) -> ChainSummary:
+    """The chain's figures for ``filters`` (see the module's docstring).
+
+    One pass over the tests the filter selects, grouped by day, station, verdict, first test or retest and
+    INVALID area (a few thousand groups for a month of a hundred stations), summed here; and each station's
+    latest test from the (station, started_at) index.
+
+    Parameters
+    ----------
+    store : HistoryStore
+        The history (a station's SQLite or the chain's PostgreSQL).
+    filters : Filters
+        Which tests count (dates as UTC bounds, as :meth:`HistoryStore.list` takes them).
+    now : datetime, optional
+        The time quiet stations are judged at (default: now).
+    quiet_days : int
+        Days without a test after which a station is quiet.
+    """
+    day = sa.func.substr(tests.c.started_at, 1, 10)
+    first = tests.c.retest_of.is_(None)
+    cube = (sa.select(day, tests.c.station, tests.c.verdict, first, tests.c.invalid_area, sa.func.count())
+            .where(standing_tests(), *filter_clauses(filters))
+            .group_by(day, tests.c.station, tests.c.verdict, first, tests.c.invalid_area))
+    verdicts: Counter[str] = Counter()
+    areas: Counter[str] = Counter()
+    days: Counter[tuple[str, str]] = Counter()
+    first_tests = first_pass = first_marginal = retests = 0
+    with store.reading() as conn:
+        for when, station, verdict, is_first, area, count in conn.execute(cube):
+            verdicts[str(verdict)] += count
+            days[(str(when), str(station))] += count
+            if verdict == Verdict.INVALID:
+                areas[str(area or NOT_RECORDED)] += count
+            if is_first:
+                first_tests += count
+                first_pass += count if verdict == Verdict.PASS else 0
+                first_marginal += count if verdict == Verdict.MARGINAL else 0
+            else:
+                retests += count
+        stations = _stations(conn, filters, {station for _, station in days}, now or dt.datetime.now(dt.UTC),
+                             quiet_days)
+    return ChainSummary(sum(verdicts.values()), _ranked(verdicts), first_tests, first_pass, first_marginal, retests,
+                        _ranked(areas), tuple(DayCount(d, s, n) for (d, s), n in sorted(days.items())), stations)
+
+
+def _ranked(counts: Counter[str]) -> tuple[tuple[str, int], ...]:
+    """Most first; a tie by name."""
+    return tuple(sorted(counts.items(), key=lambda item: (-item[1], item[0])))
+
+
+def _stations(conn: sa.Connection, filters: Filters, tested: set[str], now: dt.datetime, quiet_days: int
+              ) -> tuple[StationActivity, ...]:
+    """The stations the history knows (by the filter's tests, self-checks, registrations, or a login mapped to
+    them), each with its latest test and self-check, whatever the dates asked (a station quiet this week is quiet
+    whatever was asked), and its tests in the filter."""
+    known = set(tested)
+    for table in (rig_checks, reference_valves, edc_logins):
+        query = sa.select(table.c.station).distinct().where(table.c.station.is_not(None))
+        known |= {str(s) for (s,) in conn.execute(query)}
+    if filters.station is not None:
+        known &= {filters.station}
+    wanted = filter_clauses(Filters(simulated=filters.simulated))
+    in_filter = dict(conn.execute(sa.select(tests.c.station, sa.func.count()).where(
+        standing_tests(), *filter_clauses(filters)).group_by(tests.c.station)).all()) if known else {}
+    cutoff = (now - dt.timedelta(days=quiet_days)).astimezone(dt.UTC).isoformat(timespec="seconds")
+    out = []
+    for station in sorted(known):
+        # each from its index: the (station, started_at) one, and the self-checks' station index
+        last_test = conn.execute(sa.select(sa.func.max(tests.c.started_at)).where(tests.c.station == station,
+                                                                                  *wanted)).scalar()
+        last_check = conn.execute(sa.select(sa.func.max(rig_checks.c.checked_at))
+                                  .where(rig_checks.c.station == station)).scalar()
+        out.append(StationActivity(station, int(in_filter.get(station, 0)),
+                                   None if last_test is None else str(last_test),
+                                   None if last_check is None else str(last_check),
+                                   quiet=last_test is None or str(last_test) < cutoff))
+    return tuple(out)

@@ -1,0 +1,101 @@
+"""The web view's charts: matplotlib figures as SVG data, shown as images (no script, nothing from another host)."""
+
+from __future__ import annotations
+
+import base64
+import datetime as dt
+import io
+from typing import TYPE_CHECKING, Any
+
+from edc_bench.timefmt import parse_stored
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from edc_bench.history.summary import DayCount
+    from edc_bench.web.views import FigureDrift
+
+
+def svg_data(fig: Figure) -> str:
+    """A figure as a ``data:`` URL of its SVG (an ``<img>`` shows it; the CSP allows images from data: only)."""
+    import matplotlib.pyplot as plt
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="svg", bbox_inches="tight")
+    plt.close(fig)
+    return "data:image/svg+xml;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+#: names are the shops' text: '$' in a station's name is no formula
+_AS_TYPED = {"text.parse_math": False}
+
+
+def _pyplot():  # noqa: ANN202 - matplotlib's pyplot, on the headless backend
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def tests_per_day(days: tuple[DayCount, ...], top: int = 8) -> str | None:
+    """Tests per day, a bar per day stacked by station (the ``top`` busiest stations, the rest as 'others')."""
+    if not days:
+        return None
+    plt = _pyplot()
+    with plt.rc_context(_AS_TYPED):
+        return _tests_per_day(plt, days, top)
+
+
+def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int) -> str:
+    totals: dict[str, int] = {}
+    for d in days:
+        totals[d.station] = totals.get(d.station, 0) + d.tests
+    named = sorted(totals, key=lambda s: (-totals[s], s))[:top]
+    dates = sorted({d.day for d in days})
+    index = {day: k for k, day in enumerate(dates)}
+    series: dict[str, list[int]] = {name: [0] * len(dates) for name in [*named, "others"]}
+    for d in days:
+        series[d.station if d.station in named else "others"][index[d.day]] += d.tests
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    bottom = [0] * len(dates)
+    x = [dt.date.fromisoformat(day) if len(day) == 10 else k for k, day in enumerate(dates)]
+    for name, counts in series.items():
+        if any(counts):
+            ax.bar(x, counts, bottom=bottom, label=name, width=0.8)
+            bottom = [b + c for b, c in zip(bottom, counts, strict=True)]
+    ax.set_ylabel("tests per day")
+    ax.set_xlabel("day (UTC)")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over them
+    fig.autofmt_xdate()
+    return svg_data(fig)
+
+
+def drift_chart(station: str, drifts: list[FigureDrift]) -> str | None:
+    """A station's self-checks as a control chart: each figure's drift against its registration, in units of its
+    tolerance (the limits at +/-1), the trend's straight line drawn on to where it crosses a limit."""
+    shown = [d for d in drifts if d.points]
+    if not shown:
+        return None
+    plt = _pyplot()
+    with plt.rc_context(_AS_TYPED):
+        return _drift_chart(plt, station, shown)
+
+
+def _drift_chart(plt: Any, station: str, shown: list[FigureDrift]) -> str:
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    for drift in shown:
+        times = [parse_stored(when) for when, _ in drift.points]
+        line, = ax.plot(times, [value for _, value in drift.points], "o-", ms=3, lw=1, label=drift.label)
+        if drift.crossing_at is not None and drift.slope_per_day is not None:
+            end = parse_stored(drift.crossing_at)
+            ax.plot([times[-1], end], [drift.points[-1][1], drift.limit_sign], ":", color=line.get_color(), lw=1)
+    for limit in (-1.0, 1.0):
+        ax.axhline(limit, color="#b00020", lw=1.2)
+    ax.axhline(0.0, color="grey", lw=0.6)
+    ax.set_ylabel("drift / tolerance")
+    ax.set_title(f"station {station}: self-checks against the reference valve", parse_math=False, fontsize=9)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.autofmt_xdate()
+    return svg_data(fig)

@@ -1,0 +1,301 @@
+"""The web view's pages over HTTP, as a browser and an attacker use them (Starlette's test client, in process):
+sign-in, sessions, CSRF, the security headers, the figures against ``history --summary``, escaping, every filter
+and search field fed SQL, report paths outside the records folder."""
+
+from __future__ import annotations
+
+import html
+import json
+import re
+from pathlib import Path
+
+import pytest
+from markupsafe import escape
+from web_site import TOKEN, FakeClock, signed_in
+from starlette.testclient import TestClient
+
+from edc_bench.cli import main
+from edc_bench.history.demo_chain import ODD_VALVE_IDS
+from edc_bench.history.store import Filters, HistoryStore
+from edc_bench.history.summary import chain_summary
+from edc_bench.web.app import CSP
+
+PAGES = ("/chain", "/rigs", "/valves?q=V-08", "/valve?id=V-0815", "/models", "/chain/verdicts.csv", "/rigs.csv",
+         "/valve.csv?id=V-0815", "/models.csv", "/report/1")
+
+
+@pytest.mark.parametrize("path", PAGES)
+def test_a_page_without_a_session_redirects_to_sign_in(client: TestClient, path: str) -> None:
+    response = client.get(path)
+    assert response.status_code == 303
+    assert response.headers["location"].startswith("/signin?next=%2F")
+
+
+def test_sign_in_sets_a_secure_http_only_session_cookie_and_reaches_every_page(client: TestClient) -> None:
+    form = client.get("/signin")
+    csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+    response = client.post("/signin", data={"csrf": csrf, "login": "ana", "password": TOKEN, "next": "/rigs"})
+    assert response.status_code == 303 and response.headers["location"] == "/rigs"
+    cookie = response.headers["set-cookie"].lower()
+    assert "edc_session=" in cookie and "httponly" in cookie and "secure" in cookie and "samesite=strict" in cookie
+    for path in PAGES[:-1]:
+        page = client.get(path)
+        assert page.status_code == 200, (path, page.text[:300])
+
+
+@pytest.mark.parametrize("form", [
+    {"login": "ana", "password": TOKEN},  # no CSRF token at all
+    {"login": "ana", "password": TOKEN, "csrf": "forged-token-of-another-page"},
+])
+def test_a_sign_in_posted_without_its_csrf_token_is_refused(client: TestClient, form: dict[str, str]) -> None:
+    client.get("/signin")  # the browser has the sign-in cookie; the attacker's page posts without the form's token
+    response = client.post("/signin", data=form)
+    assert response.status_code == 403
+    assert "did not come from this page" in response.text
+    assert "edc_session" not in response.headers.get("set-cookie", "")
+
+
+def test_a_wrong_access_token_is_refused(client: TestClient) -> None:
+    form = client.get("/signin")
+    csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+    response = client.post("/signin", data={"csrf": csrf, "login": "ana", "password": "guess"})
+    assert response.status_code == 403 and "wrong access token" in response.text
+
+
+def test_sign_out_needs_its_csrf_token_and_ends_the_session(client: TestClient) -> None:
+    signed_in(client)
+    refused = client.post("/signout", data={"csrf": "not-the-token"})
+    assert refused.status_code == 403
+    assert client.get("/chain").status_code == 200  # still signed in
+    token = re.search(r'name="csrf" value="([^"]+)"', client.get("/chain").text).group(1)  # type: ignore[union-attr]
+    assert client.post("/signout", data={"csrf": token}).status_code == 303
+    assert client.get("/chain").status_code == 303
+
+
+def test_a_session_expires_after_its_idle_time(client: TestClient, clock: FakeClock) -> None:
+    signed_in(client)
+    clock.now_s += 25 * 60
+    assert client.get("/chain").status_code == 200  # a page within the idle time renews it
+    clock.now_s += 31 * 60
+    assert client.get("/chain").status_code == 303
+
+
+def test_sign_in_never_redirects_to_another_host(client: TestClient) -> None:
+    for target in ("//evil.example/", "https://evil.example/", "/\\evil.example", "/chain\r\nSet-Cookie: x=1"):
+        form = client.get("/signin", params={"next": target})
+        csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+        response = client.post("/signin", data={"csrf": csrf, "login": "ana", "password": TOKEN, "next": target})
+        assert response.headers["location"] == "/chain", target
+
+
+@pytest.mark.parametrize("path", ["/signin", *PAGES[:5]])
+def test_every_page_carries_a_content_security_policy_and_no_script(client: TestClient, path: str) -> None:
+    if path != "/signin":
+        signed_in(client)
+    response = client.get(path)
+    assert response.headers["content-security-policy"] == CSP
+    assert "script-src" not in CSP and "default-src 'none'" in CSP
+    assert response.headers["x-content-type-options"] == "nosniff"
+    assert "<script" not in response.text.lower().replace("&lt;script", "")
+
+
+def _figure(page: str, name: str) -> str:
+    found = re.search(rf'id="{name}">([^<]*)<', page)
+    assert found is not None, name
+    return found.group(1)
+
+
+def test_the_chain_page_shows_the_figures_history_summary_prints(client: TestClient, demo_db: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    signed_in(client)
+    page = client.get("/chain", params={"station": "Werkstatt Nord 1", "since": ""}).text  # all days
+    assert main(["history", "--db", f"sqlite:///{demo_db}", "--summary", "--station", "Werkstatt Nord 1",
+                 "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert int(_figure(page, "tests")) == printed["tests"] > 50
+    assert _figure(page, "first-pass") == f"{printed['first_pass_rate'] * 100:.1f} %"
+    assert _figure(page, "marginal") == f"{printed['marginal_rate'] * 100:.1f} %"
+    for verdict, count in printed["verdicts"]:
+        assert re.search(rf'{verdict}</td><td class="num">{count}</td>', page), verdict
+    for area, count in printed["invalid_areas"]:
+        assert f"<td>{html.escape(area)}</td><td class=\"num\">{count}</td>" in page
+
+
+def test_the_chain_page_names_the_quiet_station(client: TestClient) -> None:
+    signed_in(client)
+    page = client.get("/chain").text
+    quiet = re.findall(r'<tr class="quiet"><td>([^<]+)</td>', page)
+    assert quiet == ["Werkstatt West 4"]
+
+
+def test_a_day_that_is_no_date_is_said_on_the_page(client: TestClient) -> None:
+    signed_in(client)
+    response = client.get("/chain?since=yesterday")
+    assert response.status_code == 400
+    assert "is not a date: write it as YYYY-MM-DD" in response.text
+
+
+SQL = ("' OR '1'='1", "x'; DROP TABLE tests; --", "\" OR 1=1 --", "%", "_", "V-0815' UNION SELECT * FROM edc_logins --",
+       "1) OR (1=1")
+
+
+@pytest.mark.parametrize("text", SQL)
+def test_sql_in_every_filter_and_search_field_changes_nothing(client: TestClient, demo_db: Path, text: str) -> None:
+    signed_in(client)
+    for field in ("station", "pump", "technician"):
+        response = client.get("/chain", params={field: text})
+        assert response.status_code == 200, (field, response.text[:300])
+        assert _figure(response.text, "tests") == "0", field
+    for field in ("since", "until"):
+        response = client.get("/chain", params={field: text})
+        assert response.status_code == 400 and "is not a date" in response.text
+    search = client.get("/valves", params={"q": text})
+    assert search.status_code == 200 and "No valve or pump begins with" in search.text
+    valve = client.get("/valve", params={"id": text})
+    assert valve.status_code == 200 and "No test of this valve stands." in valve.text
+    with HistoryStore(f"sqlite:///{demo_db}", must_exist=True) as store:
+        assert chain_summary(store, Filters()).tests > 300  # nothing was dropped
+
+
+def test_a_valve_id_holding_script_and_quotes_is_shown_as_text(client: TestClient) -> None:
+    signed_in(client)
+    for valve in ODD_VALVE_IDS:
+        page = client.get("/valve", params={"id": valve}).text
+        assert str(escape(valve)) in page and "No test of this valve stands." not in page
+        assert "<script>alert" not in page
+    found = client.get("/valves", params={"q": "V-<"}).text
+    assert str(escape(ODD_VALVE_IDS[0])) in found and "<script>alert" not in found
+    operators = client.get("/valve", params={"id": ODD_VALVE_IDS[2]}).text
+    assert "jonas &lt;j@shop&gt;" in operators
+
+
+def test_a_valve_page_shows_its_visits_trend_and_what_was_withdrawn_or_changed(client: TestClient) -> None:
+    signed_in(client)
+    story = client.get("/valve", params={"id": "V-0815"}).text
+    decisions = re.findall(r'<td class="verdict (\w+)">', story)
+    assert decisions == ["PASS", "PASS", "MARGINAL", "FAIL"]
+    assert 'alt="wear trend of V-0815"' in story and "data:image/svg+xml;base64," in story
+    withdrawn = client.get("/valve", params={"id": "V-0815-typo"}).text
+    assert "WITHDRAWN" in withdrawn and "valve id typed wrong" in withdrawn
+    changed = client.get("/valve", params={"id": "V-4711"}).text
+    assert "CHANGED: indexed again with other content" in changed
+    assert re.findall(r'<td class="verdict (\w+)">', changed) == ["FAIL"]  # the first indexing stands, not the PASS
+
+
+def test_the_rigs_page_says_service_due_from_the_drift_and_shows_skips(client: TestClient) -> None:
+    signed_in(client)
+    page = client.get("/rigs").text
+    sections = dict(re.findall(r'<section class="rig" data-station="([^"]+)">(.*?)</section>', page, re.S))
+    assert "Service due by" in sections["Werkstatt Nord 1"] and "af trend reaches its limit" in sections[
+        "Werkstatt Nord 1"]
+    assert "Service due now" in sections["Werkstatt Süd 2"] and "LVDT zero" in sections["Werkstatt Süd 2"]
+    assert "1 skipped when due" in sections["Werkstatt Ost 3"]
+    assert "No trend heading for a limit" in sections["Werkstatt West 4"]
+    assert sections["Werkstatt Nord 1"].count('<td class="verdict GO">GO</td>') == 4
+
+
+def test_a_report_is_served_only_from_inside_the_records_folder(client: TestClient, demo_db: Path,
+                                                                 records_dir: Path, tmp_path: Path) -> None:
+    from edc_bench.history.store import HistoryStore
+
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "report.pdf").write_bytes(b"%PDF-1.4 secret")
+    inside = records_dir / "V-9001"
+    inside.mkdir()
+    (inside / "report.pdf").write_bytes(b"%PDF-1.4 the report")
+    ids = {}
+    db = tmp_path / "own.sqlite"
+    import shutil
+
+    shutil.copy(demo_db, db)
+    with HistoryStore(f"sqlite:///{db}") as store:
+        for name, folder in (("inside", str(inside)), ("outside", str(outside)),
+                             ("climbing", str(records_dir / ".." / "outside")), ("etc", "/etc")):
+            store.add_row({"record_dir": folder, "started_at": "2026-11-20T08:00:00+00:00", "valve_id": f"R-{name}",
+                           "pump_serial": "P", "variant": "p-edc-default", "part_number": "PE", "verdict": "PASS",
+                           "station": "s", "operator": "o", "clock": "real-time", "software_version": "t",
+                           "reason": "", "test_key": f"report-{name}"})
+            ids[name] = store.list(Filters(valve_id=f"R-{name}"))[0]["id"]
+    from edc_bench.web.app import WebConfig, create_app
+    from edc_bench.web.sessions import Sessions
+
+    app = create_app(WebConfig(url=f"sqlite:///{db}", records_dir=records_dir, token=TOKEN), Sessions())
+    with TestClient(app, base_url="https://testserver", follow_redirects=False) as own:
+        signed_in(own)
+        good = own.get(f"/report/{ids['inside']}")
+        assert good.status_code == 200 and good.content == b"%PDF-1.4 the report"
+        assert good.headers["content-type"] == "application/pdf"
+        for name in ("outside", "climbing", "etc"):
+            refused = own.get(f"/report/{ids[name]}")
+            assert refused.status_code == 403 and b"secret" not in refused.content, name
+            assert "not in the records folder" in refused.text
+        assert own.get("/report/999999").status_code == 400
+        assert own.get("/report/..%2f..%2fetc%2fpasswd").status_code == 404
+
+
+def test_every_table_exports_csv_and_a_formula_stays_text(client: TestClient) -> None:
+    signed_in(client)
+    for path in ("/chain/verdicts.csv", "/chain/invalid.csv", "/chain/days.csv", "/chain/stations.csv", "/rigs.csv",
+                 "/models.csv", "/valve.csv?id=V-0815"):
+        response = client.get(path)
+        assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv"), path
+        assert len(response.text.splitlines()) >= 2, path
+    odd = client.get("/valve.csv", params={"id": ODD_VALVE_IDS[1]}).text
+    assert "V-1'; DROP TABLE tests;--" in odd
+    assert client.get("/chain/nothing.csv").status_code == 400
+
+
+def test_every_time_shown_is_local_with_its_offset(client: TestClient) -> None:
+    signed_in(client)
+    page = client.get("/valve", params={"id": "V-0815"}).text
+    times = re.findall(r"<td>(\d{4}-\d\d-\d\d \d\d:\d\d [+-]\d\d:\d\d)</td>", page)
+    assert len(times) >= 8
+
+
+def _copy_with(demo_db: Path, tmp_path: Path, started_at: str) -> Path:
+    import shutil
+
+    db = tmp_path / "copy.sqlite"
+    shutil.copy(demo_db, db)
+    with HistoryStore(f"sqlite:///{db}") as store:
+        store.add_row({"record_dir": "/old", "started_at": started_at, "valve_id": "V-OLD", "pump_serial": "P",
+                       "variant": "p-edc-default", "part_number": "PE", "verdict": "FAIL", "station": "Werkstatt Nord 1",
+                       "operator": "o", "clock": "real-time", "software_version": "t", "reason": "", "test_key": "old"})
+    return db
+
+
+def test_the_chain_page_shows_the_last_30_days_unless_the_days_are_cleared(demo_db: Path, tmp_path: Path) -> None:
+    import datetime as dt
+
+    from edc_bench.web.app import WebConfig, create_app
+    from edc_bench.web.sessions import Sessions
+
+    old = (dt.datetime.now(dt.UTC) - dt.timedelta(days=45)).isoformat(timespec="seconds")
+    db = _copy_with(demo_db, tmp_path, old)
+    with TestClient(create_app(WebConfig(url=f"sqlite:///{db}", token=TOKEN), Sessions()),
+                    base_url="https://testserver", follow_redirects=False) as client:
+        signed_in(client)
+        recent = client.get("/chain").text
+        everything = client.get("/chain", params={"since": ""}).text
+    assert int(_figure(everything, "tests")) == int(_figure(recent, "tests")) + 1
+    first_day = (dt.date.today() - dt.timedelta(days=30)).isoformat()
+    assert f'name="since" value="{first_day}"' in recent and "The last 30 days" in recent
+
+
+def test_a_chain_of_many_rigs_is_a_table_each_rig_charted_on_its_own_page(tmp_path: Path) -> None:
+    from edc_bench.history.demo_chain import fill_demo_chain
+    from edc_bench.web.app import CHARTS_AT_ONCE, WebConfig, create_app
+    from edc_bench.web.sessions import Sessions
+
+    db = tmp_path / "many.sqlite"
+    with HistoryStore(f"sqlite:///{db}") as store:
+        fill_demo_chain(store, stations=CHARTS_AT_ONCE + 2, days=21, tests_per_day=1)
+    with TestClient(create_app(WebConfig(url=f"sqlite:///{db}", token=TOKEN), Sessions()),
+                    base_url="https://testserver", follow_redirects=False) as client:
+        signed_in(client)
+        page = client.get("/rigs").text
+        assert len(re.findall(r'<tr data-station="', page)) == CHARTS_AT_ONCE + 2 and "<img" not in page
+        assert "due now (LVDT zero)" in page
+        one = client.get("/rigs", params={"station": "Werkstatt Süd 2"}).text
+        assert one.count("<img") == 1 and "Service due now" in one

@@ -1,0 +1,133 @@
+"""The web view on a chain's PostgreSQL: each person signs in with their database login and reads as it, so the
+database's roles decide what a page may show (a real server: tests/pg_server.py; skipped where there is none)."""
+
+from __future__ import annotations
+
+import json
+import re
+import uuid
+
+import pytest
+import sqlalchemy as sa
+from web_site import signed_in
+from starlette.testclient import TestClient
+
+from edc_bench.cli import main
+from edc_bench.history.roles import setup_roles
+from edc_bench.history.store import Filters, HistoryStore
+from edc_bench.web.app import WebConfig, create_app
+from edc_bench.web.sessions import Sessions
+
+
+def _login(url: str, login: str) -> str:
+    return url.replace("://postgres@", f"://{login}@")
+
+
+def _row(valve: str, verdict: str, key: str | None = None, sha: str = "a" * 64, area: str | None = None) -> dict:
+    return {"record_dir": f"/records/{valve}", "started_at": "2026-11-20T08:00:00+00:00", "valve_id": valve,
+            "pump_serial": "P-1", "variant": "p-edc-default", "part_number": "PE", "verdict": verdict,
+            "station": "ignored", "operator": "ana", "clock": "real-time", "software_version": "0.1.0",
+            "reason": "", "test_key": key or uuid.uuid4().hex, "record_sha256": sha, "invalid_area": area}
+
+
+@pytest.fixture
+def chain(postgres_db: str) -> dict[str, str]:
+    """Roles, two stations' logins, an engineer and a login of no role; a few tests by each station, one withdrawn
+    by the engineer, one indexed again with other content. Returns the URLs by login."""
+    engine = sa.create_engine(postgres_db)
+    with engine.begin() as conn:
+        setup_roles(conn)
+        for login, role in (("bench3", "edc_station"), ("bench4", "edc_station"), ("ines", "edc_engineer"),
+                            ("visitor", None)):
+            conn.exec_driver_sql(f"DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '{login}') THEN "
+                                 f"CREATE ROLE {login} LOGIN; END IF; END $$")
+            if role:
+                conn.exec_driver_sql(f"GRANT {role} TO {login}")
+    engine.dispose()
+    with HistoryStore(postgres_db) as owner:
+        owner.map_login("bench3", "Werkstatt Nord 3", None, "admin")
+        owner.map_login("bench4", "Werkstatt Süd 4", None, "admin")
+        owner.map_login("ines", None, "Ines Braun", "admin")
+    urls = {"owner": postgres_db, **{login: _login(postgres_db, login) for login in ("bench3", "bench4", "ines")}}
+    with HistoryStore(urls["bench3"]) as bench3:
+        for k, verdict in enumerate(("PASS", "PASS", "FAIL", "MARGINAL", "INVALID")):
+            bench3.add_row(_row(f"N-{k}", verdict, area="bus" if verdict == "INVALID" else None))
+        bench3.add_row(_row("N-9", "FAIL", key="n9"))
+        bench3.add_row(_row("N-9", "PASS", key="n9", sha="b" * 64))  # a PASS indexed over its FAIL: a change
+    with HistoryStore(urls["bench4"]) as bench4:
+        bench4.add_row(_row('S-<b>"1"</b>', "FAIL"))
+        bench4.add_row(_row("S-typo", "PASS"))
+    with HistoryStore(urls["ines"]) as ines:
+        typo = ines.list(Filters(valve_id="S-typo"))[0]["id"]
+        ines.withdraw_test(typo, "valve id typed wrong")
+    return urls
+
+
+def _client(url: str) -> TestClient:
+    server = sa.engine.make_url(url).set(username=None).render_as_string(hide_password=False)
+    return TestClient(create_app(WebConfig(url=server), Sessions()), base_url="https://testserver",
+                      follow_redirects=False)
+
+
+@pytest.mark.parametrize("login", ["bench3", "ines", "postgres"])
+def test_each_role_signs_in_with_its_database_login_and_sees_the_figures_history_prints(
+        chain: dict[str, str], login: str, capsys: pytest.CaptureFixture[str]) -> None:
+    url = chain["owner"] if login == "postgres" else chain[login]
+    with _client(chain["owner"]) as client:
+        signed_in(client, login, "")
+        page = client.get("/chain").text
+        assert f'<span class="who">{login}</span>' in page
+    assert main(["history", "--db", url, "--summary", "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert re.search(r'id="tests">(\d+)<', page).group(1) == str(printed["tests"]) == "7"  # type: ignore[union-attr]
+    assert f'{printed["first_pass_rate"] * 100:.1f} %' in page
+    assert '<td>bus</td><td class="num">1</td>' in page
+    stations = re.findall(r"<tr(?: class=\"quiet\")?><td>([^<]+)</td>", page)
+    assert {"Werkstatt Nord 3", "Werkstatt Süd 4"} <= set(stations)
+
+
+def test_a_login_of_no_role_is_refused_at_sign_in(chain: dict[str, str]) -> None:
+    with _client(chain["owner"]) as client:
+        form = client.get("/signin")
+        csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+        response = client.post("/signin", data={"csrf": csrf, "login": "visitor", "password": ""})
+        assert response.status_code == 403
+        assert "this login may not read the history" in response.text
+        assert client.get("/chain").status_code == 303
+
+
+def test_a_login_the_server_does_not_know_is_refused(chain: dict[str, str]) -> None:
+    with _client(chain["owner"]) as client:
+        form = client.get("/signin")
+        csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+        response = client.post("/signin", data={"csrf": csrf, "login": "x'; DROP ROLE bench3; --", "password": ""})
+        assert response.status_code == 403 and "sign-in refused" in response.text
+    engine = sa.create_engine(chain["owner"])
+    with engine.connect() as conn:
+        assert conn.execute(sa.text("SELECT 1 FROM pg_roles WHERE rolname = 'bench3'")).first() is not None
+    engine.dispose()
+
+
+def test_a_station_sees_the_withdrawn_and_the_changed_rows_as_such(chain: dict[str, str]) -> None:
+    with _client(chain["owner"]) as client:
+        signed_in(client, "bench4", "")
+        withdrawn = client.get("/valve", params={"id": "S-typo"}).text
+        assert "WITHDRAWN" in withdrawn and "valve id typed wrong" in withdrawn
+        changed = client.get("/valve", params={"id": "N-9"}).text
+        assert "CHANGED: indexed again with other content" in changed
+        assert re.findall(r'<td class="verdict (\w+)">', changed) == ["FAIL"]
+        odd = client.get("/valve", params={"id": 'S-<b>"1"</b>'}).text
+        assert "S-&lt;b&gt;&#34;1&#34;&lt;/b&gt;" in odd and "<b>" not in odd
+
+
+def test_a_role_that_may_not_read_a_table_gets_a_message_not_a_traceback(chain: dict[str, str]) -> None:
+    engine = sa.create_engine(chain["owner"])
+    with engine.begin() as conn:  # the owner keeps the self-checks from stations (a chain may)
+        conn.exec_driver_sql("REVOKE SELECT ON rig_checks FROM edc_station")
+    engine.dispose()
+    with _client(chain["owner"]) as client:
+        signed_in(client, "bench3", "")
+        response = client.get("/rigs")
+        assert response.status_code == 403
+        assert "may not" in response.text and "Traceback" not in response.text
+        assert client.get("/chain").status_code in (200, 403)
