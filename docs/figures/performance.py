@@ -228,3 +228,27 @@ def batch_profile_table() -> str:
 def recorded_command() -> str:
     """The command line the stored run was made with (for the text)."""
     return stored_record("performance-perf")["command"]
+
+
+@measurement("performance-web", minutes=3, timing=True)
+def web_run() -> dict:
+    """``python -m edc_bench.web.benchmark --json``: the web view's pages on a chain of 100 stations and a million
+    tests in a throw-away PostgreSQL server."""
+    done = subprocess.run([sys.executable, "-m", "edc_bench.web.benchmark", "--tests", "1000000", "--requests", "20",
+                           "--json"], capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"the web benchmark failed ({done.returncode}):\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout)
+
+
+def web_table() -> str:
+    """The stored web benchmark: each page's median and 95th percentile against the 300 ms target."""
+    result = stored("performance-web")
+    rows = [(page["page"], f"{page['p50_ms']:.0f} ms", f"{page['p95_ms']:.0f} ms", "yes" if page["met"] else "no")
+            for page in result["pages"]]
+    written = result["written"]
+    return (wrap(f"{measured_on('performance-web')} {written['tests']:,} tests of {written['stations']} stations "
+                 f"and {written['checks']:,} self-checks, copied in {result['fill_s']:.0f} s; "
+                 f"{result['pages'][0]['requests']} timed requests a page after one to warm it, through the "
+                 "application in process (no network), signed in as the database's owner.") + "\n\n"
+            + table(("page", "p50", "p95", f"p95 <= {result['target_p95_ms']:.0f} ms"), rows))

@@ -122,8 +122,10 @@ def chain_summary(store: HistoryStore, filters: Filters, now: dt.datetime | None
                 first_marginal += count if verdict == Verdict.MARGINAL else 0
             else:
                 retests += count
-        stations = _stations(conn, filters, {station for _, station in days}, now or dt.datetime.now(dt.UTC),
-                             quiet_days)
+        per_station: Counter[str] = Counter()
+        for (_, station), count in days.items():
+            per_station[station] += count
+        stations = _stations(conn, filters, per_station, now or dt.datetime.now(dt.UTC), quiet_days)
     return ChainSummary(sum(verdicts.values()), _ranked(verdicts), first_tests, first_pass, first_marginal, retests,
                         _ranked(areas), tuple(DayCount(d, s, n) for (d, s), n in sorted(days.items())), stations)
 
@@ -133,29 +135,31 @@ def _ranked(counts: Counter[str]) -> tuple[tuple[str, int], ...]:
     return tuple(sorted(counts.items(), key=lambda item: (-item[1], item[0])))
 
 
-def _stations(conn: sa.Connection, filters: Filters, tested: set[str], now: dt.datetime, quiet_days: int
+def _stations(conn: sa.Connection, filters: Filters, in_filter: Counter[str], now: dt.datetime, quiet_days: int
               ) -> tuple[StationActivity, ...]:
     """The stations the history knows (by the filter's tests, self-checks, registrations, or a login mapped to
     them), each with its latest test and self-check, whatever the dates asked (a station quiet this week is quiet
     whatever was asked), and its tests in the filter."""
-    known = set(tested)
+    known = set(in_filter)
     for table in (rig_checks, reference_valves, edc_logins):
         query = sa.select(table.c.station).distinct().where(table.c.station.is_not(None))
         known |= {str(s) for (s,) in conn.execute(query)}
     if filters.station is not None:
         known &= {filters.station}
     wanted = filter_clauses(Filters(simulated=filters.simulated))
-    in_filter = dict(conn.execute(sa.select(tests.c.station, sa.func.count()).where(
-        standing_tests(), *filter_clauses(filters)).group_by(tests.c.station)).all()) if known else {}
     cutoff = (now - dt.timedelta(days=quiet_days)).astimezone(dt.UTC).isoformat(timespec="seconds")
+    if not known:
+        return ()
+    # one query, each station's latest test and self-check read from an index (station, started_at; station)
+    names = sa.union_all(*(sa.select(sa.literal(s, sa.String).label("station")) for s in sorted(known))).subquery()
+    latest_test = (sa.select(sa.func.max(tests.c.started_at)).where(tests.c.station == names.c.station, *wanted)
+                   .scalar_subquery())
+    latest_check = (sa.select(sa.func.max(rig_checks.c.checked_at)).where(rig_checks.c.station == names.c.station)
+                    .scalar_subquery())
     out = []
-    for station in sorted(known):
-        # each from its index: the (station, started_at) one, and the self-checks' station index
-        last_test = conn.execute(sa.select(sa.func.max(tests.c.started_at)).where(tests.c.station == station,
-                                                                                  *wanted)).scalar()
-        last_check = conn.execute(sa.select(sa.func.max(rig_checks.c.checked_at))
-                                  .where(rig_checks.c.station == station)).scalar()
-        out.append(StationActivity(station, int(in_filter.get(station, 0)),
+    for station, last_test, last_check in conn.execute(sa.select(names.c.station, latest_test, latest_check)
+                                                       .order_by(names.c.station)):
+        out.append(StationActivity(str(station), int(in_filter.get(station, 0)),
                                    None if last_test is None else str(last_test),
                                    None if last_check is None else str(last_check),
                                    quiet=last_test is None or str(last_test) < cutoff))

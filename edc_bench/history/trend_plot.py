@@ -3,6 +3,7 @@ limit with the marginal band (``history --trend --plot`` draws it to a PNG, the 
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 from edc_bench.history.visits import Visit
@@ -12,6 +13,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
+@functools.lru_cache(maxsize=64)
 def marginal_band(variant_name: str) -> float | None:
     """The marginal band of the model that judges ``variant_name``'s valves (None: a variant or model this station
     cannot load; the plot then draws the limit alone)."""

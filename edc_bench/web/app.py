@@ -286,9 +286,12 @@ class _Site:
 
     def rigs(self, request: Request, session: Session) -> Response:
         station = _field(request, "station")
-        shown = views.rig_healths(session.store, station)
-        # charts for a few rigs at once; a chain's hundred are a table, each rig's chart on its own page
+        # charts for a few rigs at once; a chain's hundred are a table (each rig's trend from its last quarter),
+        # each rig's chart on its own page
+        shown = views.rig_healths(session.store, station, views.CHECKS_SHOWN if station else views.OVERVIEW_CHECKS)
         charted = station is not None or len(shown) <= CHARTS_AT_ONCE
+        if charted and station is None:
+            shown = views.rig_healths(session.store)
         return self.render(request, "rigs.html", session, station=station, charted=charted,
                            rigs=[(r, charts.drift_chart(r.station, list(r.drifts)) if charted else None)
                                  for r in shown])
@@ -341,7 +344,7 @@ class _Site:
     def models_csv(self, request: Request, session: Session) -> Response:
         columns = ("id", "station", "model_name", "model_sha256", "adopted_by", "adopted_at")
         _, every = views.models(session.store)
-        return csv_response(([row[c] for c in columns] for row in every), columns, "adoptions")
+        return csv_response(([getattr(row, c) for c in columns] for row in every), columns, "adoptions")
 
     def close(self) -> None:
         self.sessions.close_all()

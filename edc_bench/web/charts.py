@@ -59,15 +59,13 @@ def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int) -> str:
     for d in days:
         series[d.station if d.station in named else "others"][index[d.day]] += d.tests
     fig, ax = plt.subplots(figsize=(8, 3.2))
-    bottom = [0] * len(dates)
     x = [dt.date.fromisoformat(day) if len(day) == 10 else k for k, day in enumerate(dates)]
-    for name, counts in series.items():
-        if any(counts):
-            ax.bar(x, counts, bottom=bottom, label=name, width=0.8)
-            bottom = [b + c for b, c in zip(bottom, counts, strict=True)]
+    shown = {name: counts for name, counts in series.items() if any(counts)}
+    # one filled step outline per station, not a patch per bar: a year of a hundred stations draws as fast as a week
+    ax.stackplot(x, *shown.values(), labels=list(shown), step="mid")
     ax.set_ylabel("tests per day")
     ax.set_xlabel("day (UTC)")
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over them
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the days, never over them
     fig.autofmt_xdate()
     return svg_data(fig)
 

@@ -15,8 +15,10 @@ from edc_bench.history.schema import adoptions, amendments, reference_valves, ri
 from edc_bench.history.store import HistoryStore, standing_tests
 from edc_bench.timefmt import parse_stored
 
-#: the checks a rig's chart and trend rest on: its newest
+#: the checks a rig's chart and trend rest on: its newest (on its own page; in the chain's table, the newest
+#: OVERVIEW_CHECKS: a quarter of weekly checks says where a rig is heading)
 CHECKS_SHOWN = 60
+OVERVIEW_CHECKS = 13
 #: a search's valves and pumps listed
 SEARCH_LIMIT = 50
 #: the fewest measured checks a trend is drawn through
@@ -91,18 +93,6 @@ class ValveHit:
     latest: str
 
 
-@dataclass(frozen=True)
-class ModelInUse:
-    """The model a station judges with (its newest adoption), and how many standing tests it judged there."""
-
-    station: str
-    model_name: str
-    model_sha256: str
-    adopted_at: str
-    adopted_by: str
-    tests_judged: int
-
-
 def _trend(points: list[tuple[dt.datetime, float]]) -> tuple[float | None, dt.datetime | None, float]:
     """The least-squares line through (time, drift/tolerance): its slope per day and when it reaches +/-1."""
     if len(points) < TREND_MIN_CHECKS:
@@ -138,9 +128,9 @@ def _check(row: sa.Row[Any]) -> RigCheck:
     return RigCheck(str(row.checked_at), str(row.verdict), str(row.causes), str(row.checked_by), drift)
 
 
-def rig_healths(store: HistoryStore, station: str | None = None) -> list[RigHealth]:
-    """Each station's rig (or one station's) as its newest registration's newest :data:`CHECKS_SHOWN` checks show
-    it: two queries whatever the number of stations (a window over the checks), the trends computed here."""
+def rig_healths(store: HistoryStore, station: str | None = None, checks_each: int = CHECKS_SHOWN) -> list[RigHealth]:
+    """Each station's rig (or one station's) as its newest registration's newest ``checks_each`` checks show it: two
+    queries whatever the number of stations (a window over the checks), the trends computed here."""
     newest = sa.select(sa.func.max(reference_valves.c.id)).group_by(reference_valves.c.station)
     references = sa.select(reference_valves).where(reference_valves.c.id.in_(newest))
     ranked = sa.select(rig_checks, sa.func.row_number().over(partition_by=rig_checks.c.station,
@@ -155,7 +145,7 @@ def rig_healths(store: HistoryStore, station: str | None = None) -> list[RigHeal
     with store.reading() as conn:
         found = {str(r.station): r for r in conn.execute(references)}
         checks: dict[str, list[RigCheck]] = {}
-        for row in conn.execute(sa.select(ranked).where(ranked.c.rank <= CHECKS_SHOWN).order_by(ranked.c.station,
+        for row in conn.execute(sa.select(ranked).where(ranked.c.rank <= checks_each).order_by(ranked.c.station,
                                                                                                   ranked.c.id)):
             checks.setdefault(str(row.station), []).append(_check(row))
     return [_health(name, found.get(name), checks.get(name, [])) for name in sorted(set(found) | set(checks))]
@@ -165,10 +155,10 @@ def _health(station: str, reference: sa.Row[Any] | None, checks: list[RigCheck])
     """A station's rig from its registration and its checks (oldest first)."""
     measured = [c for c in checks if c.verdict != "SKIPPED"]
     drifts, due = [], None
+    times = [parse_stored(c.checked_at) for c in measured]  # once per check, not per figure
     for k, (name, label, _unit) in enumerate(COLUMNS):
-        points = [(when, float(drift) / float(tolerance)) for c in measured
-                  for _, drift, tolerance in (c.drift[k],) if drift is not None and tolerance
-                  for when in (parse_stored(c.checked_at),) if when is not None]
+        points = [(when, float(drift) / float(tolerance)) for c, when in zip(measured, times, strict=True)
+                  for _, drift, tolerance in (c.drift[k],) if drift is not None and tolerance and when is not None]
         slope, crossing, sign = _trend(points)
         drifts.append(FigureDrift(name, label, tuple((t.isoformat(), v) for t, v in points), slope,
                                   None if crossing is None else crossing.isoformat(timespec="seconds"), sign))
@@ -227,15 +217,11 @@ def test_row(store: HistoryStore, test_id: int) -> sa.Row[Any] | None:
         return conn.execute(sa.select(tests).where(tests.c.id == test_id)).first()
 
 
-def models(store: HistoryStore) -> tuple[list[ModelInUse], list[sa.RowMapping]]:
-    """Each station's model as it stands (its newest adoption) and the standing tests it judged there, and the
-    adoptions, newest first (at most 200)."""
+def models(store: HistoryStore) -> tuple[list[sa.Row[Any]], list[sa.Row[Any]]]:
+    """Each station's model as it stands (its newest adoption), and the adoptions, newest first (at most 200)."""
     newest = sa.select(sa.func.max(adoptions.c.id)).group_by(adoptions.c.station)
-    judged = (sa.select(sa.func.count()).where(standing_tests(), tests.c.model_sha256 == adoptions.c.model_sha256,
-                                               tests.c.station == adoptions.c.station).scalar_subquery())
     with store.reading() as conn:
-        current = [ModelInUse(str(s), str(n), str(h), str(a), str(b), int(j)) for s, n, h, a, b, j in conn.execute(
-            sa.select(adoptions.c.station, adoptions.c.model_name, adoptions.c.model_sha256, adoptions.c.adopted_at,
-                      adoptions.c.adopted_by, judged).where(adoptions.c.id.in_(newest)).order_by(adoptions.c.station))]
-        every = list(conn.execute(sa.select(adoptions).order_by(adoptions.c.id.desc()).limit(200)).mappings())
+        current = list(conn.execute(sa.select(adoptions).where(adoptions.c.id.in_(newest))
+                                    .order_by(adoptions.c.station)))
+        every = list(conn.execute(sa.select(adoptions).order_by(adoptions.c.id.desc()).limit(200)))
     return current, every

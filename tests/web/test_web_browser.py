@@ -94,8 +94,10 @@ def _shot(driver: object, name: str) -> None:
     folder = _screenshots()
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
-        height = driver.execute_script("return document.body.scrollHeight")  # type: ignore[attr-defined]
-        driver.set_window_size(1280, min(max(int(height) + 40, 600), 2400))  # type: ignore[attr-defined]
+        height = driver.execute_script(  # type: ignore[attr-defined]
+            "return Math.max(document.body.scrollHeight, document.documentElement.scrollHeight, "
+            "document.querySelector('main').getBoundingClientRect().bottom + window.scrollY)")
+        driver.set_window_size(1280, min(max(int(height) + 160, 600), 2600))  # type: ignore[attr-defined]
         driver.save_screenshot(str(folder / f"{name}.png"))  # type: ignore[attr-defined]
         driver.set_window_size(1280, 1000)  # type: ignore[attr-defined]
 
