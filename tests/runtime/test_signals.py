@@ -73,30 +73,46 @@ def test_an_ignored_signal_stays_ignored() -> None:
         signal.signal(signal.SIGTERM, previous)
 
 
-def test_a_ctrl_c_python_would_ignore_is_raised_again() -> None:
-    """A KeyboardInterrupt raised where Python cannot let it propagate (a weakref's callback here, an import
-    lock's in the CI run that found it) is not lost: it reaches the code after it."""
-    import gc
-    import weakref
+_LOST_CTRL_C = """
+import gc, sys, time, weakref
+from edc_bench.runtime.signals import raise_on_interrupt
 
-    from edc_bench.runtime.signals import raise_on_interrupt
+class Thing:
+    pass
 
-    class Thing:
-        pass
+def callback(_):
+    raise KeyboardInterrupt  # as the signal's handler raises it, in a place Python cannot let it out of
 
-    with pytest.raises(KeyboardInterrupt), raise_on_interrupt():
+try:
+    with raise_on_interrupt():
         thing = Thing()
-        def callback(_: object) -> None:
-            raise KeyboardInterrupt  # as the signal's handler raises it, in a place Python cannot let it out of
-
-        _ref = weakref.ref(thing, callback)
+        ref = weakref.ref(thing, callback)
         del thing
         gc.collect()
-        # the signal sent again arrives within moments; the default suite on two workers once did not see it
-        # within the 1 s allowed before (no state left by another test: checked after every test of a run)
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline:
             time.sleep(0.01)
+except KeyboardInterrupt:
+    print("raised again")
+    sys.exit(0)
+print("lost")
+sys.exit(1)
+"""
+
+
+def test_a_ctrl_c_python_would_ignore_is_raised_again() -> None:
+    """A KeyboardInterrupt raised where Python cannot let it propagate (a weakref's callback here, an import
+    lock's in the CI run that found it) is not lost: it reaches the code after it.
+
+    In a process of its own, as a command meets it: in the suite's worker, which has run a thousand tests (servers,
+    threads, a browser's driver), the signal sent again was not seen within 30 s in one full run in three (twice,
+    on CI and here), though no test left a handler or a guard behind."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", _LOST_CTRL_C], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.strip() == "raised again", (done.stdout, done.stderr)
+    assert "Exception ignored" not in done.stderr  # not printed and dropped as Python would
 
 
 def test_a_stop_request_does_not_outlive_its_guard() -> None:
