@@ -69,6 +69,9 @@ def run(args: argparse.Namespace) -> int:
         if not _loopback(args.host) and not args.allow_remote:
             raise ConfigError(f"--host {args.host}: a station's SQLite history is served on 127.0.0.1 only; add "
                               "--allow-remote to serve it to other PCs (with --certfile/--keyfile: HTTPS)")
+        if not _loopback(args.host) and not args.certfile:
+            raise ConfigError("--allow-remote serves HTTPS only: give --certfile and --keyfile (over plain HTTP the "
+                              "access token would cross the network readable)")
         token = _token(args.token_file)
         config = WebConfig(**{**config.__dict__, "token": token})
         from edc_bench.history.store import HistoryStore

@@ -188,6 +188,10 @@ def fill_demo_chain(store: HistoryStore, *, stations: int = 4, days: int = 28, t
     written. The last station goes quiet ten days before ``now``; the first one's rig drifts."""
     if not store.is_sqlite:
         raise ValueError("the demo chain writes its own times: a SQLite history only")
+    with store.reading() as conn:
+        if conn.execute(sa.select(sa.func.count()).select_from(tests)).scalar():
+            raise ValueError(f"{store.shown_url} holds tests already: the demo chain goes into a new history, never "
+                             "a station's (its rows could not be taken out again)")
     rng = random.Random(seed)
     now = (now or dt.datetime.now(dt.UTC)).replace(microsecond=0)
     start = now - dt.timedelta(days=days)

@@ -7,6 +7,7 @@ import csv
 import datetime as dt
 import io
 import secrets
+import threading
 from collections.abc import AsyncIterator, Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,11 +27,10 @@ from starlette.templating import Jinja2Templates
 from edc_bench.errors import EdcBenchError
 from edc_bench.history.store import Filters, HistoryStore, parse_day
 from edc_bench.history.summary import chain_summary
-from edc_bench.history.trend_plot import trend_figure
 from edc_bench.history.visits import visits
 from edc_bench.timefmt import local_text, utc_bound
 from edc_bench.web import charts, views
-from edc_bench.web.sessions import Session, Sessions
+from edc_bench.web.sessions import Session, Sessions, SignInThrottle
 
 HERE = Path(__file__).parent
 SESSION_COOKIE = "edc_session"
@@ -155,6 +155,8 @@ class _Site:
     def __init__(self, config: WebConfig, sessions: Sessions, opener: Callable[[str], HistoryStore]) -> None:
         self.config, self.sessions, self.opener = config, sessions, opener
         self.shared: list[HistoryStore] = []  # a station's SQLite: one store every session reads
+        self.shared_lock = threading.Lock()
+        self.throttle = SignInThrottle()
         # every value escaped, whatever a template's name ends in (ids and names are the technicians' text)
         self.templates = Jinja2Templates(env=jinja2.Environment(loader=jinja2.FileSystemLoader(HERE / "templates"),
                                                                 autoescape=True))
@@ -221,20 +223,32 @@ class _Site:
 
     def _open_sqlite(self, name: str, token: str) -> Session | str:
         """A station's SQLite: the access token it printed; the name is only shown."""
+        if not self.throttle.allowed(""):
+            return "too many failed sign-ins: wait a few minutes, then try again"
         if not self.config.token or not secrets.compare_digest(token.encode(), self.config.token.encode()):
+            self.throttle.failed("")
             return "wrong access token: use the one 'edc-bench web' printed when it started"
-        if not self.shared:
-            self.shared.append(self.opener(self.config.url))
+        with self.shared_lock:  # two first sign-ins at once open one store
+            if not self.shared:
+                self.shared.append(self.opener(self.config.url))
+        name = "".join(c for c in name if ord(c) >= 32)
         return self.sessions.start(name or "station", self.shared[0], owns_store=False)
 
     def _open_login(self, login: str, password: str) -> Session | str:
-        """The chain's PostgreSQL: a connection as the person's own login (its role decides what it reads)."""
-        if not login:
+        """The chain's PostgreSQL: a connection as the person's own login (its role decides what it reads).
+
+        A password is required: without one the database driver would take the server's own (PGPASSWORD,
+        ~/.pgpass, which docs/shop-network.md sets up for the owner's and the stations' logins), and anyone
+        typing that login would be signed in as it."""
+        if not login or not password or any(ord(c) < 32 for c in login):
             return "give your database login and its password"
+        if not self.throttle.allowed(login):
+            return "too many failed sign-ins for this login: wait a few minutes, then try again"
         url = sa.engine.make_url(self.config.url).set(username=login, password=password or None)
         try:
             store = self.opener(url.render_as_string(hide_password=False))
         except EdcBenchError:
+            self.throttle.failed(login)
             return ("sign-in refused: the database did not accept this login and password, or this login may not "
                     "read the history")
         return self.sessions.start(login, store)
@@ -265,7 +279,8 @@ class _Site:
             return self.render(request, "chain.html", session, 400, summary=None, chart=None, message=str(exc),
                                query=request.query_params, since=None)
         summary = chain_summary(session.store, filters)
-        return self.render(request, "chain.html", session, summary=summary, since=default_since(request), days=DEFAULT_DAYS,
+        return self.render(request, "chain.html", session, summary=summary, since=default_since(request),
+                           days=DEFAULT_DAYS,
                            chart=charts.tests_per_day(summary.per_day), message="", query=request.query_params)
 
     def chain_csv(self, request: Request, session: Session) -> Response:
@@ -318,7 +333,7 @@ class _Site:
         records = self.config.records_dir
         reports = {v.last.get("id") for v in shown if report_path(records, str(v.last.get("record_dir")))}
         return self.render(request, "valve.html", session, valve_id=valve_id, rows=rows, visits=shown,
-                           chart=charts.svg_data(trend_figure(trustworthy, valve_id)) if trustworthy else None,
+                           chart=charts.valve_trend(trustworthy, valve_id) if trustworthy else None,
                            audit=session.store.audit(valve_id), reports=reports)
 
     def valve_csv(self, request: Request, session: Session) -> Response:
@@ -355,7 +370,8 @@ class _Site:
 def create_app(config: WebConfig, sessions: Sessions | None = None,
                open_store: Callable[[str], HistoryStore] | None = None) -> Starlette:
     """The application for ``config`` (``sessions``: the tests' own clock; ``open_store``: how a URL is opened)."""
-    site = _Site(config, sessions or Sessions(config.idle_minutes * 60, config.max_hours * 3600),
+    site = _Site(config, sessions if sessions is not None else Sessions(config.idle_minutes * 60,
+                                                                         config.max_hours * 3600),
                  open_store or (lambda url: HistoryStore(url, must_exist=True, warn=lambda _problem: None)))
     routes = [
         Route("/", site.home),
@@ -381,16 +397,22 @@ def create_app(config: WebConfig, sessions: Sessions | None = None,
 
 
 def report_path(records_dir: Path | None, record_dir: str) -> Path | None:
-    """The report of a record folder the history names, if it is a file inside ``records_dir`` (a row's folder is
-    what a station wrote: never followed outside the records)."""
+    """The report of a record folder the history names, if it is a file inside ``records_dir``: the folder as the
+    history names it, else a folder of the same name directly in ``records_dir`` (a chain's server keeps the
+    stations' record folders under one folder, where the names the stations indexed them by do not lead). A row's
+    folder is what a station wrote: never followed outside the records."""
     if records_dir is None:
         return None
     root = records_dir.resolve()
-    try:
-        path = (Path(record_dir) / "report.pdf").resolve()
-    except (OSError, RuntimeError, ValueError):
-        return None
-    return path if path.is_relative_to(root) and path.is_file() else None
+    named = Path(record_dir)
+    for folder in (named, root / named.name):
+        try:
+            path = (folder / "report.pdf").resolve()
+        except (OSError, RuntimeError, ValueError):
+            continue
+        if path.is_relative_to(root) and path.is_file():
+            return path
+    return None
 
 
 def _local_next(target: str | None) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import datetime as dt
 import io
+import threading
 from typing import TYPE_CHECKING, Any
 
 from edc_bench.timefmt import parse_stored
@@ -13,6 +14,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from edc_bench.history.summary import DayCount
+    from edc_bench.history.visits import Visit
     from edc_bench.web.views import FigureDrift
 
 
@@ -28,6 +30,8 @@ def svg_data(fig: Figure) -> str:
 
 #: names are the shops' text: '$' in a station's name is no formula
 _AS_TYPED = {"text.parse_math": False}
+#: pyplot and its settings are global: the server's threads draw one chart at a time
+_DRAWING = threading.Lock()
 
 
 def _pyplot():  # noqa: ANN202 - matplotlib's pyplot, on the headless backend
@@ -44,7 +48,7 @@ def tests_per_day(days: tuple[DayCount, ...], top: int = 8) -> str | None:
     if not days:
         return None
     plt = _pyplot()
-    with plt.rc_context(_AS_TYPED):
+    with _DRAWING, plt.rc_context(_AS_TYPED):
         return _tests_per_day(plt, days, top)
 
 
@@ -77,8 +81,16 @@ def drift_chart(station: str, drifts: list[FigureDrift]) -> str | None:
     if not shown:
         return None
     plt = _pyplot()
-    with plt.rc_context(_AS_TYPED):
+    with _DRAWING, plt.rc_context(_AS_TYPED):
         return _drift_chart(plt, station, shown)
+
+
+def valve_trend(shown: list[Visit], valve_id: str) -> str:
+    """A valve's wear trend (:func:`edc_bench.history.trend_plot.trend_figure`) as SVG data."""
+    from edc_bench.history.trend_plot import trend_figure
+
+    with _DRAWING:
+        return svg_data(trend_figure(shown, valve_id))
 
 
 def _drift_chart(plt: Any, station: str, shown: list[FigureDrift]) -> str:

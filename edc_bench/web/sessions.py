@@ -46,11 +46,28 @@ class Sessions:
 
     def start(self, login: str, store: HistoryStore, owns_store: bool = True) -> Session:
         """A new session for ``login`` reading ``store`` (closed when the session ends, if ``owns_store``)."""
+        self.sweep()
         now = self._clock()
         session = Session(secrets.token_urlsafe(32), login, store, secrets.token_urlsafe(32), now, now, owns_store)
         with self._lock:
             self._sessions[session.id] = session
         return session
+
+    def sweep(self) -> None:
+        """End every expired session and close its connection (a session abandoned without signing out would
+        otherwise hold its database connection until the server stops)."""
+        now = self._clock()
+        with self._lock:
+            expired = [s for s in self._sessions.values()
+                       if now - s.seen_s > self.idle_s or now - s.started_s > self.max_s]
+            for session in expired:
+                del self._sessions[session.id]
+        for session in expired:
+            if session.owns_store:
+                session.store.close()
+
+    def __len__(self) -> int:
+        return len(self._sessions)
 
     def get(self, session_id: str | None) -> Session | None:
         """The live session of a cookie's id (None: none, or expired: then ended)."""
@@ -82,3 +99,32 @@ class Sessions:
         """End every session (the server stops)."""
         for session_id in list(self._sessions):
             self.end(session_id)
+
+
+class SignInThrottle:
+    """Failed sign-ins per login: after ``limit`` within ``window_s`` the login is refused until the window has
+    passed (a password guessed at the form's speed is guessed at a few a minute at most)."""
+
+    def __init__(self, limit: int = 5, window_s: float = 300.0, clock: Callable[[], float] = time.monotonic) -> None:
+        self.limit, self.window_s, self._clock = limit, window_s, clock
+        self._failures: dict[str, list[float]] = {}
+        self._lock = threading.Lock()
+
+    def _recent(self, login: str) -> list[float]:
+        now = self._clock()
+        recent = [t for t in self._failures.get(login, []) if now - t < self.window_s]
+        if recent:
+            self._failures[login] = recent
+        else:
+            self._failures.pop(login, None)
+        return recent
+
+    def allowed(self, login: str) -> bool:
+        """Whether ``login`` may try now."""
+        with self._lock:
+            return len(self._recent(login)) < self.limit
+
+    def failed(self, login: str) -> None:
+        """Count a failed sign-in of ``login``."""
+        with self._lock:
+            self._failures[login] = [*self._recent(login), self._clock()]

@@ -25,7 +25,16 @@ SEARCH_LIMIT = 50
 TREND_MIN_CHECKS = 3
 #: Student's t at 99 % (two-sided) by degrees of freedom (2.6 beyond: near the normal's 2.58): six figures per rig
 #: and a chain of rigs, so a trend is announced only where the checks leave little doubt
-_T99 = {1: 63.66, 2: 9.92, 3: 5.84, 4: 4.60, 5: 4.03, 6: 3.71, 7: 3.50, 8: 3.36, 9: 3.25, 10: 3.17}
+_T99 = {1: 63.66, 2: 9.92, 3: 5.84, 4: 4.60, 5: 4.03, 6: 3.71, 7: 3.50, 8: 3.36, 9: 3.25, 10: 3.17, 11: 3.11,
+        12: 3.05, 13: 3.01, 14: 2.98, 15: 2.95, 16: 2.92, 17: 2.90, 18: 2.88, 19: 2.86, 20: 2.85, 25: 2.79, 30: 2.75,
+        40: 2.70, 60: 2.66}
+#: a trend that reaches its limit later than this is not announced: a service planned a year ahead is no warning
+HORIZON_DAYS = 365
+
+
+def _t99(dof: int) -> float:
+    """Student's t at 99 % for ``dof`` degrees of freedom (the next smaller tabled one's: on the safe side)."""
+    return _T99[max(d for d in _T99 if d <= dof)] if dof >= 1 else float("inf")
 
 
 @dataclass(frozen=True)
@@ -111,13 +120,15 @@ def _trend(points: list[tuple[dt.datetime, float]]) -> tuple[float | None, dt.da
     slope_se = (residual / sxx) ** 0.5
     # a trend only where the checks show one: the slope beyond its 99 % interval's half-width (Student's t), so
     # that scatter between checks does not announce a service
-    if slope == 0 or abs(slope) <= _T99.get(dof, 2.6) * slope_se:
+    if slope == 0 or abs(slope) <= _t99(dof) * slope_se:
         return slope, None, 1.0
     sign = 1.0 if slope > 0 else -1.0
     now_fit = mean_y + slope * (xs[-1] - mean_x)
     days = (sign - now_fit) / slope
     if days < 0:  # already beyond: the latest check says so
         days = 0.0
+    if days > HORIZON_DAYS:
+        return slope, None, sign
     return slope, points[-1][0] + dt.timedelta(days=days), sign
 
 

@@ -315,6 +315,8 @@ CORPUS: dict[str, Case] = {
     "web-certfile-alone": case("web --certfile cert.pem", BAD, "--certfile and --keyfile go together"),
     "web-sqlite-on-every-address": case("web --db sqlite:///h.sqlite --host 0.0.0.0", BAD,
                                         "served on 127.0.0.1 only", "--allow-remote", files={"h.sqlite": b""}),
+    "web-remote-without-https": case("web --db sqlite:///h.sqlite --host 0.0.0.0 --allow-remote", BAD,
+                                     "--allow-remote serves HTTPS only", files={"h.sqlite": b""}),
     "history-summary-with-trend": case("history --summary --trend V-1", BAD, "--summary and --trend are separate"),
     # -- a second corpus, a newcomer's: what the system refuses, absurd counts, look-alike ids, mistyped URLs ----------
     "test-out-name-too-long": case(("test", "--out", "a" * 300), BAD, "too long", "shorter"),

@@ -32,7 +32,8 @@ def test_the_bulk_chain_refuses_a_history_that_is_not_empty(postgres_db: str) ->
         conn.exec_driver_sql("INSERT INTO edc_logins (login, mapped_by, mapped_at) VALUES ('x', 'y', 'z')")
     engine.dispose()
     with HistoryStore(postgres_db) as store:
-        store.add_row({"record_dir": "/r", "started_at": "2026-11-20T08:00:00+00:00", "valve_id": "V", "pump_serial": "P",
+        store.add_row({"record_dir": "/r", "started_at": "2026-11-20T08:00:00+00:00", "valve_id": "V",
+                       "pump_serial": "P",
                        "variant": "v", "part_number": "p", "verdict": "PASS", "station": "s", "operator": "o",
                        "clock": "real-time", "software_version": "t", "reason": ""})
     with pytest.raises(ValueError, match="holds tests already"):

@@ -260,7 +260,8 @@ def _copy_with(demo_db: Path, tmp_path: Path, started_at: str) -> Path:
     shutil.copy(demo_db, db)
     with HistoryStore(f"sqlite:///{db}") as store:
         store.add_row({"record_dir": "/old", "started_at": started_at, "valve_id": "V-OLD", "pump_serial": "P",
-                       "variant": "p-edc-default", "part_number": "PE", "verdict": "FAIL", "station": "Werkstatt Nord 1",
+                       "variant": "p-edc-default", "part_number": "PE", "verdict": "FAIL",
+                       "station": "Werkstatt Nord 1",
                        "operator": "o", "clock": "real-time", "software_version": "t", "reason": "", "test_key": "old"})
     return db
 
@@ -299,3 +300,54 @@ def test_a_chain_of_many_rigs_is_a_table_each_rig_charted_on_its_own_page(tmp_pa
         assert "due now (LVDT zero)" in page
         one = client.get("/rigs", params={"station": "Werkstatt Süd 2"}).text
         assert one.count("<img") == 1 and "Service due now" in one
+
+
+def test_an_abandoned_session_is_closed_when_it_expires(demo_db: Path) -> None:
+    from edc_bench.web.sessions import Sessions
+    from web_site import FakeClock
+
+    class Store:
+        closed = False
+
+        def close(self) -> None:
+            self.closed = True
+
+    clock = FakeClock()
+    sessions = Sessions(idle_s=60, max_s=3600, clock=clock)
+    abandoned = Store()
+    sessions.start("ana", abandoned)  # type: ignore[arg-type]
+    clock.now_s += 61
+    sessions.start("jonas", Store())  # type: ignore[arg-type]  # any sign-in sweeps the expired ones
+    assert abandoned.closed and len(sessions) == 1
+
+
+def test_failed_access_tokens_are_throttled(client: TestClient) -> None:
+    for _ in range(5):
+        form = client.get("/signin")
+        csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+        assert "wrong access token" in client.post("/signin", data={"csrf": csrf, "password": "guess"}).text
+    form = client.get("/signin")
+    csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+    assert "too many failed sign-ins" in client.post("/signin", data={"csrf": csrf, "password": TOKEN}).text
+
+
+def test_the_demo_chain_never_goes_into_a_history_that_holds_tests(demo_db: Path, tmp_path: Path) -> None:
+    import shutil
+
+    from edc_bench.history.demo_chain import fill_demo_chain
+
+    db = tmp_path / "station.sqlite"
+    shutil.copy(demo_db, db)
+    with HistoryStore(f"sqlite:///{db}") as store, pytest.raises(ValueError, match="holds tests already"):
+        fill_demo_chain(store)
+
+
+def test_a_report_is_found_by_its_folders_name_in_the_records_folder(records_dir: Path) -> None:
+    from edc_bench.web.app import report_path
+
+    (records_dir / "20261120T080000+0000-V-1").mkdir()
+    (records_dir / "20261120T080000+0000-V-1" / "report.pdf").write_bytes(b"%PDF")
+    station_path = "/home/bench3/records/20261120T080000+0000-V-1"  # where the station indexed it
+    assert report_path(records_dir, station_path) == (records_dir / "20261120T080000+0000-V-1" / "report.pdf"
+                                                      ).resolve()
+    assert report_path(records_dir, "/etc/..") is None and report_path(records_dir, "..") is None

@@ -74,7 +74,7 @@ def test_each_role_signs_in_with_its_database_login_and_sees_the_figures_history
         chain: dict[str, str], login: str, capsys: pytest.CaptureFixture[str]) -> None:
     url = chain["owner"] if login == "postgres" else chain[login]
     with _client(chain["owner"]) as client:
-        signed_in(client, login, "")
+        signed_in(client, login, "any: the tests' server trusts its logins")
         page = client.get("/chain").text
         assert f'<span class="who">{login}</span>' in page
     assert main(["history", "--db", url, "--summary", "--json"]) == 0
@@ -90,7 +90,7 @@ def test_a_login_of_no_role_is_refused_at_sign_in(chain: dict[str, str]) -> None
     with _client(chain["owner"]) as client:
         form = client.get("/signin")
         csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
-        response = client.post("/signin", data={"csrf": csrf, "login": "visitor", "password": ""})
+        response = client.post("/signin", data={"csrf": csrf, "login": "visitor", "password": "pw"})
         assert response.status_code == 403
         assert "this login may not read the history" in response.text
         assert client.get("/chain").status_code == 303
@@ -100,7 +100,7 @@ def test_a_login_the_server_does_not_know_is_refused(chain: dict[str, str]) -> N
     with _client(chain["owner"]) as client:
         form = client.get("/signin")
         csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
-        response = client.post("/signin", data={"csrf": csrf, "login": "x'; DROP ROLE bench3; --", "password": ""})
+        response = client.post("/signin", data={"csrf": csrf, "login": "x'; DROP ROLE bench3; --", "password": "pw"})
         assert response.status_code == 403 and "sign-in refused" in response.text
     engine = sa.create_engine(chain["owner"])
     with engine.connect() as conn:
@@ -110,7 +110,7 @@ def test_a_login_the_server_does_not_know_is_refused(chain: dict[str, str]) -> N
 
 def test_a_station_sees_the_withdrawn_and_the_changed_rows_as_such(chain: dict[str, str]) -> None:
     with _client(chain["owner"]) as client:
-        signed_in(client, "bench4", "")
+        signed_in(client, "bench4", "pw")
         withdrawn = client.get("/valve", params={"id": "S-typo"}).text
         assert "WITHDRAWN" in withdrawn and "valve id typed wrong" in withdrawn
         changed = client.get("/valve", params={"id": "N-9"}).text
@@ -126,8 +126,33 @@ def test_a_role_that_may_not_read_a_table_gets_a_message_not_a_traceback(chain: 
         conn.exec_driver_sql("REVOKE SELECT ON rig_checks FROM edc_station")
     engine.dispose()
     with _client(chain["owner"]) as client:
-        signed_in(client, "bench3", "")
+        signed_in(client, "bench3", "pw")
         response = client.get("/rigs")
         assert response.status_code == 403
         assert "may not" in response.text and "Traceback" not in response.text
         assert client.get("/chain").status_code in (200, 403)
+
+
+def test_a_login_without_a_password_is_refused_whatever_the_server_would_take(chain: dict[str, str],
+                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """The review of #55: with no password typed, the driver took the server's own (PGPASSWORD, ~/.pgpass, which a
+    station's account has for its login): anyone typing that login was signed in as it. The tests' server trusts
+    every login, so an empty password would have been let in here."""
+    monkeypatch.setenv("PGPASSWORD", "the station's own")
+    with _client(chain["owner"]) as client:
+        form = client.get("/signin")
+        csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+        response = client.post("/signin", data={"csrf": csrf, "login": "bench3", "password": ""})
+        assert response.status_code == 403 and "give your database login and its password" in response.text
+        assert client.get("/chain").status_code == 303
+
+
+def test_failed_sign_ins_of_a_login_are_throttled(chain: dict[str, str]) -> None:
+    with _client(chain["owner"]) as client:
+        for attempt in range(6):
+            form = client.get("/signin")
+            csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+            response = client.post("/signin", data={"csrf": csrf, "login": "visitor", "password": f"guess{attempt}"})
+            assert response.status_code == 403
+        assert "too many failed sign-ins" in response.text
+        signed_in(client, "bench3", "pw")  # another login is not held back
