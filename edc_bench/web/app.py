@@ -208,7 +208,7 @@ class _Site:
     async def signin(self, request: Request) -> Response:
         form = await request.form()
         token, cookie = str(form.get("csrf", "")), request.cookies.get(SIGNIN_COOKIE, "")
-        if not token or not cookie or not secrets.compare_digest(token, cookie):
+        if not token or not cookie or not secrets.compare_digest(token.encode(), cookie.encode()):
             return self.signin_form(request, "the form had expired or did not come from this page: sign in again",
                                     403)
         login, password = str(form.get("login", "")).strip()[:MAX_FIELD_CHARS], str(form.get("password", ""))

@@ -46,6 +46,7 @@ def test_sign_in_sets_a_secure_http_only_session_cookie_and_reaches_every_page(c
 @pytest.mark.parametrize("form", [
     {"login": "ana", "password": TOKEN},  # no CSRF token at all
     {"login": "ana", "password": TOKEN, "csrf": "forged-token-of-another-page"},
+    {"login": "ana", "password": TOKEN, "csrf": "Prüfstand-token"},  # not ASCII: compared as bytes, no error
 ])
 def test_a_sign_in_posted_without_its_csrf_token_is_refused(client: TestClient, form: dict[str, str]) -> None:
     client.get("/signin")  # the browser has the sign-in cookie; the attacker's page posts without the form's token
