@@ -24,8 +24,8 @@ def pg_program(name: str) -> str | None:
     return None
 
 
-def _as_postgres(cmd: list[str]) -> list[str]:
-    # the server refuses to run as root
+def as_postgres_user(cmd: list[str]) -> list[str]:
+    """``cmd`` run as the postgres user when this process is root (the server refuses to run as root)."""
     return ["runuser", "-u", "postgres", "--", *cmd] if os.geteuid() == 0 else cmd
 
 
@@ -41,7 +41,7 @@ def temporary_postgres() -> Iterator[str]:
         shutil.chown(base, "postgres")
     data = base / "data"
     try:
-        init = subprocess.run(_as_postgres([initdb, "-D", str(data), "-A", "trust", "-U", "postgres"]),
+        init = subprocess.run(as_postgres_user([initdb, "-D", str(data), "-A", "trust", "-U", "postgres"]),
                               capture_output=True, text=True)
         if init.returncode != 0:
             raise RuntimeError(f"initdb failed: {init.stderr.strip()[-300:]}")
@@ -49,13 +49,13 @@ def temporary_postgres() -> Iterator[str]:
             s.bind(("127.0.0.1", 0))
             port = s.getsockname()[1]
         options = f"-p {port} -k {base} -c listen_addresses=127.0.0.1"
-        start = subprocess.run(_as_postgres([pg_ctl, "-D", str(data), "-o", options, "-l", str(base / "log"), "-w",
+        start = subprocess.run(as_postgres_user([pg_ctl, "-D", str(data), "-o", options, "-l", str(base / "log"), "-w",
                                              "start"]), capture_output=True, text=True)
         if start.returncode != 0:
             raise RuntimeError(f"the server did not start: {start.stderr.strip()[-300:]}")
         try:
             yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/postgres"
         finally:
-            subprocess.run(_as_postgres([pg_ctl, "-D", str(data), "-m", "immediate", "stop"]), capture_output=True)
+            subprocess.run(as_postgres_user([pg_ctl, "-D", str(data), "-m", "immediate", "stop"]), capture_output=True)
     finally:
         shutil.rmtree(base, ignore_errors=True)

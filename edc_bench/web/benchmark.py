@@ -60,8 +60,7 @@ def measure(url: str, requests: int) -> list[PageTiming]:
 
     from edc_bench.web.app import WebConfig, create_app
 
-    server = url.rsplit("/", 1)[0] + "/" + url.rsplit("/", 1)[1]
-    app = create_app(WebConfig(url=server))
+    app = create_app(WebConfig(url=url))  # its login is replaced by the one signing in
     out = []
     with TestClient(app, base_url="https://bench", follow_redirects=False) as client:
         form = client.get("/signin").text
