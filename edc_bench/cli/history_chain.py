@@ -160,6 +160,7 @@ def _audit_table(events: list[dict[str, Any]], valve: str) -> None:
 
 def _verify(args: argparse.Namespace) -> int:
     from edc_bench.cli.exit_codes import ExitCode
+    from edc_bench.history.day_counts import mismatches as day_count_mismatches
     from edc_bench.history.store import HistoryStore
     from edc_bench.history.verify import RecordFinding, changed_findings, model_findings, verify
     from edc_bench.verdict.classifier import shipped_model_hashes
@@ -170,6 +171,9 @@ def _verify(args: argparse.Namespace) -> int:
         changes = store.changed_tests(args.station)
         adoptions = store.adoptions()
         breaks = store.chain_breaks(args.station)
+        misflagged = store.first_indexing_mismatches(args.station)
+        with store.reading() as conn:
+            misflagged += day_count_mismatches(conn)
         gone_heads = store.missing_heads(kept) if kept is not None else []
         restored = [f"the history's append-only triggers were found missing or changed and restored at "
                     f"{local_text(e['happened_at'], seconds=True)} ({e['detail']}): rows may have been changed "
@@ -177,7 +181,7 @@ def _verify(args: argparse.Namespace) -> int:
         where = store.shown_url
     found: list[RecordFinding] = verify(rows) + changed_findings(changes) + model_findings(rows, adoptions,
                                                                                     shipped_model_hashes())
-    chain = [b.line() for b in breaks] + gone_heads + restored
+    chain = [b.line() for b in breaks] + misflagged + gone_heads + restored
     if args.json:
         print(json.dumps({"checked": len(rows), "station": args.station, "findings": [f.__dict__ for f in found],
                           "chain": chain}, indent=2))

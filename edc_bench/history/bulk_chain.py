@@ -9,7 +9,7 @@ refuses a database that holds any test.
     python -m edc_bench.history.bulk_chain --db postgresql+psycopg://postgres@127.0.0.1/bench --tests 1000000
 
 Each station tests every day of the year before ``now`` (about 27 a day for a million over a hundred stations),
-one in eight a MARGINAL retested at once, INVALID tests with where they point; each station registers a reference
+one in eight a MARGINAL retested at once, one in 997 indexed again with other content, INVALID tests with where they point; each station registers a reference
 valve and checks its rig weekly (one rig in ten drifting towards its limit, one NO-GO); two adoptions per
 station; one withdrawal per station.
 """
@@ -31,9 +31,18 @@ from edc_bench.history.schema import FIGURES
 TEST_COLUMNS = ("id", "record_dir", "started_at", "valve_id", "pump_serial", "variant", "part_number", "verdict", "af_v",
                 "a1_v_s_per_mm", "af_rel", "a1_rel", "probability_faulty", "distance", "station", "operator", "clock",
                 "software_version", "reason", "simulated", "retest_of", "decision", "record_sha256", "indexed_at",
-                "indexed_by", "test_key", "legacy_key", "invalid_area")
+                "indexed_by", "test_key", "legacy_key", "invalid_area", "first_indexing")
+#: One test in this many is indexed again with other content (a change every reader shows; not a test of its own).
+REINDEXED_ONE_IN = 997
 VERDICTS = ("PASS", "FAIL", "MARGINAL", "INVALID")
+#: The pump types the chain tests (the shipped variant and five others, as many of each).
+VARIANTS = ("p-edc-default", "p-edc-6cyl", "p-edc-8cyl", "p-edc-marine", "p-edc-genset", "p-edc-rail")
 AREAS = ("mounting", "bus", "rig", "PC", "calibration")
+
+
+def technician(station: str, n: int) -> str:
+    """Who ran test ``n`` at ``station``: three technicians a station, each at their own station."""
+    return f"tech {station.removeprefix('Station ')}-{n % 3}"
 
 
 def station_name(k: int) -> str:
@@ -64,6 +73,10 @@ def _copy_tests(cursor: object, count: int, stations: int, now: dt.datetime, rng
             written += 1
             copy.write_row((written, *_row(folder, when, f"V-{n:07d}", name, n, v,
                                            AREAS[int(area[k])] if v == "INVALID" else None, None, None)))
+            if n % REINDEXED_ONE_IN == 0 and written < count:
+                written += 1
+                copy.write_row((written, *_row(folder, when, f"V-{n:07d}", name, n, "PASS", None, None, None,
+                                               first=False)))
             if v == "MARGINAL" and written < count:
                 second = "PASS" if n % 2 else "FAIL"
                 written += 1
@@ -73,14 +86,16 @@ def _copy_tests(cursor: object, count: int, stations: int, now: dt.datetime, rng
 
 
 def _row(folder: str, when: dt.datetime, valve: str, station: str, n: int, verdict: str, area: str | None,
-         retest_of: str | None, decision: str | None, retest: bool = False) -> tuple[object, ...]:
+         retest_of: str | None, decision: str | None, retest: bool = False, first: bool = True
+         ) -> tuple[object, ...]:
     rel = {"PASS": 1.1, "MARGINAL": 1.45, "FAIL": 1.9}.get(verdict, 1.0) + (n % 7) * 0.01
     started = _iso(when)
     key = f"bulk:{n}" + ("r" if retest else "")
-    return (folder, started, valve, f"P-{n % 50000:05d}", "p-edc-default", "0 402 196 700", verdict, 0.3 * rel,
-            0.011 * rel, rel, rel, min(1.0, max(0.0, rel - 1.2)), (rel - 1.5) * 2, station, f"tech-{n % 4}",
+    return (folder, started, valve, f"P-{n % 50000:05d}", VARIANTS[n % len(VARIANTS)], "0 402 196 700", verdict,
+            0.3 * rel, 0.011 * rel, rel, rel, min(1.0, max(0.0, rel - 1.2)), (rel - 1.5) * 2, station,
+            technician(station, n),
             "real-time", "bench", "" if verdict != "INVALID" else "not judged", False, retest_of, decision,
-            f"{n:064x}", started, "bulk", key, "legacy:" + key, area)
+            f"{n:064x}" if first else f"{n:063x}f", started, "bulk", key, "legacy:" + key, area, first)
 
 
 def _checks(conn: sa.Connection, stations: int, now: dt.datetime, rng: np.random.Generator) -> int:
@@ -117,7 +132,9 @@ def fill_bulk_chain(url: str, tests: int, stations: int = 100, now: dt.datetime 
 
     Returns what was written. Raises ValueError for a database that holds tests already.
     """
-    from edc_bench.history.schema import adoptions, amendments, edc_logins, tests as tests_table
+    from edc_bench.history.day_counts import KEY, recount
+    from edc_bench.history.schema import adoptions, amendments, edc_logins, test_day_counts
+    from edc_bench.history.schema import tests as tests_table
 
     now = (now or dt.datetime.now(dt.UTC)).replace(microsecond=0)
     rng = np.random.default_rng(seed)
@@ -137,11 +154,13 @@ def fill_bulk_chain(url: str, tests: int, stations: int = 100, now: dt.datetime 
                                                "model_sha256": f"{j}" * 64, "adopted_by": "owner",
                                                "adopted_at": _iso(now - dt.timedelta(days=200 - 100 * j))}
                                               for k in range(stations) for j in range(2)])
-            first_ids = conn.execute(sa.select(tests_table.c.id).where(tests_table.c.station.in_(
-                [station_name(k) for k in range(stations)])).order_by(tests_table.c.id).limit(stations)).scalars()
+            first_ids = conn.execute(sa.select(sa.func.min(tests_table.c.id)).where(tests_table.c.first_indexing)
+                                     .group_by(tests_table.c.station).order_by(sa.func.min(tests_table.c.id))).scalars()
             conn.execute(amendments.insert(), [{"id": n + 1, "target": "tests", "target_id": i, "action": "withdraw",
                                                 "reason": "benchmark", "amended_by": "owner",
                                                 "amended_at": _iso(now)} for n, i in enumerate(first_ids)])
+            # what revision 0008's trigger counts row by row, counted at once (the triggers are off)
+            conn.execute(test_day_counts.insert().from_select([*KEY, "tests"], recount()))
         with engine.connect() as conn:
             conn.execution_options(isolation_level="AUTOCOMMIT").exec_driver_sql("ANALYZE")
     finally:

@@ -90,8 +90,13 @@ tests = sa.Table(
     # where an INVALID test points the technician (edc_bench.records.advice.Area; None for other verdicts and in rows
     # indexed before revision 0007)
     sa.Column("invalid_area", sa.String(20)),
+    # whether this row is its test's first indexing (False: the test indexed again with other content); None in rows
+    # stored before revision 0008 (ask the earlier rows). PostgreSQL's trigger sets it; history --verify checks it
+    sa.Column("first_indexing", sa.Boolean),
     # a station's tests by time: the chain's figures per station and day, and each station's latest test
     sa.Index("ix_tests_station_started_at", "station", "started_at"),
+    # a technician's tests by time (revision 0008)
+    sa.Index("ix_tests_operator_started_at", "operator", "started_at"),
 )
 
 teardowns = sa.Table(
@@ -188,6 +193,7 @@ edc_logins = sa.Table(
     sa.Column("login", sa.String(200), nullable=False, index=True),
     sa.Column("station", sa.String(200)),  # None: a login that is no station's (an engineer's)
     sa.Column("person", sa.String(200)),
+    sa.Column("shop", sa.String(200)),  # the shop the station belongs to (None: not said)
     sa.Column("mapped_by", sa.String(200), nullable=False),
     sa.Column("mapped_at", sa.String(40), nullable=False),
 )
@@ -217,6 +223,21 @@ guard_events = sa.Table(
     *_chain(),
 )
 
+#: PostgreSQL only (revision 0008): the tests as they stand counted per day (UTC, the start's), station, verdict,
+#: first test or retest, INVALID area ('' for none) and simulated or not; a trigger counts each first indexing,
+#: withdrawals are subtracted where it is read (:mod:`edc_bench.history.day_counts`). Not a record: no login writes
+#: it, and it is not append-only (a count goes up).
+test_day_counts = sa.Table(
+    "test_day_counts", metadata,
+    sa.Column("day", sa.String(10), primary_key=True),
+    sa.Column("station", sa.String(200), primary_key=True),
+    sa.Column("verdict", sa.String(20), primary_key=True),
+    sa.Column("first_test", sa.Boolean, primary_key=True),
+    sa.Column("invalid_area", sa.String(20), primary_key=True),
+    sa.Column("simulated", sa.Boolean, primary_key=True),
+    sa.Column("tests", sa.BigInteger, nullable=False),
+)
+
 #: The append-only tables, in the order they were made.
 TABLES = (tests, teardowns, amendments, adoptions, reference_valves, rig_checks, edc_logins, chain_anchors,
           guard_events)
@@ -230,7 +251,7 @@ SQLITE_TRIGGERS = tuple(f"{t.name}_no_{event}" for t in TABLES for event in ("up
 
 #: Columns of a test in listings and CSV exports, in order (what a test is; how it was indexed is in --audit).
 COLUMNS = tuple(c.name for c in tests.columns if c.name not in ("record_manifest", "db_login", "prev_hash",
-                                                                 "row_hash", "legacy_key"))
+                                                                 "row_hash", "legacy_key", "first_indexing"))
 
 #: Teardown columns in listings, in order (the id: to withdraw or correct a finding recorded by mistake).
 TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name not in ("db_login", "prev_hash", "row_hash"))

@@ -178,14 +178,25 @@ def filter_clauses(f: Filters) -> list[sa.ColumnElement[bool]]:
     return clauses
 
 
+def first_indexings() -> sa.ColumnElement[bool]:
+    """The rows that are their test's first indexing (what it said when first indexed), withdrawn or not."""
+    # each row says whether it is (revision 0008), so a filter reads only its own rows; rows stored before it ask
+    # whether an earlier row of the same test exists (read per row, through the key's index)
+    earlier = tests.alias("earlier")
+    before_0008 = sa.and_(tests.c.first_indexing.is_(None),
+                          ~sa.exists().where(earlier.c.test_key == tests.c.test_key, earlier.c.id < tests.c.id))
+    return sa.or_(tests.c.first_indexing.is_(True), before_0008)
+
+
+def withdrawn_tests() -> sa.ColumnElement[bool]:
+    """The rows of tests that were withdrawn (every row of such a test)."""
+    return tests.c.test_key.in_(_withdrawn_keys())
+
+
 def standing_tests() -> sa.ColumnElement[bool]:
     """The rows that are tests as they stand: each test's first row (what it said when first indexed), unless the
     test was withdrawn."""
-    # no earlier row of the same test (an anti-join: PostgreSQL hashes the keys once), not a grouping of the whole
-    # table by key for every listing (measured on a million rows: 0.4 s against 1.1 s for the same month)
-    earlier = tests.alias("earlier")
-    first = ~sa.exists().where(earlier.c.test_key == tests.c.test_key, earlier.c.id < tests.c.id)
-    return sa.and_(first, tests.c.test_key.not_in(_withdrawn_keys()))
+    return sa.and_(first_indexings(), tests.c.test_key.not_in(_withdrawn_keys()))
 
 
 def parse_day(text: str | None, name: str) -> str | None:
@@ -236,6 +247,9 @@ class HistoryStore:
             #: the connection's and each statement's limit
             self.limits = history_limits()
             connect_args = self.limits.connect_args()
+            # no just-in-time compilation: the history's queries are short, and PostgreSQL compiled the chain
+            # page's month of a million-row table for 0.7 s to run it in 0.15 s (measured, docs/performance.md)
+            connect_args["options"] = f"-c jit=off {connect_args['options']}"
             if "options" in parsed.query:  # the URL's own server options come first
                 connect_args["options"] = f"{parsed.query['options']} {connect_args['options']}"
                 parsed = parsed.difference_update_query(["options"])
@@ -412,6 +426,7 @@ class HistoryStore:
                                                             .order_by(tests.c.id))]
             if any(_same_test(stored, row) for stored in before):
                 return "unchanged"
+            row["first_indexing"] = not before  # PostgreSQL's trigger sets it again (a client is not trusted)
             if self._append(conn, tests, row) is None:
                 return "unchanged"  # another station stored this content a moment ago
         return "new" if not before else "changed"
@@ -490,6 +505,27 @@ class HistoryStore:
                     recomputed, legacy = _pg_recomputed(conn, table.name, anchors)
                 found += check_chain(table.name, rows, anchors, recomputed, legacy)
         return found
+
+    def first_indexing_mismatches(self, station: str | None = None) -> list[str]:
+        """The test rows whose ``first_indexing`` is not what the rows before them say (one line each): a row that
+        says it is its test's first indexing though an earlier row of the test exists, or says it repeats a test
+        no earlier row holds. Readers trust the value (it decides which rows are the tests as they stand), so
+        ``history --verify`` holds every row to it; on PostgreSQL only the trigger sets it."""
+        earlier = tests.alias("earlier")
+        exists_earlier = sa.exists().where(earlier.c.test_key == tests.c.test_key, earlier.c.id < tests.c.id)
+        query = (sa.select(tests.c.id, tests.c.test_key, tests.c.first_indexing)
+                 .where(sa.or_(sa.and_(tests.c.first_indexing.is_(True), exists_earlier),
+                               sa.and_(tests.c.first_indexing.is_(False), ~exists_earlier)))
+                 .order_by(tests.c.id))
+        if station is not None:
+            query = query.where(tests.c.station == station)
+        with self._guard("read"), self.engine.connect() as conn:
+            found = conn.execute(query).all()
+        return [f"tests row {row.id} says it is " + ("the first indexing of its test, but an earlier row indexed it"
+                                                     if row.first_indexing else
+                                                     "its test indexed again, but no earlier row indexed it")
+                + ": the tests shown as standing would be wrong (the row was written outside edc-bench)"
+                for row in found]
 
     def _chain_breaks_since_checked(self, full: bool) -> list[Break]:
         """The SQLite chain's breaks, checked in full at this process's first opening of the file (and after its
@@ -815,7 +851,7 @@ LISTED = ("changes", "chain_hash")
 LIST_COLUMNS = COLUMNS + LISTED
 
 #: The columns that say how a row was indexed, not what the test was.
-_INDEXING = ("id", "record_manifest", "indexed_at", "indexed_by", "db_login")
+_INDEXING = ("id", "record_manifest", "indexed_at", "indexed_by", "db_login", "first_indexing")
 
 
 def _same_test(stored: dict[str, Any], row: dict[str, Any]) -> bool:

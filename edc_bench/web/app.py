@@ -280,15 +280,15 @@ class _Site:
                                query=request.query_params, since=None)
         summary = chain_summary(session.store, filters)
         return self.render(request, "chain.html", session, summary=summary, since=default_since(request),
-                           days=DEFAULT_DAYS,
-                           chart=charts.tests_per_day(summary.per_day), message="", query=request.query_params)
+                           days=DEFAULT_DAYS, chart=charts.tests_per_day(summary.per_day, period=summary.period),
+                           message="", query=request.query_params)
 
     def chain_csv(self, request: Request, session: Session) -> Response:
         summary = chain_summary(session.store, filters_of(request))
         tables: dict[str, tuple[Sequence[str], Iterable[Sequence[object]]]] = {
             "verdicts": (("verdict", "tests"), summary.verdicts),
             "invalid": (("where to look", "tests"), summary.invalid_areas),
-            "days": (("day", "station", "tests"), ((d.day, d.station, d.tests) for d in summary.per_day)),
+            "days": ((summary.period, "station", "tests"), ((d.day, d.station, d.tests) for d in summary.per_day)),
             "stations": (("station", "tests", "latest test", "latest self-check", "quiet"),
                          ((s.station, s.tests, local_text(s.last_test_at), local_text(s.last_check_at), s.quiet)
                           for s in summary.stations)),

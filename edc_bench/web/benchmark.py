@@ -43,7 +43,9 @@ def pages(now: dt.datetime) -> list[tuple[str, str, dict[str, str]]]:
     return [
         ("chain, the last 30 days (the default)", "/chain", {}),
         ("chain, one station, the last 30 days", "/chain", {"station": "Station 042"}),
-        ("chain, one technician, the last 30 days", "/chain", {"technician": "tech-1"}),
+        ("chain, one technician, the last 30 days", "/chain", {"technician": "tech 042-1"}),
+        ("chain, one technician, the whole year", "/chain", {"technician": "tech 042-1", "since": year}),
+        ("chain, one pump type, the last 30 days", "/chain", {"pump_type": "p-edc-marine"}),
         ("chain, the whole year", "/chain", {"since": year}),
         ("tests per day as CSV, the last 30 days", "/chain/days.csv", {}),
         ("rigs, every station (a table)", "/rigs", {}),

@@ -43,16 +43,17 @@ def _pyplot():  # noqa: ANN202 - matplotlib's pyplot, on the headless backend
     return plt
 
 
-def tests_per_day(days: tuple[DayCount, ...], top: int = 8) -> str | None:
-    """Tests per day, a bar per day stacked by station (the ``top`` busiest stations, the rest as 'others')."""
+def tests_per_day(days: tuple[DayCount, ...], top: int = 8, period: str = "day") -> str | None:
+    """Tests per day (or ``month``), a bar per period stacked by station (the ``top`` busiest stations, the rest as
+    'others')."""
     if not days:
         return None
     plt = _pyplot()
     with _DRAWING, plt.rc_context(_AS_TYPED):
-        return _tests_per_day(plt, days, top)
+        return _tests_per_day(plt, days, top, period)
 
 
-def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int) -> str:
+def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int, period: str) -> str:
     totals: dict[str, int] = {}
     for d in days:
         totals[d.station] = totals.get(d.station, 0) + d.tests
@@ -63,12 +64,12 @@ def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int) -> str:
     for d in days:
         series[d.station if d.station in named else "others"][index[d.day]] += d.tests
     fig, ax = plt.subplots(figsize=(8, 3.2))
-    x = [dt.date.fromisoformat(day) if len(day) == 10 else k for k, day in enumerate(dates)]
+    x = [dt.date.fromisoformat(day if len(day) == 10 else f"{day}-01") for day in dates]
     shown = {name: counts for name, counts in series.items() if any(counts)}
     # one filled step outline per station, not a patch per bar: a year of a hundred stations draws as fast as a week
     ax.stackplot(x, *shown.values(), labels=list(shown), step="mid")
-    ax.set_ylabel("tests per day")
-    ax.set_xlabel("day (UTC)")
+    ax.set_ylabel(f"tests per {period}")
+    ax.set_xlabel(f"{period} (UTC)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the days, never over them
     fig.autofmt_xdate()
     return svg_data(fig)

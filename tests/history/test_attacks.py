@@ -218,6 +218,89 @@ def test_a_row_changed_with_the_triggers_off_breaks_the_chain_where_it_was_done(
     assert any("row 2 of tests" in line and "deleted or put in" in line for line in chain_lines), found.stdout
 
 
+def _insert_claiming_first(url: str, row: dict) -> dict:
+    """An INSERT that says the row is its test's first indexing (revision 0008's column), as typed in psql."""
+    columns = [*row, "first_indexing"]
+    with psycopg.connect(_dsn(url), row_factory=psycopg.rows.dict_row) as conn:
+        return conn.execute(f"INSERT INTO tests ({', '.join(columns)}) VALUES "
+                            f"({', '.join(f'%({c})s' for c in columns)}) RETURNING *",
+                            {**row, "first_indexing": True}).fetchone()
+
+
+def test_a_stations_claim_that_its_row_is_a_tests_first_indexing_is_the_servers_to_make(
+        chain: dict[str, str]) -> None:
+    """Readers take a row's first_indexing as which row stands: a station re-indexing its own FAIL as PASS and
+    saying the PASS is the first would have two standing rows, the PASS counted."""
+    with HistoryStore(chain["bench3"]) as station:
+        assert station.add_row(_row("V-70", "FAIL", key="K-70", sha="d" * 64)) == "new"
+    stored = _insert_claiming_first(chain["bench3"], _row("V-70", "PASS", key="K-70", sha="e" * 64))
+    assert stored["first_indexing"] is False
+    listed = HistoryStore(chain["owner"]).list()
+    assert [(r["verdict"], r["changes"]) for r in listed] == [("FAIL", 1)]
+    assert "says it is" not in _verify(chain["owner"]).stdout
+
+
+def test_two_stations_indexing_one_test_at_once_cannot_both_be_its_first(chain: dict[str, str]) -> None:
+    """bench4 indexes a test and has not committed yet when bench3 indexes the same test with other content: the
+    test's lock makes bench3 wait, then see bench4's row (refused: another station's test), not both rows stand."""
+    import threading
+
+    first = psycopg.connect(_dsn(chain["bench4"]))
+    first.execute(_INSERT, {"id": None, "record_manifest": None, "indexed_at": None, "db_login": None,
+                            **_row("V-71", "FAIL", key="K-71", sha="f" * 64)})
+    outcome: list[BaseException | dict] = []
+
+    def second() -> None:
+        try:
+            outcome.append(_raw_insert(chain["bench3"], _row("V-71", "PASS", key="K-71", sha="0" * 64)))
+        except psycopg.Error as exc:
+            outcome.append(exc)
+
+    thread = threading.Thread(target=second)
+    thread.start()
+    with psycopg.connect(_dsn(chain["owner"])) as watcher:  # bench3 is waiting on the test's lock, not done
+        for _ in range(600):
+            if watcher.execute("SELECT count(*) FROM pg_stat_activity WHERE usename = 'bench3' AND "
+                               "wait_event_type = 'Lock'").fetchone()[0]:
+                break
+            thread.join(0.05)
+        else:
+            pytest.fail(f"bench3's insert did not wait for bench4's ({outcome})")
+    first.commit()
+    first.close()
+    thread.join(30)
+    assert len(outcome) == 1 and isinstance(outcome[0], psycopg.errors.InsufficientPrivilege), outcome
+    listed = HistoryStore(chain["owner"]).list()
+    assert [(r["verdict"], r["station"]) for r in listed] == [("FAIL", "Werkstatt Süd 4")]
+
+
+def test_a_sqlite_row_forged_as_a_tests_first_indexing_is_named_by_verify(tmp_path: Path) -> None:
+    """A station's own file: a PASS re-index written with the program's own chain code, claiming to be the first
+    (the chain holds: the station computed it). --verify names the row every time."""
+    from edc_bench.history.chain import row_hash
+
+    path = tmp_path / "history.sqlite"
+    url = f"sqlite:///{path}"
+    with HistoryStore(url) as store:
+        store.add_row({**_row("V-72", "FAIL", key="K-72", sha="1" * 64), "station": "bench1"})
+        stored = dict(store.list()[0])
+    with sqlite3.connect(path) as conn:
+        conn.row_factory = sqlite3.Row
+        last = dict(conn.execute("SELECT * FROM tests ORDER BY id DESC LIMIT 1").fetchone())
+        forged = {**last, "id": last["id"] + 1, "verdict": "PASS", "record_sha256": "2" * 64, "first_indexing": 1,
+                  "prev_hash": last["row_hash"], "row_hash": None}
+        forged["row_hash"] = row_hash("tests", forged["prev_hash"], {**forged, "first_indexing": True})
+        conn.execute(f"INSERT INTO tests ({', '.join(forged)}) VALUES ({', '.join('?' * len(forged))})",
+                     list(forged.values()))
+    assert stored["verdict"] == "FAIL"
+    for _ in range(2):
+        found = _verify(url)
+        assert found.returncode == 16
+        assert f"tests row {forged['id']} says it is the first indexing of its test, but an earlier row indexed it" \
+            in found.stdout, found.stdout
+        assert "was edited" not in found.stdout  # the chain itself holds: the value is what is wrong
+
+
 # --- a record tampered with and indexed again, on both databases --------------------------------------------------
 
 

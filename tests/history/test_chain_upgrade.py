@@ -64,6 +64,17 @@ def test_the_chain_revision_keeps_every_row_and_anchors_the_old_ones(old_history
                               "pump_serial": "S", "variant": "p-edc-default", "part_number": "PE", "verdict": "PASS",
                               "station": "bench1", "operator": "ana", "clock": "real-time",
                               "software_version": "0.1.0", "reason": "", "record_sha256": "d" * 64}) == "new"
+        # old rows say nothing of their first indexing (revision 0008): readers ask the rows before them, as
+        # above; the rows added since say it, and one indexed again is a change beside the old ones
+        row = {**store.list()[0], "record_sha256": "e" * 64, "verdict": "INVALID"}
+        assert store.add_row(row) == "changed"
+        assert [(r["valve_id"], r["verdict"], r["changes"]) for r in store.list()] == [
+            ("V1", "FAIL", 2), ("V2", "PASS", 0), ("V3", "PASS", 0)]
+        assert store.first_indexing_mismatches() == [] and store.chain_breaks() == []
+    with sa.create_engine(old_history).connect() as conn:
+        flags = conn.exec_driver_sql("SELECT valve_id, first_indexing FROM tests ORDER BY id").all()
+    assert [tuple(f) for f in flags] == [("V1", None), ("V2", None), ("V1", None), ("V3", True), ("V1", False)]
+    with HistoryStore(old_history) as store:
         assert store.chain_breaks() == []
     engine = sa.create_engine(old_history)
     with engine.begin() as conn:  # an old row changed afterwards, the triggers held off (the owner's rights)

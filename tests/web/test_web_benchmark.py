@@ -16,12 +16,18 @@ from edc_bench.web.benchmark import measure
 def test_the_bulk_chain_fills_an_empty_history_and_every_timed_page_answers(postgres_db: str) -> None:
     written = fill_bulk_chain(postgres_db, 3000, stations=20)
     assert written["tests"] == 3000 and written["checks"] == 20 * 52
+    engine = sa.create_engine(postgres_db)
+    with engine.connect() as conn:
+        again = conn.exec_driver_sql("SELECT count(*) FROM tests WHERE NOT first_indexing").scalar()
+    engine.dispose()
+    assert again == 3  # one test in 997 indexed again with other content (tests 0, 997 and 1994)
     with HistoryStore(postgres_db) as store:
         summary = chain_summary(store, Filters(simulated=False))
-        assert summary.tests == 3000 - 20  # one withdrawal per station
-        assert summary.retests > 0 and len(summary.stations) == 20
+        assert summary.tests == 3000 - 20 - again  # one withdrawal per station; a change is no test of its own
+        assert summary.retests > 0 and len(summary.stations) == 20 and summary.period == "month"
+        assert summary.per_day and all(len(d.day) == 7 for d in summary.per_day)
     timings = measure(postgres_db, requests=1)
-    assert len(timings) == 10 and all(t.p50_ms > 0 for t in timings)
+    assert len(timings) == 12 and all(t.p50_ms > 0 for t in timings)
     with pytest.raises(ValueError, match="holds tests already"):
         fill_bulk_chain(postgres_db, 10)
 
