@@ -44,6 +44,9 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
                             "login's mapping")
     chain.add_argument("--person", type=identity(), default=None, metavar="NAME",
                        help="with --map-login: the person the login is (named in its withdrawals and adoptions)")
+    chain.add_argument("--shop", type=identity(), default=None, metavar="NAME",
+                       help="with --map-login LOGIN --station NAME: the shop that station belongs to (the chain's "
+                            "figures are counted by shop); with --summary or a listing: only that shop's stations")
     chain.add_argument("--rig", action="store_true",
                        help="the rig self-check's ledger: each reference valve registered, each 'edc-bench "
                             "rig-selfcheck', GO or NO-GO, what drifted, and each figure's change against the "
@@ -83,6 +86,9 @@ def chain_action(args: argparse.Namespace) -> Callable[[argparse.Namespace], int
         raise ConfigError(f"--summary and {' and '.join(chosen)} are separate actions: give one at a time")
     if args.person is not None and args.map_login is None:
         raise ConfigError("--person goes with --map-login LOGIN (the person that database login is)")
+    if args.shop is not None and not (args.map_login is not None or args.summary or not chosen):
+        raise ConfigError("--shop goes with --map-login LOGIN --station NAME (the station's shop), --summary or a "
+                          "listing (one shop's tests)")
     if args.verify and args.heads == "-":
         raise ConfigError("--verify --heads FILE: name the file of heads kept earlier ('edc-bench history --heads "
                           "> FILE' wrote it)")
@@ -254,7 +260,9 @@ def _map_login(args: argparse.Namespace) -> int:
                 raise ConfigError("--map-login LOGIN --station NAME: name the database login to map")
             rows = store.logins()
             for r in rows:
-                print(f"{r['login']}: station {r['station'] or '(none)'}, person {r['person'] or '(the login)'} "
+                print(f"{r['login']}: station {r['station'] or '(none)'}"
+                      + (f" of shop {r['shop']}" if r.get("shop") else "")
+                      + f", person {r['person'] or '(the login)'} "
                       f"(mapped {local_text(r['mapped_at'])} by {r['mapped_by']})")
             if not rows:
                 print("no login is mapped yet: edc-bench history --map-login LOGIN --station NAME")
@@ -262,8 +270,13 @@ def _map_login(args: argparse.Namespace) -> int:
         if args.station is None and args.person is None:
             raise ConfigError(f"--map-login {args.map_login}: give --station NAME (a station's login) and/or --person "
                               "NAME (the person the login is)")
-        row = store.map_login(args.map_login, args.station, args.person, person_name(None, "who maps the login"))
+        if args.shop is not None and args.station is None:
+            raise ConfigError(f"--map-login {args.map_login} --shop {args.shop}: a shop is a station's; give the "
+                              "login's --station NAME too")
+        row = store.map_login(args.map_login, args.station, args.person, person_name(None, "who maps the login"),
+                              shop=args.shop)
     print(f"database login {row['login']} is station {row['station'] or '(none)'}"
+          + (f" of shop {row['shop']}" if row["shop"] else "")
           + (f", person {row['person']}" if row["person"] else "")
           + ": the database writes it into that login's rows from now on")
     return 0

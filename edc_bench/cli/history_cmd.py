@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
             return _trend(store, args)
         filters = Filters(valve_id=args.valve_id, pump_serial=args.pump_serial, variant=args.variant,
                           verdict=args.verdict, since=since, until=until, station=args.station,
-                          operator=args.operator)
+                          operator=args.operator, shop=args.shop)
         if args.summary:  # as the web view's chain page: a rig's tests, the simulated rig's only if asked for
             from dataclasses import replace
 

@@ -27,8 +27,11 @@ def summary_lines(summary: ChainSummary) -> list[str]:
              f"({summary.first_marginal} MARGINAL, {summary.retests} retest(s) done)"]
     if summary.invalid_areas:
         lines.append("INVALID by where to look: " + ", ".join(f"{a} {n}" for a, n in summary.invalid_areas))
+    for shop, stations, tests in summary.shops:
+        lines.append(f"shop {shop}: {stations} station(s), {tests} test(s)")
     for s in summary.stations:
-        lines.append(f"station {s.station}: {s.tests} test(s), latest test {local_text(s.last_test_at, empty='never')}"
+        lines.append(f"station {s.station}" + (f" (shop {s.shop})" if s.shop else "")
+                     + f": {s.tests} test(s), latest test {local_text(s.last_test_at, empty='never')}"
                      f", latest self-check {local_text(s.last_check_at, empty='never')}"
                      + (" - QUIET" if s.quiet else ""))
     return lines
@@ -38,7 +41,8 @@ def print_summary(summary: ChainSummary, as_json: bool) -> None:
     """Print the figures (``--json``: every figure, rates included, as one object)."""
     if as_json:
         data = {**asdict(summary), "first_pass_rate": summary.first_pass_rate,
-                "marginal_rate": summary.marginal_rate}
+                "marginal_rate": summary.marginal_rate,
+                "shops": [{"shop": shop, "stations": n, "tests": t} for shop, n, t in summary.shops]}
         print_quietly_if_closed(lambda: print(json.dumps(data, indent=2)))
         return
     print_quietly_if_closed(lambda: print("\n".join(summary_lines(summary))))

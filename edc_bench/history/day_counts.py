@@ -22,7 +22,8 @@ from typing import Any
 import sqlalchemy as sa
 
 from edc_bench.history.schema import test_day_counts, tests
-from edc_bench.history.store import Filters, filter_clauses, first_indexings, standing_tests, withdrawn_tests
+from edc_bench.history.store import (Filters, filter_clauses, first_indexings, shop_stations, standing_tests,
+                                     withdrawn_tests)
 
 #: The count's key, in order: names and the expressions on a test row (revision 0008's trigger uses the same).
 KEY = ("day", "station", "verdict", "first_test", "invalid_area", "simulated")
@@ -87,6 +88,8 @@ def counted_from_day_counts(filters: Filters) -> sa.Select[Any] | sa.CompoundSel
     wanted: list[sa.ColumnElement[bool]] = []
     if filters.station is not None:
         wanted.append(c.station == filters.station)
+    if filters.shop is not None:
+        wanted.append(c.station.in_(shop_stations(filters.shop)))
     if filters.verdict is not None:
         wanted.append(c.verdict == filters.verdict)
     if filters.simulated is not None:

@@ -156,6 +156,8 @@ class Filters:
     station: str | None = None
     #: the technician (the record's operator)
     operator: str | None = None
+    #: the shop: its stations (:func:`shop_stations`)
+    shop: str | None = None
 
 
 def filter_clauses(f: Filters) -> list[sa.ColumnElement[bool]]:
@@ -168,6 +170,8 @@ def filter_clauses(f: Filters) -> list[sa.ColumnElement[bool]]:
             clauses.append(column == value)
     if f.variant is not None:
         clauses.append(sa.or_(tests.c.variant == f.variant, tests.c.part_number == f.variant))
+    if f.shop is not None:
+        clauses.append(tests.c.station.in_(shop_stations(f.shop)))
     if f.simulated is not None:
         clauses.append(_simulated(f.simulated))
     if f.since is not None:
@@ -176,6 +180,20 @@ def filter_clauses(f: Filters) -> list[sa.ColumnElement[bool]]:
         # a day given alone includes the whole day
         clauses.append(tests.c.started_at <= (f.until if "T" in f.until else f.until + "T99"))
     return clauses
+
+
+def station_shops() -> sa.Subquery:
+    """Each station's shop (``station``, ``shop``): its newest login mapping that names one (revision 0008)."""
+    newest = (sa.select(sa.func.max(edc_logins.c.id)).where(edc_logins.c.station.is_not(None),
+                                                            edc_logins.c.shop.is_not(None))
+              .group_by(edc_logins.c.station))
+    return sa.select(edc_logins.c.station, edc_logins.c.shop).where(edc_logins.c.id.in_(newest)).subquery("shops")
+
+
+def shop_stations(shop: str) -> sa.Select[Any]:
+    """The stations of ``shop`` (:func:`station_shops`)."""
+    shops = station_shops()
+    return sa.select(shops.c.station).where(shops.c.shop == shop)
 
 
 def first_indexings() -> sa.ColumnElement[bool]:
@@ -506,6 +524,37 @@ class HistoryStore:
                 found += check_chain(table.name, rows, anchors, recomputed, legacy)
         return found
 
+    def altered_tests(self, ids: Sequence[int]) -> set[int]:
+        """Which of the test rows ``ids`` are not as their chain stored them: the row's content hashed again is not
+        its ``row_hash``, or its ``prev_hash`` is not the hash of the row before it in its chain (a row put in or
+        taken out there). A few rows (a valve's page); ``history --verify`` checks every chain whole."""
+        wanted = [int(i) for i in ids]
+        if not wanted:
+            return set()
+        earlier = tests.alias("earlier")
+        before = (sa.select(earlier.c.row_hash).where(earlier.c.station == tests.c.station, earlier.c.id < tests.c.id,
+                                                      earlier.c.row_hash.is_not(None))
+                  .order_by(earlier.c.id.desc()).limit(1).scalar_subquery())
+        anchor = (sa.select(chain_anchors.c.hash).where(chain_anchors.c.tbl == "tests",
+                                                       chain_anchors.c.chain == sa.func.coalesce(tests.c.station, ""))
+                  .order_by(chain_anchors.c.id.desc()).limit(1).scalar_subquery())
+        altered: set[int] = set()
+        with self._guard("read"), self.engine.connect() as conn:
+            rows = conn.execute(sa.select(tests, before.label("chain_before"), anchor.label("anchor"))
+                                .where(tests.c.id.in_(wanted), tests.c.row_hash.is_not(None))).all()
+            if not self.is_sqlite:
+                recomputed = dict(conn.execute(sa.text(
+                    "SELECT t.id, encode(sha256(convert_to(coalesce(t.prev_hash, '') || '|tests|' || "
+                    "(jsonb_strip_nulls(to_jsonb(t)) - 'prev_hash' - 'row_hash')::text, 'UTF8')), 'hex') "
+                    "FROM tests t WHERE t.id = ANY(:ids)"), {"ids": wanted}).all())
+        for row in rows:
+            content = {k: v for k, v in row._mapping.items() if k not in ("chain_before", "anchor")}
+            again = recomputed.get(row.id) if not self.is_sqlite else row_hash("tests", row.prev_hash or "", content)
+            follows = row.chain_before if row.chain_before is not None else (row.anchor or "")
+            if again != row.row_hash or (row.prev_hash or "") != follows:
+                altered.add(int(row.id))
+        return altered
+
     def first_indexing_mismatches(self, station: str | None = None) -> list[str]:
         """The test rows whose ``first_indexing`` is not what the rows before them say (one line each): a row that
         says it is its test's first indexing though an earlier row of the test exists, or says it repeats a test
@@ -587,11 +636,15 @@ class HistoryStore:
 
     # -- who each login is (the chain's owner keeps it) -----------------------------------------------------------
 
-    def map_login(self, login: str, station: str | None, person: str | None, by: str) -> dict[str, Any]:
+    def map_login(self, login: str, station: str | None, person: str | None, by: str,
+                  shop: str | None = None) -> dict[str, Any]:
         """Say which station (and person) a database login is (``history --map-login``): from then on the database
         writes that station into every test and rig self-check the login adds, and that person into its
-        withdrawals, adoptions and registrations. A login's newest mapping stands. The owner's login only."""
-        row = {"login": login, "station": station, "person": person, "mapped_by": by, "mapped_at": _now()}
+        withdrawals, adoptions and registrations. A login's newest mapping stands. ``shop``: the shop the station
+        belongs to (a station's newest mapping that names a shop stands: :func:`shop_stations`). The owner's login
+        only."""
+        row = {"login": login, "station": station, "person": person, "mapped_by": by, "mapped_at": _now(),
+               "shop": shop}
         with self._writing("map-login") as conn:
             row["id"] = conn.execute(edc_logins.insert().values(**row)).inserted_primary_key[0]
         return row

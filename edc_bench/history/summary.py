@@ -23,7 +23,7 @@ import sqlalchemy as sa
 
 from edc_bench.history.day_counts import counted_from_day_counts, counted_from_rows, day_counts_answer
 from edc_bench.history.schema import edc_logins, reference_valves, rig_checks, tests
-from edc_bench.history.store import Filters, HistoryStore, filter_clauses
+from edc_bench.history.store import Filters, HistoryStore, filter_clauses, station_shops
 from edc_bench.verdict.verdicts import Verdict
 
 #: A station with no test for this many days is listed as quiet.
@@ -56,6 +56,8 @@ class StationActivity:
     last_test_at: str | None
     last_check_at: str | None
     quiet: bool
+    #: the shop the station belongs to (None: no login mapping names one)
+    shop: str | None = None
 
 
 @dataclass(frozen=True)
@@ -84,6 +86,17 @@ class ChainSummary:
         """MARGINAL among first tests (None: no first test)."""
         return self.first_marginal / self.first_tests if self.first_tests else None
 
+    @property
+    def shops(self) -> tuple[tuple[str, int, int], ...]:
+        """Each shop named (by name): its stations and their tests in the filter; stations of no shop left out."""
+        stations: Counter[str] = Counter()
+        counted: Counter[str] = Counter()
+        for station in self.stations:
+            if station.shop is not None:
+                stations[station.shop] += 1
+                counted[station.shop] += station.tests
+        return tuple((shop, stations[shop], counted[shop]) for shop in sorted(stations))
+
     def count(self, verdict: str) -> int:
         """How many tests had ``verdict``."""
         return dict(self.verdicts).get(verdict, 0)
@@ -111,20 +124,27 @@ def chain_summary(store: HistoryStore, filters: Filters, now: dt.datetime | None
     """
     use_counts = not store.is_sqlite and day_counts_answer(filters)
     period = counting_period(filters, now)
-    # the day counts are read twice (cheap: a table of counts); the rows once, kept for both sums
-    source = (counted_from_day_counts if use_counts else counted_from_rows)(filters)
-    counted = source.subquery("counted") if use_counts else source.cte("counted")
+    counted = (counted_from_day_counts if use_counts else counted_from_rows)(filters).subquery("counted")
+    when = counted.c.day if period == "day" else sa.func.substr(counted.c.day, 1, 7)
+    keyed = sa.select(when.label("period"), *(counted.c[name] for name in ("station", "verdict", "first_test",
+                                                                           "invalid_area", "tests"))).subquery("keyed")
+    k = keyed.c
     # summed in the database: the days (or months) by station, and the verdict mix by first test and INVALID area
     # (a year's counts are a few hundred thousand; what comes back is a row per month and station, and a few)
-    when = counted.c.day if period == "day" else sa.func.substr(counted.c.day, 1, 7)
-    per_day = sa.select(sa.literal("day").label("kind"), when.label("day"), counted.c.station,
-                        sa.cast(sa.null(), sa.String).label("verdict"), sa.cast(sa.null(), sa.Boolean).label("first"),
-                        sa.cast(sa.null(), sa.String).label("area"), sa.func.sum(counted.c.tests).label("tests")
-                        ).group_by(when, counted.c.station)
-    mix = sa.select(sa.literal("mix").label("kind"), sa.cast(sa.null(), sa.String).label("day"),
-                    sa.cast(sa.null(), sa.String).label("station"), counted.c.verdict, counted.c.first_test,
-                    counted.c.invalid_area, sa.func.sum(counted.c.tests)
-                    ).group_by(counted.c.verdict, counted.c.first_test, counted.c.invalid_area)
+    if store.is_sqlite:  # no grouping sets: two sums (a station's file is small)
+        per_day = sa.select(sa.literal("day").label("kind"), k.period, k.station,
+                            sa.cast(sa.null(), sa.String).label("verdict"), sa.cast(sa.null(), sa.Boolean).label("f"),
+                            sa.cast(sa.null(), sa.String).label("area"), sa.func.sum(k.tests)).group_by(k.period,
+                                                                                                         k.station)
+        mix = sa.select(sa.literal("mix").label("kind"), sa.cast(sa.null(), sa.String).label("period"),
+                        sa.cast(sa.null(), sa.String).label("station"), k.verdict, k.first_test, k.invalid_area,
+                        sa.func.sum(k.tests)).group_by(k.verdict, k.first_test, k.invalid_area)
+        sums: sa.Executable = sa.union_all(per_day, mix)
+    else:  # one pass over the counts (or rows), both sums at once
+        sums = (sa.select(sa.case((sa.func.grouping(k.period) == 0, "day"), else_="mix"), k.period, k.station,
+                          k.verdict, k.first_test, k.invalid_area, sa.func.sum(k.tests))
+                .group_by(sa.func.grouping_sets(sa.tuple_(k.period, k.station),
+                                                sa.tuple_(k.verdict, k.first_test, k.invalid_area))))
     verdicts: Counter[str] = Counter()
     areas: Counter[str] = Counter()
     days: Counter[tuple[str, str]] = Counter()
@@ -132,7 +152,7 @@ def chain_summary(store: HistoryStore, filters: Filters, now: dt.datetime | None
     with store.reading() as conn:
         if not store.is_sqlite:  # the sums hashed in memory, not sorted on disk: PostgreSQL's 4 MB default sorted a
             conn.exec_driver_sql("SET LOCAL work_mem = '32MB'")  # year's counts twice (0.25 s of 0.35, measured)
-        for kind, when, station, verdict, is_first, area, total in conn.execute(sa.union_all(per_day, mix)):
+        for kind, when, station, verdict, is_first, area, total in conn.execute(sums):
             count = int(total or 0)
             if not count:  # a day whose tests were all withdrawn
                 continue
@@ -180,8 +200,12 @@ def _stations(conn: sa.Connection, filters: Filters, in_filter: Counter[str], no
     for table in (rig_checks, reference_valves, edc_logins):
         query = sa.select(table.c.station).distinct().where(table.c.station.is_not(None))
         known |= {str(s) for (s,) in conn.execute(query)}
+    shop_of = {str(station): str(shop) for station, shop in conn.execute(sa.select(station_shops()))}
+    known |= set(shop_of)
     if filters.station is not None:
         known &= {filters.station}
+    if filters.shop is not None:
+        known = {station for station in known if shop_of.get(station) == filters.shop}
     wanted = filter_clauses(Filters(simulated=filters.simulated))
     cutoff = (now - dt.timedelta(days=quiet_days)).astimezone(dt.UTC).isoformat(timespec="seconds")
     if not known:
@@ -198,5 +222,5 @@ def _stations(conn: sa.Connection, filters: Filters, in_filter: Counter[str], no
         out.append(StationActivity(str(station), int(in_filter.get(station, 0)),
                                    None if last_test is None else str(last_test),
                                    None if last_check is None else str(last_check),
-                                   quiet=last_test is None or str(last_test) < cutoff))
+                                   quiet=last_test is None or str(last_test) < cutoff, shop=shop_of.get(station)))
     return tuple(out)

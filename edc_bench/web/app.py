@@ -125,7 +125,8 @@ def filters_of(request: Request) -> Filters:
         raise BadRequest("since is after until: give the earlier day first")
     simulated = request.query_params.get("simulated") == "1"
     return Filters(since=since, until=until, station=_field(request, "station"), variant=_field(request, "pump"),
-                   operator=_field(request, "technician"), simulated=None if simulated else False)
+                   operator=_field(request, "technician"), simulated=None if simulated else False,
+                   shop=_field(request, "shop"))
 
 
 def csv_response(rows: Iterable[Sequence[object]], columns: Sequence[str], name: str) -> Response:
@@ -289,9 +290,10 @@ class _Site:
             "verdicts": (("verdict", "tests"), summary.verdicts),
             "invalid": (("where to look", "tests"), summary.invalid_areas),
             "days": ((summary.period, "station", "tests"), ((d.day, d.station, d.tests) for d in summary.per_day)),
-            "stations": (("station", "tests", "latest test", "latest self-check", "quiet"),
-                         ((s.station, s.tests, local_text(s.last_test_at), local_text(s.last_check_at), s.quiet)
-                          for s in summary.stations)),
+            "stations": (("station", "shop", "tests", "latest test", "latest self-check", "quiet"),
+                         ((s.station, s.shop or "", s.tests, local_text(s.last_test_at), local_text(s.last_check_at),
+                           s.quiet) for s in summary.stations)),
+            "shops": (("shop", "stations", "tests"), summary.shops),
         }
         table = str(request.path_params.get("table", ""))
         if table not in tables:

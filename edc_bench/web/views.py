@@ -207,10 +207,12 @@ class Indexing:
 
     row: sa.RowMapping
     state: str
+    #: the row is not as its chain stored it (edited, or put in or taken out beside it): not to be trusted
+    altered: bool = False
 
 
 def valve_tests(store: HistoryStore, valve_id: str) -> list[Indexing]:
-    """Every indexing of a valve's tests, oldest first, each with its state."""
+    """Every indexing of a valve's tests, oldest first, each with its state and whether its chain holds."""
     withdrawn = sa.select(amendments.c.target_id).where(amendments.c.target == "tests",
                                                          amendments.c.action == "withdraw")
     query = sa.select(tests, tests.c.id.in_(withdrawn).label("withdrawn_row"),
@@ -218,8 +220,9 @@ def valve_tests(store: HistoryStore, valve_id: str) -> list[Indexing]:
     with store.reading() as conn:
         rows = list(conn.execute(query))
     withdrawn_keys = {r.test_key for r in rows if r.withdrawn_row}
+    altered = store.altered_tests([r.id for r in rows])
     return [Indexing(r._mapping, "withdrawn" if r.test_key in withdrawn_keys else "standing" if r.standing
-                     else "change") for r in rows]
+                     else "change", r.id in altered) for r in rows]
 
 
 def test_row(store: HistoryStore, test_id: int) -> sa.Row[Any] | None:

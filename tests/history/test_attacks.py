@@ -258,7 +258,9 @@ def test_two_stations_indexing_one_test_at_once_cannot_both_be_its_first(chain: 
 
     thread = threading.Thread(target=second)
     thread.start()
-    with psycopg.connect(_dsn(chain["owner"])) as watcher:  # bench3 is waiting on the test's lock, not done
+    # bench3 is waiting on the test's lock, not done (each poll its own transaction: a transaction sees one snapshot
+    # of pg_stat_activity)
+    with psycopg.connect(_dsn(chain["owner"]), autocommit=True) as watcher:
         for _ in range(600):
             if watcher.execute("SELECT count(*) FROM pg_stat_activity WHERE usename = 'bench3' AND "
                                "wait_event_type = 'Lock'").fetchone()[0]:

@@ -41,6 +41,7 @@ FILTERS = [
     Filters(simulated=False),
     Filters(simulated=True),
     Filters(station="bench1"),
+    Filters(shop="Nord", since="2026-11-02T09:30:00+00:00"),
     Filters(verdict="INVALID"),
     Filters(since="2026-11-02", until="2026-11-03"),
     # a local day's bounds (UTC+1): a partial day at either end
@@ -71,6 +72,7 @@ def indexed(postgres_db: str) -> str:
         store.add_row(gone)
         withdrawn = next(r for r in store.list() if r["record_dir"] == gone["record_dir"])
         store.withdraw_test(withdrawn["id"], "mounted the wrong valve")
+        store.map_login("login1", "bench1", None, "admin", shop="Nord")
     return postgres_db
 
 

@@ -7,6 +7,7 @@ import json
 import re
 import uuid
 
+import psycopg
 import pytest
 import sqlalchemy as sa
 from web_site import signed_in
@@ -86,6 +87,33 @@ def test_each_role_signs_in_with_its_database_login_and_sees_the_figures_history
     assert {"Werkstatt Nord 3", "Werkstatt Süd 4"} <= set(stations)
 
 
+def test_the_chain_is_counted_by_shop_and_filtered_to_one(chain: dict[str, str],
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """The owner says each station's shop (--map-login ... --shop); a station moved to another shop counts there."""
+    owner = chain["owner"]
+    assert main(["history", "--db", owner, "--map-login", "bench3", "--station", "Werkstatt Nord 3", "--shop",
+                 "Nord"]) == 0
+    assert main(["history", "--db", owner, "--map-login", "bench4", "--station", "Werkstatt Süd 4", "--shop",
+                 "Nord"]) == 0
+    assert main(["history", "--db", owner, "--map-login", "bench4", "--station", "Werkstatt Süd 4", "--shop",
+                 "Süd <&>"]) == 0
+    capsys.readouterr()
+    assert main(["history", "--db", owner, "--summary", "--shop", "Nord", "--json"]) == 0
+    nord = json.loads(capsys.readouterr().out)
+    assert nord["shops"] == [{"shop": "Nord", "stations": 1, "tests": 6}]
+    assert [s["station"] for s in nord["stations"]] == ["Werkstatt Nord 3"] and nord["tests"] == 6
+    with _client(owner) as client:
+        signed_in(client, "bench4", "pw")
+        page = client.get("/chain").text
+        shops = re.findall(r'<tr><td>([^<]+)</td><td class="num">(\d+)</td><td class="num">(\d+)</td></tr>', page)
+        assert shops == [("Nord", "1", "6"), ("Süd &lt;&amp;&gt;", "1", "1")]
+        one = client.get("/chain", params={"shop": "Süd <&>"}).text
+        assert re.search(r'id="tests">(\d+)<', one).group(1) == "1"  # type: ignore[union-attr]
+        csv = client.get("/chain/shops.csv").text.splitlines()
+        assert csv == ["shop,stations,tests", "Nord,1,6", "Süd <&>,1,1"]
+        assert client.get("/chain", params={"shop": "x' OR '1'='1"}).status_code == 200
+
+
 def test_a_login_of_no_role_is_refused_at_sign_in(chain: dict[str, str]) -> None:
     with _client(chain["owner"]) as client:
         form = client.get("/signin")
@@ -118,6 +146,27 @@ def test_a_station_sees_the_withdrawn_and_the_changed_rows_as_such(chain: dict[s
         assert re.findall(r'<td class="verdict (\w+)">', changed) == ["FAIL"]
         odd = client.get("/valve", params={"id": 'S-<b>"1"</b>'}).text
         assert "S-&lt;b&gt;&#34;1&#34;&lt;/b&gt;" in odd and "<b>" not in odd
+
+
+def test_a_forged_row_is_shown_as_altered_and_the_rows_beside_it_stay_trusted(chain: dict[str, str]) -> None:
+    """What the owner's or a superuser's rights could still do: a FAIL turned PASS with the triggers off, and a
+    PASS put into the chain by hand (its hashes copied from the row before). The valve's page says so."""
+    with psycopg.connect(chain["owner"].replace("postgresql+psycopg://", "postgresql://")) as conn:
+        conn.execute("ALTER TABLE tests DISABLE TRIGGER tests_append_only")
+        conn.execute("UPDATE tests SET verdict = 'PASS' WHERE valve_id = 'N-2'")
+        conn.execute("ALTER TABLE tests ENABLE TRIGGER tests_append_only")
+        conn.execute("SET session_replication_role = replica")  # no stamp: the row says what the forger typed
+        conn.execute("INSERT INTO tests (id, record_dir, started_at, valve_id, pump_serial, variant, part_number, "
+                     "verdict, station, operator, clock, software_version, reason, test_key, first_indexing, "
+                     "prev_hash, row_hash) SELECT 9000, record_dir || '-x', started_at, 'N-2', pump_serial, variant, "
+                     "part_number, 'PASS', station, operator, clock, software_version, reason, 'forged', true, "
+                     "prev_hash, row_hash FROM tests WHERE valve_id = 'N-1'")
+    with _client(chain["owner"]) as client:
+        signed_in(client, "bench4", "pw")
+        page = client.get("/valve", params={"id": "N-2"}).text
+        assert page.count("ALTERED: not as the history") == 2, page
+        kept = client.get("/valve", params={"id": "N-1"}).text
+        assert "ALTERED" not in kept
 
 
 def test_a_role_that_may_not_read_a_table_gets_a_message_not_a_traceback(chain: dict[str, str]) -> None:
