@@ -260,8 +260,8 @@ def _map_login(args: argparse.Namespace) -> int:
                 raise ConfigError("--map-login LOGIN --station NAME: name the database login to map")
             rows = store.logins()
             for r in rows:
-                print(f"{r['login']}: station {r['station'] or '(none)'}"
-                      + (f" of shop {r['shop']}" if r.get("shop") else "")
+                shop = r.get("shop")
+                print(f"{r['login']}: station {r['station'] or '(none)'}" + (f" of shop {shop}" if shop else "")
                       + f", person {r['person'] or '(the login)'} "
                       f"(mapped {local_text(r['mapped_at'])} by {r['mapped_by']})")
             if not rows:
@@ -276,7 +276,7 @@ def _map_login(args: argparse.Namespace) -> int:
         row = store.map_login(args.map_login, args.station, args.person, person_name(None, "who maps the login"),
                               shop=args.shop)
     print(f"database login {row['login']} is station {row['station'] or '(none)'}"
-          + (f" of shop {row['shop']}" if row["shop"] else "")
+          + (f" of shop {args.shop}" if args.shop else "")
           + (f", person {row['person']}" if row["person"] else "")
           + ": the database writes it into that login's rows from now on")
     return 0

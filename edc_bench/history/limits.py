@@ -36,12 +36,13 @@ class HistoryLimits:
     connect_timeout_s: float = DEFAULT_CONNECT_S
     statement_timeout_s: float = DEFAULT_STATEMENT_S
 
-    def connect_args(self) -> dict[str, object]:
-        """psycopg's (libpq's) connection parameters that hold these limits."""
+    def connect_args(self, server_options: str = "") -> dict[str, object]:
+        """psycopg's (libpq's) connection parameters that hold these limits (``server_options``: more ``-c`` settings
+        for the server, before the statement's limit)."""
         statement_ms = int(self.statement_timeout_s * 1000)
         return {"connect_timeout": max(int(math.ceil(self.connect_timeout_s)), int(MIN_CONNECT_S)),
                 "tcp_user_timeout": statement_ms, "keepalives": 1, "keepalives_idle": 5, "keepalives_interval": 2,
-                "keepalives_count": 3, "options": f"-c statement_timeout={statement_ms}"}
+                "keepalives_count": 3, "options": f"{server_options} -c statement_timeout={statement_ms}".strip()}
 
 
 def _number(value: object, name: str, where: str) -> float:

@@ -264,10 +264,9 @@ class HistoryStore:
 
             #: the connection's and each statement's limit
             self.limits = history_limits()
-            connect_args = self.limits.connect_args()
             # no just-in-time compilation: the history's queries are short, and PostgreSQL compiled the chain
             # page's month of a million-row table for 0.7 s to run it in 0.15 s (measured, docs/performance.md)
-            connect_args["options"] = f"-c jit=off {connect_args['options']}"
+            connect_args = self.limits.connect_args(server_options="-c jit=off")
             if "options" in parsed.query:  # the URL's own server options come first
                 connect_args["options"] = f"{parsed.query['options']} {connect_args['options']}"
                 parsed = parsed.difference_update_query(["options"])
@@ -444,8 +443,8 @@ class HistoryStore:
                                                             .order_by(tests.c.id))]
             if any(_same_test(stored, row) for stored in before):
                 return "unchanged"
-            row["first_indexing"] = not before  # PostgreSQL's trigger sets it again (a client is not trusted)
-            if self._append(conn, tests, row) is None:
+            # whether this is the test's first indexing: PostgreSQL's trigger sets it again (a client is not trusted)
+            if self._append(conn, tests, {**row, "first_indexing": not before}) is None:
                 return "unchanged"  # another station stored this content a moment ago
         return "new" if not before else "changed"
 
