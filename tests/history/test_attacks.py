@@ -692,3 +692,19 @@ def test_an_adoption_made_out_of_the_chains_sight_is_refused_before_a_test_and_n
     assert edc_bench("history", "--add", *map(str, out.iterdir()), "--db", chain["bench3"]).returncode == 0
     found = _verify(chain["bench3"], "--station", "Werkstatt Nord 3")
     assert found.returncode == 16 and "model: test" in found.stdout and "no adoption" in found.stdout
+
+
+def test_a_sqlite_row_edited_in_place_is_the_one_a_valves_page_calls_altered(tmp_path: Path) -> None:
+    """The web view's ALTERED mark (HistoryStore.altered_tests) on a station's own file: the edited row, no other."""
+    path = tmp_path / "history.sqlite"
+    url = f"sqlite:///{path}"
+    with HistoryStore(url) as store:
+        for valve in ("V-90", "V-91", "V-92"):
+            store.add_row({**_row(valve, "FAIL"), "station": "bench1"})
+        ids = [int(r["id"]) for r in store.list()]
+        assert store.altered_tests(ids) == set()
+    with sqlite3.connect(path) as conn:
+        conn.execute("DROP TRIGGER tests_no_update")
+        conn.execute("UPDATE tests SET verdict = 'PASS' WHERE valve_id = 'V-91'")
+    with HistoryStore(url, warn=lambda _problem: None) as store:
+        assert store.altered_tests(ids) == {ids[1]}
