@@ -542,10 +542,8 @@ class HistoryStore:
             rows = conn.execute(sa.select(tests, before.label("chain_before"), anchor.label("anchor"))
                                 .where(tests.c.id.in_(wanted), tests.c.row_hash.is_not(None))).all()
             if not self.is_sqlite:
-                recomputed = dict(conn.execute(sa.text(
-                    "SELECT t.id, encode(sha256(convert_to(coalesce(t.prev_hash, '') || '|tests|' || "
-                    "(jsonb_strip_nulls(to_jsonb(t)) - 'prev_hash' - 'row_hash')::text, 'UTF8')), 'hex') "
-                    "FROM tests t WHERE t.id = ANY(:ids)"), {"ids": wanted}).all())
+                recomputed = dict(conn.execute(sa.text(f"SELECT t.id, {_pg_row_hash('tests')} FROM tests t "
+                                                       "WHERE t.id = ANY(:ids)"), {"ids": wanted}).all())
         for row in rows:
             content = {k: v for k, v in row._mapping.items() if k not in ("chain_before", "anchor")}
             again = recomputed.get(row.id) if not self.is_sqlite else row_hash("tests", row.prev_hash or "", content)
@@ -970,20 +968,27 @@ def _anchors(conn: sa.Connection, table: str, station: str | None) -> dict[str, 
     return {r.chain: dict(r._mapping) for r in conn.execute(query.order_by(chain_anchors.c.id))}
 
 
+#: A row ``t``'s content as PostgreSQL hashes it (revision 0006's trigger): jsonb, empty values and the chain left out.
+_PG_CANONICAL = "(jsonb_strip_nulls(to_jsonb(t)) - 'prev_hash' - 'row_hash')::text"
+
+
+def _pg_row_hash(table: str) -> str:
+    """The SQL of row ``t``'s hash recomputed by PostgreSQL, as its trigger computed it."""
+    return (f"encode(sha256(convert_to(coalesce(t.prev_hash, '') || '|{table}|' || {_PG_CANONICAL}, 'UTF8')), "
+            "'hex')")
+
+
 def _pg_recomputed(conn: sa.Connection, table: str, anchors: dict[str, dict[str, Any]]
                    ) -> tuple[dict[int, str], dict[str, str]]:
     """Each chained row's hash and each anchored chain's digest as PostgreSQL computes them (revision 0006's
     trigger and anchors): the same canonical form as when they were written."""
-    canonical = "(jsonb_strip_nulls(to_jsonb(t)) - 'prev_hash' - 'row_hash')::text"
-    rows = conn.execute(sa.text(
-        f"SELECT t.id, encode(sha256(convert_to(coalesce(t.prev_hash, '') || '|{table}|' || {canonical}, 'UTF8')), "
-        f"'hex') FROM {table} t WHERE t.row_hash IS NOT NULL"))
+    rows = conn.execute(sa.text(f"SELECT t.id, {_pg_row_hash(table)} FROM {table} t WHERE t.row_hash IS NOT NULL"))
     recomputed = {int(r[0]): str(r[1]) for r in rows}
     chain = f"coalesce(t.{CHAIN_COLUMN[table]}, '')"
     legacy: dict[str, str] = {}
     for name, anchor in anchors.items():
         digest = conn.execute(sa.text(
-            f"SELECT encode(sha256(convert_to(string_agg({canonical}, E'\\n' ORDER BY t.id), 'UTF8')), 'hex') "
+            f"SELECT encode(sha256(convert_to(string_agg({_PG_CANONICAL}, E'\\n' ORDER BY t.id), 'UTF8')), 'hex') "
             f"FROM {table} t WHERE t.row_hash IS NULL AND t.id <= :last AND {chain} = :chain"),
             {"last": anchor["last_id"], "chain": name}).scalar()
         legacy[name] = str(digest or "")
