@@ -114,9 +114,10 @@ def _token(path: Path | None) -> str:
 def _serve(config: object, args: argparse.Namespace) -> int:
     import uvicorn
 
-    from edc_bench.web.app import create_app
+    from edc_bench.web.app import create_app, settle_for_serving
 
     app = create_app(config)  # type: ignore[arg-type]
+    settle_for_serving()
     uvicorn.run(app, host=args.host, port=args.port, log_level="warning",
                 ssl_certfile=str(args.certfile) if args.certfile else None,
                 ssl_keyfile=str(args.keyfile) if args.keyfile else None)

@@ -132,8 +132,8 @@ def fill_bulk_chain(url: str, tests: int, stations: int = 100, now: dt.datetime 
 
     Returns what was written. Raises ValueError for a database that holds tests already.
     """
-    from edc_bench.history.day_counts import KEY, recount
-    from edc_bench.history.schema import adoptions, amendments, edc_logins, test_day_counts
+    from edc_bench.history.day_counts import KEY, MONTH_KEY, recount
+    from edc_bench.history.schema import adoptions, amendments, edc_logins, test_day_counts, test_month_counts
     from edc_bench.history.schema import tests as tests_table
 
     now = (now or dt.datetime.now(dt.UTC)).replace(microsecond=0)
@@ -159,8 +159,9 @@ def fill_bulk_chain(url: str, tests: int, stations: int = 100, now: dt.datetime 
             conn.execute(amendments.insert(), [{"id": n + 1, "target": "tests", "target_id": i, "action": "withdraw",
                                                 "reason": "benchmark", "amended_by": "owner",
                                                 "amended_at": _iso(now)} for n, i in enumerate(first_ids)])
-            # what revision 0008's trigger counts row by row, counted at once (the triggers are off)
+            # what revisions 0008 and 0009's trigger counts row by row, counted at once (the triggers are off)
             conn.execute(test_day_counts.insert().from_select([*KEY, "tests"], recount()))
+            conn.execute(test_month_counts.insert().from_select([*MONTH_KEY, "tests"], recount("month")))
         with engine.connect() as conn:
             conn.execution_options(isolation_level="AUTOCOMMIT").exec_driver_sql("ANALYZE")
     finally:

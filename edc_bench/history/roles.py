@@ -31,7 +31,8 @@ ROLES = (STATION, ENGINEER, OWNER)
 INSERTS = {STATION: ("tests", "rig_checks"), ENGINEER: ("teardowns", "amendments", "adoptions", "reference_valves")}
 #: Every table of the history, the migrations' bookkeeping included.
 ALL_TABLES = ("tests", "teardowns", "amendments", "adoptions", "reference_valves", "rig_checks", "edc_logins",
-              "chain_anchors", "chain_heads", "guard_events", "test_day_counts", "alembic_version")
+              "chain_anchors", "chain_heads", "guard_events", "test_day_counts",
+              "test_month_counts", "alembic_version")
 
 
 @dataclass(frozen=True)

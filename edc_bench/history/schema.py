@@ -97,6 +97,9 @@ tests = sa.Table(
     sa.Index("ix_tests_station_started_at", "station", "started_at"),
     # a technician's tests by time (revision 0008)
     sa.Index("ix_tests_operator_started_at", "operator", "started_at"),
+    # a pump type's tests by time, whichever name the filter gives (revision 0009)
+    sa.Index("ix_tests_variant_started_at", "variant", "started_at"),
+    sa.Index("ix_tests_part_number_started_at", "part_number", "started_at"),
 )
 
 teardowns = sa.Table(
@@ -231,6 +234,21 @@ test_day_counts = sa.Table(
     "test_day_counts", metadata,
     sa.Column("day", sa.String(10), primary_key=True),
     sa.Column("station", sa.String(200), primary_key=True),
+    sa.Column("verdict", sa.String(20), primary_key=True),
+    sa.Column("first_test", sa.Boolean, primary_key=True),
+    sa.Column("invalid_area", sa.String(20), primary_key=True),
+    sa.Column("simulated", sa.Boolean, primary_key=True),
+    sa.Column("tests", sa.BigInteger, nullable=False),
+)
+
+#: PostgreSQL only (revision 0009): the same counts per month (UTC) and pump type (variant and part number), kept by
+#: the same trigger: a year's figures sum whole months from these (:mod:`edc_bench.history.day_counts`).
+test_month_counts = sa.Table(
+    "test_month_counts", metadata,
+    sa.Column("month", sa.String(7), primary_key=True),
+    sa.Column("station", sa.String(200), primary_key=True),
+    sa.Column("variant", sa.String(200), primary_key=True),
+    sa.Column("part_number", sa.String(100), primary_key=True),
     sa.Column("verdict", sa.String(20), primary_key=True),
     sa.Column("first_test", sa.Boolean, primary_key=True),
     sa.Column("invalid_area", sa.String(20), primary_key=True),

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import sqlalchemy as sa
 
-from edc_bench.history.day_counts import counted_from_day_counts, counted_from_rows, day_counts_answer
+from edc_bench.history.day_counts import counted_from_counts, counted_from_rows, counts_answer
 from edc_bench.history.schema import edc_logins, reference_valves, rig_checks, tests
 from edc_bench.history.store import Filters, HistoryStore, filter_clauses, station_shops
 from edc_bench.verdict.verdicts import Verdict
@@ -107,7 +107,7 @@ def chain_summary(store: HistoryStore, filters: Filters, now: dt.datetime | None
     """The chain's figures for ``filters`` (see the module's docstring).
 
     The tests the filter selects counted by day, station, verdict, first test or retest and INVALID area
-    (:mod:`~edc_bench.history.day_counts`: PostgreSQL's day counts where they answer the filter, else the rows),
+    (:mod:`~edc_bench.history.day_counts`: PostgreSQL's counts where they answer the filter, else the rows),
     summed in the database by day (month, for a long range) and station and by verdict; and each station's latest
     test from the (station, started_at) index.
 
@@ -122,9 +122,9 @@ def chain_summary(store: HistoryStore, filters: Filters, now: dt.datetime | None
     quiet_days : int
         Days without a test after which a station is quiet.
     """
-    use_counts = not store.is_sqlite and day_counts_answer(filters)
     period = counting_period(filters, now)
-    counted = (counted_from_day_counts if use_counts else counted_from_rows)(filters).subquery("counted")
+    use_counts = not store.is_sqlite and counts_answer(filters, period)
+    counted = (counted_from_counts(filters, period) if use_counts else counted_from_rows(filters)).subquery("counted")
     when = counted.c.day if period == "day" else sa.func.substr(counted.c.day, 1, 7)
     keyed = sa.select(when.label("period"), *(counted.c[name] for name in ("station", "verdict", "first_test",
                                                                            "invalid_area", "tests"))).subquery("keyed")

@@ -46,6 +46,7 @@ def pages(now: dt.datetime) -> list[tuple[str, str, dict[str, str]]]:
         ("chain, one technician, the last 30 days", "/chain", {"technician": "tech 042-1"}),
         ("chain, one technician, the whole year", "/chain", {"technician": "tech 042-1", "since": year}),
         ("chain, one pump type, the last 30 days", "/chain", {"pump_type": "p-edc-marine"}),
+        ("chain, one pump type, the whole year", "/chain", {"pump_type": "p-edc-marine", "since": year}),
         ("chain, the whole year", "/chain", {"since": year}),
         ("tests per day as CSV, the last 30 days", "/chain/days.csv", {}),
         ("rigs, every station (a table)", "/rigs", {}),
@@ -60,9 +61,10 @@ def measure(url: str, requests: int) -> list[PageTiming]:
     """Each page's timings (ms) on the history ``url`` (its superuser's), signed in as that login."""
     from starlette.testclient import TestClient
 
-    from edc_bench.web.app import WebConfig, create_app
+    from edc_bench.web.app import WebConfig, create_app, settle_for_serving
 
     app = create_app(WebConfig(url=url))  # its login is replaced by the one signing in
+    settle_for_serving()  # as edc-bench web does before it serves
     out = []
     with TestClient(app, base_url="https://bench", follow_redirects=False) as client:
         form = client.get("/signin").text

@@ -18,15 +18,19 @@ if TYPE_CHECKING:
     from edc_bench.web.views import FigureDrift
 
 
-def svg_data(fig: Figure) -> str:
-    """A figure as a ``data:`` URL of its SVG (an ``<img>`` shows it; the CSP allows images from data: only)."""
+def svg_data(fig: Figure, tight: bool = True) -> str:
+    """A figure as a ``data:`` URL of its SVG (an ``<img>`` shows it; the CSP allows images from data: only);
+    ``tight``: cropped to what is drawn (matplotlib draws it twice to know), else as the figure's margins lay it out."""
     import matplotlib.pyplot as plt
 
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="svg", bbox_inches="tight")
+    fig.savefig(buffer, format="svg", **({"bbox_inches": "tight"} if tight else {}))
     plt.close(fig)
     return "data:image/svg+xml;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
 
+
+#: a station's name in a chart's legend is cut after this many characters (the legend's room is fixed)
+LEGEND_CHARACTERS = 24
 
 #: names are the shops' text: '$' in a station's name is no formula
 _AS_TYPED = {"text.parse_math": False}
@@ -41,6 +45,13 @@ def _pyplot():  # noqa: ANN202 - matplotlib's pyplot, on the headless backend
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def warm() -> None:
+    """Load the plotting library and draw one small chart (what the first page drawn would otherwise pay)."""
+    from edc_bench.history.summary import DayCount
+
+    tests_per_day((DayCount("2026-01-01", "warm", 1),))
 
 
 def tests_per_day(days: tuple[DayCount, ...], top: int = 8, period: str = "day") -> str | None:
@@ -67,12 +78,19 @@ def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int, period: str) 
     x = [dt.date.fromisoformat(day if len(day) == 10 else f"{day}-01") for day in dates]
     shown = {name: counts for name, counts in series.items() if any(counts)}
     # one filled step outline per station, not a patch per bar: a year of a hundred stations draws as fast as a week
-    ax.stackplot(x, *shown.values(), labels=list(shown), step="mid")
+    ax.stackplot(x, *shown.values(), labels=[_cut(name) for name in shown], step="mid")
     ax.set_ylabel(f"tests per {period}")
     ax.set_xlabel(f"{period} (UTC)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the days, never over them
     fig.autofmt_xdate()
-    return svg_data(fig)
+    # margins set, not measured: cropping to what is drawn draws the chart twice (a quarter of the chain page's
+    # time); the legend's names are cut to fit its room
+    fig.subplots_adjust(left=0.1, right=0.76, bottom=0.3, top=0.96)
+    return svg_data(fig, tight=False)
+
+
+def _cut(name: str) -> str:
+    return name if len(name) <= LEGEND_CHARACTERS else name[:LEGEND_CHARACTERS - 1] + "\u2026"
 
 
 def drift_chart(station: str, drifts: list[FigureDrift]) -> str | None:

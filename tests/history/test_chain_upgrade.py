@@ -1,5 +1,6 @@
 """Revision 0006 on a history an earlier edc-bench kept: every row kept, the old rows anchored (not rehashed), a
-folder indexed twice before shown as a test and its change, and an old row changed afterwards found."""
+folder indexed twice before shown as a test and its change, and an old row changed afterwards found; the later
+revisions' counts (0008, 0009) filled in from the old rows."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 import pytest
 import sqlalchemy as sa
 
-from edc_bench.history import migrate
+from edc_bench.history import day_counts, migrate
 from edc_bench.history.chain import legacy_test_key
 from edc_bench.history.store import HistoryStore
 
@@ -73,6 +74,12 @@ def test_the_chain_revision_keeps_every_row_and_anchors_the_old_ones(old_history
         assert store.first_indexing_mismatches() == [] and store.chain_breaks() == []
     with sa.create_engine(old_history).connect() as conn:
         flags = conn.exec_driver_sql("SELECT valve_id, first_indexing FROM tests ORDER BY id").all()
+        # PostgreSQL's day and month counts (revisions 0008, 0009): the old rows filled in, the new ones counted
+        assert day_counts.mismatches(conn) == []
+        if conn.dialect.name == "postgresql":
+            assert conn.exec_driver_sql("SELECT month, sum(tests) FROM test_month_counts GROUP BY month "
+                                        "ORDER BY month").all() == [
+                ("2026-05", 2), ("2026-06", 1)]
     assert [tuple(f) for f in flags] == [("V1", None), ("V2", None), ("V1", None), ("V3", True), ("V1", False)]
     with HistoryStore(old_history) as store:
         assert store.chain_breaks() == []
