@@ -275,6 +275,7 @@ def _adopt(args: argparse.Namespace) -> int:
     from edc_bench.errors import ConfigError
     from edc_bench.history.store import HistoryStore
     from edc_bench.learning.adoption import adopt, adopt_shipped, load_candidate
+    from edc_bench.learning.candidate_evaluation import EVALUATION_KEY, CandidateEvaluation
     from edc_bench.verdict.classifier import packaged_model_path
 
     if args.from_history:
@@ -293,10 +294,13 @@ def _adopt(args: argparse.Namespace) -> int:
     by = args.by or getpass.getuser()
     adopted: list[Any] = []
     # recorded in the history around the station's change: a login that may not adopt changes nothing here
+    # a shop candidate carries its cross-validated figures: the history keeps what the adoption was decided on
+    evaluation = CandidateEvaluation.from_json(model.metadata.get(EVALUATION_KEY))
     with HistoryStore(args.db) as store:
         store.add_adoption(model.name, model.sha256, chain_station(store, default_station()), by,
                            then=lambda: adopted.append(adopt_shipped() if shipped else adopt(Path(args.adopt), by,
-                                                                                             model)))
+                                                                                             model)),
+                           evaluation=None if evaluation is None else evaluation.to_json())
         where = store.shown_url
     if shipped:
         # the files that stood in for shipped ones, renamed: named so the line says where they went

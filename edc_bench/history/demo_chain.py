@@ -202,8 +202,18 @@ def fill_demo_chain(store: HistoryStore, *, stations: int = 4, days: int = 28, t
     for s, station in enumerate(names[:2]):
         _write(store, adoptions, {"station": station, "model_name": f"shop-2026-{s + 10}", "model_sha256": f"{s}" * 64,
                                   "adopted_by": "ines", "adopted_at": _iso(start + dt.timedelta(days=14)),
-                                  "db_login": None})
+                                  "db_login": None, "evaluation": _evaluation(f"shop-2026-{s + 10}", 120 + 40 * s)})
     return {"tests": written_tests, "checks": checks, "adoptions": min(2, len(names))}
+
+
+def _evaluation(name: str, labels: int) -> str:
+    """What a demo adoption was decided on: figures of the kind a shop's 5-fold cross-validation gives."""
+    from edc_bench.learning.candidate_evaluation import CandidateEvaluation, Score
+
+    worn = labels // 3
+    candidate = Score(f"{name} (cross-validated)", labels, 0.93, 6, 0.96, 2, 3)
+    shipped = Score("p-edc-default", labels, 0.81, 9, 0.84, worn // 3, 4)
+    return CandidateEvaluation(5, labels, worn, candidate, shipped, "a" * 64).to_json()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

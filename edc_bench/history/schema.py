@@ -140,6 +140,9 @@ adoptions = sa.Table(
     sa.Column("adopted_by", sa.String(200), nullable=False),
     sa.Column("adopted_at", sa.String(40), nullable=False),
     sa.Column("db_login", sa.String(200)),
+    # what the adoption was decided on (revision 0009): a shop candidate's cross-validated figures beside the model
+    # it replaced, as JSON (edc_bench.learning.shop_training.CandidateEvaluation); None for a model without them
+    sa.Column("evaluation", sa.Text),
     *_chain(),
 )
 

@@ -821,14 +821,17 @@ class HistoryStore:
         return audit_events(rows, found, changes)
 
     def add_adoption(self, model_name: str, model_sha256: str, station: str, adopted_by: str,
-                     then: Callable[[], object] | None = None) -> dict[str, Any]:
+                     then: Callable[[], object] | None = None, evaluation: str | None = None) -> dict[str, Any]:
         """Record that ``station`` now judges with a model (``edc-bench train --adopt``); returns the row.
+
+        ``evaluation``: what the adoption was decided on (a shop candidate's
+        :class:`~edc_bench.learning.shop_training.CandidateEvaluation` as JSON), None for a model without one.
 
         ``then`` (the station's own change) runs after the row is written and before it is committed: a login that
         may not adopt is refused before the station changes, and a station change that fails leaves no row.
         """
         row = {"station": station, "model_name": model_name, "model_sha256": model_sha256, "adopted_by": adopted_by,
-               "adopted_at": _now(), "db_login": self.login}
+               "adopted_at": _now(), "db_login": self.login, "evaluation": evaluation}
         with self._writing("adopt") as conn:
             stored = self._append(conn, adoptions, row)
             if then is not None:

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.errors import ConfigError
+from edc_bench.learning.candidate_evaluation import EVALUATION_KEY, CandidateEvaluation, Score
 from edc_bench.learning.dataset import COLUMNS, Dataset, update_digest
 from edc_bench.learning.evaluation import verdict_counts
 from edc_bench.learning.train import TrainedModel, fit_and_export
@@ -111,24 +112,6 @@ def check_enough(labels: np.ndarray, valves: np.ndarray | None = None) -> None:
             f"({max(MIN_LABELS - n, 0)} more tests; {max(MIN_PER_CLASS - reusable_valves, 0)} more reusable and "
             f"{max(MIN_PER_CLASS - worn_valves, 0)} more worn or faulty valves). Record teardown findings with "
             "'edc-bench label'.")
-
-
-@dataclass(frozen=True)
-class Score:
-    """How one model judged a set of labelled tests."""
-
-    model: str
-    tests: int
-    accuracy: float  # decision at the threshold against the teardown label
-    marginal: int  # tests inside the marginal band (a retest on the bench)
-    accuracy_outside_band: float
-    worn_passed: int  # labelled worn or faulty, judged reusable (outside the band)
-    reusable_failed: int  # labelled reusable, judged faulty (outside the band)
-    in_sample: bool = False  # the model learnt from shop labels: these figures may be optimistic
-
-    def as_dict(self) -> dict[str, Any]:
-        """Plain data for JSON."""
-        return dict(self.__dict__)
 
 
 def score(name: str, verdicts: np.ndarray, faulty_decision: np.ndarray, labels: np.ndarray,
@@ -231,6 +214,13 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
             path.write_bytes(model.onnx_bytes)
             cv_verdicts[test_idx], cv_decisions[test_idx] = judge(ValveClassifier(path), x[test_idx])
     now_verdicts, now_decisions = judge(current, x)
+    # a current model that learnt from shop labels (an adopted candidate) has likely seen these very tests
+    learnt_from_labels = "labels_sha256" in _training_data(current.metadata)
+    evaluation = CandidateEvaluation(
+        folds=FOLDS, labels=len(y), worn_or_faulty=int(y.sum()),
+        candidate=score(f"{name} (cross-validated)", cv_verdicts.astype(str), cv_decisions, y),
+        replaced=score(current.name, now_verdicts, now_decisions, y, learnt_from_labels),
+        replaced_sha256=current.sha256)
     metadata = {
         "edc_bench.model_name": name,
         "edc_bench.training_data_sha256": labels_sha,
@@ -241,12 +231,10 @@ def train_from_labels(labelled: LabelledTests, prior: Dataset | None, current: V
             sort_keys=True),
         "edc_bench.cross_validated_accuracy": repr(float(np.mean(cv_decisions == y.astype(bool)))),
         "edc_bench.base_model_sha256": current.sha256,
+        EVALUATION_KEY: evaluation.to_json(),
     }
     candidate = _export(np.vstack([prior_x, x]), np.concatenate([prior_y, y]),
                         _weights(len(prior_x), len(y), prior_weight), seed, metadata, current)
-    # a current model that learnt from shop labels (an adopted candidate) has likely seen these very tests
-    learnt_from_labels = "labels_sha256" in _training_data(current.metadata)
-    return ShopTraining(candidate=candidate, name=name,
-                        candidate_cv=score(f"{name} (cross-validated)", cv_verdicts.astype(str), cv_decisions, y),
-                        current=score(current.name, now_verdicts, now_decisions, y, learnt_from_labels), folds=FOLDS,
-                        prior_weight=prior_weight, prior_rows=len(prior_x), labels=len(y))
+    return ShopTraining(candidate=candidate, name=name, candidate_cv=evaluation.candidate,
+                        current=evaluation.replaced, folds=FOLDS, prior_weight=prior_weight,
+                        prior_rows=len(prior_x), labels=len(y))

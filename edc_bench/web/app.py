@@ -362,7 +362,8 @@ class _Site:
     def models_csv(self, request: Request, session: Session) -> Response:
         columns = ("id", "station", "model_name", "model_sha256", "adopted_by", "adopted_at")
         _, every = views.models(session.store)
-        return csv_response(([getattr(row, c) for c in columns] for row in every), columns, "adoptions")
+        return csv_response(([*(getattr(row, c) for c in columns), *row.evaluation_cells()] for row in every),
+                            (*columns, *views.Adoption.EVALUATION_COLUMNS), "adoptions")
 
     def close(self) -> None:
         self.sessions.close_all()

@@ -13,6 +13,7 @@ import sqlalchemy as sa
 from edc_bench.history.rig_ledger import COLUMNS
 from edc_bench.history.schema import adoptions, amendments, reference_valves, rig_checks, tests
 from edc_bench.history.store import HistoryStore, standing_tests
+from edc_bench.learning.candidate_evaluation import CandidateEvaluation
 from edc_bench.timefmt import parse_stored
 
 #: the checks a rig's chart and trend rest on: its newest (on its own page; in the chain's table, the newest
@@ -231,11 +232,45 @@ def test_row(store: HistoryStore, test_id: int) -> sa.Row[Any] | None:
         return conn.execute(sa.select(tests).where(tests.c.id == test_id)).first()
 
 
-def models(store: HistoryStore) -> tuple[list[sa.Row[Any]], list[sa.Row[Any]]]:
+@dataclass(frozen=True)
+class Adoption:
+    """A station's adoption of a model, with what it was decided on (None: the model carried no evaluation, e.g.
+    the shipped one, or it was adopted before the history kept them)."""
+
+    id: int
+    station: str
+    model_name: str
+    model_sha256: str
+    adopted_by: str
+    adopted_at: str
+    evaluation: CandidateEvaluation | None
+
+    #: the CSV's columns after the adoption's own (empty for an adoption without an evaluation)
+    EVALUATION_COLUMNS = ("cv_accuracy", "labels", "worn_or_faulty", "folds", "worn_passed", "reusable_failed",
+                          "marginal", "replaced_model", "replaced_accuracy", "replaced_worn_passed",
+                          "replaced_reusable_failed", "replaced_in_sample")
+
+    def evaluation_cells(self) -> tuple[object, ...]:
+        """The evaluation's figures in the order of :attr:`EVALUATION_COLUMNS`."""
+        e = self.evaluation
+        if e is None:
+            return ("",) * len(self.EVALUATION_COLUMNS)
+        return (round(e.candidate.accuracy, 4), e.labels, e.worn_or_faulty, e.folds, e.candidate.worn_passed,
+                e.candidate.reusable_failed, e.candidate.marginal, e.replaced.model, round(e.replaced.accuracy, 4),
+                e.replaced.worn_passed, e.replaced.reusable_failed, e.replaced.in_sample)
+
+
+def _adoption(row: sa.Row[Any]) -> Adoption:
+    return Adoption(int(row.id), str(row.station), str(row.model_name), str(row.model_sha256), str(row.adopted_by),
+                    str(row.adopted_at), CandidateEvaluation.from_json(row.evaluation))
+
+
+def models(store: HistoryStore) -> tuple[list[Adoption], list[Adoption]]:
     """Each station's model as it stands (its newest adoption), and the adoptions, newest first (at most 200)."""
     newest = sa.select(sa.func.max(adoptions.c.id)).group_by(adoptions.c.station)
     with store.reading() as conn:
-        current = list(conn.execute(sa.select(adoptions).where(adoptions.c.id.in_(newest))
-                                    .order_by(adoptions.c.station)))
-        every = list(conn.execute(sa.select(adoptions).order_by(adoptions.c.id.desc()).limit(200)))
+        current = [_adoption(row) for row in conn.execute(sa.select(adoptions).where(adoptions.c.id.in_(newest))
+                                                          .order_by(adoptions.c.station))]
+        every = [_adoption(row) for row in conn.execute(sa.select(adoptions).order_by(adoptions.c.id.desc())
+                                                        .limit(200))]
     return current, every

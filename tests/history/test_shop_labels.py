@@ -194,6 +194,33 @@ def test_a_candidate_learns_the_shops_limit_and_is_adopted_explicitly(tmp_path: 
     assert ValveClassifier().path == packaged_model_path()
 
 
+def test_an_adoption_keeps_in_the_history_what_it_was_decided_on(tmp_path: Path) -> None:
+    from edc_bench.learning.candidate_evaluation import EVALUATION_KEY, CandidateEvaluation
+
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    with HistoryStore(url) as store:
+        _synthetic_shop(store, 60)
+        from edc_bench.history.labels import labelled_tests
+
+        labelled = labelled_tests(store)
+    result = train_from_labels(labelled, None, ValveClassifier(), prior_weight=0.0, seed=1)
+    candidate = tmp_path / "candidate.onnx"
+    candidate.write_bytes(result.candidate.onnx_bytes)
+    # the candidate's file carries the figures 'train --from-history' printed
+    carried = CandidateEvaluation.from_json(ValveClassifier(candidate).metadata[EVALUATION_KEY])
+    assert carried is not None and (carried.candidate, carried.replaced) == (result.candidate_cv, result.current)
+    assert (carried.labels, carried.folds, carried.replaced_sha256) == (60, 5, ValveClassifier().sha256)
+    env = {**__import__("os").environ, "EDC_BENCH_DATA_DIR": str(tmp_path / "station")}
+    adopted = edc_bench("train", "--adopt", str(candidate), "--db", url, "--by", "ines", env=env)
+    assert adopted.returncode == 0, adopted.stderr
+    back = edc_bench("train", "--adopt", "shipped", "--db", url, "--by", "ines", env=env)
+    assert back.returncode == 0, back.stderr
+    with HistoryStore(url) as store:
+        rows = store.adoptions()
+    assert [CandidateEvaluation.from_json(r["evaluation"]) for r in rows] == [carried, None]  # shipped: none
+    assert CandidateEvaluation.from_json('{"folds": "five"}') is None and CandidateEvaluation.from_json("[") is None
+
+
 def test_the_labels_hash_names_the_data_a_candidate_learnt_from() -> None:
     a = LabelledTests(np.array([[1.0, 1.0]]), np.array([0]), np.array(["V"], dtype=object))
     b = LabelledTests(np.array([[1.0, 1.0]]), np.array([1]), np.array(["V"], dtype=object))

@@ -235,6 +235,22 @@ def test_a_report_is_served_only_from_inside_the_records_folder(client: TestClie
         assert own.get("/report/..%2f..%2fetc%2fpasswd").status_code == 404
 
 
+def test_the_models_page_shows_what_each_adoption_was_decided_on(client: TestClient) -> None:
+    import csv
+    import io
+
+    signed_in(client)
+    page = client.get("/models").text
+    current = page[page.index('<table id="current">'):page.index("</table>")]
+    # the demo's first adoption: a shop candidate's cross-validated figures beside the shipped model it replaced
+    assert "<strong>93.0 %</strong> right on 120 labelled tests (40 worn or faulty; 5-fold cross-validation)" in current
+    assert "The model it replaced, p-edc-default: 81.0 %, 13 worn passed" in current
+    rows = list(csv.DictReader(io.StringIO(client.get("/models.csv").text)))
+    assert {(r["model_name"], r["cv_accuracy"], r["labels"], r["replaced_model"], r["replaced_worn_passed"])
+            for r in rows} == {("shop-2026-10", "0.93", "120", "p-edc-default", "13"),
+                               ("shop-2026-11", "0.93", "160", "p-edc-default", "17")}
+
+
 def test_every_table_exports_csv_and_a_formula_stays_text(client: TestClient) -> None:
     signed_in(client)
     for path in ("/chain/verdicts.csv", "/chain/invalid.csv", "/chain/days.csv", "/chain/stations.csv", "/rigs.csv",

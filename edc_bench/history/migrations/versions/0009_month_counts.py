@@ -1,4 +1,5 @@
-"""The tests counted per month beside the day counts, and a pump type's tests read from an index.
+"""The tests counted per month beside the day counts, a pump type's tests read from an index, and an adoption's
+evaluation.
 
 - test_month_counts (PostgreSQL): the tests that stand counted per month (UTC), station, pump type (variant and
   part number), verdict, first test or retest, INVALID area and simulated or not, kept by the same trigger as the
@@ -8,6 +9,9 @@
   type's year reads counts too. Not a record: no login writes it; ``history --verify`` counts again and compares.
 - indexes on (variant, started_at) and (part_number, started_at): a pump type's tests in a partial month, read
   from an index (the filter matches either).
+- adoptions.evaluation: what an adoption was decided on, a shop candidate's cross-validated figures beside the
+  model it replaced (JSON, from the candidate's file), shown on the web view's models page. Rows adopted before
+  have none. A nullable column changes no stored row's hash (empty values are left out of a row's content).
 
 Revision ID: 0009
 Revises: 0008
@@ -63,6 +67,7 @@ END $fn$"""
 
 
 def upgrade() -> None:
+    op.add_column("adoptions", sa.Column("evaluation", sa.Text))
     op.create_index("ix_tests_variant_started_at", "tests", ["variant", "started_at"])
     op.create_index("ix_tests_part_number_started_at", "tests", ["part_number", "started_at"])
     bind = op.get_bind()
@@ -97,3 +102,4 @@ def downgrade() -> None:
         op.drop_table("test_month_counts")
     op.drop_index("ix_tests_part_number_started_at", table_name="tests")
     op.drop_index("ix_tests_variant_started_at", table_name="tests")
+    op.drop_column("adoptions", "evaluation")
