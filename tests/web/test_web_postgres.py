@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import json
 import re
+import time
 import uuid
+from pathlib import Path
 
 import psycopg
 import pytest
@@ -194,6 +196,54 @@ def test_a_login_without_a_password_is_refused_whatever_the_server_would_take(ch
         response = client.post("/signin", data={"csrf": csrf, "login": "bench3", "password": ""})
         assert response.status_code == 403 and "give your database login and its password" in response.text
         assert client.get("/chain").status_code == 303
+
+
+def _sign_in_form(client: TestClient, login: str, password: str) -> object:
+    form = client.get("/signin")
+    csrf = re.search(r'name="csrf" value="([^"]+)"', form.text).group(1)  # type: ignore[union-attr]
+    return client.post("/signin", data={"csrf": csrf, "login": login, "password": password})
+
+
+def test_a_login_whose_server_checks_passwords_signs_in_with_its_own_password_only(
+        chain: dict[str, str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The tests' server trusts its logins; a shop's asks for passwords (docs/shop-network.md). Here one login is
+    made to need its password (scram-sha-256, as PostgreSQL 14 and later store them) and signs in through the
+    page: a wrong password is refused, also with the right one in the environment the driver would read."""
+    login, password = f"pw_{uuid.uuid4().hex[:8]}", "right horse battery staple"
+    engine = sa.create_engine(chain["owner"], isolation_level="AUTOCOMMIT")
+    with engine.connect() as conn:
+        hba = Path(str(conn.exec_driver_sql("SHOW hba_file").scalar()))
+        conn.exec_driver_sql(f"CREATE ROLE {login} LOGIN PASSWORD '{password}'")
+        conn.exec_driver_sql(f"GRANT edc_station TO {login}")
+        trusted = hba.read_text()
+        hba.write_text(f"host all {login} 127.0.0.1/32 scram-sha-256\n{trusted}")
+        conn.exec_driver_sql("SELECT pg_reload_conf()")
+    direct = sa.engine.make_url(_login(chain["owner"], login))
+    try:
+        for _ in range(200):  # the server reads its rules again a moment after it is told to
+            try:
+                psycopg.connect(host=direct.host, port=direct.port, dbname=direct.database, user=login,
+                                password="wrong").close()
+            except psycopg.OperationalError as exc:
+                assert "password authentication failed" in str(exc)
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("the server kept trusting the login")
+        monkeypatch.setenv("PGPASSWORD", password)  # what a station's account may have: never taken for the form's
+        with _client(chain["owner"]) as client:
+            for wrong in ("wrong", password.upper(), password + " "):
+                response = _sign_in_form(client, login, wrong)
+                assert response.status_code == 403 and "sign-in refused" in response.text  # type: ignore[attr-defined]
+                assert client.get("/chain").status_code == 303
+            assert _sign_in_form(client, login, password).status_code == 303  # type: ignore[attr-defined]
+            page = client.get("/chain")
+            assert page.status_code == 200 and f'<span class="who">{login}</span>' in page.text
+    finally:
+        hba.write_text(trusted)
+        with engine.connect() as conn:
+            conn.exec_driver_sql("SELECT pg_reload_conf()")
+        engine.dispose()
 
 
 def test_failed_sign_ins_of_a_login_are_throttled(chain: dict[str, str]) -> None:
