@@ -64,7 +64,7 @@ _DETAIL_MIN_PT = 6.5  # the smallest a long value on page 2 is set before it is 
 _MIN_PLOT_PT = 110.0
 
 
-def draw_report(folder: Path, out_dir: Path | None = None, history_note: str | None = None
+def draw_report(folder: Path, out_dir: Path | None = None, history_note: str | None = None, pngs: bool = True
                 ) -> tuple[Path, tuple[Path, ...]]:
     """Draw the report of the record in ``folder``.
 
@@ -77,11 +77,13 @@ def draw_report(folder: Path, out_dir: Path | None = None, history_note: str | N
     history_note : str, optional
         The test's entry in the history and its chain hash (:meth:`~edc_bench.history.standing.Standing.note`),
         printed in page 1's footer: the customer's copy keeps an anchor of the history outside the station.
+    pngs : bool
+        Also write each page as PNG (the web view serves the PDF alone).
 
     Returns
     -------
     (pathlib.Path, tuple of pathlib.Path)
-        The two-page PDF, and one PNG per page (page 1 first: ``report-page.png``).
+        The two-page PDF, and one PNG per page (page 1 first: ``report-page.png``; none without ``pngs``).
     """
     folder = Path(folder)
     record = load_record(folder)
@@ -93,10 +95,12 @@ def draw_report(folder: Path, out_dir: Path | None = None, history_note: str | N
     out_dir.mkdir(parents=True, exist_ok=True)
     pages = report_pages(record, trace, folder.name, history_note)
     pdf = write_pdf(pages, record, out_dir / REPORT_PDF)
-    pngs = tuple(out_dir / name for name in REPORT_PNGS)
-    for page, png in zip(pages, pngs, strict=True):
+    if not pngs:
+        return pdf, ()
+    written = tuple(out_dir / name for name in REPORT_PNGS)
+    for page, png in zip(pages, written, strict=True):
         atomic_write(png, lambda f, page=page: page.figure.savefig(f, format="png", dpi=PNG_DPI))
-    return pdf, pngs
+    return pdf, written
 
 
 def report_pages(record: Record, trace: dict[str, np.ndarray], folder_name: str,

@@ -20,7 +20,7 @@ from starlette.applications import Starlette
 from starlette.middleware import Middleware
 from starlette.middleware.base import BaseHTTPMiddleware, RequestResponseEndpoint
 from starlette.requests import Request
-from starlette.responses import FileResponse, RedirectResponse, Response
+from starlette.responses import RedirectResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 from starlette.templating import Jinja2Templates
@@ -31,6 +31,7 @@ from edc_bench.history.summary import chain_summary
 from edc_bench.history.visits import visits
 from edc_bench.timefmt import local_text, utc_bound
 from edc_bench.web import charts, views
+from edc_bench.web.reports import ReportDrawer, ReportRefused, record_folder
 from edc_bench.web.sessions import Session, Sessions, SignInThrottle
 
 HERE = Path(__file__).parent
@@ -159,6 +160,7 @@ class _Site:
         self.shared: list[HistoryStore] = []  # a station's SQLite: one store every session reads
         self.shared_lock = threading.Lock()
         self.throttle = SignInThrottle()
+        self.reports = ReportDrawer()
         # every value escaped, whatever a template's name ends in (ids and names are the technicians' text)
         self.templates = Jinja2Templates(env=jinja2.Environment(loader=jinja2.FileSystemLoader(HERE / "templates"),
                                                                 autoescape=True))
@@ -334,7 +336,7 @@ class _Site:
         shown = visits(r.row for r in rows if r.state == "standing")
         trustworthy = [v for v in shown if v.decision != "INVALID" and not v.last.get("simulated")]
         records = self.config.records_dir
-        reports = {v.last.get("id") for v in shown if report_path(records, str(v.last.get("record_dir")))}
+        reports = {v.last.get("id") for v in shown if record_folder(records, str(v.last.get("record_dir")))}
         return self.render(request, "valve.html", session, valve_id=valve_id, rows=rows, visits=shown,
                            chart=charts.valve_trend(trustworthy, valve_id) if trustworthy else None,
                            audit=session.store.audit(valve_id), reports=reports)
@@ -349,11 +351,17 @@ class _Site:
         row = views.test_row(session.store, int(request.path_params.get("test_id", 0)))
         if row is None:
             raise BadRequest("no such test in the history")
-        path = report_path(self.config.records_dir, str(row.record_dir))
-        if path is None:
-            return self.render(request, "error.html", session, 403, message="this test's report is not in the "
-                               "records folder this page serves: it is not shown")
-        return FileResponse(path, media_type="application/pdf", filename=f"report-{row.id}.pdf")
+        folder = record_folder(self.config.records_dir, str(row.record_dir))
+        if folder is None:
+            return self.render(request, "error.html", session, 403, message="this test's record is not in the "
+                               "records folder this page serves: its report is not shown")
+        note = f"history test {row.id}" + (f", chain {row.row_hash[:16]}" if row.row_hash else "")
+        try:
+            pdf = self.reports.pdf(folder, row.record_sha256, note)
+        except ReportRefused as exc:
+            return self.render(request, "error.html", session, 409, message=str(exc))
+        return Response(pdf, media_type="application/pdf",
+                        headers={"Content-Disposition": f'inline; filename="report-{row.id}.pdf"'})
 
     def models(self, request: Request, session: Session) -> Response:
         current, every = views.models(session.store)
@@ -408,25 +416,6 @@ def settle_for_serving() -> None:
     charts.warm()
     gc.collect()
     gc.freeze()
-
-
-def report_path(records_dir: Path | None, record_dir: str) -> Path | None:
-    """The report of a record folder the history names, if it is a file inside ``records_dir``: the folder as the
-    history names it, else a folder of the same name directly in ``records_dir`` (a chain's server keeps the
-    stations' record folders under one folder, where the names the stations indexed them by do not lead). A row's
-    folder is what a station wrote: never followed outside the records."""
-    if records_dir is None:
-        return None
-    root = records_dir.resolve()
-    named = Path(record_dir)
-    for folder in (named, root / named.name):
-        try:
-            path = (folder / "report.pdf").resolve()
-        except (OSError, RuntimeError, ValueError):
-            continue
-        if path.is_relative_to(root) and path.is_file():
-            return path
-    return None
 
 
 def _local_next(target: str | None) -> str:

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import base64
+import contextlib
 import datetime as dt
 import io
 import threading
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 from edc_bench.timefmt import parse_stored
@@ -36,6 +38,13 @@ LEGEND_CHARACTERS = 24
 _AS_TYPED = {"text.parse_math": False}
 #: pyplot and its settings are global: the server's threads draw one chart at a time
 _DRAWING = threading.Lock()
+
+
+@contextlib.contextmanager
+def drawing() -> Iterator[None]:
+    """Hold the drawing lock (matplotlib's pyplot and rc settings are global: one drawing at a time)."""
+    with _DRAWING:
+        yield
 
 
 def _pyplot():  # noqa: ANN202 - matplotlib's pyplot, on the headless backend

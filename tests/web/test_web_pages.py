@@ -195,41 +195,67 @@ def test_the_rigs_page_says_service_due_from_the_drift_and_shows_skips(client: T
     assert sections["Werkstatt Nord 1"].count('<td class="verdict GO">GO</td>') == 4
 
 
-def test_a_report_is_served_only_from_inside_the_records_folder(client: TestClient, demo_db: Path,
-                                                                 records_dir: Path, tmp_path: Path) -> None:
-    from edc_bench.history.store import HistoryStore
+@pytest.fixture(scope="module")
+def real_records(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """Three simulated tests' record folders, as the bench writes them (copied by the tests that change them)."""
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant
+    from edc_bench.records.record import write_record
 
-    outside = tmp_path / "outside"
-    outside.mkdir()
-    (outside / "report.pdf").write_bytes(b"%PDF-1.4 secret")
-    inside = records_dir / "V-9001"
-    inside.mkdir()
-    (inside / "report.pdf").write_bytes(b"%PDF-1.4 the report")
-    ids = {}
-    db = tmp_path / "own.sqlite"
+    out = tmp_path_factory.mktemp("real")
+    return [write_record(run_simulated_test(load_variant(), "faulty", seed, valve_id=f"V-R{seed}"), out,
+                         figure=False) for seed in (3, 4, 5)]
+
+
+def test_a_report_is_drawn_only_from_a_record_the_history_indexed_inside_the_records_folder(
+        demo_db: Path, records_dir: Path, real_records: list[Path], tmp_path: Path) -> None:
     import shutil
 
+    from edc_bench.records.reader import load_record
+    from edc_bench.web.app import WebConfig, create_app
+    from edc_bench.web.sessions import Sessions
+
+    db = tmp_path / "own.sqlite"
     shutil.copy(demo_db, db)
+    folders = {name: Path(shutil.copytree(real, records_dir / real.name))
+               for name, real in zip(("kept", "record-edited", "trace-edited"), real_records, strict=True)}
+    outside = shutil.copytree(real_records[0], tmp_path / "outside" / "a-record-elsewhere")
+    (folders["kept"] / "report.pdf").write_bytes(b"%PDF-1.4 a report put in the folder by hand")
+    ids = {}
     with HistoryStore(f"sqlite:///{db}") as store:
-        for name, folder in (("inside", str(inside)), ("outside", str(outside)),
-                             ("climbing", str(records_dir / ".." / "outside")), ("etc", "/etc")):
+        for name, folder in folders.items():
+            store.add(load_record(folder), folder)
+            ids[name] = store.list(Filters(valve_id=load_record(folder).valve_id))[0]["id"]
+        for name, folder in (("outside", str(outside)), ("climbing", str(records_dir / ".." / "outside")),
+                             ("etc", "/etc"), ("no-digest", str(folders["kept"]))):
             store.add_row({"record_dir": folder, "started_at": "2026-11-20T08:00:00+00:00", "valve_id": f"R-{name}",
                            "pump_serial": "P", "variant": "p-edc-default", "part_number": "PE", "verdict": "PASS",
                            "station": "s", "operator": "o", "clock": "real-time", "software_version": "t",
                            "reason": "", "test_key": f"report-{name}"})
             ids[name] = store.list(Filters(valve_id=f"R-{name}"))[0]["id"]
-    from edc_bench.web.app import WebConfig, create_app
-    from edc_bench.web.sessions import Sessions
-
+    # after indexing: a verdict edited in one record.json, the trace replaced in another (record.json untouched)
+    edited = folders["record-edited"] / "record.json"
+    edited.write_text(edited.read_text().replace('"verdict": "FAIL"', '"verdict": "PASS"', 1))
+    doc = json.loads((folders["trace-edited"] / "record.json").read_text())
+    trace = next(name for name in doc["integrity"]["files"] if "trace" in name)
+    (folders["trace-edited"] / trace).write_bytes((folders["trace-edited"] / trace).read_bytes() + b"\0")
     app = create_app(WebConfig(url=f"sqlite:///{db}", records_dir=records_dir, token=TOKEN), Sessions())
     with TestClient(app, base_url="https://testserver", follow_redirects=False) as own:
         signed_in(own)
-        good = own.get(f"/report/{ids['inside']}")
-        assert good.status_code == 200 and good.content == b"%PDF-1.4 the report"
-        assert good.headers["content-type"] == "application/pdf"
+        good = own.get(f"/report/{ids['kept']}")
+        assert good.status_code == 200 and good.headers["content-type"] == "application/pdf"
+        assert good.content.startswith(b"%PDF") and b"put in the folder by hand" not in good.content  # drawn anew
+        assert own.get(f"/report/{ids['kept']}").content == good.content  # kept, not drawn again
+        refused = own.get(f"/report/{ids['record-edited']}")
+        assert refused.status_code == 409 and "not the one the history indexed" in refused.text
+        refused = own.get(f"/report/{ids['trace-edited']}")
+        assert refused.status_code == 409 and "changed after its test wrote it" in refused.text, refused.text
+        assert trace in refused.text
+        refused = own.get(f"/report/{ids['no-digest']}")
+        assert refused.status_code == 409 and "kept no digest" in refused.text
         for name in ("outside", "climbing", "etc"):
             refused = own.get(f"/report/{ids[name]}")
-            assert refused.status_code == 403 and b"secret" not in refused.content, name
+            assert refused.status_code == 403 and not refused.content.startswith(b"%PDF"), name
             assert "not in the records folder" in refused.text
         assert own.get("/report/999999").status_code == 400
         assert own.get("/report/..%2f..%2fetc%2fpasswd").status_code == 404
@@ -359,12 +385,14 @@ def test_the_demo_chain_never_goes_into_a_history_that_holds_tests(demo_db: Path
         fill_demo_chain(store)
 
 
-def test_a_report_is_found_by_its_folders_name_in_the_records_folder(records_dir: Path) -> None:
-    from edc_bench.web.app import report_path
+def test_a_record_is_found_by_its_folders_name_in_the_records_folder(records_dir: Path) -> None:
+    from edc_bench.web.reports import record_folder
 
     (records_dir / "20261120T080000+0000-V-1").mkdir()
-    (records_dir / "20261120T080000+0000-V-1" / "report.pdf").write_bytes(b"%PDF")
+    (records_dir / "20261120T080000+0000-V-1" / "record.json").write_text("{}")
     station_path = "/home/bench3/records/20261120T080000+0000-V-1"  # where the station indexed it
-    assert report_path(records_dir, station_path) == (records_dir / "20261120T080000+0000-V-1" / "report.pdf"
-                                                      ).resolve()
-    assert report_path(records_dir, "/etc/..") is None and report_path(records_dir, "..") is None
+    assert record_folder(records_dir, station_path) == (records_dir / "20261120T080000+0000-V-1").resolve()
+    assert record_folder(records_dir, "/etc/..") is None and record_folder(records_dir, "..") is None
+    (records_dir / "linked").mkdir()
+    (records_dir / "linked" / "record.json").symlink_to("/etc/hostname")  # a link out of the records
+    assert record_folder(records_dir, str(records_dir / "linked")) is None
