@@ -117,20 +117,30 @@ def upgrade(engine: sa.Engine) -> list[Revision]:
         return done
 
 
+class RevisionMismatch(ConfigError):
+    """The database was reached (the login accepted) but is not at this edc-bench's schema revision."""
+
+
 def require_head(connection: sa.Connection, shown_url: str) -> None:
-    """Refuse a database not at this edc-bench's revision, saying who must do what (a shop's PostgreSQL)."""
+    """Refuse a database not at this edc-bench's revision, saying who must do what (a shop's PostgreSQL).
+
+    Raises
+    ------
+    RevisionMismatch
+        Saying the database's revision, this edc-bench's, and who upgrades which.
+    """
     revision, wanted = current(connection), head()
     if revision == wanted:
         return
     upgrade_cmd = "edc-bench history --upgrade"
     if revision is None:
         has_tests = sa.inspect(connection).has_table("tests")
-        raise ConfigError(f"history database {shown_url} "
+        raise RevisionMismatch(f"history database {shown_url} "
                           + ("was made by an edc-bench before schema revisions" if has_tests
                              else "holds no edc-bench history yet")
                           + f": its owner's login runs '{upgrade_cmd}' on it first (see 'edc-bench history --schema')")
     if not is_known(revision):
-        raise ConfigError(f"history database {shown_url} is at schema revision {revision}, made by a newer "
+        raise RevisionMismatch(f"history database {shown_url} is at schema revision {revision}, made by a newer "
                           f"edc-bench than this one (revision {wanted}): update edc-bench on this station")
-    raise ConfigError(f"history database {shown_url} is at schema revision {revision}; this edc-bench needs "
+    raise RevisionMismatch(f"history database {shown_url} is at schema revision {revision}; this edc-bench needs "
                       f"{wanted}: its owner's login runs '{upgrade_cmd}' on it (see 'edc-bench history --schema')")

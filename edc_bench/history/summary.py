@@ -29,6 +29,9 @@ from edc_bench.verdict.verdicts import Verdict
 #: A station with no test for this many days is listed as quiet.
 QUIET_DAYS = 7
 
+#: Stations asked for their latest test in one query (SQLite's compound SELECT holds at most 500).
+STATIONS_PER_QUERY = 400
+
 #: A range of more days is counted by month (a year's chart is twelve bars, not 365 a station).
 DAILY_UP_TO_DAYS = 92
 
@@ -210,17 +213,24 @@ def _stations(conn: sa.Connection, filters: Filters, in_filter: Counter[str], no
     cutoff = (now - dt.timedelta(days=quiet_days)).astimezone(dt.UTC).isoformat(timespec="seconds")
     if not known:
         return ()
-    # one query, each station's latest test and self-check read from an index (station, started_at; station)
-    names = sa.union_all(*(sa.select(sa.literal(s, sa.String).label("station")) for s in sorted(known))).subquery()
-    latest_test = (sa.select(sa.func.max(tests.c.started_at)).where(tests.c.station == names.c.station, *wanted)
-                   .scalar_subquery())
-    latest_check = (sa.select(sa.func.max(rig_checks.c.checked_at)).where(rig_checks.c.station == names.c.station)
-                    .scalar_subquery())
+    # each station's latest test and self-check read from an index (station, started_at; station), a query per
+    # STATIONS_PER_QUERY stations (SQLite joins at most 500 SELECTs in one compound). A withdrawn test counts here:
+    # it does not count in the figures, but the station ran it, so it was not quiet
+
+    ordered = sorted(known)
     out = []
-    for station, last_test, last_check in conn.execute(sa.select(names.c.station, latest_test, latest_check)
-                                                       .order_by(names.c.station)):
-        out.append(StationActivity(str(station), int(in_filter.get(station, 0)),
-                                   None if last_test is None else str(last_test),
-                                   None if last_check is None else str(last_check),
-                                   quiet=last_test is None or str(last_test) < cutoff, shop=shop_of.get(station)))
+    for start in range(0, len(ordered), STATIONS_PER_QUERY):
+        part = ordered[start:start + STATIONS_PER_QUERY]
+        names = sa.union_all(*(sa.select(sa.literal(s, sa.String).label("station")) for s in part)).subquery()
+        latest_test = (sa.select(sa.func.max(tests.c.started_at))
+                       .where(tests.c.station == names.c.station, *wanted).scalar_subquery())
+        latest_check = (sa.select(sa.func.max(rig_checks.c.checked_at))
+                        .where(rig_checks.c.station == names.c.station).scalar_subquery())
+        for station, last_test, last_check in conn.execute(sa.select(names.c.station, latest_test, latest_check)
+                                                           .order_by(names.c.station)):
+            out.append(StationActivity(str(station), int(in_filter.get(station, 0)),
+                                       None if last_test is None else str(last_test),
+                                       None if last_check is None else str(last_check),
+                                       quiet=last_test is None or str(last_test) < cutoff,
+                                       shop=shop_of.get(station)))
     return tuple(out)

@@ -26,6 +26,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.templating import Jinja2Templates
 
 from edc_bench.errors import EdcBenchError
+from edc_bench.history.migrate import RevisionMismatch
 from edc_bench.history.store import Filters, HistoryStore, parse_day
 from edc_bench.history.summary import chain_summary
 from edc_bench.history.visits import visits
@@ -251,6 +252,8 @@ class _Site:
         url = sa.engine.make_url(self.config.url).set(username=login, password=password or None)
         try:
             store = self.opener(url.render_as_string(hide_password=False))
+        except RevisionMismatch as exc:  # the login was accepted: the history is another edc-bench's revision
+            return f"signed in, but this history cannot be read here: {exc}"
         except EdcBenchError:
             self.throttle.failed(login)
             return ("sign-in refused: the database did not accept this login and password, or this login may not "

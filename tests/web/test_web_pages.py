@@ -385,6 +385,22 @@ def test_the_demo_chain_never_goes_into_a_history_that_holds_tests(demo_db: Path
         fill_demo_chain(store)
 
 
+def test_a_history_of_more_stations_than_sqlite_joins_in_one_select_is_summed(tmp_path: Path) -> None:
+    """SQLite joins at most 500 SELECTs in one compound: the stations' latest tests are asked in parts."""
+    with HistoryStore(f"sqlite:///{tmp_path / 'many.sqlite'}") as store:
+        for k in range(650):
+            store.map_login(f"login{k}", f"Station {k:03d}", None, "admin")
+        store.add_row({"record_dir": "/r/1", "started_at": "2026-11-20T08:00:00+00:00", "valve_id": "V-1",
+                       "pump_serial": "P", "variant": "p-edc-default", "part_number": "PE", "verdict": "PASS",
+                       "station": "Station 649", "operator": "o", "clock": "real-time", "software_version": "t",
+                       "reason": "", "test_key": "many-1"})
+        import datetime as dt
+
+        summary = chain_summary(store, Filters(), now=dt.datetime(2026, 11, 21, tzinfo=dt.UTC))
+    assert len(summary.stations) == 650 and summary.tests == 1
+    assert [s.station for s in summary.stations if not s.quiet] == ["Station 649"]
+
+
 def test_a_record_is_found_by_its_folders_name_in_the_records_folder(records_dir: Path) -> None:
     from edc_bench.web.reports import record_folder
 

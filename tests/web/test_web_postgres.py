@@ -3,6 +3,7 @@ database's roles decide what a page may show (a real server: tests/pg_server.py;
 
 from __future__ import annotations
 
+import html
 import json
 import re
 import time
@@ -244,6 +245,27 @@ def test_a_login_whose_server_checks_passwords_signs_in_with_its_own_password_on
         with engine.connect() as conn:
             conn.exec_driver_sql("SELECT pg_reload_conf()")
         engine.dispose()
+
+
+def test_a_history_at_another_revision_says_so_at_sign_in(new_postgres_database: object) -> None:
+    """The login is accepted but the history is an older edc-bench's: the page says which revision and who
+    upgrades, not that the login was refused."""
+    from alembic import command
+
+    from edc_bench.history import migrate
+
+    url = new_postgres_database(upgrade=False)  # type: ignore[operator]
+    engine = sa.create_engine(url)
+    with engine.begin() as conn:
+        command.upgrade(migrate._config(conn), "0008")
+    engine.dispose()
+    with _client(url) as client:
+        response = _sign_in_form(client, "postgres", "any: the tests' server trusts its logins")
+        assert response.status_code == 403  # type: ignore[attr-defined]
+        text = html.unescape(response.text)  # type: ignore[attr-defined]
+        assert "signed in, but this history cannot be read here" in text and "sign-in refused" not in text
+        assert f"is at schema revision 0008; this edc-bench needs {migrate.HEAD}" in text
+        assert "edc-bench history --upgrade" in text
 
 
 def test_failed_sign_ins_of_a_login_are_throttled(chain: dict[str, str]) -> None:
