@@ -217,14 +217,21 @@ def standing_tests() -> sa.ColumnElement[bool]:
     return sa.and_(first_indexings(), tests.c.test_key.not_in(_withdrawn_keys()))
 
 
+#: The years a day asked for may name (any test's, with room to spare either side).
+YEARS = (1900, 9000)
+
+
 def parse_day(text: str | None, name: str) -> str | None:
     """An ISO date (``2026-11-22``) or date-time, checked; None stays None."""
     if text is None:
         return None
     try:
-        return dt.datetime.fromisoformat(text).isoformat() if "T" in text else dt.date.fromisoformat(text).isoformat()
+        when = dt.datetime.fromisoformat(text) if "T" in text else dt.date.fromisoformat(text)
     except ValueError:
         raise ConfigError(f"{name} {text!r} is not a date: write it as YYYY-MM-DD (or YYYY-MM-DDTHH:MM)") from None
+    if not YEARS[0] <= when.year <= YEARS[1]:  # a day after it is still a day: no arithmetic overflows
+        raise ConfigError(f"{name} {text!r}: give a year from {YEARS[0]} to {YEARS[1]}")
+    return when.isoformat()
 
 
 class HistoryStore:
@@ -283,19 +290,23 @@ class HistoryStore:
         #: what opening found wrong (a SQLite file's missing triggers, a broken chain), each said on ``warn``
         self.problems: list[str] = []
         self._warn = warn
-        with self._guard("read"):
-            with self.engine.connect() as conn:
-                revision = migrate.current(conn)
-                if not self.is_sqlite:
-                    self.login = conn.execute(sa.text("SELECT session_user")).scalar()
-            if revision != migrate.head():
-                if self.is_sqlite and (revision is None or migrate.is_known(revision)):
-                    migrate.upgrade(self.engine)  # a station's own file: brought up to date as it is opened
-                else:
-                    with self.engine.connect() as conn:
-                        migrate.require_head(conn, self.shown_url)
-            if self.is_sqlite:
-                self._check_sqlite()
+        try:
+            with self._guard("read"):
+                with self.engine.connect() as conn:
+                    revision = migrate.current(conn)
+                    if not self.is_sqlite:
+                        self.login = conn.execute(sa.text("SELECT session_user")).scalar()
+                if revision != migrate.head():
+                    if self.is_sqlite and (revision is None or migrate.is_known(revision)):
+                        migrate.upgrade(self.engine)  # a station's own file: brought up to date as it is opened
+                    else:
+                        with self.engine.connect() as conn:
+                            migrate.require_head(conn, self.shown_url)
+                if self.is_sqlite:
+                    self._check_sqlite()
+        except BaseException:
+            self.engine.dispose()  # a history not opened keeps no connection (a web sign-in refused, say)
+            raise
 
     def _check_sqlite(self) -> None:
         """A station's file is append-only only while its triggers are there: restore any missing, say so loudly,

@@ -233,4 +233,4 @@ def _stations(conn: sa.Connection, filters: Filters, in_filter: Counter[str], no
                                        None if last_check is None else str(last_check),
                                        quiet=last_test is None or str(last_test) < cutoff,
                                        shop=shop_of.get(station)))
-    return tuple(out)
+    return tuple(sorted(out, key=lambda activity: activity.station))  # one order, however many queries

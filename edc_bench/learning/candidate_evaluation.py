@@ -9,6 +9,7 @@ station adopting a model and the chain's web server read it without scikit-learn
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -48,33 +49,65 @@ class CandidateEvaluation:
     replaced_sha256: str
 
     def to_json(self) -> str:
-        """The evaluation as stored (keys sorted: the same figures, the same text)."""
+        """The evaluation as stored (keys sorted: the same figures, the same text; a figure that is not a number,
+        such as the accuracy outside the band when every test was inside it, as null)."""
         return json.dumps({"folds": self.folds, "labels": self.labels, "worn_or_faulty": self.worn_or_faulty,
-                           "candidate": self.candidate.as_dict(), "replaced": self.replaced.as_dict(),
-                           "replaced_sha256": self.replaced_sha256}, sort_keys=True)
+                           "candidate": _finite(self.candidate.as_dict()), "replaced": _finite(self.replaced.as_dict()),
+                           "replaced_sha256": self.replaced_sha256}, sort_keys=True, allow_nan=False)
 
     @classmethod
     def from_json(cls, text: str | None) -> CandidateEvaluation | None:
-        """The evaluation ``text`` holds; None for none, or for text that is not one (a model file's metadata is
-        whatever its writer put there)."""
+        """The evaluation ``text`` holds; None for none, or for text that is not one: a model file's metadata, and
+        a row an engineer's login wrote, are whatever their writer put there, so every figure is held to what it
+        can be (shares within 0 to 1, counts whole and not negative, at least two folds)."""
         if not text:
             return None
         try:
-            found = json.loads(text)
-            evaluation = cls(folds=int(found["folds"]), labels=int(found["labels"]),
-                             worn_or_faulty=int(found["worn_or_faulty"]), candidate=_score_of(found["candidate"]),
-                             replaced=_score_of(found["replaced"]), replaced_sha256=str(found["replaced_sha256"]))
-        except (ValueError, TypeError, KeyError):
+            found = json.loads(text, parse_constant=_no_constant)
+            evaluation = cls(folds=_count(found["folds"], least=2), labels=_count(found["labels"]),
+                             worn_or_faulty=_count(found["worn_or_faulty"]), candidate=_score_of(found["candidate"]),
+                             replaced=_score_of(found["replaced"]), replaced_sha256=_text(found["replaced_sha256"]))
+        except Exception:  # noqa: BLE001 - any text at all: a RecursionError of deep nesting included
             return None
         return evaluation
 
 
+def _finite(score: dict[str, Any]) -> dict[str, Any]:
+    return {key: None if isinstance(value, float) and not math.isfinite(value) else value
+            for key, value in score.items()}
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is no figure")
+
+
+def _count(value: Any, least: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not least <= value < 10**9:
+        raise ValueError(f"{value!r} is no count")
+    return value
+
+
+def _share(value: Any, missing: bool = False) -> float:
+    if value is None and missing:
+        return math.nan  # none of the tests in the part it counts (stored as null)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value <= 1.0:
+        raise ValueError(f"{value!r} is no share")
+    return float(value)
+
+
+def _text(value: Any) -> str:
+    if not isinstance(value, str) or len(value) > 200:
+        raise ValueError("no short text")
+    return value
+
+
 def _score_of(found: Any) -> Score:
-    if not isinstance(found, dict):
-        raise TypeError("a score is a mapping")
-    return Score(model=str(found["model"]), tests=int(found["tests"]), accuracy=float(found["accuracy"]),
-                 marginal=int(found["marginal"]), accuracy_outside_band=float(found["accuracy_outside_band"]),
-                 worn_passed=int(found["worn_passed"]), reusable_failed=int(found["reusable_failed"]),
+    if not isinstance(found, dict) or not isinstance(found.get("in_sample", False), bool):
+        raise ValueError("a score is a mapping, in_sample true or false")
+    return Score(model=_text(found["model"]), tests=_count(found["tests"]), accuracy=_share(found["accuracy"]),
+                 marginal=_count(found["marginal"]),
+                 accuracy_outside_band=_share(found["accuracy_outside_band"], missing=True),
+                 worn_passed=_count(found["worn_passed"]), reusable_failed=_count(found["reusable_failed"]),
                  in_sample=bool(found.get("in_sample", False)))
 
 

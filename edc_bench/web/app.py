@@ -32,7 +32,7 @@ from edc_bench.history.summary import chain_summary
 from edc_bench.history.visits import visits
 from edc_bench.timefmt import local_text, utc_bound
 from edc_bench.web import charts, views
-from edc_bench.web.reports import ReportDrawer, ReportRefused, record_folder
+from edc_bench.web.reports import IndexedRecord, ReportBusy, ReportDrawer, ReportRefused, record_folder
 from edc_bench.web.sessions import Session, Sessions, SignInThrottle
 
 HERE = Path(__file__).parent
@@ -122,7 +122,7 @@ def filters_of(request: Request) -> Filters:
     try:
         since = utc_bound(parse_day(since, "since") or "") if since else None
         until = utc_bound(parse_day(until, "until") or "", end_of_day=True) if until else None
-    except (EdcBenchError, ValueError) as exc:
+    except (EdcBenchError, ValueError, OverflowError) as exc:
         raise BadRequest(str(exc)) from None
     if since and until and since > until:
         raise BadRequest("since is after until: give the earlier day first")
@@ -354,15 +354,27 @@ class _Site:
         row = views.test_row(session.store, int(request.path_params.get("test_id", 0)))
         if row is None:
             raise BadRequest("no such test in the history")
-        folder = record_folder(self.config.records_dir, str(row.record_dir))
+        if not views.stands(session.store, int(row.id)):
+            return self.render(request, "error.html", session, 409, message="this row is not the test as it stands "
+                               "(withdrawn, or indexed again with other content): its report is not drawn. The "
+                               "valve's page shows what stands")
+        records = self.config.records_dir
+        folder = record_folder(records, str(row.record_dir))
         if folder is None:
             return self.render(request, "error.html", session, 403, message="this test's record is not in the "
                                "records folder this page serves: its report is not shown")
+        retest_row = views.retest_of(session.store, str(row.record_dir))
+        retest_folder = None if retest_row is None else record_folder(records, str(retest_row.record_dir))
+        retest = None if retest_folder is None else IndexedRecord(retest_folder, retest_row.record_sha256)
         note = f"history test {row.id}" + (f", chain {row.row_hash[:16]}" if row.row_hash else "")
         try:
-            pdf = self.reports.pdf(folder, row.record_sha256, note)
+            pdf = self.reports.pdf(IndexedRecord(folder, row.record_sha256), note, retest)
         except ReportRefused as exc:
             return self.render(request, "error.html", session, 409, message=str(exc))
+        except ReportBusy as exc:
+            response = self.render(request, "error.html", session, 503, message=str(exc))
+            response.headers["Retry-After"] = "5"
+            return response
         return Response(pdf, media_type="application/pdf",
                         headers={"Content-Disposition": f'inline; filename="report-{row.id}.pdf"'})
 

@@ -87,7 +87,7 @@ def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int, period: str) 
     x = [dt.date.fromisoformat(day if len(day) == 10 else f"{day}-01") for day in dates]
     shown = {name: counts for name, counts in series.items() if any(counts)}
     # one filled step outline per station, not a patch per bar: a year of a hundred stations draws as fast as a week
-    ax.stackplot(x, *shown.values(), labels=[_cut(name) for name in shown], step="mid")
+    ax.stackplot(x, *shown.values(), labels=_cut_apart(list(shown)), step="mid")
     ax.set_ylabel(f"tests per {period}")
     ax.set_xlabel(f"{period} (UTC)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the days, never over them
@@ -100,6 +100,16 @@ def _tests_per_day(plt: Any, days: tuple[DayCount, ...], top: int, period: str) 
 
 def _cut(name: str) -> str:
     return name if len(name) <= LEGEND_CHARACTERS else name[:LEGEND_CHARACTERS - 1] + "\u2026"
+
+
+def _cut_apart(names: list[str]) -> list[str]:
+    """Each name cut to the legend's room; names that would read alike are numbered (#2, #3) in their order."""
+    labels, seen = [], {}
+    for name in names:
+        label = _cut(name)
+        seen[label] = seen.get(label, 0) + 1
+        labels.append(label if seen[label] == 1 else f"{label[:LEGEND_CHARACTERS - 3]}#{seen[label]}")
+    return labels
 
 
 def drift_chart(station: str, drifts: list[FigureDrift]) -> str | None:

@@ -232,6 +232,19 @@ def test_row(store: HistoryStore, test_id: int) -> sa.Row[Any] | None:
         return conn.execute(sa.select(tests).where(tests.c.id == test_id)).first()
 
 
+def stands(store: HistoryStore, test_id: int) -> bool:
+    """Whether row ``test_id`` is its test as it stands (not withdrawn, not a later indexing with other content)."""
+    with store.reading() as conn:
+        return conn.execute(sa.select(tests.c.id).where(tests.c.id == test_id, standing_tests())).first() is not None
+
+
+def retest_of(store: HistoryStore, record_dir: str) -> sa.Row[Any] | None:
+    """The newest standing retest of the test whose record folder is ``record_dir`` (None: not retested)."""
+    with store.reading() as conn:
+        return conn.execute(sa.select(tests).where(tests.c.retest_of == record_dir, standing_tests())
+                            .order_by(tests.c.id.desc()).limit(1)).first()
+
+
 @dataclass(frozen=True)
 class Adoption:
     """A station's adoption of a model, with what it was decided on (None: the model carried no evaluation, e.g.

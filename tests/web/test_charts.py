@@ -26,5 +26,13 @@ def test_a_long_station_name_is_cut_to_the_legends_room() -> None:
     assert 'width="576pt"' in svg  # the figure's own 8 inches: nothing outside it was drawn
 
 
+def test_long_names_that_begin_alike_are_told_apart_in_the_legend() -> None:
+    names = ("Werkstatt Nord-Ost Station 12 (Halle A)", "Werkstatt Nord-Ost Station 12 (Halle B)")
+    chart = charts.tests_per_day(tuple(DayCount("2026-11-02", name, 3 + k) for k, name in enumerate(names)))
+    assert chart is not None
+    labels = [line[5:-4] for line in _svg(chart).splitlines() if line.strip().startswith("<!-- Werkstatt")]
+    assert len(labels) == 2 and len(set(labels)) == 2, labels
+
+
 def test_no_tests_no_chart() -> None:
     assert charts.tests_per_day(()) is None

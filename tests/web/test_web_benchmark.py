@@ -10,7 +10,7 @@ import sqlalchemy as sa
 from edc_bench.history.bulk_chain import fill_bulk_chain
 from edc_bench.history.store import Filters, HistoryStore
 from edc_bench.history.summary import chain_summary
-from edc_bench.web.benchmark import measure
+from edc_bench.web.benchmark import measure, pages
 
 
 def test_the_bulk_chain_fills_an_empty_history_and_every_timed_page_answers(postgres_db: str) -> None:
@@ -30,6 +30,21 @@ def test_the_bulk_chain_fills_an_empty_history_and_every_timed_page_answers(post
     assert len(timings) == 13 and all(t.p50_ms > 0 for t in timings)
     with pytest.raises(ValueError, match="holds tests already"):
         fill_bulk_chain(postgres_db, 10)
+
+
+def test_every_page_the_benchmark_times_asks_only_for_filters_the_page_has() -> None:
+    """The review of #55: the pump type's pages were timed with a query name the chain page does not read, so
+    they timed the unfiltered page."""
+    import datetime as dt
+    import re
+    from pathlib import Path
+
+    import edc_bench.web
+
+    form = (Path(edc_bench.web.__file__).parent / "templates" / "chain.html").read_text(encoding="utf-8")
+    fields = set(re.findall(r'<input[^>]* name="([a-z_]+)"', form))
+    asked = {key for _, path, query in pages(dt.datetime(2026, 11, 29)) if path.startswith("/chain") for key in query}
+    assert asked and asked <= fields, asked - fields
 
 
 def test_the_bulk_chain_refuses_a_history_that_is_not_empty(postgres_db: str) -> None:

@@ -134,6 +134,9 @@ def test_a_day_that_is_no_date_is_said_on_the_page(client: TestClient) -> None:
     response = client.get("/chain?since=yesterday")
     assert response.status_code == 400
     assert "is not a date: write it as YYYY-MM-DD" in response.text
+    for far in ("since=0001-01-01", "until=9999-12-31", "until=9999-12-31T23:59:59%2B00:00"):  # no day after it
+        response = client.get(f"/chain?{far}")
+        assert response.status_code == 400 and "give a year from 1900 to 9000" in response.text, far
 
 
 SQL = ("' OR '1'='1", "x'; DROP TABLE tests; --", "\" OR 1=1 --", "%", "_", "V-0815' UNION SELECT * FROM edc_logins --",
@@ -250,7 +253,7 @@ def test_a_report_is_drawn_only_from_a_record_the_history_indexed_inside_the_rec
         assert refused.status_code == 409 and "not the one the history indexed" in refused.text
         refused = own.get(f"/report/{ids['trace-edited']}")
         assert refused.status_code == 409 and "changed after its test wrote it" in refused.text, refused.text
-        assert trace in refused.text
+        assert trace in refused.text and "edc-bench-report-" not in refused.text  # no folder of the server's
         refused = own.get(f"/report/{ids['no-digest']}")
         assert refused.status_code == 409 and "kept no digest" in refused.text
         for name in ("outside", "climbing", "etc"):
@@ -259,6 +262,67 @@ def test_a_report_is_drawn_only_from_a_record_the_history_indexed_inside_the_rec
             assert "not in the records folder" in refused.text
         assert own.get("/report/999999").status_code == 400
         assert own.get("/report/..%2f..%2fetc%2fpasswd").status_code == 404
+
+
+def test_a_report_is_drawn_from_checked_copies_whatever_lies_beside_or_changes_meanwhile(
+        real_records: list[Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The review of #55: drawing read a MARGINAL's retest from any folder beside the record (no digest), and read
+    the record's files while drawing (a record swapped in and back between the two checks was drawn)."""
+    import hashlib
+    import shutil
+
+    from edc_bench.records import report
+    from edc_bench.web.reports import IndexedRecord, ReportBusy, ReportDrawer
+
+    records = tmp_path / "records"
+    test, retest, stranger = (Path(shutil.copytree(r, records / r.name)) for r in real_records)
+    digest = {f: hashlib.sha256((f / "record.json").read_bytes()).hexdigest() for f in (test, retest, stranger)}
+    seen: dict[str, object] = {}
+    real_draw = report.draw_report
+
+    def drawing(folder: Path, out_dir: Path, note: str, pngs: bool = True) -> tuple[Path, tuple[Path, ...]]:
+        # meanwhile, someone replaces the record in the records folder by another genuine one
+        (test / "record.json").write_bytes((stranger / "record.json").read_bytes())
+        seen["folder"], seen["beside"] = folder, sorted(p.name for p in folder.parent.iterdir())
+        seen["drawn"] = hashlib.sha256((folder / "record.json").read_bytes()).hexdigest()
+        return real_draw(folder, out_dir, note, pngs)
+
+    monkeypatch.setattr(report, "draw_report", drawing)
+    drawer = ReportDrawer()
+    pdf = drawer.pdf(IndexedRecord(test, digest[test]), "history test 1",
+                     IndexedRecord(retest, "0" * 64))  # a retest whose record is not the one indexed
+    assert pdf.startswith(b"%PDF")
+    assert seen["folder"] != test and seen["drawn"] == digest[test]  # the checked copy, not the swapped file
+    assert seen["beside"] == [test.name]  # neither the stranger beside it nor a retest not as indexed
+    (test / "record.json").write_bytes((stranger / "record.json").read_bytes())
+    drawer2 = ReportDrawer()
+    drawer2.pdf(IndexedRecord(stranger, digest[stranger]), "history test 3", IndexedRecord(retest, digest[retest]))
+    assert seen["beside"] == sorted([stranger.name, retest.name])  # the retest the history holds, as indexed
+    with drawer2._one_at_a_time:  # another report being drawn: this one is asked again later, not queued
+        with pytest.raises(ReportBusy):
+            drawer2.pdf(IndexedRecord(retest, digest[retest]), "history test 2")
+
+
+def test_a_withdrawn_tests_report_is_not_drawn(demo_db: Path, records_dir: Path, real_records: list[Path],
+                                               tmp_path: Path) -> None:
+    import shutil
+
+    from edc_bench.records.reader import load_record
+    from edc_bench.web.app import WebConfig, create_app
+    from edc_bench.web.sessions import Sessions
+
+    db = tmp_path / "own.sqlite"
+    shutil.copy(demo_db, db)
+    folder = Path(shutil.copytree(real_records[0], records_dir / real_records[0].name))
+    with HistoryStore(f"sqlite:///{db}") as store:
+        store.add(load_record(folder), folder)
+        test_id = store.list(Filters(valve_id=load_record(folder).valve_id))[0]["id"]
+        store.withdraw_test(test_id, "mounted the wrong valve")
+    app = create_app(WebConfig(url=f"sqlite:///{db}", records_dir=records_dir, token=TOKEN), Sessions())
+    with TestClient(app, base_url="https://testserver", follow_redirects=False) as own:
+        signed_in(own)
+        refused = own.get(f"/report/{test_id}")
+        assert refused.status_code == 409 and "not the test as it stands" in refused.text
 
 
 def test_the_models_page_shows_what_each_adoption_was_decided_on(client: TestClient) -> None:
@@ -275,6 +339,34 @@ def test_the_models_page_shows_what_each_adoption_was_decided_on(client: TestCli
     assert {(r["model_name"], r["cv_accuracy"], r["labels"], r["replaced_model"], r["replaced_worn_passed"])
             for r in rows} == {("shop-2026-10", "0.93", "120", "p-edc-default", "13"),
                                ("shop-2026-11", "0.93", "160", "p-edc-default", "17")}
+
+
+def test_an_adoption_whose_evaluation_is_no_evaluation_leaves_the_models_page_working(demo_db: Path,
+                                                                                      tmp_path: Path) -> None:
+    """The review of #55: an engineer's login may write any text as an adoption's evaluation, and adoptions stay;
+    a figure json reads as infinity made the models page fail for good."""
+    import shutil
+
+    from edc_bench.learning.candidate_evaluation import CandidateEvaluation, Score
+    from edc_bench.web.app import WebConfig, create_app
+    from edc_bench.web.sessions import Sessions
+
+    db = tmp_path / "own.sqlite"
+    shutil.copy(demo_db, db)
+    shown = CandidateEvaluation(5, 40, 12, Score("<script>alert(1)</script>", 40, 0.9, 1, 0.9, 1, 1),
+                                Score('"><img src=x onerror=alert(1)>', 40, 0.5, 1, 0.5, 9, 1, True), "b" * 64)
+    with HistoryStore(f"sqlite:///{db}") as store:
+        for n, text in enumerate(('{"folds": 1e999}', "[" * 50_000, shown.to_json())):
+            store.add_adoption(f"odd-{n}", f"{n}" * 64, "Werkstatt Ost 3", "ines", evaluation=text)
+    app = create_app(WebConfig(url=f"sqlite:///{db}", token=TOKEN), Sessions())
+    with TestClient(app, base_url="https://testserver", follow_redirects=False) as own:
+        signed_in(own)
+        page = own.get("/models")
+        assert page.status_code == 200 and own.get("/models.csv").status_code == 200
+        assert page.text.count("no evaluation recorded") >= 2
+        assert "<script>alert" not in page.text and "&lt;script&gt;alert(1)&lt;/script&gt;" not in page.text
+        assert "&lt;img src=x onerror=alert(1)&gt;" in page.text and "<img src=x" not in page.text
+        assert "it had learnt from these labels" in page.text
 
 
 def test_every_table_exports_csv_and_a_formula_stays_text(client: TestClient) -> None:
