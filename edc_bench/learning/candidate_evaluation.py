@@ -8,10 +8,12 @@ station adopting a model and the chain's web server read it without scikit-learn
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
 
 @dataclass(frozen=True)
 class Score:
@@ -21,7 +23,7 @@ class Score:
     tests: int
     accuracy: float  # decision at the threshold against the teardown label
     marginal: int  # tests inside the marginal band (a retest on the bench)
-    accuracy_outside_band: float
+    accuracy_outside_band: float  # NaN: every test was inside the band
     worn_passed: int  # labelled worn or faulty, judged reusable (outside the band)
     reusable_failed: int  # labelled reusable, judged faulty (outside the band)
     in_sample: bool = False  # the model learnt from shop labels: these figures may be optimistic
@@ -33,6 +35,51 @@ class Score:
 
 #: The candidate model's metadata entry holding its :class:`CandidateEvaluation` (JSON).
 EVALUATION_KEY = "edc_bench.evaluation"
+
+_COUNT = Field(ge=0, lt=10**9)
+_SHARE = Field(ge=0.0, le=1.0)
+
+
+class _StoredScore(BaseModel):
+    """A :class:`Score` as stored: each figure held to what it can be (a file's metadata, or a row an engineer's
+    login wrote, is whatever its writer put there)."""
+
+    model_config = ConfigDict(frozen=True, strict=True, allow_inf_nan=False, extra="ignore")
+
+    model: str = Field(max_length=200)
+    tests: int = _COUNT
+    accuracy: float = _SHARE
+    marginal: int = _COUNT
+    accuracy_outside_band: float | None = _SHARE  # None: every test was inside the band
+    worn_passed: int = _COUNT
+    reusable_failed: int = _COUNT
+    in_sample: bool = False
+
+    @classmethod
+    def of(cls, score: Score) -> _StoredScore:
+        outside = float(score.accuracy_outside_band)
+        # numpy's figures as Python's (a strict model takes no numpy integer)
+        return cls(model=str(score.model), tests=int(score.tests), accuracy=float(score.accuracy),
+                   marginal=int(score.marginal), accuracy_outside_band=None if math.isnan(outside) else outside,
+                   worn_passed=int(score.worn_passed), reusable_failed=int(score.reusable_failed),
+                   in_sample=bool(score.in_sample))
+
+    def score(self) -> Score:
+        outside = math.nan if self.accuracy_outside_band is None else self.accuracy_outside_band
+        return Score(**{**self.model_dump(), "accuracy_outside_band": outside})
+
+
+class _StoredEvaluation(BaseModel):
+    """A :class:`CandidateEvaluation` as stored (JSON)."""
+
+    model_config = ConfigDict(frozen=True, strict=True, allow_inf_nan=False, extra="ignore")
+
+    folds: int = Field(ge=2, lt=1000)
+    labels: int = _COUNT
+    worn_or_faulty: int = _COUNT
+    candidate: _StoredScore
+    replaced: _StoredScore
+    replaced_sha256: str = Field(max_length=64)
 
 
 @dataclass(frozen=True)
@@ -49,66 +96,23 @@ class CandidateEvaluation:
     replaced_sha256: str
 
     def to_json(self) -> str:
-        """The evaluation as stored (keys sorted: the same figures, the same text; a figure that is not a number,
-        such as the accuracy outside the band when every test was inside it, as null)."""
-        return json.dumps({"folds": self.folds, "labels": self.labels, "worn_or_faulty": self.worn_or_faulty,
-                           "candidate": _finite(self.candidate.as_dict()), "replaced": _finite(self.replaced.as_dict()),
-                           "replaced_sha256": self.replaced_sha256}, sort_keys=True, allow_nan=False)
+        """The evaluation as stored (a share of no tests, NaN, as null)."""
+        return _StoredEvaluation(folds=self.folds, labels=self.labels, worn_or_faulty=self.worn_or_faulty,
+                                 candidate=_StoredScore.of(self.candidate), replaced=_StoredScore.of(self.replaced),
+                                 replaced_sha256=self.replaced_sha256).model_dump_json()
 
     @classmethod
     def from_json(cls, text: str | None) -> CandidateEvaluation | None:
-        """The evaluation ``text`` holds; None for none, or for text that is not one: a model file's metadata, and
-        a row an engineer's login wrote, are whatever their writer put there, so every figure is held to what it
-        can be (shares within 0 to 1, counts whole and not negative, at least two folds)."""
+        """The evaluation ``text`` holds; None for none, or for text that is not one (shares within 0 to 1, counts
+        whole and not negative, at least two folds, nothing that is not a number)."""
         if not text:
             return None
         try:
-            found = json.loads(text, parse_constant=_no_constant)
-            evaluation = cls(folds=_count(found["folds"], least=2), labels=_count(found["labels"]),
-                             worn_or_faulty=_count(found["worn_or_faulty"]), candidate=_score_of(found["candidate"]),
-                             replaced=_score_of(found["replaced"]), replaced_sha256=_text(found["replaced_sha256"]))
-        except Exception:  # noqa: BLE001 - any text at all: a RecursionError of deep nesting included
+            stored = _StoredEvaluation.model_validate_json(text)
+        except (ValidationError, ValueError, RecursionError):
             return None
-        return evaluation
-
-
-def _finite(score: dict[str, Any]) -> dict[str, Any]:
-    return {key: None if isinstance(value, float) and not math.isfinite(value) else value
-            for key, value in score.items()}
-
-
-def _no_constant(name: str) -> float:
-    raise ValueError(f"{name} is no figure")
-
-
-def _count(value: Any, least: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not least <= value < 10**9:
-        raise ValueError(f"{value!r} is no count")
-    return value
-
-
-def _share(value: Any, missing: bool = False) -> float:
-    if value is None and missing:
-        return math.nan  # none of the tests in the part it counts (stored as null)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value <= 1.0:
-        raise ValueError(f"{value!r} is no share")
-    return float(value)
-
-
-def _text(value: Any) -> str:
-    if not isinstance(value, str) or len(value) > 200:
-        raise ValueError("no short text")
-    return value
-
-
-def _score_of(found: Any) -> Score:
-    if not isinstance(found, dict) or not isinstance(found.get("in_sample", False), bool):
-        raise ValueError("a score is a mapping, in_sample true or false")
-    return Score(model=_text(found["model"]), tests=_count(found["tests"]), accuracy=_share(found["accuracy"]),
-                 marginal=_count(found["marginal"]),
-                 accuracy_outside_band=_share(found["accuracy_outside_band"], missing=True),
-                 worn_passed=_count(found["worn_passed"]), reusable_failed=_count(found["reusable_failed"]),
-                 in_sample=bool(found.get("in_sample", False)))
+        return cls(stored.folds, stored.labels, stored.worn_or_faulty, stored.candidate.score(),
+                   stored.replaced.score(), stored.replaced_sha256)
 
 
 __all__ = ["EVALUATION_KEY", "CandidateEvaluation", "Score"]
