@@ -162,6 +162,11 @@ def fill_bulk_chain(url: str, tests: int, stations: int = 100, now: dt.datetime 
             # what revisions 0008 and 0009's trigger counts row by row, counted at once (the triggers are off)
             conn.execute(test_day_counts.insert().from_select([*KEY, "tests"], recount()))
             conn.execute(test_month_counts.insert().from_select([*MONTH_KEY, "tests"], recount("month")))
+            # the rows came with their ids: each table's sequence goes on after them, so rows written later get new
+            # ones (a login mapped, a test indexed on the benchmark's chain)
+            for table in ("tests", "rig_checks", "reference_valves", "edc_logins", "adoptions", "amendments"):
+                conn.exec_driver_sql(f"SELECT setval(pg_get_serial_sequence('{table}', 'id'), "
+                                     f"(SELECT coalesce(max(id), 0) + 1 FROM {table}), false)")
         with engine.connect() as conn:
             conn.execution_options(isolation_level="AUTOCOMMIT").exec_driver_sql("ANALYZE")
     finally:

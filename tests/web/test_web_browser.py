@@ -209,3 +209,125 @@ def test_a_valves_pdf_report_opens_from_its_page(site: dict, browser: object) ->
     driver.find_element(By.CSS_SELECTOR, "form.signout button").click()  # type: ignore[attr-defined]
     _wait_for(driver, "form.signin")
     assert httpx.get(href, cookies=cookies).status_code == 303  # signed out: the cookie opens nothing
+
+
+# --- the chain's PostgreSQL, each role signing in with its own database login ---------------------------------
+
+PG_LOGINS = {"station000": "edc_station", "ines_pg": "edc_engineer"}
+
+
+@pytest.fixture(scope="module")
+def pg_site(tmp_path_factory: pytest.TempPathFactory, postgres_url: str) -> Iterator[dict[str, object]]:
+    """The benchmark's bulk chain (5 stations, a year of tests and weekly self-checks: Station 000's rig drifts,
+    Station 001's last check is NO-GO, one test per station withdrawn) on the tests' PostgreSQL with the chain's
+    roles; one real test indexed by a station's login, its record in the records folder; another row of that
+    station's forged by the owner with the triggers off. Served by uvicorn as a chain's server is (each person
+    signs in as their own login)."""
+    import sqlalchemy as sa
+    import uvicorn
+    from pg_server import new_database
+
+    from edc_bench.history.bulk_chain import fill_bulk_chain
+    from edc_bench.history.roles import setup_roles
+    from edc_bench.history.schema import amendments, tests
+
+    url = new_database(postgres_url)
+    fill_bulk_chain(url, 2000, stations=5)
+    engine = sa.create_engine(url)
+    with engine.begin() as conn:
+        setup_roles(conn)
+        for login, role in PG_LOGINS.items():
+            conn.exec_driver_sql(f"DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '{login}') THEN "
+                                 f"CREATE ROLE {login} LOGIN; END IF; END $$")
+            conn.exec_driver_sql(f"GRANT {role} TO {login}")
+        withdrawn = conn.execute(sa.select(tests.c.valve_id).join(amendments, amendments.c.target_id == tests.c.id)
+                                 .limit(1)).scalar_one()
+    engine.dispose()
+    with HistoryStore(url) as owner:
+        owner.map_login("ines_pg", None, "Ines Braun", "admin")
+    records = tmp_path_factory.mktemp("pg-site") / "records"
+    folder = write_record(run_simulated_test(load_variant(), "faulty", 7, valve_id="V-PG-REAL"), records,
+                          figure=False)
+    real = load_record(folder)
+    forged = "V-PG-FORGED"
+    with HistoryStore(url.replace("://postgres@", "://station000@")) as station:
+        assert station.add(real, folder) == "new"
+        assert station.add_row({"record_dir": "/records/forged", "started_at": "2026-11-20T08:00:00+00:00",
+                                "valve_id": forged, "pump_serial": "P-1", "variant": "p-edc-default",
+                                "part_number": "PE", "verdict": "FAIL", "station": "ignored", "operator": "ana",
+                                "clock": "real-time", "software_version": "0.1.0", "reason": "",
+                                "test_key": "forged-1", "record_sha256": "f" * 64}) == "new"
+    engine = sa.create_engine(url)
+    with engine.begin() as conn:  # the owner's rights: the append-only trigger held off, the FAIL turned PASS
+        conn.exec_driver_sql("ALTER TABLE tests DISABLE TRIGGER tests_append_only")
+        conn.execute(sa.update(tests).where(tests.c.valve_id == forged).values(verdict="PASS"))
+        conn.exec_driver_sql("ALTER TABLE tests ENABLE TRIGGER tests_append_only")
+    engine.dispose()
+    server_url = url.replace("://postgres@", "://@")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    app = create_app(WebConfig(url=server_url, records_dir=records))
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + WAIT_S
+    while not server.started and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert server.started, "the server did not start"
+    yield {"url": f"http://127.0.0.1:{port}", "db": url, "withdrawn": withdrawn, "forged": forged,
+           "real_verdict": str(real.verdict)}
+    server.should_exit = True
+    thread.join(WAIT_S)
+
+
+def _sign_in_as(driver: object, url: str, login: str, then: str) -> None:
+    from selenium.webdriver.common.by import By
+
+    driver.get(url + then)  # type: ignore[attr-defined]
+    _wait_for(driver, "form.signin")
+    driver.find_element(By.NAME, "login").send_keys(login)  # type: ignore[attr-defined]
+    driver.find_element(By.NAME, "password").send_keys("the tests' server trusts its logins")  # type: ignore
+    driver.find_element(By.ID, "signin").click()  # type: ignore[attr-defined]
+    assert _wait_for(driver, "span.who").text == login  # type: ignore[attr-defined]  # signed in pages only
+
+
+def _sign_out(driver: object) -> None:
+    from selenium.webdriver.common.by import By
+
+    driver.find_element(By.CSS_SELECTOR, "form.signout button").click()  # type: ignore[attr-defined]
+    _wait_for(driver, "form.signin")
+
+
+@pytest.mark.parametrize("login", ["station000", "ines_pg", "postgres"])
+def test_each_role_reads_the_chains_postgresql_in_a_browser(pg_site: dict, browser: object, login: str) -> None:
+    from selenium.webdriver.common.by import By
+
+    driver, url = browser, str(pg_site["url"])
+    _sign_in_as(driver, url, login, "/chain?since=")  # all time, the simulated rig left out
+    with HistoryStore(str(pg_site["db"]).replace("://postgres@", f"://{login}@")) as store:
+        summary = chain_summary(store, Filters(simulated=False))
+    assert driver.find_element(By.ID, "tests").text == str(summary.tests)  # type: ignore[attr-defined]
+    assert driver.find_element(By.ID, "first-pass").text == f"{summary.first_pass_rate * 100:.1f} %"  # type: ignore
+    assert _images_drawn(driver)
+    # the rigs: the drifted one says when service is due, the one whose last check was NO-GO says now
+    driver.get(url + "/rigs?station=" + quote("Station 000"))  # type: ignore[attr-defined]
+    drifted = _wait_for(driver, 'section.rig[data-station="Station 000"]')
+    assert "Service due" in drifted.text and "af" in drifted.text  # type: ignore[attr-defined]
+    assert _images_drawn(driver)
+    driver.get(url + "/rigs?station=" + quote("Station 001"))  # type: ignore[attr-defined]
+    assert "Service due now" in _wait_for(driver, 'section.rig[data-station="Station 001"]').text  # type: ignore
+    # a valve's rows: the withdrawn one and the forged one shown as such
+    driver.get(url + "/valve?id=" + quote(str(pg_site["withdrawn"]), safe=""))  # type: ignore[attr-defined]
+    assert "WITHDRAWN" in _wait_for(driver, "#rows").text  # type: ignore[attr-defined]
+    driver.get(url + "/valve?id=" + quote(str(pg_site["forged"]), safe=""))  # type: ignore[attr-defined]
+    assert "ALTERED" in _wait_for(driver, "#rows").text  # type: ignore[attr-defined]
+    # the real test's page: its decision, and its report opened with the browser's own session
+    driver.get(url + "/valve?id=V-PG-REAL")  # type: ignore[attr-defined]
+    link = _wait_for(driver, "#visits a")
+    decisions = [td.text for td in driver.find_elements(By.CSS_SELECTOR, "#visits td.verdict")]  # type: ignore
+    assert decisions == [pg_site["real_verdict"]]
+    cookies = {c["name"]: c["value"] for c in driver.get_cookies()}  # type: ignore[attr-defined]
+    report = httpx.get(link.get_attribute("href"), cookies=cookies)  # type: ignore[attr-defined]
+    assert report.status_code == 200 and report.content.startswith(b"%PDF")
+    _sign_out(driver)
