@@ -232,14 +232,17 @@ def pg_site(tmp_path_factory: pytest.TempPathFactory, postgres_url: str) -> Iter
     from edc_bench.history.schema import amendments, tests
 
     url = new_database(postgres_url)
-    fill_bulk_chain(url, 2000, stations=5)
     engine = sa.create_engine(url)
+    # the roles first, on empty tables: handing a table to edc_owner right after a bulk load can deadlock with
+    # PostgreSQL's autovacuum analysing it (seen once in CI: each waits for the other's lock on tests)
     with engine.begin() as conn:
         setup_roles(conn)
         for login, role in PG_LOGINS.items():
             conn.exec_driver_sql(f"DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '{login}') THEN "
                                  f"CREATE ROLE {login} LOGIN; END IF; END $$")
             conn.exec_driver_sql(f"GRANT {role} TO {login}")
+    fill_bulk_chain(url, 2000, stations=5)
+    with engine.connect() as conn:
         withdrawn = conn.execute(sa.select(tests.c.valve_id).join(amendments, amendments.c.target_id == tests.c.id)
                                  .limit(1)).scalar_one()
     engine.dispose()
