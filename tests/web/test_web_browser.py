@@ -5,6 +5,7 @@ write them there)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import socket
@@ -37,10 +38,32 @@ pytestmark = pytest.mark.skipif(not (Path(CHROMIUM).exists() and Path(CHROMEDRIV
                                        "chromium chromium-driver; .ci/run installs them)")
 
 
+@contextlib.contextmanager
+def _served(config: WebConfig) -> Iterator[str]:
+    """The application for ``config`` served by uvicorn on a free port, as ``edc-bench web`` serves it; yields its
+    URL."""
+    import uvicorn
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = uvicorn.Server(uvicorn.Config(create_app(config), host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + WAIT_S
+    while not server.started and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert server.started, "the server did not start"
+    try:
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(WAIT_S)
+
+
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, object]]:
     """The demo chain and one real test's record folder (its report drawn), served by uvicorn on a free port."""
-    import uvicorn
 
     base = tmp_path_factory.mktemp("site")
     records = base / "records"
@@ -51,20 +74,8 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, object]
         fill_demo_chain(store, now=NOW)
         store.add(load_record(folder), folder)
         real = store.list(Filters(simulated=True))[-1]
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    app = create_app(WebConfig(url=f"sqlite:///{db}", records_dir=records, token=TOKEN))
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + WAIT_S
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert server.started, "the server did not start"
-    yield {"url": f"http://127.0.0.1:{port}", "db": db, "real": real}
-    server.should_exit = True
-    thread.join(WAIT_S)
+    with _served(WebConfig(url=f"sqlite:///{db}", records_dir=records, token=TOKEN)) as url:
+        yield {"url": url, "db": db, "real": real}
 
 
 @pytest.fixture(scope="module")
@@ -224,7 +235,6 @@ def pg_site(tmp_path_factory: pytest.TempPathFactory, postgres_url: str) -> Iter
     station's forged by the owner with the triggers off. Served by uvicorn as a chain's server is (each person
     signs in as their own login)."""
     import sqlalchemy as sa
-    import uvicorn
     from pg_server import new_database
 
     from edc_bench.history.bulk_chain import fill_bulk_chain
@@ -267,21 +277,9 @@ def pg_site(tmp_path_factory: pytest.TempPathFactory, postgres_url: str) -> Iter
         conn.exec_driver_sql("ALTER TABLE tests ENABLE TRIGGER tests_append_only")
     engine.dispose()
     server_url = url.replace("://postgres@", "://@")
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    app = create_app(WebConfig(url=server_url, records_dir=records))
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + WAIT_S
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert server.started, "the server did not start"
-    yield {"url": f"http://127.0.0.1:{port}", "db": url, "withdrawn": withdrawn, "forged": forged,
-           "real_verdict": str(real.verdict)}
-    server.should_exit = True
-    thread.join(WAIT_S)
+    with _served(WebConfig(url=server_url, records_dir=records)) as site_url:
+        yield {"url": site_url, "db": url, "withdrawn": withdrawn, "forged": forged,
+               "real_verdict": str(real.verdict)}
 
 
 def _sign_in_as(driver: object, url: str, login: str, then: str) -> None:
