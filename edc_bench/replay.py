@@ -187,8 +187,8 @@ def compare_with_record(judged: Judgement, record: Record, rel_tol: float = 0.0)
     for name, entry in judged.parameters.items():
         rec = record.parameters.get(name)
         for key in ("value", "std"):
-            got, want = entry[key], None if rec is None else getattr(rec, key)
-            want = math.nan if want is None else want
+            got, want = getattr(entry, key), None if rec is None else getattr(rec, key)
+            got, want = (math.nan if v is None else v for v in (got, want))
             if not _same(float(got), float(want), rel_tol):
                 diffs.append(f"{name} {key}: recorded {want!r}, replayed {got!r}")
     rec_cls, cls = record.classification, judged.classification
@@ -196,8 +196,8 @@ def compare_with_record(judged: Judgement, record: Record, rel_tol: float = 0.0)
         diffs.append("classification: present in one, absent in the other")
     elif cls is not None and rec_cls is not None:
         for key in ("probability_faulty", "distance"):
-            if not _same(cls[key], getattr(rec_cls, key), rel_tol):
-                diffs.append(f"{key}: recorded {getattr(rec_cls, key)!r}, replayed {cls[key]!r}")
+            if not _same(getattr(cls, key), getattr(rec_cls, key), rel_tol):
+                diffs.append(f"{key}: recorded {getattr(rec_cls, key)!r}, replayed {getattr(cls, key)!r}")
     return diffs
 
 

@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.config import load_variant
     from edc_bench.errors import ConfigError
     from edc_bench.records.reader import load_record
-    from edc_bench.verdict.judgement import classification_dict, classify_features
+    from edc_bench.verdict.judgement import classification_summary, classify_features
     from edc_bench.verdict.verdicts import Verdict
 
     record = None
@@ -82,8 +82,8 @@ def run(args: argparse.Namespace) -> int:
         return _finish(out, args.json, record, "this station has no measured baseline for the variant now",
                        args.record_dir)
     judged, baseline, classifier = classify_features(variant, af, a1, args.model)
-    out = {"variant": variant.name, "features": {"af": af, "a1": a1}, **classification_dict(judged, classifier),
-           "baseline": baseline.summary()}
+    out = {"variant": variant.name, "features": {"af": af, "a1": a1},
+           **classification_summary(judged, classifier).model_dump(mode="python"), "baseline": baseline.summary()}
     if not baseline.calibrated:
         out["reasons"] = [nominal_baseline_warning(variant)]
     return _finish(out, args.json, record, "" if record is None else _why_else(record, baseline, classifier),
@@ -220,7 +220,7 @@ def _report(out: dict, as_json: bool) -> None:
     if "probability_faulty" in out:
         rel = out["features_rel"]
         print(f"af x{rel['af']:.3f}, a1 x{rel['a1']:.3f} of the new-valve baseline "
-              f"({out['baseline']['source'] or 'no source given'})")
+              f"({out['baseline'].source or 'no source given'})")
         print(f"P(faulty) = {out['probability_faulty']:.3f}, distance to the boundary {out['distance']:+.3f} "
               f"(marginal band {out['marginal_band']:g}, {out['model']} model)")
     for reason in out.get("reasons", []):

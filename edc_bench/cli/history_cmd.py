@@ -18,7 +18,7 @@ from edc_bench.cli.common import (
     print_quietly_if_closed,
 )
 from edc_bench.history.visits import visits, with_visit_decisions
-from edc_bench.timefmt import local_column, local_text, utc_bound
+from edc_bench.timefmt import local_column, utc_bound
 from edc_bench.verdict.verdicts import Verdict
 
 

@@ -67,7 +67,7 @@ def _summary(report: Any) -> dict[str, Any]:
     j = report.judged
     return json_safe({
         "verdict": j.verdict, "reasons": j.reasons, "features": j.features,
-        "parameters": {n: {"value": p["value"], "std": p["std"]} for n, p in j.parameters.items()},
+        "parameters": {n: {"value": p.value, "std": p.std} for n, p in j.parameters.items()},
         "classification": j.classification, "ticks": report.run.ticks,
         "missed_replies": report.run.missed_replies,
         "max_drive_deviation_v": report.run.max_drive_deviation_v,

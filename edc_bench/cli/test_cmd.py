@@ -633,14 +633,14 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
         print(f"baseline: {baseline_line(result.judgement.baseline)}")
     if result.classification is not None:
         c = result.classification
-        print(f"relative to the new-valve baseline: af x{c['features_rel']['af']:.2f}, a1 x{c['features_rel']['a1']:.2f}")
+        print(f"relative to the new-valve baseline: af x{c.features_rel['af']:.2f}, a1 x{c.features_rel['a1']:.2f}")
     print("parameters:")
     for name, p in result.parameters.items():
         tail = ""
-        if "truth" in p:
-            tail = f"   truth {p['truth']:.6g} ({p['error_rel']:+.1%})"
-        kind = "" if p["estimated"] else "   (fixed at nominal)"
-        print(f"  {name:>2} = {_value_and_spread(p['value'], p['std'])}{tail}{kind}")
+        if p.truth is not None and p.error_rel is not None:
+            tail = f"   truth {p.truth:.6g} ({p.error_rel:+.1%})"
+        kind = "" if p.estimated else "   (fixed at nominal)"
+        print(f"  {name:>2} = {_value_and_spread(p.value, p.std)}{tail}{kind}")
     ident = result.identification
     if ident is not None:
         print(f"converged: {result.converged} ({ident.periods} excitation periods of {ident.period_s:g} s; "

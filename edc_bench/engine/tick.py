@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable, Container
-from typing import Any, Protocol
+from typing import Protocol
 
 from edc_bench.config.models import Variant
 from edc_bench.control.design import build_controller

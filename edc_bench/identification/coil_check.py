@@ -25,12 +25,11 @@ Pure numpy on the trace.
 from __future__ import annotations
 
 import math
-from typing import Any
-
 import numpy as np
 
 from edc_bench.config.models import Variant
 from edc_bench.control.coil import measurement_lag_s
+from edc_bench.identification.coil_finding import CoilFinding
 from edc_bench.physics.coil import REFERENCE_TEMP_C, resistance_20c_ohm
 
 #: Below this much excitation time the coil's figure is not given.
@@ -40,7 +39,7 @@ MIN_MEASURED_S = 2.0
 SPEC_TOLERANCE_REL = 0.01
 
 
-def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: float | None) -> dict[str, Any] | None:
+def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: float | None) -> CoilFinding | None:
     """The coil's resistance measured in the test, and whether it is within the variant's spec.
 
     Parameters
@@ -54,7 +53,7 @@ def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: fl
 
     Returns
     -------
-    dict or None
+    CoilFinding or None
         None if the test ran too briefly to measure the coil.
     """
     coil = variant.coil
@@ -74,20 +73,20 @@ def coil_finding(variant: Variant, trace: dict[str, np.ndarray], coil_temp_c: fl
     temp_c = REFERENCE_TEMP_C if coil_temp_c is None else float(coil_temp_c)
     r20 = float(resistance_20c_ohm(r_start, temp_c, alpha))
     low, high = coil.resistance_min_ohm, coil.resistance_max_ohm
-    return {
-        "resistance_ohm": r_end,
-        "resistance_start_ohm": r_start,
-        "resistance_20c_ohm": r20,
-        "temp_start_c": temp_c,
-        "temp_given": coil_temp_c is not None,
-        "temp_source": "given (--coil-temp-c)" if coil_temp_c is not None else "assumed: a rested coil at 20 degC",
-        "warming_k": (r_end / r_start - 1.0) / alpha if alpha > 0 and r_start > 0 else math.nan,
-        "spec_ohm": [low, high],
-        "in_spec": in_spec(r20, low, high),
-        "reference_ohm": coil.resistance_ohm,
-        "inductance_mh": coil.inductance_mh,
-        "inductance_source": "nominal (not measured)",
-    }
+    return CoilFinding(
+        resistance_ohm=r_end,
+        resistance_start_ohm=r_start,
+        resistance_20c_ohm=r20,
+        temp_start_c=temp_c,
+        temp_given=coil_temp_c is not None,
+        temp_source="given (--coil-temp-c)" if coil_temp_c is not None else "assumed: a rested coil at 20 degC",
+        warming_k=(r_end / r_start - 1.0) / alpha if alpha > 0 and r_start > 0 else math.nan,
+        spec_ohm=(low, high),
+        in_spec=in_spec(r20, low, high),
+        reference_ohm=coil.resistance_ohm,
+        inductance_mh=coil.inductance_mh,
+        inductance_source="nominal (not measured)",
+    )
 
 
 def in_spec(resistance_20c_ohm: float, low: float | None, high: float | None) -> bool | None:
@@ -104,29 +103,31 @@ def in_spec(resistance_20c_ohm: float, low: float | None, high: float | None) ->
                 and (high is None or resistance_20c_ohm <= high * (1 + tol)))
 
 
-def coil_reason(finding: dict[str, Any]) -> str | None:
+def coil_reason(finding: CoilFinding) -> str | None:
     """The reason a coil fails its spec, in words a technician acts on (None if it does not)."""
-    if finding.get("in_spec") is not False:
+    if finding.in_spec is not False or finding.resistance_20c_ohm is None:
         return None
-    low, high = finding["spec_ohm"]
+    low, high = finding.spec_ohm
     spec = f"{low:g}-{high:g} ohm" if low is not None and high is not None else (
         f">= {low:g} ohm" if low is not None else f"<= {high:g} ohm")
-    side = "high" if high is not None and finding["resistance_20c_ohm"] > high else "low"
+    side = "high" if high is not None and finding.resistance_20c_ohm > high else "low"
     hint = ("an open strand, a corroded connector or a poor lead contact reads high; so does a coil warmer than "
             "stated (give its temperature with --coil-temp-c)") if side == "high" else \
         "shorted turns read low"
-    return (f"coil out of spec: {finding['resistance_20c_ohm']:.3f} ohm at 20 degC (spec {spec}; measured "
-            f"{finding['resistance_start_ohm']:.3f} ohm at {finding['temp_start_c']:g} degC, "
-            f"{finding['temp_source']}): check the coil and its leads with a multimeter; {hint}")
+    return (f"coil out of spec: {finding.resistance_20c_ohm:.3f} ohm at 20 degC (spec {spec}; measured "
+            f"{finding.resistance_start_ohm:.3f} ohm at {finding.temp_start_c:g} degC, "
+            f"{finding.temp_source}): check the coil and its leads with a multimeter; {hint}")
 
 
-def coil_line(finding: dict[str, Any] | None) -> str:
+def coil_line(finding: CoilFinding | None) -> str:
     """One line for the technician: the coil's resistance at 20 degC, its spec and its warming in the test."""
-    if not finding:
+    if finding is None or finding.resistance_20c_ohm is None:
         return "not measured (the test ran too briefly)"
-    low, high = finding["spec_ohm"]
-    spec = "no spec in the variant" if finding["in_spec"] is None else (
-        f"spec {low:g}-{high:g} ohm: {'in spec' if finding['in_spec'] else 'OUT OF SPEC'}")
-    assumed = "" if finding["temp_given"] else ", coil assumed at 20 degC at the start"
-    return (f"{finding['resistance_20c_ohm']:.3f} ohm at 20 degC ({spec}{assumed}); warmed "
-            f"{finding['warming_k']:+.1f} K in the test, {finding['resistance_ohm']:.3f} ohm at the end")
+    low, high = finding.spec_ohm
+    spec = "no spec in the variant" if finding.in_spec is None else (
+        f"spec {low:g}-{high:g} ohm: {'in spec' if finding.in_spec else 'OUT OF SPEC'}")
+    assumed = "" if finding.temp_given else ", coil assumed at 20 degC at the start"
+    # a record read back holds a figure it could not measure (NaN) as None
+    warming_k, end_ohm = (math.nan if v is None else v for v in (finding.warming_k, finding.resistance_ohm))
+    return (f"{finding.resistance_20c_ohm:.3f} ohm at 20 degC ({spec}{assumed}); warmed "
+            f"{warming_k:+.1f} K in the test, {end_ohm:.3f} ohm at the end")

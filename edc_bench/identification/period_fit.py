@@ -710,7 +710,6 @@ def solve(acc: BlockAccumulator, blocks: int, settle_band_rel: float) -> PeriodF
     The estimate is the fit over the core rows (:func:`core_rows`: clear of any stick, whose forces the sgn(x')
     model cannot explain); the model-fit figures (the residual and its repeating part) are the fit's over every
     used row, where a misfit shows (:attr:`PeriodFit.core_shift` is the distance between the two)."""
-    setup = acc.setup
     if blocks <= 0:
         return None
     with np.errstate(invalid="ignore", divide="ignore"):  # a test left without rows has NaN figures, said as such

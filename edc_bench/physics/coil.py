@@ -27,8 +27,6 @@ from typing import TypeVar
 
 import numpy as np
 
-from edc_bench.config.models import Variant
-
 #: The temperature the coil spec and the nominal resistance are stated at.
 REFERENCE_TEMP_C = 20.0
 

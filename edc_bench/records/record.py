@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -43,8 +43,6 @@ from edc_bench.records.advice import Advice, Cause, advice, invalid_cause
 from edc_bench.records.schema import (
     BaselineSummary,
     ClassificationSummary,
-    CoilFinding,
-    DecisionPlane,
     EscalationSummary,
     IdentificationSummary,
     Identity,
@@ -53,17 +51,12 @@ from edc_bench.records.schema import (
     ParameterEstimate,
     Record,
     RecordFiles,
-    ReferenceValue,
     RetestSummary,
-    Section,
     StabilityMargins,
     StopSummary,
 )
 from edc_bench.verdict.judgement import Judgement
 from edc_bench.verdict.verdicts import Verdict
-
-
-SectionT = TypeVar("SectionT", bound=Section)
 
 
 @dataclass(frozen=True)
@@ -148,8 +141,8 @@ class BenchResult:
         return invalid_cause(self.judgement.problems, abort.kind if abort is not None else None)
 
     @property
-    def parameters(self) -> dict[str, dict[str, Any]]:
-        """``name -> {"value", "std", "estimated"}`` for a3, a2, a1, a0, b, af."""
+    def parameters(self) -> dict[str, ParameterEstimate]:
+        """a3, a2, a1, a0, b, af as identified (value, standard error, estimated or fixed)."""
         return self.judgement.parameters
 
     @property
@@ -168,12 +161,12 @@ class BenchResult:
         return self.judgement.identification
 
     @property
-    def classification(self) -> dict[str, Any] | None:
-        """The classifier's judgement as plain data (None if it was not asked)."""
+    def classification(self) -> ClassificationSummary | None:
+        """The classifier's judgement (None if it was not asked)."""
         return self.judgement.classification
 
     @property
-    def baseline(self) -> dict[str, Any] | None:
+    def baseline(self) -> BaselineSummary | None:
         """The baseline the features were compared with (None if not classified)."""
         return self.judgement.baseline
 
@@ -223,13 +216,12 @@ def build_record(result: BenchResult, files: RecordFiles, retest: RetestSummary 
         icd_version=".".join(str(v) for v in default_icd().version),
         features=result.features,
         features_volt=judgement.features_volt,
-        coil=_section(CoilFinding, judgement.coil),
-        classification=_section(ClassificationSummary, result.classification),
-        baseline=_section(BaselineSummary, result.baseline),
-        reference_values={name: ReferenceValue.model_validate(value)
-                          for name, value in judgement.reference_values.items()},
-        decision_plane=_section(DecisionPlane, judgement.decision_plane),
-        parameters={name: ParameterEstimate.model_validate(value) for name, value in result.parameters.items()},
+        coil=judgement.coil,
+        classification=judgement.classification,
+        baseline=judgement.baseline,
+        reference_values=judgement.reference_values,
+        decision_plane=judgement.decision_plane,
+        parameters=judgement.parameters,
         converged=result.converged,
         identification=None if ident is None else IdentificationSummary(
             estimator=result.variant.estimator.kind,
@@ -257,10 +249,6 @@ def build_record(result: BenchResult, files: RecordFiles, retest: RetestSummary 
         escalation=escalation,
         files=files,
     )
-
-
-def _section(model: type[SectionT], value: Mapping[str, Any] | None) -> SectionT | None:
-    return None if value is None else model.model_validate(value)
 
 
 def record_json(record: Record) -> dict[str, Any]:

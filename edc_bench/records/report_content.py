@@ -221,7 +221,7 @@ def baseline_rows(record: Record) -> list[tuple[str, str]]:
     baseline = record.baseline
     if baseline is None:
         return [("Baseline", baseline_line(None))]
-    rows = [("Baseline", baseline_line(baseline.model_dump()))]
+    rows = [("Baseline", baseline_line(baseline))]
     if baseline.af_v is not None and baseline.a1_v_s_per_mm is not None:
         rows.append(("Values", f"af {baseline.af_v:.5g} V, a1 {baseline.a1_v_s_per_mm:.5g} V s/mm"))
     if baseline.path:

@@ -12,6 +12,12 @@ written, read back and covered by the record's integrity manifest without anothe
 read, never written, is declared ``exclude=True``: ``retested_by``). Older schemas are brought to today's form
 in one place on read (:func:`edc_bench.records.reader.upgraded`).
 
+A part made below the records is declared where it is made and assembled here, so the code that makes it builds
+the model record.json holds (no dict in between): the coil's finding in
+:mod:`edc_bench.identification.coil_finding`, the verdict's parts (parameters, reference values, classification,
+baseline, decision plane) in :mod:`edc_bench.verdict.sections`, the tick timing in
+:mod:`edc_bench.engine.tick_timing`.
+
 Every section accepts keys it does not know (``extra="allow"``): a record a newer edc-bench wrote is still read
 by this one. Sections nobody reads field by field (the variant as run, the simulation's ground truth) are kept as
 the mappings they are.
@@ -25,10 +31,18 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 from edc_bench.engine.outcome import AbortKind, StopReason
 from edc_bench.engine.problems import Problem
+from edc_bench.engine.tick_timing import TickTiming
+from edc_bench.identification.coil_finding import CoilFinding
 from edc_bench.records.advice import Advice, Area, Cause, advice, invalid_area, invalid_cause
 from edc_bench.runtime.clock_kind import ClockKind
-from edc_bench.engine.tick_timing import TickTiming
-from edc_bench.verdict.baseline_source import BaselineSource
+from edc_bench.section import Section
+from edc_bench.verdict.sections import (
+    BaselineSummary,
+    ClassificationSummary,
+    DecisionPlane,
+    ParameterEstimate,
+    ReferenceValue,
+)
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -38,12 +52,6 @@ def _none_if_empty(value: Any) -> Any:
 
 #: A verdict a section names, or None where there is none; older records wrote "" for none.
 MaybeVerdict = Annotated[Verdict | None, BeforeValidator(_none_if_empty)]
-
-
-class Section(BaseModel):
-    """A part of a record: read-only once read; unknown keys (a newer record's) kept, not refused."""
-
-    model_config = ConfigDict(frozen=True, extra="allow")
 
 
 class Identity(Section):
@@ -56,77 +64,6 @@ class Identity(Section):
     shop_address: str = ""
     job_ref: str = ""  # the job or vehicle reference scanned with the valve ('' if none): the customer's page prints it
     purpose: str = ""  # "calibration" for a baseline's test (edc-bench calibrate), '' for a valve's
-
-
-class CoilFinding(Section):
-    """The coil's resistance as the test measured it and its verdict against the spec (None: no spec)."""
-
-    resistance_ohm: float | None = None
-    resistance_start_ohm: float | None = None
-    resistance_20c_ohm: float | None = None
-    temp_start_c: float | None = None
-    temp_given: bool = False
-    temp_source: str = ""
-    warming_k: float | None = None
-    spec_ohm: tuple[float | None, float | None] = (None, None)
-    in_spec: bool | None = None
-    reference_ohm: float | None = None
-    inductance_mh: float | None = None
-    inductance_source: str = ""
-
-
-class ClassificationSummary(Section):
-    """The classifier's judgement of the features, naming the model exactly."""
-
-    verdict: Verdict
-    probability_faulty: float
-    #: signed distance to the boundary; None: beyond the classifier's scan (3.0), far on its verdict's side (the
-    #: classifier's +/-inf, which JSON cannot hold)
-    distance: float | None
-    features_rel: dict[str, float]
-    model: str = ""
-    model_name: str | None = None
-    model_file: str | None = None
-    model_sha256: str | None = None
-    threshold: float | None = None
-    marginal_band: float | None = None
-    training_data_sha256: str | None = None
-
-
-class BaselineSummary(Section):
-    """The new-valve baseline the features were compared with (figures and provenance)."""
-
-    af_v: float | None = None
-    a1_v_s_per_mm: float | None = None
-    af_sd_v: float | None = None
-    a1_sd_v_s_per_mm: float | None = None
-    af_uncertainty_v: float | None = None
-    a1_uncertainty_v_s_per_mm: float | None = None
-    tests: int = 0
-    source: str = ""  # in words, for people
-    sources: list[BaselineSource] = Field(default_factory=list)  # where its tests ran (schema 10 on; upgraded)
-    calibrated: bool | None = None
-    written_at: str | None = None
-    station: str | None = None
-    software: str | None = None
-    path: str | None = None
-
-
-class ReferenceValue(Section):
-    """The figure a parameter is compared with, and where it comes from (baseline or data sheet)."""
-
-    value: float | None = None
-    source: str = ""
-
-
-class ParameterEstimate(Section):
-    """One identified parameter: value, standard error, whether it was estimated; truth on a simulated rig."""
-
-    value: float | None = None
-    std: float | None = None
-    estimated: bool = False
-    truth: float | None = None
-    error_rel: float | None = None
 
 
 class ModelFitSummary(Section):
@@ -195,16 +132,6 @@ class StabilityMargins(Section):
     closed_loop_stable: bool | None = None
     max_pole_radius: float | None = None
     delay_ticks: int = 1
-
-
-class DecisionPlane(Section):
-    """P(faulty) on a grid of relative features, for the report to draw the boundary without the model."""
-
-    af_rel_range: tuple[float, float]
-    a1_rel_range: tuple[float, float]
-    p_faulty: list[list[float]]
-    threshold: float
-    marginal_band: float
 
 
 class AbortSummary(Section):

@@ -30,7 +30,7 @@ import math
 import time
 import traceback
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from edc_bench.canlib import can
 from edc_bench.config.models import Variant

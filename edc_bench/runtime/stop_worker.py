@@ -23,7 +23,7 @@ from __future__ import annotations
 import queue
 import sys
 import threading
-from typing import Any, Protocol
+from typing import Protocol
 
 from edc_bench.engine.outcome import StopDecision
 

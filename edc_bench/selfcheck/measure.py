@@ -63,15 +63,16 @@ def reference_values(variant: Variant, rest: RestReading, result: Any,
 
     def volts_20c(name: str) -> float:
         entry = result.parameters.get(name)
-        if entry is None or not math.isfinite(entry["value"]):
+        if entry is None or entry.value is None or not math.isfinite(entry.value):
             return math.nan
-        return float(resistance_20c_ohm(volts_at_coil(inductive[name], entry["value"], r_ref, r_hat), temp_c, alpha))
+        return float(resistance_20c_ohm(volts_at_coil(inductive[name], entry.value, r_ref, r_hat), temp_c, alpha))
 
-    coil = result.judgement.coil or {}
+    coil = result.judgement.coil
+    coil_r20_ohm = math.nan if coil is None or coil.resistance_20c_ohm is None else coil.resistance_20c_ohm
     problems = tuple(result.reasons) if result.verdict == Verdict.INVALID else ()
     return ReferenceValues(
         lvdt_zero_mm=rest.lvdt_zero_mm, current_zero_a=rest.current_zero_a,
-        coil_r20_ohm=float(coil.get("resistance_20c_ohm", math.nan)),
+        coil_r20_ohm=float(coil_r20_ohm),
         a0_v_per_mm=volts_20c("a0"), af_v=volts_20c("af"), a1_v_s_per_mm=volts_20c("a1"),
         lvdt_at_floor=rest.lvdt_at_floor, test_problems=problems, coil_temp_c=temp_c)
 

@@ -150,7 +150,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     if not math.isnan(f.get("af", math.nan)):
         line = f"af {f['af']:.5f} V, a1 {f['a1']:.6f} V s/mm"
         if result.classification:
-            rel = result.classification["features_rel"]
+            rel = result.classification.features_rel
             line += f"   ({rel['af'] - 1:+.0%} and {rel['a1'] - 1:+.0%} against a new valve)"
         body.add_row("valve", line)
         body.add_row("", "af and a1 referred to the reference coil "
@@ -159,7 +159,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     if result.judgement.coil is not None:
         body.add_row("coil", coil_line(result.judgement.coil))
     if result.judgement.baseline is not None:
-        nominal = result.judgement.baseline.get("calibrated") is False
+        nominal = result.judgement.baseline.calibrated is False
         body.add_row("baseline", Text(baseline_line(result.judgement.baseline), style="bold magenta" if nominal else ""))
     stop = result.stop
     if stop is not None:

@@ -32,6 +32,7 @@ from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.verdict.baseline_source import BaselineSource, sources_of_text, sources_text
+from edc_bench.verdict.sections import BaselineSummary
 
 BASELINE_DIR = "baselines"
 #: Earlier baselines of a folder are kept here when a new one replaces them.
@@ -198,14 +199,14 @@ class Baseline:
         """``(af / af0, a1 / a1_0)``."""
         return af / self.af_v, a1 / self.a1_v_s_per_mm
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> BaselineSummary:
         """The baseline as a record keeps it: figures, uncertainty and provenance, not the test list."""
-        return {"af_v": self.af_v, "a1_v_s_per_mm": self.a1_v_s_per_mm, "af_sd_v": self.af_sd_v,
-                "a1_sd_v_s_per_mm": self.a1_sd_v_s_per_mm, "af_uncertainty_v": self.af_uncertainty_v,
-                "a1_uncertainty_v_s_per_mm": self.a1_uncertainty_v_s_per_mm, "tests": self.tests,
-                "source": self.source, "sources": sorted(str(source) for source in self.sources),
-                "calibrated": self.calibrated, "written_at": self.written_at,
-                "station": self.station, "software": self.software, "path": self.path}
+        return BaselineSummary(
+            af_v=self.af_v, a1_v_s_per_mm=self.a1_v_s_per_mm, af_sd_v=self.af_sd_v,
+            a1_sd_v_s_per_mm=self.a1_sd_v_s_per_mm, af_uncertainty_v=self.af_uncertainty_v,
+            a1_uncertainty_v_s_per_mm=self.a1_uncertainty_v_s_per_mm, tests=self.tests, source=self.source,
+            sources=sorted(self.sources), calibrated=self.calibrated, written_at=self.written_at,
+            station=self.station, software=self.software, path=self.path)
 
     def to_toml(self, variant: str, note: str = "") -> str:
         """The baseline file's text (TOML), the tests behind it listed as ``[[test]]`` tables."""

@@ -13,7 +13,6 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -22,6 +21,7 @@ from edc_bench.control.fel import FelController
 from edc_bench.engine.outcome import LoopOutcome
 from edc_bench.identification.analysis import Identification, ModelFit, analyse
 from edc_bench.identification.coil_check import coil_finding, coil_reason
+from edc_bench.identification.coil_finding import CoilFinding
 from edc_bench.identification.period_fit import DRIFT_MIN_PERIODS
 from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_problems
 from edc_bench.physics.coil import referred_from_estimate, volts_at_coil
@@ -30,6 +30,13 @@ from edc_bench.physics.feedforward import FeedforwardParameters, nominal_paramet
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s
+from edc_bench.verdict.sections import (
+    BaselineSummary,
+    ClassificationSummary,
+    DecisionPlane,
+    ParameterEstimate,
+    ReferenceValue,
+)
 from edc_bench.verdict.classifier import Classification, ValveClassifier, default_classifier
 from edc_bench.verdict.verdicts import Verdict
 
@@ -49,9 +56,9 @@ class Judgement:
         PASS, MARGINAL, FAIL, INVALID or UNCLASSIFIED.
     reasons : list of str
         Why the verdict is what it is.
-    parameters : dict
-        ``name -> {"value", "std", "estimated"}`` for a3, a2, a1, a0, b, af
-        (with ``truth`` and ``error_rel`` on a simulated rig).
+    parameters : dict of str to ParameterEstimate
+        a3, a2, a1, a0, b, af: value, standard error, estimated or fixed (with ``truth`` and ``error_rel`` on a
+        simulated rig).
     features : dict
         ``{"af": ..., "a1": ...}``, the diagnosis inputs (V and V s/mm), referred to the reference coil
         (the variant's nominal coil at 20 degC): they do not depend on this coil's resistance.
@@ -61,18 +68,17 @@ class Judgement:
         af and a1 settled and stayed settled, and the run was not aborted.
     identification : Identification or None
         Settle times, conditioning, uncertainty; None if nothing ran.
-    reference_values : dict
-        ``name -> {"value", "source"}``: what each parameter is compared
-        with: the variant's new-valve baseline for af and a1 when one was
-        used, the data-sheet nominal value otherwise.
-    classification : dict or None
-        The classifier's judgement as plain data, with the model's identity.
-    baseline : dict or None
+    reference_values : dict of str to ReferenceValue
+        What each parameter is compared with: the variant's new-valve baseline for af and a1 when one was used,
+        the data-sheet nominal value otherwise.
+    classification : ClassificationSummary or None
+        The classifier's judgement, with the model's identity.
+    baseline : BaselineSummary or None
         The baseline the features were divided by.
-    decision_plane : dict or None
+    decision_plane : DecisionPlane or None
         P(faulty) on a grid around the valve (for the report), with the
         threshold and marginal band.
-    coil : dict or None
+    coil : CoilFinding or None
         The coil's resistance measured in the test and its spec (:func:`~edc_bench.identification.coil_check.coil_finding`).
     problems : Problem
         What stands between the test and a verdict on the valve's wear, as values (the trust rule's problems,
@@ -81,16 +87,16 @@ class Judgement:
 
     verdict: Verdict
     reasons: list[str]
-    parameters: dict[str, dict[str, Any]]
+    parameters: dict[str, ParameterEstimate]
     features: dict[str, float]
     converged: bool
     identification: Identification | None
-    reference_values: dict[str, dict[str, Any]] = field(default_factory=dict)
-    classification: dict[str, Any] | None = None
-    baseline: dict[str, Any] | None = None
-    decision_plane: dict[str, Any] | None = None
+    reference_values: dict[str, ReferenceValue] = field(default_factory=dict)
+    classification: ClassificationSummary | None = None
+    baseline: BaselineSummary | None = None
+    decision_plane: DecisionPlane | None = None
     features_volt: dict[str, float] = field(default_factory=dict)
-    coil: dict[str, Any] | None = None
+    coil: CoilFinding | None = None
     problems: Problem = Problem.NONE
 
 
@@ -187,14 +193,14 @@ def model_fit_reason(fit: ModelFit) -> str:
     return MODEL_FIT_PREFIX + "; ".join(fit.problems) + "; " + MODEL_FIT_ADVICE
 
 
-def reference_values(variant: Variant, baseline: Baseline | None) -> dict[str, dict[str, Any]]:
+def reference_values(variant: Variant, baseline: Baseline | None) -> dict[str, ReferenceValue]:
     """What each parameter is compared with: the baseline for af and a1 if one judged, else the nominal value."""
-    out = {name: {"value": float(value), "source": "nominal"}
+    out = {name: ReferenceValue(value=float(value), source="nominal")
            for name, value in nominal_parameters(variant)._asdict().items()}
     if baseline is not None:
         source = "baseline" if baseline.calibrated else "NOMINAL baseline (not calibrated)"
-        out["af"] = {"value": baseline.af_v, "source": source}
-        out["a1"] = {"value": baseline.a1_v_s_per_mm, "source": source}
+        out["af"] = ReferenceValue(value=baseline.af_v, source=source)
+        out["a1"] = ReferenceValue(value=baseline.a1_v_s_per_mm, source=source)
     return out
 
 
@@ -253,7 +259,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     if stall_s > 0:  # the PC, not the rig or the bus, is what the technician checks
         problems |= Problem.PC_STALLED
         reasons.append(pc_stall_reason(stall_s, outcome.cpu_steal_s))
-    parameters: dict[str, dict[str, Any]] = {}
+    parameters: dict[str, ParameterEstimate] = {}
     inductive = inductive_shares(variant)._asdict()
     r_ref, r_hat = variant.coil.resistance_ohm, measured_resistance_ohm(trace, variant)
     final: dict[str, float] = {}
@@ -264,11 +270,10 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             value = referred_from_estimate(inductive[name], ident.final[name], r_ref, r_hat) \
                 if name in estimated else ident.final[name]
             final[name] = value
-            entry: dict[str, Any] = {"value": value, "std": ident.std[name], "estimated": name in estimated}
-            if truth is not None:
-                entry["truth"] = getattr(truth, name)
-                entry["error_rel"] = value / getattr(truth, name) - 1.0
-            parameters[name] = entry
+            true_value = None if truth is None else getattr(truth, name)
+            parameters[name] = ParameterEstimate(
+                value=value, std=ident.std[name], estimated=name in estimated, truth=true_value,
+                error_rel=None if true_value is None else value / true_value - 1.0)
     features = {n: final.get(n, math.nan) for n in ("af", "a1")}
     coil = coil_finding(variant, trace, coil_temp_c)
     bad_coil = coil_reason(coil) if coil is not None else None
@@ -306,7 +311,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     return Judgement(
         verdict=verdict_of(problems, Verdict(judged.verdict)), reasons=said, parameters=parameters,
         features=features, converged=converged, identification=ident,
-        reference_values=reference_values(variant, baseline), classification=classification_dict(judged, classifier),
+        reference_values=reference_values(variant, baseline), classification=classification_summary(judged, classifier),
         baseline=baseline.summary(), decision_plane=decision_plane(classifier, judged.features_rel),
         features_volt=features_volt, coil=coil, problems=problems)
 
@@ -377,19 +382,18 @@ def classify_against(baseline: Baseline, af: float, a1: float, classifier_path: 
     return classifier.classify(*baseline.relative(af, a1)), classifier
 
 
-def classification_dict(judged: Classification, model: ValveClassifier) -> dict[str, Any]:
-    """A classification by ``model`` as plain data for records and JSON, naming the model exactly."""
-    return {
-        "verdict": judged.verdict, "probability_faulty": judged.probability_faulty, "distance": judged.distance,
-        "features_rel": {"af": judged.features_rel[0], "a1": judged.features_rel[1]}, "model": judged.model,
-        "model_name": model.name, "model_file": model.path.name, "model_sha256": model.sha256,
-        "threshold": model.threshold, "marginal_band": model.marginal_band,
-        "training_data_sha256": model.metadata.get("edc_bench.training_data_sha256"),
-    }
+def classification_summary(judged: Classification, model: ValveClassifier) -> ClassificationSummary:
+    """A classification by ``model`` as records and JSON keep it, naming the model exactly."""
+    return ClassificationSummary(
+        verdict=judged.verdict, probability_faulty=judged.probability_faulty, distance=judged.distance,
+        features_rel={"af": judged.features_rel[0], "a1": judged.features_rel[1]}, model=judged.model,
+        model_name=model.name, model_file=model.path.name, model_sha256=model.sha256,
+        threshold=model.threshold, marginal_band=model.marginal_band,
+        training_data_sha256=model.metadata.get("edc_bench.training_data_sha256"))
 
 
 def decision_plane(classifier: ValveClassifier, features_rel: tuple[float, float],
-                   points: int = DECISION_PLANE_POINTS) -> dict[str, Any]:
+                   points: int = DECISION_PLANE_POINTS) -> DecisionPlane:
     """P(faulty) on a square grid of relative features that holds the baseline and the valve.
 
     The report draws the boundary (P at the threshold) and the marginal band
@@ -397,6 +401,6 @@ def decision_plane(classifier: ValveClassifier, features_rel: tuple[float, float
     """
     hi = max(DECISION_PLANE_MAX, float(np.nanmax(np.asarray(features_rel) * 1.25)))
     _, _, p = classifier.boundary_grid((DECISION_PLANE_MIN, hi), (DECISION_PLANE_MIN, hi), n=points)
-    return {"af_rel_range": [DECISION_PLANE_MIN, hi], "a1_rel_range": [DECISION_PLANE_MIN, hi],
-            "p_faulty": np.round(p, 5).tolist(), "threshold": classifier.threshold,
-            "marginal_band": classifier.marginal_band}
+    return DecisionPlane(af_rel_range=(DECISION_PLANE_MIN, hi), a1_rel_range=(DECISION_PLANE_MIN, hi),
+                         p_faulty=np.round(p, 5).tolist(), threshold=classifier.threshold,
+                         marginal_band=classifier.marginal_band)

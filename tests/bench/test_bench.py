@@ -49,7 +49,7 @@ def simulated(variant_name: str, valve: str, model_plant: bool, seed: int = 1, e
 
 
 def _errors(result: BenchResult) -> dict[str, float]:
-    return {n: abs(p["error_rel"]) for n, p in result.parameters.items() if p["estimated"]}
+    return {n: abs(p.error_rel) for n, p in result.parameters.items() if p.estimated}
 
 
 @pytest.mark.parametrize("valve", VALVES)
@@ -154,7 +154,7 @@ def test_single_sine_with_only_identifiable_parameters_is_accepted() -> None:
     # excitation), but within the acceptance limit
     assert result.identification.condition_number < variant.acceptance.max_condition_number
     assert result.verdict != Verdict.INVALID, result.reasons
-    assert abs(result.parameters["af"]["error_rel"]) < 0.08
+    assert abs(result.parameters["af"].error_rel) < 0.08
 
 
 def test_safe_stop_and_rig_counters() -> None:

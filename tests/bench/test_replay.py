@@ -29,10 +29,10 @@ def test_replay_reproduces_a_simulated_test_exactly(tmp_path: Path, valve: str, 
     assert report.reproduced, report.differences
     assert report.judged.verdict == verdict
     for name, entry in result.parameters.items():
-        assert report.judged.parameters[name]["value"] == entry["value"]
-        assert report.judged.parameters[name]["std"] == entry["std"]
-    assert report.judged.classification["probability_faulty"] == result.classification["probability_faulty"]
-    assert report.judged.classification["distance"] == result.classification["distance"]
+        assert report.judged.parameters[name].value == entry.value
+        assert report.judged.parameters[name].std == entry.std
+    assert report.judged.classification.probability_faulty == result.classification.probability_faulty
+    assert report.judged.classification.distance == result.classification.distance
     assert report.run.max_drive_deviation_v <= 0.0005 + 1e-9
 
 
@@ -133,7 +133,7 @@ def test_a_record_replays_from_its_log_converted_to_asc_and_blf_and_from_its_mf4
         report = replay_record(folder, can_log=log)
         assert report.reproduced, (log.name, report.differences)
         assert report.judged.verdict == result.verdict == "FAIL"
-        assert report.judged.parameters["af"]["value"] == result.parameters["af"]["value"]
+        assert report.judged.parameters["af"].value == result.parameters["af"].value
     # the command: a record with another log of it
     proc = subprocess.run([sys.executable, "-m", "edc_bench", "replay", str(folder), "--can-log", str(logs[1]),
                            "--json"], capture_output=True, text=True, timeout=300)

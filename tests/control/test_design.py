@@ -66,7 +66,7 @@ def test_batch_path_identifies_like_the_loop_from_the_same_design(variant: Varia
                               classify=False)
     batch = run_batch(variant, [valve], [0], stiction=False, sensor_noise=False)
     for name in ("af", "a1", "a0", "b"):
-        assert batch.feature(name)[0] == pytest.approx(loop.parameters[name]["value"], rel=1e-3), name
+        assert batch.feature(name)[0] == pytest.approx(loop.parameters[name].value, rel=1e-3), name
     # the period fit's normal equations see the codec's quantisation in the loop only: equal to 0.1 %
     assert np.isclose(batch.condition_number, loop.identification.condition_number, rtol=1e-3)
 

@@ -247,8 +247,8 @@ def test_a_record_names_its_model_and_replays_with_it_after_the_station_changed_
     data = load_variant().model_dump()
     data["excitation"]["duration_s"] = 20.0  # long enough to converge, so the model judges
     test = run_simulated_test(parse_variant(data), "worn", 2, check_gains=False)
-    assert test.classification["model_name"] == result.name
-    assert test.classification["model_sha256"] == adoption["sha256"]
+    assert test.classification.model_name == result.name
+    assert test.classification.model_sha256 == adoption["sha256"]
     folder = write_record(test, tmp_path / "records", figure=False)
     with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
         store.add(load_record(folder), folder)
@@ -257,7 +257,7 @@ def test_a_record_names_its_model_and_replays_with_it_after_the_station_changed_
     adopt_shipped()  # the station goes back; the record still replays with the model that judged it
     report = replay_record(folder)
     assert report.reproduced, report.differences
-    assert report.judged.classification["model_sha256"] == adoption["sha256"]
+    assert report.judged.classification.model_sha256 == adoption["sha256"]
 
 
 @pytest.mark.slow

@@ -48,20 +48,20 @@ def test_the_measured_resistance_is_within_1_percent_of_the_coil(new_valve_on_ea
     for coil, result in new_valve_on_each_coil.items():
         truth = result.simulation["coil"]
         measured = result.judgement.coil
-        print(coil, measured["resistance_20c_ohm"], truth["resistance_20c_ohm"], measured["resistance_ohm"],
-              truth["resistance_end_ohm"], measured["warming_k"], truth["temp_end_c"] - truth["temp_start_c"])
-        assert measured["resistance_20c_ohm"] == pytest.approx(truth["resistance_20c_ohm"], rel=0.01)
-        assert measured["resistance_ohm"] == pytest.approx(truth["resistance_end_ohm"], rel=0.01)
-        assert measured["in_spec"] is True
+        print(coil, measured.resistance_20c_ohm, truth["resistance_20c_ohm"], measured.resistance_ohm,
+              truth["resistance_end_ohm"], measured.warming_k, truth["temp_end_c"] - truth["temp_start_c"])
+        assert measured.resistance_20c_ohm == pytest.approx(truth["resistance_20c_ohm"], rel=0.01)
+        assert measured.resistance_ohm == pytest.approx(truth["resistance_end_ohm"], rel=0.01)
+        assert measured.in_spec is True
         assert result.verdict == Verdict.PASS, result.reasons
     # the coil warms in the test (a rested 0.9 ohm coil: about 10 K in 30 s) and the bench sees it
-    assert new_valve_on_each_coil["coil_ohm=0.9"].judgement.coil["warming_k"] > 5.0
+    assert new_valve_on_each_coil["coil_ohm=0.9"].judgement.coil.warming_k > 5.0
 
 
 def test_a_1_1_ohm_coil_is_out_of_spec_and_fails(variant, tmp_path) -> None:
     result = run_simulated_test(variant, "new,coil_ohm=1.1", seed=3)
-    assert result.judgement.coil["resistance_20c_ohm"] == pytest.approx(1.1, rel=0.01)
-    assert result.judgement.coil["in_spec"] is False
+    assert result.judgement.coil.resistance_20c_ohm == pytest.approx(1.1, rel=0.01)
+    assert result.judgement.coil.in_spec is False
     assert result.verdict == Verdict.FAIL
     assert result.reasons[0].startswith("coil out of spec: 1.") and "spec 0.6-0.9 ohm" in result.reasons[0]
     assert "the valve itself: PASS" in result.reasons[1]  # the valve is fine; the coil is the finding
@@ -81,7 +81,7 @@ def test_a_warm_coil_reads_high_unless_its_temperature_is_given(variant) -> None
     assumed = run_simulated_test(variant, "new,coil_ohm=0.9,coil_temp_c=60", seed=3)
     given = run_simulated_test(variant, "new,coil_ohm=0.9,coil_temp_c=60", seed=3, coil_temp_c=60.0)
     assert assumed.verdict == Verdict.FAIL and "--coil-temp-c" in assumed.reasons[0]
-    assert given.verdict == Verdict.PASS and given.judgement.coil["resistance_20c_ohm"] == pytest.approx(0.9, rel=0.01)
+    assert given.verdict == Verdict.PASS and given.judgement.coil.resistance_20c_ohm == pytest.approx(0.9, rel=0.01)
     assert given.features == assumed.features  # the valve's figures do not depend on what was said of the coil
 
 

@@ -152,7 +152,7 @@ def test_the_plant_s_position_dependent_pull_does_not_lag_into_damping() -> None
     batch = run_batch(variant, [ValveSpec(variant.valve.clearance_new_mm)], [0])
     batch_error = batch.parameters[0] / batch.truth[0] - 1.0
     rig = run_simulated_test(variant, "new", 0, nominal_baseline=True, full_length=True)
-    rig_error = {name: entry["error_rel"] for name, entry in rig.parameters.items()}
+    rig_error = {name: entry.error_rel for name, entry in rig.parameters.items()}
     print(f"a1 batch {batch_error[A1]:+.2%}, simulated rig {rig_error['a1']:+.2%}")
     assert abs(batch_error[A1]) < 0.008 and abs(rig_error["a1"]) < 0.008
     assert abs(batch_error[AF]) < 0.008 and abs(rig_error["af"]) < 0.008

@@ -117,8 +117,8 @@ def test_the_loop_identifies_the_hard_variant_as_the_batch_path_does(hard, hard_
     loop = run_simulated_test(hard, "worn", 1, full_length=True)
     assert loop.converged and loop.judgement.identification.model_fit.fits
     for name, column in (("af", 5), ("a1", 2)):
-        assert loop.parameters[name]["value"] == pytest.approx(hard_batch.parameters[4, column], rel=0.01), name
-        assert abs(loop.parameters[name]["error_rel"]) < (0.05 if name == "af" else 0.10)
+        assert loop.parameters[name].value == pytest.approx(hard_batch.parameters[4, column], rel=0.01), name
+        assert abs(loop.parameters[name].error_rel) < (0.05 if name == "af" else 0.10)
     fit = loop.judgement.identification.model_fit
     # the solenoid's gain variation is seen (+/-10 % in the plant, first-order estimate)
     assert 0.05 < fit.gain_variation_rel < 0.2
@@ -133,15 +133,15 @@ def test_default_plant_within_2_and_5_percent_and_the_model_matched_plant_within
     variant = load_variant("p-edc-default")
     for valve in VALVES:
         result = run_simulated_test(variant, valve, 3)
-        assert abs(result.parameters["af"]["error_rel"]) < 0.02 and abs(result.parameters["a1"]["error_rel"]) < 0.05
+        assert abs(result.parameters["af"].error_rel) < 0.02 and abs(result.parameters["a1"].error_rel) < 0.05
     # the model-matched plant: no noise, so one seed says it all; a new valve of p-edc-long is the closest to the
     # bound (af -1.00 % at 30 s, docs/bench-test.md, "Measured accuracy"; -0.99 % before the estimate was the core
     # rows' fit: the smoothing's bias on it, not the friction's, which the model plant does not have)
     for name, valve in (("p-edc-default", "worn"), ("p-edc-default", "new"), ("p-edc-long", "new")):
         matched = run_simulated_test(load_variant(name), valve, 3, stiction=False, sensor_noise=False,
                                      full_length=True)
-        errors = {parameter: entry["error_rel"]
-                  for parameter, entry in matched.parameters.items() if entry["estimated"]}
+        errors = {parameter: entry.error_rel
+                  for parameter, entry in matched.parameters.items() if entry.estimated}
         print(name, valve, "model-matched plant, 30 s:", {p: f"{e:+.2%}" for p, e in errors.items()})
         for parameter, error in errors.items():
             assert abs(error) < 0.011, (name, valve, parameter, error)
@@ -225,7 +225,7 @@ def test_an_early_stop_gives_the_full_length_verdict_on_the_hard_variant(hard) -
         assert early.stop.reason == "verdict certain" and early.stop.time_s <= 12.0
         assert early.verdict in (Verdict.PASS, Verdict.FAIL)
         assert (early.verdict == Verdict.FAIL) == (valve != "new")
-        assert abs(early.parameters["af"]["error_rel"]) < 0.05 and abs(early.parameters["a1"]["error_rel"]) < 0.10
+        assert abs(early.parameters["af"].error_rel) < 0.05 and abs(early.parameters["a1"].error_rel) < 0.10
 
 
 def test_a_test_not_classified_runs_its_full_length_and_says_why() -> None:

@@ -92,7 +92,7 @@ def earlier_records(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     for variant, valve, seed, model in (("p-edc-default", "worn", 5, DEFAULT_MODEL),
                                         ("p-edc-hard", "new", 1, "valve_mlp-p-edc-hard.onnx")):
         result = run_simulated_test(load_variant(variant), valve, seed)
-        assert result.classification["model_sha256"] == file_sha256(packaged_model_path(model))
+        assert result.classification.model_sha256 == file_sha256(packaged_model_path(model))
         folders.append(write_record(result, out, figure=False))
     return folders
 
@@ -174,7 +174,7 @@ def test_a_station_variant_s_own_network_trained_again_keeps_the_one_that_judged
     first = station / "models" / own
     assert first.is_file() and variant_model_path(load_variant(str(variant_path))) == first
     result = run_simulated_test(load_variant(str(variant_path)), "new", 1)
-    assert result.classification["model_sha256"] == file_sha256(first)
+    assert result.classification.model_sha256 == file_sha256(first)
     folder = write_record(result, tmp_path / "records", figure=False)
     judged_by = file_sha256(first)
     _train("--dataset", dataset, "--own", "--variants", variant_path, "--seed", 7)  # another network, same name

@@ -34,7 +34,7 @@ def test_batch_path_gives_the_full_loops_parameters(variant_name: str, valve: st
     full = run_simulated_test(variant, spec, 1, check_gains=False, classify=False, adapter=adapter)
     batch = run_batch(variant, [spec], [1], adapter=parse_adapter(adapter) if adapter else None)
     for j, name in enumerate(NAMES):
-        rel = abs(batch.parameters[0, j] / full.parameters[name]["value"] - 1)
+        rel = abs(batch.parameters[0, j] / full.parameters[name].value - 1)
         assert rel <= BATCH_TOLERANCE[name], (name, rel)
     assert bool(batch.converged[0]) == full.converged
     assert batch.condition_number == pytest.approx(full.identification.condition_number, rel=0.05)

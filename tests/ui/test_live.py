@@ -44,7 +44,7 @@ def test_live_panel_renders_every_phase() -> None:
     assert "measured on 20 new-valve tests" in text  # the shipped baseline, with its uncertainty
     # as --nominal-baseline leaves it (a Judgement is frozen: a copy with that baseline)
     result = dataclasses.replace(result, judgement=dataclasses.replace(
-        result.judgement, baseline={**result.judgement.baseline, "calibrated": False}))
+        result.judgement, baseline=result.judgement.baseline.model_copy(update={"calibrated": False})))
     console.print(verdict_panel(result, Path("records/x")))
     assert "NOMINAL baseline: the variant is not calibrated" in console.export_text()
 

@@ -140,14 +140,15 @@ def test_where_a_baselines_tests_ran_is_a_value_an_older_sentence_read_once() ->
     assert mixed.sources == {BaselineSource.RIG, BaselineSource.SIMULATED_RIG} and mixed.measured_on_rig
     assert mixed.source == "rig and simulated rig"
     # a record's summary keeps the values; a summary without them (an older record, a file) is read from its sentence
-    assert Baseline.from_summary(mixed.summary()).sources == mixed.sources
-    older = {key: value for key, value in mixed.summary().items() if key != "sources"}
+    summary = mixed.summary().model_dump(mode="json")
+    assert Baseline.from_summary(summary).sources == mixed.sources
+    older = {key: value for key, value in summary.items() if key != "sources"}
     assert Baseline.from_summary(older).measured_on_rig
     assert not Baseline.from_summary({**older, "source": "simulated rig"}).measured_on_rig
     assert Baseline.from_summary({**older, "source": "the rigs of another shop"}).sources == {BaselineSource.UNKNOWN}
     assert Baseline.from_summary({**older, "tests": 0}).sources == {BaselineSource.NOMINAL}
     # the summary's values win over its words
-    assert not Baseline.from_summary({**mixed.summary(), "sources": ["simulated population"],
+    assert not Baseline.from_summary({**summary, "sources": ["simulated population"],
                                       "source": "rig"}).measured_on_rig
     # an older record's baseline is upgraded on read, once, in the reader
     record = typed_record(upgraded({"schema": 9, "verdict": "PASS", "baseline": {**older, "source": "rig"}}), "x")

@@ -125,8 +125,8 @@ def test_a_bench_test_of_the_hard_pump_is_stopped_and_judged_by_its_own_network(
     finally:
         mp.undo()
     assert set(seen) == {"valve_mlp-p-edc-hard"}  # the early stop
-    assert result.judgement.classification["model_name"] == "valve_mlp-p-edc-hard"  # the verdict and its record
-    assert result.judgement.classification["model_sha256"] == default_classifier(
+    assert result.judgement.classification.model_name == "valve_mlp-p-edc-hard"  # the verdict and its record
+    assert result.judgement.classification.model_sha256 == default_classifier(
         variant=load_variant("p-edc-hard")).sha256
 
 
