@@ -237,19 +237,19 @@ def _run_loop(loop: BenchLoop, stream_can_log: Callable[[str], Path] | None,
 def stop_summary(variant: Variant, outcome: LoopOutcome, full_length: bool, early_stop: bool) -> StopSummary:
     """Why and when the test ended, for the record."""
     period_s = variant.controller.period_s
-    if outcome.stop is not None:
-        figures = outcome.stop.as_dict()
+    if outcome.stop is not None:  # the stop rule's decision: its figures under the same names
+        stop = StopSummary.model_validate(outcome.stop, from_attributes=True)
     elif outcome.abort is not None:
-        figures = {"reason": StopReason.ABORTED,
-                   "time_s": outcome.abort_time_s if outcome.abort_time_s is not None else outcome.ticks_run * period_s}
+        stop = StopSummary(reason=StopReason.ABORTED, time_s=outcome.abort_time_s if outcome.abort_time_s is not None
+                           else outcome.ticks_run * period_s)
     else:
-        figures = {"reason": StopReason.FULL_LENGTH, "time_s": outcome.ticks_run * period_s}
+        stop = StopSummary(reason=StopReason.FULL_LENGTH, time_s=outcome.ticks_run * period_s)
     why_full_length = None
-    if figures["reason"] is StopReason.FULL_LENGTH and not full_length:
+    if stop.reason is StopReason.FULL_LENGTH and not full_length:
         why_full_length = ("no early stop: the test is not classified against a calibrated baseline"
                            if not early_stop else "the verdict was not certain before the maximum duration")
-    return StopSummary(**figures, max_s=variant.excitation.duration_s, full_length=full_length,
-                       early_stop=early_stop, why_full_length=why_full_length)
+    return stop.model_copy(update={"max_s": variant.excitation.duration_s, "full_length": full_length,
+                                   "early_stop": early_stop, "why_full_length": why_full_length})
 
 
 _channels = itertools.count()

@@ -240,9 +240,8 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                          "station: judged with the model that judges this variant's valves here")
     run = replay_frames(frames, variant, ticks_start_s=loop.ticks_start_s, recorded_variant=True)
     planned = run.ticks if loop.ticks_planned is None else loop.ticks_planned
-    abort = None if loop.abort is None else Abort.from_dict(loop.abort.model_dump())
     outcome = LoopOutcome(ticks_planned=planned, ticks_run=run.ticks, missed_replies=run.missed_replies,
-                          abort=abort, gaps=run.gaps, ticks_lost=run.ticks_lost)
+                          abort=loop.abort, gaps=run.gaps, ticks_lost=run.ticks_lost)
     if "missed_replies" in loop.model_fields_set and loop.missed_replies != run.missed_replies:
         run.notes.append(f"missed replies: recorded {loop.missed_replies}, found {run.missed_replies} in the log")
     timing = record.timing

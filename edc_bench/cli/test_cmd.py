@@ -166,7 +166,7 @@ def summary(result: Any, record_dir: Path | None, decision: Any = None) -> dict[
         "settle_s": None if result.identification is None else result.identification.settle_s,
         "condition_number": None if result.identification is None else result.identification.condition_number,
         "model_fit": (None if result.identification is None or result.identification.model_fit is None
-                      else result.identification.model_fit.as_dict()),
+                      else result.identification.model_fit.summary()),
         "stop": result.stop,
         "timing": result.timing,
         "clock": result.clock,

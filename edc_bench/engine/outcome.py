@@ -113,7 +113,7 @@ class StopReason(enum.StrEnum):
 @dataclass(frozen=True)
 class StopDecision:
     """The stop rule's decision to end a test at a period's end, with the figures it rests on (the record's ``stop``
-    section holds it, :meth:`as_dict`).
+    section holds them, :class:`~edc_bench.records.schema.StopSummary`, under the same names).
 
     Attributes
     ----------
@@ -152,17 +152,6 @@ class StopDecision:
     def with_decided(self, decided_s: float) -> StopDecision:
         """The same decision, taken by the loop at trace time ``decided_s``."""
         return dataclasses.replace(self, decided_s=decided_s)
-
-    def as_dict(self) -> dict[str, Any]:
-        """The record's form: every figure it has (a figure of the other reason left out)."""
-        why = {"problems": list(self.problems)} if self.reason is StopReason.MODEL_DOES_NOT_FIT else {}
-        out: dict[str, Any] = {"reason": self.reason, "time_s": self.time_s, "periods": self.periods, **why}
-        for name in ("verdict", "confidence", "features_rel", "half_width_rel", "misfit_half_width_rel",
-                     "baseline_half_width_rel", "residual_half_width_rel", "decided_s"):
-            value = getattr(self, name)
-            if value is not None:
-                out[name] = dict(value) if isinstance(value, dict) else value
-        return out
 
 
 #: What a technician checks, by the kind of abort: the rig and its link, the PC, or the pump on it.
@@ -376,19 +365,6 @@ class LoopOutcome:
     def abort_time_s(self) -> float | None:
         """Trace time at which the abort was decided."""
         return None if self.abort is None else self.abort.time_s
-
-    def as_dict(self) -> dict[str, Any]:
-        """The record's ``loop`` entry: every field, the abort as its kind and figures and its sentence."""
-        # every field in its place (record.json's order), the stop decision in its record form
-        out = {name: (self.stop.as_dict() if name == "stop" and self.stop is not None else getattr(self, name))
-               for name in self.__dataclass_fields__ if name != "abort"}
-        out["reply_age_ticks"] = dict(self.reply_age_ticks)
-        out["events"] = list(self.events)
-        out["bus_bad_line_samples"] = list(self.bus_bad_line_samples)
-        out["abort"] = None if self.abort is None else self.abort.as_dict()
-        out["abort_reason"] = self.abort_reason
-        out["abort_time_s"] = self.abort_time_s
-        return out
 
 
 def abort_from_record(loop: dict[str, Any]) -> Abort | None:

@@ -37,6 +37,7 @@ from edc_bench.identification.period_fit import (
     solve,
     trace_blocks,
 )
+from edc_bench.identification.sections import ModelFitSummary
 from edc_bench.identification.trust import judged_condition_number
 
 
@@ -85,13 +86,9 @@ class ModelFit:
         """True when no measure is beyond its limit."""
         return not self.problems
 
-    def as_dict(self) -> dict:
-        """Plain data for the record."""
-        return {"residual_rms_v": self.residual_rms_v, "expected_noise_v": self.expected_noise_v,
-                "residual_ratio": self.residual_ratio, "systematic_rms_v": self.systematic_rms_v,
-                "systematic_ratio": self.systematic_ratio, "spread_rel": dict(self.spread_rel),
-                "gain_variation_rel": self.gain_variation_rel, "fits": self.fits, "problems": list(self.problems),
-                "core_shift_rel": None if self.core_shift_rel is None else dict(self.core_shift_rel)}
+    def summary(self) -> ModelFitSummary:
+        """The model fit as the record keeps it: every figure under its own name, and whether it fits."""
+        return ModelFitSummary.model_validate(self, from_attributes=True)
 
 
 def model_fit_line(fit: ModelFit, ratio_decimals: int = 2) -> str:

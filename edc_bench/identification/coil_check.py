@@ -29,7 +29,7 @@ import numpy as np
 
 from edc_bench.config.models import Variant
 from edc_bench.control.coil import measurement_lag_s
-from edc_bench.identification.coil_finding import CoilFinding
+from edc_bench.identification.sections import CoilFinding
 from edc_bench.physics.coil import REFERENCE_TEMP_C, resistance_20c_ohm
 
 #: Below this much excitation time the coil's figure is not given.

@@ -47,7 +47,6 @@ from edc_bench.records.schema import (
     IdentificationSummary,
     Identity,
     LoopSummary,
-    ModelFitSummary,
     ParameterEstimate,
     Record,
     RecordFiles,
@@ -196,7 +195,7 @@ def build_record(result: BenchResult, files: RecordFiles, retest: RetestSummary 
     """
     judgement = result.judgement
     ident = result.identification
-    loop = LoopSummary.model_validate(result.outcome.as_dict())
+    loop = LoopSummary.of(result.outcome)
     if notes:
         loop = loop.model_copy(update={"events": [*loop.events, *notes]})
     return Record(
@@ -234,7 +233,7 @@ def build_record(result: BenchResult, files: RecordFiles, retest: RetestSummary 
             samples_used=ident.samples_used,
             condition_number=ident.condition_number,
             residual_rms_v=ident.residual_rms_v,
-            model_fit=None if ident.model_fit is None else ModelFitSummary.model_validate(ident.model_fit.as_dict()),
+            model_fit=None if ident.model_fit is None else ident.model_fit.summary(),
             gain_terms=ident.nuisance,
             online_settle_s=ident.settle_s,
         ),

@@ -14,7 +14,7 @@ in one place on read (:func:`edc_bench.records.reader.upgraded`).
 
 A part made below the records is declared where it is made and assembled here, so the code that makes it builds
 the model record.json holds (no dict in between): the coil's finding in
-:mod:`edc_bench.identification.coil_finding`, the verdict's parts (parameters, reference values, classification,
+:mod:`edc_bench.identification.sections` (with the model fit), the verdict's parts (parameters, reference values, classification,
 baseline, decision plane) in :mod:`edc_bench.verdict.sections`, the tick timing in
 :mod:`edc_bench.engine.tick_timing`.
 
@@ -29,10 +29,11 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
-from edc_bench.engine.outcome import AbortKind, StopReason
+from edc_bench.engine.loop_summary import LoopSummary
+from edc_bench.engine.outcome import StopReason
 from edc_bench.engine.problems import Problem
 from edc_bench.engine.tick_timing import TickTiming
-from edc_bench.identification.coil_finding import CoilFinding
+from edc_bench.identification.sections import CoilFinding, ModelFitSummary
 from edc_bench.records.advice import Advice, Area, Cause, advice, invalid_area, invalid_cause
 from edc_bench.runtime.clock_kind import ClockKind
 from edc_bench.section import Section
@@ -64,21 +65,6 @@ class Identity(Section):
     shop_address: str = ""
     job_ref: str = ""  # the job or vehicle reference scanned with the valve ('' if none): the customer's page prints it
     purpose: str = ""  # "calibration" for a baseline's test (edc-bench calibrate), '' for a valve's
-
-
-class ModelFitSummary(Section):
-    """How well the pump model fits the measurement (and, when it does not, why)."""
-
-    residual_rms_v: float | None = None
-    expected_noise_v: float | None = None
-    residual_ratio: float | None = None
-    systematic_rms_v: float | None = None
-    systematic_ratio: float | None = None
-    spread_rel: dict[str, float | None] | None = None
-    gain_variation_rel: float | None = None
-    fits: bool | None = None
-    problems: list[str] = Field(default_factory=list)
-    core_shift_rel: dict[str, float | None] | None = None
 
 
 class IdentificationSummary(Section):
@@ -132,49 +118,6 @@ class StabilityMargins(Section):
     closed_loop_stable: bool | None = None
     max_pole_radius: float | None = None
     delay_ticks: int = 1
-
-
-class AbortSummary(Section):
-    """An abort as a kind and its figures (:class:`edc_bench.engine.outcome.Abort`)."""
-
-    kind: AbortKind
-    figures: dict[str, Any] = Field(default_factory=dict)
-    time_s: float | None = None
-
-
-class LoopSummary(Section):
-    """What happened in the loop (:class:`edc_bench.engine.outcome.LoopOutcome`): ticks, replies, the abort."""
-
-    ticks_planned: int | None = None
-    ticks_run: int = 0
-    missed_replies: int = 0
-    max_missed_in_row: int = 0
-    max_unanswered_in_row: int = 0
-    bad_replies: int = 0
-    rig_state_at_start: str | None = None
-    fw_version: str | None = None
-    safe_confirmed: bool | None = None
-    heartbeats: int = 0
-    cpu_steal_s: float = 0.0
-    ticks_start_s: float = 0.0
-    first_tick_unix_s: float | None = None
-    clock_origin_unix_s: float | None = None
-    replies_too_old: int = 0
-    gaps: int = 0
-    ticks_lost: int = 0
-    ticks_late: int = 0
-    reply_age_ticks: dict[int, int] = Field(default_factory=dict)  # reply age in ticks -> replies
-    other_frames: int = 0
-    bus_bad_lines: int = 0
-    bus_bad_line_samples: list[str] = Field(default_factory=list)
-    bus_device_errors: int = 0
-    frames_dropped: int = 0
-    events: list[str] = Field(default_factory=list)
-    stop: dict[str, Any] | None = None
-    stop_check_max_s: float = 0.0
-    abort: AbortSummary | None = None
-    abort_reason: str | None = None
-    abort_time_s: float | None = None
 
 
 class RetestSummary(Section):

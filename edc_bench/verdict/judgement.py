@@ -21,7 +21,7 @@ from edc_bench.control.fel import FelController
 from edc_bench.engine.outcome import LoopOutcome
 from edc_bench.identification.analysis import Identification, ModelFit, analyse
 from edc_bench.identification.coil_check import coil_finding, coil_reason
-from edc_bench.identification.coil_finding import CoilFinding
+from edc_bench.identification.sections import CoilFinding
 from edc_bench.identification.period_fit import DRIFT_MIN_PERIODS
 from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_problems
 from edc_bench.physics.coil import referred_from_estimate, volts_at_coil

@@ -101,3 +101,34 @@ def test_a_timing_holding_null_counts_reads_as_none_counted(result, tmp_path: Pa
     doc["timing"].update(ticks=None, ticks_late=None, missed_replies=None, cpu_steal_s=None)
     timing = reader.typed_record(reader.upgraded(doc), folder).timing
     assert (timing.ticks, timing.ticks_late, timing.missed_replies, timing.cpu_steal_s) == (0, 0, 0, 0.0)
+
+
+def test_the_loop_section_holds_the_engines_abort_and_refuses_one_that_is_not(result, tmp_path: Path) -> None:
+    """record.json's loop.abort is the engine's Abort (kind and typed figures) written and read back; a hand-edited
+    one that is no abort is refused naming the field, and an older record's loop.stop (now only in the record's
+    stop section) is kept as an unknown key."""
+    from edc_bench.engine.abort_figures import SilenceFigures
+    from edc_bench.engine.outcome import Abort, AbortKind
+
+    abort = Abort(AbortKind.SILENCE, SilenceFigures(in_row=12, limit=10, bad_replies=2), 3.25)
+    folder = write_record(replace_outcome(result, abort=abort), tmp_path, figure=False)
+    doc = json.loads((folder / RECORD_FILE).read_text())
+    assert "stop" not in doc["loop"] and doc["stop"]["reason"]
+    assert doc["loop"]["abort"] == {"kind": "rig silent", "figures": abort.figures.as_dict(), "time_s": 3.25}
+    read = load_record(folder)
+    assert read.loop.abort == abort and read.loop.abort.figures.in_row == 12
+    for hostile, words in (("a string", "mapping"), ({"figures": {}}, "kind"), ({"kind": "rig silent", "time_s": "x"},
+                                                                                "time_s"),
+                           ({"kind": "no such kind"}, "no such kind")):
+        edited = {**doc, "loop": {**doc["loop"], "abort": hostile}}
+        with pytest.raises(ConfigError, match=rf"(?s)loop\.abort.*{words}"):
+            reader.typed_record(reader.upgraded(edited), folder)
+    older = {**doc, "loop": {**doc["loop"], "stop": {"reason": "full length", "time_s": 30.0}}}
+    assert reader.typed_record(reader.upgraded(older), folder).loop.model_extra["stop"]["time_s"] == 30.0
+
+
+def replace_outcome(result, **changes):
+    """``result`` with its loop outcome changed (a frozen result: a copy)."""
+    from dataclasses import replace
+
+    return replace(result, outcome=replace(result.outcome, **changes))
