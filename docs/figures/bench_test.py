@@ -126,7 +126,7 @@ def accuracy_row(variant_name: str, valve: str, plant: str, options: dict[str, A
     parameters = result.parameters
     return {
         "variant": variant_name, "valve": valve, "plant": plant,
-        "error_rel": {n: rounded(parameters[n]["error_rel"]) for n in ACCURACY_PARAMETERS},
+        "error_rel": {n: rounded(parameters[n].error_rel) for n in ACCURACY_PARAMETERS},
         "verdict": result.verdict.value, "stop_s": rounded(result.stop.time_s, 3),
         "stop_reason": str(result.stop.reason),
         "half_width_rel": {n: rounded(v) for n, v in (result.stop.half_width_rel or {}).items()},
@@ -134,7 +134,7 @@ def accuracy_row(variant_name: str, valve: str, plant: str, options: dict[str, A
         "spread_rel": rounded(max(fit.spread_rel.values())), "gain_variation_rel": rounded(fit.gain_variation_rel, 4),
         "condition_number": rounded(ident.condition_number, 1),
         # the online estimates at the end of the test against the period fit (what the verdict rests on)
-        "online_vs_fit_rel": {n: rounded(float(result.trace[f"{n}_hat"][-1]) / parameters[n]["value"] - 1.0)
+        "online_vs_fit_rel": {n: rounded(float(result.trace[f"{n}_hat"][-1]) / parameters[n].value - 1.0)
                               for n in ("af", "a1")},
     }
 
@@ -151,7 +151,7 @@ def accuracy() -> dict[str, Any]:
         full = simulated_test(load_variant("p-edc-long"), "new", stiction=False, sensor_noise=False, full_length=True)
     return {"seed": SEED, "rows": rows,
             "long_new_model_full_length": {"duration_s": rounded(full.stop.time_s, 3),
-                                           "error_rel": {n: rounded(full.parameters[n]["error_rel"])
+                                           "error_rel": {n: rounded(full.parameters[n].error_rel)
                                                          for n in ACCURACY_PARAMETERS}}}
 
 
@@ -257,7 +257,7 @@ def exclusion_effect(exclusion: float) -> dict[str, Any]:
     variant = with_section(load_variant("p-edc-long"), "estimator", reversal_exclusion=exclusion)
     result = simulated_test(variant, "faulty", stiction=False, sensor_noise=False)
     return {"exclusion": exclusion, "verdict": result.verdict.value,
-            "error_rel": {n: rounded(result.parameters[n]["error_rel"]) for n in ("a2", "a1", "af")}}
+            "error_rel": {n: rounded(result.parameters[n].error_rel) for n in ("a2", "a1", "af")}}
 
 
 def high_gain_test() -> dict[str, Any]:

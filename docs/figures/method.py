@@ -327,7 +327,7 @@ def _test_figures(result: Any) -> dict[str, Any]:
     """af and a1 of a simulated test: errors against the truth and the online estimator's settle times."""
     out: dict[str, Any] = {}
     for name in ("af", "a1"):
-        out[f"{name}_error_rel"] = _round_sig(result.parameters[name]["error_rel"], 3)
+        out[f"{name}_error_rel"] = _round_sig(result.parameters[name].error_rel, 3)
         settle = result.identification.settle_s.get(name)
         out[f"{name}_settle_s"] = None if settle is None or not math.isfinite(settle) else round(settle, 2)
     return out
@@ -384,7 +384,7 @@ def stick_windows() -> dict[str, Any]:
     for exclusion in EXCLUSIONS:
         variant = with_changes(base, {"estimator": {"reversal_exclusion": exclusion}}, "docs/method.md")
         result = run_simulated_test(variant, "faulty", 1, full_length=True)
-        out[f"{exclusion:g}"] = {**{name: _round_sig(result.parameters[name]["error_rel"], 2)
+        out[f"{exclusion:g}"] = {**{name: _round_sig(result.parameters[name].error_rel, 2)
                                     for name in ("a2", "a1", "af")},
                                  "systematic_ratio": round(result.identification.model_fit.systematic_ratio, 1),
                                  "verdict": str(result.verdict.value)}
@@ -424,7 +424,7 @@ def coil() -> dict[str, Any]:
         sim = r.simulation["coil"]
         coils[coil_spec] = {"af": _round_sig(r.features["af"], 5), "a1": _round_sig(r.features["a1"], 5),
                             "af_volt": _round_sig(r.judgement.features_volt["af"], 4),
-                            "r20_error_rel": _round_sig(r.judgement.coil["resistance_20c_ohm"]
+                            "r20_error_rel": _round_sig(r.judgement.coil.resistance_20c_ohm
                                                         / sim["resistance_20c_ohm"] - 1, 2),
                             "warming_rel": _round_sig(sim["resistance_end_ohm"] / sim["resistance_start_ohm"] - 1, 2)}
     steady = with_changes(variant, {"coil": {"temperature_coefficient_per_k": 0.0}}, "docs/method.md")
@@ -432,7 +432,7 @@ def coil() -> dict[str, Any]:
               for name, v in (("warming", variant), ("steady", steady))}
     warm = run_simulated_test(variant, "new,coil_ohm=0.9,coil_temp_c=60", 3)
     return {"coils": coils, "a1_ref": a1_ref,
-            "warm_called_cold_ohm": round(warm.judgement.coil["resistance_20c_ohm"], 3)}
+            "warm_called_cold_ohm": round(warm.judgement.coil.resistance_20c_ohm, 3)}
 
 
 def coil_measured_paragraph() -> str:
@@ -516,7 +516,7 @@ def online_on_hard() -> dict[str, Any]:
         out[name] = {"swing_rel": _round_sig(float(online[last].max() - online[last].min()) / 2, 2),
                      "mean_error_rel": _round_sig(float(online[steady].mean() - 1), 2),
                      "settle_s": round(result.identification.settle_s[name], 1),
-                     "period_fit_error_rel": _round_sig(result.parameters[name]["error_rel"], 2)}
+                     "period_fit_error_rel": _round_sig(result.parameters[name].error_rel, 2)}
     return out
 
 

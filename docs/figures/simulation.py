@@ -163,7 +163,7 @@ def batch_against_full_loop() -> dict[str, Any]:
     deviation: dict[str, dict[str, float]] = {}
     for j, (name, spec) in enumerate(zip(BATCH_VALVES, specs)):
         full = run_simulated_test(variant, spec, BATCH_SEED, check_gains=False, classify=False, adapter=ADAPTER)
-        deviation[name] = {p: round(float(batch.parameters[j, names.index(p)] / full.parameters[p]["value"] - 1), 5)
+        deviation[name] = {p: round(float(batch.parameters[j, names.index(p)] / full.parameters[p].value - 1), 5)
                            for p in ("af", "a1")}
     return {"valves": list(BATCH_VALVES), "relative_deviation": deviation}
 

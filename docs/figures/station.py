@@ -20,7 +20,7 @@ def _online_against_period_fit(variant_name: str, seed: int = 0) -> dict[str, fl
     from edc_bench.config import load_variant
 
     result = run_simulated_test(load_variant(variant_name), "new", seed, classify=False)
-    return {name: round(float(result.trace[f"{name}_hat"][-1] / result.parameters[name]["value"] - 1), 4)
+    return {name: round(float(result.trace[f"{name}_hat"][-1] / result.parameters[name].value - 1), 4)
             for name in ("af", "a1")}
 
 
