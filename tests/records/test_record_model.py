@@ -1,6 +1,8 @@
 """record.json is the serialisation of one model (records/schema.py's Record), built once by the writer: a field
-declared there is written, read back, covered by the integrity manifest and read as its default from an older
-record, with no other file edited."""
+declared there is written, read back, covered by the integrity manifest, read as its default from an older
+record and indexed (history --verify names it when changed), with no other file edited. The report shows what
+records/report_content.py places on its pages: a new figure appears there when it is placed (docs/bench-test.md
+says why)."""
 
 from __future__ import annotations
 
@@ -132,3 +134,23 @@ def replace_outcome(result, **changes):
     from dataclasses import replace
 
     return replace(result, outcome=replace(result.outcome, **changes))
+
+
+def test_a_field_added_to_the_model_is_indexed_and_verify_names_it_when_changed(
+        result, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The history keeps the record's digest and manifest: a new field, changed after indexing, is named."""
+    from edc_bench.history.store import HistoryStore, index_record_dir
+    from edc_bench.history.verify import verify
+
+    with_field(monkeypatch)
+    folder = write_record(result, tmp_path / "records", figure=False)
+    url = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    index_record_dir(folder, url)
+    with HistoryStore(url) as store:
+        rows = store.indexed()
+    assert len(rows) == 1 and verify(rows) == []
+    doc = json.loads((folder / RECORD_FILE).read_text())
+    doc["bench_humidity_pct"] = 90.0
+    (folder / RECORD_FILE).write_text(json.dumps(doc))
+    (finding,) = verify(rows)
+    assert finding.problem == "altered" and "'bench_humidity_pct'" in finding.detail, finding
