@@ -506,15 +506,14 @@ class BlockAccumulator:
         for name in (*self._SUMS, "_by_phase"):
             setattr(self, name, np.ascontiguousarray(getattr(self, name)[:, keep]))
 
-    def snapshot(self, block: int) -> tuple:
-        """What :meth:`add` to ``block`` changes, to :meth:`restore` after a trial (the early stop's pending rows)."""
-        return tuple(getattr(self, name)[block].copy() for name in self._SUMS) + (self._by_phase.copy(),)
-
-    def restore(self, block: int, saved: tuple) -> None:
-        """Undo the :meth:`add` calls since :meth:`snapshot` of ``block``."""
-        for name, value in zip(self._SUMS, saved):
-            getattr(self, name)[block] = value
-        self._by_phase = saved[-1]
+    def copy(self) -> BlockAccumulator:
+        """A copy whose sums are its own: rows added to it leave this one as it is (the early stop's trial fit with a
+        period's last rows, whose replies may still come)."""
+        out = object.__new__(BlockAccumulator)
+        out.__dict__.update(self.__dict__)
+        for name in (*self._SUMS, "_by_phase"):
+            setattr(out, name, getattr(self, name).copy())
+        return out
 
 
 def accumulate(setup: FitSetup, acc: BlockAccumulator, start: int, X: np.ndarray, y: np.ndarray,

@@ -128,29 +128,28 @@ class EarlyStop:
 
     def _feed(self, to_tick: int, columns: dict[str, np.ndarray]) -> None:
         """Add the rows of ticks ``fed_to_tick .. to_tick - 1`` from the trace's columns."""
+        if to_tick > self.fed_to_tick:
+            self._add_rows(self.acc, to_tick, columns)
+            self.fed_to_tick = to_tick
+
+    def _add_rows(self, acc: BlockAccumulator, to_tick: int, columns: dict[str, np.ndarray]) -> None:
+        """Add the rows of ticks ``fed_to_tick .. to_tick - 1`` to ``acc``."""
         start, half = self.fed_to_tick, self.setup.window // 2
-        if to_tick <= start:
-            return
         # the smoothing of a row reaches half a window either side, and the next sample: rows() leaves the span's
         # edges out, so the span reaches that far beyond the rows fed
         lo = start - half
         span = slice(lo, to_tick + half + 1)
-        accumulate(self.setup, self.acc, lo, *trace_rows(self.setup, columns, self._r_ref, span))
-        self.fed_to_tick = to_tick
+        accumulate(self.setup, acc, lo, *trace_rows(self.setup, columns, self._r_ref, span))
 
     def _solve_with_pending(self, periods: int, columns: dict[str, np.ndarray]) -> PeriodFit | None:
         """The fit over ``periods`` blocks with the last block's rows not yet fed for good added as they stand now
-        (a reply still on its way counts as missing, as in a test stopped here), then taken out again: the later
-        steps feed them with their replies."""
-        block = periods - 1
-        saved = self.acc.snapshot(block)
-        fed_to = self.fed_to_tick
-        self._feed(self.setup.first_tick + periods * self.setup.block_ticks, columns)
-        try:
-            return solve(self.acc, periods, self.variant.acceptance.settle_band_rel)
-        finally:
-            self.acc.restore(block, saved)
-            self.fed_to_tick = fed_to
+        (a reply still on its way counts as missing, as in a test stopped here), to a copy of the sums: the later
+        steps feed those rows for good, with their replies."""
+        trial = self.acc.copy()
+        end = self.setup.first_tick + periods * self.setup.block_ticks
+        if end > self.fed_to_tick:
+            self._add_rows(trial, end, columns)
+        return solve(trial, periods, self.variant.acceptance.settle_band_rel)
 
     def _search_step(self) -> None:
         """One candidate period of the expected-end search: would the interval, shrunk to it, leave the verdict
