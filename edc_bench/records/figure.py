@@ -42,6 +42,8 @@ def draw_report_figure(path: Path, trace: dict[str, np.ndarray], title: str,
         (axes[2], [("a0_hat", "$\\hat a_0$")], "V/mm"),
     ]
     scale = {"b_hat": 0.1, "a2_hat": 10.0}
+    # these are the estimates that drive the feedforward; the verdict rests on the fit over whole periods
+    axes[0].set_title("online estimates (the verdict's figures: the period fit, in report.pdf)", fontsize=9)
     for ax, series, unit in panels:
         for column, label in series:
             k = scale.get(column, 1.0)
@@ -51,7 +53,8 @@ def draw_report_figure(path: Path, trace: dict[str, np.ndarray], title: str,
                 ax.axhline(truth[name] * k, color=line.get_color(), linestyle="--", linewidth=0.8,
                            label=f"{label} true")
         ax.set_ylabel(unit)
-        ax.axvline(excitation_start_s, color="0.6", linewidth=0.8)
+        ax.axvline(excitation_start_s, color="0.6", linewidth=0.8,
+                   label="excitation starts" if ax is axes[0] else None)
         ax.legend(loc="lower right", fontsize=8, ncol=2)
         ax.grid(alpha=0.3)
     ax = axes[3]
