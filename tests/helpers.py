@@ -94,3 +94,51 @@ def rewrite_record_json(folder: Path, doc: dict[str, Any]) -> None:
         doc = {key: value for key, value in doc.items() if key != "integrity"}
         doc["integrity"] = manifest(doc, folder, files)
     (folder / "record.json").write_text(json.dumps(doc), encoding="utf-8")
+
+
+class _LoopSamples:
+    """Stands in for the batch path's sensors: what a loop's rig sent, in the order the batch asks for it."""
+
+    def __init__(self, start_mm: float, position_mm: Any, current_a: Any) -> None:
+        self._positions = iter([start_mm, *position_mm.tolist()])  # the SAFE reply's, then each tick's
+        self._currents = iter(current_a[1:].tolist())  # each tick's from the first under the test's drive
+        self.noise = None
+
+    def sample(self) -> Any:
+        import numpy as np
+
+        return np.array([next(self._positions)])
+
+    def current(self) -> Any:
+        import numpy as np
+
+        return np.array([next(self._currents)])
+
+
+class _DrivesKept:
+    """Stands in for the batch path's plant: keeps the drives the batch sends it."""
+
+    def __init__(self) -> None:
+        self.params = [None]
+        self.drives: list[float] = []
+
+    def advance_period(self, drive_v: Any) -> None:
+        self.drives.append(float(drive_v[0]))
+
+    def add_heat(self, dt_s: float) -> None:
+        pass
+
+
+def batch_drives_from_loop(variant: Any, trace: Mapping[str, Any], seed: int) -> Any:
+    """The drives the batch path sends when fed a loop test's samples (``trace``: its columns as arrays) in place of
+    its own plant's: the batch's controller, reference, coil estimate and estimator, tick by tick."""
+    import numpy as np
+
+    from edc_bench.control.design import ControllerDesign
+    from edc_bench.population import batch
+
+    plant = _DrivesKept()
+    samples = _LoopSamples(float(trace["reference_mm"][0]), trace["position_mm"], trace["current_a"])  # r(0): start
+    run = batch._prepared(variant, ControllerDesign.from_variant(variant), plant, samples, [seed], None, None)
+    run.all_ticks(run.feeder.setup)
+    return np.array(plant.drives)

@@ -63,13 +63,21 @@ class ArrayOps(Ops):
             out = out + a * w[i]
         return out
 
+    # The sums below run over j in order, from zero, as the floats' do: numpy's own reductions (einsum, sum) order
+    # their terms by the arrays' shapes and strides, so one test in a batch could differ from the same test alone.
     @staticmethod
     def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.einsum("jn,jn->n", a, b)
+        out = np.zeros(a.shape[1:])
+        for j in range(len(a)):
+            out += a[j] * b[j]
+        return out
 
     @staticmethod
     def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return np.einsum("ijn,jn->in", m, v)
+        out = np.zeros((m.shape[0], *m.shape[2:]))
+        for j in range(m.shape[1]):
+            out += m[:, j] * v[j]
+        return out
 
     @staticmethod
     def divide(v: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -93,13 +101,22 @@ class ArrayOps(Ops):
             m *= scale
         else:
             m[...] = np.where(ok, (m - g[:, None, :] * h[None, :, :]) * scale, m)
+        # the lower triangle mirrors the upper, as the floats' version keeps it (g h^T is symmetric only to
+        # rounding): the same bits as one test in floats
+        lower = _LOWER[len(m)]
+        m[lower] = m[lower[1], lower[0]]
 
     @staticmethod
     def bound_trace(m: np.ndarray, max_trace: float) -> None:
-        trace = np.einsum("iin->n", m)
+        trace = np.zeros(m.shape[2:])
+        for i in range(len(m)):
+            trace += m[i, i]
         if np.any(trace > max_trace):
             m *= np.where(trace > max_trace, max_trace / trace, 1.0)
 
+
+#: Per size n, the indices (rows, columns) of an n x n matrix's strict lower triangle.
+_LOWER = {n: np.tril_indices(n, -1) for n in range(1, 9)}
 
 #: One test, in Python floats.
 SCALAR = Ops()

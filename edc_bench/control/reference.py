@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -107,15 +108,15 @@ class Reference:
         return np.array(self._evaluate(t, np.sin, np.cos, lambda u: np.clip(u, 0.0, 1.0)))
 
     def _evaluate(self, t_s, sin, cos, clip):
+        return compose(self.start_mm, self.mid_mm, self.move_s, self.shape(t_s, sin, cos, clip))
+
+    def shape(self, t_s: Any, sin: Any = np.sin, cos: Any = np.cos,
+              clip: Any = lambda u: np.clip(u, 0.0, 1.0)) -> Shape:
+        """What the reference is at ``t_s`` whatever its start: the move's smoothstep and the excitation's terms
+        (:class:`Shape`); :func:`compose` adds a start. Floats with ``math``'s functions, arrays with numpy's."""
         # Branch-free: the smoothstep polynomials of a clipped argument are 0 before
         # and 1 after with zero derivatives, so one expression serves floats and arrays.
-        span = self.mid_mm - self.start_mm
         s0, s1, s2, s3 = _smoothstep7_polynomial(clip(t_s / self.move_s))
-        inv = 1.0 / self.move_s
-        r = self.start_mm + span * s0
-        r1 = span * s1 * inv
-        r2 = span * s2 * inv * inv
-        r3 = span * s3 * inv * inv * inv
         tau = t_s - self.move_s
         # sum of sines and its derivatives
         g0 = g1 = g2 = g3 = 0.0
@@ -133,9 +134,43 @@ class Reference:
         e2 = e2 * (f * f)
         e3 = e3 * (f * f * f)
         # Leibniz: (E g)^(n) = sum C(n,k) E^(k) g^(n-k)
-        return (
-            r + e0 * g0,
-            r1 + e0 * g1 + e1 * g0,
-            r2 + e0 * g2 + 2.0 * e1 * g1 + e2 * g0,
-            r3 + e0 * g3 + 3.0 * e1 * g2 + 3.0 * e2 * g1 + e3 * g0,
-        )
+        return Shape((s0, s1, s2, s3), (e0 * g0,), (e0 * g1, e1 * g0), (e0 * g2, 2.0 * e1 * g1, e2 * g0),
+                     (e0 * g3, 3.0 * e1 * g2, 3.0 * e2 * g1, e3 * g0))
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A reference at some times, its start aside: the move's smoothstep and its first three derivatives (per unit
+    of the move's time), and the terms of the excitation's r and its first three derivatives (Leibniz's rule's
+    terms, each in the order they are summed). Floats, or arrays of one length."""
+
+    move: tuple[Any, Any, Any, Any]
+    excitation_r: tuple[Any]
+    excitation_r1: tuple[Any, Any]
+    excitation_r2: tuple[Any, Any, Any]
+    excitation_r3: tuple[Any, Any, Any, Any]
+
+    def at(self, k: int) -> Shape:
+        """The shape at the ``k``-th of its times (a shape of arrays)."""
+        return Shape(*(tuple(term[k] for term in terms) for terms in  # type: ignore[arg-type]
+                       (self.move, self.excitation_r, self.excitation_r1, self.excitation_r2, self.excitation_r3)))
+
+
+def compose(start_mm: Any, mid_mm: float, move_s: float, shape: Shape) -> tuple[Any, Any, Any, Any]:
+    """The reference that starts at ``start_mm``, and its first three derivatives, at the times of ``shape``: its move
+    from the start to ``mid_mm`` plus the excitation, in one order of operations, so a start given as a float (the
+    loop's controller) and as an array of starts (the batch path's valves) give the same bits for the same start."""
+    span = mid_mm - start_mm
+    _, s1, s2, s3 = shape.move
+    inv = 1.0 / move_s
+    r1 = span * s1 * inv
+    r2 = span * s2 * inv * inv
+    r3 = span * s3 * inv * inv * inv
+    (x1a, x1b), (x2a, x2b, x2c), (x3a, x3b, x3c, x3d) = shape.excitation_r1, shape.excitation_r2, shape.excitation_r3
+    return (compose_position(start_mm, mid_mm, shape), r1 + x1a + x1b, r2 + x2a + x2b + x2c,
+            r3 + x3a + x3b + x3c + x3d)
+
+
+def compose_position(start_mm: Any, mid_mm: float, shape: Shape) -> Any:
+    """The reference alone (no derivative), as :func:`compose` gives it."""
+    return start_mm + (mid_mm - start_mm) * shape.move[0] + shape.excitation_r[0]

@@ -29,6 +29,7 @@ from edc_bench.control import law
 from edc_bench.control.coil import CoilEstimator
 from edc_bench.control.design import ControllerDesign
 from edc_bench.control.estimators import MAX_COVARIANCE_TRACE
+from edc_bench.control.reference import compose, compose_position
 from edc_bench.engine.replies import max_reply_age_ticks
 from edc_bench.identification.analysis import settle_times_s
 from edc_bench.identification.period_fit import (
@@ -369,39 +370,37 @@ class _Sensors:
 
 
 class _Reference:
-    """Each valve's reference, tabulated: it is affine in its start position, so two tables (start 0 and 1) hold
-    every valve's."""
+    """Each valve's reference, by the loop's arithmetic: its shape at every tick (the same for every start) tabulated
+    once, at the times the loop's controller tabulates it, and composed with each valve's start tick by tick
+    (:func:`~edc_bench.control.reference.compose`), so a valve's reference is the loop's to the bit for the same
+    start."""
 
     def __init__(self, design: ControllerDesign, start: np.ndarray) -> None:
-        T = design.period_s
-        ref0, ref1 = design.reference(0.0), design.reference(1.0)
-        t_ticks = np.arange(design.ticks) * T
-        mid0 = ref0.tabulate(t_ticks + 0.5 * T)  # a row each: r and its first three derivatives
-        mid_slope = ref1.tabulate(t_ticks + 0.5 * T) - mid0
-        # per tick, a column in the regressors' order (third derivative first, the reference last)
-        self.mid0_cols, self.mid_slope_cols = (np.ascontiguousarray(a[::-1].T[:, :, None]) for a in (mid0, mid_slope))
-        self.now0 = ref0.tabulate(t_ticks)[0]
-        self.now_slope = ref1.tabulate(t_ticks)[0] - self.now0
+        reference = design.reference(0.0)
+        k = np.arange(design.ticks, dtype=float)  # the times of fel.reference_table
+        self._mid_shape = reference.shape((k + 0.5) * design.period_s)
+        self._now_shape = reference.shape(k * design.period_s)
+        self._mid_mm, self._move_s = reference.mid_mm, reference.move_s
         self.start = start
 
     def take(self, keep: np.ndarray) -> None:
         """Keep the valves ``keep`` (indices) only."""
         self.start = self.start[keep]
 
-    def at_mid_tick(self, k: int, out: np.ndarray) -> None:
-        """The third, second and first derivatives and the reference itself in the middle of tick ``k``'s
-        interval (where the drive is held), per valve, into the rows of ``out`` (4, N)."""
-        np.multiply(self.mid_slope_cols[k], self.start, out=out)
-        np.add(out, self.mid0_cols[k], out=out)
+    def at_mid_tick(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The reference and its first three derivatives in the middle of tick ``k``'s interval (where the drive is
+        held), per valve."""
+        return compose(self.start, self._mid_mm, self._move_s, self._mid_shape.at(k))
 
     def now(self, k: int) -> np.ndarray:
         """The reference at tick ``k``'s time, per valve."""
-        return self.now0[k] + self.start * self.now_slope[k]
+        return compose_position(self.start, self._mid_mm, self._now_shape.at(k))
 
     def of_ticks(self, ticks: np.ndarray, valves: np.ndarray) -> np.ndarray:
         """The reference at the given ticks for the given valves (tick -1: the start)."""
-        at = np.maximum(ticks, 0)
-        return np.where(ticks >= 0, self.now0[at] + self.start[valves] * self.now_slope[at], self.start[valves])
+        start = self.start[valves]
+        at = compose_position(start, self._mid_mm, self._now_shape.at(np.maximum(ticks, 0)))  # type: ignore[arg-type]
+        return np.where(ticks >= 0, at, start)
 
 
 class _Controller:
@@ -436,10 +435,7 @@ class _Controller:
         rho = self.coil_average.add(self.coil.resistance_ohm) / self.r_ref
         u2 = law.pid_update(ops, self.pid_c, self.pid, error_mm, self.saturated, usable)
         w_all = np.empty((6, len(error_mm)))  # a row per regressor
-        # the reference's third, second, first derivative and itself, per valve, straight into their rows: the
-        # composition then writes each of those rows onto itself
-        self.reference.at_mid_tick(k, w_all[:4])
-        law.regressors(ops, w_all, w_all[3], w_all[2], w_all[1], w_all[0])
+        law.regressors(ops, w_all, *self.reference.at_mid_tick(k))
         _, u, self.saturated, adapting, w_est, fixed_part = law.feedforward_tick(
             ops, self.composition, self.theta, w_all, u2, rho, k * design.period_s)
         r1 = w_all[2]
@@ -499,7 +495,15 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     _say_speed_once()
     design = ControllerDesign.from_variant(variant)
     plant = _VectorPlant(variant, valves, stiction, design.period_s)
-    sensors = _Sensors(variant, plant, seeds, sensor_noise)
+    run = _prepared(variant, design, plant, _Sensors(variant, plant, seeds, sensor_noise), seeds, adapter, stop)
+    run.all_ticks(run.feeder.setup)
+    return run.result(variant, valves, seeds)
+
+
+def _prepared(variant: Variant, design: ControllerDesign, plant: _VectorPlant, sensors: _Sensors,
+              seeds: Sequence[int], adapter: AdapterModel | None, stop: BatchStopRule | None) -> _BatchRun:
+    """The batch's ticks set up over ``plant`` and ``sensors`` (a test's own stand-ins may take their place)."""
+    n = len(seeds)
     reference = _Reference(design, sensors.sample())  # the SAFE reply before the first tick
     controller = _Controller(design, reference, n, variant.coil.resistance_ohm)
     link = None if adapter is None or adapter.is_instant else BatchLink(
@@ -511,10 +515,8 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     lag = 0 if link is None else RING - 2  # through an adapter, command j's sample is read from the link later
     coil_at_blocks = np.full((max(blocks, 1) + 1, n), controller.r_ref)
     periods = PeriodResults(variant, setup, fit_acc, blocks, coil_at_blocks, np.array(design.nominal), controller.r_ref)
-    run = _BatchRun(design, plant, sensors, controller, link, _RowFeeder(setup, fit_acc, n, lag), lag, periods,
-                    stop)
-    run.all_ticks(setup)
-    return run.result(variant, valves, seeds)
+    return _BatchRun(design, plant, sensors, controller, link, _RowFeeder(setup, fit_acc, n, lag), lag, periods,
+                     stop)
 
 
 class _BatchRun:

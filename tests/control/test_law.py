@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import batch_drives_from_loop
 
 from edc_bench.bench import run_simulated_test
 from edc_bench.config import Variant, with_changes
@@ -53,13 +54,17 @@ def _regressors_swapped(original):  # one step of the tick's composition: the 2n
 def test_one_detail_changed_in_one_place_changes_the_loop_replay_the_batch_and_the_floor(
         short: Variant, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str, change) -> None:
     """#54: the PID's arithmetic, and the tick's composition (regressors, their split, the coil ratio, the
-    estimator's target: law.feedforward_tick), are each written once."""
+    estimator's target: law.feedforward_tick), are each written once: changed in one place, the loop, replay, the
+    batch path and the floor all change, replay and the batch's tick to the bit."""
     before = _drives(short)
     folder = write_record(before["result"], tmp_path / "before", figure=False)
     monkeypatch.setattr(law, name, change(getattr(law, name)))
     after = _drives(short)
     for part in ("loop", "batch", "floor"):
         assert not np.array_equal(before[part], after[part]), part
+    # the batch's tick follows to the bit: fed the changed loop's samples, it sends the changed loop's drives
+    trace = {name: np.asarray(column) for name, column in after["result"].trace.items()}
+    assert np.array_equal(batch_drives_from_loop(short, trace, 1), trace["drive_v"])
     # replay runs the same law: a record made under it replays to the bit, one made before does not
     changed = write_record(after["result"], tmp_path / "after", figure=False)
     assert replay_record(changed).reproduced
@@ -123,5 +128,10 @@ def test_floats_and_arrays_give_the_same_estimates(variant: Variant) -> None:
         law.rls_update(law.ARRAYS, theta_a, P_a, w, y, 0.999, 1e6, np.array([True, True]))
         for v in range(2):
             law.rls_update(law.SCALAR, theta_s[v], P_s[v], w[:, v].tolist(), float(y[v]), 0.999, 1e6)
-    for v in range(2):  # the primitives sum in their own order: the same to rounding
-        np.testing.assert_allclose(theta_a[:, v], theta_s[v], rtol=1e-9)
+    for v in range(2):  # the primitives sum in one order, and keep P symmetric alike: the same bits
+        assert theta_a[:, v].tolist() == theta_s[v]
+        assert P_a[:, :, v].tolist() == P_s[v]
+    # and a test alone gives what it gives among others (numpy's own reductions order terms by the arrays' shape)
+    for n in (1, 3, 64):
+        w = rng.normal(0.0, 1.0, (6, n)) * 10.0 ** rng.uniform(-6, 3, (6, 1))
+        assert all(law.ARRAYS.dot(w, w)[j] == law.SCALAR.dot(w[:, j].tolist(), w[:, j].tolist()) for j in range(n))
