@@ -63,21 +63,17 @@ class ArrayOps(Ops):
             out = out + a * w[i]
         return out
 
-    # The sums below run over j in order, from zero, as the floats' do: numpy's own reductions (einsum, sum) order
-    # their terms by the arrays' shapes and strides, so one test in a batch could differ from the same test alone.
+    # The sums below add their few terms one after another, in order, as the floats' do: np.add.reduce along an
+    # axis of fewer than eight terms does (numpy sums pairwise only from eight on). np.einsum orders its terms
+    # by the arrays' shape, so a test alone and the same test among others differed in the last bit.
+    # tests/control/test_law.py holds these to the floats' bits for one test, a few and many.
     @staticmethod
     def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        out = np.zeros(a.shape[1:])
-        for j in range(len(a)):
-            out += a[j] * b[j]
-        return out
+        return np.add.reduce(a * b, axis=0)
 
     @staticmethod
     def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-        out = np.zeros((m.shape[0], *m.shape[2:]))
-        for j in range(m.shape[1]):
-            out += m[:, j] * v[j]
-        return out
+        return np.add.reduce(m * v[None], axis=1)
 
     @staticmethod
     def divide(v: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -108,9 +104,8 @@ class ArrayOps(Ops):
 
     @staticmethod
     def bound_trace(m: np.ndarray, max_trace: float) -> None:
-        trace = np.zeros(m.shape[2:])
-        for i in range(len(m)):
-            trace += m[i, i]
+        diagonal = np.arange(len(m))
+        trace = np.add.reduce(m[diagonal, diagonal], axis=0)
         if np.any(trace > max_trace):
             m *= np.where(trace > max_trace, max_trace / trace, 1.0)
 

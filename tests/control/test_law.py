@@ -132,6 +132,10 @@ def test_floats_and_arrays_give_the_same_estimates(variant: Variant) -> None:
         assert theta_a[:, v].tolist() == theta_s[v]
         assert P_a[:, :, v].tolist() == P_s[v]
     # and a test alone gives what it gives among others (numpy's own reductions order terms by the arrays' shape)
-    for n in (1, 3, 64):
+    for n in (1, 3, 64, 301):
         w = rng.normal(0.0, 1.0, (6, n)) * 10.0 ** rng.uniform(-6, 3, (6, 1))
-        assert all(law.ARRAYS.dot(w, w)[j] == law.SCALAR.dot(w[:, j].tolist(), w[:, j].tolist()) for j in range(n))
+        m = rng.normal(0.0, 1.0, (6, 6, n)) * 10.0 ** rng.uniform(-6, 3, (6, 6, 1))
+        dot, matvec = law.ARRAYS.dot(w, w), law.ARRAYS.matvec(m, w)
+        for j in range(n):
+            assert dot[j] == law.SCALAR.dot(w[:, j].tolist(), w[:, j].tolist())
+            assert matvec[:, j].tolist() == law.SCALAR.matvec(m[:, :, j].tolist(), w[:, j].tolist())
