@@ -160,7 +160,9 @@ def summary(result: Any, record_dir: Path | None, decision: Any = None) -> dict[
         "features": result.features,
         "features_volt": result.judgement.features_volt,
         "coil": result.judgement.coil,
-        "parameters": result.parameters,
+        # truth and its error only where there is one (a simulated rig), as the JSON always gave them
+        "parameters": {name: p.model_dump(exclude=None if p.truth is not None else {"truth", "error_rel"})
+                       for name, p in result.parameters.items()},
         "converged": result.converged,
         "classification": result.classification,
         "settle_s": None if result.identification is None else result.identification.settle_s,

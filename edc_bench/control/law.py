@@ -18,7 +18,7 @@ that says how. Three callers run it:
 
 The functions are written in a few primitives (:class:`~edc_bench.control.scalar_ops.Ops`); each
 backend implements the primitives (a dot product is a Python loop for five
-floats, one ``einsum`` for five arrays), never the controller. Callers
+floats, one ``np.add.reduce`` for five arrays, in the same order), never the controller. Callers
 reach the functions through this module (``law.pid_update(...)``), so a
 change here is a change everywhere.
 """

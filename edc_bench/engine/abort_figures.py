@@ -188,7 +188,7 @@ def _as(kind: type, value: object) -> object:
             return value if isinstance(value, str) else None
         if kind is tuple:
             return tuple(str(v) for v in value) if isinstance(value, (list, tuple)) else None
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an integer too large for a float
         return None
     return None
 

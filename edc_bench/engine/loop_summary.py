@@ -12,6 +12,7 @@ unknown key.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from typing import Annotated, Any
 
@@ -22,18 +23,30 @@ from edc_bench.section import Section
 
 
 def _abort_of(value: Any) -> Abort:
-    """The abort a record's ``loop.abort`` holds; a value that is none is refused with what is wrong."""
+    """The abort a record's ``loop.abort`` holds; a value that is none is refused with what is wrong (a
+    ValueError, which pydantic reports with the field)."""
     if isinstance(value, Abort):
         return value
     if not isinstance(value, Mapping):
         raise ValueError("an abort is a mapping with its 'kind', 'figures' and 'time_s'")
-    time_s = value.get("time_s")
-    if time_s is not None and (isinstance(time_s, bool) or not isinstance(time_s, (int, float))):
-        raise ValueError(f"an abort's time_s is a number of seconds or null, not {time_s!r}")
+    if "kind" not in value:
+        raise ValueError("an abort names its 'kind'")
+    figures = value.get("figures")
+    if figures is not None and not isinstance(figures, Mapping):
+        raise ValueError("an abort's 'figures' are a mapping of each figure by its name")
+    return Abort.from_dict({**value, "time_s": _seconds_or_none(value.get("time_s"))})  # a kind no name: ValueError
+
+
+def _seconds_or_none(time_s: Any) -> float | None:
+    """An abort's time as a float (None: before the ticks began); anything else refused."""
+    if time_s is None:
+        return None
     try:
-        return Abort.from_dict(value)
-    except KeyError:
-        raise ValueError("an abort names its 'kind'") from None
+        if isinstance(time_s, bool) or not isinstance(time_s, (int, float)) or not math.isfinite(float(time_s)):
+            raise ValueError
+        return float(time_s)
+    except (ValueError, OverflowError):
+        raise ValueError("an abort's 'time_s' is a number of seconds or null") from None
 
 
 #: The engine's abort as a record's field: validated from its record form, written as it.
@@ -79,8 +92,10 @@ class LoopSummary(Section):
 
     @classmethod
     def of(cls, outcome: LoopOutcome) -> LoopSummary:
-        """The summary of ``outcome``: each of its figures under its own name, the abort's sentence beside it."""
-        figures = {f.name: getattr(outcome, f.name) for f in dataclasses.fields(outcome) if f.name in cls.model_fields}
+        """The summary of ``outcome``: each of its figures under its own name (one this model does not declare kept
+        as an extra, which the writer's test of undeclared keys names), the abort's sentence beside it. The stop
+        rule's decision is the record's own ``stop`` section."""
+        figures = {f.name: getattr(outcome, f.name) for f in dataclasses.fields(outcome) if f.name != "stop"}
         return cls(**figures, abort_reason=outcome.abort_reason, abort_time_s=outcome.abort_time_s)
 
 __all__ = ["LoopSummary", "RecordedAbort"]

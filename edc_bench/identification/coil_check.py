@@ -108,8 +108,7 @@ def coil_reason(finding: CoilFinding) -> str | None:
     if finding.in_spec is not False or finding.resistance_20c_ohm is None:
         return None
     low, high = finding.spec_ohm
-    spec = f"{low:g}-{high:g} ohm" if low is not None and high is not None else (
-        f">= {low:g} ohm" if low is not None else f"<= {high:g} ohm")
+    spec = spec_text(low, high)
     side = "high" if high is not None and finding.resistance_20c_ohm > high else "low"
     hint = ("an open strand, a corroded connector or a poor lead contact reads high; so does a coil warmer than "
             "stated (give its temperature with --coil-temp-c)") if side == "high" else \
@@ -119,13 +118,20 @@ def coil_reason(finding: CoilFinding) -> str | None:
             f"{finding.temp_source}): check the coil and its leads with a multimeter; {hint}")
 
 
+def spec_text(low: float | None, high: float | None) -> str:
+    """A coil spec in words: ``0.6-0.9 ohm``, or one side of it (``>= 0.6 ohm``, ``<= 0.9 ohm``)."""
+    if low is not None and high is not None:
+        return f"{low:g}-{high:g} ohm"
+    return f">= {low:g} ohm" if low is not None else f"<= {high:g} ohm"
+
+
 def coil_line(finding: CoilFinding | None) -> str:
     """One line for the technician: the coil's resistance at 20 degC, its spec and its warming in the test."""
     if finding is None or finding.resistance_20c_ohm is None:
         return "not measured (the test ran too briefly)"
     low, high = finding.spec_ohm
     spec = "no spec in the variant" if finding.in_spec is None else (
-        f"spec {low:g}-{high:g} ohm: {'in spec' if finding.in_spec else 'OUT OF SPEC'}")
+        f"spec {spec_text(low, high)}: {'in spec' if finding.in_spec else 'OUT OF SPEC'}")
     assumed = "" if finding.temp_given else ", coil assumed at 20 degC at the start"
     # a record read back holds a figure it could not measure (NaN) as None
     warming_k, end_ohm = (math.nan if v is None else v for v in (finding.warming_k, finding.resistance_ohm))

@@ -24,6 +24,25 @@ def test_cli_test_json_summary(tmp_path: Path) -> None:
     assert set(summary["truth"]) == {"a3", "a2", "a1", "a0", "b", "af"}
     assert abs(summary["features"]["af"] / summary["truth"]["af"] - 1) < 0.08
     assert Path(tmp_path / summary["record_dir"], "record.json").is_file()
+    assert set(summary["parameters"]["af"]) == {"value", "std", "estimated", "truth", "error_rel"}  # simulated
+
+
+def test_the_json_summary_of_a_test_without_a_true_value_gives_none() -> None:
+    """A rig on a bus has no true parameters: the summary's parameters have no truth keys (as the JSON always
+    gave them), not truth: null."""
+    import dataclasses
+
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.cli.test_cmd import summary
+    from edc_bench.config import load_variant, with_changes
+
+    result = run_simulated_test(with_changes(load_variant(), {"excitation": {"duration_s": 8.0}}, "test"), "new", 1,
+                                classify=False, check_gains=False)
+    untrue = {name: p.model_copy(update={"truth": None, "error_rel": None}) for name, p in result.parameters.items()}
+    result = dataclasses.replace(result, judgement=dataclasses.replace(result.judgement, parameters=untrue), truth=None)
+    parameters = summary(result, None)["parameters"]
+    assert set(parameters) == {"a3", "a2", "a1", "a0", "b", "af"}
+    assert all(set(entry) == {"value", "std", "estimated"} for entry in parameters.values()), parameters
 
 
 def test_cli_human_output_shows_the_numbers(tmp_path: Path) -> None:

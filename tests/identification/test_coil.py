@@ -135,3 +135,20 @@ def test_population_verdicts_do_not_depend_on_the_coil(variant) -> None:
     assert agree >= 0.99
     assert np.max(np.abs(d_af)) < 0.02 and np.max(np.abs(d_a1)) < 0.02
     assert np.max(np.abs(r_err)) < 0.01
+
+
+@pytest.mark.parametrize(("spec", "words"), [
+    ({"resistance_max_ohm": None}, ">= 0.6 ohm"), ({"resistance_min_ohm": None}, "<= 0.9 ohm"),
+    ({"resistance_min_ohm": 0.6, "resistance_max_ohm": 0.9}, "0.6-0.9 ohm")])
+def test_the_coil_line_says_a_one_sided_spec(variant, spec: dict, words: str) -> None:
+    """A variant may give one side of the coil's spec: the technician's line says that side (it raised before)."""
+    from edc_bench.config import with_changes
+    from edc_bench.identification.coil_check import coil_line
+    from edc_bench.identification.sections import CoilFinding
+
+    low, high = spec.get("resistance_min_ohm", 0.6), spec.get("resistance_max_ohm", 0.9)
+    finding = CoilFinding(resistance_ohm=0.75, resistance_start_ohm=0.72, resistance_20c_ohm=0.72, temp_start_c=20.0,
+                          warming_k=1.2, spec_ohm=(low, high), in_spec=True)
+    line = coil_line(finding)
+    assert f"spec {words}: in spec" in line, line
+    assert with_changes(variant, {"coil": spec}, "test").coil is not None  # the variant takes such a spec

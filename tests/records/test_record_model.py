@@ -7,6 +7,7 @@ says why)."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -119,12 +120,21 @@ def test_the_loop_section_holds_the_engines_abort_and_refuses_one_that_is_not(re
     assert doc["loop"]["abort"] == {"kind": "rig silent", "figures": abort.figures.as_dict(), "time_s": 3.25}
     read = load_record(folder)
     assert read.loop.abort == abort and read.loop.abort.figures.in_row == 12
-    for hostile, words in (("a string", "mapping"), ({"figures": {}}, "kind"), ({"kind": "rig silent", "time_s": "x"},
-                                                                                "time_s"),
-                           ({"kind": "no such kind"}, "no such kind")):
+    # each refused in one line naming the field and what is wrong (words the hand-edited value does not hold)
+    for hostile, words in (("a string", "is a mapping with its"), ({"figures": {}}, "names its 'kind'"),
+                           ({"kind": "rig silent", "time_s": "x"}, "is a number of seconds"),
+                           ({"kind": "rig silent", "time_s": 10**400}, "is a number of seconds"),
+                           ({"kind": "rig silent", "figures": "abc"}, "each figure by its name"),
+                           ({"kind": "rig silent", "figures": [1, 2]}, "each figure by its name"),
+                           ({"kind": ["a list"]}, "not a valid AbortKind"),
+                           ({"kind": "no such kind"}, "not a valid AbortKind")):
         edited = {**doc, "loop": {**doc["loop"], "abort": hostile}}
         with pytest.raises(ConfigError, match=rf"(?s)loop\.abort.*{words}"):
             reader.typed_record(reader.upgraded(edited), folder)
+    # a figure a hand edit made unreadable (too large for a float) takes its default, as a missing one does
+    huge = {"kind": "slow link", "figures": {"max_reply_age_ms": 10**400, "in_row": 7}, "time_s": 2}
+    abort = reader.typed_record(reader.upgraded({**doc, "loop": {**doc["loop"], "abort": huge}}), folder).loop.abort
+    assert math.isnan(abort.figures.max_reply_age_ms) and abort.figures.in_row == 7 and abort.time_s == 2.0
     older = {**doc, "loop": {**doc["loop"], "stop": {"reason": "full length", "time_s": 30.0}}}
     assert reader.typed_record(reader.upgraded(older), folder).loop.model_extra["stop"]["time_s"] == 30.0
 
@@ -154,3 +164,21 @@ def test_a_field_added_to_the_model_is_indexed_and_verify_names_it_when_changed(
     (folder / RECORD_FILE).write_text(json.dumps(doc))
     (finding,) = verify(rows)
     assert finding.problem == "altered" and "'bench_humidity_pct'" in finding.detail, finding
+
+
+def test_a_loop_figure_the_summary_does_not_declare_is_kept_and_named() -> None:
+    """LoopSummary.of passes every figure of the outcome: one added there without being declared in the summary
+    is kept as an extra (written, and named by the writer's check of undeclared keys), never dropped."""
+    from dataclasses import dataclass
+
+    from edc_bench.engine.loop_summary import LoopSummary
+    from edc_bench.engine.outcome import LoopOutcome
+    from edc_bench.records.schema import undeclared_keys
+
+    @dataclass
+    class Newer(LoopOutcome):
+        bus_load_pct: float = 42.0
+
+    summary = LoopSummary.of(Newer(ticks_planned=10))
+    assert summary.model_extra == {"bus_load_pct": 42.0}
+    assert "loop.bus_load_pct" in undeclared_keys(Record(verdict="PASS", loop=summary))
