@@ -98,4 +98,5 @@ class LoopSummary(Section):
         figures = {f.name: getattr(outcome, f.name) for f in dataclasses.fields(outcome) if f.name != "stop"}
         return cls(**figures, abort_reason=outcome.abort_reason, abort_time_s=outcome.abort_time_s)
 
+
 __all__ = ["LoopSummary", "RecordedAbort"]
