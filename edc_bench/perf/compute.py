@@ -14,6 +14,7 @@ from __future__ import annotations
 import struct
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -92,7 +93,37 @@ def lean_tick(design: ControllerDesign, start_mm: float) -> Callable[[int, float
     return tick
 
 
-def tick_compute(variant: Variant, count: int) -> dict[str, float]:
+@dataclass(frozen=True)
+class TickCost:
+    """The controller's per-tick cost and its floor's (us), and how far their drives ever differed (V)."""
+
+    p50_us: float
+    p99_us: float
+    floor_p50_us: float
+    floor_p99_us: float
+    max_drive_difference_v: float
+    ticks: int
+
+
+@dataclass(frozen=True)
+class FrameCost:
+    """One frame operation's cost, p50 (us): the codec's, the struct floor's and cantools'."""
+
+    ours_us: float
+    struct_us: float
+    cantools_us: float
+
+
+@dataclass(frozen=True)
+class CodecCost:
+    """BENCH_CMD's encode and RIG_FEEDBACK's decode, each with its CRC, over ``frames`` frames."""
+
+    encode: FrameCost
+    decode: FrameCost
+    frames: int
+
+
+def tick_compute(variant: Variant, count: int) -> TickCost:
     """Per-tick cost of the controller and of its floor (us), for the variant's estimator.
 
     Both run the same ``count`` ticks from the start of a test, on a rack
@@ -126,8 +157,7 @@ def tick_compute(variant: Variant, count: int) -> dict[str, float]:
     mismatch = float(np.max(np.abs(np.array(drives) - np.array(floor_drives))))
     p50, p99 = percentiles(real_us)
     f50, f99 = percentiles(lean_us)
-    return {"p50_us": p50, "p99_us": p99, "floor_p50_us": f50, "floor_p99_us": f99,
-            "max_drive_difference_v": mismatch, "ticks": count}
+    return TickCost(p50, p99, f50, f99, mismatch, count)
 
 
 def _chunked(fn: Callable[[int], object], count: int, chunk: int):
@@ -174,7 +204,7 @@ def _check_byte_layout(icd: Icd) -> None:
             raise RuntimeError(f"{layout.name}'s layout changed ({got}); update the struct floor in {__name__}")
 
 
-def codec(icd: Icd, count: int) -> dict[str, float]:
+def codec(icd: Icd, count: int) -> CodecCost:
     """Per-frame cost (us, p50) of BENCH_CMD encode and RIG_FEEDBACK decode: ours, struct's and cantools'."""
     enc_floor, dec_floor = struct_floor(icd)
     feedback = icd.make_rig_feedback(7, amp_enabled=True, watchdog_tripped=False, over_current=False,
@@ -193,17 +223,12 @@ def codec(icd: Icd, count: int) -> dict[str, float]:
         fb_msg.decode(feedback)
         e2e_crc(icd.rig_feedback_data_id, feedback)
 
-    runs = {
-        "encode_us": lambda _k: icd.make_bench_cmd(7, Mode.RUN, 1.234, 12.5),
-        "encode_struct_us": lambda _k: enc_floor(7, Mode.RUN, 1.234, 12.5),
-        "encode_cantools_us": cantools_encode,
-        "decode_us": lambda _k: icd.parse_rig_feedback(feedback),
-        "decode_struct_us": lambda _k: dec_floor(feedback),
-        "decode_cantools_us": cantools_decode,
-    }
-    out: dict[str, float] = {}
-    for name, fn in runs.items():
+    def p50_us(fn: Callable[[int], object]) -> float:
         fn(0)
-        out[name] = percentiles(time_calls_ns(fn, count) / 1e3, (50,))[0]
-    out["frames"] = count
-    return out
+        return percentiles(time_calls_ns(fn, count) / 1e3, (50,))[0]
+
+    encode = FrameCost(p50_us(lambda _k: icd.make_bench_cmd(7, Mode.RUN, 1.234, 12.5)),
+                       p50_us(lambda _k: enc_floor(7, Mode.RUN, 1.234, 12.5)), p50_us(cantools_encode))
+    decode = FrameCost(p50_us(lambda _k: icd.parse_rig_feedback(feedback)), p50_us(lambda _k: dec_floor(feedback)),
+                       p50_us(cantools_decode))
+    return CodecCost(encode, decode, count)

@@ -49,6 +49,17 @@ class Figure:
         return asdict(self)
 
 
+@dataclass(frozen=True)
+class SessionLatency:
+    """The session app's latencies over a shift on the simulated rig (s): (median, worst) from a test's safe stop
+    to its decision on screen, and to its reports drawn; the valves and the tests they took."""
+
+    decision_s: tuple[float, float]
+    report_s: tuple[float, float]
+    valves: int
+    tests: int
+
+
 def percentiles(samples: np.ndarray | list[float], qs: tuple[float, ...] = (50, 99)) -> list[float]:
     """Percentiles ``qs`` of ``samples`` (NaN where there are none)."""
     values = np.asarray(samples, dtype=float)

@@ -43,7 +43,28 @@ def with_timing(variant: Variant, period_s: float | None = None, duration_s: flo
     return with_changes(variant, changes, "a benchmark's timing")
 
 
-def simulated_test(variant: Variant, repeats: int, full_length: bool) -> dict[str, float]:
+@dataclass(frozen=True)
+class SimulatedTiming:
+    """Wall times of whole simulated tests (best and median), the test time the best covered, how it ended."""
+
+    best_s: float
+    median_s: float
+    simulated_s: float
+    speed_x_real_time: float
+    repeats: int
+    verdict: str
+    stop: str
+
+
+@dataclass(frozen=True)
+class RealtimeRun:
+    """The bench loop against the rig process, and a bare loop at the same period, on one machine at one time."""
+
+    bare: LoopFigures
+    bench: LoopFigures
+
+
+def simulated_test(variant: Variant, repeats: int, full_length: bool) -> SimulatedTiming:
     """Wall time of a whole simulated test of a new valve (everything in the loop, and its judgement), best and
     median of ``repeats``; ``simulated_s`` is the test time it covered (the early stop's, unless ``full_length``)."""
     from edc_bench.bench import run_simulated_test
@@ -55,9 +76,8 @@ def simulated_test(variant: Variant, repeats: int, full_length: bool) -> dict[st
         walls.append(time.perf_counter() - t0)
         covered.append(result.outcome.ticks_run * variant.controller.period_s)
     best = int(np.argmin(walls))
-    return {"best_s": walls[best], "median_s": float(np.median(walls)), "simulated_s": covered[best],
-            "speed_x_real_time": covered[best] / walls[best], "repeats": repeats, "verdict": result.verdict,
-            "stop": str(result.stop.reason)}
+    return SimulatedTiming(walls[best], float(np.median(walls)), covered[best], covered[best] / walls[best], repeats,
+                           str(result.verdict), str(result.stop.reason))
 
 
 class StealSampler:
@@ -156,7 +176,7 @@ def _loop_figures(late_s: np.ndarray, times_ns: np.ndarray, steal: np.ndarray, p
     )
 
 
-def realtime(variant_name: str | None, period_s: float, duration_s: float) -> dict[str, LoopFigures]:
+def realtime(variant_name: str | None, period_s: float, duration_s: float) -> RealtimeRun:
     """The bench loop against the rig process, and a bare loop, at ``period_s`` for ``duration_s`` each."""
     from edc_bench.bench import BenchOptions, run_bench_test
     from edc_bench.config import load_variant
@@ -183,7 +203,7 @@ def realtime(variant_name: str | None, period_s: float, duration_s: float) -> di
     bench.reply_latency_us = tuple(percentiles(reply, (50, 99)))  # type: ignore[assignment]
     bench.missed_replies = result.outcome.missed_replies
     bench.abort_reason = result.outcome.abort_reason
-    return {"bare": bare, "bench": bench}
+    return RealtimeRun(bare, bench)
 
 
 @dataclass

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from edc_bench.history.url import scratch_history
 from edc_bench.perf import GROUPS
-from edc_bench.perf.figures import Figure
+from edc_bench.perf.figures import Figure, SessionLatency
 
 
 @dataclass(frozen=True)
@@ -39,11 +39,11 @@ def _tick(variant_name: str | None, sizes: Sizes) -> list[Figure]:
     for kind in ("rls", "gradient"):
         variant = base.model_copy(update={"estimator": base.estimator.model_copy(update={"kind": kind})})
         m = tick_compute(variant, sizes.ticks)
-        met = m["p50_us"] <= 15.0 and m["p50_us"] <= 2.0 * m["floor_p50_us"]
-        note = (f"p99 {m['p99_us']:.1f} us (floor {m['floor_p99_us']:.1f}); {m['ticks']} ticks; "
-                f"drive differs from the floor's by at most {m['max_drive_difference_v']:.1e} V")
-        out.append(Figure("tick", f"controller tick, PID + feedforward + {kind}, p50", m["p50_us"], "us",
-                          m["floor_p50_us"], "the same arithmetic inlined", "<= 15 us and <= 2x floor", met, note))
+        met = m.p50_us <= 15.0 and m.p50_us <= 2.0 * m.floor_p50_us
+        note = (f"p99 {m.p99_us:.1f} us (floor {m.floor_p99_us:.1f}); {m.ticks} ticks; "
+                f"drive differs from the floor's by at most {m.max_drive_difference_v:.1e} V")
+        out.append(Figure("tick", f"controller tick, PID + feedforward + {kind}, p50", m.p50_us, "us",
+                          m.floor_p50_us, "the same arithmetic inlined", "<= 15 us and <= 2x floor", met, note))
     return out
 
 
@@ -53,11 +53,10 @@ def _codec(sizes: Sizes) -> list[Figure]:
 
     m = codec(default_icd(), sizes.frames)
     out = []
-    for op, what in (("encode", "BENCH_CMD encode"), ("decode", "RIG_FEEDBACK decode")):
-        ours, floor = m[f"{op}_us"], m[f"{op}_struct_us"]
-        out.append(Figure("codec", f"{what} + CRC, p50", ours, "us", floor, "struct, same layout + CRC",
-                          "<= 3x struct", ours <= 3.0 * floor,
-                          f"cantools {m[f'{op}_cantools_us']:.2f} us; {m['frames']} frames"))
+    for cost, what in ((m.encode, "BENCH_CMD encode"), (m.decode, "RIG_FEEDBACK decode")):
+        out.append(Figure("codec", f"{what} + CRC, p50", cost.ours_us, "us", cost.struct_us,
+                          "struct, same layout + CRC", "<= 3x struct", cost.ours_us <= 3.0 * cost.struct_us,
+                          f"cantools {cost.cantools_us:.2f} us; {m.frames} frames"))
     return out
 
 
@@ -72,10 +71,10 @@ def _simulated(variant_name: str | None, sizes: Sizes) -> list[Figure]:
         # no target: one simulated test's speed served no user (it once made the tick's modules compiled at
         # install, #54); the suite's and CI's time are what it adds up to, and they are watched instead
         out.append(Figure(
-            "simulated", f"simulated {name} test of {m['simulated_s']:g} s, wall (best)", m["best_s"], "s",
-            m["simulated_s"], "real time", "", None,
-            f"{m['speed_x_real_time']:.0f}x real time; median {m['median_s']:.2f} s of {m['repeats']}; ended: "
-            f"{m['stop']}; codec, lockstep bus, rig firmware, plant, controller, recording, analysis"))
+            "simulated", f"simulated {name} test of {m.simulated_s:g} s, wall (best)", m.best_s, "s",
+            m.simulated_s, "real time", "", None,
+            f"{m.speed_x_real_time:.0f}x real time; median {m.median_s:.2f} s of {m.repeats}; ended: "
+            f"{m.stop}; codec, lockstep bus, rig firmware, plant, controller, recording, analysis"))
     return out
 
 
@@ -86,7 +85,7 @@ def _realtime(variant_name: str | None, sizes: Sizes) -> list[Figure]:
     for rate_hz in (1000, 2000):
         period_s = 1.0 / rate_hz
         m = realtime(variant_name, period_s, sizes.realtime_s)
-        bare, bench = m["bare"], m["bench"]
+        bare, bench = m.bare, m.bench
         ratio_ok = bench.lateness_us[1] <= 1.5 * bare.lateness_us[1]
         outside = bench.overruns_outside_steal / max(bench.ticks_outside_steal, 1)
         completed = bench.abort_reason is None
@@ -145,38 +144,38 @@ def _throughput(variant_name: str | None, sizes: Sizes) -> list[Figure]:
     h = help_time(sizes.startup_repeats)
     first = time_to_first_tick(sizes.startup_repeats)
     return [
-        Figure("throughput", f"batch path, {workers} processes", b["per_minute_pool"], "tests/min", None, "",
-               ">= 20,000 / min", b["per_minute_pool"] >= 20_000,
-               f"each test stopped where the bench's early stop ends it (mean {b['mean_stop_s']:.1f} s, median "
-               f"{b['median_stop_s']:g} s of {b['full_length_s']:g} s); one process: "
-               f"{b['per_minute_one_process']:.0f} / min; every test at full length, one process: "
-               f"{b['per_minute_full_length']:.0f} / min; {b['valves']} valves per process"),
-        Figure("throughput", "edc-bench --help (best)", h["best_s"], "s", python_s, "python -c pass", "< 0.3 s",
-               h["best_s"] < 0.3, f"median {h['median_s']:.2f} s of {h['repeats']}"),
-        Figure("throughput", "edc-bench test to its first tick (best)", first["best_s"], "s", python_s,
-               "python -c pass", "<= 0.5 s", first["best_s"] <= 0.5,
-               f"median {first['median_s']:.2f} s of {first['repeats']}; simulated rig; the gain check's margins "
-               f"cached (first run on a station, computing them: {first['cold_s']:.2f} s)"),
+        Figure("throughput", f"batch path, {workers} processes", b.per_minute_pool, "tests/min", None, "",
+               ">= 20,000 / min", b.per_minute_pool >= 20_000,
+               f"each test stopped where the bench's early stop ends it (mean {b.mean_stop_s:.1f} s, median "
+               f"{b.median_stop_s:g} s of {b.full_length_s:g} s); one process: "
+               f"{b.per_minute_one_process:.0f} / min; every test at full length, one process: "
+               f"{b.per_minute_full_length:.0f} / min; {b.valves} valves per process"),
+        Figure("throughput", "edc-bench --help (best)", h.best_s, "s", python_s, "python -c pass", "< 0.3 s",
+               h.best_s < 0.3, f"median {h.median_s:.2f} s of {h.repeats}"),
+        Figure("throughput", "edc-bench test to its first tick (best)", first.best_s, "s", python_s,
+               "python -c pass", "<= 0.5 s", first.best_s <= 0.5,
+               f"median {first.median_s:.2f} s of {first.repeats}; simulated rig; the gain check's margins "
+               f"cached (first run on a station, computing them: {first.cold_s:.2f} s)"),
     ]
 
 
-def _session(sizes: Sizes, session_latency: Callable[[int], dict] | None) -> list[Figure]:
+def _session(sizes: Sizes, session_latency: Callable[[int], SessionLatency] | None) -> list[Figure]:
     if session_latency is None:
         raise RuntimeError("the session's measurement was not given (edc-bench perf passes it)")
     m = session_latency(sizes.session_valves)
-    (decision_p50, decision_max), (report_p50, report_max) = m["decision_s"], m["report_s"]
+    (decision_p50, decision_max), (report_p50, report_max) = m.decision_s, m.report_s
     return [
         Figure("session", "a test's safe stop to its decision on screen, worst", decision_max, "s", report_max,
                "its reports drawn, worst", "<= 0.5 s", decision_max <= 0.5,
                f"median {decision_p50:.2f} s; reports drawn after the decision, median {report_p50:.2f} s from the "
-               f"safe stop; {m['valves']} valves, {m['tests']} tests on the simulated rig, the app headless; "
+               f"safe stop; {m.valves} valves, {m.tests} tests on the simulated rig, the app headless; "
                "judgement, record, history row and screen update included"),
     ]
 
 
 def run(groups: tuple[str, ...] = GROUPS, *, quick: bool = False, variant_name: str | None = None,
         on_figure: Callable[[Figure], None] | None = None,
-        session_latency: Callable[[int], dict] | None = None) -> list[Figure]:
+        session_latency: Callable[[int], SessionLatency] | None = None) -> list[Figure]:
     """Run the chosen groups; ``on_figure`` sees each figure as soon as it is measured. ``session_latency`` is
     :func:`edc_bench.session.latency.session_latency`, passed in by the command: the session's app sits above this
     layer (it runs the rig self-check)."""

@@ -8,12 +8,37 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 
-def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, float]:
+@dataclass(frozen=True)
+class BatchThroughput:
+    """Batch-path tests per minute: one process early-stopped, a pool of ``workers``, one process full length."""
+
+    valves: int
+    per_minute_one_process: float
+    per_minute_pool: float
+    workers: int
+    per_minute_full_length: float
+    median_stop_s: float
+    mean_stop_s: float
+    full_length_s: float
+
+
+@dataclass(frozen=True)
+class StartTimes:
+    """Wall times of a command (s): the best and the median of ``repeats``, and the first (cold) where it differs."""
+
+    best_s: float
+    median_s: float
+    repeats: int
+    cold_s: float | None = None
+
+
+def batch(variant_name: str | None, valves: int, workers: int) -> BatchThroughput:
     """Valve tests per minute in the batch path, each test stopped where the bench's early stop ends it (the
     model the variant's valves are judged by, and the packaged baseline): one process, and ``workers`` processes
     with ``valves`` each; and one process running every test its full length (as training data are made), for
@@ -41,25 +66,23 @@ def batch(variant_name: str | None, valves: int, workers: int) -> dict[str, floa
     t0 = time.perf_counter()
     run_batch(variant, population, seeds)
     full = time.perf_counter() - t0
-    return {"valves": valves, "per_minute_one_process": valves / one * 60.0,
-            "per_minute_pool": 2 * valves / many * 60.0, "workers": workers,
-            "per_minute_full_length": valves / full * 60.0,
-            "median_stop_s": float(np.median(stopped.stop.time_s)), "mean_stop_s": float(stopped.stop.time_s.mean()),
-            "full_length_s": float(variant.excitation.duration_s)}
+    return BatchThroughput(valves, valves / one * 60.0, 2 * valves / many * 60.0, workers, valves / full * 60.0,
+                           float(np.median(stopped.stop.time_s)), float(stopped.stop.time_s.mean()),
+                           float(variant.excitation.duration_s))
 
 
 def _command(*args: str) -> list[str]:
     return [sys.executable, "-m", "edc_bench", *args]
 
 
-def help_time(repeats: int) -> dict[str, float]:
+def help_time(repeats: int) -> StartTimes:
     """Wall time of ``edc-bench --help`` (process start to exit), best and median."""
     walls = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         subprocess.run(_command("--help"), capture_output=True, check=True)
         walls.append(time.perf_counter() - t0)
-    return {"best_s": min(walls), "median_s": float(np.median(walls)), "repeats": repeats}
+    return StartTimes(min(walls), float(np.median(walls)), repeats)
 
 
 def bare_python_time(repeats: int) -> float:
@@ -72,7 +95,7 @@ def bare_python_time(repeats: int) -> float:
     return min(walls)
 
 
-def time_to_first_tick(repeats: int) -> dict[str, float]:
+def time_to_first_tick(repeats: int) -> StartTimes:
     """Time from launching ``edc-bench test`` (simulated rig) to its first tick: cold, then best and median warm.
 
     The test reports the wall-clock time of its first tick in its JSON
@@ -93,4 +116,4 @@ def time_to_first_tick(repeats: int) -> dict[str, float]:
                 raise RuntimeError(f"edc-bench test gave no first-tick time: {proc.stderr.strip()[-500:]}") from None
             walls.append(first - t0)
     warm = walls[1:]
-    return {"cold_s": walls[0], "best_s": min(warm), "median_s": float(np.median(warm)), "repeats": repeats}
+    return StartTimes(min(warm), float(np.median(warm)), repeats, cold_s=walls[0])

@@ -10,20 +10,21 @@ from __future__ import annotations
 import asyncio
 import tempfile
 from pathlib import Path
-from typing import Any
 
 import numpy as np
+
+from edc_bench.perf.figures import SessionLatency
 
 #: valves of the benchmark's shift: worn (FAIL), new (PASS), a MARGINAL pair
 VALVES = ("worn", "new", "clearance=0.185")
 
 
-def session_latency(valves: int) -> dict[str, Any]:
+def session_latency(valves: int) -> SessionLatency:
     """Run ``valves`` valves through the session's app; the latencies' median and worst, in seconds.
 
     Returns
     -------
-    dict
+    SessionLatency
         ``decision_s`` and ``report_s``: (median, max) over the valves; ``valves``, ``tests``.
     """
     from edc_bench.session.build import make_app
@@ -53,6 +54,5 @@ def session_latency(valves: int) -> dict[str, Any]:
 
         asyncio.run(shift())
         decision, report = np.array(app.decision_latencies_s), np.array(app.report_latencies_s)
-        return {"decision_s": (float(np.median(decision)), float(decision.max())),
-                "report_s": (float(np.median(report)), float(report.max())),
-                "valves": len(decision), "tests": app.shift.tests}
+        return SessionLatency((float(np.median(decision)), float(decision.max())),
+                              (float(np.median(report)), float(report.max())), len(decision), app.shift.tests)
