@@ -665,8 +665,10 @@ def time_to_verdict() -> dict[str, Any]:
     """
     from edc_bench.experiments.studies import time_to_verdict as study
 
+    import dataclasses
+
     with isolated_station():
-        report = study(None, list(VARIANTS), VERDICT_VALVES, VERDICT_SEED)  # each variant by its own model
+        report = dataclasses.asdict(study(None, list(VARIANTS), VERDICT_VALVES, VERDICT_SEED))  # each by its own model
     report.pop("stop_s")
 
     def tidy(value: Any) -> Any:
@@ -728,6 +730,8 @@ STICKY_FRICTION_FACTORS = (1.0, 2.0, 3.0)
 def coverage() -> dict[str, Any]:
     """``edc-bench evaluate --coverage`` with its defaults, and a nominal new valve (nominal coil) with more
     friction on the stick-slip pump with and without its Stribeck friction (batch path, full length, seed 0)."""
+    import dataclasses
+
     from edc_bench.config import parse_variant
     from edc_bench.experiments.coverage import AF, A1, coverage_populations, coverage_study
     from edc_bench.physics.valve import ValveSpec
@@ -755,7 +759,7 @@ def coverage() -> dict[str, Any]:
                           "a1": [rounded(e) for e in error[:, A1]], "trusted": result.trusted.tolist(),
                           "af_core_shift": [rounded(e) for e in shift["af"]],
                           "a1_core_shift": [rounded(e) for e in shift["a1"]]})
-    return {"studies": [_rounded_tree(s) for s in studies], "sticky_valve": sweep}
+    return {"studies": [_rounded_tree(dataclasses.asdict(s)) for s in studies], "sticky_valve": sweep}
 
 
 def _rounded_tree(value: Any) -> Any:

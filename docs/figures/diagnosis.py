@@ -10,12 +10,13 @@ so that neither a station's adopted model nor its cache changes a figure.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import os
 import re
 import shlex
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from figures.common import (
     stored,
     table,
 )
+
+if TYPE_CHECKING:
+    from edc_bench.learning.evaluation import Evaluation
 
 SHIPPED_VARIANTS = ("p-edc-default", "p-edc-long")
 #: The paper's valves V1, V2, V3 (Tsai & Tseng 2010, section 4): identified af in V and a1 in V s/mm.
@@ -276,10 +280,11 @@ def held_out() -> dict[str, Any]:
 _EVALUATION_KEYS = ("tests", "invalid", "judged", "marginal", "faulty_passed", "reusable_failed", "faulty", "reusable")
 
 
-def _evaluation_figures(report: dict[str, Any], *more: str) -> dict[str, Any]:
+def _evaluation_figures(report: Evaluation, *more: str) -> dict[str, Any]:
     """An ``evaluate`` report's figures as a page stores them (``more``: further keys)."""
-    return {**{k: report[k] for k in _EVALUATION_KEYS + more},
-            "accuracy_outside_band": round(report["accuracy_outside_band"], 6)}
+    figures = dataclasses.asdict(report)
+    return {**{k: figures[k] for k in _EVALUATION_KEYS + more},
+            "accuracy_outside_band": round(report.accuracy_outside_band, 6)}
 
 
 def held_out_table() -> str:
@@ -421,7 +426,7 @@ def boundary() -> dict[str, Any]:
     curve = boundary_tradeoff(shipped_classifier(), dataset, np.array(BOUNDARY_SHIFTS))
     return {"valves": len(dataset), "seed": seed,
             "rows": [[s, round(float(n), 5), round(float(f), 5)] for s, n, f in
-                     zip(BOUNDARY_SHIFTS, curve["needless_replacement"], curve["faulty_passed"], strict=True)]}
+                     zip(BOUNDARY_SHIFTS, curve.needless_replacement, curve.faulty_passed, strict=True)]}
 
 
 def boundary_table() -> str:

@@ -808,14 +808,13 @@ def gain_sweep() -> dict[str, Any]:
     rows = []
     for row in sweep(None, list(GAIN_VARIATIONS), 60, 5):  # judged by p-edc-hard's own network
         rows.append({
-            "variation_rel": row["variation_rel"], "valves": row["valves"], "judged": row["judged"],
-            "misfit": row["misfit"],
-            "af_error_max": None if not row["judged"] else _round_sig(row["af_error_max"], 3),
-            "a1_error_max": None if not row["judged"] else _round_sig(row["a1_error_max"], 3),
-            "beyond_bounds": row["beyond_bounds"], "beyond_unflagged": row["beyond_unflagged"],
-            "faulty_passed": row["faulty_passed"], "reusable_failed": row["reusable_failed"],
-            "gain_identified_pct": [round(v * 100, 1) for v in row["gain_identified"]],
-            "repeating_ratio": [round(v, 2) for v in row["repeating_ratio"]],
+            "variation_rel": row.variation_rel, "valves": row.valves, "judged": row.judged, "misfit": row.misfit,
+            "af_error_max": None if not row.judged else _round_sig(row.af_error_max, 3),
+            "a1_error_max": None if not row.judged else _round_sig(row.a1_error_max, 3),
+            "beyond_bounds": row.beyond_bounds, "beyond_unflagged": row.beyond_unflagged,
+            "faulty_passed": row.faulty_passed, "reusable_failed": row.reusable_failed,
+            "gain_identified_pct": [round(v * 100, 1) for v in row.gain_identified],
+            "repeating_ratio": [round(v, 2) for v in row.repeating_ratio],
         })
     return {"valves": 60, "seed": 5, "rows": rows}
 

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from edc_bench.cli.common import (
     add_history_label_arguments,
@@ -13,6 +15,9 @@ from edc_bench.cli.common import (
     check_population_inputs,
     count_up_to,
 )
+
+if TYPE_CHECKING:
+    from edc_bench.learning.evaluation import VerdictCounts
 
 #: the populations of ``--coverage`` (:mod:`edc_bench.experiments.coverage`)
 POPULATIONS = ("default", "hard", "stick-slip")
@@ -65,12 +70,11 @@ def run(args: argparse.Namespace) -> int:
 
         dataset, where = history_label_dataset(args.db, args.include_simulated)
         report = evaluate(classifier, dataset)
-        report["model"] = classifier.name
         if args.json:
-            print(json.dumps(report, indent=2))
+            print(json.dumps({**dataclasses.asdict(report), "model": classifier.name}, indent=2))
             return 0
         print(f"{where}, judged by {classifier.name}", file=sys.stderr)
-        _print_report(report, "by teardown")
+        _print_report(report, report.judged, "by teardown")
         return 0
     check_population_inputs(args)  # before minutes of simulation
     if args.coverage:
@@ -81,24 +85,24 @@ def run(args: argparse.Namespace) -> int:
     dataset = make_dataset(args.variants, args.count, args.seed)
     elapsed = time.perf_counter() - start
     report = evaluate(classifier, dataset)
-    report["tests_per_minute"] = len(dataset) / elapsed * 60
-    report["seed"] = args.seed
+    tests_per_minute = len(dataset) / elapsed * 60
     if args.json:
-        print(json.dumps(report, indent=2))
+        print(json.dumps({**dataclasses.asdict(report), "tests_per_minute": tests_per_minute, "seed": args.seed},
+                         indent=2))
         return 0
-    print(f"held-out population: {report['tests']} valves ({', '.join(args.variants)}), seed {args.seed}; "
-          f"{report['tests_per_minute']:.0f} bench tests per minute (batch path); judged by "
-          f"{', '.join(report['models'])}", file=sys.stderr)
-    print(f"INVALID (not converged): {report['invalid']}")
-    _print_report(report, "by physics")
+    print(f"held-out population: {report.tests} valves ({', '.join(args.variants)}), seed {args.seed}; "
+          f"{tests_per_minute:.0f} bench tests per minute (batch path); judged by {', '.join(report.models)}",
+          file=sys.stderr)
+    print(f"INVALID (not converged): {report.invalid}")
+    _print_report(report, report.judged, "by physics")
     return 0
 
 
-def _print_report(report: dict, truth: str) -> None:
-    print(f"MARGINAL: {report['marginal']} of {report['judged']} ({report['marginal_fraction']:.1%})")
-    print(f"accuracy outside the marginal band: {report['accuracy_outside_band']:.2%} "
-          f"(faulty passed {report['faulty_passed']}, reusable failed {report['reusable_failed']}; "
-          f"{report['faulty']} faulty, {report['reusable']} reusable {truth})")
+def _print_report(counts: VerdictCounts, judged: int, truth: str) -> None:
+    print(f"MARGINAL: {counts.marginal} of {judged} ({counts.marginal_fraction:.1%})")
+    print(f"accuracy outside the marginal band: {counts.accuracy_outside_band:.2%} "
+          f"(faulty passed {counts.faulty_passed}, reusable failed {counts.reusable_failed}; "
+          f"{counts.faulty} faulty, {counts.reusable} reusable {truth})")
 
 
 def _time_to_verdict(args: argparse.Namespace, classifier) -> int:
@@ -106,22 +110,19 @@ def _time_to_verdict(args: argparse.Namespace, classifier) -> int:
     from edc_bench.experiments.studies import time_to_verdict
 
     report = time_to_verdict(classifier, list(args.variants), args.count, args.seed)
-    models = sorted({v["model"] for v in report["per_variant"].values()})
-    report["model"] = ", ".join(models)
     if args.json:
-        print(json.dumps(report, indent=2))
+        print(json.dumps({**dataclasses.asdict(report), "model": report.models}, indent=2))
         return 0
-    print(f"time to verdict: {report['valves']} simulated valves ({', '.join(args.variants)}), seed {args.seed}, "
-          f"judged by {report['model']}")
-    print(f"  median {report['median_s']:.1f} s, 95th percentile {report['p95_s']:.1f} s")
-    for name, v in report["per_variant"].items():
-        print(f"  {name}: median {v['median_s']:.1f} s, 95th percentile {v['p95_s']:.1f} s "
-              f"(full length {v['full_length_s']:g} s, {v['valves']} valves)")
-    for label, title in (("early", "stopped early"), ("full", "full length")):
-        r = report[label]
-        print(f"{title}: INVALID {r['invalid']}, MARGINAL {r['marginal']} of {r['judged']} "
-              f"({r['marginal_fraction']:.1%}), accuracy outside the marginal band {r['accuracy_outside_band']:.2%} "
-              f"(faulty passed {r['faulty_passed']}, reusable failed {r['reusable_failed']})")
+    print(f"time to verdict: {report.valves} simulated valves ({', '.join(args.variants)}), seed {args.seed}, "
+          f"judged by {report.models}")
+    print(f"  median {report.median_s:.1f} s, 95th percentile {report.p95_s:.1f} s")
+    for name, v in report.per_variant.items():
+        print(f"  {name}: median {v.median_s:.1f} s, 95th percentile {v.p95_s:.1f} s "
+              f"(full length {v.full_length_s:g} s, {v.valves} valves)")
+    for r, title in ((report.early, "stopped early"), (report.full, "full length")):
+        print(f"{title}: INVALID {r.invalid}, MARGINAL {r.marginal} of {r.judged} "
+              f"({r.marginal_fraction:.1%}), accuracy outside the marginal band {r.accuracy_outside_band:.2%} "
+              f"(faulty passed {r.faulty_passed}, reusable failed {r.reusable_failed})")
     return 0
 
 
@@ -136,24 +137,22 @@ def _coverage(args: argparse.Namespace, classifier) -> int:
             print(f"{name}: {args.count} valves against a baseline of {args.calibration_valves} new ones ...",
                   file=sys.stderr)
         reports.append(coverage_study(populations[name], classifier, args.count, args.seed, args.calibration_valves))
-    model = ", ".join(sorted({r["model"] for r in reports}))
+    model = ", ".join(sorted({r.model for r in reports}))
     if args.json:
-        print(json.dumps({"model": model, "populations": reports}, indent=2))
+        print(json.dumps({"model": model, "populations": [dataclasses.asdict(r) for r in reports]}, indent=2))
         return 0
     print(f"judged by {model}, seed {args.seed}; the truth is the simulated plant's; within: af "
           f"{TOLERANCE_REL['af']:.0%}, a1 {TOLERANCE_REL['a1']:.0%} of it; covered: the 99 % interval holds the "
           f"true ratio (the valve's true feature over the calibration valves' true mean)")
     for r in reports:
-        print(f"{r['population']} ({r['variant']}, judged by {r['model']}): {r['judged']} of {r['valves']} judged; "
-              f"baseline from "
-              f"{r['baseline_tests']} new valves, off its truth by af {r['af']['baseline_error']:+.1%}, "
-              f"a1 {r['a1']['baseline_error']:+.1%}")
-        for name in ("af", "a1"):
-            f = r[name]
-            print(f"  {name}: within {f['within']:.1%}; |error| median {f['error_p50']:.1%}, 95th percentile "
-                  f"{f['error_p95']:.1%}; bias {f['bias']:+.1%}; interval covers the truth {f['covered']:.1%} "
-                  f"(median half width {f['half_width_p50']:.1%})")
-        print(f"  stopped certain {r['certain']}, of which the truth contradicts {r['certain_wrong']}; median stop "
-              f"{r['median_stop_s']:.1f} s; MARGINAL {r['marginal_fraction']:.1%}; accuracy outside the marginal "
-              f"band {r['accuracy_outside_band']:.1%}")
+        print(f"{r.population} ({r.variant}, judged by {r.model}): {r.judged} of {r.valves} judged; baseline from "
+              f"{r.baseline_tests} new valves, off its truth by af {r.af.baseline_error:+.1%}, "
+              f"a1 {r.a1.baseline_error:+.1%}")
+        for name, f in (("af", r.af), ("a1", r.a1)):
+            print(f"  {name}: within {f.within:.1%}; |error| median {f.error_p50:.1%}, 95th percentile "
+                  f"{f.error_p95:.1%}; bias {f.bias:+.1%}; interval covers the truth {f.covered:.1%} "
+                  f"(median half width {f.half_width_p50:.1%})")
+        print(f"  stopped certain {r.certain}, of which the truth contradicts {r.certain_wrong}; median stop "
+              f"{r.median_stop_s:.1f} s; MARGINAL {r.marginal_fraction:.1%}; accuracy outside the marginal "
+              f"band {r.accuracy_outside_band:.1%}")
     return 0

@@ -53,8 +53,8 @@ def run(args: argparse.Namespace) -> int:
     curve = boundary_tradeoff(judge, dataset)
     draw_tradeoff(curve, args.figure, title)
     print("boundary shift   needless replacements   faulty passed")
-    for k in range(0, len(curve["shift"]), 5):
-        print(f"{curve['shift'][k]:+14.2f}   {curve['needless_replacement'][k]:21.1%}   {curve['faulty_passed'][k]:13.1%}")
+    for k in range(0, len(curve.shift), 5):
+        print(f"{curve.shift[k]:+14.2f}   {curve.needless_replacement[k]:21.1%}   {curve.faulty_passed[k]:13.1%}")
     print(f"figure: {args.figure}")
     return 0
 

@@ -24,13 +24,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 
 from edc_bench.config import load_variant, parse_variant
 from edc_bench.config.models import PARAMETER_NAMES, Variant
-from edc_bench.learning.evaluation import verdict_counts
+from edc_bench.learning.evaluation import VerdictCounts, verdict_counts
 from edc_bench.physics.valve import ValveSpec
 from edc_bench.physics.wear import is_faulty
 from edc_bench.population.batch import run_batch
@@ -111,19 +110,72 @@ def shop_baseline(variant: Variant, valves: int, seed: int) -> ShopBaseline:
     return ShopBaseline(measured, result.truth[result.trusted][:, [AF, A1]].mean(axis=0))
 
 
+@dataclass(frozen=True)
+class FeatureCoverage:
+    """One feature (af or a1) over the tests judged at their stop, against the simulation's truth.
+
+    Attributes
+    ----------
+    within : float
+        The share within :data:`TOLERANCE_REL` of the truth.
+    error_p50, error_p95 : float
+        The median and 95th percentile of the |relative error|.
+    bias : float
+        The median signed relative error.
+    covered : float
+        The share whose interval holds the true ratio.
+    half_width_p50 : float
+        The interval's median half width, relative.
+    baseline_error : float
+        The baseline's relative error.
+    """
+
+    within: float
+    error_p50: float
+    error_p95: float
+    bias: float
+    covered: float
+    half_width_p50: float
+    baseline_error: float
+
+
+@dataclass(frozen=True)
+class CoverageFigures(VerdictCounts):
+    """What the tests found at their stop, against the truth (:func:`coverage_figures`): the verdicts of the
+    tests judged against the physical labels, and these."""
+
+    #: the tests trusted at their stop
+    judged: int
+    #: the tests stopped certain; of those, the ones with a verdict other than the classifier's at the true ratios
+    certain: int
+    certain_wrong: int
+    median_stop_s: float
+    af: FeatureCoverage
+    a1: FeatureCoverage
+
+
+@dataclass(frozen=True)
+class CoverageStudy(CoverageFigures):
+    """A population judged against a baseline of a few new valves (:func:`coverage_study`)."""
+
+    population: str
+    variant: str
+    #: the judging model's name
+    model: str
+    valves: int
+    calibration_valves: int
+    #: the baseline's trusted tests
+    baseline_tests: int
+    seed: int
+
+
 def coverage_study(population: CoveragePopulation, classifier: ValveClassifier | None, count: int, seed: int,
-                   calibration_valves: int = 5) -> dict[str, Any]:
+                   calibration_valves: int = 5) -> CoverageStudy:
     """Judge ``count`` used valves of ``population`` against a baseline of ``calibration_valves`` new ones.
 
     The baseline's valves are drawn with ``seed + 1``, the population with ``seed``. They are judged by
     ``classifier``, or (None) by the model that judges the population's pump
     (:func:`~edc_bench.verdict.classifier.judge_of`).
-
-    Returns
-    -------
-    dict
-        ``population``, ``variant``, ``model`` (the judging model's name), ``valves``, ``calibration_valves``,
-        ``baseline_tests``, ``seed``, and :func:`coverage_figures`'s figures.
     """
     variant = population.variant
     classifier = judge_of(variant, classifier)
@@ -134,12 +186,13 @@ def coverage_study(population: CoveragePopulation, classifier: ValveClassifier |
     assert result.stop is not None  # a run with a stop rule records its stops
     labels = np.array([is_faulty(variant, v) for v in valves])
     figures = coverage_figures(result.stop, result.parameters, result.truth, shop, classifier, labels)
-    return {"population": population.name, "variant": variant.name, "model": classifier.name, "valves": count,
-            "calibration_valves": calibration_valves, "baseline_tests": shop.measured.tests, "seed": seed, **figures}
+    return CoverageStudy(**vars(figures), population=population.name, variant=variant.name, model=classifier.name,
+                         valves=count, calibration_valves=calibration_valves, baseline_tests=shop.measured.tests,
+                         seed=seed)
 
 
 def coverage_figures(stopped: StopOutcome, parameters: np.ndarray, truth: np.ndarray, shop: ShopBaseline,
-                     classifier: ValveClassifier, faulty: np.ndarray) -> dict[str, Any]:
+                     classifier: ValveClassifier, faulty: np.ndarray) -> CoverageFigures:
     """What the tests found at their stop, against the truth.
 
     Parameters
@@ -154,17 +207,6 @@ def coverage_figures(stopped: StopOutcome, parameters: np.ndarray, truth: np.nda
         What judged them.
     faulty : numpy.ndarray
         (N,) the physical labels.
-
-    Returns
-    -------
-    dict
-        ``judged`` (trusted at their stop); per feature (``af``, ``a1``) over the judged: ``within`` (the share
-        within :data:`TOLERANCE_REL` of the truth), ``error_p50``/``error_p95`` (of the |relative error|), ``bias``
-        (the median signed error), ``covered`` (the share whose interval holds the true ratio), ``half_width_p50``
-        (the interval's median half width, relative) and
-        ``baseline_error`` (the baseline's); ``certain`` and ``certain_wrong`` (stopped certain; of those, with a
-        verdict other than the classifier's at the true ratios); ``median_stop_s``; and
-        :func:`~edc_bench.learning.evaluation.verdict_counts` of the judged against ``faulty``.
     """
     judged = stopped.trusted
     n = len(judged)
@@ -175,26 +217,30 @@ def coverage_figures(stopped: StopOutcome, parameters: np.ndarray, truth: np.nda
     if judged.any():
         verdict_at_stop[judged] = classifier.classify_many(stopped.features_rel[judged])[0]
     certain_wrong = stopped.certain & (verdict_at_stop != classifier.verdicts(true_rel))
-    out: dict[str, Any] = {"judged": int(judged.sum()), "certain": int(stopped.certain.sum()),
-                           "certain_wrong": int(certain_wrong.sum()),
-                           "median_stop_s": float(np.percentile(stopped.time_s, 50, method="higher")),
-                           **verdict_counts(verdict_at_stop[judged], faulty[judged])}
+    features = []
     for j, name in enumerate(FEATURES):
         e = error[judged, j]
         some = len(e) > 0
-        out[name] = {"within": float((np.abs(e) <= TOLERANCE_REL[name]).mean()) if some else math.nan,
-                     "error_p50": float(np.median(np.abs(e))) if some else math.nan,
-                     "error_p95": float(np.percentile(np.abs(e), 95)) if some else math.nan,
-                     "bias": float(np.median(e)) if some else math.nan,
-                     "covered": float(covered[judged, j].mean()) if some else math.nan,
-                     "half_width_p50": float(np.median(stopped.half_width_rel[judged, j])) if some else math.nan,
-                     "baseline_error": float(shop.error_rel[j])}
-    return out
+        features.append(FeatureCoverage(
+            within=float((np.abs(e) <= TOLERANCE_REL[name]).mean()) if some else math.nan,
+            error_p50=float(np.median(np.abs(e))) if some else math.nan,
+            error_p95=float(np.percentile(np.abs(e), 95)) if some else math.nan,
+            bias=float(np.median(e)) if some else math.nan,
+            covered=float(covered[judged, j].mean()) if some else math.nan,
+            half_width_p50=float(np.median(stopped.half_width_rel[judged, j])) if some else math.nan,
+            baseline_error=float(shop.error_rel[j])))
+    af, a1 = features
+    return CoverageFigures(**vars(verdict_counts(verdict_at_stop[judged], faulty[judged])), judged=int(judged.sum()),
+                           certain=int(stopped.certain.sum()), certain_wrong=int(certain_wrong.sum()),
+                           median_stop_s=float(np.percentile(stopped.time_s, 50, method="higher")), af=af, a1=a1)
 
 
 __all__ = [
     "TOLERANCE_REL",
+    "CoverageFigures",
     "CoveragePopulation",
+    "CoverageStudy",
+    "FeatureCoverage",
     "ShopBaseline",
     "coverage_figures",
     "coverage_populations",

@@ -13,7 +13,7 @@ import numpy as np
 from edc_bench.config import Variant, load_variant, parse_variant, with_changes
 from edc_bench.learning.dataset import COLUMNS, Dataset
 from edc_bench.identification.period_fit import expected_drive_noise_v
-from edc_bench.learning.evaluation import verdict_counts
+from edc_bench.learning.evaluation import JudgedCounts, judged_counts
 from edc_bench.physics.valve import ValveSpec, sample_valve
 from edc_bench.physics.wear import (
     clearance_for_resisting_force,
@@ -60,23 +60,51 @@ def early_outcome(variant: Variant, result: BatchResult, classifier: ValveClassi
     return stopped.periods, stopped.trusted, stopped.features_rel, stopped.misfit
 
 
+@dataclass(frozen=True)
+class VariantStopTimes:
+    """One variant's valves in :func:`time_to_verdict`: when their tests stopped, and which model judged them."""
+
+    valves: int
+    #: the median and 95th percentile stop, each a stop time some test had (tests stop only at a period's end)
+    median_s: float
+    p95_s: float
+    #: the variant's full-length test
+    full_length_s: float
+    model: str
+
+
+@dataclass(frozen=True)
+class TimeToVerdict:
+    """The early stop against the full-length test on a simulated population (:func:`time_to_verdict`)."""
+
+    valves: int
+    #: over all valves, as :attr:`VariantStopTimes.median_s` and ``p95_s``
+    median_s: float
+    p95_s: float
+    per_variant: dict[str, VariantStopTimes]
+    #: each valve's stop
+    stop_s: list[float]
+    #: the verdicts at the early stop and at full length, against the physical labels
+    early: JudgedCounts
+    full: JudgedCounts
+
+    @property
+    def models(self) -> str:
+        """The models that judged, named."""
+        return ", ".join(sorted({v.model for v in self.per_variant.values()}))
+
+
 def time_to_verdict(classifier: ValveClassifier | None, variant_names: list[str], count_per_variant: int,
-                    seed: int) -> dict[str, Any]:
+                    seed: int) -> TimeToVerdict:
     """Early stop against the full-length test on a simulated population (batch path, the loop's rule).
 
     Every valve's test is simulated to its full length once and stopped by :func:`early_outcome`. Both verdicts
     are compared with the physical labels. Each variant's valves are judged by ``classifier``, or (None) by the
     model that judges that variant's (:func:`~edc_bench.verdict.classifier.judge_of`).
-
-    Returns
-    -------
-    dict
-        ``stop_s`` (per valve), ``median_s``, ``p95_s``, and for ``early`` and ``full``: INVALID count and
-        :func:`verdict_counts`; per variant the median and 95th percentile (each a stop time some test had: tests
-        stop only at a period's end, so an interpolated percentile would name a time no test stopped at).
     """
     stop_all, truth_all = [], []
-    judged: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {"early": [], "full": []}  # (trusted, verdicts)
+    early_parts: list[tuple[np.ndarray, np.ndarray]] = []  # (trusted, their verdicts) per variant
+    full_parts: list[tuple[np.ndarray, np.ndarray]] = []
     per_variant = {}
     for v_index, name in enumerate(variant_names):
         variant = load_variant(name)
@@ -90,25 +118,31 @@ def time_to_verdict(classifier: ValveClassifier | None, variant_names: list[str]
         stop_p, stop_trusted, stop_features, _ = early_outcome(variant, result, judge, baseline)
         stop_s = np.array([periods.stop_time_s(int(p)) for p in stop_p])
         full_features = result.parameters[:, [5, 2]] / np.array([baseline.af_v, baseline.a1_v_s_per_mm])
-        for label, features, ok in (("early", stop_features, stop_trusted), ("full", full_features, result.trusted)):
-            verdicts = judge.classify_many(np.where(np.isfinite(features), features, 1.0)[ok])[0]
-            judged[label].append((ok, verdicts))
+        for parts, features, ok in ((early_parts, stop_features, stop_trusted),
+                                    (full_parts, full_features, result.trusted)):
+            parts.append((ok, judge.classify_many(np.where(np.isfinite(features), features, 1.0)[ok])[0]))
         stop_all.append(stop_s)
         truth_all.append(np.array([is_faulty(variant, v) for v in valves]))
-        per_variant[name] = {"valves": len(valves), "median_s": float(np.percentile(stop_s, 50, method="higher")),
-                             "p95_s": float(np.percentile(stop_s, 95, method="higher")),
-                             "full_length_s": float(variant.excitation.duration_s), "model": judge.name}
+        per_variant[name] = VariantStopTimes(valves=len(valves), median_s=_stop_percentile(stop_s, 50),
+                                             p95_s=_stop_percentile(stop_s, 95),
+                                             full_length_s=float(variant.excitation.duration_s), model=judge.name)
     stop = np.concatenate(stop_all)
     truth = np.concatenate(truth_all)
-    out: dict[str, Any] = {"valves": len(stop), "median_s": float(np.percentile(stop, 50, method="higher")),
-                           "p95_s": float(np.percentile(stop, 95, method="higher")), "per_variant": per_variant,
-                           "stop_s": stop.tolist()}
-    for label, parts in judged.items():
-        good = np.concatenate([ok for ok, _ in parts])
-        verdicts = np.concatenate([v for _, v in parts])
-        out[label] = {"invalid": int((~good).sum()), "judged": int(good.sum()),
-                      **verdict_counts(verdicts, truth[good])}
-    return out
+    early, full = (_pooled_counts(parts, truth) for parts in (early_parts, full_parts))
+    return TimeToVerdict(valves=len(stop), median_s=_stop_percentile(stop, 50), p95_s=_stop_percentile(stop, 95),
+                         per_variant=per_variant, stop_s=stop.tolist(), early=early, full=full)
+
+
+def _pooled_counts(parts: list[tuple[np.ndarray, np.ndarray]], truth: np.ndarray) -> JudgedCounts:
+    """The verdicts of every variant's judged tests (``parts``: which were judged, their verdicts) against the
+    pooled ``truth``."""
+    judged = np.concatenate([ok for ok, _ in parts])
+    return judged_counts(np.concatenate([v for _, v in parts]), truth[judged], judged)
+
+
+def _stop_percentile(stop_s: np.ndarray, percent: float) -> float:
+    """A percentile of stop times that some test had (an interpolated one would name a time no test stopped at)."""
+    return float(np.percentile(stop_s, percent, method="higher"))
 
 
 # --------------------------------------------------------------------------- beyond the model's reach
@@ -129,8 +163,44 @@ def with_gain_variation(variant: Variant, variation_rel: float) -> Variant:
     return parse_variant(data)
 
 
+@dataclass(frozen=True)
+class GainSweepRow:
+    """One pump of :func:`gain_sweep`: its solenoid's gain variation and what the bench made of its valves.
+
+    Attributes
+    ----------
+    variation_rel : float
+        The force constant's variation over the swing.
+    valves, judged, misfit : int
+        The valves; those judged; those INVALID because the model does not fit.
+    af_error_max, a1_error_max : float
+        The largest |error| against the plant's truth among the judged (NaN if none).
+    beyond_bounds, beyond_unflagged : int
+        Judged valves identified worse than the hard variant is held to (:data:`HARD_VARIANT_BOUNDS_REL`); of
+        those, the ones whose interval (the early stop's 99 % box) does not hold the truth.
+    faulty_passed, reusable_failed : int
+        Among the judged.
+    gain_identified, repeating_ratio : tuple of float
+        Over all valves at their stop, (min, max) of the gain variation identified and of the residual's repeating
+        part over the sensor noise.
+    """
+
+    variation_rel: float
+    valves: int
+    judged: int
+    misfit: int
+    af_error_max: float
+    a1_error_max: float
+    beyond_bounds: int
+    beyond_unflagged: int
+    faulty_passed: int
+    reusable_failed: int
+    gain_identified: tuple[float, float]
+    repeating_ratio: tuple[float, float]
+
+
 def gain_sweep(classifier: ValveClassifier | None, variations_rel: list[float], count: int, seed: int,
-               variant_name: str = "p-edc-hard") -> list[dict[str, Any]]:
+               variant_name: str = "p-edc-hard") -> list[GainSweepRow]:
     """What the bench makes of pumps whose solenoid's gain varies more than the model's first order covers.
 
     One population of ``count`` used valves of ``variant_name`` (seed ``seed``), each on a pump whose force
@@ -138,16 +208,7 @@ def gain_sweep(classifier: ValveClassifier | None, variations_rel: list[float], 
     model) against the variant's baseline and stopped by the bench's rule (:func:`early_outcome`). A pump the bench
     judges must be identified as well as the hard variant is held to; the others must be INVALID "does not fit".
 
-    Returns
-    -------
-    list of dict
-        Per variation: ``variation_rel``, ``valves``, ``judged``, ``misfit`` (INVALID by the model fit),
-        ``af_error_max``/``a1_error_max`` (largest |error| against the plant's truth among the judged, NaN if
-        none), ``beyond_bounds`` (judged valves identified worse than the hard variant is held to:
-        :data:`HARD_VARIANT_BOUNDS_REL`) and ``beyond_unflagged`` (of those, the ones whose interval, the early
-        stop's 99 % box, does not hold the truth), ``faulty_passed``/``reusable_failed`` (among the judged), and
-        over all at their stop
-        ``gain_identified`` and ``repeating_ratio`` (the residual's repeating part over the sensor noise), (min, max).
+    Returns one :class:`GainSweepRow` per variation.
     """
     base_variant = load_variant(variant_name)
     classifier = judge_of(base_variant, classifier)
@@ -174,17 +235,16 @@ def gain_sweep(classifier: ValveClassifier | None, variations_rel: list[float], 
         if trusted.any():
             judged_verdicts, _, _ = classifier.classify_many(features[trusted])
             verdicts[trusted] = judged_verdicts  # verdict names
-        rows.append({
-            "variation_rel": variation, "valves": len(valves), "judged": int(trusted.sum()),
-            "misfit": int(misfit.sum()),
-            "af_error_max": float(errors[trusted, 0].max()) if trusted.any() else float("nan"),
-            "a1_error_max": float(errors[trusted, 1].max()) if trusted.any() else float("nan"),
-            "beyond_bounds": int(beyond.sum()), "beyond_unflagged": int((beyond & ~held.all(axis=1)).sum()),
-            "faulty_passed": int(((verdicts == Verdict.PASS.value) & truth_faulty).sum()),
-            "reusable_failed": int(((verdicts == Verdict.FAIL.value) & ~truth_faulty).sum()),
-            "gain_identified": (float(gain.min()), float(gain.max())),
-            "repeating_ratio": (float(np.nanmin(repeating)), float(np.nanmax(repeating))),
-        })
+        rows.append(GainSweepRow(
+            variation_rel=variation, valves=len(valves), judged=int(trusted.sum()), misfit=int(misfit.sum()),
+            af_error_max=float(errors[trusted, 0].max()) if trusted.any() else float("nan"),
+            a1_error_max=float(errors[trusted, 1].max()) if trusted.any() else float("nan"),
+            beyond_bounds=int(beyond.sum()), beyond_unflagged=int((beyond & ~held.all(axis=1)).sum()),
+            faulty_passed=int(((verdicts == Verdict.PASS.value) & truth_faulty).sum()),
+            reusable_failed=int(((verdicts == Verdict.FAIL.value) & ~truth_faulty).sum()),
+            gain_identified=(float(gain.min()), float(gain.max())),
+            repeating_ratio=(float(np.nanmin(repeating)), float(np.nanmax(repeating))),
+        ))
     return rows
 
 
@@ -354,23 +414,31 @@ def draw_figure7(exp: PaperExperiment, path: Path) -> None:
 # --------------------------------------------------------------------------- boundary study
 
 
-def boundary_tradeoff(classifier: ValveClassifier, dataset: Dataset,
-                      shifts: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Move the boundary by ``shift`` (relative-feature units, positive: fewer FAILs).
+@dataclass(frozen=True)
+class BoundaryTradeoff:
+    """The decision boundary moved (:func:`boundary_tradeoff`): per shift, the two errors' rates."""
 
-    Returns the rate of reusable valves replaced needlessly and of faulty
-    valves passed for each shift.
-    """
+    #: the boundary's shift, in relative-feature units (positive: fewer FAILs)
+    shift: np.ndarray
+    #: the share of reusable valves replaced needlessly
+    needless_replacement: np.ndarray
+    #: the share of faulty valves passed
+    faulty_passed: np.ndarray
+
+
+def boundary_tradeoff(classifier: ValveClassifier, dataset: Dataset,
+                      shifts: np.ndarray | None = None) -> BoundaryTradeoff:
+    """Move the boundary by each of ``shifts`` (default: -0.4 to 0.4 in steps of 0.01) and count the errors."""
     ok = dataset.columns["converged"].astype(bool)
     d = classifier.distances(dataset.features[ok])
     truth = dataset.labels[ok] == 1
     shifts = np.linspace(-0.4, 0.4, 81) if shifts is None else shifts
     needless = np.array([(d[~truth] > s).mean() for s in shifts])
     passed = np.array([(d[truth] <= s).mean() for s in shifts])
-    return {"shift": shifts, "needless_replacement": needless, "faulty_passed": passed}
+    return BoundaryTradeoff(shifts, needless, passed)
 
 
-def draw_tradeoff(curve: dict[str, np.ndarray], path: Path, title: str) -> None:
+def draw_tradeoff(curve: BoundaryTradeoff, path: Path, title: str) -> None:
     """Plot the trade-off curve."""
     import matplotlib
 
@@ -380,13 +448,12 @@ def draw_tradeoff(curve: dict[str, np.ndarray], path: Path, title: str) -> None:
     from edc_bench.paths import atomic_write
 
     fig, ax = plt.subplots(figsize=(6.5, 5.0), constrained_layout=True)
-    ax.plot(curve["needless_replacement"] * 100, curve["faulty_passed"] * 100, "-o", markersize=3)
-    zero = int(np.argmin(np.abs(curve["shift"])))
-    ax.plot(curve["needless_replacement"][zero] * 100, curve["faulty_passed"][zero] * 100, "r*", markersize=14,
-            label="trained boundary")
-    for k in range(0, len(curve["shift"]), 10):
-        ax.annotate(f"{curve['shift'][k]:+.2f}", (curve["needless_replacement"][k] * 100,
-                                                   curve["faulty_passed"][k] * 100), fontsize=7)
+    needless_pct, passed_pct = curve.needless_replacement * 100, curve.faulty_passed * 100
+    ax.plot(needless_pct, passed_pct, "-o", markersize=3)
+    zero = int(np.argmin(np.abs(curve.shift)))
+    ax.plot(needless_pct[zero], passed_pct[zero], "r*", markersize=14, label="trained boundary")
+    for k in range(0, len(curve.shift), 10):
+        ax.annotate(f"{curve.shift[k]:+.2f}", (needless_pct[k], passed_pct[k]), fontsize=7)
     ax.set_xlabel("reusable valves replaced needlessly, %")
     ax.set_ylabel("faulty valves passed, %")
     ax.set_title(title)

@@ -120,8 +120,8 @@ def score(name: str, verdicts: np.ndarray, faulty_decision: np.ndarray, labels: 
     truth = labels.astype(bool)
     counts = verdict_counts(verdicts, truth)
     return Score(model=name, tests=len(labels), accuracy=float(np.mean(faulty_decision == truth)),
-                 marginal=counts["marginal"], accuracy_outside_band=counts["accuracy_outside_band"],
-                 worn_passed=counts["faulty_passed"], reusable_failed=counts["reusable_failed"], in_sample=in_sample)
+                 marginal=counts.marginal, accuracy_outside_band=counts.accuracy_outside_band,
+                 worn_passed=counts.faulty_passed, reusable_failed=counts.reusable_failed, in_sample=in_sample)
 
 
 def judge(classifier: ValveClassifier, features_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

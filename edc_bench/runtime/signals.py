@@ -27,20 +27,38 @@ import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
 
 _SIGNALS = {signal.SIGINT, signal.SIGTERM}
-_state: dict = {"depth": 0, "count": 0, "previous": {}, "raised": False}
+
+
+@dataclass
+class _Interrupts:
+    """The process's interrupt state (one per process: signal handlers are)."""
+
+    #: guards open now (the outermost installs and restores the handlers)
+    depth: int = 0
+    #: signals received inside the open guards
+    count: int = 0
+    #: the handlers the outermost guard replaced, to put back
+    previous: dict[signal.Signals, Any] = field(default_factory=dict)
+    #: whether a signal raised KeyboardInterrupt in a raise_on_interrupt block
+    raised: bool = False
+
+
+_state = _Interrupts()
 
 
 def _handler(signum: int, frame: object) -> None:
-    _state["count"] += 1
-    if _state["count"] > 1:
+    _state.count += 1
+    if _state.count > 1:
         sys.stderr.write("\nedc-bench: interrupt noted; still bringing the rig to its safe state and writing the record\n")
 
 
 def stop_requested() -> bool:
     """True once Ctrl-C or SIGTERM has arrived inside a guard, until the outermost guard ends."""
-    return _state["count"] > 0
+    return _state.count > 0
 
 
 @contextmanager
@@ -59,31 +77,31 @@ def interrupt_guard(*, reraise: bool = True) -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    if _state["depth"] == 0:
-        _state["count"] = 0
+    if _state.depth == 0:
+        _state.count = 0
         for sig in _SIGNALS:
             if signal.getsignal(sig) is not signal.SIG_IGN:
-                _state["previous"][sig] = signal.signal(sig, _handler)
-    _state["depth"] += 1
+                _state.previous[sig] = signal.signal(sig, _handler)
+    _state.depth += 1
     interrupted = False
     try:
         yield
     finally:
-        _state["depth"] -= 1
-        outermost = _state["depth"] == 0
+        _state.depth -= 1
+        outermost = _state.depth == 0
         if outermost:
-            for sig, previous in _state["previous"].items():
+            for sig, previous in _state.previous.items():
                 signal.signal(sig, signal.SIG_DFL if previous is None else previous)
-            _state["previous"] = {}
+            _state.previous = {}
             # said now or never: a stop request must not outlive its guard (a later session or test in this
             # process would end at once)
-            interrupted, _state["count"] = _state["count"] > 0, 0
+            interrupted, _state.count = _state.count > 0, 0
     if outermost and reraise and interrupted:
         raise KeyboardInterrupt
 
 
 def _raise(signum: int, frame: object) -> None:
-    _state["raised"] = True
+    _state.raised = True
     raise KeyboardInterrupt
 
 
@@ -99,7 +117,7 @@ def raise_on_interrupt() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    _state["raised"] = False
+    _state.raised = False
     previous = {sig: signal.signal(sig, _raise) for sig in _SIGNALS if signal.getsignal(sig) is not signal.SIG_IGN}
     previous_hook = sys.unraisablehook
     sys.unraisablehook = _raise_again
@@ -130,4 +148,4 @@ def _raise_again(unraisable: object) -> None:
 def interrupt_raised() -> bool:
     """True once Ctrl-C or SIGTERM has raised :class:`KeyboardInterrupt` in a :func:`raise_on_interrupt` block
     (whatever a library made of it since)."""
-    return _state["raised"]
+    return _state.raised

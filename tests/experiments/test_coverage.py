@@ -61,15 +61,15 @@ def test_coverage_figures_count_what_they_say() -> None:
     stopped = _outcome(centre, half, trusted=[True, True, False, True], certain=[True, False, False, True])
     faulty = np.array([False, False, False, True])
     out = coverage_figures(stopped, parameters, truth, shop, classifier, faulty)
-    assert out["judged"] == 3
+    assert out.judged == 3
     # valve 0 holds its truth, valve 1's af is 0.05 off with 0.02 either side, valve 3's 1.5 off
-    assert out["af"]["covered"] == pytest.approx(1 / 3) and out["a1"]["covered"] == pytest.approx(2 / 3)
-    assert out["af"]["within"] == pytest.approx(2 / 3) and out["a1"]["within"] == pytest.approx(2 / 3)
-    assert out["af"]["baseline_error"] == pytest.approx(0.01)
-    assert out["af"]["half_width_p50"] == pytest.approx(0.01) and out["a1"]["half_width_p50"] == pytest.approx(0.01)
+    assert out.af.covered == pytest.approx(1 / 3) and out.a1.covered == pytest.approx(2 / 3)
+    assert out.af.within == pytest.approx(2 / 3) and out.a1.within == pytest.approx(2 / 3)
+    assert out.af.baseline_error == pytest.approx(0.01)
+    assert out.af.half_width_p50 == pytest.approx(0.01) and out.a1.half_width_p50 == pytest.approx(0.01)
     # valve 3 stopped certain of the verdict at (1, 1), a new valve's, while its truth is 2.5x a new one's
-    assert out["certain"] == 2 and out["certain_wrong"] == 1
-    assert out["faulty_passed"] == 1
+    assert out.certain == 2 and out.certain_wrong == 1
+    assert out.faulty_passed == 1
 
 
 def test_the_stick_slip_pump_has_stribeck_friction_and_a_gain_over_the_swing() -> None:
@@ -140,5 +140,5 @@ def test_a1_of_a_new_valve_with_more_friction_is_within_5_percent(pump_name: str
 @pytest.mark.slow  # 20 s
 def test_the_99_percent_interval_holds_the_truth_for_95_percent_of_sticky_valves() -> None:
     out = coverage_study(coverage_populations()["stick-slip"], default_classifier(), 60, 777, 5)
-    assert out["certain_wrong"] == 0
-    assert out["af"]["covered"] >= 0.95 and out["a1"]["covered"] >= 0.95, (out["af"], out["a1"])
+    assert out.certain_wrong == 0
+    assert out.af.covered >= 0.95 and out.a1.covered >= 0.95, (out.af, out.a1)

@@ -31,12 +31,12 @@ def test_held_out_population_accuracy_and_marginal_share() -> None:
     assert len(data) == 500
     report = evaluate(ValveClassifier(), data)
     print(report)
-    assert report["judged"] >= 490
-    assert report["accuracy_outside_band"] >= 0.98
-    assert report["marginal_fraction"] <= 0.05
+    assert report.judged >= 490
+    assert report.accuracy_outside_band >= 0.98
+    assert report.marginal_fraction <= 0.05
     linear = evaluate(ValveClassifier(packaged_model_path(LINEAR_MODEL)), data)
     print("linear", linear)
-    assert linear["accuracy_outside_band"] >= 0.98  # the paper's conclusion: a line suffices
+    assert linear.accuracy_outside_band >= 0.98  # the paper's conclusion: a line suffices
 
 
 def test_the_hard_pump_s_own_network_judges_its_valves_where_the_shipped_one_fails_reusable_ones() -> None:
@@ -48,17 +48,17 @@ def test_the_hard_pump_s_own_network_judges_its_valves_where_the_shipped_one_fai
     own = evaluate(None, data)
     shipped = evaluate(ValveClassifier(packaged_model_path()), data)
     print("own", own, "shipped", shipped)
-    assert own["models"] == ["valve_mlp-p-edc-hard"]
-    assert own["judged"] >= 490
-    assert own["accuracy_outside_band"] >= 0.98 and own["marginal_fraction"] <= 0.05
-    assert shipped["reusable_failed"] > own["reusable_failed"] + 3
+    assert own.models == ["valve_mlp-p-edc-hard"]
+    assert own.judged >= 490
+    assert own.accuracy_outside_band >= 0.98 and own.marginal_fraction <= 0.05
+    assert shipped.reusable_failed > own.reusable_failed + 3
 
 
 def test_boundary_tradeoff_is_monotonic() -> None:
     curve = boundary_tradeoff(ValveClassifier(), held_out())
-    assert np.all(np.diff(curve["needless_replacement"]) <= 0)
-    assert np.all(np.diff(curve["faulty_passed"]) >= 0)
-    assert curve["needless_replacement"][0] > 0.1 and curve["faulty_passed"][-1] > 0.1
+    assert np.all(np.diff(curve.needless_replacement) <= 0)
+    assert np.all(np.diff(curve.faulty_passed) >= 0)
+    assert curve.needless_replacement[0] > 0.1 and curve.faulty_passed[-1] > 0.1
 
 
 def test_paper_protocol_does_at_least_as_well_as_the_paper() -> None:

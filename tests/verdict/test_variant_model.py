@@ -76,15 +76,15 @@ def test_a_study_without_model_judges_each_variant_s_valves_by_its_own() -> None
                    faulty=(features.sum(axis=1) > 3.2).astype(float))
     dataset = Dataset(columns, {"variants": ["p-edc-default", "p-edc-hard"]})
     report = evaluate(None, dataset)
-    assert report["models"] == ["valve_mlp", "valve_mlp-p-edc-hard"]
+    assert report.models == ["valve_mlp", "valve_mlp-p-edc-hard"]
     default, hard = (default_classifier(variant=load_variant(n)) for n in ("p-edc-default", "p-edc-hard"))
     expected = np.concatenate([default.classify_many(features[index == 0])[0],
                                hard.classify_many(features[index == 1])[0]])
     counts = verdict_counts(expected, dataset.labels == 1)
-    assert {k: report[k] for k in counts} == counts
+    assert {k: v for k, v in vars(report).items() if k in vars(counts)} == vars(counts)
     assert (default.classify_many(features)[0] != hard.classify_many(features)[0]).any()  # two boundaries
     shipped = evaluate(default, dataset)
-    assert shipped["models"] == ["valve_mlp"]
+    assert shipped.models == ["valve_mlp"]
 
 
 @pytest.mark.parametrize("args, message", [
