@@ -4,6 +4,7 @@ the owner's schema revisions and roles (docs/shop-network.md)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from collections.abc import Callable
@@ -11,6 +12,7 @@ from contextlib import AbstractContextManager
 from typing import Any
 
 from edc_bench.cli.common import identity, positive_int, print_quietly_if_closed
+from edc_bench.history.rows import AuditEvent, ChainHead
 from edc_bench.timefmt import local_column, local_text
 
 #: The longest reason kept with a withdrawal.
@@ -128,9 +130,9 @@ def _withdraw(args: argparse.Namespace) -> int:
     by = person_name(args.by, "who withdraws the test")
     with HistoryStore(args.db, must_exist=True) as store:
         row = store.withdraw_test(args.withdraw, args.why.strip(), by)
-    print(f"withdrew test {args.withdraw} (valve {row['valve_id']}, {row['verdict']}, tested "
-          f"{local_text(row['started_at'])}): it no longer counts; 'edc-bench history --audit "
-          f"{row['valve_id']}' shows it and why")
+    print(f"withdrew test {args.withdraw} (valve {row.valve_id}, {row.verdict}, tested "
+          f"{local_text(row.started_at)}): it no longer counts; 'edc-bench history --audit "
+          f"{row.valve_id}' shows it and why")
     return 0
 
 
@@ -143,24 +145,24 @@ def _audit(args: argparse.Namespace) -> int:
     if not events:
         raise ConfigError(f"the history holds nothing of valve {args.audit!r} (see 'edc-bench history')")
     if args.json:
-        print_quietly_if_closed(lambda: print(json.dumps(events, indent=2)))
+        print_quietly_if_closed(lambda: print(json.dumps([dataclasses.asdict(e) for e in events], indent=2)))
     else:
         print_quietly_if_closed(lambda: _audit_table(events, args.audit))
     return 0
 
 
-def _audit_table(events: list[dict[str, Any]], valve: str) -> None:
+def _audit_table(events: list[AuditEvent], valve: str) -> None:
     from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
-    written, zone = local_column([e["when"] for e in events], seconds=True)
+    written, zone = local_column([e.when for e in events], seconds=True)
     table = Table(title=Text(f"valve {valve}: {len(events)} entries, in the order written ({zone})"))
     for col in ("written", "what happened", "id", "details", "by", "database login", "chain"):
         table.add_column(col)
     for e, when in zip(events, written, strict=True):  # the technicians' text as typed: rich Text, never markup
-        table.add_row(when, e["event"], str(e["id"]), Text(e["what"]), Text(e["by"]),
-                      Text(e["db_login"] or ""), (e.get("chain_hash") or "")[:16])
+        table.add_row(when, e.event, str(e.id), Text(e.what), Text(e.by), Text(e.db_login or ""),
+                      (e.chain_hash or "")[:16])
     Console(width=None if sys.stdout.isatty() else 160).print(table)
 
 
@@ -182,7 +184,7 @@ def _verify(args: argparse.Namespace) -> int:
             misflagged += day_count_mismatches(conn)
         gone_heads = store.missing_heads(kept) if kept is not None else []
         restored = [f"the history's append-only triggers were found missing or changed and restored at "
-                    f"{local_text(e['happened_at'], seconds=True)} ({e['detail']}): rows may have been changed "
+                    f"{local_text(e.happened_at, seconds=True)} ({e.detail}): rows may have been changed "
                     "while they were (the chain above names where)" for e in store.guard_events()]
         where = store.shown_url
     found: list[RecordFinding] = verify(rows) + changed_findings(changes) + model_findings(rows, adoptions,
@@ -207,7 +209,7 @@ def _verify(args: argparse.Namespace) -> int:
     return ExitCode.HISTORY_NOT_AS_INDEXED if found or chain else ExitCode.OK
 
 
-def _read_heads(path: str) -> list[dict[str, Any]]:
+def _read_heads(path: str) -> list[ChainHead]:
     """The chain heads kept in ``path`` (``history --heads`` wrote them), checked."""
     from pathlib import Path
 
@@ -220,10 +222,10 @@ def _read_heads(path: str) -> list[dict[str, Any]]:
     except ValueError:
         raise ConfigError(f"--heads {path}: not the JSON 'edc-bench history --heads' writes") from None
     if not isinstance(heads, list) or not all(isinstance(h, dict) and {"table", "id", "row_hash"} <= set(h)
-                                              for h in heads):
+                                              and isinstance(h["id"], int) for h in heads):
         raise ConfigError(f"--heads {path}: not the JSON 'edc-bench history --heads' writes (a list of table, id, "
                           "row_hash)")
-    return heads
+    return [ChainHead(str(h["table"]), str(h.get("chain") or ""), h["id"], str(h["row_hash"])) for h in heads]
 
 
 def _heads(args: argparse.Namespace) -> int:
@@ -231,7 +233,7 @@ def _heads(args: argparse.Namespace) -> int:
 
     with HistoryStore(args.db, must_exist=True) as store:
         heads = store.heads()
-    text = json.dumps(heads, indent=2)
+    text = json.dumps([dataclasses.asdict(head) for head in heads], indent=2)
     if args.heads == "-":
         print_quietly_if_closed(lambda: print(text))
     else:
@@ -260,10 +262,8 @@ def _map_login(args: argparse.Namespace) -> int:
                 raise ConfigError("--map-login LOGIN --station NAME: name the database login to map")
             rows = store.logins()
             for r in rows:
-                shop = r.get("shop")
-                print(f"{r['login']}: station {r['station'] or '(none)'}" + (f" of shop {shop}" if shop else "")
-                      + f", person {r['person'] or '(the login)'} "
-                      f"(mapped {local_text(r['mapped_at'])} by {r['mapped_by']})")
+                print(f"{r.login}: station {r.station or '(none)'}" + (f" of shop {r.shop}" if r.shop else "")
+                      + f", person {r.person or '(the login)'} (mapped {local_text(r.mapped_at)} by {r.mapped_by})")
             if not rows:
                 print("no login is mapped yet: edc-bench history --map-login LOGIN --station NAME")
             return 0
@@ -275,9 +275,9 @@ def _map_login(args: argparse.Namespace) -> int:
                               "login's --station NAME too")
         row = store.map_login(args.map_login, args.station, args.person, person_name(None, "who maps the login"),
                               shop=args.shop)
-    print(f"database login {row['login']} is station {row['station'] or '(none)'}"
+    print(f"database login {row.login} is station {row.station or '(none)'}"
           + (f" of shop {args.shop}" if args.shop else "")
-          + (f", person {row['person']}" if row["person"] else "")
+          + (f", person {row.person}" if row.person else "")
           + ": the database writes it into that login's rows from now on")
     return 0
 

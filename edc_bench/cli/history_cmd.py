@@ -17,6 +17,7 @@ from edc_bench.cli.common import (
     positive_int,
     print_quietly_if_closed,
 )
+from edc_bench.history.rows import TestRow
 from edc_bench.history.visits import visits, with_visit_decisions
 from edc_bench.timefmt import local_column, utc_bound
 from edc_bench.verdict.verdicts import Verdict
@@ -157,8 +158,9 @@ def _readable_records(folders: list[Path]) -> tuple[list[tuple[Any, Path]], list
     return records, bad
 
 
-def _export(rows: list[dict[str, Any]], target: str) -> None:
-    from edc_bench.history.store import LIST_COLUMNS, write_csv
+def _export(rows: list[TestRow], target: str) -> None:
+    from edc_bench.history.rows import LIST_COLUMNS
+    from edc_bench.history.store import write_csv
 
     if target == "-":
         print_quietly_if_closed(lambda: write_csv(rows, sys.stdout, LIST_COLUMNS))
@@ -174,7 +176,7 @@ def _fmt(value: Any, spec: str) -> str:
     return "" if value is None else format(value, spec)
 
 
-def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> None:
+def history_table(rows: list[TestRow], url: str, console: Any = None) -> None:
     """Print the listed tests, a line per visit: a retested MARGINAL's two tests on one line with their decision."""
     from rich.console import Console
     from rich.table import Table
@@ -184,9 +186,9 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
 
     # ids and names are the technicians' text, kept as given: rich Text, never read as markup ("V[/1]" is an id)
     shown = visits(rows)
-    simulated = sum(bool(r.get("simulated")) for r in rows)
-    changed = sum(bool(r.get("changes")) for r in rows)
-    started, zone = local_column([v.first["started_at"] for v in shown])
+    simulated = sum(bool(r.simulated) for r in rows)
+    changed = sum(bool(r.changes) for r in rows)
+    started, zone = local_column([v.first.started_at for v in shown])
     table = Table(title=Text(f"{len(shown)} visit(s), {len(rows)} test(s) in {url} ({zone})"
                              + (f"; sim: {simulated} on the simulated rig, out of trends and training" if simulated
                                 else "")
@@ -212,15 +214,15 @@ def history_table(rows: list[dict[str, Any]], url: str, console: Any = None) -> 
             table.add_column(col, overflow="fold", min_width=7)
     for visit, when in zip(shown, started, strict=True):
         r = visit.last  # the test that decided
-        changes = sum(int(t.get("changes") or 0) for t in visit.tests)
-        tests_text = (Text(visit.verdicts) + Text(" (sim)" if r.get("simulated") and not wide else "", style="dim")
+        changes = sum(int(t.changes or 0) for t in visit.tests)
+        tests_text = (Text(visit.verdicts) + Text(" (sim)" if r.simulated and not wide else "", style="dim")
                       + Text(f" CHANGED {changes}x" if changes else "", style="bold red"))
-        cells = [visit.ids, when, Text(r["valve_id"]), Text(r["pump_serial"])]
+        cells = [visit.ids, when, Text(r.valve_id), Text(r.pump_serial)]
         if wide:
-            cells += [Text(r["variant"]), "yes" if r.get("simulated") else ""]
+            cells += [Text(r.variant), "yes" if r.simulated else ""]
         cells += [tests_text, Text(visit.decision, style=VERDICT_STYLES.get(visit.decision, ""))]
         if wide:
-            cells += [Text(r["station"]), Text(r["operator"])]
+            cells += [Text(r.station), Text(r.operator)]
         table.add_row(*cells)
     console.print(table)
 
@@ -244,7 +246,7 @@ def _trend(store: Any, args: argparse.Namespace) -> int:
     return 0
 
 
-def trend_table(rows: list[dict[str, Any]], valve: str, console: Any = None) -> None:
+def trend_table(rows: list[TestRow], valve: str, console: Any = None) -> None:
     """Print one valve's visits with the change against the baseline: a retested MARGINAL is one visit, its
     retest's figures and the pair's decision."""
     from rich.console import Console
@@ -252,16 +254,15 @@ def trend_table(rows: list[dict[str, Any]], valve: str, console: Any = None) -> 
     from rich.text import Text
 
     shown = visits(rows)
-    started, zone = local_column([v.first["started_at"] for v in shown])
+    started, zone = local_column([v.first.started_at for v in shown])
     table = Table(title=Text(f"valve {valve}: {len(shown)} visit(s); change against the new-valve baseline ({zone})"))
     for col in ("started", "variant", "tests", "decision", "af V", "af change", "a1 V s/mm", "a1 change",
                 "distance"):
         table.add_column(col)
     for visit, when in zip(shown, started, strict=True):
         r = visit.last
-        table.add_row(when, Text(r["variant"]), Text(visit.verdicts), Text(visit.decision), _fmt(r["af_v"], ".5f"),
-                      _pct(r["af_rel"]), _fmt(r["a1_v_s_per_mm"], ".6f"), _pct(r["a1_rel"]),
-                      _fmt(r["distance"], "+.3f"))
+        table.add_row(when, Text(r.variant), Text(visit.verdicts), Text(visit.decision), _fmt(r.af_v, ".5f"),
+                      _pct(r.af_rel), _fmt(r.a1_v_s_per_mm, ".6f"), _pct(r.a1_rel), _fmt(r.distance, "+.3f"))
     (console or Console(width=None if sys.stdout.isatty() else 160)).print(table)
 
 

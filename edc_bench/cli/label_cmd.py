@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING
 
 from edc_bench.cli.common import (
     MAX_ID_CHARS,
@@ -17,6 +17,10 @@ from edc_bench.cli.common import (
     print_quietly_if_closed,
 )
 from edc_bench.timefmt import local_column, local_text, parse_local_input
+
+if TYPE_CHECKING:
+    from edc_bench.history.rows import TeardownMatch
+    from edc_bench.history.store import HistoryStore
 
 #: A plunger clearance beyond this (mm) is a typing error, not a measurement.
 MAX_CLEARANCE_MM = 2.0
@@ -103,15 +107,15 @@ def run(args: argparse.Namespace) -> int:
                               "lists the tests), or give --new-valve to record the finding all the same")
         store.add_teardown(valve_id, args.finding, labelled_by=by, labelled_at=when, clearance_mm=clearance,
                            note=args.note, corrects=args.corrects)
-        row = next(r for r in reversed(_listing(store, valve_id)) if r["labelled_at"] == when)
+        match = next(m for m in reversed(_listing(store, valve_id)) if m.teardown.labelled_at == when)
+    test = match.test
     if args.json:
-        print(json.dumps(row, indent=2))
-    elif row.get("record_dir"):
-        tested = local_text(row["started_at"])
-        print(f"valve {valve_id}: {args.finding} recorded; it labels the test of {tested} "
-              f"({row['verdict']}, {row['record_dir']})"
+        print(json.dumps(match.listed(), indent=2))
+    elif test is not None:
+        print(f"valve {valve_id}: {args.finding} recorded; it labels the test of {local_text(test.started_at)} "
+              f"({test.verdict}, {test.record_dir})"
               + ("; that test ran on the simulated rig: training leaves it out unless --include-simulated"
-                 if row.get("simulated") else ""))
+                 if test.simulated else ""))
     else:
         print(f"valve {valve_id}: {args.finding} recorded", file=sys.stderr)
         print(f"note: no judged test of valve {valve_id!r} before {when} in {store.shown_url}; the finding labels nothing "
@@ -143,8 +147,7 @@ def _withdraw(args: argparse.Namespace, delete: int | None) -> int:
     by = person_name(args.by, "who withdraws it")
     with HistoryStore(args.db, must_exist=True) as store:
         gone = store.withdraw_teardown(args.withdraw if args.withdraw is not None else delete, why, by)
-    print(f"withdrew finding {gone['id']}: valve {gone['valve_id']}, {gone['finding']}, "
-          f"{local_text(gone['labelled_at'])} "
+    print(f"withdrew finding {gone.id}: valve {gone.valve_id}, {gone.finding}, {local_text(gone.labelled_at)} "
           f"({why}); it labels nothing now")
     return 0
 
@@ -174,30 +177,32 @@ def _teardown_time(text: str | None) -> str:
     return value
 
 
-def _listing(store: Any, valve_id: str | None) -> list[dict[str, Any]]:
+def _listing(store: HistoryStore, valve_id: str | None) -> list[TeardownMatch]:
     """The findings and the tests they label, on the simulated rig too (training leaves those out unless asked)."""
-    return [r for r in store.teardown_matches(include_simulated=True) if valve_id is None or r["valve_id"] == valve_id]
+    return [m for m in store.teardown_matches(include_simulated=True)
+            if valve_id is None or m.teardown.valve_id == valve_id]
 
 
-def _print_list(rows: list[dict[str, Any]], as_json: bool) -> None:
+def _print_list(matches: list[TeardownMatch], as_json: bool) -> None:
     if as_json:
-        print(json.dumps(rows, indent=2))
+        print(json.dumps([m.listed() for m in matches], indent=2))
         return
     from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
-    opened, zone = local_column([r["labelled_at"] for r in rows])
-    tested, _ = local_column([r.get("started_at") for r in rows])
-    table = Table(title=f"{len(rows)} teardown finding(s) ({zone})")
+    opened, zone = local_column([m.teardown.labelled_at for m in matches])
+    tested, _ = local_column([m.test.started_at if m.test is not None else None for m in matches])
+    table = Table(title=f"{len(matches)} teardown finding(s) ({zone})")
     for col in ("id", "opened", "valve", "finding", "clearance mm", "by", "labels the test of", "verdict then",
                 "af/af0", "a1/a1_0"):
         table.add_column(col)
-    for r, opened_at, tested_at in zip(rows, opened, tested, strict=True):
+    for m, opened_at, tested_at in zip(matches, opened, tested, strict=True):
+        f, test = m.teardown, m.test
         # ids and names as the technicians typed them: rich Text, never read as markup
-        table.add_row(str(r["teardown_id"]), opened_at, Text(r["valve_id"]),
-                      r["finding"], "" if r["teardown_clearance_mm"] is None else f"{r['teardown_clearance_mm']:.3f}",
-                      Text(r["labelled_by"]), tested_at or "(no judged test)",
-                      r.get("verdict") or "", "" if r.get("af_rel") is None else f"{r['af_rel']:.3f}",
-                      "" if r.get("a1_rel") is None else f"{r['a1_rel']:.3f}")
+        table.add_row(str(f.id), opened_at, Text(f.valve_id), f.finding,
+                      "" if f.clearance_mm is None else f"{f.clearance_mm:.3f}", Text(f.labelled_by),
+                      tested_at or "(no judged test)", test.verdict if test is not None else "",
+                      "" if test is None or test.af_rel is None else f"{test.af_rel:.3f}",
+                      "" if test is None or test.a1_rel is None else f"{test.a1_rel:.3f}")
     Console(width=None if sys.stdout.isatty() else 160).print(table)

@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.timefmt import local_text
+
+if TYPE_CHECKING:
+    from edc_bench.history.rows import ReferenceRow, RigCheckRow
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -133,8 +136,8 @@ def _register(args: argparse.Namespace, rig: Any, by: str) -> int:
             valve_spec=args.valve if rig.simulated else None, details=details))
     notes = []
     if earlier is not None:
-        notes.append(f"it replaces the registration of {local_text(earlier['registered_at'])} (valve "
-                     f"{earlier['valve_id']}); the ledger keeps both")
+        notes.append(f"it replaces the registration of {local_text(earlier.registered_at)} (valve "
+                     f"{earlier.valve_id}); the ledger keeps both")
     if values.lvdt_at_floor:
         notes.append("the LVDT reads 0 mm or less at rest, the least the rig reports: a zero that moves down "
                      "cannot be seen; set the LVDT's zero a little above 0 (e.g. 0.01 mm) and register again")
@@ -172,7 +175,7 @@ def _check(args: argparse.Namespace, rig: Any, by: str) -> int:
         valve = args.valve if rig.simulated and args.valve != "new" else None  # a simulated valve swapped in
         seed = args.seed
         if seed is None:  # a new day's noise: one more than the last check's, counted from the registration's
-            measured = [r for r in store.rig_checks(station, registration.id) if r["verdict"] in MEASURED]
+            measured = [r for r in store.rig_checks(station, registration.id) if r.verdict in MEASURED]
             seed = (registration.seed or 0) + 1 + len(measured)  # a skip measured nothing: no new noise
         _say(args, f"edc-bench rig-selfcheck: reference valve {registration.valve_id} ({registration.variant}) on the "
                    f"{rig.describe()}")
@@ -200,14 +203,14 @@ def _value(name: str, value: float) -> str:
     return "-" if not math.isfinite(value) else f"{value:{fmt}} {unit}"
 
 
-def _print_check(check: Any, row: dict[str, Any]) -> None:
+def _print_check(check: Any, row: RigCheckRow) -> None:
     from edc_bench.cli.common import print_quietly_if_closed
 
     def write() -> None:
         result, reg = check.result, check.registration
         print(result.line())
         print(f"reference valve {reg.valve_id} ({reg.variant}), registered {local_text(reg.registered_at)}; "
-              f"check {row['id']} at station {row['station']}")
+              f"check {row.id} at station {row.station}")
         print(f"  {'figure':<16}{'registered':>16}{'now':>16}{'change':>12}{'limit':>10}")
         for q in result.quantities:
             mark = " <- " + ("moved with the " + str(q.explained_by) if q.explained_by else "drifted") if q.out else ""
@@ -218,7 +221,7 @@ def _print_check(check: Any, row: dict[str, Any]) -> None:
     print_quietly_if_closed(write)
 
 
-def _check_json(check: Any, row: dict[str, Any], station: str) -> dict[str, Any]:
+def _check_json(check: Any, row: RigCheckRow, station: str) -> dict[str, Any]:
     from edc_bench.records.writer import json_safe
 
     result, reg = check.result, check.registration
@@ -231,14 +234,14 @@ def _check_json(check: Any, row: dict[str, Any], station: str) -> dict[str, Any]
                     for q in result.quantities},
         "reference": {"id": reg.id, "valve_id": reg.valve_id, "variant": reg.variant,
                       "registered_at": reg.registered_at},
-        "check_id": row["id"], "station": station, **check.details,
+        "check_id": row.id, "station": station, **check.details,
     })
 
 
-def _jsonable(row: dict[str, Any]) -> dict[str, Any]:
+def _jsonable(row: ReferenceRow) -> dict[str, Any]:
     from edc_bench.records.writer import json_safe
 
-    return json_safe({k: v for k, v in row.items() if k != "details"})
+    return json_safe({k: v for k, v in row.columns().items() if k not in ("details", "prev_hash", "row_hash")})
 
 
 def _say(args: argparse.Namespace, line: str) -> None:

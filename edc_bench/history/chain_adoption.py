@@ -73,9 +73,10 @@ def chain_station(store: HistoryStore, fallback: str) -> str:
     login = sa.engine.make_url(chain).username if chain else None
     if not login:
         return fallback
-    mapped = store._rows(sa.select(edc_logins.c.station).where(edc_logins.c.login == login)
-                         .order_by(edc_logins.c.id.desc()).limit(1))
-    return str(mapped[0]["station"]) if mapped and mapped[0]["station"] else fallback
+    with store.reading() as conn:
+        mapped = conn.execute(sa.select(edc_logins.c.station).where(edc_logins.c.login == login)
+                              .order_by(edc_logins.c.id.desc()).limit(1)).scalar()
+    return str(mapped) if mapped else fallback
 
 
 def allowed_models(store: HistoryStore, station: str, before: str | None = None) -> set[str]:
@@ -89,7 +90,8 @@ def allowed_models(store: HistoryStore, station: str, before: str | None = None)
     query = sa.select(adoptions.c.model_sha256).where(adoptions.c.station == station)
     if before is not None:
         query = query.where(adoptions.c.adopted_at <= before)
-    return shipped_model_hashes() | {r["model_sha256"] for r in store._rows(query)}
+    with store.reading() as conn:
+        return shipped_model_hashes() | {str(sha) for sha in conn.execute(query).scalars()}
 
 
 def chain_model_problem(store: HistoryStore, station: str, model_sha256: str) -> str | None:
@@ -97,10 +99,12 @@ def chain_model_problem(store: HistoryStore, station: str, model_sha256: str) ->
     chain's newest adoption for ``station`` names, or, with none, a shipped one)."""
     import sqlalchemy as sa
 
+    from edc_bench.history.rows import AdoptionRow
     from edc_bench.history.schema import adoptions
 
-    newest = store._rows(sa.select(adoptions).where(adoptions.c.station == station)
-                         .order_by(adoptions.c.id.desc()).limit(1))
+    with store.reading() as conn:
+        newest = [AdoptionRow.of(r._mapping) for r in conn.execute(
+            sa.select(adoptions).where(adoptions.c.station == station).order_by(adoptions.c.id.desc()).limit(1))]
     fix = ("an engineer adopts it here with 'edc-bench train --adopt FILE' (the chain's history in "
            "EDC_BENCH_HISTORY_URL), or test with --no-history")
     if not newest:
@@ -112,11 +116,11 @@ def chain_model_problem(store: HistoryStore, station: str, model_sha256: str) ->
                 f"for station {station!r}: it judges with the shipped models until one is adopted there; "
                 "'edc-bench train --adopt shipped' goes back to them, or " + fix)
     row = newest[0]
-    if row["model_sha256"] == model_sha256:
+    if row.model_sha256 == model_sha256:
         return None
     return (f"this station judges with a model (sha256 {model_sha256[:12]}...) that is not the one the chain records "
-            f"for station {station!r}: {row['model_name']} (sha256 {row['model_sha256'][:12]}..., adopted by "
-            f"{row['adopted_by']} at {local_text(row['adopted_at'])}); {fix}")
+            f"for station {station!r}: {row.model_name} (sha256 {row.model_sha256[:12]}..., adopted by "
+            f"{row.adopted_by} at {local_text(row.adopted_at)}); {fix}")
 
 
 __all__ = ["allowed_models", "chain_model_problem", "chain_station", "chain_url", "check_adoption_target"]

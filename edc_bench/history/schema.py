@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import sqlalchemy as sa
 
+from edc_bench.history.rows import NOT_LISTED
+
 metadata = sa.MetaData()
 
 
@@ -271,8 +273,7 @@ SQLITE_TRIGGERS = tuple(f"{t.name}_no_{event}" for t in TABLES for event in ("up
     f"{t.name}_chained" for t in CHAINED_TABLES)
 
 #: Columns of a test in listings and CSV exports, in order (what a test is; how it was indexed is in --audit).
-COLUMNS = tuple(c.name for c in tests.columns if c.name not in ("record_manifest", "db_login", "prev_hash",
-                                                                 "row_hash", "legacy_key", "first_indexing"))
+COLUMNS = tuple(c.name for c in tests.columns if c.name not in NOT_LISTED)
 
 #: Teardown columns in listings, in order (the id: to withdraw or correct a finding recorded by mistake).
 TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name not in ("db_login", "prev_hash", "row_hash"))

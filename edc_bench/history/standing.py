@@ -58,12 +58,12 @@ def history_standing(record: Record, folder: Path, url: str | None = None) -> St
         return None
     differs = None
     record_file = Path(folder) / RECORD_FILE
-    if row["record_sha256"] and record_file.is_file() and file_digest(record_file) != row["record_sha256"]:
+    if row.record_sha256 and record_file.is_file() and file_digest(record_file) != row.record_sha256:
         differs = (f"record.json is not the record the history first indexed for this test (history test "
-                   f"{row['id']}, indexed {local_text(row['indexed_at'])} at station "
-                   f"{row['station']}, {row['verdict']}): it was changed after it was indexed")
-    return Standing(int(row["id"]), str(row["station"]), str(row["indexed_at"] or ""), row.get("row_hash"),
-                    int(row["changes"] or 0), differs)
+                   f"{row.id}, indexed {local_text(row.indexed_at)} at station "
+                   f"{row.station}, {row.verdict}): it was changed after it was indexed")
+    return Standing(int(row.id), str(row.station), str(row.indexed_at or ""), row.row_hash, int(row.changes or 0),
+                    differs)
 
 
 __all__ = ["Standing", "history_standing"]

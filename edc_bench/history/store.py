@@ -33,7 +33,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any, TypeVar
 
 import sqlalchemy as sa
 
@@ -41,6 +41,20 @@ from edc_bench.errors import ConfigError
 from edc_bench.history import migrate
 from edc_bench.history.chain import CHAIN_COLUMN, Break, chain_of, check_chain, legacy_test_key, row_hash
 from edc_bench.history.guard import database_errors
+from edc_bench.history.rows import (
+    FINDINGS,
+    TEST_ROW_EXTRAS,
+    AdoptionRow,
+    AuditEvent,
+    ChainHead,
+    GuardEventRow,
+    LoginRow,
+    ReferenceRow,
+    RigCheckRow,
+    TeardownMatch,
+    TeardownRow,
+    TestRow,
+)
 from edc_bench.history.schema import (
     CHAINED_TABLES,
     COLUMNS,
@@ -63,11 +77,10 @@ from edc_bench.timefmt import local_text
 from edc_bench.verdict.verdicts import Verdict
 
 if TYPE_CHECKING:
+    from edc_bench.history.rows import _Columns
     from edc_bench.records.schema import Record
 
-#: Teardown findings and the class each teaches the classifier (1: the valve must be replaced).
-FINDINGS: dict[str, int] = {"reusable": 0, "worn": 1, "faulty": 1}
-
+_Row = TypeVar("_Row", bound="_Columns")
 
 def _text(value: Any) -> str:
     """``value`` as text any database stores: text that is not valid Unicode (a hand-edited record) escaped."""
@@ -471,39 +484,39 @@ class HistoryStore:
         return (sa.select(sa.func.count()).where(later.c.test_key == tests.c.test_key, later.c.id > tests.c.id)
                 .scalar_subquery())
 
-    def list(self, filters: Filters = Filters(), limit: int | None = None) -> list[dict[str, Any]]:
+    def list(self, filters: Filters = Filters(), limit: int | None = None) -> list[TestRow]:
         """Tests as they stand matching ``filters``, oldest first (the newest ``limit`` if given)."""
         query = sa.select(*(tests.c[name] for name in COLUMNS), self._changes().label("changes"),
                           tests.c.row_hash.label("chain_hash")).where(self._current_tests())
         query = query.where(*filter_clauses(filters)).order_by(tests.c.started_at.desc(), tests.c.id.desc())
         if limit is not None:
             query = query.limit(limit)
-        return self._rows(query)[::-1]
+        return self._rows(query, TestRow)[::-1]
 
-    def indexed(self, station: str | None = None) -> list[dict[str, Any]]:
+    def indexed(self, station: str | None = None) -> list[TestRow]:
         """Every test as it stands (of one station if given) with how it was first indexed (record hash and
         manifest), for ``--verify``."""
         query = sa.select(tests).where(self._current_tests())
         if station is not None:
             query = query.where(tests.c.station == station)
-        return self._rows(query.order_by(tests.c.id))
+        return self._rows(query.order_by(tests.c.id), TestRow)
 
-    def first_indexing(self, key: str) -> dict[str, Any] | None:
+    def first_indexing(self, key: str) -> TestRow | None:
         """The row that first indexed the test ``key`` (the one that stands), with ``changes``: how many times it was
         indexed again with other content; None if the history does not hold the test."""
         found = self._rows(sa.select(tests, self._changes().label("changes")).where(tests.c.test_key == key)
-                           .order_by(tests.c.id).limit(1))
+                           .order_by(tests.c.id).limit(1), TestRow)
         return found[0] if found else None
 
-    def adoptions(self) -> list[dict[str, Any]]:
+    def adoptions(self) -> list[AdoptionRow]:
         """Every adoption, oldest first (``train --adopt``)."""
-        return self._rows(sa.select(adoptions).order_by(adoptions.c.id))
+        return self._rows(sa.select(adoptions).order_by(adoptions.c.id), AdoptionRow)
 
-    def guard_events(self) -> list[dict[str, Any]]:
+    def guard_events(self) -> list[GuardEventRow]:
         """What the guard found and did, oldest first (a SQLite file's triggers restored)."""
-        return self._rows(sa.select(guard_events).order_by(guard_events.c.id))
+        return self._rows(sa.select(guard_events).order_by(guard_events.c.id), GuardEventRow)
 
-    def changed_tests(self, station: str | None = None) -> list[dict[str, Any]]:
+    def changed_tests(self, station: str | None = None) -> list[TestRow]:
         """Rows that indexed a test again with other content than its first indexing (of one station's tests if
         given), oldest first, each with ``first_id``: the row that stands."""
         first = tests.alias("first")
@@ -512,7 +525,7 @@ class HistoryStore:
                  .where(first.c.id.in_(sa.select(sa.func.min(tests.c.id)).group_by(tests.c.test_key))))
         if station is not None:
             query = query.where(first.c.station == station)
-        return self._rows(query.order_by(tests.c.id))
+        return self._rows(query.order_by(tests.c.id), TestRow)
 
     def chain_breaks(self, station: str | None = None) -> list[Break]:
         """Where the history's chains break (:func:`~edc_bench.history.chain.check_chain`): of one station's
@@ -612,7 +625,7 @@ class HistoryStore:
             _CHECKED[key] = heads
         return found
 
-    def heads(self) -> list[dict[str, Any]]:
+    def heads(self) -> list[ChainHead]:
         """Each chain's last row (table, chain, id, row_hash): what a shop keeps outside the station (``history
         --heads``) so that a history rewritten whole is caught (``history --verify --heads FILE``)."""
         heads = []
@@ -622,22 +635,22 @@ class HistoryStore:
                 last = sa.select(sa.func.max(table.c.id)).where(table.c.row_hash.is_not(None)).group_by(column)
                 for r in conn.execute(sa.select(table.c.id, column.label("chain"), table.c.row_hash)
                                       .where(table.c.id.in_(last)).order_by(table.c.id)):
-                    heads.append({"table": table.name, "chain": r.chain, "id": r.id, "row_hash": r.row_hash})
+                    heads.append(ChainHead(table.name, str(r.chain), int(r.id), str(r.row_hash)))
         return heads
 
-    def missing_heads(self, heads: list[dict[str, Any]]) -> list[str]:
+    def missing_heads(self, heads: list[ChainHead]) -> list[str]:
         """The heads kept outside the station (:meth:`heads`, as written then) that this history no longer holds
         as they were: each one line."""
         missing = []
         with self._guard("read"), self.engine.connect() as conn:
             for head in heads:
-                table = {t.name: t for t in CHAINED_TABLES}.get(str(head.get("table")))
+                table = {t.name: t for t in CHAINED_TABLES}.get(head.table)
                 if table is None:
-                    missing.append(f"a kept head names no table of the history: {head.get('table')!r}")
+                    missing.append(f"a kept head names no table of the history: {head.table!r}")
                     continue
-                stored = conn.execute(sa.select(table.c.row_hash).where(table.c.id == head.get("id"))).scalar()
-                if stored != head.get("row_hash"):
-                    missing.append(f"row {head.get('id')} of {table.name} (chain {head.get('chain') or '(none)'}): "
+                stored = conn.execute(sa.select(table.c.row_hash).where(table.c.id == head.id)).scalar()
+                if stored != head.row_hash:
+                    missing.append(f"row {head.id} of {table.name} (chain {head.chain or '(none)'}): "
                                    + ("gone" if stored is None else "not the row it was")
                                    + " since its head was kept: the history was rewritten")
         return missing
@@ -645,7 +658,7 @@ class HistoryStore:
     # -- who each login is (the chain's owner keeps it) -----------------------------------------------------------
 
     def map_login(self, login: str, station: str | None, person: str | None, by: str,
-                  shop: str | None = None) -> dict[str, Any]:
+                  shop: str | None = None) -> LoginRow:
         """Say which station (and person) a database login is (``history --map-login``): from then on the database
         writes that station into every test and rig self-check the login adds, and that person into its
         withdrawals, adoptions and registrations. A login's newest mapping stands. ``shop``: the shop the station
@@ -654,13 +667,14 @@ class HistoryStore:
         row = {"login": login, "station": station, "person": person, "mapped_by": by, "mapped_at": _now(),
                "shop": shop}
         with self._writing("map-login") as conn:
-            row["id"] = conn.execute(edc_logins.insert().values(**row)).inserted_primary_key[0]
-        return row
+            row_id = conn.execute(edc_logins.insert().values(**row)).inserted_primary_key[0]
+        return LoginRow.of({**row, "id": row_id})
 
-    def logins(self) -> list[dict[str, Any]]:
+    def logins(self) -> list[LoginRow]:
         """Each login's mapping as it stands (its newest), by login."""
         newest = sa.select(sa.func.max(edc_logins.c.id)).group_by(edc_logins.c.login)
-        return self._rows(sa.select(edc_logins).where(edc_logins.c.id.in_(newest)).order_by(edc_logins.c.login))
+        return self._rows(sa.select(edc_logins).where(edc_logins.c.id.in_(newest)).order_by(edc_logins.c.login),
+                          LoginRow)
 
     @property
     def station(self) -> str | None:
@@ -668,11 +682,11 @@ class HistoryStore:
         none): the name the database writes into its rows."""
         if self.is_sqlite or self.login is None:
             return None
-        found = self._rows(sa.select(edc_logins.c.station).where(edc_logins.c.login == self.login)
-                           .order_by(edc_logins.c.id.desc()).limit(1))
-        return found[0]["station"] if found else None
+        with self._guard("read"), self.engine.connect() as conn:
+            return conn.execute(sa.select(edc_logins.c.station).where(edc_logins.c.login == self.login)
+                                .order_by(edc_logins.c.id.desc()).limit(1)).scalar()
 
-    def withdraw_test(self, test_id: int, reason: str, by: str | None = None) -> dict[str, Any]:
+    def withdraw_test(self, test_id: int, reason: str, by: str | None = None) -> TestRow:
         """Withdraw a test (its id from ``history``): it leaves listings, trends and training; ``--audit`` keeps it.
         Returns the test's row."""
         with self._writing("withdraw") as conn:
@@ -687,12 +701,12 @@ class HistoryStore:
             self._append(conn, amendments, {"target": "tests", "target_id": test_id, "action": "withdraw",
                                             "reason": reason, "amended_by": by or _login_name(), "amended_at": _now(),
                                             "db_login": self.login})
-        return dict(found._mapping)
+        return TestRow.of(found._mapping)
 
     # -- teardowns ---------------------------------------------------------------------------------------------
 
     def add_teardown(self, valve_id: str, finding: str, *, labelled_by: str, labelled_at: str,
-                     clearance_mm: float | None = None, note: str = "", corrects: int | None = None) -> dict[str, Any]:
+                     clearance_mm: float | None = None, note: str = "", corrects: int | None = None) -> TeardownRow:
         """Record what a teardown of ``valve_id`` found; returns the stored row.
 
         Parameters
@@ -722,7 +736,7 @@ class HistoryStore:
             if corrects is not None:
                 self._current_teardown(conn, corrects, valve_id)
             stored = self._append(conn, teardowns, row)
-        return _shown(stored or row)
+        return TeardownRow.of(_shown(stored or row))
 
     def _current_teardown(self, conn: sa.Connection, teardown_id: int, valve_id: str | None = None) -> Any:
         """The finding ``teardown_id`` if it stands (not withdrawn nor corrected); a ConfigError saying why not."""
@@ -730,109 +744,104 @@ class HistoryStore:
         if found is None or (valve_id is not None and found.valve_id != valve_id):
             of = f" of valve {valve_id!r}" if valve_id is not None else ""
             raise ConfigError(f"no teardown finding with id {teardown_id}{of} (see 'edc-bench label --list')")
-        if teardown_id not in {r["id"] for r in self._standing_teardowns(conn)}:
+        if teardown_id not in {r.id for r in self._standing_teardowns(conn)}:
             raise ConfigError(f"teardown finding {teardown_id} is withdrawn or corrected already (see 'edc-bench "
                               f"history --audit {found.valve_id}')")
         return found
 
-    def withdraw_teardown(self, teardown_id: int, reason: str, by: str | None = None) -> dict[str, Any]:
+    def withdraw_teardown(self, teardown_id: int, reason: str, by: str | None = None) -> TeardownRow:
         """Withdraw a finding recorded by mistake (its id from ``label --list``); returns it."""
         with self._writing("withdraw") as conn:
             found = self._current_teardown(conn, teardown_id)
             self._append(conn, amendments, {"target": "teardowns", "target_id": teardown_id, "action": "withdraw",
                                             "reason": reason, "amended_by": by or _login_name(), "amended_at": _now(),
                                             "db_login": self.login})
-        return dict(found._mapping)
+        return TeardownRow.of(found._mapping)
 
-    def _standing_teardowns(self, conn: sa.Connection, valve_id: str | None = None) -> list[dict[str, Any]]:
+    def _standing_teardowns(self, conn: sa.Connection, valve_id: str | None = None) -> list[TeardownRow]:
         query = sa.select(*(teardowns.c[name] for name in TEARDOWN_COLUMNS))
         if valve_id is not None:
             query = query.where(teardowns.c.valve_id == valve_id)
-        rows = [dict(r._mapping) for r in conn.execute(query.order_by(teardowns.c.labelled_at, teardowns.c.id))]
+        rows = [TeardownRow.of(r._mapping) for r in conn.execute(query.order_by(teardowns.c.labelled_at,
+                                                                                teardowns.c.id))]
         withdrawn = {r[0] for r in conn.execute(_withdrawn("teardowns"))}
-        every = rows if valve_id is None else [dict(r._mapping) for r in conn.execute(
-            sa.select(teardowns.c.id, teardowns.c.corrects_id))]
-        corrected = {r["corrects_id"] for r in every if r["corrects_id"] is not None and r["id"] not in withdrawn}
-        return [r for r in rows if r["id"] not in withdrawn and r["id"] not in corrected]
+        # (id, the finding it corrects) of every finding
+        every = conn.execute(sa.select(teardowns.c.id, teardowns.c.corrects_id)).all()
+        corrected = {corrects for row_id, corrects in every if corrects is not None and row_id not in withdrawn}
+        return [r for r in rows if r.id not in withdrawn and r.id not in corrected]
 
-    def teardowns(self, valve_id: str | None = None) -> list[dict[str, Any]]:
+    def teardowns(self, valve_id: str | None = None) -> list[TeardownRow]:
         """Teardown findings as they stand (of one valve if given), in the order of the teardowns."""
         with self._guard("read"), self.engine.connect() as conn:
             return self._standing_teardowns(conn, valve_id)
 
-    def labelled_tests(self, include_simulated: bool = False) -> list[dict[str, Any]]:
+    def labelled_tests(self, include_simulated: bool = False) -> list[TeardownMatch]:
         """Every teardown with the test it labels, oldest first.
 
         A teardown labels the valve's last test before it that was judged on
         its features (not INVALID, relative features known): the valve as the
         bench last saw it; a teardown given as a date alone counts that whole
         day. Each test is labelled once: a second teardown of the valve labels
-        only a test after the first. Each row is the test's history row plus
-        ``finding``, ``label`` (1: replace), ``teardown_clearance_mm``,
-        ``labelled_by`` and ``labelled_at``; teardowns with no such test are
+        only a test after the first. Teardowns with no such test are
         left out (:meth:`unmatched_teardowns` lists them). Withdrawn tests and
         findings, and findings corrected since, count for nothing; tests on
         the simulated rig neither, unless ``include_simulated``.
         """
-        return [row for row in self.teardown_matches(include_simulated) if row.get("record_dir")]
+        return [match for match in self.teardown_matches(include_simulated) if match.test is not None]
 
-    def unmatched_teardowns(self, include_simulated: bool = False) -> list[dict[str, Any]]:
+    def unmatched_teardowns(self, include_simulated: bool = False) -> list[TeardownMatch]:
         """Teardowns of valves with no test judged before them (nothing to learn from yet)."""
-        return [row for row in self.teardown_matches(include_simulated) if not row.get("record_dir")]
+        return [match for match in self.teardown_matches(include_simulated) if match.test is None]
 
-    def teardown_matches(self, include_simulated: bool = False) -> list[dict[str, Any]]:
-        """Every teardown in order, with the test it labels (:meth:`labelled_tests`) or only its valve if none."""
+    def teardown_matches(self, include_simulated: bool = False) -> list[TeardownMatch]:
+        """Every teardown in order, with the test it labels (:meth:`labelled_tests`), None if none."""
         found = self.teardowns()
-        valves = sorted({t["valve_id"] for t in found})
+        valves = sorted({t.valve_id for t in found})
         query = sa.select(*(tests.c[name] for name in COLUMNS)).where(
             self._current_tests(), tests.c.valve_id.in_(valves), tests.c.af_rel.is_not(None),
             tests.c.a1_rel.is_not(None), tests.c.verdict != Verdict.INVALID).order_by(tests.c.started_at, tests.c.id)
         if not include_simulated:
             query = query.where(_simulated(False))
-        by_valve: dict[str, list[dict[str, Any]]] = {}
-        for test in (self._rows(query) if valves else []):
-            by_valve.setdefault(test["valve_id"], []).append(test)
-        rows = []
+        by_valve: dict[str, list[TestRow]] = {}
+        for test in (self._rows(query, TestRow) if valves else []):
+            by_valve.setdefault(test.valve_id, []).append(test)
+        matches = []
         previous: dict[str, str] = {}  # valve -> bound of its previous teardown
         for teardown in found:
-            valve = teardown["valve_id"]
+            valve = teardown.valve_id
             # a date alone counts the whole day: the valve tested in the morning and opened in the afternoon
-            bound = teardown["labelled_at"] if "T" in teardown["labelled_at"] else teardown["labelled_at"] + "T99"
+            bound = teardown.labelled_at if "T" in teardown.labelled_at else teardown.labelled_at + "T99"
             # a test labels once: the test after the valve's previous teardown and before this one
             after = previous.get(valve, "")
-            between = [t for t in by_valve.get(valve, []) if after < t["started_at"] <= bound]
+            between = [t for t in by_valve.get(valve, []) if after < t.started_at <= bound]
             previous[valve] = bound
-            test = between[-1] if between else {"valve_id": valve}
-            rows.append({**test, "teardown_id": teardown["id"], "finding": teardown["finding"],
-                         "label": FINDINGS[teardown["finding"]], "teardown_clearance_mm": teardown["clearance_mm"],
-                         "labelled_by": teardown["labelled_by"], "labelled_at": teardown["labelled_at"],
-                         "note": teardown["note"]})
-        return rows
+            matches.append(TeardownMatch(teardown, between[-1] if between else None))
+        return matches
 
-    def trend(self, valve_id: str, include_simulated: bool = False) -> list[dict[str, Any]]:
+    def trend(self, valve_id: str, include_simulated: bool = False) -> list[TestRow]:
         """Every trustworthy visit of one valve, oldest first (on a rig; the simulated rig's too if asked)."""
         filters = Filters(valve_id=valve_id, simulated=None if include_simulated else False)
-        return [r for r in self.list(filters) if r["verdict"] != Verdict.INVALID]
+        return [r for r in self.list(filters) if r.verdict != Verdict.INVALID]
 
     # -- the whole chain ---------------------------------------------------------------------------------------
 
-    def audit(self, valve_id: str) -> list[dict[str, Any]]:
+    def audit(self, valve_id: str) -> list[AuditEvent]:
         """Everything the history holds of one valve, in the order it was written: each indexing of its tests,
         each finding, each correction and withdrawal, with who and when (``when``, ``event``, ``id``, ``what``,
         ``by``, ``db_login``)."""
         with self._guard("read"), self.engine.connect() as conn:
-            rows = [dict(r._mapping) for r in conn.execute(
+            rows = [TestRow.of(r._mapping) for r in conn.execute(
                 sa.select(tests).where(tests.c.valve_id == valve_id).order_by(tests.c.id))]
-            found = [dict(r._mapping) for r in conn.execute(
+            found = [TeardownRow.of(r._mapping) for r in conn.execute(
                 sa.select(teardowns).where(teardowns.c.valve_id == valve_id).order_by(teardowns.c.id))]
-            changes = [dict(r._mapping) for r in conn.execute(sa.select(amendments).where(sa.or_(
-                sa.and_(amendments.c.target == "tests", amendments.c.target_id.in_([r["id"] for r in rows])),
-                sa.and_(amendments.c.target == "teardowns", amendments.c.target_id.in_([t["id"] for t in found])),
-            )).order_by(amendments.c.id))]
+            changes = conn.execute(sa.select(amendments).where(sa.or_(
+                sa.and_(amendments.c.target == "tests", amendments.c.target_id.in_([r.id for r in rows])),
+                sa.and_(amendments.c.target == "teardowns", amendments.c.target_id.in_([t.id for t in found])),
+            )).order_by(amendments.c.id)).all()
         return audit_events(rows, found, changes)
 
     def add_adoption(self, model_name: str, model_sha256: str, station: str, adopted_by: str,
-                     then: Callable[[], object] | None = None, evaluation: str | None = None) -> dict[str, Any]:
+                     then: Callable[[], object] | None = None, evaluation: str | None = None) -> AdoptionRow:
         """Record that ``station`` now judges with a model (``edc-bench train --adopt``); returns the row.
 
         ``evaluation``: what the adoption was decided on (a shop candidate's
@@ -847,11 +856,11 @@ class HistoryStore:
             stored = self._append(conn, adoptions, row)
             if then is not None:
                 then()
-        return _shown(stored or row)
+        return AdoptionRow.of(_shown(stored or row))
 
     # -- the rig self-check's ledger ----------------------------------------------------------------------------
 
-    def add_reference(self, row: dict[str, Any]) -> dict[str, Any]:
+    def add_reference(self, row: dict[str, Any]) -> ReferenceRow:
         """Register a station's reference valve (``edc-bench rig-selfcheck --register``); returns the stored row.
 
         ``row`` holds the columns of :data:`~edc_bench.history.schema.reference_valves` but ``id``,
@@ -861,38 +870,38 @@ class HistoryStore:
         row = {**row, "registered_at": _now(), "db_login": self.login}
         with self._writing("register-reference") as conn:
             stored = self._append(conn, reference_valves, row)
-        return _shown(stored or row)
+        return ReferenceRow.of(_shown(stored or row))
 
-    def reference(self, station: str) -> dict[str, Any] | None:
+    def reference(self, station: str) -> ReferenceRow | None:
         """The station's reference valve as it stands (its newest registration), or None if it has none."""
         query = (sa.select(reference_valves).where(reference_valves.c.station == station)
                  .order_by(reference_valves.c.id.desc()).limit(1))
-        found = self._rows(query)
+        found = self._rows(query, ReferenceRow)
         return found[0] if found else None
 
-    def add_rig_check(self, row: dict[str, Any]) -> dict[str, Any]:
+    def add_rig_check(self, row: dict[str, Any]) -> RigCheckRow:
         """Store one rig self-check; returns the stored row (columns of :data:`~edc_bench.history.schema.rig_checks`
         but ``id``, ``checked_at`` and ``db_login``)."""
         row = {**row, "checked_at": _now(), "db_login": self.login}
         with self._writing("add-rig-check") as conn:
             stored = self._append(conn, rig_checks, row)
-        return _shown(stored or row)
+        return RigCheckRow.of(_shown(stored or row))
 
-    def rig_checks(self, station: str | None = None, reference_id: int | None = None) -> list[dict[str, Any]]:
+    def rig_checks(self, station: str | None = None, reference_id: int | None = None) -> list[RigCheckRow]:
         """Rig self-checks, oldest first: of one station and one registration if given."""
         query = sa.select(rig_checks)
         if station is not None:
             query = query.where(rig_checks.c.station == station)
         if reference_id is not None:
             query = query.where(rig_checks.c.reference_id == reference_id)
-        return self._rows(query.order_by(rig_checks.c.id))
+        return self._rows(query.order_by(rig_checks.c.id), RigCheckRow)
 
-    def references(self, station: str | None = None) -> list[dict[str, Any]]:
+    def references(self, station: str | None = None) -> list[ReferenceRow]:
         """Every registration, oldest first (of one station if given)."""
         query = sa.select(reference_valves)
         if station is not None:
             query = query.where(reference_valves.c.station == station)
-        return self._rows(query.order_by(reference_valves.c.id))
+        return self._rows(query.order_by(reference_valves.c.id), ReferenceRow)
 
     def tests_since(self, station: str, since: str) -> int:
         """Tests of ``station`` that started after ``since`` (an ISO time), withdrawn ones too: what the self-check's
@@ -902,17 +911,15 @@ class HistoryStore:
         with self._guard("read"), self.engine.connect() as conn:
             return int(conn.execute(query).scalar() or 0)
 
-    def _rows(self, query: sa.Select[Any]) -> list[dict[str, Any]]:
+    def _rows(self, query: sa.Select[Any], row_type: type[_Row]) -> list[_Row]:
+        """The query's rows as ``row_type``."""
         with self._guard("read"), self.engine.connect() as conn:
-            return [dict(r._mapping) for r in conn.execute(query)]
+            return [row_type.of(r._mapping) for r in conn.execute(query)]
 
 
-#: What a listing adds to a test's columns (:meth:`HistoryStore.list`): how often it was indexed again with other
-#: content, and its row's chain hash (what a customer's report prints).
-LISTED = ("changes", "chain_hash")
-
-#: The columns of a listing's CSV export.
-LIST_COLUMNS = COLUMNS + LISTED
+#: What a listing adds to a test's columns (:meth:`HistoryStore.list`; a listed row given back to :meth:`add_row`
+#: is indexed without them).
+LISTED = TEST_ROW_EXTRAS
 
 #: The columns that say how a row was indexed, not what the test was.
 _INDEXING = ("id", "record_manifest", "indexed_at", "indexed_by", "db_login", "first_indexing")
@@ -1013,34 +1020,33 @@ def _print_warning(problem: str) -> None:
     print(f"warning: {problem}", file=sys.stderr)
 
 
-def audit_events(test_rows: list[dict[str, Any]], teardown_rows: list[dict[str, Any]],
-                 amendment_rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def audit_events(test_rows: list[TestRow], teardown_rows: list[TeardownRow],
+                 amendment_rows: Sequence[sa.Row[Any]]) -> list[AuditEvent]:
     """The audit trail of one valve from its rows (:meth:`HistoryStore.audit`), in the order written."""
-    events = []
+    events: list[tuple[tuple[int, int], AuditEvent]] = []  # (the order of rows written at once, the event)
     seen: set[str] = set()
     for t in test_rows:
-        key = t.get("test_key") or t["record_dir"]
+        key = t.test_key or t.record_dir
         again = key in seen
         seen.add(key)
-        events.append({"when": t["indexed_at"] or t["started_at"],
-                       "event": "record changed after its first indexing (the first stands)" if again
-                       else "test indexed", "id": t["id"],
-                       "what": f"{t['verdict']}, tested {local_text(t['started_at'])}, {t['record_dir']}",
-                       "by": t["indexed_by"] or t["operator"], "db_login": t["db_login"],
-                       "chain_hash": t.get("row_hash"), "order": (0, t["id"])})
+        events.append(((0, t.id), AuditEvent(
+            when=t.indexed_at or t.started_at,
+            event="record changed after its first indexing (the first stands)" if again else "test indexed",
+            id=t.id, what=f"{t.verdict}, tested {local_text(t.started_at)}, {t.record_dir}",
+            by=t.indexed_by or t.operator, db_login=t.db_login, chain_hash=t.row_hash)))
     for f in teardown_rows:
-        corrects = f" (corrects finding {f['corrects_id']})" if f["corrects_id"] is not None else ""
-        events.append({"when": f["recorded_at"], "event": "finding recorded", "id": f["id"],
-                       "what": f"{f['finding']}, opened {local_text(f['labelled_at'])} by {f['labelled_by']}{corrects}",
-                       "by": f.get("recorded_by") or f["labelled_by"], "db_login": f["db_login"],
-                       "chain_hash": f.get("row_hash"), "order": (1, f["id"])})
+        corrects = f" (corrects finding {f.corrects_id})" if f.corrects_id is not None else ""
+        events.append(((1, f.id), AuditEvent(
+            when=f.recorded_at, event="finding recorded", id=f.id,
+            what=f"{f.finding}, opened {local_text(f.labelled_at)} by {f.labelled_by}{corrects}",
+            by=f.recorded_by or f.labelled_by, db_login=f.db_login, chain_hash=f.row_hash)))
     for a in amendment_rows:
-        kind = "test" if a["target"] == "tests" else "finding"
-        events.append({"when": a["amended_at"], "event": f"{kind} {a['target_id']} withdrawn", "id": a["id"],
-                       "what": a["reason"], "by": a["amended_by"], "db_login": a["db_login"],
-                       "chain_hash": a.get("row_hash"), "order": (2, a["id"])})
-    events.sort(key=lambda e: (e["when"], e["order"]))
-    return [{key: value for key, value in e.items() if key != "order"} for e in events]
+        kind = "test" if a.target == "tests" else "finding"
+        events.append(((2, a.id), AuditEvent(when=a.amended_at, event=f"{kind} {a.target_id} withdrawn", id=a.id,
+                                             what=a.reason, by=a.amended_by, db_login=a.db_login,
+                                             chain_hash=a.row_hash)))
+    events.sort(key=lambda e: (e[1].when, e[0]))
+    return [event for _, event in events]
 
 
 def _now() -> str:
@@ -1075,7 +1081,7 @@ def _cell(value: Any) -> Any:
     return "'" + value if isinstance(value, str) and value.startswith(_FORMULA_STARTS) else value
 
 
-def write_csv(rows: Iterable[dict[str, Any]], handle: IO[str], columns: Sequence[str] = COLUMNS) -> int:
+def write_csv(rows: Iterable[TestRow], handle: IO[str], columns: Sequence[str] = COLUMNS) -> int:
     """Rows as CSV with a header; returns the number of rows written.
 
     Text that a spreadsheet would take for a formula is written with a leading "'" (CSV injection: the ids and
@@ -1085,7 +1091,7 @@ def write_csv(rows: Iterable[dict[str, Any]], handle: IO[str], columns: Sequence
     writer.writeheader()
     count = 0
     for row in rows:
-        writer.writerow({name: _cell(value) for name, value in row.items()})
+        writer.writerow({name: _cell(value) for name, value in row.columns().items()})
         count += 1
     return count
 

@@ -39,13 +39,13 @@ def trend_figure(shown: list[Visit], valve: str) -> Figure:
     fig, (ax, limit_ax) = plt.subplots(2, 1, figsize=(7, 5.2), sharex=True, height_ratios=(3, 2))
     numbers = list(range(1, len(shown) + 1))
     colours = [VERDICT_COLOURS.get(v.decision, "0.5") for v in shown]
-    for key, label, style in (("af_rel", "af", "-"), ("a1_rel", "a1", "--")):
-        ax.plot(numbers, [100 * ((v.last[key] or float("nan")) - 1) for v in shown], style, color="0.4", lw=1.0,
-                label=label)
-        ax.scatter(numbers, [100 * ((v.last[key] or float("nan")) - 1) for v in shown], zorder=3, s=36,
-                   c=colours, marker="o" if label == "af" else "s")
+    for ratios, label, style in (([v.last.af_rel for v in shown], "af", "-"),
+                                 ([v.last.a1_rel for v in shown], "a1", "--")):
+        change_pct = [100 * ((ratio or float("nan")) - 1) for ratio in ratios]
+        ax.plot(numbers, change_pct, style, color="0.4", lw=1.0, label=label)
+        ax.scatter(numbers, change_pct, zorder=3, s=36, c=colours, marker="o" if label == "af" else "s")
     for n, visit in zip(numbers, shown, strict=True):
-        ax.annotate(visit.decision, (n, 100 * ((visit.last["a1_rel"] or float("nan")) - 1)), fontsize=6,
+        ax.annotate(visit.decision, (n, 100 * ((visit.last.a1_rel or float("nan")) - 1)), fontsize=6,
                     textcoords="offset points", xytext=(0, 6), ha="center")
     ax.axhline(0.0, color="grey", lw=0.8)
     ax.margins(y=0.15)  # room for the decisions above the points
@@ -53,18 +53,18 @@ def trend_figure(shown: list[Visit], valve: str) -> Figure:
     ax.set_title(f"valve {valve}", parse_math=False)  # the id as typed: '$' is not a formula here
     ax.legend()
     # the classifier's signed distance: 0 is the limit (FAIL beyond it), the band around it MARGINAL
-    distances = [v.last.get("distance") for v in shown]
+    distances = [v.last.distance for v in shown]
     limit_ax.plot(numbers, [float("nan") if d is None else d for d in distances], "-", color="0.4", lw=1.0)
     limit_ax.scatter(numbers, [float("nan") if d is None else d for d in distances], zorder=3, s=36, c=colours)
     limit_ax.axhline(0.0, color=VERDICT_COLOURS.get("FAIL", "red"), lw=1.2, label="limit: FAIL above")
-    band = marginal_band(str(shown[-1].last.get("variant") or ""))
+    band = marginal_band(str(shown[-1].last.variant or ""))
     if band is not None:
         limit_ax.axhspan(-band, band, color=VERDICT_COLOURS.get("MARGINAL", "orange"), alpha=0.25, lw=0,
                          label=f"marginal band (+/-{band:g})")
     limit_ax.set_ylabel("distance to\nthe limit")
     limit_ax.legend(fontsize=7, loc="best")
     limit_ax.set_xlabel("visit, local time (its decision above its points)")
-    limit_ax.set_xticks(numbers, [local_text(v.first["started_at"]) for v in shown], rotation=30, fontsize=7,
+    limit_ax.set_xticks(numbers, [local_text(v.first.started_at) for v in shown], rotation=30, fontsize=7,
                         ha="right")  # the date ends under its point, never past the figure's edge
     fig.tight_layout()
     return fig

@@ -14,8 +14,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
+from edc_bench.history.rows import AdoptionRow, TestRow
 from edc_bench.records.integrity import Change, altered, file_digest
 from edc_bench.records.writer import RECORD_FILE
 from edc_bench.timefmt import local_text
@@ -32,35 +32,35 @@ class RecordFinding:
     detail: str
 
 
-def check_row(row: dict[str, Any]) -> RecordFinding | None:
+def check_row(row: TestRow) -> RecordFinding | None:
     """What is wrong with one indexed test's folder (None: as indexed, as far as the history can tell)."""
-    folder = Path(row["record_dir"])
+    folder = Path(row.record_dir)
     path = folder / RECORD_FILE
 
     def finding(problem: str, detail: str) -> RecordFinding:
-        return RecordFinding(row["id"], row["valve_id"], row["record_dir"], problem, detail)
+        return RecordFinding(row.id, row.valve_id, row.record_dir, problem, detail)
 
     if not folder.is_dir():
         return finding("missing", "the record folder is gone")
     if not path.is_file():
         return finding("missing", f"{RECORD_FILE} is gone")
     changes: list[Change] = []
-    if row.get("record_manifest"):
+    if row.record_manifest:
         try:
             doc = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
             doc = None
         # held to the manifest kept when it was indexed, not to the one in the folder now (which may be rewritten)
-        manifest = json.loads(row["record_manifest"])
+        manifest = json.loads(row.record_manifest)
         changes = altered({**doc, "integrity": manifest}, folder) if isinstance(doc, dict) else \
             [Change(f"{RECORD_FILE} (not readable)", RECORD_FILE)]
-    if row.get("record_sha256") and file_digest(path) != row["record_sha256"] \
+    if row.record_sha256 and file_digest(path) != row.record_sha256 \
             and not any(change.file == RECORD_FILE for change in changes):
         changes.insert(0, Change(f"{RECORD_FILE} (not the file indexed)", RECORD_FILE))
     return finding("altered", "; ".join(changes)) if changes else None
 
 
-def verify(rows: list[dict[str, Any]]) -> list[RecordFinding]:
+def verify(rows: list[TestRow]) -> list[RecordFinding]:
     """The findings over every indexed test as it stands (:meth:`~edc_bench.history.store.HistoryStore.indexed`).
 
     A folder that cannot be read (a file the system refuses, record.json damaged beyond reading) is a finding of
@@ -71,47 +71,46 @@ def verify(rows: list[dict[str, Any]]) -> list[RecordFinding]:
         try:
             problem = check_row(row)
         except (OSError, ValueError, TypeError, AttributeError) as exc:
-            problem = RecordFinding(row["id"], row["valve_id"], row["record_dir"], "altered",
-                              f"not readable ({type(exc).__name__}: {exc})")
+            problem = RecordFinding(row.id, row.valve_id, row.record_dir, "altered",
+                                    f"not readable ({type(exc).__name__}: {exc})")
         if problem is not None:
             found.append(problem)
     return found
 
 
-def changed_findings(rows: list[dict[str, Any]]) -> list[RecordFinding]:
+def changed_findings(rows: list[TestRow]) -> list[RecordFinding]:
     """One finding per row that indexed a test again with other content than its first indexing
     (:meth:`~edc_bench.history.store.HistoryStore.changed_tests`): the first stands, and this is said every time."""
-    return [RecordFinding(row["first_id"], row["valve_id"], row["record_dir"], "changed",
-                    f"indexed again with other content as row {row['id']} ({row['verdict']}, at "
-                    f"{local_text(row['indexed_at'], seconds=True)} by database login {row['db_login'] or '(none)'}): the first "
-                    "indexing stands; the record was changed after its test")
+    return [RecordFinding(int(row.first_id or 0), row.valve_id, row.record_dir, "changed",
+                          f"indexed again with other content as row {row.id} ({row.verdict}, at "
+                          f"{local_text(row.indexed_at, seconds=True)} by database login {row.db_login or '(none)'}): "
+                          "the first indexing stands; the record was changed after its test")
             for row in rows]
 
 
-def model_findings(rows: list[dict[str, Any]], adoptions: list[dict[str, Any]], shipped: set[str]) -> list[RecordFinding]:
+def model_findings(rows: list[TestRow], adoptions: list[AdoptionRow], shipped: set[str]) -> list[RecordFinding]:
     """One finding per test judged by a model that is neither shipped nor adopted for its station in the history
     before it was indexed (an adoption that bypassed the chain, or a model put in the station's folder by hand).
 
     Parameters
     ----------
-    rows : list of dict
+    rows : list of TestRow
         Tests as they stand (:meth:`~edc_bench.history.store.HistoryStore.indexed`).
-    adoptions : list of dict
-        Every adoption the history holds (``station``, ``model_sha256``, ``adopted_at``).
+    adoptions : list of AdoptionRow
+        Every adoption the history holds.
     shipped : set of str
         The SHA-256 of the networks the bench judges with unless one is adopted.
     """
     found = []
     for row in rows:
-        sha = row.get("model_sha256")
+        sha = row.model_sha256
         if not sha or sha in shipped:
             continue
-        when = row.get("indexed_at") or row.get("started_at") or ""
-        if any(a["station"] == row["station"] and a["model_sha256"] == sha and a["adopted_at"] <= when
-               for a in adoptions):
+        when = row.indexed_at or row.started_at or ""
+        if any(a.station == row.station and a.model_sha256 == sha and a.adopted_at <= when for a in adoptions):
             continue
-        found.append(RecordFinding(row["id"], row["valve_id"], row["record_dir"], "model",
-                             f"judged by a model (sha256 {sha[:12]}..., {row.get('model_name') or 'unnamed'}) the "
-                             f"history records no adoption of for station {row['station']!r} before the test was "
-                             "indexed: an adoption that bypassed the history, or a model put in by hand"))
+        found.append(RecordFinding(row.id, row.valve_id, row.record_dir, "model",
+                                   f"judged by a model (sha256 {sha[:12]}..., {row.model_name or 'unnamed'}) the "
+                                   f"history records no adoption of for station {row.station!r} before the test was "
+                                   "indexed: an adoption that bypassed the history, or a model put in by hand"))
     return found

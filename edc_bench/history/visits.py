@@ -7,12 +7,10 @@ whose ``record_dir`` that is. Pure: rows in, visits out.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
 
-#: A test's history row as read (a listing's dict, or a database row's mapping): visits only read it.
-TestRow = Mapping[str, Any]
+from edc_bench.history.rows import TestRow
 
 
 @dataclass(frozen=True)
@@ -21,7 +19,7 @@ class Visit:
 
     Attributes
     ----------
-    tests : tuple of dict
+    tests : tuple of TestRow
         Its tests' history rows, oldest first (two for a retested MARGINAL).
     """
 
@@ -40,26 +38,26 @@ class Visit:
     @property
     def decision(self) -> str:
         """What the technician acted on: a retest pair's decision, else the test's verdict."""
-        return str(self.last.get("decision") or self.last["verdict"])
+        return str(self.last.decision or self.last.verdict)
 
     @property
     def verdicts(self) -> str:
         """Each test's verdict: ``MARGINAL then MARGINAL``."""
-        return " then ".join(str(t["verdict"]) for t in self.tests)
+        return " then ".join(str(t.verdict) for t in self.tests)
 
     @property
     def ids(self) -> str:
         """The tests' history ids: ``12+13``."""
-        return "+".join(str(t["id"]) for t in self.tests)
+        return "+".join(str(t.id) for t in self.tests)
 
 
 def visits(rows: Iterable[TestRow]) -> list[Visit]:
     """The visits of history rows (oldest first): a retest joins its first test when both are listed."""
     ordered = list(rows)
-    by_folder = {str(r.get("record_dir")): n for n, r in enumerate(ordered) if r.get("record_dir")}
+    by_folder = {str(r.record_dir): n for n, r in enumerate(ordered) if r.record_dir}
     first_of: dict[int, int] = {}  # retest's index -> its first test's index
     for n, row in enumerate(ordered):
-        first = by_folder.get(str(row.get("retest_of"))) if row.get("retest_of") else None
+        first = by_folder.get(str(row.retest_of)) if row.retest_of else None
         if first is not None and first < n and first not in first_of.values():
             first_of[n] = first
     joined = set(first_of.values())
@@ -68,17 +66,18 @@ def visits(rows: Iterable[TestRow]) -> list[Visit]:
         if n in joined:
             continue  # shown with its retest
         out.append(Visit((ordered[first_of[n]], row) if n in first_of else (row,)))
-    out.sort(key=lambda v: (str(v.first.get("started_at") or ""), v.first.get("id") or 0))
+    out.sort(key=lambda v: (str(v.first.started_at or ""), v.first.id or 0))
     return out
 
 
-def with_visit_decisions(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The rows, each with its visit's ``visit_decision`` and ``visit`` (its tests' ids): ``--json``."""
+def with_visit_decisions(rows: list[TestRow]) -> list[dict[str, object]]:
+    """The rows as JSON objects (a listing's columns), each with its visit's ``visit_decision`` and ``visit`` (its
+    tests' ids): ``--json``."""
     seen: dict[int, Visit] = {}
     for visit in visits(rows):
         for test in visit.tests:
             seen[id(test)] = visit
-    return [{**row, "visit_decision": seen[id(row)].decision, "visit": [t["id"] for t in seen[id(row)].tests]}
+    return [{**row.listed(), "visit_decision": seen[id(row)].decision, "visit": [t.id for t in seen[id(row)].tests]}
             for row in rows]
 
 

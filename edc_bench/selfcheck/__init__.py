@@ -33,7 +33,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.config.models import Variant
 from edc_bench.selfcheck.compare import (
@@ -45,6 +45,9 @@ from edc_bench.selfcheck.compare import (
     compare,
 )
 from edc_bench.selfcheck.due import LastCheck, SelfCheckPolicy, selfcheck_due
+
+if TYPE_CHECKING:  # the rows' module brings SQLAlchemy, which a test's start does not need
+    from edc_bench.history.rows import ReferenceRow, RigCheckRow
 
 #: Exactly how the reference valve is registered, for the line that says none is.
 REGISTER_COMMAND = "edc-bench rig-selfcheck --register --valve-id ID"
@@ -115,14 +118,14 @@ class Registration:
     registered_at: str = ""
 
     @classmethod
-    def of(cls, row: dict[str, Any] | None) -> Registration | None:
+    def of(cls, row: ReferenceRow | None) -> Registration | None:
         """The registration a history row holds (None for None)."""
         if row is None:
             return None
-        details = json.loads(row.get("details") or "{}")
-        return cls(id=row["id"], station=row["station"], valve_id=row["valve_id"], variant=row["variant"],
-                   values=values_of(row), simulated=bool(row["simulated"]), valve_spec=row.get("valve_spec"),
-                   seed=details.get("seed"), registered_at=row.get("registered_at") or "")
+        details = json.loads(row.details or "{}")
+        return cls(id=row.id, station=row.station, valve_id=row.valve_id, variant=row.variant,
+                   values=values_of(row), simulated=bool(row.simulated), valve_spec=row.valve_spec,
+                   seed=details.get("seed"), registered_at=row.registered_at or "")
 
 
 @dataclass(frozen=True)
@@ -248,13 +251,13 @@ def no_reference_line(station: str) -> str:
             "rig's sensors are not checked")
 
 
-def values_of(row: dict[str, Any]) -> ReferenceValues:
+def values_of(row: ReferenceRow | RigCheckRow) -> ReferenceValues:
     """The figures a ``reference_valves`` or ``rig_checks`` row holds."""
-    details = json.loads(row.get("details") or "{}")
-    return ReferenceValues(**{name: _float(row[name]) for name in QUANTITIES},
-                           lvdt_at_floor=bool(row.get("lvdt_at_floor")),
-                           test_problems=tuple(details.get("test_problems", ())),
-                           coil_temp_c=_float(row.get("coil_temp_c") if row.get("coil_temp_c") is not None else 20.0))
+    details = json.loads(row.details or "{}")
+    figures = row.figures()
+    return ReferenceValues(**{name: _float(figures[name]) for name in QUANTITIES},
+                           lvdt_at_floor=bool(row.lvdt_at_floor), test_problems=tuple(details.get("test_problems", ())),
+                           coil_temp_c=_float(row.coil_temp_c if row.coil_temp_c is not None else 20.0))
 
 
 def _float(value: Any) -> float:
@@ -323,9 +326,9 @@ def _json_float(value: float) -> float | None:
 def last_check(store: Any, registration: Registration) -> LastCheck:
     """The station's latest self-check against ``registration`` (a skip is none), or the registration itself (a
     check that passed) if none was made since; for :func:`selfcheck_due`."""
-    checks = [row for row in store.rig_checks(registration.station, registration.id) if row["verdict"] in MEASURED]
+    checks = [row for row in store.rig_checks(registration.station, registration.id) if row.verdict in MEASURED]
     if checks:
-        return LastCheck(dt.datetime.fromisoformat(checks[-1]["checked_at"]), checks[-1]["verdict"] == "GO")
+        return LastCheck(dt.datetime.fromisoformat(checks[-1].checked_at), checks[-1].verdict == "GO")
     return LastCheck(dt.datetime.fromisoformat(registration.registered_at), True)
 
 

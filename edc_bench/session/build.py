@@ -55,9 +55,8 @@ def history_lines(url: str | None) -> Any:
                 rows = store.list(Filters(valve_id=valve_id), limit=5)[::-1]  # newest first
         except Exception as exc:  # noqa: BLE001 - the history is a help here, never a stop
             return [f"(the history could not be read: {type(exc).__name__})"]
-        return [f"{_local(row['started_at'])}  {row['verdict']}"
-                + (f" -> {row['decision']}" if row.get("decision") else "")
-                + f"  pump {row['pump_serial'] or '-'}, {row['variant']}" for row in rows]
+        return [f"{_local(row.started_at)}  {row.verdict}" + (f" -> {row.decision}" if row.decision else "")
+                + f"  pump {row.pump_serial or '-'}, {row.variant}" for row in rows]
 
     return lines
 

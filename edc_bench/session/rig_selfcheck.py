@@ -73,7 +73,7 @@ class SessionSelfCheck:
                 return SelfCheckWords(None, f"rig self-check: the reference valve {registration.valve_id} was "
                                             f"registered on {where}: not checked on this rig")
             variant = load_variant(registration.variant)
-            measured = [r for r in store.rig_checks(self.station, registration.id) if r["verdict"] in MEASURED]
+            measured = [r for r in store.rig_checks(self.station, registration.id) if r.verdict in MEASURED]
             seed = (registration.seed or 0) + 1 + len(measured)  # a skip measured nothing: no new noise
             rig = Rig(bus=self.rig.bus_config, drift=self.rig.rig_drift)
             check = run_selfcheck(rig, registration, variant, seed=seed)

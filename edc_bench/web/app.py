@@ -337,9 +337,9 @@ class _Site:
             raise BadRequest("which valve? search for its id or its pump's serial")
         rows = views.valve_tests(session.store, valve_id)
         shown = visits(r.row for r in rows if r.state == "standing")
-        trustworthy = [v for v in shown if v.decision != "INVALID" and not v.last.get("simulated")]
+        trustworthy = [v for v in shown if v.decision != "INVALID" and not v.last.simulated]
         records = self.config.records_dir
-        reports = {v.last.get("id") for v in shown if record_folder(records, str(v.last.get("record_dir")))}
+        reports = {v.last.id for v in shown if record_folder(records, str(v.last.record_dir))}
         return self.render(request, "valve.html", session, valve_id=valve_id, rows=rows, visits=shown,
                            chart=charts.valve_trend(trustworthy, valve_id) if trustworthy else None,
                            audit=session.store.audit(valve_id), reports=reports)
@@ -348,7 +348,8 @@ class _Site:
         columns = ("id", "state", "started_at", "valve_id", "pump_serial", "variant", "verdict", "decision", "af_v",
                    "a1_v_s_per_mm", "af_rel", "a1_rel", "distance", "station", "operator", "invalid_area")
         rows = views.valve_tests(session.store, _field(request, "id") or "")
-        return csv_response(([r.state if c == "state" else r.row[c] for c in columns] for r in rows), columns, "valve")
+        return csv_response(([r.state if c == "state" else getattr(r.row, c) for c in columns] for r in rows), columns,
+                            "valve")
 
     def report(self, request: Request, session: Session) -> Response:
         row = views.test_row(session.store, int(request.path_params.get("test_id", 0)))

@@ -11,6 +11,7 @@ from typing import Any
 import sqlalchemy as sa
 
 from edc_bench.history.rig_ledger import COLUMNS
+from edc_bench.history.rows import TestRow
 from edc_bench.history.schema import adoptions, amendments, reference_valves, rig_checks, tests
 from edc_bench.history.store import HistoryStore, standing_tests
 from edc_bench.learning.candidate_evaluation import CandidateEvaluation
@@ -206,7 +207,7 @@ class Indexing:
     """One indexing of a valve's test: its row, and ``state``: ``standing`` (its test as it stands), ``withdrawn``
     (its test withdrawn) or ``change`` (indexed again with other content: not what stands)."""
 
-    row: sa.RowMapping
+    row: TestRow
     state: str
     #: the row is not as its chain stored it (edited, or put in or taken out beside it): not to be trusted
     altered: bool = False
@@ -222,8 +223,8 @@ def valve_tests(store: HistoryStore, valve_id: str) -> list[Indexing]:
         rows = list(conn.execute(query))
     withdrawn_keys = {r.test_key for r in rows if r.withdrawn_row}
     altered = store.altered_tests([r.id for r in rows])
-    return [Indexing(r._mapping, "withdrawn" if r.test_key in withdrawn_keys else "standing" if r.standing
-                     else "change", r.id in altered) for r in rows]
+    return [Indexing(TestRow.of(r._mapping), "withdrawn" if r.test_key in withdrawn_keys else "standing"
+                     if r.standing else "change", r.id in altered) for r in rows]
 
 
 def test_row(store: HistoryStore, test_id: int) -> sa.Row[Any] | None:

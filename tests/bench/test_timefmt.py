@@ -82,7 +82,7 @@ def test_history_listings_and_a_teardowns_time_are_local_as_a_technician_in_berl
     assert done.returncode == 0, done.stderr
     assert "labels the test of 2026-11-26 11:04 +01:00" in done.stdout, done.stdout
     with HistoryStore(url) as store:
-        assert [r["labelled_at"] for r in store.teardowns()] == ["2026-11-26T13:00:00+00:00"]
+        assert [r.labelled_at for r in store.teardowns()] == ["2026-11-26T13:00:00+00:00"]
     audit = edc_bench("history", "--audit", "V1", "--db", url, env=env)
     assert audit.returncode == 0, audit.stderr
     written = " ".join(audit.stdout.split())

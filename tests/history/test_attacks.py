@@ -102,7 +102,7 @@ def test_a_forged_station_login_time_and_id_are_the_servers_own(chain: dict[str,
     assert stored["station"] == "Werkstatt Nord 3" and stored["db_login"] == "bench3"
     assert stored["indexed_at"] > "2026-"  # the server's clock, not the row's claim
     listed = HistoryStore(chain["owner"]).list()
-    assert [(r["valve_id"], r["station"]) for r in listed] == [("V-1", "Werkstatt Nord 3")]
+    assert [(r.valve_id, r.station) for r in listed] == [("V-1", "Werkstatt Nord 3")]
     assert _verify(chain["owner"], "--station", "Werkstatt Nord 3").stdout.count("missing:") == 1  # a phantom folder
 
 
@@ -113,7 +113,7 @@ def test_a_row_without_a_test_key_cannot_hide_the_others(chain: dict[str, str]) 
     assert stored["test_key"] == "folder:/records/V-nokey"
     with HistoryStore(chain["ines"]) as engineer:
         engineer.withdraw_test(stored["id"], "never tested")
-    assert [r["valve_id"] for r in HistoryStore(chain["owner"]).list()] == ["V-kept"]
+    assert [r.valve_id for r in HistoryStore(chain["owner"]).list()] == ["V-kept"]
 
 
 def test_a_block_of_ids_ahead_of_the_sequence_blocks_no_station(chain: dict[str, str]) -> None:
@@ -121,7 +121,7 @@ def test_a_block_of_ids_ahead_of_the_sequence_blocks_no_station(chain: dict[str,
         _raw_insert(chain["bench3"], {**_row(f"V-block-{n}"), "id": 2 + n})  # the ids the next rows would take
     with HistoryStore(chain["bench4"]) as other:
         assert other.add_row(_row("V-after")) == "new"  # the next station's indexing is not refused
-    ids = [r["id"] for r in HistoryStore(chain["owner"]).list()]
+    ids = [r.id for r in HistoryStore(chain["owner"]).list()]
     assert len(set(ids)) == 6
 
 
@@ -132,12 +132,12 @@ def test_a_copy_of_another_stations_fail_as_pass_is_refused(chain: dict[str, str
     # the same test and hash (copied from the readable row): the unique key refuses it
     with pytest.raises(psycopg.errors.UniqueViolation):
         _raw_insert(chain["bench3"], {**_row("V-2", "PASS", key="K-2", sha="b" * 64),
-                                      "record_manifest": original["record_sha256"]})
+                                      "record_manifest": original.record_sha256})
     # the same test with other content: refused, it is another station's test
     with pytest.raises(psycopg.errors.InsufficientPrivilege, match="first indexed by another station"):
         _raw_insert(chain["bench3"], _row("V-2", "PASS", key="K-2", sha="c" * 64))
     listed = HistoryStore(chain["owner"]).list()
-    assert [(r["verdict"], r["station"], r["changes"]) for r in listed] == [("FAIL", "Werkstatt Süd 4", 0)]
+    assert [(r.verdict, r.station, r.changes) for r in listed] == [("FAIL", "Werkstatt Süd 4", 0)]
 
 
 def test_a_backdated_pass_for_a_folder_that_never_existed_is_the_attackers_and_found_missing(
@@ -146,7 +146,7 @@ def test_a_backdated_pass_for_a_folder_that_never_existed_is_the_attackers_and_f
                                   "record_dir": "/records/never-there"})
     found = _verify(chain["owner"], "--station", "Werkstatt Nord 3")
     assert found.returncode == 16 and "missing: test" in found.stdout and "never-there" in found.stdout
-    assert "Werkstatt Nord 3" in HistoryStore(chain["owner"]).list()[0]["station"]  # attributed to its writer
+    assert "Werkstatt Nord 3" in HistoryStore(chain["owner"]).list()[0].station  # attributed to its writer
     # the other station's own check is not disturbed by it
     assert _verify(chain["owner"], "--station", "Werkstatt Süd 4").returncode == 0
 
@@ -164,12 +164,12 @@ def test_a_forged_rig_self_check_for_another_station_is_refused(chain: dict[str,
         reference = engineer.add_reference({
             "station": "Werkstatt Süd 4", "valve_id": "REF-1", "variant": "p-edc-default", "simulated": True,
             "software_version": "0.1.0", "registered_by": "someone else"})
-    assert reference["registered_by"] == "Ines Braun" and reference["db_login"] == "ines"  # the login's person
+    assert reference.registered_by == "Ines Braun" and reference.db_login == "ines"  # the login's person
     with psycopg.connect(_dsn(chain["bench3"])) as conn:
         with pytest.raises(psycopg.errors.InsufficientPrivilege, match="is not station Werkstatt Nord 3's"):
             conn.execute("INSERT INTO rig_checks (station, reference_id, verdict, causes, words, simulated, "
                          "software_version, checked_by, checked_at) VALUES ('Werkstatt Süd 4', %s, 'NO-GO', 'af', "
-                         "'drifted', true, '0.1.0', 'x', '2020-01-01')", (reference["id"],))
+                         "'drifted', true, '0.1.0', 'x', '2020-01-01')", (reference.id,))
     assert HistoryStore(chain["owner"]).rig_checks() == []
 
 
@@ -236,7 +236,7 @@ def test_a_stations_claim_that_its_row_is_a_tests_first_indexing_is_the_servers_
     stored = _insert_claiming_first(chain["bench3"], _row("V-70", "PASS", key="K-70", sha="e" * 64))
     assert stored["first_indexing"] is False
     listed = HistoryStore(chain["owner"]).list()
-    assert [(r["verdict"], r["changes"]) for r in listed] == [("FAIL", 1)]
+    assert [(r.verdict, r.changes) for r in listed] == [("FAIL", 1)]
     assert "says it is" not in _verify(chain["owner"]).stdout
 
 
@@ -273,7 +273,7 @@ def test_two_stations_indexing_one_test_at_once_cannot_both_be_its_first(chain: 
     thread.join(30)
     assert len(outcome) == 1 and isinstance(outcome[0], psycopg.errors.InsufficientPrivilege), outcome
     listed = HistoryStore(chain["owner"]).list()
-    assert [(r["verdict"], r["station"]) for r in listed] == [("FAIL", "Werkstatt Süd 4")]
+    assert [(r.verdict, r.station) for r in listed] == [("FAIL", "Werkstatt Süd 4")]
 
 
 def test_a_sqlite_row_forged_as_a_tests_first_indexing_is_named_by_verify(tmp_path: Path) -> None:
@@ -285,7 +285,7 @@ def test_a_sqlite_row_forged_as_a_tests_first_indexing_is_named_by_verify(tmp_pa
     url = f"sqlite:///{path}"
     with HistoryStore(url) as store:
         store.add_row({**_row("V-72", "FAIL", key="K-72", sha="1" * 64), "station": "bench1"})
-        stored = dict(store.list()[0])
+        stored = store.list()[0]
     with sqlite3.connect(path) as conn:
         conn.row_factory = sqlite3.Row
         last = dict(conn.execute("SELECT * FROM tests ORDER BY id DESC LIMIT 1").fetchone())
@@ -294,7 +294,7 @@ def test_a_sqlite_row_forged_as_a_tests_first_indexing_is_named_by_verify(tmp_pa
         forged["row_hash"] = row_hash("tests", forged["prev_hash"], {**forged, "first_indexing": True})
         conn.execute(f"INSERT INTO tests ({', '.join(forged)}) VALUES ({', '.join('?' * len(forged))})",
                      list(forged.values()))
-    assert stored["verdict"] == "FAIL"
+    assert stored.verdict == "FAIL"
     for _ in range(2):
         found = _verify(url)
         assert found.returncode == 16
@@ -398,7 +398,7 @@ def test_the_report_prints_the_tests_chain_hash_on_the_customers_page(fail_dir: 
     with HistoryStore(url) as store:
         head = store.heads()[0]
     page_1 = extract_text(str(folder / "report.pdf"), page_numbers=[0])
-    assert f"history test {head['id']}, chain {head['row_hash'][:16]}" in page_1
+    assert f"history test {head.id}, chain {head.row_hash[:16]}" in page_1
 
 
 def test_a_withdrawn_tests_copy_stays_withdrawn(fail_dir: Path, tmp_path: Path, station_url: str) -> None:
@@ -440,7 +440,7 @@ def test_four_concurrent_adds_of_the_same_folders_store_each_test_once(fail_dir:
     assert [proc.returncode for proc in procs] == [0] * 4, [err for _, err in outs]
     with HistoryStore(station_url) as store:
         rows = store.list()
-        assert len(rows) == 12 and all(r["changes"] == 0 for r in rows)
+        assert len(rows) == 12 and all(r.changes == 0 for r in rows)
         assert store.chain_breaks() == []
     with sa.create_engine(station_url).connect() as conn:
         assert conn.exec_driver_sql("SELECT count(*) FROM tests").scalar() == 12  # not 17 to 22
@@ -613,7 +613,7 @@ def test_an_engineer_files_a_finding_only_as_itself(chain: dict[str, str]) -> No
         station.add_row(_row("V-9"))
     with HistoryStore(chain["ines"]) as engineer:
         finding = engineer.add_teardown("V-9", "worn", labelled_by="Chief Engineer Weber", labelled_at="2026-11-20")
-    assert finding["recorded_by"] == "Ines Braun" and finding["labelled_by"] == "Chief Engineer Weber"
+    assert finding.recorded_by == "Ines Braun" and finding.labelled_by == "Chief Engineer Weber"
     audit = json.loads(edc_bench("history", "--audit", "V-9", "--json", "--db", chain["owner"]).stdout)
     assert [(e["event"], e["by"]) for e in audit][-1] == ("finding recorded", "Ines Braun")
     assert "opened 2026-11-20 by Chief Engineer Weber" in audit[-1]["what"]
@@ -701,7 +701,7 @@ def test_a_sqlite_row_edited_in_place_is_the_one_a_valves_page_calls_altered(tmp
     with HistoryStore(url) as store:
         for valve in ("V-90", "V-91", "V-92"):
             store.add_row({**_row(valve, "FAIL"), "station": "bench1"})
-        ids = [int(r["id"]) for r in store.list()]
+        ids = [int(r.id) for r in store.list()]
         assert store.altered_tests(ids) == set()
     with sqlite3.connect(path) as conn:
         conn.execute("DROP TRIGGER tests_no_update")

@@ -57,8 +57,8 @@ def test_the_chain_revision_keeps_every_row_and_anchors_the_old_ones(old_history
         assert store.chain_breaks() == []
         listed = store.list()
         # the folder indexed twice before: its first indexing stands, the second is its change
-        assert [(r["valve_id"], r["verdict"], r["changes"]) for r in listed] == [("V1", "FAIL", 1), ("V2", "PASS", 0)]
-        assert listed[0]["test_key"] == legacy_test_key("2026-05-01T08:00:00+00:00", "V1", "S", "bench1")
+        assert [(r.valve_id, r.verdict, r.changes) for r in listed] == [("V1", "FAIL", 1), ("V2", "PASS", 0)]
+        assert listed[0].test_key == legacy_test_key("2026-05-01T08:00:00+00:00", "V1", "S", "bench1")
         assert len(store.teardowns()) == 1
         # a new row follows the anchor of its chain
         assert store.add_row({"record_dir": "/r/c", "started_at": "2026-06-01T08:00:00+00:00", "valve_id": "V3",
@@ -67,9 +67,9 @@ def test_the_chain_revision_keeps_every_row_and_anchors_the_old_ones(old_history
                               "software_version": "0.1.0", "reason": "", "record_sha256": "d" * 64}) == "new"
         # old rows say nothing of their first indexing (revision 0008): readers ask the rows before them, as
         # above; the rows added since say it, and one indexed again is a change beside the old ones
-        row = {**store.list()[0], "record_sha256": "e" * 64, "verdict": "INVALID"}
+        row = {**store.list()[0].columns(), "record_sha256": "e" * 64, "verdict": "INVALID"}
         assert store.add_row(row) == "changed"
-        assert [(r["valve_id"], r["verdict"], r["changes"]) for r in store.list()] == [
+        assert [(r.valve_id, r.verdict, r.changes) for r in store.list()] == [
             ("V1", "FAIL", 2), ("V2", "PASS", 0), ("V3", "PASS", 0)]
         assert store.first_indexing_mismatches() == [] and store.chain_breaks() == []
     with sa.create_engine(old_history).connect() as conn:

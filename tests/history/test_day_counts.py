@@ -89,8 +89,8 @@ def indexed(postgres_db: str) -> str:
         assert store.add_row({**twice, "verdict": "PASS", "record_sha256": "c" * 64}) == "changed"
         gone = _row("bench1", "2026-11-03T15:00:00+00:00", "FAIL")
         store.add_row(gone)
-        withdrawn = next(r for r in store.list() if r["record_dir"] == gone["record_dir"])
-        store.withdraw_test(withdrawn["id"], "mounted the wrong valve")
+        withdrawn = next(r for r in store.list() if r.record_dir == gone["record_dir"])
+        store.withdraw_test(withdrawn.id, "mounted the wrong valve")
         store.map_login("login1", "bench1", None, "admin", shop="Nord")
         # months around it: a whole October, a day either side, another pump type, an October test withdrawn
         for started in ("2026-09-30T20:00:00+00:00", "2026-10-01T00:00:00+00:00", "2026-10-15T12:00:00+00:00",
@@ -99,7 +99,7 @@ def indexed(postgres_db: str) -> str:
             store.add_row(_row("bench2", started, "FAIL", variant="p-edc-other", part_number="PO"))
         gone = _row("bench2", "2026-10-20T15:00:00+00:00", "FAIL", variant="p-edc-other", part_number="PO")
         store.add_row(gone)
-        store.withdraw_test(next(r for r in store.list() if r["record_dir"] == gone["record_dir"])["id"], "wrong pump")
+        store.withdraw_test(next(r for r in store.list() if r.record_dir == gone["record_dir"]).id, "wrong pump")
     return postgres_db
 
 

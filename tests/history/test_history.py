@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from edc_bench.history.rows import TestRow
 from edc_bench.history.store import Filters, HistoryStore, write_csv
 from edc_bench.records.reader import typed_record
 from edc_bench.records.schema import Record
@@ -42,18 +43,18 @@ def test_filters_trend_and_csv(db_url: str, tmp_path: Path) -> None:
         # indexing a folder again: a new row, and the folder's newest row is the test as it stands
         store.add(_record("V2", "2026-11-20T09:30:00+00:00", serial="S-2", variant="p-edc-long"), tmp_path / "d")
         assert len(store.list()) == 4
-        assert [r["verdict"] for r in store.list(Filters(valve_id="V1"))] == ["PASS", "FAIL", "INVALID"]
-        assert [r["valve_id"] for r in store.list(Filters(pump_serial="S-2"))] == ["V2"]
-        assert [r["valve_id"] for r in store.list(Filters(variant="p-edc-long"))] == ["V2"]
+        assert [r.verdict for r in store.list(Filters(valve_id="V1"))] == ["PASS", "FAIL", "INVALID"]
+        assert [r.valve_id for r in store.list(Filters(pump_serial="S-2"))] == ["V2"]
+        assert [r.valve_id for r in store.list(Filters(variant="p-edc-long"))] == ["V2"]
         assert len(store.list(Filters(variant="PE-EDC-0001"))) == 4  # by part number too
-        assert [r["verdict"] for r in store.list(Filters(verdict="FAIL"))] == ["FAIL"]
+        assert [r.verdict for r in store.list(Filters(verdict="FAIL"))] == ["FAIL"]
         assert len(store.list(Filters(since="2026-11-15", until="2026-11-16"))) == 2  # the until day is included
-        assert [r["started_at"][:10] for r in store.list(limit=1)] == ["2026-11-20"]
+        assert [r.started_at[:10] for r in store.list(limit=1)] == ["2026-11-20"]
         trend = store.trend("V1")  # trustworthy visits only, oldest first
-        assert [r["verdict"] for r in trend] == ["PASS", "FAIL"]
-        assert trend[1]["af_rel"] == pytest.approx(0.11 / 0.07)
+        assert [r.verdict for r in trend] == ["PASS", "FAIL"]
+        assert trend[1].af_rel == pytest.approx(0.11 / 0.07)
         invalid = store.list(Filters(verdict="INVALID"))[0]
-        assert invalid["reason"] == "interrupted by the operator" and invalid["probability_faulty"] is None
+        assert invalid.reason == "interrupted by the operator" and invalid.probability_faulty is None
         out = io.StringIO()
         assert write_csv(store.list(), out) == 4
     rows = list(csv.DictReader(io.StringIO(out.getvalue())))
@@ -81,7 +82,7 @@ def test_concurrent_writers_all_land(db_url: str, tmp_path: Path) -> None:
     with HistoryStore(db_url) as store:
         rows = store.list()
     assert len(rows) == 80
-    assert len({r["record_dir"] for r in rows}) == 80
+    assert len({r.record_dir for r in rows}) == 80
 
 
 def _dies_in_transaction(url: str, folder: str) -> None:
@@ -105,7 +106,7 @@ def test_a_writer_killed_mid_transaction_leaves_no_trace(db_url: str, tmp_path: 
     proc.join(60)
     assert proc.exitcode == 1
     with HistoryStore(db_url) as store:
-        assert [r["valve_id"] for r in store.list()] == ["V1"]
+        assert [r.valve_id for r in store.list()] == ["V1"]
         store.add(_record("V3", "2026-11-22T12:00:00+00:00"), tmp_path / "after")  # still writable
         assert len(store.list()) == 2
 
@@ -135,17 +136,17 @@ def test_two_bench_tests_finishing_at_once_and_an_aborted_one_are_all_indexed(tm
     assert interrupted.returncode == 130, err  # interrupted (README's exit codes); the record says INVALID
     assert json.loads(out)["verdict"] == "INVALID"
     with HistoryStore(url) as store:
-        rows = {r["valve_id"]: r for r in store.list()}
+        rows = {r.valve_id: r for r in store.list()}
     assert set(rows) == {"V-new", "V-worn", "V-stopped"}
-    assert rows["V-new"]["verdict"] == "PASS" and rows["V-worn"]["verdict"] == "FAIL"
-    assert rows["V-worn"]["pump_serial"] == "P-77"
-    assert rows["V-stopped"]["verdict"] == "INVALID" and "interrupted" in rows["V-stopped"]["reason"]
+    assert rows["V-new"].verdict == "PASS" and rows["V-worn"].verdict == "FAIL"
+    assert rows["V-worn"].pump_serial == "P-77"
+    assert rows["V-stopped"].verdict == "INVALID" and "interrupted" in rows["V-stopped"].reason
     # how each went: coil, model fit, when and why it stopped
     for name in ("V-new", "V-worn"):
-        assert rows[name]["coil_in_spec"] is True and rows[name]["coil_r20_ohm"] == pytest.approx(0.7, rel=0.1)
-        assert rows[name]["model_fits"] is True
-        assert rows[name]["stop_reason"] == "verdict certain" and rows[name]["test_s"] == pytest.approx(10.0, abs=0.1)
-    assert rows["V-stopped"]["stop_reason"] == "aborted" and 0 < rows["V-stopped"]["test_s"] < 600
+        assert rows[name].coil_in_spec is True and rows[name].coil_r20_ohm == pytest.approx(0.7, rel=0.1)
+        assert rows[name].model_fits is True
+        assert rows[name].stop_reason == "verdict certain" and rows[name].test_s == pytest.approx(10.0, abs=0.1)
+    assert rows["V-stopped"].stop_reason == "aborted" and 0 < rows["V-stopped"].test_s < 600
     assert (tmp_path / "station.sqlite-wal").exists() or (tmp_path / "station.sqlite").exists()
 
 
@@ -198,10 +199,12 @@ def test_a_pump_the_model_does_not_fit_is_kept_as_such(tmp_path: Path) -> None:
 
 def test_csv_export_never_hands_a_spreadsheet_a_formula(tmp_path: Path) -> None:
     """An id typed as '=HYPERLINK(...)' (or starting +, -, @) is exported as text; numbers stay numbers."""
-    rows = [{"valve_id": '=HYPERLINK("http://x","open")', "pump_serial": "+41", "operator": "@ana",
-             "station": "-bay 2", "af_rel": -0.25, "distance": -0.6, "reason": "plain text"}]
+    shown = {"valve_id": '=HYPERLINK("http://x","open")', "pump_serial": "+41", "operator": "@ana",
+             "station": "-bay 2", "af_rel": -0.25, "distance": -0.6, "reason": "plain text"}
+    row = TestRow(id=1, record_dir="/records/r1", started_at="2026-11-27T08:00:00+00:00", variant="p-edc-default",
+                  part_number="PE", verdict="PASS", clock="simulated", software_version="0.1.0", **shown)
     out = io.StringIO()
-    write_csv(rows, out, columns=list(rows[0]))
+    write_csv([row], out, columns=list(shown))
     (read,) = csv.DictReader(io.StringIO(out.getvalue()))
     assert read == {"valve_id": '\'=HYPERLINK("http://x","open")', "pump_serial": "'+41", "operator": "'@ana",
                     "station": "'-bay 2", "af_rel": "-0.25", "distance": "-0.6", "reason": "plain text"}

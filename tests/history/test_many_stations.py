@@ -49,10 +49,10 @@ def _engineer(url: str, start: Any, results: Any) -> None:
     with HistoryStore(url) as store:
         deadline = time.monotonic() + 240
         while time.monotonic() < deadline:
-            for row in [r for r in store.list() if r["valve_id"] not in opened][:3]:  # valves tested, not yet opened
-                finding = "worn" if row["af_rel"] > 1.3 else "reusable"
-                store.add_teardown(row["valve_id"], finding, labelled_by="ines", labelled_at="2026-11-26T23:00")
-                opened.add(row["valve_id"])
+            for row in [r for r in store.list() if r.valve_id not in opened][:3]:  # valves tested, not yet opened
+                finding = "worn" if row.af_rel > 1.3 else "reusable"
+                store.add_teardown(row.valve_id, finding, labelled_by="ines", labelled_at="2026-11-26T23:00")
+                opened.add(row.valve_id)
                 labels += 1
             labelled = labelled_tests(store)
             if trainings == 0 and len(labelled.labels) >= MIN_LABELS and 5 <= labelled.labels.sum() \
@@ -95,13 +95,13 @@ def test_eight_stations_and_an_engineer_at_once_lose_nothing(postgres_db: str) -
     with HistoryStore(postgres_db) as store:
         rows = store.list()
         teardowns = store.teardowns()
-    per_station = {n: sum(r["station"] == f"bench{n}" for r in rows) for n in range(STATIONS)}
+    per_station = {n: sum(r.station == f"bench{n}" for r in rows) for n in range(STATIONS)}
     print(f"\n{STATIONS} stations x {TESTS_PER_STATION} tests in {elapsed:.1f} s: {len(rows)} rows, "
           f"per station {sorted(per_station.values())}; engineer: {engineer['labels']} findings, "
           f"{engineer['trainings']} training(s) from the history, {engineer['exports']} exports; {len(teardowns)} findings "
           "stored")
     assert len(rows) == STATIONS * TESTS_PER_STATION  # nothing lost
-    assert len({r["record_dir"] for r in rows}) == len(rows)  # every row once
+    assert len({r.record_dir for r in rows}) == len(rows)  # every row once
     assert all(count == TESTS_PER_STATION for count in per_station.values())
     assert len(teardowns) == engineer["labels"] > 0 and engineer["exports"] > 0 and engineer["trainings"] == 1
     assert store_breaks(postgres_db) == []  # eight writers at once, and every station's chain holds

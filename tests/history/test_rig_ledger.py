@@ -53,15 +53,15 @@ def test_revision_0005_on_an_older_history_keeps_its_rows_and_refuses_changes_to
     with HistoryStore(url) as store:  # a station's SQLite file is upgraded when opened
         with store.engine.connect() as conn:
             assert migrate.current(conn) == migrate.head()
-        assert [r["valve_id"] for r in store.list()] == ["V1"] and len(store.teardowns()) == 1
+        assert [r.valve_id for r in store.list()] == ["V1"] and len(store.teardowns()) == 1
         assert store.reference("bench1") is None and store.rig_checks() == []
         first = store.add_reference(_reference_row())
         second = store.add_reference(_reference_row(valve_id="REF-2"))  # a registration again: a new row
         registration = Registration.of(store.reference("bench1"))
-        assert registration is not None and registration.id == second["id"] != first["id"]
+        assert registration is not None and registration.id == second.id != first.id
         assert registration.values == VALUES and not registration.simulated
-        store.add_rig_check(_check_row(second["id"]))
-        assert [c["verdict"] for c in store.rig_checks("bench1", second["id"])] == ["GO"]
+        store.add_rig_check(_check_row(second.id))
+        assert [c.verdict for c in store.rig_checks("bench1", second.id)] == ["GO"]
         assert store.tests_since("bench1", "2026-04-30") == 1 and store.tests_since("bench1", "2026-05-02") == 0
     with sqlite3.connect(path) as conn:
         for sql in ("UPDATE reference_valves SET af_v = 1", "DELETE FROM reference_valves",
@@ -111,10 +111,10 @@ def test_a_station_adds_checks_and_only_an_engineer_registers(new_postgres_datab
             station.add_reference(_reference_row())
     with HistoryStore(url.replace("://postgres@", "://ines7@")) as engineer:
         reference = engineer.add_reference(_reference_row())
-        assert reference["db_login"] == "ines7"
+        assert reference.db_login == "ines7"
     with HistoryStore(url.replace("://postgres@", "://bench7@")) as station:
-        check = station.add_rig_check(_check_row(reference["id"], "NO-GO"))
-        assert check["db_login"] == "bench7" and station.rig_checks("bench1")[0]["verdict"] == "NO-GO"
+        check = station.add_rig_check(_check_row(reference.id, "NO-GO"))
+        assert check.db_login == "bench7" and station.rig_checks("bench1")[0].verdict == "NO-GO"
     with owner.connect() as conn:
         for sql in ("UPDATE rig_checks SET verdict = 'GO'", "DELETE FROM reference_valves", "TRUNCATE rig_checks"):
             with pytest.raises(sa.exc.DBAPIError, match="append-only"):

@@ -156,11 +156,11 @@ def test_the_owner_sees_and_applies_each_schema_change(new_postgres_database: Ca
     again = edc_bench("history", "--upgrade", "--db", url)
     assert "nothing to apply" in again.stdout
     with HistoryStore(url) as store:
-        assert [r["valve_id"] for r in store.list()] == ["V1"]
-        row = {key: value for key, value in store.list()[0].items() if key != "id"}
+        assert [r.valve_id for r in store.list()] == ["V1"]
+        row = {key: value for key, value in store.list()[0].columns().items() if key != "id"}
         store.add_row({**row, "verdict": "FAIL"})  # the test indexed again with other content: a change
         # its first indexing stands, and the change is shown with it
-        assert [(r["verdict"], r["changes"]) for r in store.list()] == [("PASS", 1)] and len(store.audit("V1")) == 2
+        assert [(r.verdict, r.changes) for r in store.list()] == [("PASS", 1)] and len(store.audit("V1")) == 2
     with sa.create_engine(url).begin() as conn:
         assert migrate.current(conn) == migrate.head()
         conn.exec_driver_sql("ALTER TABLE alembic_version DISABLE TRIGGER ALL")
@@ -313,17 +313,17 @@ def test_a_test_on_the_simulated_rig_is_marked_and_left_out_of_trends_and_traini
     assert record.simulated_rig
     with HistoryStore(url) as store:
         store.add(record, record_dir)
-        rig_row = {key: value for key, value in store.list()[0].items() if key != "id"}
+        rig_row = {key: value for key, value in store.list()[0].columns().items() if key != "id"}
         # a test on a rig a minute after the simulated one (a fixed date stopped being later at midnight)
         later = (dt.datetime.fromisoformat(record.started_at) + dt.timedelta(minutes=1)).isoformat()
         store.add_row({**rig_row, "record_dir": "/records/on-a-rig", "simulated": False, "test_key": "on-a-rig",
                        "legacy_key": "on-a-rig", "started_at": later})
         store.add_teardown(record.valve_id, "worn", labelled_by="ana", labelled_at="2099-01-01")
-        assert [r["simulated"] for r in store.list()] == [True, False]  # listed, and marked
-        assert [r["simulated"] for r in store.list(Filters(simulated=False))] == [False]
-        assert [r["record_dir"] for r in store.trend(record.valve_id)] == ["/records/on-a-rig"]
+        assert [r.simulated for r in store.list()] == [True, False]  # listed, and marked
+        assert [r.simulated for r in store.list(Filters(simulated=False))] == [False]
+        assert [r.record_dir for r in store.trend(record.valve_id)] == ["/records/on-a-rig"]
         assert len(store.trend(record.valve_id, include_simulated=True)) == 2
-        assert [r["record_dir"] for r in store.labelled_tests()] == ["/records/on-a-rig"]
+        assert [m.test.record_dir for m in store.labelled_tests() if m.test is not None] == ["/records/on-a-rig"]
     listing = edc_bench("history", "--db", url)
     assert "sim: 1 on the simulated rig" in " ".join(listing.stdout.split())  # the title wraps with the path's length
     only_simulated = f"sqlite:///{tmp_path / 'sim.sqlite'}"

@@ -49,27 +49,27 @@ def test_a_teardown_labels_the_valves_last_judged_test_before_it(tmp_path: Path)
         store.add_teardown("V1", "worn", labelled_by="ana", labelled_at="2026-05-03", clearance_mm=0.21)
         store.add_teardown("V9", "reusable", labelled_by="ana", labelled_at="2026-05-03")  # never tested
         labelled = store.labelled_tests()
-        assert [(r["valve_id"], r["af_rel"], r["label"], r["teardown_clearance_mm"]) for r in labelled] == \
-            [("V1", 1.3, 1, 0.21)]
-        assert [r["valve_id"] for r in store.unmatched_teardowns()] == ["V9"]
+        assert [(m.test.valve_id, m.test.af_rel, m.label, m.teardown.clearance_mm) for m in labelled
+                if m.test is not None] == [("V1", 1.3, 1, 0.21)]
+        assert [m.teardown.valve_id for m in store.unmatched_teardowns()] == ["V9"]
         with pytest.raises(ConfigError, match="reusable, worn, faulty"):
             store.add_teardown("V1", "broken", labelled_by="ana", labelled_at="2026-05-03")
         # opened again a week later with no test between: that teardown labels nothing (a test labels once)
         store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-08")
-        assert [(r["af_rel"], r["finding"]) for r in store.labelled_tests()] == [(1.3, "worn")]
+        assert [(m.test.af_rel, m.teardown.finding) for m in store.labelled_tests() if m.test] == [(1.3, "worn")]
         # the finding was a typing error: withdrawn, and the second corrected; the right one labels the test
         first = store.teardowns("V1")[0]
-        store.withdraw_teardown(first["id"], "typed worn for reusable")
+        store.withdraw_teardown(first.id, "typed worn for reusable")
         second = store.teardowns("V1")[0]
-        store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-03", corrects=second["id"])
-        assert [(r["af_rel"], r["finding"]) for r in store.labelled_tests()] == [(1.3, "reusable")]
+        store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-03", corrects=second.id)
+        assert [(m.test.af_rel, m.teardown.finding) for m in store.labelled_tests() if m.test] == [(1.3, "reusable")]
         with pytest.raises(ConfigError, match="no teardown finding with id 999"):
             store.withdraw_teardown(999, "no such")
-        with pytest.raises(ConfigError, match=f"finding {first['id']} is withdrawn or corrected already"):
-            store.withdraw_teardown(first["id"], "twice")
+        with pytest.raises(ConfigError, match=f"finding {first.id} is withdrawn or corrected already"):
+            store.withdraw_teardown(first.id, "twice")
         # nothing was deleted: the audit trail holds all three findings and the withdrawal
-        events = [e["event"] for e in store.audit("V1")]
-        assert events.count("finding recorded") == 3 and f"finding {first['id']} withdrawn" in events
+        events = [e.event for e in store.audit("V1")]
+        assert events.count("finding recorded") == 3 and f"finding {first.id} withdrawn" in events
 
 
 def test_an_older_history_gets_the_new_columns_and_keeps_its_rows(tmp_path: Path) -> None:
@@ -87,10 +87,10 @@ def test_an_older_history_gets_the_new_columns_and_keeps_its_rows(tmp_path: Path
                      "'0.1.0', '')")
     with HistoryStore(f"sqlite:///{path}") as store:
         rows = store.list()
-        assert len(rows) == 1 and rows[0]["af_rel"] == 1.1 and rows[0]["model_name"] is None
-        assert rows[0]["model_fits"] is None and rows[0]["record_sha256"] is None
+        assert len(rows) == 1 and rows[0].af_rel == 1.1 and rows[0].model_name is None
+        assert rows[0].model_fits is None and rows[0].record_sha256 is None
         store.add_teardown("V1", "reusable", labelled_by="ana", labelled_at="2026-05-02")
-        assert store.labelled_tests()[0]["label"] == 0
+        assert store.labelled_tests()[0].label == 0
         with store.engine.connect() as conn:
             assert migrate.current(conn) == migrate.head()
     with sqlite3.connect(path) as conn, pytest.raises(sqlite3.IntegrityError, match="append-only"):
@@ -217,7 +217,7 @@ def test_an_adoption_keeps_in_the_history_what_it_was_decided_on(tmp_path: Path)
     assert back.returncode == 0, back.stderr
     with HistoryStore(url) as store:
         rows = store.adoptions()
-    assert [CandidateEvaluation.from_json(r["evaluation"]) for r in rows] == [carried, None]  # shipped: none
+    assert [CandidateEvaluation.from_json(r.evaluation) for r in rows] == [carried, None]  # shipped: none
     assert CandidateEvaluation.from_json('{"folds": "five"}') is None and CandidateEvaluation.from_json("[") is None
 
 
@@ -253,7 +253,7 @@ def test_a_record_names_its_model_and_replays_with_it_after_the_station_changed_
     with HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}") as store:
         store.add(load_record(folder), folder)
         row = store.list()[-1]
-    assert (row["model_name"], row["model_sha256"]) == (result.name, adoption["sha256"])
+    assert (row.model_name, row.model_sha256) == (result.name, adoption["sha256"])
     adopt_shipped()  # the station goes back; the record still replays with the model that judged it
     report = replay_record(folder)
     assert report.reproduced, report.differences

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from helpers import edc_bench
 
+from edc_bench.history.rows import TestRow
 from edc_bench.history.schema import COLUMNS
 from edc_bench.history.store import HistoryStore
 from edc_bench.history.visits import visits, with_visit_decisions
@@ -31,6 +32,7 @@ def test_a_retest_joins_its_first_test_in_one_visit_with_the_pairs_decision() ->
             {**_row(2, "V2", "PASS", "2026-11-27T08:01:00+00:00"), "id": 2},
             {**_row(3, "V1", "MARGINAL", "2026-11-27T08:02:00+00:00", "/records/r1", "FAIL"), "id": 3},
             {**_row(4, "V3", "MARGINAL", "2026-11-27T08:03:00+00:00", "/records/gone", "PASS"), "id": 4}]
+    rows = [TestRow.of(row) for row in rows]
     shown = visits(rows)
     assert [(v.ids, v.verdicts, v.decision) for v in shown] == [
         ("1+3", "MARGINAL then MARGINAL", "FAIL"), ("2", "PASS", "PASS"),
@@ -76,7 +78,7 @@ def test_at_80_columns_the_listing_keeps_the_visit_and_its_decision_whole() -> N
              "station": "bench-2", "operator": "m.keller", "variant": "p-edc-default", "changes": 0}]
     for width in (80, 120, 200):
         console = Console(width=width, record=True, color_system=None)
-        history_table(rows, "sqlite:///h.sqlite", console)
+        history_table([TestRow.of(row) for row in rows], "sqlite:///h.sqlite", console)
         text = console.export_text()
         assert max(len(line) for line in text.splitlines()) <= width, text
         valve_column = "".join(line.split("│")[3].strip() for line in text.splitlines() if line.startswith("│"))
@@ -101,7 +103,7 @@ def test_the_trend_plot_shows_each_visit_against_the_limit_and_the_marginal_band
             start=1):
         row = {**_row(n, "V1", verdict, f"{day}T08:00:{n:02d}+00:00", retest_of, decision), "id": n,
                "distance": distance, "variant": "p-edc-default"}
-        rows.append(row)
+        rows.append(TestRow.of(row))
     drawn = []
     original = plt.Figure.savefig
 

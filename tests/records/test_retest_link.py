@@ -111,4 +111,4 @@ def test_a_retest_started_in_the_same_second_as_its_test_is_a_test_of_its_own_in
         assert store.add_row(row_from_record(first_record, first)) == "new"
         assert store.add_row(row_from_record(same_second, second)) == "new"
         rows = store.list()
-    assert [(r["verdict"], r["decision"]) for r in rows] == [("MARGINAL", None), ("MARGINAL", "FAIL")]
+    assert [(r.verdict, r.decision) for r in rows] == [("MARGINAL", None), ("MARGINAL", "FAIL")]

@@ -45,10 +45,10 @@ def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.Monke
 
     with HistoryStore(db[1]) as store:
         checks = store.rig_checks("bench1")
-        assert [(c["verdict"], c["causes"], c["checked_by"]) for c in checks] == [
-            ("GO", "", checks[0]["checked_by"]), ("NO-GO", "LVDT zero", "Bea Otto")]
-        assert checks[1]["lvdt_zero_mm"] == pytest.approx(0.055, abs=0.001) and checks[1]["simulated"]
-        assert store.reference("bench1")["registered_by"] == "ana"
+        assert [(c.verdict, c.causes, c.checked_by) for c in checks] == [
+            ("GO", "", checks[0].checked_by), ("NO-GO", "LVDT zero", "Bea Otto")]
+        assert checks[1].lvdt_zero_mm == pytest.approx(0.055, abs=0.001) and checks[1].simulated
+        assert store.reference("bench1").registered_by == "ana"
 
     code, out, err = run_cli(["history", "--rig", "--db", db[1]], capsys)
     assert code == 0, err
@@ -67,4 +67,4 @@ def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.Monke
     code, out, err = run_cli(["rig-selfcheck", "--register", "--valve-id", "REF-2", *db], capsys)
     assert code == 0 and "it replaces the registration of" in out and "(valve REF-1)" in out, out + err
     with HistoryStore(db[1]) as store:
-        assert store.reference("bench1")["valve_id"] == "REF-2" and len(store.references("bench1")) == 2
+        assert store.reference("bench1").valve_id == "REF-2" and len(store.references("bench1")) == 2

@@ -102,12 +102,12 @@ def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
     assert remembered_operator() == "Anna Schmidt"
     with HistoryStore(db) as store:
         rows = store.list()
-    assert [(r["valve_id"], r["pump_serial"], r["verdict"], r["decision"]) for r in rows] == [
+    assert [(r.valve_id, r.pump_serial, r.verdict, r.decision) for r in rows] == [
         ("worn", "PS-4471", "FAIL", None), ("clearance=0.185", "PS-4472", "MARGINAL", None),
         ("clearance=0.185", "PS-4472", "MARGINAL", "FAIL"), ("worn", "PS-4473", "FAIL", None)]
-    assert {r["operator"] for r in rows} == {"Anna Schmidt"} and {r["station"] for r in rows} == {"bench-3"}
+    assert {r.operator for r in rows} == {"Anna Schmidt"} and {r.station for r in rows} == {"bench-3"}
     for row in rows:
-        folder = Path(row["record_dir"])
+        folder = Path(row.record_dir)
         assert load_record(folder).identity.operator == "Anna Schmidt"
         assert (folder / "report.pdf").is_file() and (folder / "report-page.png").is_file()
     # the shift's summary, as a file
@@ -200,7 +200,7 @@ def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is
     assert [c.go for c in app.shift.rig_checks] == [False]
     with HistoryStore(db) as store:
         checks = store.rig_checks("bench-3")
-    assert [c["verdict"] for c in checks] == ["GO", "NO-GO"]
+    assert [c.verdict for c in checks] == ["GO", "NO-GO"]
 
 
 def test_a_due_rig_self_check_skipped_with_esc_is_kept_in_the_rigs_ledger(tmp_path: Path, capsys) -> None:
@@ -243,8 +243,8 @@ def test_a_due_rig_self_check_skipped_with_esc_is_kept_in_the_rigs_ledger(tmp_pa
         rows = store.rig_checks("bench-3")
         registration = Registration.of(store.reference("bench-3"))
         last = last_check(store, registration)
-    assert [(r["verdict"], r["checked_by"]) for r in rows] == [("SKIPPED", "Anna")]  # the F6 one is not kept
-    assert "it was due: the start of the shift" in rows[0]["words"]
+    assert [(r.verdict, r.checked_by) for r in rows] == [("SKIPPED", "Anna")]  # the F6 one is not kept
+    assert "it was due: the start of the shift" in rows[0].words
     assert last.go and last.at.isoformat(timespec="seconds") == registration.registered_at  # a skip is no check
     code, out, _ = run_cli(["history", "--rig", "--db", db, "--json"], capsys)
     (entry,) = json.loads(out)
@@ -306,7 +306,7 @@ def test_keys_typed_during_a_test_are_never_glued_to_the_next_valve_id(tmp_path:
     assert "'V-8888' was not taken: a test is running. Scan it again after the verdict." in sent
     assert "not taken during the test: 'V-8888': scan again" in after_sent
     with HistoryStore(db) as store:
-        assert [r["valve_id"] for r in store.list()] == ["new", "faulty"]
+        assert [r.valve_id for r in store.list()] == ["new", "faulty"]
 
 
 @pytest.mark.slow  # over 5 s each: the default suite's 5 minutes (CI's slow pass runs it)
@@ -399,7 +399,7 @@ def test_a_sigterm_while_the_next_test_waits_for_the_last_report_starts_no_test(
     assert "report ready" not in ended  # the worn valve's details did not come back over the next valve
     assert json.loads(summary)["ended_by"] == "interrupt"
     with HistoryStore(db) as store:
-        assert [r["valve_id"] for r in store.list()] == ["worn"]
+        assert [r.valve_id for r in store.list()] == ["worn"]
     assert len([p for p in out.iterdir() if p.is_dir()]) == 1
 
 

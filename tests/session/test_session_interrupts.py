@@ -91,4 +91,4 @@ def test_a_signal_mid_test_ends_it_safely_and_keeps_its_record_and_history_row(s
                        for f in can.LogReader(str(folder / "can.log")))
     with HistoryStore(session.url) as store:
         (row,) = store.list()
-    assert row["valve_id"] == "clearance=0.185" and row["verdict"] == "INVALID"
+    assert row.valve_id == "clearance=0.185" and row.verdict == "INVALID"

@@ -124,11 +124,11 @@ def test_a_shift_of_1500_tests_in_one_session_process(tmp_path: Path) -> None:
     with HistoryStore(db) as store:
         rows = store.list()
     assert len(rows) == app.shift.tests
-    assert {r["operator"] for r in rows} == {"Soak Tester"}
-    folders = [Path(r["record_dir"]) for r in rows]
+    assert {r.operator for r in rows} == {"Soak Tester"}
+    folders = [Path(r.record_dir) for r in rows]
     assert len(set(folders)) == len(folders)
     for folder in folders:
         load_record(folder)  # checks the record's integrity manifest too
-    assert sum(1 for r in rows if r["decision"]) == app.shift.retests
+    assert sum(1 for r in rows if r.decision) == app.shift.retests
     assert f"tests: {app.shift.tests}; retests: {app.shift.retests}" in app.summary_file.read_text()
     shutil.rmtree(out, ignore_errors=True)  # 2 MB a test: leave no 3 GB behind in pytest's temp folders

@@ -86,10 +86,10 @@ def test_a_marginal_is_retested_and_the_pair_decides(tmp_path: Path) -> None:
     assert report_content.shown_verdict(second) == "FAIL" and report_content.shown_verdict(first) == "MARGINAL"
     assert report_content.advice_sentence(second) == "Near the limit twice: replace the valve."
     assert report_content.findings(second)[0].startswith("Tested twice: MARGINAL (near the limit), then MARGINAL")
-    rows = {Path(row["record_dir"]).name: row for row in HistoryStore(f"sqlite:///{db}").list()}
-    assert rows[first_dir.name]["retest_of"] is None and rows[first_dir.name]["decision"] is None
-    assert Path(rows[second_dir.name]["retest_of"]).name == first_dir.name
-    assert rows[second_dir.name]["decision"] == "FAIL"
+    rows = {Path(row.record_dir).name: row for row in HistoryStore(f"sqlite:///{db}").list()}
+    assert rows[first_dir.name].retest_of is None and rows[first_dir.name].decision is None
+    assert Path(rows[second_dir.name].retest_of).name == first_dir.name
+    assert rows[second_dir.name].decision == "FAIL"
 
 
 @pytest.mark.slow  # the default suite's 5 minutes; CI's slow pass runs it

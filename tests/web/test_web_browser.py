@@ -208,10 +208,10 @@ def test_a_valves_pdf_report_opens_from_its_page(site: dict, browser: object) ->
     driver.get(url + "/chain")  # type: ignore[attr-defined]
     if "/signin" in driver.current_url:  # type: ignore[attr-defined]
         _sign_in(driver, url)
-    driver.get(url + "/valve?id=" + quote(str(real["valve_id"]), safe=""))  # type: ignore[attr-defined]
+    driver.get(url + "/valve?id=" + quote(str(real.valve_id), safe=""))  # type: ignore[attr-defined]
     link = _wait_for(driver, "#visits a")
     href = link.get_attribute("href")  # type: ignore[attr-defined]
-    assert href.endswith(f"/report/{real['id']}")
+    assert href.endswith(f"/report/{real.id}")
     # the browser's own session opens it (its cookie, as a click would send it)
     cookies = {c["name"]: c["value"] for c in driver.get_cookies()}  # type: ignore[attr-defined]
     report = httpx.get(href, cookies=cookies)

@@ -228,14 +228,14 @@ def test_a_report_is_drawn_only_from_a_record_the_history_indexed_inside_the_rec
     with HistoryStore(f"sqlite:///{db}") as store:
         for name, folder in folders.items():
             store.add(load_record(folder), folder)
-            ids[name] = store.list(Filters(valve_id=load_record(folder).valve_id))[0]["id"]
+            ids[name] = store.list(Filters(valve_id=load_record(folder).valve_id))[0].id
         for name, folder in (("outside", str(outside)), ("climbing", str(records_dir / ".." / "outside")),
                              ("etc", "/etc"), ("no-digest", str(folders["kept"]))):
             store.add_row({"record_dir": folder, "started_at": "2026-11-20T08:00:00+00:00", "valve_id": f"R-{name}",
                            "pump_serial": "P", "variant": "p-edc-default", "part_number": "PE", "verdict": "PASS",
                            "station": "s", "operator": "o", "clock": "real-time", "software_version": "t",
                            "reason": "", "test_key": f"report-{name}"})
-            ids[name] = store.list(Filters(valve_id=f"R-{name}"))[0]["id"]
+            ids[name] = store.list(Filters(valve_id=f"R-{name}"))[0].id
     # after indexing: a verdict edited in one record.json, the trace replaced in another (record.json untouched)
     edited = folders["record-edited"] / "record.json"
     edited.write_text(edited.read_text().replace('"verdict": "FAIL"', '"verdict": "PASS"', 1))
@@ -316,7 +316,7 @@ def test_a_withdrawn_tests_report_is_not_drawn(demo_db: Path, records_dir: Path,
     folder = Path(shutil.copytree(real_records[0], records_dir / real_records[0].name))
     with HistoryStore(f"sqlite:///{db}") as store:
         store.add(load_record(folder), folder)
-        test_id = store.list(Filters(valve_id=load_record(folder).valve_id))[0]["id"]
+        test_id = store.list(Filters(valve_id=load_record(folder).valve_id))[0].id
         store.withdraw_test(test_id, "mounted the wrong valve")
     app = create_app(WebConfig(url=f"sqlite:///{db}", records_dir=records_dir, token=TOKEN), Sessions())
     with TestClient(app, base_url="https://testserver", follow_redirects=False) as own:

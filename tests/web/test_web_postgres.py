@@ -62,7 +62,7 @@ def chain(postgres_db: str) -> dict[str, str]:
         bench4.add_row(_row('S-<b>"1"</b>', "FAIL"))
         bench4.add_row(_row("S-typo", "PASS"))
     with HistoryStore(urls["ines"]) as ines:
-        typo = ines.list(Filters(valve_id="S-typo"))[0]["id"]
+        typo = ines.list(Filters(valve_id="S-typo"))[0].id
         ines.withdraw_test(typo, "valve id typed wrong")
     return urls
 
