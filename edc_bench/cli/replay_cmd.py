@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.cli.common import print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
+
+if TYPE_CHECKING:
+    from edc_bench.replay import ReplayReport
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -54,14 +57,13 @@ def run(args: argparse.Namespace) -> int:
         if args.variant is None:
             raise ConfigError("--can-log needs --variant: the variant the test ran with")
         report = replay_can_log(args.can_log, load_variant(args.variant), args.model, args.nominal_baseline)
-    out = _summary(report)
-    print_quietly_if_closed(lambda: _print(out, args.json))
+    print_quietly_if_closed(lambda: _print(report, args.json))
     if report.compared:
         return ExitCode.OK if report.reproduced else ExitCode.NOT_REPRODUCED
     return exit_code_for(report.judged.verdict)
 
 
-def _summary(report: Any) -> dict[str, Any]:
+def _summary(report: ReplayReport) -> dict[str, Any]:
     from edc_bench.records.writer import json_safe
 
     j = report.judged
@@ -76,27 +78,28 @@ def _summary(report: Any) -> dict[str, Any]:
     })
 
 
-def _print(out: dict[str, Any], as_json: bool) -> None:
+def _print(report: ReplayReport, as_json: bool) -> None:
     if as_json:
-        print(json.dumps(out, indent=2))
+        print(json.dumps(_summary(report), indent=2))
         return
-    print(f"replayed {out['ticks']} ticks ({out['missed_replies']} replies missing); drives match the logged "
-          f"commands to {out['max_drive_deviation_v'] * 1e3:.2f} mV")
-    print(f"verdict: {out['verdict']}")
-    for reason in out["reasons"]:
+    run, judged = report.run, report.judged
+    print(f"replayed {run.ticks} ticks ({run.missed_replies} replies missing); drives match the logged "
+          f"commands to {run.max_drive_deviation_v * 1e3:.2f} mV")
+    print(f"verdict: {judged.verdict}")
+    for reason in judged.reasons:
         print(f"  - {reason}")
-    print(f"features: af = {out['features']['af']:.6g} V, a1 = {out['features']['a1']:.6g} V s/mm")
-    if out["compared_with_record"]:
-        if out["reproduced"]:
-            exactly = "" if out["notes"] else "exactly "
+    print(f"features: af = {judged.features['af']:.6g} V, a1 = {judged.features['a1']:.6g} V s/mm")
+    if report.compared:
+        if report.reproduced:
+            exactly = "" if report.notes else "exactly "
             print(f"reproduced: verdict, parameters and their uncertainties, P(faulty) and distance are {exactly}"
                   "the recorded ones")
         else:
             print("NOT reproduced:")
-            for line in out["differences"]:
+            for line in report.differences:
                 print(f"  - {line}")
-        for line in out["notes"]:
+        for line in report.notes:
             print(f"note: {line}")
     else:
-        for line in out["differences"]:
+        for line in report.differences:
             print(f"  - {line}")
