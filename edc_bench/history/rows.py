@@ -146,11 +146,12 @@ class TeardownMatch:
         return FINDINGS[self.teardown.finding]
 
     def listed(self) -> dict[str, object]:
-        """As ``label --list --json`` gives it: the test's listed columns (only ``valve_id`` without a test), and the
+        """As ``label --list --json`` gives it: the test's columns (only ``valve_id`` without a test), and the
         finding's ``teardown_id``, ``finding``, ``label``, ``teardown_clearance_mm``, ``labelled_by``,
         ``labelled_at`` and ``note``."""
         f = self.teardown
-        test = self.test.listed() if self.test is not None else {"valve_id": f.valve_id}
+        test = ({k: v for k, v in self.test.listed().items() if k not in ("changes", "chain_hash")}
+                if self.test is not None else {"valve_id": f.valve_id})
         return {**test, "teardown_id": f.id, "finding": f.finding, "label": self.label,
                 "teardown_clearance_mm": f.clearance_mm, "labelled_by": f.labelled_by, "labelled_at": f.labelled_at,
                 "note": f.note}
