@@ -17,6 +17,8 @@ from typing import Any, Self
 class _Columns:
     """Built from a database row's mapping: its known columns taken, any other label a query added left out."""
 
+    __slots__ = ()  # the rows' own slots only: a listing of many rows keeps no dict per row
+
     @classmethod
     def of(cls, mapping: Mapping[str, Any]) -> Self:
         """The row of a query's mapping (``row._mapping``): the columns and extras this class knows."""
@@ -177,6 +179,8 @@ class AdoptionRow(_Columns):
 class _RigFigures:
     """A row holding the figures of the reference valve and the rig at rest
     (:data:`~edc_bench.history.schema.FIGURES`)."""
+
+    __slots__ = ()
 
     lvdt_zero_mm: float | None
     current_zero_a: float | None
