@@ -663,9 +663,9 @@ def time_to_verdict() -> dict[str, Any]:
     Returns ``median_s`` and ``p95_s`` (all valves), per variant the same, and the early and full-length
     verdicts' counts.
     """
-    from edc_bench.experiments.studies import time_to_verdict as study
-
     import dataclasses
+
+    from edc_bench.experiments.studies import time_to_verdict as study
 
     with isolated_station():
         report = dataclasses.asdict(study(None, list(VARIANTS), VERDICT_VALVES, VERDICT_SEED))  # each by its own model

@@ -209,6 +209,11 @@ def _verify(args: argparse.Namespace) -> int:
     return ExitCode.HISTORY_NOT_AS_INDEXED if found or chain else ExitCode.OK
 
 
+def _row_id(value: object) -> bool:
+    """Whether ``value`` can be a row's id as ``--heads`` writes it (a number a database's id column holds)."""
+    return isinstance(value, int) and not isinstance(value, bool) and 0 < value < 2**63
+
+
 def _read_heads(path: str) -> list[ChainHead]:
     """The chain heads kept in ``path`` (``history --heads`` wrote them), checked."""
     from pathlib import Path
@@ -222,9 +227,9 @@ def _read_heads(path: str) -> list[ChainHead]:
     except ValueError:
         raise ConfigError(f"--heads {path}: not the JSON 'edc-bench history --heads' writes") from None
     if not isinstance(heads, list) or not all(isinstance(h, dict) and {"table", "id", "row_hash"} <= set(h)
-                                              and isinstance(h["id"], int) for h in heads):
+                                              and _row_id(h["id"]) for h in heads):
         raise ConfigError(f"--heads {path}: not the JSON 'edc-bench history --heads' writes (a list of table, id, "
-                          "row_hash)")
+                          "row_hash; each id a row's number)")
     return [ChainHead(str(h["table"]), str(h.get("chain") or ""), h["id"], str(h["row_hash"])) for h in heads]
 
 

@@ -40,7 +40,7 @@ class LedgerCheck:
 
 @dataclass(frozen=True)
 class LedgerReference:
-    """A registration as the ledger shows it."""
+    """A registration as the ledger shows it, with its figures as registered (None: not measured)."""
 
     id: int
     station: str
@@ -49,8 +49,12 @@ class LedgerReference:
     registered_at: str
     registered_by: str
     simulated: bool
-    #: each figure as registered
-    figures: dict[str, float | None]
+    lvdt_zero_mm: float | None
+    current_zero_a: float | None
+    coil_r20_ohm: float | None
+    a0_v_per_mm: float | None
+    af_v: float | None
+    a1_v_s_per_mm: float | None
 
 
 @dataclass(frozen=True)
@@ -83,7 +87,7 @@ def ledger(store: HistoryStore, station: str | None) -> list[LedgerEntry]:
 def _reference(row: ReferenceRow) -> LedgerReference:
     return LedgerReference(id=row.id, station=row.station, valve_id=row.valve_id, variant=row.variant,
                            registered_at=row.registered_at, registered_by=row.registered_by,
-                           simulated=row.simulated, figures=row.figures())
+                           simulated=row.simulated, **row.figures())
 
 
 def trend(checks: list[LedgerCheck]) -> dict[str, float | None]:

@@ -22,17 +22,33 @@ class _Columns:
     @classmethod
     def of(cls, mapping: Mapping[str, Any]) -> Self:
         """The row of a query's mapping (``row._mapping``): the columns and extras this class knows."""
-        names = _FIELD_NAMES.get(cls)
-        if names is None:
-            names = _FIELD_NAMES[cls] = frozenset(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+        names = _field_names(cls)
+        if names.issuperset(mapping.keys()):  # a query of this row's columns only: taken as they are (most reads)
+            return cls(**mapping)
         return cls(**{key: value for key, value in mapping.items() if key in names})
 
     def columns(self) -> dict[str, object]:
         """The row's values by column name, in order (for JSON and CSV)."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+        return {name: getattr(self, name) for name in _field_order(type(self))}
 
 
 _FIELD_NAMES: dict[type, frozenset[str]] = {}
+_FIELD_ORDER: dict[type, tuple[str, ...]] = {}
+
+
+def _field_order(cls: type) -> tuple[str, ...]:
+    """A row type's fields in order (looked up once per type: a listing reads many rows)."""
+    order = _FIELD_ORDER.get(cls)
+    if order is None:
+        order = _FIELD_ORDER[cls] = tuple(f.name for f in dataclasses.fields(cls))
+    return order
+
+
+def _field_names(cls: type) -> frozenset[str]:
+    names = _FIELD_NAMES.get(cls)
+    if names is None:
+        names = _FIELD_NAMES[cls] = frozenset(_field_order(cls))
+    return names
 
 #: Teardown findings and the class each teaches the classifier (1: the valve must be replaced).
 FINDINGS: dict[str, int] = {"reusable": 0, "worn": 1, "faulty": 1}
@@ -43,7 +59,9 @@ class TestRow(_Columns):
     """One indexing of a test (table ``tests``): what its record said, and how it was indexed.
 
     ``changes``, ``chain_hash`` and ``first_id`` are not columns: a listing adds how often the test was indexed
-    again with other content and its row's chain hash; a change names the row that stands.
+    again with other content and its row's chain hash; a change names the row that stands. A listing's rows
+    (:meth:`~edc_bench.history.store.HistoryStore.list`) hold the listed columns only (:data:`LIST_COLUMNS`): how
+    the row was indexed and chained reads None there (``indexed``, ``first_indexing`` and ``audit`` read them).
     """
 
     __test__ = False  # a test's row, not a test: pytest does not collect it where a test imports it

@@ -274,6 +274,3 @@ SQLITE_TRIGGERS = tuple(f"{t.name}_no_{event}" for t in TABLES for event in ("up
 
 #: Columns of a test in listings and CSV exports, in order (what a test is; how it was indexed is in --audit).
 COLUMNS = tuple(c.name for c in tests.columns if c.name not in NOT_LISTED)
-
-#: Teardown columns in listings, in order (the id: to withdraw or correct a finding recorded by mistake).
-TEARDOWN_COLUMNS = tuple(c.name for c in teardowns.columns if c.name not in ("db_login", "prev_hash", "row_hash"))

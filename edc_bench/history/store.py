@@ -58,7 +58,6 @@ from edc_bench.history.rows import (
 from edc_bench.history.schema import (
     CHAINED_TABLES,
     COLUMNS,
-    TEARDOWN_COLUMNS,
     adoptions,
     amendments,
     chain_anchors,
@@ -81,6 +80,7 @@ if TYPE_CHECKING:
     from edc_bench.records.schema import Record
 
 _Row = TypeVar("_Row", bound="_Columns")
+
 
 def _text(value: Any) -> str:
     """``value`` as text any database stores: text that is not valid Unicode (a hand-edited record) escaped."""
@@ -759,7 +759,7 @@ class HistoryStore:
         return TeardownRow.of(found._mapping)
 
     def _standing_teardowns(self, conn: sa.Connection, valve_id: str | None = None) -> list[TeardownRow]:
-        query = sa.select(*(teardowns.c[name] for name in TEARDOWN_COLUMNS))
+        query = sa.select(teardowns)  # the whole row: a TeardownRow holds no field the query left out
         if valve_id is not None:
             query = query.where(teardowns.c.valve_id == valve_id)
         rows = [TeardownRow.of(r._mapping) for r in conn.execute(query.order_by(teardowns.c.labelled_at,
@@ -827,8 +827,8 @@ class HistoryStore:
 
     def audit(self, valve_id: str) -> list[AuditEvent]:
         """Everything the history holds of one valve, in the order it was written: each indexing of its tests,
-        each finding, each correction and withdrawal, with who and when (``when``, ``event``, ``id``, ``what``,
-        ``by``, ``db_login``)."""
+        each finding, each correction and withdrawal, with who and when and its row's chain hash
+        (:class:`~edc_bench.history.rows.AuditEvent`)."""
         with self._guard("read"), self.engine.connect() as conn:
             rows = [TestRow.of(r._mapping) for r in conn.execute(
                 sa.select(tests).where(tests.c.valve_id == valve_id).order_by(tests.c.id))]
@@ -917,8 +917,8 @@ class HistoryStore:
             return [row_type.of(r._mapping) for r in conn.execute(query)]
 
 
-#: What a listing adds to a test's columns (:meth:`HistoryStore.list`; a listed row given back to :meth:`add_row`
-#: is indexed without them).
+#: What a query adds to a test's columns (a listing's ``changes`` and ``chain_hash``, a change's ``first_id``): a row
+#: read back and given to :meth:`add_row` is indexed without them.
 LISTED = TEST_ROW_EXTRAS
 
 #: The columns that say how a row was indexed, not what the test was.

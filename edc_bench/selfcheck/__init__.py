@@ -46,7 +46,7 @@ from edc_bench.selfcheck.compare import (
 )
 from edc_bench.selfcheck.due import LastCheck, SelfCheckPolicy, selfcheck_due
 
-if TYPE_CHECKING:  # the rows' module brings SQLAlchemy, which a test's start does not need
+if TYPE_CHECKING:
     from edc_bench.history.rows import ReferenceRow, RigCheckRow
 
 #: Exactly how the reference valve is registered, for the line that says none is.

@@ -227,3 +227,23 @@ def test_a_plain_sqlite_url_names_the_file_sqlalchemy_would_open(text: str) -> N
         assert path is None
     else:
         assert path == Path(url.database)
+
+
+@pytest.mark.parametrize("kept", [
+    [{"table": "tests", "id": True, "row_hash": "a" * 64}],  # JSON's true is no row's id
+    [{"table": "tests", "id": 2**70, "row_hash": "a" * 64}],  # beyond any id column (was an internal error)
+    [{"table": "tests", "id": "1", "row_hash": "a" * 64}],
+    [{"table": "tests", "row_hash": "a" * 64}],
+    {"table": "tests", "id": 1, "row_hash": "a" * 64},
+], ids=["bool-id", "huge-id", "text-id", "no-id", "not-a-list"])
+def test_verify_refuses_a_kept_heads_file_that_is_not_what_heads_writes(tmp_path: Path, kept: object) -> None:
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    with HistoryStore(url) as store:
+        store.add(_record("V1", "2026-11-01T08:00:00+00:00"), tmp_path / "a")
+    heads = tmp_path / "heads.json"
+    heads.write_text(json.dumps(kept), encoding="utf-8")
+    from helpers import edc_bench
+
+    found = edc_bench("history", "--verify", "--heads", str(heads), "--db", url)
+    assert found.returncode == 2, found.stderr
+    assert "not the JSON 'edc-bench history --heads' writes" in found.stderr and "Traceback" not in found.stderr

@@ -60,6 +60,11 @@ def test_register_check_and_the_ledger(tmp_path: Path, monkeypatch: pytest.Monke
     ledger = json.loads(out)
     assert [c["verdict"] for c in ledger[0]["checks"]] == ["GO", "NO-GO"]
     assert ledger[0]["checks"][1]["drift"]["lvdt_zero_mm"] == pytest.approx(0.05, abs=0.001)
+    # the registration as the ledger's JSON has always given it: its figures beside who and when
+    assert list(ledger[0]["reference"]) == ["id", "station", "valve_id", "variant", "registered_at", "registered_by",
+                                            "simulated", "lvdt_zero_mm", "current_zero_a", "coil_r20_ohm",
+                                            "a0_v_per_mm", "af_v", "a1_v_s_per_mm"]
+    assert ledger[0]["reference"]["valve_id"] == "REF-1" and ledger[0]["reference"]["af_v"] > 0
     code, _, err = run_cli(["history", "--rig", "--station", "bench9", "--db", db[1]], capsys)
     assert code == 2 and "no reference valve is registered of station 'bench9'" in err
 
