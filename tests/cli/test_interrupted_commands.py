@@ -197,6 +197,14 @@ def _can_log_with_runs(folder: Path, ticks: int = 50) -> bool:
 # -- calibrate ------------------------------------------------------------------------------------------------------
 
 
+#: The command's CPU after its population of 20 valves (pooling, writing the baseline, exiting): 0.32-0.33 s on
+#: Python 3.11 here (its CPU at its "converged" line against its total). The 0.3 s this test allowed before was less:
+#: a signal sent just after the population failed CI once (3.13, a busy machine: baseline printed, exit 130). A
+#: signal sent with less than this left came after the population; the population itself takes about 4 s, so a
+#: population that ignored the signal sent at its start still fails.
+AFTER_THE_POPULATION_CPU_S = 1.0
+
+
 @pytest.mark.parametrize("sig", SIGNALS)
 def test_calibrate_of_a_simulated_population_stops_at_once_and_writes_no_baseline(
         command: Callable[..., Command], tmp_path: Path, sig: int) -> None:
@@ -207,7 +215,7 @@ def test_calibrate_of_a_simulated_population_stops_at_once_and_writes_no_baselin
     cpu_at_signal_s = calibrate.cpu_s()
     calibrate.send(sig)
     code, out, err, cpu_s = calibrate.finish_with_cpu()
-    if out and cpu_at_signal_s > cpu_s - 0.3:
+    if out and cpu_at_signal_s > cpu_s - AFTER_THE_POPULATION_CPU_S:
         # the population (seconds of CPU) had been run when the signal was sent: this test's process ran too late
         # to send it in time, which says nothing of the command; sent during the population, the baseline fails
         pytest.skip(f"the signal was sent only after the command had used {cpu_at_signal_s:.2f} s of its "
