@@ -445,7 +445,7 @@ class HistoryStore:
         stored once (a unique key on the test and its record's hash): two stations indexing the same copy at once
         store one row.
         """
-        row = {**{key: value for key, value in row.items() if key not in LISTED},  # a listed row given back
+        row = {**{key: value for key, value in row.items() if key not in TEST_ROW_EXTRAS},  # a listed row given back
                "indexed_at": _now(), "indexed_by": indexed_by or _login_name(), "db_login": self.login}
         if not row.get("test_key"):  # a row made by hand (the simulated shop's): its folder names the test
             row["test_key"] = "folder:" + str(row["record_dir"])
@@ -916,10 +916,6 @@ class HistoryStore:
         with self._guard("read"), self.engine.connect() as conn:
             return [row_type.of(r._mapping) for r in conn.execute(query)]
 
-
-#: What a query adds to a test's columns (a listing's ``changes`` and ``chain_hash``, a change's ``first_id``): a row
-#: read back and given to :meth:`add_row` is indexed without them.
-LISTED = TEST_ROW_EXTRAS
 
 #: The columns that say how a row was indexed, not what the test was.
 _INDEXING = ("id", "record_manifest", "indexed_at", "indexed_by", "db_login", "first_indexing")

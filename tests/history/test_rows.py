@@ -48,3 +48,9 @@ def test_a_row_is_built_from_a_querys_mapping_leaving_out_what_it_does_not_know(
 
 def test_a_listing_gives_a_tests_columns_then_its_changes_and_chain_hash() -> None:
     assert LIST_COLUMNS == (*schema.COLUMNS, "changes", "chain_hash")
+
+
+def test_a_rig_rows_figures_are_the_tables_figures_in_order() -> None:
+    row = RigCheckRow(id=1, station="s", reference_id=1, verdict="GO", causes="", words="", simulated=True,
+                      software_version="0.1.0", checked_by="ana", checked_at="2026-11-29T08:00:00+00:00", af_v=0.07)
+    assert tuple(row.figures()) == schema.FIGURES and row.figures()["af_v"] == 0.07
