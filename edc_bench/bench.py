@@ -46,6 +46,7 @@ if TYPE_CHECKING:
     from edc_bench.sim.adapter import AdapterModel
     from edc_bench.sim.drift import SensorDrift
     from edc_bench.sim.rig import SimulatedRig
+    from edc_bench.records.simulation import SimulationSummary
 from edc_bench.engine.outcome import LoopOutcome, StopReason
 from edc_bench.protocol import Icd, default_icd
 from edc_bench.records.record import BenchResult
@@ -117,7 +118,7 @@ class BenchOptions:
     observer: LoopObserver | None = None
     stream_can_log: Callable[[str], Path] | None = None
     truth: FeedforwardParameters | None = None
-    describe_rig: Callable[[], dict[str, Any]] | None = None
+    describe_rig: Callable[[], SimulationSummary] | None = None
     icd: Icd | None = None
 
 
@@ -317,25 +318,23 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
 
 
 def _simulation(variant: Variant, spec: ValveSpec, rig: SimulatedRig, link: AdapterModel, seed: int,
-                stiction: bool, sensor_noise: bool) -> dict[str, Any]:
-    """What the record says of the simulated rig after a test: the valve, its coil, the link and the counters."""
+                stiction: bool, sensor_noise: bool) -> SimulationSummary:
+    """What the record says of the simulated rig after a test (the coil has warmed): the valve, its coil, the link
+    and the firmware's counters."""
     from edc_bench.physics.wear import is_faulty, resisting_force_n
+    from edc_bench.records.simulation import RigCounters, SimulatedCoil, SimulatedValve, SimulationSummary
 
-    return {
-        "valve": {"label": spec.label, "clearance_mm": spec.clearance_mm, "roughness": spec.roughness,
-                  "friction_scale": spec.friction_scale, "damping_scale": spec.damping_scale},
-        "coil": {"resistance_20c_ohm": rig.plant_params.resistance_20c_ohm,
-                 "temp_start_c": rig.plant_params.coil_temp_c, "temp_end_c": rig.plant.coil_temp_c,
-                 "resistance_start_ohm": rig.plant_params.resistance_ohm,
-                 "resistance_end_ohm": rig.plant.resistance_ohm},
-        "seed": seed, "stiction": stiction, "sensor_noise": sensor_noise, "firmware": rig.options.firmware,
-        **({"sensor_drift": dataclasses.asdict(rig.options.drift)} if not rig.options.drift.none else {}),
-        "adapter": dataclasses.asdict(link),
-        "faulty_by_physics": is_faulty(variant, spec),
-        "resisting_force_n": resisting_force_n(variant, spec),
-        "coulomb_friction_n": rig.plant_params.coulomb_friction_n,
-        "damping_n_s_per_mm": rig.plant_params.damping_n_s_per_mm,
-        "rig_counters": {"accepted": rig.firmware.counters.accepted, "bad_crc": rig.firmware.counters.bad_crc,
-                         "bad_mode": rig.firmware.counters.bad_mode,
-                         "watchdog_trips": rig.firmware.counters.watchdog_trips},
-    }
+    params, counters, drift = rig.plant_params, rig.firmware.counters, rig.options.drift
+    return SimulationSummary(
+        valve=SimulatedValve(label=spec.label, clearance_mm=spec.clearance_mm, roughness=spec.roughness,
+                             friction_scale=spec.friction_scale, damping_scale=spec.damping_scale),
+        coil=SimulatedCoil(resistance_20c_ohm=params.resistance_20c_ohm, temp_start_c=params.coil_temp_c,
+                           temp_end_c=rig.plant.coil_temp_c, resistance_start_ohm=params.resistance_ohm,
+                           resistance_end_ohm=rig.plant.resistance_ohm),
+        seed=seed, stiction=stiction, sensor_noise=sensor_noise, firmware=rig.options.firmware,
+        sensor_drift=None if drift.none else dataclasses.asdict(drift), adapter=dataclasses.asdict(link),
+        faulty_by_physics=is_faulty(variant, spec), resisting_force_n=resisting_force_n(variant, spec),
+        coulomb_friction_n=params.coulomb_friction_n, damping_n_s_per_mm=params.damping_n_s_per_mm,
+        rig_counters=RigCounters(accepted=counters.accepted, bad_crc=counters.bad_crc, bad_mode=counters.bad_mode,
+                                 watchdog_trips=counters.watchdog_trips),
+    )

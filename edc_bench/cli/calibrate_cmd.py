@@ -6,11 +6,14 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.cli.common import add_bus_arguments, count_up_to, identity, seed_number
 from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.verdict.baseline_source import BaselineSource, sources_text
+
+if TYPE_CHECKING:
+    from edc_bench.runtime.bus_config import BusSettings
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -218,7 +221,7 @@ def _next_valve_command(argv: list[str]) -> str:
     return shlex.join(["edc-bench", *words, *([] if "--append" in words else ["--append"])])
 
 
-def _rig_tests(args: argparse.Namespace, config: dict[str, Any], variant: Any, tests: int) -> list[Any]:
+def _rig_tests(args: argparse.Namespace, config: BusSettings, variant: Any, tests: int) -> list[Any]:
     """Real-time tests on the rig's mounted valve, on the bus ``config`` (checked: :func:`bus_settings`)."""
     from edc_bench.bench import BenchOptions, run_bench_test
     from edc_bench.protocol import default_icd

@@ -14,7 +14,10 @@ import math
 import unicodedata
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
+
+if TYPE_CHECKING:
+    from edc_bench.runtime.bus_config import BusSettings
 
 #: The longest identity (valve id, pump serial, operator, station) a record takes: a record folder's name
 #: holds the valve id, and folder names stop at 255 bytes.
@@ -335,7 +338,7 @@ def add_bus_arguments(parser: Any, interface_help: str = "python-can interface, 
 
 
 def bus_settings(interface: str | None, channel: str | None, bitrate: int | None, *,
-                 configured_alone: bool, options: list[tuple[str, str]] | None = None) -> dict[str, Any] | None:
+                 configured_alone: bool, options: list[tuple[str, str]] | None = None) -> BusSettings | None:
     """The python-can bus to open, checked before any work; None for no bus (the simulated rig).
 
     The flags win; what they leave open comes from python-can's own sources

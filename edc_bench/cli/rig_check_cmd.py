@@ -6,9 +6,12 @@ import argparse
 import json
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.cli.exit_codes import ExitCode
+
+if TYPE_CHECKING:
+    from edc_bench.runtime.bus_config import BusSettings
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -106,7 +109,7 @@ def _check_folder(folder: Path) -> None:
         raise ConfigError(f"--out {folder}: cannot make the folder ({exc.strerror}); give another") from None
 
 
-def _check(bus_config: dict[str, Any] | None, variant: Any, args: argparse.Namespace, breaks: frozenset[Any],
+def _check(bus_config: BusSettings | None, variant: Any, args: argparse.Namespace, breaks: frozenset[Any],
            when: str) -> Any:
     """Run the checks on the configured bus in real time, or on the in-process simulated rig in simulated time."""
     from edc_bench.protocol import default_icd

@@ -9,7 +9,7 @@ import json
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.cli.common import (
     MAX_SEED,
@@ -23,6 +23,10 @@ from edc_bench.cli.common import (
 )
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 from edc_bench.engine.outcome import AbortKind
+
+if TYPE_CHECKING:
+    from edc_bench.runtime.bus_config import BusSettings
+    from edc_bench.verdict.sections import RetestSummary
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -104,7 +108,7 @@ def _variant(args: argparse.Namespace) -> Any:
     return with_changes(variant, changes, "command-line overrides")
 
 
-def _bus_config(args: argparse.Namespace) -> dict[str, Any] | None:
+def _bus_config(args: argparse.Namespace) -> BusSettings | None:
     """Bus settings from flags, python-can's environment or config file (checked); None for the in-process rig."""
     from edc_bench.cli.common import bus_settings
 
@@ -121,7 +125,7 @@ def _duration_s(text: str) -> float:
     return value
 
 
-def _calibrate_command(variant: Any, bus_config: dict[str, Any] | None) -> str:
+def _calibrate_command(variant: Any, bus_config: BusSettings | None) -> str:
     """The exact calibrate command for this variant on this rig (the simulated rig: a simulated new valve)."""
     from edc_bench.verdict.judgement import default_calibrate_command
 
@@ -275,7 +279,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
 
 
 @contextlib.contextmanager
-def _bus_opened_ahead(bus_config: dict[str, Any] | None) -> Iterator[Any]:
+def _bus_opened_ahead(bus_config: BusSettings | None) -> Iterator[Any]:
     """The bus of the first test, opened before anything is said or shown: a bus that does not open is one line
     (exit 3), not a warning and a panel before it. The test closes it; if the test never ran, leaving does."""
     if bus_config is None:
@@ -291,7 +295,7 @@ def _bus_opened_ahead(bus_config: dict[str, Any] | None) -> Iterator[Any]:
         opened.__exit__(None, None, None)  # closes once: nothing left to do after the test closed it
 
 
-def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None, opened: Any) -> int:
+def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, opened: Any) -> int:
     """The test, and after a MARGINAL its retest (the first test on ``opened``, the bus opened ahead, if any)."""
     from edc_bench.runtime.signals import stop_requested
     from edc_bench.verdict.retest import retest_wanted
@@ -347,7 +351,7 @@ class _Tested:
     decision: Any = None
 
 
-def _test_once(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None, valve_id: str, seed: int,
+def _test_once(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, valve_id: str, seed: int,
                retest_of: _Tested | None, opened: Any = None) -> _Tested:
     """Run one test on the rig the flags name (a bus: ``opened`` ahead, or here), write its record, add it to the
     history and show its verdict."""
@@ -374,7 +378,7 @@ def _test_once(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any
     return _Tested(result, record_dir, code, decision if record_dir is not None else None)
 
 
-def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None) -> None:
+def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None) -> None:
     """Refuse a bad --adapter or --valve before any work; warn about flags that do not apply to a real bus."""
     from edc_bench.physics.valve import parse_valve_spec
     from edc_bench.sim.adapter import parse_adapter
@@ -402,7 +406,7 @@ def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: dict[st
               "valve mounted is what is tested", file=sys.stderr)
 
 
-def _options(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None, valve_id: str,
+def _options(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, valve_id: str,
              folder: list[Path]) -> Any:
     """The test's options from the command line; ``folder`` receives the record folder once the CAN log starts."""
     from edc_bench.bench import BenchOptions
@@ -419,7 +423,7 @@ def _options(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] 
                         calibrate_command=_calibrate_command(variant, bus_config), stream_can_log=stream_target)
 
 
-def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | None,
+def _run(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None,
          options: Any, seed: int, opened: Any = None) -> tuple[Any, list[str]]:
     """Run the test on the rig the flags name (on a bus: ``opened``, the :class:`~edc_bench.runtime.bus.ClosingBus`
     opened ahead, else opened here); the result, and what the record should note of the bus after it."""
@@ -469,9 +473,12 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: dict[str, Any] | No
         raise
     # the rig process's side of the timing (how long it once went without serving: a disturbed rig), known once it
     # has stopped
-    simulation = {"rig_process": {"valve": args.valve, "seed": seed, "adapter": args.adapter,
-                                  "firmware": args.firmware, **rig_status,
-                                  **({"sensor_drift": args.rig_drift.spec()} if args.rig_drift is not None else {})}}
+    from edc_bench.records.simulation import RigProcessSummary, SimulationSummary
+
+    simulation = SimulationSummary(rig_process=RigProcessSummary(
+        valve=args.valve, seed=seed, adapter=args.adapter, firmware=args.firmware,
+        worst_gap_ms=rig_status.get("worst_gap_ms"),
+        sensor_drift=None if args.rig_drift is None else args.rig_drift.spec()))
     return dataclasses.replace(result, simulation=simulation), _closing_notes(session)
 
 
@@ -491,7 +498,7 @@ def _closing_notes(session: Any) -> list[str]:
 
 
 def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: list[str],
-            retest: dict[str, str] | None = None) -> tuple[Path | None, int]:
+            retest: RetestSummary | None = None) -> tuple[Path | None, int]:
     """Write the record, add it to the history, show the verdict (``--json``: the caller prints the summary); the
     record folder and the exit code."""
     record_dir, record_error, whole = _write_record(result, args, folder, notes, retest)
@@ -558,7 +565,7 @@ def _report(args: argparse.Namespace, result: Any, record_dir: Path | None) -> N
 
 
 def _write_record(result: Any, args: argparse.Namespace, folder: Path | None, notes: list[str],
-                  retest: dict[str, str] | None = None) -> tuple[Path | None, str | None, bool]:
+                  retest: RetestSummary | None = None) -> tuple[Path | None, str | None, bool]:
     """Write the record under ``--out``; if its record.json cannot be written (a full disk), into a new folder in
     the temp folder.
 

@@ -11,7 +11,7 @@ plane), so the report reads the folder alone.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -51,6 +51,7 @@ from edc_bench.records.schema import (
     Record,
     RecordFiles,
     RetestSummary,
+    SimulationSummary,
     StabilityMargins,
     StopSummary,
 )
@@ -86,7 +87,7 @@ class BenchResult:
         Every frame sent and received.
     truth : FeedforwardParameters or None
         The simulated plant's true parameters (simulated rig only).
-    simulation : dict or None
+    simulation : SimulationSummary or None
         The simulated valve and rig, when the rig was simulated.
     can_log_path : pathlib.Path or None
         Where the CAN log was streamed while the test ran, if it was.
@@ -110,7 +111,7 @@ class BenchResult:
     trace: dict[str, np.ndarray]
     frames: CanFrameLog
     truth: FeedforwardParameters | None = None
-    simulation: dict[str, Any] | None = None
+    simulation: SimulationSummary | None = None
     can_log_path: Path | None = None
     stop: StopSummary | None = None
     software_version: str = __version__
@@ -257,7 +258,7 @@ def record_json(record: Record) -> dict[str, Any]:
 
 
 def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder: Path | None = None,
-                 notes: Sequence[str] = (), retest: Mapping[str, str] | None = None) -> Path:
+                 notes: Sequence[str] = (), retest: RetestSummary | None = None) -> Path:
     """Write the record folder of ``result`` under ``out_dir``.
 
     Parameters
@@ -274,9 +275,9 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     notes : sequence of str, optional
         What happened after the test that the record should say (a bus that failed to close, a first folder
         that could not be written), added to the loop's events in record.json; ``result`` is not changed.
-    retest : dict, optional
+    retest : RetestSummary, optional
         This test repeats a MARGINAL: the first test's folder and verdict and what the two decide
-        (:class:`~edc_bench.records.schema.RetestSummary`'s fields).
+        (:meth:`~edc_bench.verdict.retest.Decision.record_entry`).
 
     Each file is written on its own: one that cannot be written (a full disk) is named with its error in
     record.json's ``files`` (``trace_error``, ``can_log_error``, ``figure_error``), and record.json, the
@@ -333,7 +334,7 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     escalated = find_escalation(folder, result.valve_id, result.variant.name, result.started_at, str(result.verdict),
                                 result.invalid_cause)
     record = build_record(result, RecordFiles.model_validate(files),
-                          None if retest is None else RetestSummary.model_validate(retest), escalated, notes)
+                          retest, escalated, notes)
     doc = record_json(record)
     # what the test wrote, as it wrote it: every reader checks it (records.integrity)
     doc["integrity"] = manifest(doc, folder, [files[key] for key in ("trace", "can_log", "figure") if files.get(key)])

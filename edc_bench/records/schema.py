@@ -19,8 +19,9 @@ baseline, decision plane) in :mod:`edc_bench.verdict.sections`, the tick timing 
 :mod:`edc_bench.engine.tick_timing`.
 
 Every section accepts keys it does not know (``extra="allow"``): a record a newer edc-bench wrote is still read
-by this one. Sections nobody reads field by field (the variant as run, the simulation's ground truth) are kept as
-the mappings they are.
+by this one. The variant as run (``config``) is kept as the mapping it was written as: it is read back through
+the variant's own models (replay's :func:`edc_bench.config.parse_variant`, which says what an older variant
+lacks), not declared a second time here. The simulated rig's section is in :mod:`edc_bench.records.simulation`.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from edc_bench.engine.problems import Problem
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.identification.sections import CoilFinding, ModelFitSummary
 from edc_bench.records.advice import Advice, Area, Cause, advice, invalid_area, invalid_cause
+from edc_bench.records.simulation import SimulationSummary
 from edc_bench.runtime.clock_kind import ClockKind
 from edc_bench.section import Section
 from edc_bench.verdict.sections import (
@@ -42,17 +44,16 @@ from edc_bench.verdict.sections import (
     ClassificationSummary,
     DecisionPlane,
     ParameterEstimate,
+    MaybeVerdict,
     ReferenceValue,
+    RetestSummary,
+    none_if_empty,
 )
 from edc_bench.verdict.verdicts import Verdict
 
 
-def _none_if_empty(value: Any) -> Any:
-    return None if value == "" else value
-
-
-#: A verdict a section names, or None where there is none; older records wrote "" for none.
-MaybeVerdict = Annotated[Verdict | None, BeforeValidator(_none_if_empty)]
+def _none_if_no_rig(value: Any) -> Any:
+    return None if value == {} else value  # an empty section names no simulated rig
 
 
 class Identity(Section):
@@ -120,23 +121,13 @@ class StabilityMargins(Section):
     delay_ticks: int = 1
 
 
-class RetestSummary(Section):
-    """A retest's record: the test it repeats and what the two decide (:mod:`edc_bench.verdict.retest`)."""
-
-    of_record: str = ""  # the first test's record folder (its name: the two sit side by side)
-    of_verdict: MaybeVerdict = None  # the first test's verdict (MARGINAL)
-    decision: MaybeVerdict = None  # what the pair decides: PASS, FAIL or INVALID
-    words: str = ""  # the technician's line for the pair
-    rule: str = ""  # the variant's rule that decided, e.g. "retest.decide.MARGINAL = FAIL"
-
-
 class EscalationSummary(Section):
     """A second INVALID of the same valve, both times for a cause the valve itself can cause
     (:mod:`edc_bench.records.escalation_link`): it may be seized."""
 
     of_record: str = ""  # the earlier test's record folder (its name)
     of_verdict: MaybeVerdict = None  # the earlier test's verdict (INVALID)
-    of_cause: Annotated[Cause | None, BeforeValidator(_none_if_empty)] = None  # who the earlier test pointed at
+    of_cause: Annotated[Cause | None, BeforeValidator(none_if_empty)] = None  # who the earlier test pointed at
     words: str = ""  # the technician's line (records.advice.SEIZED)
 
 
@@ -201,7 +192,7 @@ class Record(Section):
     loop: LoopSummary = LoopSummary()
     stability_margins: StabilityMargins | None = None
     truth: dict[str, float] | None = None
-    simulation: dict[str, Any] | None = None
+    simulation: Annotated[SimulationSummary | None, BeforeValidator(_none_if_no_rig)] = None
     config: dict[str, Any] | None = None
     retest: RetestSummary | None = None  # this test repeats a MARGINAL
     # this MARGINAL was retested: found beside it when a report is drawn, never written (exclude)
@@ -243,7 +234,7 @@ class Record(Section):
     @property
     def simulated_rig(self) -> bool:
         """The test ran against the simulated rig (its record holds the simulated valve)."""
-        return bool(self.simulation)
+        return self.simulation is not None
 
     @property
     def real_time(self) -> bool:

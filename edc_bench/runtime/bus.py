@@ -20,6 +20,7 @@ import select
 import socket
 import time
 from collections import deque
+from collections.abc import Mapping
 from typing import Any
 
 from edc_bench.canlib import can  # isort: skip - first: python-can without its MF4 support (see canlib)
@@ -276,7 +277,7 @@ class ClosingBus:
             self.close_error = close_quietly(self.bus)
 
 
-def open_bus(config: dict[str, Any], default_bitrate: int) -> can.BusABC:
+def open_bus(config: Mapping[str, Any], default_bitrate: int) -> can.BusABC:
     """Open a python-can bus from its settings (``interface``, ``channel``, ``bitrate`` and any further argument).
 
     The settings are complete (:func:`edc_bench.cli.common.bus_settings` reads python-can's environment and
@@ -318,7 +319,7 @@ def open_bus(config: dict[str, Any], default_bitrate: int) -> can.BusABC:
     return bus
 
 
-def _open(config: dict[str, Any], default_bitrate: int) -> can.BusABC:
+def _open(config: Mapping[str, Any], default_bitrate: int) -> can.BusABC:
     """Open the bus; RigError (one line) for what is known before python-can is asked, anything for the rest."""
     from edc_bench.runtime.bus_config import bus_keyword_arguments, bus_problem, check_interface
 

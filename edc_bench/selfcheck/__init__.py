@@ -48,6 +48,7 @@ from edc_bench.selfcheck.due import LastCheck, SelfCheckPolicy, selfcheck_due
 
 if TYPE_CHECKING:
     from edc_bench.history.rows import ReferenceRow, RigCheckRow
+    from edc_bench.runtime.bus_config import BusSettings
 
 #: Exactly how the reference valve is registered, for the line that says none is.
 REGISTER_COMMAND = "edc-bench rig-selfcheck --register --valve-id ID"
@@ -59,7 +60,7 @@ class Rig:
 
     Attributes
     ----------
-    bus : dict or None
+    bus : BusSettings or None
         python-can settings (``interface``, ``channel``, ``bitrate``) of a rig's bus; None: the simulated rig in
         process, in simulated time.
     drift : SensorDrift or None
@@ -68,7 +69,7 @@ class Rig:
         The simulated rig only: its firmware (``python`` or ``c``).
     """
 
-    bus: dict[str, Any] | None = None
+    bus: BusSettings | None = None
     drift: Any = None
     firmware: str = "python"
 

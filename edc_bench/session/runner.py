@@ -11,11 +11,15 @@ import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.config.models import Variant
 from edc_bench.records.advice import Cause
 from edc_bench.verdict.retest import Decision, decide, retest_wanted
+
+if TYPE_CHECKING:
+    from edc_bench.runtime.bus_config import BusSettings
+    from edc_bench.verdict.sections import RetestSummary
 
 
 @dataclass(frozen=True)
@@ -24,7 +28,7 @@ class RigChoice:
 
     Attributes
     ----------
-    bus_config : dict or None
+    bus_config : BusSettings or None
         A real rig's bus (python-can settings), or None for the simulated rig (in process, simulated time).
     first_seed : int
         The simulated rig's first noise seed; each test of the session takes the next, so a retest sees new noise.
@@ -32,7 +36,7 @@ class RigChoice:
         The simulated rig's sensors drifted (``--rig-drift``), what the rig self-check must catch; None: none.
     """
 
-    bus_config: dict[str, Any] | None = None
+    bus_config: BusSettings | None = None
     first_seed: int = 0
     rig_drift: Any = None
 
@@ -206,7 +210,7 @@ class SessionRunner:
         with ClosingBus(open_bus(self.rig.bus_config, default_icd().bitrate)) as bus:
             return run_bench_test(bus, RealTimeClock(), variant, options)
 
-    def _store(self, result: Any, folder: Path | None, retest: dict[str, str] | None) -> TestDone:
+    def _store(self, result: Any, folder: Path | None, retest: RetestSummary | None) -> TestDone:
         from edc_bench.history.store import index_record_dir
         from edc_bench.records.record import missing_files, write_record
 

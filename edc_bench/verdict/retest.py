@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from edc_bench.config.models import RetestSection
+from edc_bench.verdict.sections import RetestSummary
 from edc_bench.verdict.verdicts import Verdict
 
 #: What each retest verdict is called in the decision's words.
@@ -42,11 +43,11 @@ class Decision:
         """The decision as plain data (``--json``)."""
         return {"verdict": str(self.verdict), "words": self.words, "rule": self.rule}
 
-    def record_entry(self, first_record: str, first_verdict: str) -> dict[str, str]:
-        """The retest's record.json ``retest`` section (:class:`~edc_bench.records.schema.RetestSummary`): the
-        first test's folder name and verdict, and this decision."""
-        return {"of_record": first_record, "of_verdict": str(first_verdict), "decision": str(self.verdict),
-                "words": self.words, "rule": self.rule}
+    def record_entry(self, first_record: str, first_verdict: Verdict | str) -> RetestSummary:
+        """The retest's record.json ``retest`` section: the first test's folder name and verdict, and this
+        decision."""
+        return RetestSummary(of_record=first_record, of_verdict=Verdict(first_verdict), decision=self.verdict,
+                             words=self.words, rule=self.rule)
 
 
 def retest_wanted(verdict: Verdict | str, rule: RetestSection) -> bool:

@@ -8,11 +8,22 @@ reaching into the verdict's rules.
 
 from __future__ import annotations
 
-from pydantic import Field
+from typing import Annotated, Any
+
+from pydantic import BeforeValidator, Field
 
 from edc_bench.section import Section
 from edc_bench.verdict.baseline_source import BaselineSource
 from edc_bench.verdict.verdicts import Verdict
+
+
+def none_if_empty(value: Any) -> Any:
+    """``value``, or None for the "" older records wrote for none (a validator of optional fields)."""
+    return None if value == "" else value
+
+
+#: A verdict a section names, or None where there is none; older records wrote "" for none.
+MaybeVerdict = Annotated[Verdict | None, BeforeValidator(none_if_empty)]
 
 
 class ParameterEstimate(Section):
@@ -77,3 +88,13 @@ class DecisionPlane(Section):
     p_faulty: list[list[float]]
     threshold: float
     marginal_band: float
+
+
+class RetestSummary(Section):
+    """A retest's record: the test it repeats and what the two decide (:mod:`edc_bench.verdict.retest`)."""
+
+    of_record: str = ""  # the first test's record folder (its name: the two sit side by side)
+    of_verdict: MaybeVerdict = None  # the first test's verdict (MARGINAL)
+    decision: MaybeVerdict = None  # what the pair decides: PASS, FAIL or INVALID
+    words: str = ""  # the technician's line for the pair
+    rule: str = ""  # the variant's rule that decided, e.g. "retest.decide.MARGINAL = FAIL"

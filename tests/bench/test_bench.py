@@ -61,7 +61,7 @@ def test_model_plant_every_parameter_within_2_percent(variant_name: str, valve: 
     assert set(errors) == {"a2", "a1", "a0", "b", "af"}
     assert max(errors.values()) < 0.02, errors
     assert result.converged
-    assert result.verdict == EXPECTED[valve] == ("FAIL" if result.simulation["faulty_by_physics"] else "PASS")
+    assert result.verdict == EXPECTED[valve] == ("FAIL" if result.simulation.faulty_by_physics else "PASS")
 
 
 @pytest.mark.parametrize("valve", VALVES)
@@ -161,5 +161,5 @@ def test_safe_stop_and_rig_counters() -> None:
     result = simulated("p-edc-default", "new", False)
     assert result.outcome.safe_confirmed
     assert result.outcome.missed_replies == 0
-    assert result.simulation["rig_counters"]["bad_crc"] == 0
+    assert result.simulation.rig_counters.bad_crc == 0
     assert result.outcome.fw_version == "1.0"

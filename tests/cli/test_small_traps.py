@@ -43,7 +43,7 @@ def test_a_watchdog_that_does_not_outlast_two_ticks_is_refused() -> None:
 
 
 def test_a_simulated_tests_customer_page_says_no_real_valve_was_tested() -> None:
-    simulated = Record.model_validate({"verdict": "PASS", "clock": "simulated", "simulation": {"valve": "new"}})
+    simulated = Record.model_validate({"verdict": "PASS", "clock": "simulated", "simulation": {"valve": {"label": "new"}}})
     rows = dict(who_and_when_rows(simulated))
     assert rows.get("Rig") == "SIMULATED: no real valve was tested", rows
     on_a_rig = Record.model_validate({"verdict": "PASS", "clock": "real-time"})

@@ -33,7 +33,7 @@ def test_a_bench_test_through_the_c_firmware_gives_the_python_firmwares_verdict_
     variant = load_variant()
     python = run_simulated_test(variant, valve, 4, check_gains=False)
     c = run_simulated_test(variant, valve, 4, check_gains=False, firmware="c")
-    assert c.simulation["firmware"] == "c" and python.simulation["firmware"] == "python"
+    assert c.simulation.firmware == "c" and python.simulation.firmware == "python"
     assert c.verdict == python.verdict
     for name in ("af", "a1"):
         assert c.parameters[name].value == pytest.approx(python.parameters[name].value, rel=1e-3), name

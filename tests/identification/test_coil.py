@@ -46,12 +46,12 @@ def test_features_of_one_valve_move_less_than_2_percent_across_the_coil_range(ne
 @pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_the_measured_resistance_is_within_1_percent_of_the_coil(new_valve_on_each_coil) -> None:
     for coil, result in new_valve_on_each_coil.items():
-        truth = result.simulation["coil"]
+        truth = result.simulation.coil
         measured = result.judgement.coil
-        print(coil, measured.resistance_20c_ohm, truth["resistance_20c_ohm"], measured.resistance_ohm,
-              truth["resistance_end_ohm"], measured.warming_k, truth["temp_end_c"] - truth["temp_start_c"])
-        assert measured.resistance_20c_ohm == pytest.approx(truth["resistance_20c_ohm"], rel=0.01)
-        assert measured.resistance_ohm == pytest.approx(truth["resistance_end_ohm"], rel=0.01)
+        print(coil, measured.resistance_20c_ohm, truth.resistance_20c_ohm, measured.resistance_ohm,
+              truth.resistance_end_ohm, measured.warming_k, truth.temp_end_c - truth.temp_start_c)
+        assert measured.resistance_20c_ohm == pytest.approx(truth.resistance_20c_ohm, rel=0.01)
+        assert measured.resistance_ohm == pytest.approx(truth.resistance_end_ohm, rel=0.01)
         assert measured.in_spec is True
         assert result.verdict == Verdict.PASS, result.reasons
     # the coil warms in the test (a rested 0.9 ohm coil: about 10 K in 30 s) and the bench sees it

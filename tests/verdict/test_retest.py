@@ -75,8 +75,8 @@ def test_a_marginal_is_retested_and_the_pair_decides(tmp_path: Path) -> None:
     assert "decision: FAIL, near the limit twice: replace the valve" in out
     first_dir, second_dir = sorted((tmp_path / "rec").iterdir())
     first, second = load_record(first_dir), load_record(second_dir)
-    assert first.retest is None and first.simulation["seed"] == 0
-    assert second.simulation["seed"] == 1  # new noise on the simulated rig
+    assert first.retest is None and first.simulation.seed == 0
+    assert second.simulation.seed == 1  # new noise on the simulated rig
     assert second.retest is not None
     assert (second.retest.of_record, second.retest.of_verdict) == (first_dir.name, "MARGINAL")
     assert (second.retest.decision, second.retest.rule) == ("FAIL", "retest.decide.MARGINAL = FAIL")
