@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from edc_bench.cli.common import positive_float, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
@@ -15,6 +16,67 @@ if TYPE_CHECKING:
     from edc_bench.records.schema import Record
     from edc_bench.verdict.baseline import Baseline
     from edc_bench.verdict.classifier import ValveClassifier
+    from edc_bench.verdict.sections import BaselineSummary, ClassificationSummary
+    from edc_bench.verdict.verdicts import Verdict
+
+
+@dataclasses.dataclass(frozen=True)
+class ClassifyReport:
+    """What ``classify`` says: the verdict, the classification behind it, and how it stands to the record judged.
+
+    Attributes
+    ----------
+    verdict : Verdict
+        This classification's verdict (a record's INVALID is kept: a model never judges a bad test).
+    variant : str or None
+        The variant whose baseline and model judged (None: a record's INVALID, not judged).
+    features : dict of str to float or None
+        af and a1 as judged (None: not judged).
+    classification : ClassificationSummary or None
+        The model's judgement, naming the model exactly (None: not judged).
+    baseline : BaselineSummary or None
+        The new-valve baseline the features were related to.
+    reasons : list of str or None
+        Why the verdict is INVALID, or a caution (a nominal baseline).
+    record_dir : str or None
+        The record folder of a recorded INVALID.
+    compared : dict or None
+        A record's comparison (``recorded_verdict``, ``not_as_recorded``, ``disagreements``,
+        ``not_as_first_indexed``): set by :func:`_finish` when a record was judged.
+    """
+
+    verdict: Verdict
+    variant: str | None = None
+    features: dict[str, float] | None = None
+    classification: ClassificationSummary | None = None
+    baseline: BaselineSummary | None = None
+    reasons: list[str] | None = None
+    record_dir: str | None = None
+    recorded_verdict: Verdict | None = None
+    not_as_recorded: str | None = None
+    disagreements: list[str] | None = None
+    not_as_first_indexed: str | None = None
+    compared: bool = False
+
+    def as_json(self) -> dict[str, Any]:
+        """The ``--json`` output: the classification's fields at the top level, as the command always printed."""
+        out: dict[str, Any] = {"verdict": self.verdict}
+        if self.variant is not None:
+            out["variant"] = self.variant
+        if self.features is not None:
+            out["features"] = self.features
+        if self.classification is not None:
+            out.update(self.classification.model_dump(mode="python"))
+        if self.baseline is not None:
+            out["baseline"] = self.baseline
+        if self.reasons is not None:
+            out["reasons"] = self.reasons
+        if self.record_dir is not None:
+            out["record_dir"] = self.record_dir
+        if self.compared:
+            out.update(recorded_verdict=self.recorded_verdict, not_as_recorded=self.not_as_recorded,
+                       disagreements=self.disagreements, not_as_first_indexed=self.not_as_first_indexed)
+        return out
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -57,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError("give either a record folder or --af and --a1, not both")
         record = load_record(args.record_dir)
         if record.verdict == Verdict.INVALID:
-            out = {"verdict": Verdict.INVALID, "reasons": record.reasons, "record_dir": str(args.record_dir)}
+            out = ClassifyReport(Verdict.INVALID, reasons=list(record.reasons), record_dir=str(args.record_dir))
             return _finish(out, args.json, record, record_dir=args.record_dir)
         recorded = record.variant
         variant = load_variant(args.variant or recorded or None)
@@ -78,19 +140,19 @@ def run(args: argparse.Namespace) -> int:
     if args.record_dir is None:
         _check_plausible(af, a1, baseline)  # typed values; a record's were measured
     if not baseline.calibrated and not args.nominal_baseline:
-        out = {"verdict": Verdict.INVALID, "variant": variant.name, "reasons": [not_calibrated_reason(variant)]}
+        out = ClassifyReport(Verdict.INVALID, variant=variant.name, reasons=[not_calibrated_reason(variant)])
         return _finish(out, args.json, record, "this station has no measured baseline for the variant now",
                        args.record_dir)
     judged, baseline, classifier = classify_features(variant, af, a1, args.model)
-    out = {"variant": variant.name, "features": {"af": af, "a1": a1},
-           **classification_summary(judged, classifier).model_dump(mode="python"), "baseline": baseline.summary()}
-    if not baseline.calibrated:
-        out["reasons"] = [nominal_baseline_warning(variant)]
+    summary = classification_summary(judged, classifier)
+    out = ClassifyReport(summary.verdict, variant=variant.name, features={"af": af, "a1": a1}, classification=summary,
+                         baseline=baseline.summary(),
+                         reasons=None if baseline.calibrated else [nominal_baseline_warning(variant)])
     return _finish(out, args.json, record, "" if record is None else _why_else(record, baseline, classifier),
                    args.record_dir)
 
 
-def _finish(out: dict, as_json: bool, record: Record | None, why: str = "", record_dir: Path | None = None) -> int:
+def _finish(out: ClassifyReport, as_json: bool, record: Record | None, why: str = "", record_dir: Path | None = None) -> int:
     """Report ``out``, with the line that says it is not as ``record`` says where that is so; the exit code.
 
     A record's verdict is not as recorded when this classification gives another verdict on the valve, or when
@@ -112,11 +174,12 @@ def _finish(out: dict, as_json: bool, record: Record | None, why: str = "", reco
             standing = history_standing(record, record_dir)
             if standing is not None and standing.differs:
                 history = standing.differs
-        line = not_as_recorded(record, out["verdict"], found, why, history)
-        out = {**out, "recorded_verdict": record.verdict, "not_as_recorded": line, "disagreements": found,
-               "not_as_first_indexed": history}
-    print_quietly_if_closed(lambda: _report(out, as_json))
-    return ExitCode.NOT_REPRODUCED if line else exit_code_for(out["verdict"])
+        line = not_as_recorded(record, out.verdict, found, why, history)
+        out = dataclasses.replace(out, recorded_verdict=record.verdict, not_as_recorded=line, disagreements=found,
+                                  not_as_first_indexed=history, compared=True)
+    shown = out
+    print_quietly_if_closed(lambda: _report(shown, as_json))
+    return ExitCode.NOT_REPRODUCED if line else exit_code_for(out.verdict)
 
 
 def not_as_recorded(record: Record, verdict: str, found: list[str], why: str = "",
@@ -210,20 +273,22 @@ def _check_plausible(af: float, a1: float, baseline: Baseline) -> None:
                               "prints it")
 
 
-def _report(out: dict, as_json: bool) -> None:
+def _report(out: ClassifyReport, as_json: bool) -> None:
     from edc_bench.records.writer import json_safe
 
     if as_json:
-        print(json.dumps(json_safe(out), indent=2))
+        print(json.dumps(json_safe(out.as_json()), indent=2))
         return
-    print(f"verdict: {out['verdict']}")
-    if "probability_faulty" in out:
-        rel = out["features_rel"]
-        print(f"af x{rel['af']:.3f}, a1 x{rel['a1']:.3f} of the new-valve baseline "
-              f"({out['baseline'].source or 'no source given'})")
-        print(f"P(faulty) = {out['probability_faulty']:.3f}, distance to the boundary {out['distance']:+.3f} "
-              f"(marginal band {out['marginal_band']:g}, {out['model']} model)")
-    for reason in out.get("reasons", []):
+    print(f"verdict: {out.verdict}")
+    judged = out.classification
+    if judged is not None:
+        rel = judged.features_rel
+        source = out.baseline.source if out.baseline is not None else None
+        print(f"af x{rel['af']:.3f}, a1 x{rel['a1']:.3f} of the new-valve baseline ({source or 'no source given'})")
+        distance = "beyond the scan" if judged.distance is None else f"{judged.distance:+.3f}"
+        print(f"P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary {distance} "
+              f"(marginal band {judged.marginal_band:g}, {judged.model} model)")
+    for reason in out.reasons or []:
         print(f"  - {reason}")
-    if out.get("not_as_recorded"):
-        print(out["not_as_recorded"])
+    if out.not_as_recorded:
+        print(out.not_as_recorded)

@@ -19,10 +19,12 @@ from helpers import edc_bench, rewrite_record_json
 
 from edc_bench.bench import BenchOptions, run_bench_test, run_simulated_test
 from edc_bench.config import load_variant, parse_variant
+from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.errors import ConfigError
 from edc_bench.records.consistency import disagreements
 from edc_bench.records.reader import load_record
 from edc_bench.records.record import write_record
+from edc_bench.verdict.sections import RetestSummary
 from edc_bench.verdict.verdicts import Verdict
 
 Doc = dict[str, Any]
@@ -47,8 +49,8 @@ def genuine(tmp_path_factory: pytest.TempPathFactory, failed: Path) -> dict[str,
 
     out = tmp_path_factory.mktemp("genuine")
     variant = load_variant()
-    retest = {"of_record": "first", "of_verdict": "MARGINAL", "decision": "FAIL",
-              "words": "near the limit twice: replace the valve", "rule": "retest.decide.MARGINAL = FAIL"}
+    retest = RetestSummary(of_record="first", of_verdict=Verdict.MARGINAL, decision=Verdict.FAIL,
+                           words="near the limit twice: replace the valve", rule="retest.decide.MARGINAL = FAIL")
     folders = {"fail": failed,
                "pass": write_record(run_simulated_test(variant, "new", 3), out, figure=False),
                "marginal retested": write_record(run_simulated_test(variant, "clearance=0.185", 0), out,
@@ -273,3 +275,17 @@ def test_no_record_the_bench_writes_is_taken_for_a_forgery(tmp_path: Path) -> No
         verdicts.add(record.verdict)
         assert disagreements(record) == [], (record.variant, record.valve_id, record.verdict, record.problems)
     assert verdicts >= {Verdict.PASS, Verdict.FAIL, Verdict.INVALID}
+
+
+def test_classify_of_an_invalid_record_keeps_its_verdict_and_reasons(genuine: dict[str, Path]) -> None:
+    """A model never judges a bad test: the record's INVALID and its reasons, said and printed as JSON."""
+    folder = genuine["aborted"]
+    record = load_record(folder)
+    proc = edc_bench("classify", str(folder))
+    assert proc.returncode == ExitCode.INVALID, proc.stdout + proc.stderr
+    assert proc.stdout.splitlines()[0] == "verdict: INVALID" and "P(faulty)" not in proc.stdout
+    assert all(f"  - {reason}" in proc.stdout for reason in record.reasons) and record.reasons
+    out = json.loads(edc_bench("classify", str(folder), "--json").stdout)
+    assert out == {"verdict": "INVALID", "reasons": list(record.reasons), "record_dir": str(folder),
+                   "recorded_verdict": "INVALID", "not_as_recorded": None, "disagreements": [],
+                   "not_as_first_indexed": None}
