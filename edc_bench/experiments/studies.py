@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.config import Variant, load_variant, parse_variant, with_changes
-from edc_bench.learning.dataset import COLUMNS, Dataset
+from edc_bench.learning.dataset import Dataset, DatasetColumns
 from edc_bench.identification.period_fit import expected_drive_noise_v
 from edc_bench.learning.evaluation import JudgedCounts, judged_counts
 from edc_bench.physics.valve import ValveSpec, sample_valve
@@ -345,9 +345,8 @@ def paper_experiment(variant_name: str = "p-edc-default", seed: int = 2010, repe
     fit_rel = np.vstack([train_rel, train_rel[labels == 1]])
     fit_abs = np.vstack([train_abs, train_abs[labels == 1]])
     fit_labels = np.concatenate([labels, labels[labels == 1]])
-    columns = {name: np.zeros(len(fit_labels)) for name in COLUMNS}
-    columns.update(af=fit_abs[:, 0], a1=fit_abs[:, 1], af_rel=fit_rel[:, 0], a1_rel=fit_rel[:, 1],
-                   faulty=fit_labels.astype(bool), converged=np.ones(len(fit_labels), bool))
+    columns = DatasetColumns.labelled(fit_rel[:, 0], fit_rel[:, 1], fit_labels.astype(bool), af=fit_abs[:, 0],
+                                      a1=fit_abs[:, 1])
     model = train(Dataset(columns, {"experiment": "paper", "seed": seed}), "mlp", seed)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "paper.onnx"
@@ -429,7 +428,7 @@ class BoundaryTradeoff:
 def boundary_tradeoff(classifier: ValveClassifier, dataset: Dataset,
                       shifts: np.ndarray | None = None) -> BoundaryTradeoff:
     """Move the boundary by each of ``shifts`` (default: -0.4 to 0.4 in steps of 0.01) and count the errors."""
-    ok = dataset.columns["converged"].astype(bool)
+    ok = dataset.columns.converged.astype(bool)
     d = classifier.distances(dataset.features[ok])
     truth = dataset.labels[ok] == 1
     shifts = np.linspace(-0.4, 0.4, 81) if shifts is None else shifts

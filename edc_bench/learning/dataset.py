@@ -15,7 +15,7 @@ import os
 import zipfile
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -37,8 +37,65 @@ GENERATOR_VERSION = 1
 #: The significant digits a value counts with in :meth:`Dataset.content_hash`.
 HASH_SIGNIFICANT_DIGITS = 6
 CHUNK = 500
-COLUMNS = ("af", "a1", "af_rel", "a1_rel", "faulty", "converged", "resisting_force_n", "clearance_mm",
-           "roughness", "variant_index", "seed")
+
+
+@dataclass(frozen=True)
+class DatasetColumns:
+    """A dataset's columns, one row per simulated bench test (each an array of the same length).
+
+    Attributes
+    ----------
+    af, a1 : numpy.ndarray
+        The identified features (V; V s/mm).
+    af_rel, a1_rel : numpy.ndarray
+        The features over the variant's new-valve baseline: what the classifier judges.
+    faulty : numpy.ndarray
+        The physical truth, the label (:func:`~edc_bench.physics.wear.is_faulty`).
+    converged : numpy.ndarray
+        Whether the test's estimate converged (training may keep only these).
+    resisting_force_n, clearance_mm, roughness : numpy.ndarray
+        The valve as simulated: its resisting force (N), clearance (mm) and roughness.
+    variant_index : numpy.ndarray
+        Which of the provenance's variants the valve was drawn for.
+    seed : numpy.ndarray
+        The test's noise seed.
+    """
+
+    af: np.ndarray
+    a1: np.ndarray
+    af_rel: np.ndarray
+    a1_rel: np.ndarray
+    faulty: np.ndarray
+    converged: np.ndarray
+    resisting_force_n: np.ndarray
+    clearance_mm: np.ndarray
+    roughness: np.ndarray
+    variant_index: np.ndarray
+    seed: np.ndarray
+
+    def items(self) -> list[tuple[str, np.ndarray]]:
+        """(name, column) in :data:`COLUMNS`'s order: the file's entries and the content hash's order."""
+        return [(name, getattr(self, name)) for name in COLUMNS]
+
+    @classmethod
+    def labelled(cls, af_rel: np.ndarray, a1_rel: np.ndarray, faulty: np.ndarray, af: np.ndarray | None = None,
+                 a1: np.ndarray | None = None) -> DatasetColumns:
+        """Rows known only by their relative features and label (a study's patterns, a shop's teardowns): every
+        row converged, the simulation's columns zero."""
+        n = len(faulty)
+        zeros = np.zeros(n)
+        return cls(af=zeros if af is None else af, a1=zeros if a1 is None else a1, af_rel=af_rel, a1_rel=a1_rel,
+                   faulty=faulty, converged=np.ones(n, bool), resisting_force_n=zeros, clearance_mm=zeros,
+                   roughness=zeros, variant_index=zeros, seed=zeros)
+
+    @classmethod
+    def concatenated(cls, parts: Sequence[DatasetColumns]) -> DatasetColumns:
+        """The rows of ``parts``, one after the other."""
+        return cls(**{name: np.concatenate([getattr(part, name) for part in parts]) for name in COLUMNS})
+
+
+#: The columns' names, in the order a dataset file holds them and its content hash counts them.
+COLUMNS = tuple(f.name for f in fields(DatasetColumns))
 
 
 def update_digest(digest: "hashlib._Hash", name: str, values: np.ndarray) -> None:
@@ -58,21 +115,21 @@ def update_digest(digest: "hashlib._Hash", name: str, values: np.ndarray) -> Non
 class Dataset:
     """Columns of one dataset (one row per simulated bench test)."""
 
-    columns: dict[str, np.ndarray]
+    columns: DatasetColumns
     provenance: dict[str, Any] = field(default_factory=dict)
 
     def __len__(self) -> int:
-        return len(self.columns["af"])
+        return len(self.columns.af)
 
     @property
     def features(self) -> np.ndarray:
         """(N, 2) relative features [af/af0, a1/a1_0]."""
-        return np.column_stack([self.columns["af_rel"], self.columns["a1_rel"]])
+        return np.column_stack([self.columns.af_rel, self.columns.a1_rel])
 
     @property
     def labels(self) -> np.ndarray:
         """(N,) 1 for faulty, 0 for reusable."""
-        return self.columns["faulty"].astype(int)
+        return self.columns.faulty.astype(int)
 
     def content_hash(self) -> str:
         """SHA-256 of the columns (order and values), each value to :data:`HASH_SIGNIFICANT_DIGITS` digits.
@@ -82,22 +139,22 @@ class Dataset:
         significant digits names the data, not the machine that computed it.
         """
         digest = hashlib.sha256()
-        for name in COLUMNS:
-            update_digest(digest, name, self.columns[name])
+        for name, column in self.columns.items():
+            update_digest(digest, name, column)
         return digest.hexdigest()
 
     def save(self, path: Path) -> None:
         """Write the dataset (atomically) with its provenance."""
         provenance = {**self.provenance, "content_sha256": self.content_hash(), "rows": len(self)}
         atomic_write(Path(path), lambda f: np.savez_compressed(
-            f, provenance=np.array(json.dumps(provenance, sort_keys=True)), **self.columns))
+            f, provenance=np.array(json.dumps(provenance, sort_keys=True)), **dict(self.columns.items())))
 
     @classmethod
     def load(cls, path: Path) -> Dataset:
         """Read a dataset written by :meth:`save`, checking its hash."""
         try:
             with np.load(Path(path)) as data:
-                columns = {name: data[name] for name in COLUMNS}
+                columns = DatasetColumns(**{name: data[name] for name in COLUMNS})
                 provenance = json.loads(str(data["provenance"]))
         except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # a damaged or foreign file
             raise ConfigError(f"{path}: not an edc-bench dataset ({exc})") from None
@@ -151,7 +208,7 @@ def make_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int
         Processes to spread chunks over (default: all cores).
     """
     workers = workers or os.cpu_count() or 1
-    cols: dict[str, list[Any]] = {name: [] for name in COLUMNS}
+    parts: list[DatasetColumns] = []
     for v_index, name in enumerate(variant_names):
         variant = load_variant(name)
         baseline = load_baseline(variant, station=False)  # simulated features: the shipped simulated baseline
@@ -159,18 +216,13 @@ def make_dataset(variant_names: Sequence[str], count_per_variant: int, seed: int
         valves = draw_population(variant, count_per_variant, population_seed)
         seeds = [population_seed * 100_000 + n for n in range(count_per_variant)]
         features, converged = run_population(variant, valves, seeds, workers)
-        cols["af"].append(features[:, 0])
-        cols["a1"].append(features[:, 1])
-        cols["af_rel"].append(features[:, 0] / baseline.af_v)
-        cols["a1_rel"].append(features[:, 1] / baseline.a1_v_s_per_mm)
-        cols["faulty"].append(np.array([is_faulty(variant, v) for v in valves]))
-        cols["converged"].append(converged)
-        cols["resisting_force_n"].append(np.array([resisting_force_n(variant, v) for v in valves]))
-        cols["clearance_mm"].append(np.array([v.clearance_mm for v in valves]))
-        cols["roughness"].append(np.array([v.roughness for v in valves]))
-        cols["variant_index"].append(np.full(count_per_variant, v_index))
-        cols["seed"].append(np.array(seeds))
-    columns = {name: np.concatenate(parts) for name, parts in cols.items()}
+        parts.append(DatasetColumns(
+            af=features[:, 0], a1=features[:, 1], af_rel=features[:, 0] / baseline.af_v,
+            a1_rel=features[:, 1] / baseline.a1_v_s_per_mm, faulty=np.array([is_faulty(variant, v) for v in valves]),
+            converged=converged, resisting_force_n=np.array([resisting_force_n(variant, v) for v in valves]),
+            clearance_mm=np.array([v.clearance_mm for v in valves]), roughness=np.array([v.roughness for v in valves]),
+            variant_index=np.full(count_per_variant, v_index), seed=np.array(seeds)))
+    columns = DatasetColumns.concatenated(parts)
     provenance = {"variants": list(variant_names), "count_per_variant": count_per_variant, "seed": seed,
                   "generator_version": GENERATOR_VERSION, "edc_bench_version": __version__}
     return Dataset(columns, provenance)

@@ -63,13 +63,13 @@ def evaluate(classifier: ValveClassifier | None, dataset: Dataset) -> Evaluation
     each variant's valves by the model that judges that variant's (the dataset's ``variants`` and
     ``variant_index``); ``models`` names the models that judged.
     """
-    ok = dataset.columns["converged"].astype(bool)
+    ok = dataset.columns.converged.astype(bool)
     if classifier is not None:
         judges = {0: classifier}
         which = np.zeros(len(dataset), dtype=int)
     else:
         judges = {n: judge_of(load_variant(name), None) for n, name in enumerate(dataset.provenance["variants"])}
-        which = dataset.columns["variant_index"].astype(int)
+        which = dataset.columns.variant_index.astype(int)
     verdicts = np.full(len(dataset), "", dtype=object)
     for n, judge in judges.items():
         rows = ok & (which == n)

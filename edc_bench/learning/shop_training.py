@@ -33,7 +33,7 @@ import numpy as np
 
 from edc_bench.errors import ConfigError
 from edc_bench.learning.candidate_evaluation import EVALUATION_KEY, CandidateEvaluation, Score
-from edc_bench.learning.dataset import COLUMNS, Dataset, update_digest
+from edc_bench.learning.dataset import Dataset, DatasetColumns, update_digest
 from edc_bench.learning.evaluation import verdict_counts
 from edc_bench.learning.train import TrainedModel, fit_and_export
 from edc_bench.verdict.classifier import ValveClassifier
@@ -76,10 +76,8 @@ class LabelledTests:
 
     def as_dataset(self, provenance: dict[str, Any]) -> Dataset:
         """The labels as a :class:`Dataset` (for ``evaluate`` and ``study-boundary`` on real labels)."""
-        n = len(self)
-        columns = {name: np.zeros(n) for name in COLUMNS}
-        columns.update(af_rel=self.features_rel[:, 0].astype(float), a1_rel=self.features_rel[:, 1].astype(float),
-                       faulty=self.labels.astype(bool), converged=np.ones(n, bool))
+        columns = DatasetColumns.labelled(self.features_rel[:, 0].astype(float),
+                                          self.features_rel[:, 1].astype(float), self.labels.astype(bool))
         return Dataset(columns, provenance)
 
 
@@ -147,7 +145,7 @@ class ShopTraining:
 def _prior_rows(prior: Dataset | None) -> tuple[np.ndarray, np.ndarray]:
     if prior is None:
         return np.zeros((0, 2)), np.zeros(0, int)
-    keep = prior.columns["converged"].astype(bool)
+    keep = prior.columns.converged.astype(bool)
     return prior.features[keep], prior.labels[keep]
 
 

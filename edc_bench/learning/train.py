@@ -114,7 +114,7 @@ def train(dataset: Dataset, kind: str, seed: int, *, threshold: float = DEFAULT_
     only_converged : bool
         Train only on tests that converged (a model never learns from bad tests).
     """
-    keep = dataset.columns["converged"].astype(bool) if only_converged else np.ones(len(dataset), bool)
+    keep = dataset.columns.converged.astype(bool) if only_converged else np.ones(len(dataset), bool)
     provenance = {"edc_bench.training_data_sha256": dataset.content_hash(),
                   "edc_bench.training_data": json.dumps(dataset.provenance, sort_keys=True)}
     return fit_and_export(dataset.features[keep], dataset.labels[keep], kind, seed, threshold=threshold,

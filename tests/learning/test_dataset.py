@@ -21,7 +21,7 @@ def test_dataset_file_keeps_provenance_and_detects_tampering(tmp_path: Path) -> 
     assert back.provenance["variants"] == ["p-edc-default"] and back.provenance["seed"] == 9
     assert back.provenance["generator_version"] == 1 and back.provenance["rows"] == 12
     assert back.content_hash() == data.content_hash()
-    columns = dict(back.columns)
+    columns = dict(back.columns.items())
     columns["af"] = columns["af"] * 1.01
     np.savez(path, provenance=np.array(json.dumps(back.provenance)), **columns)
     with pytest.raises(ConfigError, match="does not match its recorded hash"):

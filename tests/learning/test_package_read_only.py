@@ -16,7 +16,7 @@ import pytest
 from package_files import package_digest
 
 from edc_bench.cli import main
-from edc_bench.learning.dataset import COLUMNS, Dataset
+from edc_bench.learning.dataset import COLUMNS, Dataset, DatasetColumns
 from edc_bench.paths import package_folders, source_checkout
 from edc_bench.verdict.classifier import (
     DEFAULT_MODEL,
@@ -39,7 +39,7 @@ def _dataset(rows: int = 300, seed: int = 3) -> Dataset:
     columns.update(af=af_rel * 0.07, a1=a1_rel * 0.0038, af_rel=af_rel, a1_rel=a1_rel,
                    faulty=(0.6 * af_rel + 0.4 * a1_rel > 1.6).astype(float), converged=np.ones(rows),
                    variant_index=np.zeros(rows), seed=np.arange(rows, dtype=float))
-    return Dataset(columns, {"synthetic": True})
+    return Dataset(DatasetColumns(**columns), {"synthetic": True})
 
 
 def _labelled_history(url: str, count: int = 40) -> None:

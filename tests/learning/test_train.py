@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -36,7 +37,7 @@ def _synthetic_dataset(rows: int, seed: int):
     """Features spread like a simulated population's, labelled by a physical-looking rule (no simulation)."""
     import numpy as np
 
-    from edc_bench.learning.dataset import COLUMNS, Dataset
+    from edc_bench.learning.dataset import COLUMNS, Dataset, DatasetColumns
 
     rng = np.random.default_rng(seed)
     af_rel, a1_rel = rng.uniform(0.8, 2.4, rows), rng.uniform(0.8, 2.6, rows)
@@ -44,7 +45,7 @@ def _synthetic_dataset(rows: int, seed: int):
     columns = {name: rng.uniform(0.0, 1.0, rows) for name in COLUMNS}
     columns.update(af=af_rel * 0.07, a1=a1_rel * 0.0038, af_rel=af_rel, a1_rel=a1_rel, faulty=faulty,
                    converged=np.ones(rows), variant_index=np.zeros(rows), seed=np.arange(rows, dtype=float))
-    return Dataset(columns, {"synthetic": True})
+    return Dataset(DatasetColumns(**columns), {"synthetic": True})
 
 
 def _metadata(onnx_bytes: bytes) -> dict[str, str]:
@@ -69,15 +70,17 @@ def test_the_models_metadata_does_not_depend_on_floating_point_noise(kind: str) 
 
     data = _synthetic_dataset(2000, 3)
     rng = np.random.default_rng(4)
-    noisy = type(data)({name: (col * (1.0 + rng.choice([-1e-12, 1e-12], len(col))) if name not in
-                               ("faulty", "converged", "variant_index", "seed") else col)
-                        for name, col in data.columns.items()}, dict(data.provenance))
-    assert not np.array_equal(noisy.columns["af_rel"], data.columns["af_rel"])
+    noisy = type(data)(type(data.columns)(**{
+        name: (col * (1.0 + rng.choice([-1e-12, 1e-12], len(col))) if name not in
+               ("faulty", "converged", "variant_index", "seed") else col)
+        for name, col in data.columns.items()}), dict(data.provenance))
+    assert not np.array_equal(noisy.columns.af_rel, data.columns.af_rel)
     assert noisy.content_hash() == data.content_hash()
     assert _metadata(train(noisy, kind, 2026).onnx_bytes) == _metadata(train(data, kind, 2026).onnx_bytes)
 
 
 def test_the_data_hash_still_sees_a_real_change() -> None:
     data = _synthetic_dataset(200, 3)
-    changed = type(data)({**data.columns, "af_rel": data.columns["af_rel"] * (1.0 + 1e-5)}, data.provenance)
+    changed = type(data)(dataclasses.replace(data.columns, af_rel=data.columns.af_rel * (1.0 + 1e-5)),
+                         data.provenance)
     assert changed.content_hash() != data.content_hash()

@@ -65,7 +65,7 @@ def test_the_station_s_models_folder_comes_first(tmp_path: Path, monkeypatch: py
 
 def test_a_study_without_model_judges_each_variant_s_valves_by_its_own() -> None:
     """evaluate() over a dataset of two variants: each variant's rows by that variant's model."""
-    from edc_bench.learning.dataset import COLUMNS, Dataset
+    from edc_bench.learning.dataset import COLUMNS, Dataset, DatasetColumns
 
     rows = 40
     rng = np.random.default_rng(3)
@@ -74,7 +74,7 @@ def test_a_study_without_model_judges_each_variant_s_valves_by_its_own() -> None
     index = np.repeat([0, 1], rows // 2)
     columns.update(af_rel=features[:, 0], a1_rel=features[:, 1], converged=np.ones(rows), variant_index=index,
                    faulty=(features.sum(axis=1) > 3.2).astype(float))
-    dataset = Dataset(columns, {"variants": ["p-edc-default", "p-edc-hard"]})
+    dataset = Dataset(DatasetColumns(**columns), {"variants": ["p-edc-default", "p-edc-hard"]})
     report = evaluate(None, dataset)
     assert report.models == ["valve_mlp", "valve_mlp-p-edc-hard"]
     default, hard = (default_classifier(variant=load_variant(n)) for n in ("p-edc-default", "p-edc-hard"))
