@@ -48,13 +48,14 @@ def main() -> None:
     from edc_bench.history.store import Filters
     from edc_bench.records.record import write_record
     from edc_bench.records.report import draw_report
+    from edc_bench.records.schema import Identity
     from edc_bench.replay import replay_record
     from edc_bench.ui.live import render_snapshot, verdict_panel
     from edc_bench.ui.snapshot import Snapshot
 
     IMAGES.mkdir(exist_ok=True)
     variant = load_variant()
-    identity = {"pump_serial": "PS-20231", "station": "bench-2", "operator": "m.keller"}
+    identity = Identity(pump_serial="PS-20231", station="bench-2", operator="m.keller")
 
     class Capture:  # an observer that keeps the snapshot at 6 s, as the live panel showed it (the test stops at 10 s)
         def __init__(self) -> None:
@@ -132,12 +133,12 @@ def report_pictures() -> None:
     from edc_bench.config import load_variant
     from edc_bench.records.record import write_record
     from edc_bench.records.report import draw_report
+    from edc_bench.records.schema import Identity
     from edc_bench.verdict.retest import decide
 
     variant = load_variant()
-    identity = {"pump_serial": "PS-20231", "station": "bench-2", "operator": "m.keller",
-                "shop": "Diesel Müller GmbH", "shop_address": "Hauptstraße 5\n80331 München",
-                "job_ref": "JOB-004711"}
+    identity = Identity(pump_serial="PS-20231", station="bench-2", operator="m.keller", shop="Diesel Müller GmbH",
+                        shop_address="Hauptstraße 5\n80331 München", job_ref="JOB-004711")
     records = scratch / "records"
 
     def page(folder: Path, name: str, pages: tuple[int, ...] = (0,)) -> None:

@@ -29,8 +29,8 @@ import dataclasses
 import datetime as _dt
 import itertools
 import uuid
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -72,9 +72,9 @@ class BenchOptions:
     ----------
     valve_id : str
         Identity of the valve under test, for the record.
-    identity : Identity or Mapping
+    identity : Identity
         Who and where (``pump_serial``, ``station``, ``operator``, the workshop, ``job_ref``), for the record and the
-        history; a mapping is read as an :class:`~edc_bench.records.schema.Identity` (an unknown key kept).
+        history.
     classify : bool
         Judge a trustworthy test with the classifier (default); off for baseline calibration.
     classifier_path : pathlib.Path or None
@@ -107,7 +107,7 @@ class BenchOptions:
     """
 
     valve_id: str = ""
-    identity: Identity | Mapping[str, str] = field(default_factory=dict)
+    identity: Identity = Identity()
     classify: bool = True
     classifier_path: Path | None = None
     check_gains: bool = True
@@ -195,7 +195,7 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
         frames=loop.frames,
         truth=o.truth,
         can_log_path=can_log_path,
-        identity=Identity.model_validate(o.identity),
+        identity=o.identity,
         simulation=o.describe_rig() if o.describe_rig is not None else None,
     )
 

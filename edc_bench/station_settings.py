@@ -5,6 +5,7 @@ edits it with any text editor; the session writes only the workshop into it, onc
 from __future__ import annotations
 
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +49,24 @@ def settings_section(name: str, data_folder: Path | None = None) -> tuple[dict[s
 _STATION_KEYS = {"name": 100, "shop": 100, "shop_address": 300}
 
 
-def station_identity(data_folder: Path | None = None) -> dict[str, str]:
+@dataclass(frozen=True)
+class StationIdentity:
+    """``[station]`` of the station's settings ("" where not set).
+
+    Attributes
+    ----------
+    name : str
+        What reports and the history call this station, instead of the PC's host name.
+    shop, shop_address : str
+        The workshop and its address: a record names them, the customer's page prints them.
+    """
+
+    name: str = ""
+    shop: str = ""
+    shop_address: str = ""
+
+
+def station_identity(data_folder: Path | None = None) -> StationIdentity:
     """``[station]`` of the station's settings: ``name`` (what reports and the history call this station, instead
     of the PC's host name), ``shop`` and ``shop_address`` (the customer's page prints them); "" where not set.
 
@@ -63,7 +81,7 @@ def station_identity(data_folder: Path | None = None) -> dict[str, str]:
     if unknown:
         raise ConfigError(f"the station's settings {path}: [station] has no key {unknown[0]!r}; its keys are "
                           f"{', '.join(_STATION_KEYS)}")
-    out = {}
+    out: dict[str, str] = {}
     for key, longest in _STATION_KEYS.items():
         value = section.get(key, "")
         # an address may take lines (a newline or '\n'); nothing else unprintable reaches a report or a history row
@@ -73,20 +91,14 @@ def station_identity(data_folder: Path | None = None) -> dict[str, str]:
             raise ConfigError(f"the station's settings {path}: [station] {key} must be text of at most {longest} "
                               f"printable characters (an address may take lines), not {value!r}")
         out[key] = value.strip()
-    return out
+    return StationIdentity(**out)
 
 
 def default_station() -> str:
     """This station's name: ``[station] name`` of its settings, else the PC's host name."""
     import socket
 
-    return station_identity()["name"] or socket.gethostname()
-
-
-def shop_identity() -> dict[str, str]:
-    """The shop a record names (``shop``, ``shop_address``: "" where not set), from ``[station]``."""
-    found = station_identity()
-    return {"shop": found["shop"], "shop_address": found["shop_address"]}
+    return station_identity().name or socket.gethostname()
 
 
 def workshop_asked(data_folder: Path | None = None) -> bool:
@@ -138,5 +150,5 @@ def remember_workshop(shop: str, address: str, data_folder: Path | None = None) 
     return path
 
 
-__all__ = ["SETTINGS_FILE", "default_station", "remember_workshop", "workshop_asked", "settings_path", "settings_section", "shop_identity",
-           "station_identity"]
+__all__ = ["SETTINGS_FILE", "StationIdentity", "default_station", "remember_workshop", "workshop_asked",
+           "settings_path", "settings_section", "station_identity"]

@@ -13,6 +13,7 @@ from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.verdict.baseline_source import BaselineSource, sources_text
 
 if TYPE_CHECKING:
+    from edc_bench.records.schema import Identity
     from edc_bench.runtime.bus_config import BusSettings
 
 
@@ -257,11 +258,12 @@ def _simulated_rig_tests(args: argparse.Namespace, variant: Any, tests: int, see
     return out
 
 
-def _identity(args: argparse.Namespace) -> dict[str, str]:
+def _identity(args: argparse.Namespace) -> Identity:
     """Who and where, for a calibration test's record."""
+    from edc_bench.records.schema import Identity
     from edc_bench.station_settings import default_station
 
-    return {"station": args.station or default_station(), "purpose": "calibration"}
+    return Identity(station=args.station or default_station(), purpose="calibration")
 
 
 def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: BaselineSource) -> list[Any]:

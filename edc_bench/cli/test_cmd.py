@@ -25,6 +25,7 @@ from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 from edc_bench.engine.outcome import AbortKind
 
 if TYPE_CHECKING:
+    from edc_bench.records.schema import Identity
     from edc_bench.runtime.bus_config import BusSettings
     from edc_bench.verdict.sections import RetestSummary
 
@@ -234,17 +235,19 @@ def _check_chain_model(args: argparse.Namespace) -> None:
         raise ConfigError(problem)
 
 
-def _identity(args: argparse.Namespace) -> dict[str, str]:
+def _identity(args: argparse.Namespace) -> Identity:
     import getpass
 
-    from edc_bench.station_settings import default_station, shop_identity
+    from edc_bench.records.schema import Identity
+    from edc_bench.station_settings import default_station, station_identity
 
     try:
         operator = args.operator or getpass.getuser()
     except (KeyError, OSError):  # no user name in this environment
         operator = ""
-    return {"pump_serial": args.pump_serial or "", "station": args.station or default_station(), "operator": operator,
-            **shop_identity(), "job_ref": args.job_ref or ""}
+    shop = station_identity()
+    return Identity(pump_serial=args.pump_serial or "", station=args.station or default_station(), operator=operator,
+                    shop=shop.shop, shop_address=shop.shop_address, job_ref=args.job_ref or "")
 
 
 def _live(args: argparse.Namespace) -> bool:

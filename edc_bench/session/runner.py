@@ -180,12 +180,14 @@ class SessionRunner:
             return folder[0] / CAN_LOG_FILE
 
         from edc_bench.bench import BenchOptions
-        from edc_bench.station_settings import shop_identity
+        from edc_bench.records.schema import Identity
+        from edc_bench.station_settings import station_identity
         from edc_bench.verdict.judgement import default_calibrate_command
 
+        shop = station_identity()
         options = BenchOptions(
-            valve_id=valve_id, identity={"pump_serial": pump_serial, "station": self.station,
-                                         "operator": self.operator, **shop_identity(), "job_ref": job_ref},
+            valve_id=valve_id, identity=Identity(pump_serial=pump_serial, station=self.station, operator=self.operator,
+                                                 shop=shop.shop, shop_address=shop.shop_address, job_ref=job_ref),
             calibrate_command=default_calibrate_command(variant, ["--valve", "new"] if self.rig.simulated else []),
             stream_can_log=stream_target, observer=observer)
         seed = self.rig.first_seed + self.tests_run

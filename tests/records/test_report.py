@@ -12,6 +12,7 @@ import pytest
 from edc_bench.bench import BenchOptions, run_bench_test, run_simulated_test
 from edc_bench.config import load_variant
 from edc_bench.records.record import write_record
+from edc_bench.records.schema import Identity
 from edc_bench.testing.faults import FaultyBus, Rule
 
 
@@ -28,7 +29,7 @@ def _aborted_record(tmp_path: Path, simulated_bench) -> Path:
 def test_report_is_a_two_page_pdf_and_a_png_per_page(tmp_path: Path, kind: str, simulated_bench) -> None:
     if kind == "fail":
         result = run_simulated_test(load_variant(), "worn", 2,
-                                    identity={"pump_serial": "P-9", "station": "bench-1", "operator": "jo"})
+                                    identity=Identity(pump_serial="P-9", station="bench-1", operator="jo"))
         folder = write_record(result, tmp_path, figure=False)
     else:
         folder = _aborted_record(tmp_path, simulated_bench)

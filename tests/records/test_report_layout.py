@@ -30,6 +30,7 @@ from edc_bench.config import load_variant
 from edc_bench.records.reader import load_record, load_trace
 from edc_bench.records.record import write_record
 from edc_bench.records.report import REPORT_PDF, report_pages, write_pdf
+from edc_bench.records.schema import Identity
 from edc_bench.testing.faults import FaultyBus, Rule
 from edc_bench.verdict.verdicts import Verdict
 
@@ -152,16 +153,16 @@ def report_of(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Callable[[st
         def aborted() -> Any:  # the bus cut at 4 s: INVALID, with its abort's advice
             bench, clock, _ = simulated_bench(variant, "new", 3)
             return run_bench_test(FaultyBus(bench, clock.now_s, [Rule("cut", 4.0)]), clock, variant,
-                                  BenchOptions(check_gains=False, identity=IDENTITY))
+                                  BenchOptions(check_gains=False, identity=Identity(**IDENTITY)))
 
         tests: dict[str, tuple[Callable[[], Any], Verdict]] = {
-            "pass": (lambda: run_simulated_test(variant, "new", 3, identity=IDENTITY), Verdict.PASS),
-            "fail": (lambda: run_simulated_test(variant, "worn", 2, identity=IDENTITY), Verdict.FAIL),
-            "marginal": (lambda: run_simulated_test(variant, "clearance=0.185", 0, identity=IDENTITY),
+            "pass": (lambda: run_simulated_test(variant, "new", 3, identity=Identity(**IDENTITY)), Verdict.PASS),
+            "fail": (lambda: run_simulated_test(variant, "worn", 2, identity=Identity(**IDENTITY)), Verdict.FAIL),
+            "marginal": (lambda: run_simulated_test(variant, "clearance=0.185", 0, identity=Identity(**IDENTITY)),
                          Verdict.MARGINAL),
             "invalid": (aborted, Verdict.INVALID),
             # the FAIL's test as if the ids had been typed this long (one simulation fewer)
-            "long values": (lambda: replace(result_of("fail"), identity=LONG_IDENTITY, valve_id=LONG_VALVE_ID),
+            "long values": (lambda: replace(result_of("fail"), identity=Identity(**LONG_IDENTITY), valve_id=LONG_VALVE_ID),
                             Verdict.FAIL),
             # the MARGINAL's test as the retest of another MARGINAL: page 1 gives the pair's decision
             "retest": (lambda: result_of("marginal"), Verdict.MARGINAL),

@@ -62,20 +62,20 @@ def test_the_workshop_typed_once_is_kept_in_the_settings_with_what_they_held(tmp
     import pytest
 
     from edc_bench.errors import ConfigError
-    from edc_bench.station_settings import remember_workshop, station_identity, workshop_asked
+    from edc_bench.station_settings import StationIdentity, remember_workshop, station_identity, workshop_asked
 
     data = tmp_path / "station-data"
     assert not workshop_asked(data)
     remember_workshop("", "", data)  # Enter alone in both: asked, and none printed
-    assert workshop_asked(data) and station_identity(data)["shop"] == ""
+    assert workshop_asked(data) and station_identity(data).shop == ""
     (data / "station.toml").write_text('# bench 2\n[station]\nname = "Bench 2"  # hall B\n\n[scan]\n'
                                        "valve_id = 'V-\\d{5}'\n", encoding="utf-8")
     assert not workshop_asked(data)
     remember_workshop("Diesel Müller GmbH", "Hauptstraße 5, 80331 München", data)
     text = (data / "station.toml").read_text(encoding="utf-8")
     assert "# bench 2" in text and "# hall B" in text and "valve_id = 'V-\\d{5}'" in text
-    assert station_identity(data) == {"name": "Bench 2", "shop": "Diesel Müller GmbH",
-                                      "shop_address": "Hauptstraße 5, 80331 München"}
+    assert station_identity(data) == StationIdentity(name="Bench 2", shop="Diesel Müller GmbH",
+                                                     shop_address="Hauptstraße 5, 80331 München")
     with pytest.raises(ConfigError, match="at most 100 printable characters"):
         remember_workshop("x" * 101, "", data)
 
@@ -115,8 +115,8 @@ def test_the_session_asks_for_the_workshop_once_after_the_operator(tmp_path: Pat
     assert "ADDRESS on one line, then Enter" in asked
     assert prompt == "Scan or type the VALVE ID, then Enter"
     assert "workshop kept in" in message
-    assert station_identity(data)["shop"] == "Diesel Müller GmbH"
-    assert station_identity(data)["shop_address"] == "Hauptstraße 5, 80331 München"
+    assert station_identity(data).shop == "Diesel Müller GmbH"
+    assert station_identity(data).shop_address == "Hauptstraße 5, 80331 München"
     assert workshop_asked()
 
 
@@ -149,4 +149,4 @@ def test_enter_pressed_fast_at_the_workshop_question_takes_none_and_never_fails(
         return prompt
 
     assert asyncio.run(session()) == "Scan or type the VALVE ID, then Enter"
-    assert workshop_asked(data) and station_identity(data)["shop"] == ""
+    assert workshop_asked(data) and station_identity(data).shop == ""
