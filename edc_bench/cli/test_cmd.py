@@ -22,6 +22,7 @@ from edc_bench.cli.common import (
     seed_number,
 )
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
+from edc_bench.cli.test_summary import TestSummary
 from edc_bench.engine.outcome import AbortKind
 
 if TYPE_CHECKING:
@@ -152,44 +153,6 @@ def _coil_temp(text: str) -> float:
     return value
 
 
-def summary(result: Any, record_dir: Path | None, decision: Any = None) -> dict[str, Any]:
-    """The JSON summary of a test (``decision``: a retest's, what it and the MARGINAL before it decide)."""
-    from edc_bench.records.writer import json_safe
-
-    out = {
-        "verdict": result.verdict,
-        "advice": {"action": result.advice.action, "words": result.advice.words},
-        "reasons": result.reasons,
-        "valve_id": result.valve_id,
-        "variant": result.variant.name,
-        "features": result.features,
-        "features_volt": result.judgement.features_volt,
-        "coil": result.judgement.coil,
-        # truth and its error only where there is one (a simulated rig), as the JSON always gave them
-        "parameters": {name: p.model_dump(exclude=None if p.truth is not None else {"truth", "error_rel"})
-                       for name, p in result.parameters.items()},
-        "converged": result.converged,
-        "classification": result.classification,
-        "settle_s": None if result.identification is None else result.identification.settle_s,
-        "condition_number": None if result.identification is None else result.identification.condition_number,
-        "model_fit": (None if result.identification is None or result.identification.model_fit is None
-                      else result.identification.model_fit.summary()),
-        "stop": result.stop,
-        "timing": result.timing,
-        "clock": result.clock,
-        "record_dir": str(record_dir) if record_dir else None,
-    }
-    if result.truth is not None:
-        out["truth"] = result.truth._asdict()
-    if decision is not None:
-        out["decision"] = decision.as_dict()
-    from edc_bench.records.escalation_link import recorded_escalation
-
-    escalated = recorded_escalation(record_dir)
-    out["escalation"] = None if escalated is None else escalated.model_dump()
-    return json_safe(out)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the test, write the record, report."""
     from edc_bench.runtime.signals import interrupt_guard, stop_requested
@@ -314,7 +277,8 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
     if (first.record_dir is None or first.code in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN)
             or stop_requested() or args.no_retest or not retest_wanted(first.result.verdict, variant.retest)):
         if args.json:
-            print_quietly_if_closed(lambda: print(json.dumps(summary(first.result, first.record_dir), indent=2)))
+            print_quietly_if_closed(lambda: print(json.dumps(TestSummary.of(first.result, first.record_dir).as_json(),
+                                                             indent=2)))
         return first.code
     # the MARGINAL procedure: the valve stays mounted and is tested again; on the simulated rig with new noise
     retest_seed = (args.seed + 1) % (MAX_SEED + 1)
@@ -326,9 +290,9 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
     if second.decision is None:  # not written, or a bug: said already
         return second.code
     if args.json:
-        out = summary(second.result, second.record_dir, second.decision)
-        out["first_test"] = summary(first.result, first.record_dir)
-        print_quietly_if_closed(lambda: print(json.dumps(out, indent=2)))
+        out = dataclasses.replace(TestSummary.of(second.result, second.record_dir, second.decision),
+                                  first_test=TestSummary.of(first.result, first.record_dir))
+        print_quietly_if_closed(lambda: print(json.dumps(out.as_json(), indent=2)))
     elif _live(args):
         from rich.console import Console
 

@@ -33,14 +33,14 @@ def test_the_json_summary_of_a_test_without_a_true_value_gives_none() -> None:
     import dataclasses
 
     from edc_bench.bench import run_simulated_test
-    from edc_bench.cli.test_cmd import summary
+    from edc_bench.cli.test_summary import TestSummary
     from edc_bench.config import load_variant, with_changes
 
     result = run_simulated_test(with_changes(load_variant(), {"excitation": {"duration_s": 8.0}}, "test"), "new", 1,
                                 classify=False, check_gains=False)
     untrue = {name: p.model_copy(update={"truth": None, "error_rel": None}) for name, p in result.parameters.items()}
     result = dataclasses.replace(result, judgement=dataclasses.replace(result.judgement, parameters=untrue), truth=None)
-    parameters = summary(result, None)["parameters"]
+    parameters = TestSummary.of(result, None).as_json()["parameters"]
     assert set(parameters) == {"a3", "a2", "a1", "a0", "b", "af"}
     assert all(set(entry) == {"value", "std", "estimated"} for entry in parameters.values()), parameters
 
