@@ -6,12 +6,12 @@ from __future__ import annotations
 import datetime as dt
 import json
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import sqlalchemy as sa
 
 from edc_bench.history.rig_ledger import COLUMNS
-from edc_bench.history.rows import TestRow
+from edc_bench.history.rows import AdoptionRow, TestRow
 from edc_bench.history.schema import adoptions, amendments, reference_valves, rig_checks, tests
 from edc_bench.history.store import HistoryStore, standing_tests
 from edc_bench.learning.candidate_evaluation import CandidateEvaluation
@@ -246,27 +246,24 @@ def retest_of(store: HistoryStore, record_dir: str) -> sa.Row[Any] | None:
                             .order_by(tests.c.id.desc()).limit(1)).first()
 
 
-@dataclass(frozen=True)
-class Adoption:
-    """A station's adoption of a model, with what it was decided on (None: the model carried no evaluation, e.g.
-    the shipped one, or it was adopted before the history kept them)."""
-
-    id: int
-    station: str
-    model_name: str
-    model_sha256: str
-    adopted_by: str
-    adopted_at: str
-    evaluation: CandidateEvaluation | None
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Adoption(AdoptionRow):
+    """A station's adoption of a model (its row), with what it was decided on as figures (:attr:`decided_on`)."""
 
     #: the CSV's columns after the adoption's own (empty for an adoption without an evaluation)
-    EVALUATION_COLUMNS = ("cv_accuracy", "labels", "worn_or_faulty", "folds", "worn_passed", "reusable_failed",
-                          "marginal", "replaced_model", "replaced_accuracy", "replaced_worn_passed",
-                          "replaced_reusable_failed", "replaced_in_sample")
+    EVALUATION_COLUMNS: ClassVar[tuple[str, ...]] = (
+        "cv_accuracy", "labels", "worn_or_faulty", "folds", "worn_passed", "reusable_failed", "marginal",
+        "replaced_model", "replaced_accuracy", "replaced_worn_passed", "replaced_reusable_failed", "replaced_in_sample")
+
+    @property
+    def decided_on(self) -> CandidateEvaluation | None:
+        """The evaluation the model was adopted on (None: the model carried none, e.g. the shipped one, or it was
+        adopted before the history kept them)."""
+        return CandidateEvaluation.from_json(self.evaluation)
 
     def evaluation_cells(self) -> tuple[object, ...]:
         """The evaluation's figures in the order of :attr:`EVALUATION_COLUMNS`."""
-        e = self.evaluation
+        e = self.decided_on
         if e is None:
             return ("",) * len(self.EVALUATION_COLUMNS)
         return (round(e.candidate.accuracy, 4), e.labels, e.worn_or_faulty, e.folds, e.candidate.worn_passed,
@@ -275,8 +272,7 @@ class Adoption:
 
 
 def _adoption(row: sa.Row[Any]) -> Adoption:
-    return Adoption(int(row.id), str(row.station), str(row.model_name), str(row.model_sha256), str(row.adopted_by),
-                    str(row.adopted_at), CandidateEvaluation.from_json(row.evaluation))
+    return Adoption.of(row._mapping)
 
 
 def models(store: HistoryStore) -> tuple[list[Adoption], list[Adoption]]:
