@@ -93,12 +93,11 @@ def run(args: argparse.Namespace) -> int:
     else:  # no rig and no record: Ctrl-C stops the population where it is
         from edc_bench.population.calibrate import population_tests
 
-        from edc_bench.runtime.signals import interrupt_raised
+        from edc_bench.runtime.signals import stop_if_interrupted
 
         print(f"calibrating {variant.name} on {tests} simulated new valves (seed {seed})", file=sys.stderr)
         measured = population_tests(variant, tests, seed)
-        if interrupt_raised():  # a library caught the KeyboardInterrupt and the population ran on: still Ctrl-C
-            raise KeyboardInterrupt
+        stop_if_interrupted()  # a library that caught the KeyboardInterrupt ran the population on: still Ctrl-C
         print(f"{len(measured)} of {tests} tests converged", file=sys.stderr)
     if not measured:
         unchanged = f"; the baseline {target} is unchanged" if earlier else ", so no baseline"

@@ -125,6 +125,7 @@ def _from_simulation(args: argparse.Namespace) -> int:
     from edc_bench.learning.adoption import write_model
     from edc_bench.learning.dataset import Dataset, make_dataset
     from edc_bench.learning.train import train
+    from edc_bench.runtime.signals import stop_if_interrupted
     from edc_bench.verdict.classifier import DEFAULT_MODEL, LINEAR_MODEL
 
     own = _own(args.variants[0]) if args.own else None
@@ -139,12 +140,14 @@ def _from_simulation(args: argparse.Namespace) -> int:
         print(f"simulated {len(dataset)} bench tests in {elapsed:.1f} s ({len(dataset) / elapsed * 60:.0f} per minute)",
               file=sys.stderr)
         if args.save_dataset is not None:
+            stop_if_interrupted()  # a population a library ran on after Ctrl-C is not kept
             dataset.save(args.save_dataset)
     # a variant's own: the network only (the shipped pair's linear model is a yardstick for the network)
     kinds = [("mlp", own[1])] if own else [("mlp", DEFAULT_MODEL), ("linear", LINEAR_MODEL)]
     written = []
     for kind, name in kinds:
         model = train(dataset, kind, args.seed, marginal_band=args.marginal_band)
+        stop_if_interrupted()  # nor a model trained on after it
         if where == CANDIDATE:  # named for its data: never the shipped model's name, which it does not replace
             name = f"{Path(name).stem}-sim-{dataset.content_hash()[:8]}.onnx"
         kept = write_model(out_dir, name, model.onnx_bytes)
@@ -327,6 +330,7 @@ def _from_history(args: argparse.Namespace) -> int:
     from edc_bench.learning.dataset import Dataset, cached_dataset
     from edc_bench.learning.shop_training import DEFAULT_PRIOR_WEIGHT, check_enough, train_from_labels
     from edc_bench.paths import atomic_write
+    from edc_bench.runtime.signals import stop_if_interrupted
     from edc_bench.verdict.classifier import ValveClassifier, station_models_dir
 
     if args.candidate_file is not None:
@@ -353,6 +357,7 @@ def _from_history(args: argparse.Namespace) -> int:
     current = ValveClassifier()  # the station's model: adopted, else shipped
     result = train_from_labels(labelled, prior, current, prior_weight=prior_weight, seed=args.seed, name=args.name,
                                source={"history": url})
+    stop_if_interrupted()  # a candidate a library trained on after Ctrl-C is not written
     out = args.candidate_file or station_models_dir() / "candidates" / f"{result.name}.onnx"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -247,6 +247,9 @@ def cached_dataset(variant_names: Sequence[str], count_per_variant: int, seed: i
         except ConfigError:
             pass  # a damaged cache entry is simulated again
     dataset = make_dataset(variant_names, count_per_variant, seed, workers)
+    from edc_bench.runtime.signals import stop_if_interrupted
+
+    stop_if_interrupted()  # a population a library ran on after Ctrl-C is not kept for next time
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         dataset.save(path)

@@ -149,3 +149,14 @@ def interrupt_raised() -> bool:
     """True once Ctrl-C or SIGTERM has raised :class:`KeyboardInterrupt` in a :func:`raise_on_interrupt` block
     (whatever a library made of it since)."""
     return _state.raised
+
+
+def stop_if_interrupted() -> None:
+    """Raise :class:`KeyboardInterrupt` if Ctrl-C or SIGTERM was raised in this :func:`raise_on_interrupt` block.
+
+    Called by a command before it writes what long library work computed (a baseline, a model, a dataset): a
+    library that caught the interrupt and ran on (a signal landing in code that swallows it) returns a result as
+    if nothing happened, and the command would write it and only then exit 130.
+    """
+    if _state.raised:
+        raise KeyboardInterrupt

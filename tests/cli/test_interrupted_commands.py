@@ -10,6 +10,7 @@ too busy to hit the moment. The session's are in tests/session/test_session_inte
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
@@ -22,6 +23,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import can
+import numpy as np
 import pytest
 
 from edc_bench.protocol import BENCH_CMD_ID, Mode, default_icd
@@ -449,3 +451,36 @@ def test_ctrl_c_at_the_terminal_while_the_rig_process_starts_is_an_interrupt_not
     for folder in (tmp_path / "rec").iterdir():  # a test that had begun keeps its record
         if (folder / "record.json").exists():
             _assert_rig_safe(folder)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("sklearn") is None, reason="training needs the 'train' extra")
+def test_train_writes_no_model_when_a_library_caught_the_interrupt_and_ran_on(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """As calibrate's: the training catches the Ctrl-C and returns a model all the same; the command writes no model
+    (stop_if_interrupted before each write) and exits 130."""
+    from helpers import run_cli
+
+    import edc_bench.learning.train as training
+    from edc_bench.learning.dataset import COLUMNS, Dataset, DatasetColumns
+
+    rng = np.random.default_rng(3)
+    af_rel, a1_rel = rng.uniform(0.8, 2.4, 300), rng.uniform(0.8, 2.6, 300)
+    columns = {name: np.zeros(300) for name in COLUMNS}
+    columns.update(af_rel=af_rel, a1_rel=a1_rel, faulty=(0.6 * af_rel + 0.4 * a1_rel > 1.6), converged=np.ones(300))
+    dataset_file = tmp_path / "data.npz"
+    Dataset(DatasetColumns(**columns), {"synthetic": True}).save(dataset_file)
+    real = training.train
+
+    def catches_the_interrupt(*args: object, **kwargs: object) -> object:
+        try:
+            os.kill(os.getpid(), signal.SIGINT)  # raise_on_interrupt's handler raises here, at once
+            time.sleep(5.0)  # never reached in full
+        except KeyboardInterrupt:
+            pass  # what such a library does
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(training, "train", catches_the_interrupt)
+    models = tmp_path / "models"
+    code, out, err = run_cli(["train", "--dataset", str(dataset_file), "--models-dir", str(models)], capsys)
+    assert code == 130 and "interrupted" in err, err
+    assert not models.exists() or not list(models.rglob("*.onnx")), list(models.rglob("*"))
