@@ -111,6 +111,31 @@ class StopReason(enum.StrEnum):
 
 
 @dataclass(frozen=True)
+class PeriodDecision:
+    """The stop rule's last period-end decision, for the live view: what the verdict will rest on
+    (the live panel's process unpickles it: declared here, where that process imports nothing heavy).
+
+    Attributes
+    ----------
+    periods : int
+        Whole excitation periods the fit took.
+    af_rel, a1_rel : float
+        af and a1 over the new-valve baseline, at the interval's centre.
+    af_half_width_rel, a1_half_width_rel : float
+        The half widths of their interval, relative to the baseline.
+    verdict : str
+        The verdict at the centre; "" while the fit is not trusted.
+    """
+
+    periods: int
+    af_rel: float
+    a1_rel: float
+    af_half_width_rel: float
+    a1_half_width_rel: float
+    verdict: str
+
+
+@dataclass(frozen=True)
 class StopDecision:
     """The stop rule's decision to end a test at a period's end, with the figures it rests on (the record's ``stop``
     section holds them, :class:`~edc_bench.records.schema.StopSummary`, under the same names).

@@ -20,7 +20,7 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
-from edc_bench.engine.outcome import StopReason
+from edc_bench.engine.outcome import PeriodDecision, StopReason
 from edc_bench.identification.analysis import model_fit_line
 from edc_bench.identification.coil_check import coil_line
 from edc_bench.records.baseline_text import baseline_line
@@ -113,14 +113,14 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
     return Panel(grid, title=Text(title), border_style="blue")  # the title holds the valve id: never markup
 
 
-def period_fit_line(fit: dict | None) -> Text:
+def period_fit_line(fit: PeriodDecision | None) -> Text:
     """What the verdict will rest on, as the stop rule last saw it: af and a1 over whole periods, against a new
     valve, with their interval (the online estimates below only keep the feedforward right)."""
     if fit is None:
         return Text("af and a1 over whole excitation periods, from the first decision on", style="dim")
-    verdict = f": {fit['verdict']} so far" if fit.get("verdict") else ": not settled yet"
-    return Text(f"af {fit['af_rel'] - 1:+.1%} +/-{fit['af_half_width_rel']:.1%}, a1 {fit['a1_rel'] - 1:+.1%} "
-                f"+/-{fit['a1_half_width_rel']:.1%} against a new valve, {fit['periods']} periods{verdict}")
+    verdict = f": {fit.verdict} so far" if fit.verdict else ": not settled yet"
+    return Text(f"af {fit.af_rel - 1:+.1%} +/-{fit.af_half_width_rel:.1%}, a1 {fit.a1_rel - 1:+.1%} "
+                f"+/-{fit.a1_half_width_rel:.1%} against a new valve, {fit.periods} periods{verdict}")
 
 
 def stop_line(stop: StopSummary) -> str:

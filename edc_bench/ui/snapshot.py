@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from edc_bench.runtime.loop import Phase
+
+if TYPE_CHECKING:
+    from edc_bench.engine.outcome import PeriodDecision
 
 PHASES = tuple(Phase)
 
@@ -43,7 +46,7 @@ class Snapshot:
     a1_history: list = field(default_factory=list)
     expected_end_s: float = float("nan")  # when the test is expected to end (early stop), NaN: at its full length
     expected_end_is_earliest: bool = True  # expected_end_s is only the earliest it can be (not decided on yet)
-    period_fit: dict | None = None  # the stop rule's last decision (EarlyStop.latest): what the verdict rests on
+    period_fit: PeriodDecision | None = None  # the stop rule's last decision: what the verdict rests on
 
     def enter(self, name: str) -> None:
         """A new phase began."""
@@ -100,5 +103,5 @@ def read_tick(k: int, loop: Any) -> dict[str, Any]:
         "bad_replies": outcome.bad_replies, "heartbeats": outcome.heartbeats,
         "expected_end_s": float(getattr(rule, "expected_end_s", float("nan"))),
         "expected_end_is_earliest": bool(getattr(rule, "expected_end_is_earliest", True)),
-        "period_fit": None if getattr(rule, "latest", None) is None else dict(rule.latest),
+        "period_fit": getattr(rule, "latest", None),  # frozen: shared with the loop's thread as it is
     }

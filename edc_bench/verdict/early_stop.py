@@ -39,13 +39,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from statistics import NormalDist
-from typing import Any
 
 import numpy as np
 
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
-from edc_bench.engine.outcome import StopDecision, StopReason
+from edc_bench.engine.outcome import PeriodDecision, StopDecision, StopReason
 from edc_bench.engine.replies import max_reply_age_ticks
 from edc_bench.identification.analysis import judges_model_fit, model_fit_problems, model_fits
 from edc_bench.identification.period_fit import (
@@ -111,9 +110,8 @@ class EarlyStop:
         #: True while :attr:`expected_end_s` is only the earliest the test can end (before the first decision, a
         #: fit not trusted yet, a search not finished): the live view says "at least"
         self.expected_end_is_earliest = True
-        #: the last period-end decision, for the live view: periods, af and a1 relative to the baseline, the
-        #: half widths of their interval, the verdict at the centre ("" while not trusted); None before the first
-        self.latest: dict[str, Any] | None = None
+        #: the last period-end decision, for the live view; None before the first
+        self.latest: PeriodDecision | None = None
         self.fed_to_tick = setup.first_tick  # rows of ticks before this one are in the accumulator
         # centre, the half width's shrinking part and its fixed part, periods, the next candidate
         self._search: tuple[np.ndarray, np.ndarray, np.ndarray, int, int] | None = None
@@ -202,9 +200,9 @@ class EarlyStop:
         centre, half_width = box.centre, box.half_width
         misfit, trusted, certain, verdicts = stop_flags(self.variant, self.classifier, fit, periods, centre,
                                                         half_width, self._noise_v, self._reference_condition)
-        self.latest = {"periods": periods, "af_rel": float(centre[0, 0]), "a1_rel": float(centre[0, 1]),
-                       "af_half_width_rel": float(half_width[0, 0]), "a1_half_width_rel": float(half_width[0, 1]),
-                       "verdict": str(verdicts[0])}
+        self.latest = PeriodDecision(periods=periods, af_rel=float(centre[0, 0]), a1_rel=float(centre[0, 1]),
+                                     af_half_width_rel=float(half_width[0, 0]),
+                                     a1_half_width_rel=float(half_width[0, 1]), verdict=str(verdicts[0]))
         time_s = setup.end_s(periods)
         if misfit[0]:
             return StopDecision(StopReason.MODEL_DOES_NOT_FIT, time_s, periods,

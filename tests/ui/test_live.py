@@ -104,7 +104,7 @@ def test_the_live_panel_shows_what_the_verdict_rests_on_and_whether_the_time_lef
                 console = Console(record=True, width=160, color_system=None)
                 console.print(render_snapshot(snapshot, "title"))
                 rule = loop.stop_rule
-                self.panels[k] = (console.export_text(), None if rule.latest is None else dict(rule.latest),
+                self.panels[k] = (console.export_text(), rule.latest,
                                   rule.expected_end_s, rule.expected_end_is_earliest)
 
     watch = Watch()
@@ -118,8 +118,8 @@ def test_the_live_panel_shows_what_the_verdict_rests_on_and_whether_the_time_lef
     assert guesses, "the rule's estimate of the end was never shown"
     k, text, latest, end_s = guesses[0]
     assert f"about {end_s - k * 0.001:4.1f} s left" in text
-    assert f"af {latest['af_rel'] - 1:+.1%} +/-{latest['af_half_width_rel']:.1%}" in text
-    assert f"{latest['periods']} periods: {latest['verdict']} so far" in text
+    assert f"af {latest.af_rel - 1:+.1%} +/-{latest.af_half_width_rel:.1%}" in text
+    assert f"{latest.periods} periods: {latest.verdict} so far" in text
     assert "af online" in text and "a1 online" in text
 
 
