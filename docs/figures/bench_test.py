@@ -129,7 +129,7 @@ def accuracy_row(variant_name: str, valve: str, plant: str, options: dict[str, A
         "error_rel": {n: rounded(parameters[n].error_rel) for n in ACCURACY_PARAMETERS},
         "verdict": result.verdict.value, "stop_s": rounded(result.stop.time_s, 3),
         "stop_reason": str(result.stop.reason),
-        "half_width_rel": {n: rounded(v) for n, v in (result.stop.half_width_rel or {}).items()},
+        "half_width_rel": {n: rounded(v) for n, v in dict(result.stop.half_width_rel or {}).items()},
         "residual_ratio": rounded(fit.residual_ratio, 3), "repeating_ratio": rounded(fit.systematic_ratio, 3),
         "spread_rel": rounded(max(fit.spread_rel.values())), "gain_variation_rel": rounded(fit.gain_variation_rel, 4),
         "condition_number": rounded(ident.condition_number, 1),

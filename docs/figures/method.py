@@ -421,14 +421,14 @@ def coil() -> dict[str, Any]:
     for coil_spec, stated_c in (("coil_ohm=0.6", None), ("coil_ohm=0.7", None), ("coil_ohm=0.9", None),
                                 ("coil_ohm=0.7,coil_temp_c=80", 80.0)):
         r = run_simulated_test(variant, f"new,{coil_spec}", 3, full_length=True, coil_temp_c=stated_c)
-        sim = r.simulation["coil"]
-        coils[coil_spec] = {"af": _round_sig(r.features["af"], 5), "a1": _round_sig(r.features["a1"], 5),
-                            "af_volt": _round_sig(r.judgement.features_volt["af"], 4),
+        sim = r.simulation.coil
+        coils[coil_spec] = {"af": _round_sig(r.features.af, 5), "a1": _round_sig(r.features.a1, 5),
+                            "af_volt": _round_sig(r.judgement.features_volt.af, 4),
                             "r20_error_rel": _round_sig(r.judgement.coil.resistance_20c_ohm
-                                                        / sim["resistance_20c_ohm"] - 1, 2),
-                            "warming_rel": _round_sig(sim["resistance_end_ohm"] / sim["resistance_start_ohm"] - 1, 2)}
+                                                        / sim.resistance_20c_ohm - 1, 2),
+                            "warming_rel": _round_sig(sim.resistance_end_ohm / sim.resistance_start_ohm - 1, 2)}
     steady = with_changes(variant, {"coil": {"temperature_coefficient_per_k": 0.0}}, "docs/method.md")
-    a1_ref = {name: _round_sig(run_simulated_test(v, "new", 1, sensor_noise=False, full_length=True).features["a1"], 4)
+    a1_ref = {name: _round_sig(run_simulated_test(v, "new", 1, sensor_noise=False, full_length=True).features.a1, 4)
               for name, v in (("warming", variant), ("steady", steady))}
     warm = run_simulated_test(variant, "new,coil_ohm=0.9,coil_temp_c=60", 3)
     return {"coils": coils, "a1_ref": a1_ref,

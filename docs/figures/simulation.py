@@ -134,13 +134,13 @@ def default_test() -> dict[str, Any]:
     variant = load_variant("p-edc-default")
     plain = run_simulated_test(variant, "new", 0, full_length=True, classify=False)
     usb = run_simulated_test(variant, "new", 0, adapter=ADAPTER, full_length=True, classify=False)
-    coil = plain.simulation["coil"]
+    coil = plain.simulation.coil
     replies = sum(usb.outcome.reply_age_ticks.values())
     return {
         "duration_s": variant.excitation.duration_s,
-        "coil": {"temp_start_c": round(coil["temp_start_c"], 2), "temp_end_c": round(coil["temp_end_c"], 2),
-                 "resistance_start_ohm": round(coil["resistance_start_ohm"], 4),
-                 "resistance_end_ohm": round(coil["resistance_end_ohm"], 4)},
+        "coil": {"temp_start_c": round(coil.temp_start_c, 2), "temp_end_c": round(coil.temp_end_c, 2),
+                 "resistance_start_ohm": round(coil.resistance_start_ohm, 4),
+                 "resistance_end_ohm": round(coil.resistance_end_ohm, 4)},
         "usb_fs": {"reply_age_ticks": {str(age): round(n / replies, 3)
                                        for age, n in sorted(usb.outcome.reply_age_ticks.items())}},
     }

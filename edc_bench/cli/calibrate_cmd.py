@@ -289,7 +289,7 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: Bas
     if result.verdict != Verdict.UNCLASSIFIED:  # INVALID, or a coil out of spec (FAIL): not a new valve's figures
         print(f"{head}: {result.verdict}, not used: {'; '.join(result.reasons)} (record {record})", file=sys.stderr)
         return []
-    af, a1 = result.features["af"], result.features["a1"]
+    af, a1 = result.features.af, result.features.a1
     print(f"{head}: af {af:.5f} V, a1 {a1:.6f} V s/mm (record {record})", file=sys.stderr)
     return [BaselineTest(af, a1, result.valve_id, source, result.started_at, str(record.resolve()),
                          **_uncertainty(result.identification))]

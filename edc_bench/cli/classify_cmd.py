@@ -253,7 +253,7 @@ def _recorded_features(record: Record, folder: Path) -> tuple[float, float]:
 
     from edc_bench.errors import ConfigError
 
-    af, a1 = record.features.get("af"), record.features.get("a1")
+    af, a1 = record.features.af, record.features.a1
     if af is None or a1 is None:
         raise ConfigError(f"{folder}: the record holds no features af and a1 (not a finished test's record)")
     if not (math.isfinite(af) and math.isfinite(a1) and af > 0 and a1 > 0):
@@ -284,7 +284,7 @@ def _report(out: ClassifyReport, as_json: bool) -> None:
     if judged is not None:
         rel = judged.features_rel
         source = out.baseline.source if out.baseline is not None else None
-        print(f"af x{rel['af']:.3f}, a1 x{rel['a1']:.3f} of the new-valve baseline ({source or 'no source given'})")
+        print(f"af x{rel.af:.3f}, a1 x{rel.a1:.3f} of the new-valve baseline ({source or 'no source given'})")
         distance = "beyond the scan" if judged.distance is None else f"{judged.distance:+.3f}"
         print(f"P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary {distance} "
               f"(marginal band {judged.marginal_band:g}, {judged.model} model)")

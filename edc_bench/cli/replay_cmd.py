@@ -88,7 +88,7 @@ def _print(report: ReplayReport, as_json: bool) -> None:
     print(f"verdict: {judged.verdict}")
     for reason in judged.reasons:
         print(f"  - {reason}")
-    print(f"features: af = {judged.features['af']:.6g} V, a1 = {judged.features['a1']:.6g} V s/mm")
+    print(f"features: af = {judged.features.af:.6g} V, a1 = {judged.features.a1:.6g} V s/mm")
     if report.compared:
         if report.reproduced:
             exactly = "" if report.notes else "exactly "

@@ -596,12 +596,11 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
     print(f"verdict: {result.verdict}, {result.advice.words}")
     for reason in result.reasons:
         print(f"  - {reason}")
-    import math
-
-    if all(math.isfinite(result.features.get(name, math.nan)) for name in ("af", "a1")):
-        print(f"features: af = {result.features['af']:.5f} V, a1 = {result.features['a1']:.6f} V s/mm "
+    f, volt = result.features, result.judgement.features_volt
+    if f.identified:
+        print(f"features: af = {f.af:.5f} V, a1 = {f.a1:.6f} V s/mm "
               f"(referred to the reference coil, {result.variant.coil.resistance_ohm:g} ohm at 20 degC; with this "
-              f"coil: af {result.judgement.features_volt['af']:.5f} V, a1 {result.judgement.features_volt['a1']:.6f})")
+              f"coil: af {volt.af:.5f} V, a1 {volt.a1:.6f})")
     else:
         print("features: af and a1 not identified (the test ended before they could be)")
     print(f"coil: {coil_line(result.judgement.coil)}")
@@ -609,7 +608,7 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
         print(f"baseline: {baseline_line(result.judgement.baseline)}")
     if result.classification is not None:
         c = result.classification
-        print(f"relative to the new-valve baseline: af x{c.features_rel['af']:.2f}, a1 x{c.features_rel['a1']:.2f}")
+        print(f"relative to the new-valve baseline: af x{c.features_rel.af:.2f}, a1 x{c.features_rel.a1:.2f}")
     print("parameters:")
     for name, p in result.parameters.items():
         tail = ""

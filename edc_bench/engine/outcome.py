@@ -41,6 +41,7 @@ from edc_bench.engine.abort_figures import (
     SlowLinkFigures,
     figures_from,
 )
+from edc_bench.section import FeaturePair
 
 
 class RigFaultFlag(enum.StrEnum):
@@ -152,7 +153,7 @@ class StopDecision:
         The verdict it is certain of (a certain verdict only).
     confidence : float or None
         The variant's verdict confidence the interval was drawn at (a certain verdict only).
-    features_rel, half_width_rel, misfit_half_width_rel, baseline_half_width_rel, residual_half_width_rel : dict
+    features_rel, half_width_rel, misfit_half_width_rel, baseline_half_width_rel, residual_half_width_rel : FeaturePair
         af's and a1's ratio to the baseline, the interval's half width and its parts (a certain verdict only).
     problems : tuple of str
         Why the model does not fit (that reason only).
@@ -166,11 +167,11 @@ class StopDecision:
     periods: int
     verdict: str | None = None
     confidence: float | None = None
-    features_rel: dict[str, float] | None = None
-    half_width_rel: dict[str, float] | None = None
-    misfit_half_width_rel: dict[str, float] | None = None
-    baseline_half_width_rel: dict[str, float] | None = None
-    residual_half_width_rel: dict[str, float] | None = None
+    features_rel: FeaturePair | None = None
+    half_width_rel: FeaturePair | None = None
+    misfit_half_width_rel: FeaturePair | None = None
+    baseline_half_width_rel: FeaturePair | None = None
+    residual_half_width_rel: FeaturePair | None = None
     problems: tuple[str, ...] = ()
     decided_s: float | None = None
 

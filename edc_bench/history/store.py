@@ -72,6 +72,7 @@ from edc_bench.history.secrets import redact, secrets_of, shown_url
 from edc_bench.history.url import check_url, default_url
 from edc_bench.records.integrity import file_digest
 from edc_bench.records.writer import RECORD_FILE
+from edc_bench.section import FeaturePair
 from edc_bench.timefmt import local_text
 from edc_bench.verdict.verdicts import Verdict
 
@@ -94,7 +95,7 @@ def _finite(value: float | None) -> float | None:
 def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
     """The history row of a record (record.json's content, typed)."""
     cls, identity, coil, stop = record.classification, record.identity, record.coil, record.stop
-    rel = cls.features_rel if cls is not None else {}
+    rel = cls.features_rel if cls is not None else FeaturePair()
     fit = record.identification.model_fit if record.identification is not None else None
     model_name = None
     if cls is not None:
@@ -107,10 +108,10 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "variant": _text(record.variant),
         "part_number": _text(record.part_number),
         "verdict": _text(record.verdict),
-        "af_v": _finite(record.features.get("af")),
-        "a1_v_s_per_mm": _finite(record.features.get("a1")),
-        "af_rel": _finite(rel.get("af")),
-        "a1_rel": _finite(rel.get("a1")),
+        "af_v": _finite(record.features.af),
+        "a1_v_s_per_mm": _finite(record.features.a1),
+        "af_rel": _finite(rel.af),
+        "a1_rel": _finite(rel.a1),
         "probability_faulty": None if cls is None else _finite(cls.probability_faulty),
         "distance": None if cls is None else _finite(cls.distance),
         "station": _text(identity.station),

@@ -223,7 +223,7 @@ def _close(a: float | None, b: float | None) -> bool:
 def _features(record: Record) -> list[str]:
     """5: the relative features from the features and the baseline; the features from the parameters."""
     found = []
-    af, a1 = record.features.get("af"), record.features.get("a1")
+    af, a1 = record.features.af, record.features.a1
     params = {name: record.parameters[name].value for name in ("af", "a1") if name in record.parameters}
     if not (_close(af, params.get("af")) and _close(a1, params.get("a1"))):
         found.append(f"its features (af {af:.6g}, a1 {a1:.6g}) are not its identified parameters' "
@@ -232,7 +232,7 @@ def _features(record: Record) -> list[str]:
     if c is not None and base is not None and None not in (af, a1, base.af_v, base.a1_v_s_per_mm) \
             and base.af_v and base.a1_v_s_per_mm:
         rel = (af / base.af_v, a1 / base.a1_v_s_per_mm)  # as Baseline.relative gave the classifier
-        kept = (c.features_rel.get("af"), c.features_rel.get("a1"))
+        kept = (c.features_rel.af, c.features_rel.a1)
         if not (_close(rel[0], kept[0]) and _close(rel[1], kept[1])):
             found.append(f"its classification's relative features (af x{kept[0]:.3f}, a1 x{kept[1]:.3f}) are not "
                          f"its features over its baseline (x{rel[0]:.3f}, x{rel[1]:.3f})")
@@ -245,7 +245,7 @@ def _model(record: Record) -> list[str]:
     from edc_bench.verdict.classifier import default_classifier, find_model
 
     c = record.classification
-    rel = None if c is None else (c.features_rel.get("af"), c.features_rel.get("a1"))
+    rel = None if c is None else (c.features_rel.af, c.features_rel.a1)
     if c is None or rel is None or None in rel or not all(math.isfinite(x) for x in rel):
         return []
     path = find_model(c.model_sha256) if c.model_sha256 else None

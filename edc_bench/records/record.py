@@ -55,6 +55,7 @@ from edc_bench.records.schema import (
     StabilityMargins,
     StopSummary,
 )
+from edc_bench.section import FeaturePair
 from edc_bench.verdict.judgement import Judgement
 from edc_bench.verdict.verdicts import Verdict
 
@@ -146,7 +147,7 @@ class BenchResult:
         return self.judgement.parameters
 
     @property
-    def features(self) -> dict[str, float]:
+    def features(self) -> FeaturePair:
         """``{"af": ..., "a1": ...}``, the diagnosis inputs."""
         return self.judgement.features
 

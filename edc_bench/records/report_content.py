@@ -129,8 +129,8 @@ def findings(record: Record) -> list[str]:
                      f"retest (record {later.record}); together they decide {later.decision}.")
     cls = record.classification
     if cls is not None:
-        af, a1 = cls.features_rel.get("af", math.nan), cls.features_rel.get("a1", math.nan)
-        if math.isfinite(af) and math.isfinite(a1):
+        af, a1 = cls.features_rel.numbers()
+        if cls.features_rel.identified:
             lines.append(f"Friction (af) {_percent(af - 1)} and damping (a1) {_percent(a1 - 1)} compared with "
                          "a new valve of this pump type.")
     coil = coil_sentence(record)
@@ -209,8 +209,8 @@ def classifier_rows(record: Record) -> list[tuple[str, str]]:
             ("Distance", (f"{cls.distance:+.4f} to the boundary" if cls.distance is not None
                           else "beyond the classifier's scan (more than 3) from the boundary")
                          + (f" (marginal band \u00b1{band:g}; positive: worn side)" if band is not None else "")),
-            ("Features", f"af {_number(cls.features_rel.get('af'), '.4f')}, "
-                         f"a1 {_number(cls.features_rel.get('a1'), '.4f')} \u00d7 the baseline")]
+            ("Features", f"af {_number(cls.features_rel.af, '.4f')}, "
+                         f"a1 {_number(cls.features_rel.a1, '.4f')} \u00d7 the baseline")]
     if cls.training_data_sha256:
         rows.append(("Training data", cls.training_data_sha256))
     return rows

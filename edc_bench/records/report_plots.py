@@ -16,6 +16,7 @@ from matplotlib.patches import Patch
 
 from edc_bench.records.report_content import pair_decision
 from edc_bench.records.schema import Record
+from edc_bench.section import FeaturePair
 from edc_bench.verdict.verdicts import Verdict
 
 VERDICT_COLOURS = {Verdict.PASS: "#2e7d32", Verdict.MARGINAL: "#f9a825", Verdict.FAIL: "#c62828",
@@ -81,10 +82,10 @@ def draw_decision(ax: Axes, record: Record) -> list[tuple[object, str]]:
     return entries
 
 
-def _valve_point(ax: Axes, features_rel: dict[str, float], af_range: tuple[float, float],
+def _valve_point(ax: Axes, features_rel: FeaturePair, af_range: tuple[float, float],
                  a1_range: tuple[float, float], colour: str) -> object:
     """The valve's star; a valve beyond the chart is drawn at its edge, pointing the way it lies."""
-    af, a1 = features_rel.get("af", math.nan), features_rel.get("a1", math.nan)
+    af, a1 = features_rel.numbers()
     shown_af, shown_a1 = float(np.clip(af, *af_range)), float(np.clip(a1, *a1_range))
     beyond = math.isfinite(af) and math.isfinite(a1) and (shown_af, shown_a1) != (af, a1)
     (star,) = ax.plot([shown_af], [shown_a1], "*", ms=17, color=colour, mec="k", zorder=5, clip_on=False)

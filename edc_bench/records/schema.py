@@ -38,7 +38,7 @@ from edc_bench.identification.sections import CoilFinding, ModelFitSummary
 from edc_bench.records.advice import Advice, Area, Cause, advice, invalid_area, invalid_cause
 from edc_bench.records.simulation import SimulationSummary
 from edc_bench.runtime.clock_kind import ClockKind
-from edc_bench.section import Section
+from edc_bench.section import FeaturePair, Section
 from edc_bench.verdict.sections import (
     BaselineSummary,
     ClassificationSummary,
@@ -100,11 +100,11 @@ class StopSummary(Section):
     why_full_length: str | None = None
     periods: int | None = None
     verdict: Verdict | None = None
-    features_rel: dict[str, float | None] | None = None
-    half_width_rel: dict[str, float | None] | None = None
-    misfit_half_width_rel: dict[str, float | None] | None = None
-    baseline_half_width_rel: dict[str, float | None] | None = None
-    residual_half_width_rel: dict[str, float | None] | None = None
+    features_rel: FeaturePair | None = None
+    half_width_rel: FeaturePair | None = None
+    misfit_half_width_rel: FeaturePair | None = None
+    baseline_half_width_rel: FeaturePair | None = None
+    residual_half_width_rel: FeaturePair | None = None
     confidence: float | None = None
     problems: list[str] = Field(default_factory=list)
 
@@ -177,8 +177,8 @@ class Record(Section):
     software_version: str = ""
     firmware_version: str | None = None
     icd_version: str = ""
-    features: dict[str, float | None] = Field(default_factory=dict)
-    features_volt: dict[str, float | None] = Field(default_factory=dict)
+    features: FeaturePair = FeaturePair()
+    features_volt: FeaturePair = FeaturePair()
     coil: CoilFinding | None = None
     classification: ClassificationSummary | None = None
     baseline: BaselineSummary | None = None

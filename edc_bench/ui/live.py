@@ -7,7 +7,6 @@ process, which draws them with rich four times a second (see
 
 from __future__ import annotations
 
-import math
 import os
 import pickle
 from collections.abc import Sequence
@@ -147,11 +146,11 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     for n, reason in enumerate(result.reasons):
         body.add_row("why" if n == 0 else "", reason)
     f = result.features
-    if not math.isnan(f.get("af", math.nan)):
-        line = f"af {f['af']:.5f} V, a1 {f['a1']:.6f} V s/mm"
+    if f.identified:
+        line = f"af {f.af:.5f} V, a1 {f.a1:.6f} V s/mm"
         if result.classification:
             rel = result.classification.features_rel
-            line += f"   ({rel['af'] - 1:+.0%} and {rel['a1'] - 1:+.0%} against a new valve)"
+            line += f"   ({rel.af - 1:+.0%} and {rel.a1 - 1:+.0%} against a new valve)"
         body.add_row("valve", line)
         body.add_row("", "af and a1 referred to the reference coil "
                          f"({result.variant.coil.resistance_ohm:g} ohm at 20 degC): this coil's resistance is "

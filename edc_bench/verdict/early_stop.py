@@ -63,6 +63,7 @@ from edc_bench.identification.student_t import t_quantile
 from edc_bench.identification.trust import judged_condition_number, trust_problems
 from edc_bench.physics.coil import referred_from_estimate
 from edc_bench.physics.feedforward import inductive_shares
+from edc_bench.section import FeaturePair
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.classifier import ValveClassifier
 
@@ -208,8 +209,8 @@ class EarlyStop:
             return StopDecision(StopReason.MODEL_DOES_NOT_FIT, time_s, periods,
                                 problems=tuple(model_fit_problems(self.variant, fit, self._noise_v)))
         if certain[0]:
-            def pair(figures: np.ndarray) -> dict[str, float]:
-                return {"af": float(figures[0, 0]), "a1": float(figures[0, 1])}
+            def pair(figures: np.ndarray) -> FeaturePair:
+                return FeaturePair(af=float(figures[0, 0]), a1=float(figures[0, 1]))
 
             return StopDecision(StopReason.VERDICT_CERTAIN, time_s, periods, verdict=str(verdicts[0]),
                                 confidence=acc.verdict_confidence, features_rel=pair(centre),

@@ -27,6 +27,7 @@ from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_proble
 from edc_bench.physics.coil import referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import inductive_shares
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
+from edc_bench.section import FeaturePair
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s
@@ -59,10 +60,10 @@ class Judgement:
     parameters : dict of str to ParameterEstimate
         a3, a2, a1, a0, b, af: value, standard error, estimated or fixed (with ``truth`` and ``error_rel`` on a
         simulated rig).
-    features : dict
-        ``{"af": ..., "a1": ...}``, the diagnosis inputs (V and V s/mm), referred to the reference coil
-        (the variant's nominal coil at 20 degC): they do not depend on this coil's resistance.
-    features_volt : dict
+    features : FeaturePair
+        af and a1, the diagnosis inputs (V and V s/mm), referred to the reference coil (the variant's nominal coil
+        at 20 degC): they do not depend on this coil's resistance; NaN where not identified.
+    features_volt : FeaturePair
         af and a1 in volts as identified with this test's coil (the paper's features), for comparison.
     converged : bool
         af and a1 settled and stayed settled, and the run was not aborted.
@@ -88,14 +89,14 @@ class Judgement:
     verdict: Verdict
     reasons: list[str]
     parameters: dict[str, ParameterEstimate]
-    features: dict[str, float]
+    features: FeaturePair
     converged: bool
     identification: Identification | None
     reference_values: dict[str, ReferenceValue] = field(default_factory=dict)
     classification: ClassificationSummary | None = None
     baseline: BaselineSummary | None = None
     decision_plane: DecisionPlane | None = None
-    features_volt: dict[str, float] = field(default_factory=dict)
+    features_volt: FeaturePair = FeaturePair()
     coil: CoilFinding | None = None
     problems: Problem = Problem.NONE
 
@@ -274,12 +275,14 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             parameters[name] = ParameterEstimate(
                 value=value, std=ident.std[name], estimated=name in estimated, truth=true_value,
                 error_rel=None if true_value is None else value / true_value - 1.0)
-    features = {n: final.get(n, math.nan) for n in ("af", "a1")}
+    af, a1 = final.get("af", math.nan), final.get("a1", math.nan)
+    features = FeaturePair(af=af, a1=a1)
     coil = coil_finding(variant, trace, coil_temp_c)
     bad_coil = coil_reason(coil) if coil is not None else None
     problems |= Problem.COIL_OUT_OF_SPEC if bad_coil else Problem.NONE
     converged = bool(ident and ident.converged and not outcome.aborted)
-    features_volt = {n: volts_at_coil(inductive[n], features[n], r_ref, r_hat) for n in ("af", "a1")}
+    features_volt = FeaturePair(af=volts_at_coil(inductive["af"], af, r_ref, r_hat),
+                                a1=volts_at_coil(inductive["a1"], a1, r_ref, r_hat))
     # built once, at the end of the branch that decides it: a Judgement is frozen
     if reasons or not classify:
         if reasons:  # not trusted: why, and the coil
@@ -300,7 +303,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             parameters=parameters, features=features, converged=converged, identification=ident,
             reference_values=reference_values(variant, None), features_volt=features_volt, coil=coil,
             problems=problems)  # no baseline: nothing was compared with it
-    judged, classifier = classify_against(baseline, features["af"], features["a1"], classifier_path, variant)
+    judged, classifier = classify_against(baseline, af, a1, classifier_path, variant)
     classified = (f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
                   f"{judged.distance:+.3f} (marginal band {classifier.marginal_band:g})")
     said = [bad_coil, f"the valve itself: {judged.verdict}; {classified}"] if bad_coil else [classified]
@@ -386,7 +389,7 @@ def classification_summary(judged: Classification, model: ValveClassifier) -> Cl
     """A classification by ``model`` as records and JSON keep it, naming the model exactly."""
     return ClassificationSummary(
         verdict=judged.verdict, probability_faulty=judged.probability_faulty, distance=judged.distance,
-        features_rel={"af": judged.features_rel[0], "a1": judged.features_rel[1]}, model=judged.model,
+        features_rel=FeaturePair(af=judged.features_rel[0], a1=judged.features_rel[1]), model=judged.model,
         model_name=model.name, model_file=model.path.name, model_sha256=model.sha256,
         threshold=model.threshold, marginal_band=model.marginal_band,
         training_data_sha256=model.metadata.get("edc_bench.training_data_sha256"))

@@ -96,21 +96,21 @@ def test_default_test_lasts_30_s_at_most_and_stops_when_the_verdict_is_certain()
     early = run_simulated_test(load_variant("p-edc-default"), "new", 0)
     assert early.stop.reason == "verdict certain" and early.stop.time_s == pytest.approx(10.0, abs=1e-9)
     assert early.timing.ticks == 10_000 and early.verdict == result.verdict == Verdict.PASS
-    assert early.features["af"] == pytest.approx(result.features["af"], rel=0.01)
-    assert early.features["a1"] == pytest.approx(result.features["a1"], rel=0.02)
+    assert early.features.af == pytest.approx(result.features.af, rel=0.01)
+    assert early.features.a1 == pytest.approx(result.features.a1, rel=0.02)
 
 
 @pytest.mark.parametrize("variant_name", [VARIANTS[0], pytest.param(VARIANTS[1], marks=pytest.mark.slow)])
 def test_repeatability_and_monotonic_wear(variant_name: str) -> None:
     features = {v: simulated(variant_name, v, False).features for v in VALVES}
     # af and a1 rise with wear, as in the paper's Table 1
-    assert features["new"]["af"] < features["worn"]["af"] < features["faulty"]["af"]
-    assert features["new"]["a1"] < features["worn"]["a1"] < features["faulty"]["a1"]
+    assert features["new"].af < features["worn"].af < features["faulty"].af
+    assert features["new"].a1 < features["worn"].a1 < features["faulty"].a1
     repeats = [simulated(variant_name, "worn", False, seed).features for seed in (1, 2, 3)]
     for name in ("af", "a1"):
-        values = [r[name] for r in repeats]
+        values = [getattr(r, name) for r in repeats]
         spread = max(values) - min(values)
-        wear_step = features["worn"][name] - features["new"][name]
+        wear_step = getattr(features["worn"], name) - getattr(features["new"], name)
         print(variant_name, name, f"spread {spread:.3g} vs new-to-worn {wear_step:.3g}")
         assert spread < wear_step / 5
 

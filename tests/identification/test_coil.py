@@ -34,9 +34,9 @@ def new_valve_on_each_coil(variant):
 
 @pytest.mark.slow  # seconds: CI's slow pass runs it (the default suite stays under 5 minutes on CI)
 def test_features_of_one_valve_move_less_than_2_percent_across_the_coil_range(new_valve_on_each_coil) -> None:
-    af = np.array([r.features["af"] for r in new_valve_on_each_coil.values()])
-    a1 = np.array([r.features["a1"] for r in new_valve_on_each_coil.values()])
-    volt_af = np.array([r.judgement.features_volt["af"] for r in new_valve_on_each_coil.values()])
+    af = np.array([r.features.af for r in new_valve_on_each_coil.values()])
+    a1 = np.array([r.features.a1 for r in new_valve_on_each_coil.values()])
+    volt_af = np.array([r.judgement.features_volt.af for r in new_valve_on_each_coil.values()])
     print("af", af, "a1", a1, "af in volts", volt_af)
     assert np.ptp(af) / af.mean() < 0.02 and np.ptp(a1) / a1.mean() < 0.02
     # the volt features the paper used move with the coil (0.6 to 0.9 ohm, the 80 degC coil 1.23 x 0.7): ~50 %

@@ -48,7 +48,7 @@ def test_trace_is_columnar_and_complete(record) -> None:
     assert set(trace) == set(TRACE_COLUMNS)
     assert len(trace["t_s"]) == 12_000
     # the trace holds the online estimate; the feature is the period fit's (docs/method.md): close, not equal
-    assert trace["af_hat"][-1] == pytest.approx(result.features["af"], rel=0.02)
+    assert trace["af_hat"][-1] == pytest.approx(result.features.af, rel=0.02)
     for name, column in result.trace.items():  # bit for bit, in the trace's own types
         assert trace[name].dtype == column.dtype, name
         assert np.array_equal(trace[name], column, equal_nan=column.dtype.kind == "f"), name

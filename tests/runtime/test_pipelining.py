@@ -139,7 +139,7 @@ def test_usb_adapter_identifies_as_without_latency(variant: Variant, valve: str)
     usb = run_simulated_test(variant, valve, seed=3, adapter="usb-fs")
     assert usb.verdict == instant.verdict and usb.verdict in (Verdict.PASS, Verdict.FAIL)
     for name in ("af", "a1"):
-        assert usb.features[name] == pytest.approx(instant.features[name], rel=0.01), name
+        assert getattr(usb.features, name) == pytest.approx(getattr(instant.features, name), rel=0.01), name
     assert usb.outcome.missed_replies == 0
     ages = usb.outcome.reply_age_ticks
     assert min(ages) >= 2 and max(ages) <= 4  # replies 1.3-2.9 ms after their command, used 2-3 ticks on
@@ -215,7 +215,7 @@ def test_a_pc_that_loses_4_percent_of_its_ticks_still_gets_the_right_verdict(var
     assert o.ticks_lost / o.ticks_run > 0.035 and o.abort is None
     assert result.verdict == undisturbed.verdict == verdict, result.reasons
     for name in ("af", "a1"):
-        assert result.features[name] == pytest.approx(undisturbed.features[name], rel=0.01)
+        assert getattr(result.features, name) == pytest.approx(getattr(undisturbed.features, name), rel=0.01)
     assert result.stop.time_s >= undisturbed.stop.time_s  # what the stalls took, it took longer to learn
     folder = write_record(result, tmp_path, figure=False)
     assert disagreements(load_record(folder)) == []  # the record's problems follow from its figures

@@ -99,8 +99,8 @@ def test_a_slow_to_decide_valve_runs_several_periods_and_stops_certain(spread_ru
     box = boxes[-1][2]
     for part in ("misfit", "baseline", "residual"):
         recorded = getattr(result.stop, f"{part}_half_width_rel")
-        np.testing.assert_allclose([recorded["af"], recorded["a1"]], getattr(box, part)[0], rtol=1e-12)
-    np.testing.assert_allclose([result.stop.half_width_rel["af"], result.stop.half_width_rel["a1"]],
+        np.testing.assert_allclose([recorded.af, recorded.a1], getattr(box, part)[0], rtol=1e-12)
+    np.testing.assert_allclose([result.stop.half_width_rel.af, result.stop.half_width_rel.a1],
                                (box.statistical + box.misfit + box.baseline + box.residual)[0], rtol=1e-12)
 
 
