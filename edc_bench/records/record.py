@@ -303,20 +303,21 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     """
     if folder is None:
         folder = new_record_dir(Path(out_dir), result.valve_id, result.variant.name, result.started_at)
-    files: dict[str, str | None] = {"trace": None, "can_log": None, "figure": None}
+    trace = can_log = drawn = None
+    errors: dict[str, str] = {}  # RecordFiles's <name>_error: why a file could not be written
     try:
         write_trace_mf4(folder / TRACE_FILE, result.trace, result.frames, ticks_start_s=result.outcome.ticks_start_s,
                         origin_unix_s=result.frames.origin_unix_s,
                         comment=f"edc-bench {result.variant.name}, valve {result.valve_id or '?'}: {result.verdict}")
-        files["trace"] = TRACE_FILE
+        trace = TRACE_FILE
     except OSError as exc:
-        files["trace_error"] = f"{type(exc).__name__}: {exc}"
+        errors.update(trace_error=f"{type(exc).__name__}: {exc}")
     try:
         if result.can_log_path != folder / CAN_LOG_FILE:  # streamed there while the test ran: complete already
             write_can_log(folder / CAN_LOG_FILE, result.frames)
-        files["can_log"] = CAN_LOG_FILE
+        can_log = CAN_LOG_FILE
     except OSError as exc:
-        files["can_log_error"] = f"{type(exc).__name__}: {exc}"
+        errors.update(can_log_error=f"{type(exc).__name__}: {exc}")
     if figure and len(result.trace["t_s"]):
         from edc_bench.records.figure import draw_report_figure
 
@@ -327,18 +328,18 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
                 truth=None if result.truth is None else result.truth._asdict(),
                 excitation_start_s=result.variant.excitation.move_s,
             )
-            files["figure"] = FIGURE_FILE
+            drawn = FIGURE_FILE
         except Exception as exc:  # noqa: BLE001 - a figure is never worth losing the record
-            files["figure_error"] = f"{type(exc).__name__}: {exc}"
+            errors.update(figure_error=f"{type(exc).__name__}: {exc}")
     from edc_bench.records.escalation_link import find_escalation
 
     escalated = find_escalation(folder, result.valve_id, result.variant.name, result.started_at, str(result.verdict),
                                 result.invalid_cause)
-    record = build_record(result, RecordFiles.model_validate(files),
-                          retest, escalated, notes)
+    files = RecordFiles(trace=trace, can_log=can_log, figure=drawn, **errors)
+    record = build_record(result, files, retest, escalated, notes)
     doc = record_json(record)
     # what the test wrote, as it wrote it: every reader checks it (records.integrity)
-    doc["integrity"] = manifest(doc, folder, [files[key] for key in ("trace", "can_log", "figure") if files.get(key)])
+    doc["integrity"] = manifest(doc, folder, [name for name in (trace, can_log, drawn) if name])
     write_json(folder / RECORD_FILE, doc)
     return folder
 
