@@ -367,9 +367,7 @@ def paper_run(job: tuple[str, int]) -> dict[str, int]:
     """One run of the paper's protocol (``edc-bench paper --variant NAME --seed SEED``): the valves judged right."""
     from edc_bench.experiments.studies import paper_experiment
 
-    exp = paper_experiment(*job)
-    return {"reusable_right": exp.reusable_right, "reusable": int((~exp.test_truth).sum()),
-            "faulty_right": exp.faulty_right, "faulty": int(exp.test_truth.sum())}
+    return dataclasses.asdict(paper_experiment(*job).outcome)
 
 
 @measurement("diagnosis-paper", minutes=1.5)
@@ -388,14 +386,12 @@ def paper() -> dict[str, Any]:
 
 def paper_table() -> str:
     """The paper's outcome beside the simulation's."""
-    from edc_bench.experiments.studies import PAPER_OUTCOME
+    from edc_bench.experiments.studies import PAPER_OUTCOME, PaperOutcome
 
-    p, s = PAPER_OUTCOME, stored("diagnosis-paper")["simulation"]
-    rows = [("reusable judged normal", f"{p['reusable_right']} / {p['reusable']}",
-             f"{s['reusable_right']} / {s['reusable']}"),
-            ("faulty judged abnormal", f"{p['faulty_right']} / {p['faulty']}", f"{s['faulty_right']} / {s['faulty']}"),
-            ("valves right", f"{p['reusable_right'] + p['faulty_right']} / {p['reusable'] + p['faulty']}",
-             f"{s['reusable_right'] + s['faulty_right']} / {s['reusable'] + s['faulty']}")]
+    p, s = PAPER_OUTCOME, PaperOutcome(**stored("diagnosis-paper")["simulation"])
+    rows = [("reusable judged normal", f"{p.reusable_right} / {p.reusable}", f"{s.reusable_right} / {s.reusable}"),
+            ("faulty judged abnormal", f"{p.faulty_right} / {p.faulty}", f"{s.faulty_right} / {s.faulty}"),
+            ("valves right", f"{p.right} / {p.valves}", f"{s.right} / {s.valves}")]
     return table(("", "paper (2010)", f"simulation, seed {stored('diagnosis-paper')['seed']}"), rows)
 
 
@@ -403,7 +399,7 @@ def paper_runs_sentence() -> str:
     """How many seeds do at least as well as the paper."""
     from edc_bench.experiments.studies import PAPER_OUTCOME
 
-    paper_right = PAPER_OUTCOME["reusable_right"] + PAPER_OUTCOME["faulty_right"]
+    paper_right = PAPER_OUTCOME.right
     runs = stored("diagnosis-paper")["runs"]
     parts = [f"`{name}` {sum(t >= paper_right for t in totals)} of {len(totals)} (worst {min(totals)}/18)"
              for name, totals in runs.items()]

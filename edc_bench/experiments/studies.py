@@ -268,7 +268,28 @@ def drift_critical_value(periods: int, draws: int = 400_000, seed: int = 2026, q
 # --------------------------------------------------------------------------- the paper
 
 
-PAPER_OUTCOME = {"reusable_right": 10, "reusable": 10, "faulty_right": 7, "faulty": 8}
+@dataclass(frozen=True)
+class PaperOutcome:
+    """How many valves the paper's protocol judged right, of each kind (reusable judged normal, faulty abnormal)."""
+
+    reusable_right: int
+    reusable: int
+    faulty_right: int
+    faulty: int
+
+    @property
+    def right(self) -> int:
+        """Valves judged right."""
+        return self.reusable_right + self.faulty_right
+
+    @property
+    def valves(self) -> int:
+        """Valves judged."""
+        return self.reusable + self.faulty
+
+
+#: The paper's own outcome (2010): 10 of 10 reusable and 7 of 8 faulty valves right.
+PAPER_OUTCOME = PaperOutcome(reusable_right=10, reusable=10, faulty_right=7, faulty=8)
 
 
 @dataclass
@@ -293,6 +314,12 @@ class PaperExperiment:
     @property
     def faulty_right(self) -> int:
         return int((self.valve_outcome & self.test_truth).sum())
+
+    @property
+    def outcome(self) -> PaperOutcome:
+        """The valves judged right, of each kind, as the paper counts them."""
+        return PaperOutcome(reusable_right=self.reusable_right, reusable=int((~self.test_truth).sum()),
+                            faulty_right=self.faulty_right, faulty=int(self.test_truth.sum()))
 
 
 def _rows(variant: Any, valves: list[ValveSpec], seed: int, repeats: int) -> np.ndarray:
