@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import os
@@ -34,24 +35,51 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _environment(quick: bool) -> dict[str, Any]:
-    from edc_bench import __version__
-    from edc_bench.runtime.clock import cpu_steal_s
+@dataclasses.dataclass(frozen=True)
+class PerfEnvironment:
+    """Where, when and how ``perf`` measured (its JSON's ``environment``).
 
-    return {
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "edc_bench": __version__, "python": platform.python_version(), "machine": platform.machine(),
-        "cpus": os.cpu_count(), "quick": quick, "cpu_steal_at_start_s": cpu_steal_s(),
-        "command": "edc-bench perf" + (" --quick" if quick else ""),
-    }
+    Attributes
+    ----------
+    date : str
+        When the run started (UTC, ISO 8601).
+    edc_bench, python, machine : str
+        The versions and the machine's architecture.
+    cpus : int or None
+        The CPUs the machine has.
+    quick : bool
+        A quick (smoke) run.
+    command : str
+        The command as given.
+    cpu_steal_s : float
+        CPU time the hypervisor took during the run (s).
+    """
+
+    date: str
+    edc_bench: str
+    python: str
+    machine: str
+    cpus: int | None
+    quick: bool
+    command: str
+    cpu_steal_s: float = 0.0
+
+    @classmethod
+    def now(cls, quick: bool, command: str) -> PerfEnvironment:
+        """This machine, now (the steal is set at the run's end)."""
+        from edc_bench import __version__
+
+        return cls(date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"), edc_bench=__version__,
+                   python=platform.python_version(), machine=platform.machine(), cpus=os.cpu_count(), quick=quick,
+                   command=command)
 
 
-def _table(figures: list[Any], env: dict[str, Any]) -> None:
+def _table(figures: list[Any], env: PerfEnvironment) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"edc-bench perf, {env['date']} ({env['cpus']} CPUs, Python {env['python']}"
-                        f"{', quick' if env['quick'] else ''})", show_lines=False)
+    table = Table(title=f"edc-bench perf, {env.date} ({env.cpus} CPUs, Python {env.python}"
+                        f"{', quick' if env.quick else ''})", show_lines=False)
     for col in ("group", "figure", "measured", "reference", "target", "met", "notes"):
         table.add_column(col, overflow="fold")
     for f in figures:
@@ -59,7 +87,7 @@ def _table(figures: list[Any], env: dict[str, Any]) -> None:
         met = {True: "yes", False: "NO", None: ""}[f.met]
         table.add_row(f.group, f.name, f"{f.value:.3g} {f.unit}", ref, f.target, met, f.note)
     Console(width=None if sys.stdout.isatty() else 200).print(table)
-    print(f"CPU steal during the run: {env['cpu_steal_s']:.2f} s (this machine is a shared VM; see the notes)")
+    print(f"CPU steal during the run: {env.cpu_steal_s:.2f} s (this machine is a shared VM; see the notes)")
 
 
 def unjudged(figures: list[Any]) -> list[Any]:
@@ -82,8 +110,10 @@ def run(args: argparse.Namespace) -> int:
         from edc_bench.config import load_variant
 
         load_variant(args.variant)  # a bad name is refused before anything runs
-    env = _environment(args.quick)
-    env["command"] += "".join(f" --only {g}" for g in (args.only or ())) + (" --json" if args.json else "")
+    steal_at_start_s = cpu_steal_s()
+    command = ("edc-bench perf" + (" --quick" if args.quick else "") + "".join(f" --only {g}" for g in (args.only or ()))
+               + (" --json" if args.json else ""))
+    env = PerfEnvironment.now(args.quick, command)
 
     def announce(figure: Any) -> None:
         if not args.json:
@@ -97,12 +127,12 @@ def run(args: argparse.Namespace) -> int:
                         session_latency=session_latency)
     if args.quick:
         figures = unjudged(figures)
-    env["cpu_steal_s"] = cpu_steal_s() - env.pop("cpu_steal_at_start_s")
+    env = dataclasses.replace(env, cpu_steal_s=cpu_steal_s() - steal_at_start_s)
     if args.json:
         from edc_bench.records.writer import json_safe
 
         print_quietly_if_closed(lambda: print(json.dumps(json_safe(
-            {"environment": env, "figures": [f.as_dict() for f in figures]}), indent=2)))
+            {"environment": dataclasses.asdict(env), "figures": [f.as_dict() for f in figures]}), indent=2)))
     else:
         print_quietly_if_closed(lambda: _table(figures, env))
     return 0
