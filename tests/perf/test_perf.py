@@ -50,18 +50,34 @@ def test_perf_quick_prints_every_group_and_leaves_the_history_alone(tmp_path: Pa
     assert report["environment"]["quick"] is True
 
 
-@pytest.mark.parametrize("kind", ["rls", "gradient"])
-def test_tick_floor_does_the_controllers_arithmetic(variant: Variant, kind: str) -> None:
-    variant = variant.model_copy(update={"estimator": variant.estimator.model_copy(update={"kind": kind})})
+def _floor_and_loop_drives(variant: Variant) -> tuple[list[float], list[float], int]:
+    """The loop's controller and the floor on the same 6000 samples (no coil current: both keep the coil's prior)."""
     design = ControllerDesign.from_variant(variant)
     ctl, floor = design.controller(1.0), lean_tick(design, 1.0)
     rng = np.random.default_rng(0)
-    x = 1.0
+    x, loop, lean = 1.0, [], []
     for k in range(6000):  # past the move, so the estimator adapts
-        u, u_floor = ctl.step(k, x), floor(k, x)
-        assert u_floor == pytest.approx(u, abs=1e-9), k
+        loop.append(ctl.step(k, x))
+        lean.append(floor(k, x))
         x = ctl.reference_mm + rng.normal(0.0, 0.005)
-    assert ctl.estimator.updates > 1000
+    return loop, lean, ctl.estimator.updates
+
+
+@pytest.mark.parametrize("kind", ["rls", "gradient"])
+def test_tick_floor_does_the_controllers_arithmetic_to_the_bit(variant: Variant, kind: str,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """#54: the floor is the loop's tick composition, not a copy of it: the same drives to the bit, and after one
+    step of the composition is changed in one place (the regressors' 2nd and 3rd derivatives swapped), the same
+    changed drives to the bit."""
+    from edc_bench.control import law
+
+    variant = variant.model_copy(update={"estimator": variant.estimator.model_copy(update={"kind": kind})})
+    loop, lean, updates = _floor_and_loop_drives(variant)
+    assert lean == loop and updates > 1000
+    original = law.regressors
+    monkeypatch.setattr(law, "regressors", lambda ops, w, r, r1, r2, r3: original(ops, w, r, r1, r3, r2))
+    changed_loop, changed_lean, _ = _floor_and_loop_drives(variant)
+    assert changed_lean == changed_loop and changed_loop != loop
 
 
 def test_struct_floor_encodes_and_decodes_like_the_codec(icd: Icd) -> None:
