@@ -23,8 +23,8 @@ class FeaturePair(Section):
     """af and a1, a valve's two features (friction and damping): in the unit of the field that holds them (V and
     V s/mm, or over the new-valve baseline).
 
-    None where a record holds no figure; a figure not identified is NaN in a test's own result (written as null:
-    JSON has no NaN).
+    None where no figure is held (a record's null); a test that did not identify a figure holds NaN (written as
+    null: JSON has no NaN).
     """
 
     af: float | None = None
@@ -38,3 +38,11 @@ class FeaturePair(Section):
     def numbers(self) -> tuple[float, float]:
         """(af, a1), a missing figure as NaN."""
         return (math.nan if self.af is None else self.af, math.nan if self.a1 is None else self.a1)
+
+
+class JudgedFeatures(FeaturePair):
+    """af and a1 as a classifier judged them (relative to the baseline): both always figures, so a record's null
+    is refused with the field's name, as any figure of the wrong type is."""
+
+    af: float
+    a1: float

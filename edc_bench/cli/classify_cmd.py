@@ -14,6 +14,7 @@ from edc_bench.timefmt import local_text
 
 if TYPE_CHECKING:
     from edc_bench.records.schema import Record
+    from edc_bench.section import FeaturePair
     from edc_bench.verdict.baseline import Baseline
     from edc_bench.verdict.classifier import ValveClassifier
     from edc_bench.verdict.sections import BaselineSummary, ClassificationSummary
@@ -30,7 +31,7 @@ class ClassifyReport:
         This classification's verdict (a record's INVALID is kept: a model never judges a bad test).
     variant : str or None
         The variant whose baseline and model judged (None: a record's INVALID, not judged).
-    features : dict of str to float or None
+    features : FeaturePair or None
         af and a1 as judged (None: not judged).
     classification : ClassificationSummary or None
         The model's judgement, naming the model exactly (None: not judged).
@@ -40,14 +41,21 @@ class ClassifyReport:
         Why the verdict is INVALID, or a caution (a nominal baseline).
     record_dir : str or None
         The record folder of a recorded INVALID.
-    compared : dict or None
-        A record's comparison (``recorded_verdict``, ``not_as_recorded``, ``disagreements``,
-        ``not_as_first_indexed``): set by :func:`_finish` when a record was judged.
+    recorded_verdict : Verdict or None
+        A judged record's own verdict.
+    not_as_recorded : str or None
+        The line that says this classification is not as the record says (None: it is).
+    disagreements : list of str or None
+        Where the record's verdict does not follow from its own figures.
+    not_as_first_indexed : str or None
+        How the record differs from what the history first indexed of its test (None: it does not, or no history).
+    compared : bool
+        A record was judged: the four fields above are part of the output (:func:`_finish` sets them).
     """
 
     verdict: Verdict
     variant: str | None = None
-    features: dict[str, float] | None = None
+    features: FeaturePair | None = None
     classification: ClassificationSummary | None = None
     baseline: BaselineSummary | None = None
     reasons: list[str] | None = None
@@ -59,16 +67,13 @@ class ClassifyReport:
     compared: bool = False
 
     def as_json(self) -> dict[str, Any]:
-        """The ``--json`` output: the classification's fields at the top level, as the command always printed."""
-        out: dict[str, Any] = {"verdict": self.verdict}
-        if self.variant is not None:
-            out["variant"] = self.variant
-        if self.features is not None:
-            out["features"] = self.features
+        """The ``--json`` output: the classification's fields at the top level (its ``verdict`` among them), in
+        the order the command has always printed them."""
         if self.classification is not None:
-            out.update(self.classification.model_dump(mode="python"))
-        if self.baseline is not None:
-            out["baseline"] = self.baseline
+            out: dict[str, Any] = {"variant": self.variant, "features": self.features,
+                                   **self.classification.model_dump(mode="python"), "baseline": self.baseline}
+        else:
+            out = {"verdict": self.verdict, **({"variant": self.variant} if self.variant is not None else {})}
         if self.reasons is not None:
             out["reasons"] = self.reasons
         if self.record_dir is not None:
@@ -110,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.config import load_variant
     from edc_bench.errors import ConfigError
     from edc_bench.records.reader import load_record
+    from edc_bench.section import FeaturePair
     from edc_bench.verdict.judgement import classification_summary, classify_features
     from edc_bench.verdict.verdicts import Verdict
 
@@ -145,8 +151,8 @@ def run(args: argparse.Namespace) -> int:
                        args.record_dir)
     judged, baseline, classifier = classify_features(variant, af, a1, args.model)
     summary = classification_summary(judged, classifier)
-    out = ClassifyReport(summary.verdict, variant=variant.name, features={"af": af, "a1": a1}, classification=summary,
-                         baseline=baseline.summary(),
+    out = ClassifyReport(summary.verdict, variant=variant.name, features=FeaturePair(af=af, a1=a1),
+                         classification=summary, baseline=baseline.summary(),
                          reasons=None if baseline.calibrated else [nominal_baseline_warning(variant)])
     return _finish(out, args.json, record, "" if record is None else _why_else(record, baseline, classifier),
                    args.record_dir)

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from edc_bench.records.advice import Advice
     from edc_bench.records.record import BenchResult
     from edc_bench.records.schema import EscalationSummary, StopSummary
+    from edc_bench.section import FeaturePair
     from edc_bench.verdict.retest import Decision
     from edc_bench.verdict.sections import ClassificationSummary, ParameterEstimate
     from edc_bench.verdict.verdicts import Verdict
@@ -63,8 +64,8 @@ class TestSummary:
     reasons: list[str]
     valve_id: str
     variant: str
-    features: dict[str, float]
-    features_volt: dict[str, float]
+    features: FeaturePair
+    features_volt: FeaturePair
     coil: CoilFinding | None
     parameters: dict[str, ParameterEstimate]
     converged: bool | None

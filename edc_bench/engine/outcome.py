@@ -114,7 +114,7 @@ class StopReason(enum.StrEnum):
 @dataclass(frozen=True)
 class PeriodDecision:
     """The stop rule's last period-end decision, for the live view: what the verdict will rest on
-    (the live panel's process unpickles it: declared here, where that process imports nothing heavy).
+    (the live panel's process unpickles it: declared here, in a module that process imports already).
 
     Attributes
     ----------

@@ -220,13 +220,18 @@ def _close(a: float | None, b: float | None) -> bool:
         or math.isclose(a, b, rel_tol=SAME_REL, abs_tol=0.0)
 
 
+def _figure(value: float | None) -> str:
+    """A figure as a message shows it; a record's null as "none"."""
+    return "none" if value is None else f"{value:.6g}"
+
+
 def _features(record: Record) -> list[str]:
     """5: the relative features from the features and the baseline; the features from the parameters."""
     found = []
     af, a1 = record.features.af, record.features.a1
     params = {name: record.parameters[name].value for name in ("af", "a1") if name in record.parameters}
     if not (_close(af, params.get("af")) and _close(a1, params.get("a1"))):
-        found.append(f"its features (af {af:.6g}, a1 {a1:.6g}) are not its identified parameters' "
+        found.append(f"its features (af {_figure(af)}, a1 {_figure(a1)}) are not its identified parameters' "
                      f"(af {params.get('af')}, a1 {params.get('a1')})")
     c, base = record.classification, record.baseline
     if c is not None and base is not None and None not in (af, a1, base.af_v, base.a1_v_s_per_mm) \

@@ -148,7 +148,7 @@ class BenchResult:
 
     @property
     def features(self) -> FeaturePair:
-        """``{"af": ..., "a1": ...}``, the diagnosis inputs."""
+        """af and a1, the diagnosis inputs (V, V s/mm; NaN where not identified)."""
         return self.judgement.features
 
     @property

@@ -45,6 +45,8 @@ class _Interrupts:
     previous: dict[signal.Signals, Any] = field(default_factory=dict)
     #: whether a signal raised KeyboardInterrupt in a raise_on_interrupt block
     raised: bool = False
+    #: whether a raise_on_interrupt block is open now
+    raising: bool = False
 
 
 _state = _Interrupts()
@@ -118,12 +120,14 @@ def raise_on_interrupt() -> Iterator[None]:
         yield
         return
     _state.raised = False
+    was_raising, _state.raising = _state.raising, True
     previous = {sig: signal.signal(sig, _raise) for sig in _SIGNALS if signal.getsignal(sig) is not signal.SIG_IGN}
     previous_hook = sys.unraisablehook
     sys.unraisablehook = _raise_again
     try:
         yield
     finally:
+        _state.raising = was_raising
         sys.unraisablehook = previous_hook
         for sig, handler in previous.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)  # None: not set from Python
@@ -152,11 +156,12 @@ def interrupt_raised() -> bool:
 
 
 def stop_if_interrupted() -> None:
-    """Raise :class:`KeyboardInterrupt` if Ctrl-C or SIGTERM was raised in this :func:`raise_on_interrupt` block.
+    """Raise :class:`KeyboardInterrupt` if Ctrl-C or SIGTERM was raised in the :func:`raise_on_interrupt` block open
+    now (none open: nothing to say; an earlier command's interrupt is not this caller's).
 
     Called by a command before it writes what long library work computed (a baseline, a model, a dataset): a
     library that caught the interrupt and ran on (a signal landing in code that swallows it) returns a result as
     if nothing happened, and the command would write it and only then exit 130.
     """
-    if _state.raised:
+    if _state.raising and _state.raised:
         raise KeyboardInterrupt

@@ -7,6 +7,7 @@ process, which draws them with rich four times a second (see
 
 from __future__ import annotations
 
+import math
 import os
 import pickle
 from collections.abc import Sequence
@@ -146,7 +147,7 @@ def verdict_panel(result: Any, record_dir: Path | None) -> Panel:
     for n, reason in enumerate(result.reasons):
         body.add_row("why" if n == 0 else "", reason)
     f = result.features
-    if f.identified:
+    if f.af is not None and not math.isnan(f.af):  # af identified (a1 shown as it is)
         line = f"af {f.af:.5f} V, a1 {f.a1:.6f} V s/mm"
         if result.classification:
             rel = result.classification.features_rel

@@ -27,7 +27,7 @@ from edc_bench.identification.trust import TRUST_PROBLEMS, Problem, trust_proble
 from edc_bench.physics.coil import referred_from_estimate, volts_at_coil
 from edc_bench.physics.feedforward import inductive_shares
 from edc_bench.physics.feedforward import FeedforwardParameters, nominal_parameters
-from edc_bench.section import FeaturePair
+from edc_bench.section import FeaturePair, JudgedFeatures
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s
@@ -389,7 +389,7 @@ def classification_summary(judged: Classification, model: ValveClassifier) -> Cl
     """A classification by ``model`` as records and JSON keep it, naming the model exactly."""
     return ClassificationSummary(
         verdict=judged.verdict, probability_faulty=judged.probability_faulty, distance=judged.distance,
-        features_rel=FeaturePair(af=judged.features_rel[0], a1=judged.features_rel[1]), model=judged.model,
+        features_rel=JudgedFeatures(af=judged.features_rel[0], a1=judged.features_rel[1]), model=judged.model,
         model_name=model.name, model_file=model.path.name, model_sha256=model.sha256,
         threshold=model.threshold, marginal_band=model.marginal_band,
         training_data_sha256=model.metadata.get("edc_bench.training_data_sha256"))

@@ -12,7 +12,7 @@ from typing import Annotated, Any
 
 from pydantic import BeforeValidator, Field
 
-from edc_bench.section import FeaturePair, Section
+from edc_bench.section import JudgedFeatures, Section
 from edc_bench.verdict.baseline_source import BaselineSource
 from edc_bench.verdict.verdicts import Verdict
 
@@ -51,7 +51,7 @@ class ClassificationSummary(Section):
     #: signed distance to the boundary; None: beyond the classifier's scan (3.0), far on its verdict's side (the
     #: classifier's +/-inf, which JSON cannot hold)
     distance: float | None
-    features_rel: FeaturePair
+    features_rel: JudgedFeatures
     model: str = ""
     model_name: str | None = None
     model_file: str | None = None

@@ -20,6 +20,8 @@ def test_classify_a_record_folder(tmp_path: Path) -> None:
     out = json.loads(again.stdout)
     assert out["verdict"] == summary["verdict"] == Verdict.FAIL
     assert out["probability_faulty"] == pytest.approx(summary["classification"]["probability_faulty"])
+    # the classification's fields at the top level, in the order the command has always printed them
+    assert list(out)[:4] == ["variant", "features", "verdict", "probability_faulty"], list(out)
 
 
 @pytest.mark.parametrize(("args", "message"), [

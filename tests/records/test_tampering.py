@@ -289,3 +289,17 @@ def test_classify_of_an_invalid_record_keeps_its_verdict_and_reasons(genuine: di
     assert out == {"verdict": "INVALID", "reasons": list(record.reasons), "record_dir": str(folder),
                    "recorded_verdict": "INVALID", "not_as_recorded": None, "disagreements": [],
                    "not_as_first_indexed": None}
+
+
+def test_a_forged_null_relative_feature_is_refused_in_one_line_not_a_traceback(failed: Path, tmp_path: Path) -> None:
+    """A classification's relative features are figures: a null there (a forgery with its digests made anew) is
+    refused naming the field, by classify, report and history --add (exit 2), never an internal error."""
+    copy = tmp_path / "rec"
+    shutil.copytree(failed, copy)
+    doc = json.loads((copy / "record.json").read_text(encoding="utf-8"))
+    doc["classification"]["features_rel"] = {"af": None, "a1": 5.0}
+    rewrite_record_json(copy, doc)  # its manifest made anew: the digests agree
+    for command in (("classify", "rec"), ("report", "rec"), ("history", "--add", "rec", "--db", "h.db")):
+        proc = edc_bench(*command, cwd=tmp_path)
+        assert proc.returncode == 2, (command, proc.stdout, proc.stderr)
+        assert "Traceback" not in proc.stderr and "features_rel" in proc.stderr, (command, proc.stderr)

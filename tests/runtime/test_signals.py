@@ -135,3 +135,20 @@ def test_a_stop_request_does_not_outlive_its_guard() -> None:
             while not stop_requested():
                 pass
     assert not stop_requested()
+
+
+def test_stop_if_interrupted_speaks_only_inside_the_block_that_was_interrupted() -> None:
+    """A command's writer asks before writing (stop_if_interrupted); after the interrupted block has ended, a later
+    caller in the same process (a library function called outside a command) is not stopped by it."""
+    from edc_bench.runtime.signals import stop_if_interrupted
+
+    with pytest.raises(KeyboardInterrupt):
+        with raise_on_interrupt():
+            stop_if_interrupted()  # nothing raised yet
+            try:
+                _signal_self(signal.SIGINT)
+            except KeyboardInterrupt:
+                pass  # a library swallows it
+            stop_if_interrupted()  # the command asks: still Ctrl-C
+    assert interrupt_raised()
+    stop_if_interrupted()  # the block is over: nothing to say
