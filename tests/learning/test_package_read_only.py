@@ -24,7 +24,6 @@ from edc_bench.verdict.classifier import (
     ValveClassifier,
     file_sha256,
     packaged_model_path,
-    station_models_dir,
     variant_model_path,
 )
 

@@ -119,7 +119,6 @@ def test_a_stop_request_does_not_outlive_its_guard() -> None:
     """A SIGTERM held back by one session's guard made the next session in the same process (CI's worker running
     the next test) end before its first test."""
     import os
-    import signal as signals
 
     from edc_bench.runtime.signals import interrupt_guard, stop_requested
 
