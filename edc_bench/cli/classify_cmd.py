@@ -158,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
                    args.record_dir)
 
 
-def _finish(out: ClassifyReport, as_json: bool, record: Record | None, why: str = "", record_dir: Path | None = None) -> int:
+def _finish(out: ClassifyReport, as_json: bool, record: Record | None, why: str = "",
+            record_dir: Path | None = None) -> int:
     """Report ``out``, with the line that says it is not as ``record`` says where that is so; the exit code.
 
     A record's verdict is not as recorded when this classification gives another verdict on the valve, or when

@@ -111,8 +111,8 @@ def run(args: argparse.Namespace) -> int:
 
         load_variant(args.variant)  # a bad name is refused before anything runs
     steal_at_start_s = cpu_steal_s()
-    command = ("edc-bench perf" + (" --quick" if args.quick else "") + "".join(f" --only {g}" for g in (args.only or ()))
-               + (" --json" if args.json else ""))
+    command = ("edc-bench perf" + (" --quick" if args.quick else "")
+               + "".join(f" --only {g}" for g in (args.only or ())) + (" --json" if args.json else ""))
     env = PerfEnvironment.now(args.quick, command)
 
     def announce(figure: Any) -> None:

@@ -34,7 +34,7 @@ class TestSummary:
     valve_id, variant
         Which valve, on which pump variant.
     features, features_volt
-        af and a1 as judged (at the rated coil resistance), and as the drive's volts gave them.
+        af and a1 as judged (referred to the reference coil), and with this test's coil.
     coil
         The coil's resistance and warming, measured during the test.
     parameters

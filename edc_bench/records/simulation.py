@@ -4,9 +4,10 @@ The rig's ground truth (the valve as simulated, its coil, the link's timing, the
 studies and for a person checking a verdict against the physics. The bench's verdict never reads it; the record
 only asks whether it is there (:attr:`edc_bench.records.schema.Record.simulated_rig`).
 
-Two rigs write it: the rig simulated in the bench's process, in simulated time (every field but ``rig_process``:
-:func:`edc_bench.bench.run_simulated_test`), and the rig process a real-time test talks to over a socket (``rig_process``
-alone: the bench knows only what it started the process with, and what the process said of its serving gaps).
+Two rigs write it: the rig simulated in the bench's process, in simulated time (every field but
+``rig_process``: :func:`edc_bench.bench.run_simulated_test`), and the rig process a real-time test talks to over
+a socket (``rig_process`` alone: the bench knows only what it started the process with, and what the process said
+of its serving gaps).
 A field of the section (or of ``rig_process``) that a rig does not give is left out of record.json, not written as
 null, so each rig's section reads as it always did.
 """
