@@ -229,6 +229,20 @@ def test_calibrate_of_a_simulated_population_stops_at_once_and_writes_no_baselin
     assert "converged" not in err
 
 
+def _catching_the_interrupt(real: Callable[..., object]) -> Callable[..., object]:
+    """``real`` as a library that swallows Ctrl-C runs it: a self-sent SIGINT raises inside, is caught, and the
+    work goes on to its end as if nothing happened."""
+    def catches_the_interrupt(*args: object, **kwargs: object) -> object:
+        try:
+            os.kill(os.getpid(), signal.SIGINT)  # raise_on_interrupt's handler raises here, at once
+            time.sleep(5.0)  # never reached in full
+        except KeyboardInterrupt:
+            pass  # what such a library does
+        return real(*args, **kwargs)
+
+    return catches_the_interrupt
+
+
 def test_calibrate_writes_no_baseline_when_a_library_caught_the_interrupt_and_ran_on(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     """CI's 3.13 pass, twice: Ctrl-C (and SIGTERM) during a fresh installation's population printed the baseline
@@ -239,17 +253,7 @@ def test_calibrate_writes_no_baseline_when_a_library_caught_the_interrupt_and_ra
 
     import edc_bench.population.calibrate as population
 
-    real = population.population_tests
-
-    def catches_the_interrupt(*args: object, **kwargs: object) -> object:
-        try:
-            os.kill(os.getpid(), signal.SIGINT)  # raise_on_interrupt's handler raises here, at once
-            time.sleep(5.0)  # never reached in full
-        except KeyboardInterrupt:
-            pass  # what such a library does
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(population, "population_tests", catches_the_interrupt)
+    monkeypatch.setattr(population, "population_tests", _catching_the_interrupt(population.population_tests))
     baseline = tmp_path / "baseline.toml"
     code, out, err = run_cli(["calibrate", "--tests", "2", "--baseline-file", str(baseline)], capsys)
     assert code == 130 and "interrupted" in err, err
@@ -461,25 +465,14 @@ def test_train_writes_no_model_when_a_library_caught_the_interrupt_and_ran_on(
     from helpers import run_cli
 
     import edc_bench.learning.train as training
-    from edc_bench.learning.dataset import COLUMNS, Dataset, DatasetColumns
+    from edc_bench.learning.dataset import Dataset, DatasetColumns
 
     rng = np.random.default_rng(3)
     af_rel, a1_rel = rng.uniform(0.8, 2.4, 300), rng.uniform(0.8, 2.6, 300)
-    columns = {name: np.zeros(300) for name in COLUMNS}
-    columns.update(af_rel=af_rel, a1_rel=a1_rel, faulty=(0.6 * af_rel + 0.4 * a1_rel > 1.6), converged=np.ones(300))
     dataset_file = tmp_path / "data.npz"
-    Dataset(DatasetColumns(**columns), {"synthetic": True}).save(dataset_file)
-    real = training.train
-
-    def catches_the_interrupt(*args: object, **kwargs: object) -> object:
-        try:
-            os.kill(os.getpid(), signal.SIGINT)  # raise_on_interrupt's handler raises here, at once
-            time.sleep(5.0)  # never reached in full
-        except KeyboardInterrupt:
-            pass  # what such a library does
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(training, "train", catches_the_interrupt)
+    Dataset(DatasetColumns.labelled(af_rel, a1_rel, 0.6 * af_rel + 0.4 * a1_rel > 1.6), {"synthetic": True}).save(
+        dataset_file)
+    monkeypatch.setattr(training, "train", _catching_the_interrupt(training.train))
     models = tmp_path / "models"
     code, out, err = run_cli(["train", "--dataset", str(dataset_file), "--models-dir", str(models)], capsys)
     assert code == 130 and "interrupted" in err, err
