@@ -45,6 +45,7 @@ from edc_bench.verdict.judgement import judge_run
 if TYPE_CHECKING:
     from edc_bench.sim.adapter import AdapterModel
     from edc_bench.sim.drift import SensorDrift
+    from edc_bench.sim.pump_faults import RackFault, SensorFault
     from edc_bench.sim.rig import SimulatedRig
     from edc_bench.records.simulation import SimulationSummary
 from edc_bench.engine.outcome import LoopOutcome, StopReason
@@ -260,6 +261,7 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
                        stiction: bool = True, sensor_noise: bool = True, adapter: AdapterModel | str | None = None,
                        clock_wrapper: Callable[[Clock], Clock] | None = None, options: BenchOptions | None = None,
                        firmware: str = "python", drift: SensorDrift | str | None = None,
+                       rack_fault: RackFault | str | None = None, sensor_fault: SensorFault | str | None = None,
                        **option_fields: Any) -> BenchResult:
     """Run a bench test against the simulated rig in process, in simulated time.
 
@@ -285,6 +287,9 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     drift : SensorDrift or str, optional
         The rig's sensors drifted (``lvdt_offset_mm=0.05``, see :func:`~edc_bench.sim.drift.parse_rig_drift`);
         none by default.
+    rack_fault, sensor_fault : RackFault or SensorFault or str, optional
+        The pump's control rack binds or drags, its rack-travel sensor misreads (``bind``, ``gain=1.08``: see
+        :mod:`edc_bench.sim.pump_faults`); sound by default.
     options : BenchOptions, optional
         As :func:`run_bench_test`; single fields may be given by name instead (``full_length=True``). The
         valve id defaults to the valve's spec; ``coil_temp_c`` is what the technician states, not taken from
@@ -297,24 +302,55 @@ def run_simulated_test(variant: Variant, valve: str | ValveSpec = "new", seed: i
     """
     from edc_bench.sim.adapter import AdapterModel, parse_adapter
     from edc_bench.sim.drift import SensorDrift, parse_rig_drift
-    from edc_bench.sim.inprocess import InProcessRig
-    from edc_bench.sim.lockstep_bus import lockstep_pair
+    from edc_bench.sim.pump_faults import RackFault, SensorFault, parse_rack_fault, parse_sensor_fault
     from edc_bench.sim.rig import RigOptions, SimulatedRig
 
     spec = valve if isinstance(valve, ValveSpec) else parse_valve_spec(valve, variant)
     link = parse_adapter(adapter) if isinstance(adapter, str) else (adapter or AdapterModel())
     sensors = parse_rig_drift(drift) if isinstance(drift, str) else (drift or SensorDrift())
+    rack = parse_rack_fault(rack_fault) if isinstance(rack_fault, str) else (rack_fault or RackFault())
+    sensor = parse_sensor_fault(sensor_fault) if isinstance(sensor_fault, str) else (sensor_fault or SensorFault())
     rig = SimulatedRig(variant, spec, seed, RigOptions(stiction=stiction, sensor_noise=sensor_noise, firmware=firmware,
-                                                       drift=sensors))
+                                                       drift=sensors, rack_fault=rack, sensor_fault=sensor))
     o = dataclasses.replace(options or BenchOptions(), **option_fields)
     o = dataclasses.replace(o, valve_id=o.valve_id or spec.label, truth=rig.truth,
                             describe_rig=lambda: _simulation(variant, spec, rig, link, seed, stiction, sensor_noise))
+    return run_on_simulated_rig(variant, rig, o, link, seed, clock_wrapper)
+
+
+def run_on_simulated_rig(variant: Variant, rig: SimulatedRig, options: BenchOptions,
+                         adapter: AdapterModel | None = None, seed: int = 0,
+                         clock_wrapper: Callable[[Clock], Clock] | None = None) -> BenchResult:
+    """Run a bench test against ``rig`` in process, in simulated time (lockstep): the loop, the identification, the
+    verdict and the part diagnosis as on any rig.
+
+    :func:`run_simulated_test` builds the project's simulated rig and calls this; a test may build a rig of its own
+    (another plant or sensor behind the same firmware) and run the bench on it here.
+
+    Parameters
+    ----------
+    variant : Variant
+    rig : SimulatedRig
+    options : BenchOptions
+        As :func:`run_bench_test`.
+    adapter : AdapterModel, optional
+        The CAN adapter's timing (instant by default).
+    seed : int, optional
+        Seeds the adapter's jitter.
+    clock_wrapper : callable, optional
+        Wraps the simulated clock.
+    """
+    from edc_bench.sim.adapter import AdapterModel
+    from edc_bench.sim.inprocess import InProcessRig
+    from edc_bench.sim.lockstep_bus import lockstep_pair
+
+    link = adapter or AdapterModel()
     bench_bus, rig_bus = lockstep_pair(f"edc-bench-sim-{next(_channels)}")
     with bench_bus, rig_bus:
         clock: Clock = SimulatedClock(InProcessRig(rig_bus, rig, link, seed))
         if clock_wrapper is not None:
             clock = clock_wrapper(clock)
-        return run_bench_test(bench_bus, clock, variant, o)
+        return run_bench_test(bench_bus, clock, variant, options)
 
 
 def _simulation(variant: Variant, spec: ValveSpec, rig: SimulatedRig, link: AdapterModel, seed: int,
@@ -337,4 +373,6 @@ def _simulation(variant: Variant, spec: ValveSpec, rig: SimulatedRig, link: Adap
         coulomb_friction_n=params.coulomb_friction_n, damping_n_s_per_mm=params.damping_n_s_per_mm,
         rig_counters=RigCounters(accepted=counters.accepted, bad_crc=counters.bad_crc, bad_mode=counters.bad_mode,
                                  watchdog_trips=counters.watchdog_trips),
+        rack_fault=None if rig.options.rack_fault.none else dataclasses.asdict(rig.options.rack_fault),
+        sensor_fault=None if rig.options.sensor_fault.none else dataclasses.asdict(rig.options.sensor_fault),
     )

@@ -513,3 +513,37 @@ def add_rig_drift_argument(parser: Any) -> None:
                         help="simulated rig: its sensors drifted, e.g. lvdt_offset_mm=0.05 or current_gain=1.03 "
                              "(keys lvdt_offset_mm, lvdt_gain, current_gain, current_offset_a; default: none), what "
                              "'edc-bench rig-selfcheck' must catch")
+
+
+def _fault_type(parse: Any) -> Any:
+    def convert(text: str) -> Any:
+        from edc_bench.errors import ConfigError
+
+        try:
+            return parse(text, flag="")
+        except ConfigError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return convert
+
+
+def add_pump_fault_arguments(parser: Any) -> None:
+    """``--rack-fault SPEC`` and ``--sensor-fault SPEC``: the simulated pump's control rack binds or drags, its
+    rack-travel sensor misreads (:mod:`edc_bench.sim.pump_faults`), as every command that runs the simulated rig
+    takes them."""
+    from edc_bench.sim.pump_faults import (
+        RACK_KEYS,
+        RACK_PRESETS,
+        SENSOR_KEYS,
+        SENSOR_PRESETS,
+        parse_rack_fault,
+        parse_sensor_fault,
+    )
+
+    parser.add_argument("--rack-fault", type=_fault_type(parse_rack_fault), default=None, metavar="SPEC",
+                        help=f"simulated pump: its control rack binds or drags, one of {', '.join(RACK_PRESETS)} "
+                             f"and/or key=value pairs (keys {', '.join(RACK_KEYS)}), e.g. bind,bind_at_mm=8 "
+                             "(default: none); the part diagnosis must name the rack")
+    parser.add_argument("--sensor-fault", type=_fault_type(parse_sensor_fault), default=None, metavar="SPEC",
+                        help=f"simulated pump: its rack-travel sensor misreads, one of {', '.join(SENSOR_PRESETS)} "
+                             f"and/or key=value pairs (keys {', '.join(SENSOR_KEYS)}), e.g. gain=1.05 (default: "
+                             "none); the part diagnosis must name the sensor")

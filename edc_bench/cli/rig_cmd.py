@@ -6,7 +6,13 @@ import argparse
 import signal
 import sys
 
-from edc_bench.cli.common import add_rig_drift_argument, add_variant_arguments, parse_host_port, seed_number
+from edc_bench.cli.common import (
+    add_pump_fault_arguments,
+    add_rig_drift_argument,
+    add_variant_arguments,
+    parse_host_port,
+    seed_number,
+)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -31,6 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the rig's firmware: python (the prototype, default) or c (the C core, built on first "
                         "use into the user's cache: needs make and gcc)")
     add_rig_drift_argument(p)
+    add_pump_fault_arguments(p)
     p.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
                    help="break this ICD rule, for trying 'edc-bench rig-check' on a rig that fails it (repeatable): "
                         "answers-bad-crc, wrong-counter-echo, slow-watchdog, no-watchdog, no-heartbeat, "
@@ -54,7 +61,9 @@ def run(args: argparse.Namespace) -> int:
     adapter = parse_adapter(args.adapter)
     rig = SimulatedRig(variant, valve, seed=args.seed,
                        options=RigOptions(breaks=_breaks(args.breaks), firmware=args.firmware,
-                                          drift=args.rig_drift or RigOptions().drift))
+                                          drift=args.rig_drift or RigOptions().drift,
+                                          rack_fault=args.rack_fault or RigOptions().rack_fault,
+                                          sensor_fault=args.sensor_fault or RigOptions().sensor_fault))
     server = SlcanRigServer(rig, log=lambda line: print(f"rig: {line}", flush=True), adapter=adapter)
     if args.pty:
         where = server.open_pty()
@@ -71,6 +80,9 @@ def run(args: argparse.Namespace) -> int:
     broken = f", breaking {', '.join(args.breaks)}" if args.breaks else ""
     if args.rig_drift is not None and not args.rig_drift.none:
         broken += f", sensors drifted: {args.rig_drift.spec()}"
+    for name, fault in (("rack", args.rack_fault), ("rack-travel sensor", args.sensor_fault)):
+        if fault is not None and not fault.none:
+            broken += f", pump's {name} faulty: {fault.spec()}"
     print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}, {args.firmware} firmware{broken}, "
           f"serving slcan at {where}", flush=True)
     server.serve_forever()

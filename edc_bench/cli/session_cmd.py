@@ -9,6 +9,7 @@ from pathlib import Path
 from edc_bench.cli.common import (
     add_bus_arguments,
     add_history_db_argument,
+    add_pump_fault_arguments,
     add_rig_drift_argument,
     identity,
     seed_number,
@@ -43,6 +44,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--operator", type=identity(), default=None,
                    help="who works the shift (default: the name given at this station last time; asked if none)")
     add_rig_drift_argument(p)
+    add_pump_fault_arguments(p)
     add_history_db_argument(p)
     p.set_defaults(run=run)
 
@@ -71,9 +73,13 @@ def run(args: argparse.Namespace) -> int:
                                   options=args.bus_options)
     except RigError as exc:  # before the screen opens nothing has started: refused as input, the session's exit 2
         raise ConfigError(str(exc)) from None
-    if bus_config is not None and args.rig_drift is not None:
-        raise ConfigError("--rig-drift describes the simulated rig: leave it out on a bus")
-    rig = RigChoice(bus_config=bus_config, first_seed=args.seed, rig_drift=args.rig_drift)
+    simulated_only = [flag for flag, value in (("--rig-drift", args.rig_drift), ("--rack-fault", args.rack_fault),
+                                               ("--sensor-fault", args.sensor_fault)) if value is not None]
+    if bus_config is not None and simulated_only:
+        raise ConfigError(f"{', '.join(simulated_only)} describe{'s' if len(simulated_only) == 1 else ''} the "
+                          "simulated rig: leave it out on a bus")
+    rig = RigChoice(bus_config=bus_config, first_seed=args.seed, rig_drift=args.rig_drift,
+                    rack_fault=args.rack_fault, sensor_fault=args.sensor_fault)
     app = make_app(args.variant, rig, args.out, args.db,
                    args.station or default_station(), args.operator or remembered_operator(),
                    ask_workshop=not workshop_asked())

@@ -58,6 +58,12 @@ class PlantParameters:
     stribeck_velocity_mm_s : float
         Stribeck speed v_s: sliding friction falls from the breakaway force F_s to F_c as
         F_c + (F_s - F_c) exp(-(v / v_s)^2). 0: it falls to F_c as soon as the rack slides.
+    rack_bind_n, rack_bind_at_mm, rack_bind_width_mm : float
+        A control rack that rubs at one place (bent, or a burr in its guide): friction there is higher by
+        ``rack_bind_n`` exp(-((x - at) / width)^2), sliding and at rest alike. 0 N: a straight rack.
+    rack_friction_slope_n_per_mm : float
+        A rack guide whose friction rises along the stroke: ``slope x`` more (N, x in mm from the stop), sliding
+        and at rest alike. 0: friction the same along the stroke.
     """
 
     mass_kg: float
@@ -81,11 +87,29 @@ class PlantParameters:
     force_constant_slope_per_mm: float = 0.0
     force_constant_mid_mm: float = 0.0
     stribeck_velocity_mm_s: float = 0.0
+    rack_bind_n: float = 0.0
+    rack_bind_at_mm: float = 0.0
+    rack_bind_width_mm: float = 1.0
+    rack_friction_slope_n_per_mm: float = 0.0
 
     @property
     def linear(self) -> bool:
-        """True when the plant is the linear model (constant force constant, no Stribeck decay)."""
-        return self.force_constant_slope_per_mm == 0.0 and self.stribeck_velocity_mm_s == 0.0
+        """True when the plant is the linear model (constant force constant, no Stribeck decay, friction the
+        same along the stroke)."""
+        return (self.force_constant_slope_per_mm == 0.0 and self.stribeck_velocity_mm_s == 0.0
+                and not self.rack_friction_varies)
+
+    @property
+    def rack_friction_varies(self) -> bool:
+        """True when the rack's friction depends on where it is (a local bind, a slope)."""
+        return self.rack_bind_n != 0.0 or self.rack_friction_slope_n_per_mm != 0.0
+
+    def rack_friction_n(self, position_mm: float) -> float:
+        """The rack's own friction beyond the valve's at ``position_mm`` (N): a local bind and a slope."""
+        bind = 0.0
+        if self.rack_bind_n != 0.0:
+            bind = self.rack_bind_n * math.exp(-(((position_mm - self.rack_bind_at_mm) / self.rack_bind_width_mm) ** 2))
+        return bind + self.rack_friction_slope_n_per_mm * position_mm
 
     def force_constant_at(self, position_mm: float) -> float:
         """The solenoid's force constant k_i(x) in N/A with the rack at ``position_mm``."""

@@ -154,7 +154,8 @@ class _VectorPlant:
         self._pump = pump_constants(pump.linear, pump.preload_n, pump.stribeck_velocity_mm_s,
                                     pump.force_constant_n_per_a, pump.force_constant_slope_per_mm,
                                     pump.force_constant_mid_mm, pump.net_stiffness_n_per_mm, pump.stroke_mm,
-                                    STICK_SPEED_MM_S)
+                                    STICK_SPEED_MM_S, pump.rack_bind_n, pump.rack_bind_at_mm, pump.rack_bind_width_mm,
+                                    pump.rack_friction_slope_n_per_mm)
         self._every = np.zeros(0, dtype=np.int64)
         # the coil warms as in :class:`~edc_bench.sim.plant.Plant`: stepped every THERMAL_STEP_S
         self.temp_c = np.array([p.coil_temp_c for p in params])

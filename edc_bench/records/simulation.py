@@ -63,8 +63,9 @@ class RigProcessSummary(_WithoutAbsent):
 
     Attributes
     ----------
-    valve, adapter, firmware, sensor_drift : str
-        As given on the command line (``--valve``, ``--adapter``, ``--firmware``, ``--rig-drift``'s spec).
+    valve, adapter, firmware, sensor_drift, rack_fault, sensor_fault : str
+        As given on the command line (``--valve``, ``--adapter``, ``--firmware``, ``--rig-drift``'s spec,
+        ``--rack-fault``'s and ``--sensor-fault``'s).
     seed : int
         The rig's noise seed.
     worst_gap_ms : float or None
@@ -77,6 +78,8 @@ class RigProcessSummary(_WithoutAbsent):
     firmware: str = ""
     worst_gap_ms: float | None = None
     sensor_drift: str | None = None
+    rack_fault: str | None = None
+    sensor_fault: str | None = None
 
 
 class SimulationSummary(_WithoutAbsent):
@@ -98,3 +101,6 @@ class SimulationSummary(_WithoutAbsent):
     damping_n_s_per_mm: float | None = None
     rig_counters: RigCounters | None = None
     rig_process: RigProcessSummary | None = None
+    # the pump's faulty rack or rack-travel sensor (sim.pump_faults' RackFault and SensorFault, only where faulty)
+    rack_fault: dict[str, float] | None = None
+    sensor_fault: dict[str, float] | None = None

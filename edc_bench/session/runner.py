@@ -34,11 +34,17 @@ class RigChoice:
         The simulated rig's first noise seed; each test of the session takes the next, so a retest sees new noise.
     rig_drift : SensorDrift or None
         The simulated rig's sensors drifted (``--rig-drift``), what the rig self-check must catch; None: none.
+    rack_fault, sensor_fault : RackFault or SensorFault or None
+        The simulated pump's rack binds or drags, its rack-travel sensor misreads (``--rack-fault``,
+        ``--sensor-fault``), every valve of the session tested in that pump (the rig self-check's reference valve
+        is not: it has a pump of its own); None: sound.
     """
 
     bus_config: BusSettings | None = None
     first_seed: int = 0
     rig_drift: Any = None
+    rack_fault: Any = None
+    sensor_fault: Any = None
 
     @property
     def simulated(self) -> bool:
@@ -48,8 +54,11 @@ class RigChoice:
     def describe(self) -> str:
         """The rig in a few words, for the screen and the shift summary."""
         if self.simulated:
-            drifted = self.rig_drift is not None and not self.rig_drift.none
-            return "simulated rig" + (f" (sensors drifted: {self.rig_drift.spec()})" if drifted else "")
+            said = [f"{what}: {fault.spec()}" for what, fault in (("sensors drifted", self.rig_drift),
+                                                                   ("rack faulty", self.rack_fault),
+                                                                   ("rack-travel sensor faulty", self.sensor_fault))
+                    if fault is not None and not fault.none]
+            return "simulated rig" + (f" ({'; '.join(said)})" if said else "")
         return f"rig on {self.bus_config.get('interface')} {self.bus_config.get('channel') or ''}".strip()
 
 
@@ -204,7 +213,8 @@ class SessionRunner:
 
         if self.rig.simulated:
             return run_simulated_test(variant, simulated_valve(variant, valve_id), seed, options=options,
-                                      drift=self.rig.rig_drift)
+                                      drift=self.rig.rig_drift, rack_fault=self.rig.rack_fault,
+                                      sensor_fault=self.rig.sensor_fault)
         from edc_bench.protocol import default_icd
         from edc_bench.runtime.bus import ClosingBus, open_bus
         from edc_bench.runtime.clock import RealTimeClock

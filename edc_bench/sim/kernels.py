@@ -37,7 +37,7 @@ import numpy as np
 from edc_bench.paths import cache_dir
 
 #: The kernels, callees before callers (the order a compiled set is built in).
-_KERNELS = ("_propagate", "_advance_fine", "step_valve", "advance", "dissipate", "quantised_reading")
+_KERNELS = ("_rack_friction", "_propagate", "_advance_fine", "step_valve", "advance", "dissipate", "quantised_reading")
 
 
 @functools.cache
@@ -91,6 +91,18 @@ def _cache_folder(numba: Any) -> bool:
     return True
 
 
+def _rack_friction(x: float, pump: np.ndarray) -> float:
+    """The rack's own friction beyond the valve's at position ``x`` (N): a local bind and a slope along the stroke
+    (:meth:`~edc_bench.physics.parameters.PlantParameters.rack_friction_n`; 0 on a sound rack)."""
+    if pump[10] == 0.0 and pump[13] == 0.0:
+        return 0.0
+    bind = 0.0
+    if pump[10] != 0.0:
+        q = (x - pump[11]) / pump[12]
+        bind = pump[10] * math.exp(-(q * q))
+    return bind + pump[13] * x
+
+
 def _propagate(phi: np.ndarray, gam: np.ndarray, j: int, x: float, v: float, i: float, coil_v: float,
                sign: float, fc: float, fs: float, dt_s: float, pump: np.ndarray) -> tuple[float, float, float]:
     """One exact step of valve ``j`` (columns of Phi and Gamma) under friction ``sign``; ``pump`` as
@@ -103,6 +115,7 @@ def _propagate(phi: np.ndarray, gam: np.ndarray, j: int, x: float, v: float, i: 
             q = v / pump[2]
             friction = fc + (fs - fc) * math.exp(-(q * q))
         mid_mm = x + 0.5 * dt_s * v
+        friction += _rack_friction(mid_mm, pump)
         f = pump[3] * (mid_mm - pump[4]) * i - (pump[1] + friction * sign)
     xn = phi[0, j] * x + phi[1, j] * v + phi[2, j] * i + gam[0, j] * coil_v + gam[1, j] * f
     vn = phi[3, j] * x + phi[4, j] * v + phi[5, j] * i + gam[2, j] * coil_v + gam[3, j] * f
@@ -112,8 +125,12 @@ def _propagate(phi: np.ndarray, gam: np.ndarray, j: int, x: float, v: float, i: 
 
 def pump_constants(linear: bool, preload_n: float, stribeck_velocity_mm_s: float, force_constant_n_per_a: float,
                    force_constant_slope_per_mm: float, force_constant_mid_mm: float, net_stiffness_n_per_mm: float,
-                   stroke_mm: float, stick_speed_mm_s: float) -> np.ndarray:
+                   stroke_mm: float, stick_speed_mm_s: float, rack_bind_n: float = 0.0, rack_bind_at_mm: float = 0.0,
+                   rack_bind_width_mm: float = 1.0, rack_friction_slope_n_per_mm: float = 0.0) -> np.ndarray:
     """The pump's own numbers, the same for every valve, packed for the kernels.
+
+    The rack's own friction (a local bind, a slope: :class:`~edc_bench.physics.parameters.PlantParameters`) is the
+    pump's, not the valve's; a pump with it is not the linear one (``linear`` False).
 
     Every number the kernels use comes in here at run time: a module constant would be compiled into the cached
     kernels, which numba does not compile again when only the module that defines it changes.
@@ -121,7 +138,8 @@ def pump_constants(linear: bool, preload_n: float, stribeck_velocity_mm_s: float
     return np.array([1.0 if linear else 0.0, preload_n, stribeck_velocity_mm_s,
                      force_constant_n_per_a * force_constant_slope_per_mm, force_constant_mid_mm,
                      force_constant_n_per_a, force_constant_slope_per_mm, net_stiffness_n_per_mm, stroke_mm,
-                     stick_speed_mm_s])
+                     stick_speed_mm_s, rack_bind_n, rack_bind_at_mm, rack_bind_width_mm,
+                     rack_friction_slope_n_per_mm])
 
 
 def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool, phi_q: np.ndarray,
@@ -133,7 +151,8 @@ def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool,
     sticks = 0
     for _ in range(steps):
         net = ki * (1.0 + slope * (x - x_mid)) * i - k * x - fpre
-        hold = stuck and (abs(net) <= fs or (x <= 0.0 and net <= 0.0) or (x >= stroke and net >= 0.0))
+        hold = stuck and (abs(net) <= fs + _rack_friction(x, pump) or (x <= 0.0 and net <= 0.0)
+                          or (x >= stroke and net >= 0.0))
         if stuck:
             sign = 1.0 if net > 0.0 else -1.0
         else:
@@ -147,7 +166,7 @@ def _advance_fine(j: int, steps: int, x: float, v: float, i: float, stuck: bool,
         slow = False
         if not reversed_:
             pull = ki * (1.0 + slope * (xn - x_mid)) * i_n
-            slow = abs(vn) < stick_speed and abs(pull - k * xn - fpre) <= fs
+            slow = abs(vn) < stick_speed and abs(pull - k * xn - fpre) <= fs + _rack_friction(xn, pump)
         new_stuck = reversed_ or slow
         if reversed_:
             frac = v / (v - vn) if v != vn else 0.0

@@ -120,7 +120,8 @@ class Plant:
         self._x_mid = p.force_constant_mid_mm
         self._pump = tuple(float(value) for value in pump_constants(
             p.linear, p.preload_n, p.stribeck_velocity_mm_s, p.force_constant_n_per_a, p.force_constant_slope_per_mm,
-            p.force_constant_mid_mm, p.net_stiffness_n_per_mm, p.stroke_mm, STICK_SPEED_MM_S))
+            p.force_constant_mid_mm, p.net_stiffness_n_per_mm, p.stroke_mm, STICK_SPEED_MM_S, p.rack_bind_n,
+            p.rack_bind_at_mm, p.rack_bind_width_mm, p.rack_friction_slope_n_per_mm))
         self.coil_temp_c = p.coil_temp_c
         self.resistance_ohm = p.resistance_ohm
         self._r20 = p.resistance_20c_ohm

@@ -22,6 +22,7 @@ from edc_bench.physics.valve import ValveSpec, plant_parameters
 from edc_bench.sim.broken_rigs import BrokenFirmware, IcdBreak
 from edc_bench.sim.drift import SensorDrift
 from edc_bench.sim.plant import DEFAULT_QUANTUM_S, Plant
+from edc_bench.sim.pump_faults import FaultySensorReading, RackFault, SensorFault
 from edc_bench.sim.sensors import NoisySensor
 from firmware_proto.firmware import FirmwareLimits, Frame, RigFirmware
 
@@ -40,23 +41,28 @@ class SimulatedRigHardware:
         If True the LVDT reads NaN (fault injection).
     drift : SensorDrift
         How far the sensors have drifted (:mod:`edc_bench.sim.drift`): none by default.
+    sensor_fault : FaultySensorReading or None
+        The pump's rack-travel sensor misreading (:mod:`edc_bench.sim.pump_faults`): None for a sound one.
     """
 
     def __init__(self, plant: Plant, lvdt: NoisySensor, current: NoisySensor, supply_v: float,
-                 drift: SensorDrift | None = None) -> None:
+                 drift: SensorDrift | None = None, sensor_fault: FaultySensorReading | None = None) -> None:
         self.plant = plant
         self.lvdt = lvdt
         self.current = current
         self.supply_v = supply_v
         self.lvdt_disconnected = False
         self.drift = drift or SensorDrift()
+        self.sensor_fault = sensor_fault
 
     def sample_position_mm(self) -> float:
         """LVDT reading of the true rack position."""
         if self.lvdt_disconnected:
             return math.nan
         d = self.drift
-        return self.lvdt.sample(d.lvdt_gain * self.plant.x_mm + d.lvdt_offset_mm)
+        x_mm = self.plant.x_mm if self.sensor_fault is None else \
+            self.sensor_fault.read(self.plant.x_mm, self.plant.time_s)
+        return self.lvdt.sample(d.lvdt_gain * x_mm + d.lvdt_offset_mm)
 
     def sample_current_a(self) -> float:
         """Current sensor reading of the true coil current."""
@@ -111,6 +117,12 @@ class RigOptions:
     drift : SensorDrift
         The sensors' drift (``--rig-drift``, :mod:`edc_bench.sim.drift`): none by default. It is on top of the
         variant's sensor model, and stays when ``sensor_noise`` is off.
+    rack_fault : RackFault
+        The pump's control rack binding or dragging (``--rack-fault``, :mod:`edc_bench.sim.pump_faults`): none by
+        default.
+    sensor_fault : SensorFault
+        The pump's rack-travel sensor misreading (``--sensor-fault``): none by default. Like ``drift``, it stays
+        when ``sensor_noise`` is off.
     """
 
     stiction: bool = True
@@ -119,6 +131,8 @@ class RigOptions:
     breaks: frozenset[IcdBreak] = frozenset()
     firmware: str = "python"
     drift: SensorDrift = SensorDrift()
+    rack_fault: RackFault = RackFault()
+    sensor_fault: SensorFault = SensorFault()
 
 
 class SimulatedRig:
@@ -142,7 +156,10 @@ class SimulatedRig:
         self.valve = valve
         self.seed = seed
         self.options = options or RigOptions()
-        self.plant_params = plant_parameters(variant, valve, stiction=self.options.stiction)
+        #: the valve's own physics in this pump (what the bench's truth is), and the plant with the pump's rack
+        self.valve_params = plant_parameters(variant, valve, stiction=self.options.stiction)
+        self.plant_params = self.options.rack_fault.applied(
+            self.valve_params, variant.valve.stiction_ratio if self.options.stiction else 1.0)
         self.plant = Plant(self.plant_params, quantum_s=self.options.quantum_s)
         rng = np.random.default_rng(seed)
         lvdt_model, current_model = variant.sensors.lvdt, variant.sensors.current
@@ -155,6 +172,8 @@ class SimulatedRig:
             NoisySensor(current_model, rng.spawn(1)[0]),
             variant.rig.supply_voltage_v,
             self.options.drift,
+            None if self.options.sensor_fault.none else
+            FaultySensorReading(self.options.sensor_fault, variant.rack.stroke_mm, rng.spawn(1)[0]),
         )
         self._quanta_per_s = 1.0 / self.options.quantum_s
         if self.options.firmware not in FIRMWARES:
@@ -185,13 +204,14 @@ class SimulatedRig:
     @property
     def truth(self) -> FeedforwardParameters:
         """True feedforward parameters of this rig's valve with the reference coil (the variant's nominal at
-        20 degC), as the bench reports them."""
-        return feedforward_truth(replace(self.plant_params, resistance_ohm=self.variant.coil.resistance_ohm))
+        20 degC), as the bench reports them: the valve's own, without a faulty rack's friction."""
+        return feedforward_truth(replace(self.valve_params, resistance_ohm=self.variant.coil.resistance_ohm))
 
     @property
     def truth_volt(self) -> FeedforwardParameters:
-        """True feedforward parameters in volts with this rig's coil as it is now (warmed by the test)."""
-        return feedforward_truth(replace(self.plant_params, resistance_ohm=self.plant.resistance_ohm))
+        """True feedforward parameters in volts with this rig's coil as it is now (warmed by the test): the
+        valve's own."""
+        return feedforward_truth(replace(self.valve_params, resistance_ohm=self.plant.resistance_ohm))
 
     @property
     def time_s(self) -> float:
