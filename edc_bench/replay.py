@@ -34,7 +34,7 @@ from edc_bench.identification.trust import Problem
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.protocol import BENCH_CMD_ID, Icd, Mode, default_icd
 from edc_bench.records.reader import LoggedFrame
-from edc_bench.records.consistency import STALL_ROWS_SCHEMA
+from edc_bench.records.consistency import PART_SCHEMA, STALL_ROWS_SCHEMA
 from edc_bench.records.schema import Record
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline
@@ -198,6 +198,15 @@ def compare_with_record(judged: Judgement, record: Record, rel_tol: float = 0.0)
         for key in ("probability_faulty", "distance"):
             if not _same(getattr(cls, key), getattr(rec_cls, key), rel_tol):
                 diffs.append(f"{key}: recorded {getattr(rec_cls, key)!r}, replayed {getattr(cls, key)!r}")
+    if record.part is not None and judged.part is not None:
+        if judged.part.part != record.part.part:
+            diffs.append(f"part at fault: recorded {record.part.part}, replayed {judged.part.part}")
+        for finding in judged.part.findings:
+            held = record.part.finding(finding.signature)
+            got = math.nan if finding.figure is None else float(finding.figure)
+            want = math.nan if held is None or held.figure is None else float(held.figure)
+            if not _same(got, want, rel_tol):
+                diffs.append(f"{finding.signature}: recorded {want!r}, replayed {got!r}")
     return diffs
 
 
@@ -253,12 +262,16 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
     nominal = recorded is not None and recorded.calibrated is False
     # judged against the baseline the record was judged against, whatever the station holds now
     baseline = Baseline.from_summary(recorded.model_dump()) if recorded is not None and recorded.af_v else None
+    if baseline is None and record.part is not None and record.part.compared_with is not None:
+        # a test not judged held its pump's figures to this baseline all the same
+        baseline = Baseline.from_summary(record.part.compared_with.model_dump())
     if Problem.NOT_CALIBRATED in record.problem_flags:
         nominal_figures = nominal_parameters(variant)  # refused then: refused again, even if calibrated since
         baseline = Baseline(nominal_figures.af, nominal_figures.a1)
+    # a record from before the part diagnosis judged the valve alone: replayed the same way
     judged = judge_run(variant, run.trace, run.controller, outcome, timing, classify=classify,
                        classifier_path=classifier_path, coil_temp_c=given, nominal_baseline=nominal,
-                       baseline=baseline, real_rig=record.real_time)
+                       baseline=baseline, real_rig=record.real_time, diagnose=record.schema_version >= PART_SCHEMA)
     rel_tol = 0.0
     if record.schema_version < EXACT_SCHEMA:
         rel_tol = OLDER_RECORD_REL_TOL

@@ -292,7 +292,19 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: Bas
     af, a1 = result.features.af, result.features.a1
     print(f"{head}: af {af:.5f} V, a1 {a1:.6f} V s/mm (record {record})", file=sys.stderr)
     return [BaselineTest(af, a1, result.valve_id, source, result.started_at, str(record.resolve()),
-                         **_uncertainty(result.identification))]
+                         **_uncertainty(result.identification), **_motion(result.judgement))]
+
+
+def _motion(judgement: Any) -> dict[str, float | None]:
+    """A test's a2, a0 and b referred to the reference coil, as the baseline keeps them (None where not estimated)."""
+    from edc_bench.verdict.baseline import MOTION_KEYS, MOTION_PARAMETERS
+
+    out: dict[str, float | None] = {}
+    for key in MOTION_KEYS:
+        estimate = judgement.parameters.get(MOTION_PARAMETERS[key])
+        good = estimate is not None and estimate.estimated and math.isfinite(estimate.value)
+        out[key] = float(estimate.value) if good else None
+    return out
 
 
 def _uncertainty(identification: Any) -> dict[str, float | None]:

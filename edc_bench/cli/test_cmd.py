@@ -15,6 +15,7 @@ from edc_bench.cli.common import (
     MAX_SEED,
     add_bus_arguments,
     add_history_db_argument,
+    add_pump_fault_arguments,
     add_rig_drift_argument,
     add_variant_arguments,
     identity,
@@ -73,6 +74,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="simulated rig: its firmware, python (the prototype, default) or c (the C core; build it "
                         "with 'make -C firmware_proto/c')")
     add_rig_drift_argument(p)
+    add_pump_fault_arguments(p)
     p.add_argument("--no-figure", action="store_true", help="do not draw report.png")
     p.add_argument("--pump-serial", type=identity(), default=None, metavar="SERIAL",
                    help="serial number of the pump, for the record")
@@ -367,7 +369,9 @@ def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: BusSett
     simulated_only = [flag for flag, given in (("--no-stiction", args.no_stiction),
                                                ("--no-sensor-noise", args.no_sensor_noise),
                                                ("--firmware", args.firmware != "python"),
-                                               ("--rig-drift", args.rig_drift is not None)) if given]
+                                               ("--rig-drift", args.rig_drift is not None),
+                                               ("--rack-fault", args.rack_fault is not None),
+                                               ("--sensor-fault", args.sensor_fault is not None)) if given]
     if bus_config is not None and simulated_only:
         print(f"edc-bench test: warning: {', '.join(simulated_only)} describe the simulated rig; on a real bus the "
               "valve mounted is what is tested", file=sys.stderr)
@@ -410,7 +414,7 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None,
         return run_simulated_test(variant, parse_valve_spec(args.valve, variant), seed,
                                   stiction=not args.no_stiction, sensor_noise=not args.no_sensor_noise,
                                   adapter=args.adapter, options=options, firmware=args.firmware,
-                                  drift=args.rig_drift), []
+                                  drift=args.rig_drift, rack_fault=args.rack_fault, sensor_fault=args.sensor_fault), []
     icd = default_icd()
     if bus_config is not None:
         log(f"edc-bench test: variant {variant.name}, bus {bus_config}, real time")
@@ -424,6 +428,8 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None,
 
     rig_status: dict[str, float] = {}
     drift = [] if args.rig_drift is None else ["--rig-drift", args.rig_drift.spec()]
+    drift += [] if args.rack_fault is None else ["--rack-fault", args.rack_fault.spec()]
+    drift += [] if args.sensor_fault is None else ["--sensor-fault", args.sensor_fault.spec()]
     try:
         # raised before the rig process starts: it inherits the policy and is put one above the bench
         with realtime_priority(), rig_process(args.variant, args.valve, seed, args.adapter, rig_status,
@@ -445,7 +451,9 @@ def _run(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None,
     simulation = SimulationSummary(rig_process=RigProcessSummary(
         valve=args.valve, seed=seed, adapter=args.adapter, firmware=args.firmware,
         worst_gap_ms=rig_status.get("worst_gap_ms"),
-        sensor_drift=None if args.rig_drift is None else args.rig_drift.spec()))
+        sensor_drift=None if args.rig_drift is None else args.rig_drift.spec(),
+        rack_fault=None if args.rack_fault is None else args.rack_fault.spec(),
+        sensor_fault=None if args.sensor_fault is None else args.sensor_fault.spec()))
     return dataclasses.replace(result, simulation=simulation), _closing_notes(session)
 
 
@@ -593,9 +601,13 @@ def _print_report(result: Any, record_dir: Path | None) -> None:
     from edc_bench.identification.coil_check import coil_line
     from edc_bench.records.baseline_text import baseline_line
 
+    from edc_bench.verdict.part_words import part_line
+
     print(f"verdict: {result.verdict}, {result.advice.words}")
     for reason in result.reasons:
         print(f"  - {reason}")
+    if result.judgement.part is not None:
+        print(f"part at fault: {part_line(result.judgement.part)}")
     f, volt = result.features, result.judgement.features_volt
     if f.identified:
         print(f"features: af = {f.af:.5f} V, a1 = {f.a1:.6f} V s/mm "

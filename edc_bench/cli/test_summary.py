@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from edc_bench.records.schema import EscalationSummary, StopSummary
     from edc_bench.section import FeaturePair
     from edc_bench.verdict.retest import Decision
+    from edc_bench.verdict.part_sections import PartDiagnosis
     from edc_bench.verdict.sections import ClassificationSummary, ParameterEstimate
     from edc_bench.verdict.verdicts import Verdict
 
@@ -53,6 +54,9 @@ class TestSummary:
         A retest's: what it and the MARGINAL before it decide (left out otherwise).
     escalation
         The same valve INVALID twice: it may be seized (None otherwise).
+    part
+        Which part of the module is at fault (the valve, the rack, the rack-travel sensor), with every signature's
+        figure against its limit (None where the test identified nothing).
     first_test
         A retest's: the first test's summary (left out otherwise).
     """
@@ -80,6 +84,7 @@ class TestSummary:
     truth: dict[str, float] | None = None
     decision: Decision | None = None
     escalation: EscalationSummary | None = None
+    part: PartDiagnosis | None = None
     first_test: TestSummary | None = None
 
     @classmethod
@@ -89,7 +94,8 @@ class TestSummary:
 
         ident = result.identification
         return cls(
-            verdict=result.verdict, advice=result.advice, reasons=list(result.reasons), valve_id=result.valve_id,
+            verdict=result.verdict, advice=result.advice, reasons=list(result.reasons), part=result.judgement.part,
+            valve_id=result.valve_id,
             variant=result.variant.name, features=result.features, features_volt=result.judgement.features_volt,
             coil=result.judgement.coil, parameters=dict(result.parameters), converged=result.converged,
             classification=result.classification,

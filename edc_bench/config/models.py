@@ -467,6 +467,39 @@ class PopulationSection(_Section):
         return self
 
 
+class PartLimits(_Section):
+    """From what size a fault of the pump's control rack or its rack-travel sensor is named (docs/diagnosis.md,
+    "Which part is at fault", reasons for each). Below them the part is reported as sound.
+
+    The rack's figures are relative to the new-valve baseline's friction af0: a rack whose friction rises by
+    ``rack_bind_rel`` af0 at one place, or by ``rack_slope_rel`` af0 across the swing, binds or drags.
+    """
+
+    plausible = {
+        "rack_bind_rel": Plausible(0.01, 10, "", "a limit on the rack's friction rising at one place (a share of a new "
+                                                 "valve's friction) lies within"),
+        "rack_slope_rel": Plausible(0.01, 10, "", "a limit on the rack's friction changing along the swing (a share of "
+                                                  "a new valve's friction) lies within"),
+        "uniform_friction_rel": Plausible(0.01, 10, "", "a limit on friction above a new valve's along the whole "
+                                                        "stroke (a share) lies within"),
+        "sensor_gain_rel": Plausible(0.001, 0.5, "", "a limit on a rack-travel sensor's scale error lies within"),
+        "sensor_offset_mm": Plausible(0.001, 5, "mm", "a limit on a rack-travel sensor's zero shift lies within"),
+        "sensor_linearity_mm": Plausible(0.001, 5, "mm", "a limit on a rack-travel sensor's bow lies within"),
+        "sensor_noise_ratio": Plausible(1.1, 100, "", "a limit on a rack-travel sensor's noise over its stated noise "
+                                                      "lies within"),
+    }
+
+    rack_bind_rel: PositiveFloat = 0.15
+    rack_slope_rel: PositiveFloat = 0.15
+    uniform_friction_rel: PositiveFloat = 0.25
+    sensor_gain_rel: PositiveFloat = 0.03
+    sensor_offset_mm: PositiveFloat = 0.1
+    sensor_linearity_mm: PositiveFloat = 0.1
+    sensor_noise_ratio: PositiveFloat = 3.0
+    sensor_spikes: int = Field(2, ge=1, description="spikes in one test from which the sensor is named")
+    sensor_dropouts: int = Field(1, ge=1, description="dropouts in one test from which the sensor's contact is named")
+
+
 class DiagnosisSection(_Section):
     """The physical limit that makes a valve faulty, and the population.
 
@@ -484,6 +517,7 @@ class DiagnosisSection(_Section):
     resistance_speed_mm_s: PositiveFloat
     resistance_limit_n: PositiveFloat
     population: PopulationSection
+    parts: PartLimits = PartLimits()
     model: str | None = Field(
         default=None,
         description="the classifier this pump's valves are judged by, a file name (built with 'edc-bench train "

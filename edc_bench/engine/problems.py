@@ -37,6 +37,10 @@ class Problem(enum.IntFlag):
     #: the PC stalled right before an abort a stall of the bench causes (the rig's watchdog, replies missing): the
     #: PC, not the rig or the bus, is what to check (not a trust problem: the abort is)
     PC_STALLED = enum.auto()
+    #: the pump's control rack binds or its rack-travel sensor misreads (the part diagnosis,
+    #: :mod:`edc_bench.verdict.part`): the valve's figures are biased and it is not judged (not a trust problem: the
+    #: test itself ran as it should)
+    PUMP_FAULT = enum.auto()
 
     @property
     def names(self) -> list[str]:

@@ -76,6 +76,7 @@ def _test(store: HistoryStore, rng: random.Random, *, when: dt.datetime, station
            "software_version": "demo", "reason": "" if verdict != "INVALID" else f"not judged: check the {area}",
            "model_name": None, "model_sha256": None, "simulated": False, "retest_of": retest_of,
            "decision": decision, "invalid_area": area if verdict == "INVALID" else None,
+           "part": {"PASS": "none", "MARGINAL": "none", "FAIL": "valve or rack"}.get(verdict),
            "indexed_at": _iso(when + dt.timedelta(minutes=2)),
            "indexed_by": operator, "db_login": None}
     key = key or f"demo:{folder}"

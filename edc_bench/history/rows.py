@@ -106,6 +106,7 @@ class TestRow(_Columns):
     row_hash: str | None = None
     invalid_area: str | None = None
     first_indexing: bool | None = None
+    part: str | None = None  # the part at fault; None: indexed before revision 0010 (the valve alone judged)
     # -- not columns: what a query adds
     #: how many times the test was indexed again with other content after this row (a listing's)
     changes: int | None = None

@@ -95,6 +95,9 @@ tests = sa.Table(
     # whether this row is its test's first indexing (False: the test indexed again with other content); None in rows
     # stored before revision 0008 (ask the earlier rows). PostgreSQL's trigger sets it; history --verify checks it
     sa.Column("first_indexing", sa.Boolean),
+    # the part at fault (edc_bench.verdict.part_sections.Part); None in rows indexed before revision 0010, whose
+    # records judged the valve alone
+    sa.Column("part", sa.String(30)),
     # a station's tests by time: the chain's figures per station and day, and each station's latest test
     sa.Index("ix_tests_station_started_at", "station", "started_at"),
     # a technician's tests by time (revision 0008)

@@ -130,6 +130,7 @@ def row_from_record(record: Record, record_dir: Path) -> dict[str, Any]:
         "retest_of": _retest_of(record, record_dir),
         "decision": None if record.retest is None or record.retest.decision is None else str(record.retest.decision),
         "invalid_area": None if record.invalid_area is None else str(record.invalid_area),
+        "part": str(record.part_diagnosis.part),
         "test_key": test_key(record),
         # a stripped copy's match; a retest is not its first test, though both may start in the same second
         "legacy_key": legacy_test_key(_text(record.started_at), _text(record.valve_id),

@@ -9,7 +9,8 @@ import numpy as np
 from edc_bench.config.models import Variant
 from edc_bench.population.batch import BatchResult, run_batch
 from edc_bench.population.valves import new_valves
-from edc_bench.verdict.baseline import UNCERTAINTY_KEYS, BaselineTest
+from edc_bench.config.models import PARAMETER_NAMES
+from edc_bench.verdict.baseline import MOTION_KEYS, MOTION_PARAMETERS, UNCERTAINTY_KEYS, BaselineTest
 from edc_bench.verdict.baseline_source import BaselineSource
 
 
@@ -29,8 +30,10 @@ def population_run(variant: Variant, tests: int, seed: int) -> tuple[list[Baseli
     if fit is not None:
         (figures[0], figures[2]), (figures[1], figures[3]) = fit.relative_figures("af"), fit.relative_figures("a1")
         figures[4] = fit.systematic_rms_v
+    motion = {key: result.parameters[:, PARAMETER_NAMES.index(MOTION_PARAMETERS[key])] for key in MOTION_KEYS}
     kept = [BaselineTest(float(af[n]), float(a1[n]), valve_id=f"{valves[n].label} (seed {seed})",
-                         source=BaselineSource.SIMULATED_POPULATION, **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))))
+                         source=BaselineSource.SIMULATED_POPULATION, **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))),
+                         **_known({key: float(values[n]) for key, values in motion.items()}))
             for n in range(tests) if result.trusted[n]]
     return kept, result
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 from edc_bench.engine.outcome import CHECK_BUS, CHECK_PC, CHECK_PUMP, CHECK_RIG, AbortKind, what_to_check
 from edc_bench.engine.problems import Problem
+from edc_bench.verdict.part_sections import Part, PartDiagnosis
+from edc_bench.verdict.part_words import RACK_CHECK, part_words
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -49,7 +51,8 @@ _CHECKS: tuple[tuple[Problem, str], ...] = (
 )
 
 
-def advice(verdict: Verdict | str, problems: Problem = Problem.NONE, abort_kind: AbortKind | None = None) -> Advice:
+def advice(verdict: Verdict | str, problems: Problem = Problem.NONE, abort_kind: AbortKind | None = None,
+           part: PartDiagnosis | None = None) -> Advice:
     """The technician's line for a test.
 
     Parameters
@@ -60,16 +63,29 @@ def advice(verdict: Verdict | str, problems: Problem = Problem.NONE, abort_kind:
         The test's problems (:attr:`~edc_bench.verdict.judgement.Judgement.problems`, or the record's).
     abort_kind : AbortKind, optional
         Why the loop was cut short, if it was.
+    part : PartDiagnosis, optional
+        Which part is at fault (:mod:`edc_bench.verdict.part`): a rack or sensor at fault is what the technician
+        sees to first, whatever else the test found; friction the same along the stroke adds the rack's check by
+        hand to a worn valve's line. None: the valve alone was judged (older records).
     """
     verdict = Verdict(verdict)
+    even = part is not None and part.part is Part.VALVE_OR_RACK
     if verdict == Verdict.PASS:
+        if even:
+            return Advice(Action.REFIT, "reusable: refit the valve; friction high along the whole stroke: check by "
+                                        "hand that the rack moves freely")
         return Advice(Action.REFIT, "reusable: refit the valve")
     if verdict == Verdict.FAIL:
         if Problem.COIL_OUT_OF_SPEC in problems:
             return Advice(Action.REPLACE, "coil out of spec: replace the valve")
+        if even:
+            return Advice(Action.REPLACE, f"worn valve or a dragging rack: {RACK_CHECK}, then replace the valve")
         return Advice(Action.REPLACE, "worn: replace the valve")
     if verdict == Verdict.MARGINAL:
-        return Advice(Action.RETEST, "near the limit: retest")
+        return Advice(Action.RETEST, "near the limit: retest" + (f"; {RACK_CHECK}" if even else ""))
+    if part is not None and not part.valve_judged and Problem.PC_STALLED not in problems \
+            and abort_kind is not AbortKind.INTERRUPTED:
+        return Advice(Action.CHECK, f"not judged: {part_words(part)}")
     if verdict == Verdict.UNCLASSIFIED:
         return Advice(Action.NONE, "measured, not judged (a test for the new-valve baseline)")
     if Problem.NOT_CALIBRATED in problems:
@@ -94,6 +110,7 @@ class Cause(enum.StrEnum):
     EITHER = "valve or bench"  # a fault the valve or the rig may have caused
     INTERRUPTED = "interrupted"
     NOT_SET_UP = "not set up"  # the pump type has no new-valve baseline yet
+    PUMP = "pump"  # the pump's control rack or rack-travel sensor (the part diagnosis), not the valve or the bench
 
 
 #: aborts a seized or very worn valve causes: the rack does not follow the reference
@@ -107,10 +124,12 @@ _VALVE_PROBLEMS = Problem.MODEL_DOES_NOT_FIT | Problem.DRIFTING | Problem.POORLY
 
 def invalid_cause(problems: Problem = Problem.NONE, abort_kind: AbortKind | None = None) -> Cause:
     """Who an INVALID test points at, from its problems and the kind of its abort (typed values only)."""
-    if Problem.NOT_CALIBRATED in problems:
-        return Cause.NOT_SET_UP
     if Problem.PC_STALLED in problems:
         return Cause.BENCH
+    if Problem.PUMP_FAULT in problems and abort_kind is not AbortKind.INTERRUPTED:
+        return Cause.PUMP
+    if Problem.NOT_CALIBRATED in problems:
+        return Cause.NOT_SET_UP
     if abort_kind is not None and Problem.ABORTED in problems:
         if abort_kind is AbortKind.INTERRUPTED:
             return Cause.INTERRUPTED
@@ -133,6 +152,7 @@ class Area(enum.StrEnum):
     CALIBRATION = "calibration"
     INTERRUPTED = "interrupted"
     OTHER = "other"
+    PUMP = "pump"  # the pump's control rack or rack-travel sensor (the part diagnosis; the part itself: tests.part)
 
 
 #: each abort's area: the first check :func:`~edc_bench.engine.outcome.what_to_check` names for it
@@ -154,10 +174,12 @@ _PROBLEM_AREAS = ((Problem.NOT_IDENTIFIED, Area.RIG), (Problem.MODEL_DOES_NOT_FI
 
 def invalid_area(problems: Problem = Problem.NONE, abort_kind: AbortKind | None = None) -> Area:
     """Where an INVALID test points the technician, by the same rule as its :func:`advice` (typed values only)."""
-    if Problem.NOT_CALIBRATED in problems:
-        return Area.CALIBRATION
     if Problem.PC_STALLED in problems:
         return Area.PC
+    if Problem.PUMP_FAULT in problems and abort_kind is not AbortKind.INTERRUPTED:
+        return Area.PUMP
+    if Problem.NOT_CALIBRATED in problems:
+        return Area.CALIBRATION
     if Problem.ABORTED in problems and abort_kind is not None:
         return _ABORT_AREAS.get(abort_kind, Area.OTHER)
     for problem, area in _PROBLEM_AREAS:
@@ -175,6 +197,8 @@ CUSTOMER_WORDS = {
     Cause.EITHER: "The measurement could not be completed: the valve or the bench may be the cause.",
     Cause.INTERRUPTED: "The test was stopped before it was complete.",
     Cause.NOT_SET_UP: "The bench is not yet set up to judge this pump type.",
+    Cause.PUMP: "The pump's control rack or its rack-travel sensor is faulty, so the valve could not be judged: "
+                "the pump needs that part repaired first, then the valve is tested again.",
 }
 
 #: the technician's line when the same valve is INVALID a second time for a cause the valve itself can cause

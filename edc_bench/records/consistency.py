@@ -12,7 +12,8 @@ the record disagrees with itself:
    the variant as the test ran it (:func:`~edc_bench.identification.trust.trust_problems`; records of schema 4
    on, which keep the problems as values);
 3. the coil's ``in_spec``, from its resistance at 20 degC and its spec
-   (:func:`~edc_bench.identification.coil_check.in_spec`), and the problem it makes;
+   (:func:`~edc_bench.identification.coil_check.in_spec`), and the problem it makes; and the problem "pump
+   fault" where, and only where, the part diagnosis did not judge the valve (records of schema 11 on);
 4. the classifier's verdict, from its P(faulty), distance, threshold and marginal band
    (:func:`~edc_bench.verdict.classifier.verdicts_of`);
 5. the relative features, from the features and the baseline; the features, from the identified parameters;
@@ -43,6 +44,8 @@ from edc_bench.verdict.verdicts import Verdict
 PROBLEMS_SCHEMA = 4
 #: The first record schema whose host stalls cost the rows they touched, not the test (the trust rule's timing)
 STALL_ROWS_SCHEMA = 9
+#: The first record schema that names the part at fault (``part``: the valve, the rack or the rack-travel sensor)
+PART_SCHEMA = 11
 #: Two figures the test computed from one another agree to this (relative): a JSON round trip keeps them exactly.
 SAME_REL = 1e-9
 #: P(faulty) from the model named by the record agrees with the record's to this (onnxruntime on another CPU).
@@ -111,6 +114,8 @@ def _verdict(record: Record) -> list[str]:
         why = f"its problems ({_names(problems & TRUST_PROBLEMS)}) make it INVALID"
     elif Problem.COIL_OUT_OF_SPEC in problems:
         why = "its coil out of spec makes it FAIL"
+    elif Problem.PUMP_FAULT in problems:
+        why = "its rack or rack-travel sensor at fault makes it INVALID"
     elif Problem.NOT_CALIBRATED in problems:
         why = "its variant not calibrated makes it INVALID"
     elif classified is not None:
@@ -180,6 +185,19 @@ def _coil(record: Record) -> list[str]:
         found.append("its problems say 'coil out of spec' but its coil is in spec" if coil.in_spec is not False
                      else "its coil is out of spec but its problems do not say so")
     return found
+
+
+def _part(record: Record) -> list[str]:
+    """3 (the part): the problem 'pump fault' where, and only where, the part diagnosis did not judge the valve
+    (schema 11 on)."""
+    problems = _problems(record)
+    if problems is None or record.schema_version < PART_SCHEMA or record.part is None:
+        return []
+    if (Problem.PUMP_FAULT in problems) == (not record.part.valve_judged):
+        return []
+    if record.part.valve_judged:
+        return [f"its problems say 'pump fault' but its part diagnosis ({record.part.part}) judged the valve"]
+    return [f"its part diagnosis names the {record.part.part} but its problems do not say 'pump fault'"]
 
 
 def _limits(record: Record, c: ClassificationSummary) -> tuple[float, float] | None:
@@ -318,7 +336,7 @@ def _retest(record: Record) -> list[str]:
             f"by its variant's rule {decision.rule}"]
 
 
-_CHECKS: tuple[Callable[[Record], list[str]], ...] = (_verdict, _trust, _coil, _classification, _features, _model,
-                                                      _retest)
+_CHECKS: tuple[Callable[[Record], list[str]], ...] = (_verdict, _trust, _coil, _part, _classification, _features,
+                                                      _model, _retest)
 
 __all__ = ["PROBLEMS_SCHEMA", "disagreements", "refusal"]

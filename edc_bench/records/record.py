@@ -133,7 +133,8 @@ class BenchResult:
     def advice(self) -> Advice:
         """What the technician does next (:func:`~edc_bench.records.advice.advice`)."""
         abort = self.outcome.abort
-        return advice(self.verdict, self.judgement.problems, abort.kind if abort is not None else None)
+        return advice(self.verdict, self.judgement.problems, abort.kind if abort is not None else None,
+                      self.judgement.part)
 
     @property
     def invalid_cause(self) -> Cause:
@@ -222,6 +223,7 @@ def build_record(result: BenchResult, files: RecordFiles, retest: RetestSummary 
         baseline=judgement.baseline,
         reference_values=judgement.reference_values,
         decision_plane=judgement.decision_plane,
+        part=judgement.part,
         parameters=judgement.parameters,
         converged=result.converged,
         identification=None if ident is None else IdentificationSummary(

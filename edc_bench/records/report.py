@@ -44,6 +44,7 @@ from edc_bench.records.report_layout import (
     key_value_rows,
     line_pitch_pt,
 )
+from edc_bench.verdict.part_words import part_line
 from edc_bench.records.schema import Record
 from edc_bench.verdict.verdicts import Verdict
 
@@ -257,6 +258,7 @@ def _engineer_text(page: Page, record: Record, folder_name: str, size_pt: float)
     y = _header(page, "Solenoid valve test report: technical details", 2)
     rows = [("Valve", record.valve_id or "-"),
             ("Verdict", f"{record.verdict}, tested {content.local_time(record.started_at)}"),
+            ("Part at fault", part_line(record.part)),
             ("Record folder", folder_name)]
     if record.retest is not None:  # the pair's decision, the rule that made it and the first test's record
         rows.append(("Retest of", f"{record.retest.of_record} ({record.retest.of_verdict or '?'}); decision "
@@ -274,7 +276,8 @@ def _engineer_text(page: Page, record: Record, folder_name: str, size_pt: float)
     left = [section("Classifier", content.classifier_rows(record)), section("Baseline", content.baseline_rows(record)),
             section("Coil", content.coil_rows(record))]
     right = [section("Test", content.test_details_rows(record)),
-             section("Model fit", content.model_fit_rows(record))]
+             section("Model fit", content.model_fit_rows(record)),
+             section("Which part is at fault", content.part_rows(record))]
     # the timing under the shorter column: a model that does not fit makes the right one long
     shorter = left if _sections_height_pt(left) <= _sections_height_pt(right) else right
     shorter.append(section("Timing", content.timing_rows(record)))

@@ -14,6 +14,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from edc_bench.records.advice import CUSTOMER_WORDS
+from edc_bench.verdict.part_sections import Part
+from edc_bench.verdict.part_words import customer_words, finding_row, part_line
 from edc_bench.records.baseline_text import baseline_line
 from edc_bench.records.schema import Record
 from edc_bench.runtime.clock_kind import ClockKind
@@ -140,6 +142,9 @@ def findings(record: Record) -> list[str]:
     if baseline is not None and baseline.calibrated is False:
         lines.append("Compared with the pump type's data-sheet figures, not with measured new valves: this verdict "
                      "may be wrong until the pump type is calibrated (edc-bench calibrate --append).")
+    part = customer_words(record.part)
+    if part:
+        lines.append(part)
     if record.verdict == Verdict.INVALID:
         # the customer's words only: the reasons, with their figures, are the engineer's page's
         lines.append("The test could not judge the valve: this report says nothing about its condition.")
@@ -272,6 +277,23 @@ def test_details_rows(record: Record) -> list[tuple[str, str]]:
                                   f"{escalated.of_record}"))
     rows.append(("Versions", f"edc-bench {record.software_version or '?'}, ICD {record.icd_version or '?'}, "
                              f"rig firmware {record.firmware_version or 'not recorded'}"))
+    return rows
+
+
+def part_rows(record: Record) -> list[tuple[str, str]]:
+    """Which part is at fault, and every signature measured against its limit (page 2)."""
+    part = record.part_diagnosis
+    rows = [("Part at fault", part_line(record.part))]
+    if part.part is Part.NOT_JUDGED:
+        return rows + [("Note", "recorded before the part diagnosis: the valve alone was judged")]
+    rows += [finding_row(f) for f in part.findings if f.beyond]
+    within = [str(f.signature) for f in part.findings if not f.beyond]
+    if within:
+        rows.append(("Within limits", ", ".join(within)))
+    profile = part.friction_profile
+    if profile is not None and profile.positions_mm:
+        rows.append(("Swing", f"friction measured over {profile.positions_mm[0]:.1f}-{profile.positions_mm[-1]:.1f} "
+                              "mm (record.json: the profile, what was not identified)"))
     return rows
 
 

@@ -49,6 +49,7 @@ from edc_bench.verdict.sections import (
     RetestSummary,
     none_if_empty,
 )
+from edc_bench.verdict.part_sections import VALVE_ONLY, PartDiagnosis
 from edc_bench.verdict.verdicts import Verdict
 
 
@@ -198,6 +199,7 @@ class Record(Section):
     # this MARGINAL was retested: found beside it when a report is drawn, never written (exclude)
     retested_by: RetestedBy | None = Field(None, exclude=True)
     escalation: EscalationSummary | None = None  # the same valve INVALID twice: it may be seized
+    part: PartDiagnosis | None = None  # the part at fault (schema 11 on; None in older records: the valve alone)
     files: RecordFiles = RecordFiles()
 
     model_config = ConfigDict(frozen=True, extra="allow", populate_by_name=True)
@@ -214,7 +216,12 @@ class Record(Section):
         """What the technician does next (:func:`~edc_bench.records.advice.advice`), from the verdict, the problems
         and the abort's kind as recorded."""
         abort = self.loop.abort
-        return advice(self.verdict, self.problem_flags, abort.kind if abort is not None else None)
+        return advice(self.verdict, self.problem_flags, abort.kind if abort is not None else None, self.part)
+
+    @property
+    def part_diagnosis(self) -> PartDiagnosis:
+        """Which part is at fault, as recorded; "valve only judged" for a record from before the part diagnosis."""
+        return self.part if self.part is not None else VALVE_ONLY
 
     @property
     def invalid_cause(self) -> Cause:

@@ -32,7 +32,7 @@ from edc_bench.config.models import Variant
 from edc_bench.errors import ConfigError
 from edc_bench.physics.feedforward import nominal_parameters
 from edc_bench.verdict.baseline_source import BaselineSource, sources_of_text, sources_text
-from edc_bench.verdict.sections import BaselineSummary
+from edc_bench.verdict.sections import BaselineSummary, MotionFigure
 
 BASELINE_DIR = "baselines"
 #: Earlier baselines of a folder are kept here when a new one replaces them.
@@ -43,6 +43,11 @@ NOMINAL_SOURCE = str(BaselineSource.NOMINAL)
 #: A [[test]] table's optional figures for the baseline's own uncertainty (:meth:`Baseline.noise_rel`,
 #: :meth:`Baseline.core_shift_rel`, :meth:`Baseline.systematic_rms_v`).
 UNCERTAINTY_KEYS = ("af_se_rel", "a1_se_rel", "af_core_shift_rel", "a1_core_shift_rel", "systematic_rms_v")
+#: A [[test]] table's optional motion parameters (referred to the reference coil): what a rack-travel sensor's gain
+#: error scales together (:meth:`Baseline.motion`, :mod:`edc_bench.verdict.part`).
+MOTION_KEYS = ("a2_v_s2_per_mm", "a0_v_per_mm", "b_v")
+#: The parameter each of :data:`MOTION_KEYS` holds.
+MOTION_PARAMETERS = dict(zip(MOTION_KEYS, ("a2", "a0", "b")))
 
 
 @dataclass(frozen=True)
@@ -69,6 +74,9 @@ class BaselineTest:
     systematic_rms_v : float or None
         The part of its residual that repeats from period to period, V rms (None: not known, as in files written
         before 2026-11-27).
+    a2_v_s2_per_mm, a0_v_per_mm, b_v : float or None
+        Its identified a2, a0 and b, referred to the reference coil (None: not known, as in files written before
+        2026-12-01): the part diagnosis compares a test's with their mean.
     """
 
     af_v: float
@@ -82,6 +90,9 @@ class BaselineTest:
     af_core_shift_rel: float | None = None
     a1_core_shift_rel: float | None = None
     systematic_rms_v: float | None = None
+    a2_v_s2_per_mm: float | None = None
+    a0_v_per_mm: float | None = None
+    b_v: float | None = None
 
     def __post_init__(self) -> None:
         if self.source is not None and not isinstance(self.source, BaselineSource):  # a file's or caller's word
@@ -111,6 +122,9 @@ class Baseline:
         When, where, by which edc-bench and with which command the baseline was written.
     path : str
         The file it was read from (empty if computed).
+    held_motion : tuple of (str, float, float, int)
+        The motion parameters' (mean, spread, tests) as a record's summary holds them, for a baseline read back
+        from a record (its test list is not kept there): :meth:`motion` answers from them.
     test_list : tuple of BaselineTest
         The tests behind it, each with its record (empty in files that do not list them).
     sources : frozenset of BaselineSource
@@ -130,6 +144,7 @@ class Baseline:
     path: str = ""
     test_list: tuple[BaselineTest, ...] = field(default=(), repr=False)
     sources: frozenset[BaselineSource] = frozenset({BaselineSource.NOMINAL})
+    held_motion: tuple[tuple[str, float, float, int], ...] = ()
 
     @property
     def calibrated(self) -> bool:
@@ -190,10 +205,22 @@ class Baseline:
             sources = frozenset({BaselineSource.NOMINAL})
         else:
             sources = sources_of_text(_text(summary, "source"))
+        held = summary.get("motion") or {}
+        figures = {key: MotionFigure.model_validate(held[key]) for key in MOTION_KEYS
+                   if isinstance(held, dict) and isinstance(held.get(key), dict)}
+        motion = tuple((key, f.mean, f.sd, f.tests) for key, f in figures.items())
         return cls(float(summary["af_v"]), float(summary["a1_v_s_per_mm"]), float(summary.get("af_sd_v", 0.0)),
                    float(summary.get("a1_sd_v_s_per_mm", 0.0)), tests,
                    *(_text(summary, key) for key in ("source", "written_at", "station", "software", "command",
-                                                      "path")), sources=sources)
+                                                      "path")), sources=sources, held_motion=motion)
+
+    def motion(self, key: str) -> tuple[float, float, int] | None:
+        """One of :data:`MOTION_KEYS` over the tests that hold it: (mean, standard deviation between tests, tests);
+        None with fewer than two."""
+        values = [v for v in (getattr(t, key) for t in self.test_list) if v is not None and math.isfinite(v)]
+        if len(values) < 2:
+            return next(((mean, sd, n) for name, mean, sd, n in self.held_motion if name == key), None)
+        return float(np.mean(values)), float(np.std(values, ddof=1)), len(values)
 
     def relative(self, af: float, a1: float) -> tuple[float, float]:
         """``(af / af0, a1 / a1_0)``."""
@@ -206,7 +233,9 @@ class Baseline:
             a1_sd_v_s_per_mm=self.a1_sd_v_s_per_mm, af_uncertainty_v=self.af_uncertainty_v,
             a1_uncertainty_v_s_per_mm=self.a1_uncertainty_v_s_per_mm, tests=self.tests, source=self.source,
             sources=sorted(self.sources), calibrated=self.calibrated, written_at=self.written_at,
-            station=self.station, software=self.software, path=self.path)
+            station=self.station, software=self.software, path=self.path,
+            motion={key: MotionFigure(mean=held[0], sd=held[1], tests=held[2])
+                    for key in MOTION_KEYS if (held := self.motion(key)) is not None} or None)
 
     def to_toml(self, variant: str, note: str = "") -> str:
         """The baseline file's text (TOML), the tests behind it listed as ``[[test]]`` tables."""
@@ -235,7 +264,7 @@ class Baseline:
                 table = (tomlkit.table().add("af_v", test.af_v).add("a1_v_s_per_mm", test.a1_v_s_per_mm)
                          .add("valve_id", test.valve_id).add("source", str(test.source or ""))
                          .add("started_at", test.started_at).add("record", test.record))
-                for key in UNCERTAINTY_KEYS:
+                for key in UNCERTAINTY_KEYS + MOTION_KEYS:
                     value = getattr(test, key)
                     if value is not None and math.isfinite(value):
                         table.add(key, value)
@@ -324,7 +353,8 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
     try:
         tests = tuple(BaselineTest(float(t["af_v"]), float(t["a1_v_s_per_mm"]), _text(t, "valve_id"),
                                    _text(t, "source"), _text(t, "started_at"), _text(t, "record"),
-                                   *(_number(t, key) for key in UNCERTAINTY_KEYS))
+                                   *(_number(t, key) for key in UNCERTAINTY_KEYS),
+                                   **{key: _number(t, key) for key in MOTION_KEYS})
                       for t in data.get("test", []))
         baseline = Baseline.from_summary(data)
         # a file that lists its tests: where they ran decides, not the file's sentence

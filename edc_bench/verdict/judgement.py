@@ -30,6 +30,8 @@ from edc_bench.physics.feedforward import FeedforwardParameters, nominal_paramet
 from edc_bench.section import FeaturePair, JudgedFeatures
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline, load_baseline
+from edc_bench.verdict.part import diagnose_parts, part_reasons
+from edc_bench.verdict.part_sections import PartDiagnosis
 from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s
 from edc_bench.verdict.sections import (
     BaselineSummary,
@@ -83,7 +85,11 @@ class Judgement:
         The coil's resistance measured in the test and its spec (:func:`~edc_bench.identification.coil_check.coil_finding`).
     problems : Problem
         What stands between the test and a verdict on the valve's wear, as values (the trust rule's problems,
-        the variant not calibrated, the coil out of spec); ``reasons`` says them in words.
+        the variant not calibrated, the coil out of spec, the rack or the sensor at fault); ``reasons`` says them
+        in words.
+    part : PartDiagnosis or None
+        Which part of the module is at fault, with every signature's figure (:mod:`edc_bench.verdict.part`); None
+        where the test ran no period (nothing to measure) or replay judged a record from before it.
     """
 
     verdict: Verdict
@@ -99,14 +105,16 @@ class Judgement:
     features_volt: FeaturePair = FeaturePair()
     coil: CoilFinding | None = None
     problems: Problem = Problem.NONE
+    part: PartDiagnosis | None = None
 
 
 def verdict_of(problems: Problem, classified: Verdict | None) -> Verdict:
     """A test's verdict from its problems and the classifier's verdict on its valve (None: not classified).
 
     A test the trust rule does not trust is INVALID; else a coil out of spec fails the valve whatever its wear (it
-    is replaced or repaired first; the coil's spec needs no baseline); else a variant without a measured baseline
-    is INVALID; else the classifier's verdict stands, and a trustworthy test that was not classified (baseline
+    is replaced or repaired first; the coil's spec needs no baseline); else a pump whose rack binds or whose
+    rack-travel sensor misreads is INVALID (the valve's figures are biased: the part diagnosis); else a variant
+    without a measured baseline is INVALID; else the classifier's verdict stands, and a trustworthy test that was not classified (baseline
     calibration) is UNCLASSIFIED.
 
     The one place the rule is written: :func:`judge_run` decides with it, and
@@ -117,6 +125,8 @@ def verdict_of(problems: Problem, classified: Verdict | None) -> Verdict:
         return Verdict.INVALID
     if Problem.COIL_OUT_OF_SPEC in problems:
         return Verdict.FAIL
+    if Problem.PUMP_FAULT in problems:
+        return Verdict.INVALID
     if Problem.NOT_CALIBRATED in problems:
         return Verdict.INVALID
     return Verdict.UNCLASSIFIED if classified is None else Verdict(classified)
@@ -217,7 +227,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
               classify: bool = True, classifier_path: Path | None = None,
               coil_temp_c: float | None = None, nominal_baseline: bool = False,
               calibrate_command: str | None = None, baseline: Baseline | None = None,
-              real_rig: bool = False) -> Judgement:
+              real_rig: bool = False, diagnose: bool = True) -> Judgement:
     """Identification, trust and verdict of a run, from its trace and its controller.
 
     Parameters
@@ -252,6 +262,9 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     real_rig : bool, optional
         The test ran on a bus, not the in-process simulated rig: a baseline measured only in simulation, or
         on fewer valves than recommended, is named in the reasons.
+    diagnose : bool, optional
+        Tell which part is at fault (default); off for replaying a record from before the part diagnosis, judged
+        as the valve alone.
     """
     ident = analyse(trace, controller, variant) if controller is not None and len(trace["t_s"]) else None
     problems = run_problems(variant, outcome, ident, timing)
@@ -281,6 +294,11 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     bad_coil = coil_reason(coil) if coil is not None else None
     problems |= Problem.COIL_OUT_OF_SPEC if bad_coil else Problem.NONE
     converged = bool(ident and ident.converged and not outcome.aborted)
+    part = _part_at_fault(variant, trace, parameters, baseline, features, outcome, problems) \
+        if diagnose and ident is not None else None
+    if part is not None and not part.valve_judged:  # the rack or the sensor biases the valve's figures: not judged
+        problems |= Problem.PUMP_FAULT
+        reasons = part_reasons(part) + reasons
     features_volt = FeaturePair(af=volts_at_coil(inductive["af"], af, r_ref, r_hat),
                                 a1=volts_at_coil(inductive["a1"], a1, r_ref, r_hat))
     # built once, at the end of the branch that decides it: a Judgement is frozen
@@ -293,7 +311,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             verdict=verdict_of(problems, None), reasons=said,
             parameters=parameters, features=features, converged=converged, identification=ident,
             reference_values=reference_values(variant, None), features_volt=features_volt, coil=coil,
-            problems=problems)
+            problems=problems, part=part)
     baseline = baseline if baseline is not None else load_baseline(variant)
     if not baseline.calibrated and not nominal_baseline:
         problems |= Problem.NOT_CALIBRATED
@@ -302,7 +320,7 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
             reasons=([bad_coil] if bad_coil else []) + [not_calibrated_reason(variant, calibrate_command)],
             parameters=parameters, features=features, converged=converged, identification=ident,
             reference_values=reference_values(variant, None), features_volt=features_volt, coil=coil,
-            problems=problems)  # no baseline: nothing was compared with it
+            problems=problems, part=part)  # no baseline: nothing was compared with it
     judged, classifier = classify_against(baseline, af, a1, classifier_path, variant)
     classified = (f"{judged.model} model: P(faulty) = {judged.probability_faulty:.3f}, distance to the boundary "
                   f"{judged.distance:+.3f} (marginal band {classifier.marginal_band:g})")
@@ -316,7 +334,27 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
         features=features, converged=converged, identification=ident,
         reference_values=reference_values(variant, baseline), classification=classification_summary(judged, classifier),
         baseline=baseline.summary(), decision_plane=decision_plane(classifier, judged.features_rel),
-        features_volt=features_volt, coil=coil, problems=problems)
+        features_volt=features_volt, coil=coil, problems=problems, part=part)
+
+
+#: The bench's own faults: with them, what the fit gives (the friction along the stroke, a2, a0, b) says nothing of
+#: the pump
+BENCH_TROUBLE = (Problem.NOT_IDENTIFIED | Problem.TOO_FEW_PERIODS | Problem.TIMING | Problem.REPLIES_MISSING
+                 | Problem.PC_STALLED)
+
+
+def _part_at_fault(variant: Variant, trace: dict[str, np.ndarray], parameters: dict[str, ParameterEstimate],
+                   baseline: Baseline | None, features: FeaturePair, outcome: LoopOutcome,
+                   problems: Problem) -> PartDiagnosis:
+    """Which part is at fault (:func:`~edc_bench.verdict.part.diagnose_parts`), against ``baseline`` (the variant's
+    by default): the fitted figures only from periods the bench ran as it should."""
+    from edc_bench.identification.signatures import measure
+
+    against = baseline if baseline is not None else load_baseline(variant)
+    af, a1 = features.numbers()
+    relative = (af / against.af_v, a1 / against.a1_v_s_per_mm) if against.af_v > 0 else None
+    return diagnose_parts(variant, measure(variant, trace), parameters, against, relative,
+                          fit_trusted=not outcome.aborted and not problems & BENCH_TROUBLE)
 
 
 def baseline_cautions(baseline: Baseline, variant: Variant, calibrate_command: str | None,

@@ -61,8 +61,17 @@ class ClassificationSummary(Section):
     training_data_sha256: str | None = None
 
 
+class MotionFigure(Section):
+    """One motion parameter of a baseline's new-valve tests (a2, a0 or b, referred to the reference coil)."""
+
+    mean: float
+    sd: float
+    tests: int
+
+
 class BaselineSummary(Section):
-    """The new-valve baseline the features were compared with (figures and provenance)."""
+    """The new-valve baseline the features were compared with (figures and provenance; ``motion``: its a2, a0 and
+    b, where its tests hold them, for the part diagnosis: schema 11 on)."""
 
     af_v: float | None = None
     a1_v_s_per_mm: float | None = None
@@ -78,6 +87,7 @@ class BaselineSummary(Section):
     station: str | None = None
     software: str | None = None
     path: str | None = None
+    motion: dict[str, MotionFigure] | None = None
 
 
 class DecisionPlane(Section):

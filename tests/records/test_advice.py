@@ -46,7 +46,8 @@ def test_each_outcome_says_what_to_do(verdict: Verdict, problems: Problem, kind:
     assert said.action == action and said.words.startswith(words), said
 
 
-@pytest.mark.parametrize(("valve", "code", "words"), [("worn", 11, "worn: replace the valve"),
+@pytest.mark.parametrize(("valve", "code", "words"), [("worn", 11, "worn valve or a dragging rack: check by hand that "
+                                                                   "the rack moves freely, then replace the valve"),
                                                       ("new", 0, "reusable: refit the valve")])
 def test_the_test_command_and_its_record_say_it(tmp_path: Path, valve: str, code: int, words: str) -> None:
     from edc_bench.records.reader import load_record

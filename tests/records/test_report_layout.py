@@ -246,7 +246,8 @@ def test_page_1_tells_the_customer_who_what_when_the_verdict_and_what_to_do_in_p
     text = page_text(pdf, 1)
     folder = pdf.parent
     record = load_record(folder)
-    for shown in ("bench-2", "m.keller", "PE-EDC-0001", "PS-20231", "worn", "FAIL", "Worn: replace the valve.",
+    for shown in ("bench-2", "m.keller", "PE-EDC-0001", "PS-20231", "worn", "FAIL",
+                  "Worn valve or a dragging rack: check by hand that the rack moves freely, then replace the valve.",
                   "Job / vehicle JOB-004711"):
         assert shown in text, shown
     started = datetime.fromisoformat(record.started_at)

@@ -80,3 +80,33 @@ def test_at_80x24_the_prompts_wrap_and_keys_typed_during_a_test_are_held_back(tm
     assert "'V-1' was begun during the test: Enter refuses it" in begun
     assert "'V-123' was begun while the test ran" in refused and "VALVE ID" in refused
     assert "EXITED 0" in ended and "valves: 1 " in ended
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("fault", "words"), [
+    (["--rack-fault", "bind"], ("the rack binds at one", "free or repair the rack")),
+    (["--sensor-fault", "gain=1.08"], ("rack-travel sensor is out of", "calibrate or replace the")),
+])
+def test_at_80x24_the_verdict_names_the_part_at_fault(tmp_path: Path, fault: list[str],
+                                                       words: tuple[str, str]) -> None:
+    """#67: a sound valve in a pump whose rack binds or whose sensor reads long: the session's verdict box names the
+    part and what to do, every word whole at 80x24, and never says replace the valve."""
+    env = terminal_env({"EDC_BENCH_DATA_DIR": str(set_up_station(tmp_path / "data"))})
+    term = Terminal([sys.executable, "-m", "edc_bench", "session", "--operator", "Anna", *fault,
+                     "--db", f"sqlite:///{tmp_path / 'h.sqlite'}"], tmp_path, env, columns=80, rows=24)
+    try:
+        term.wait_for("VALVE ID")
+        term.keys("new", "Enter")  # on the simulated rig a valve id of a preset's name is that valve
+        term.wait_for("PUMP SERIAL")
+        term.keys("PS-4471", "Enter")
+        term.wait_for("Mount the valve")
+        term.keys("Enter")
+        term.wait_for("INVALID")
+        shown = term.wait_for("then retest the valve")
+        ended = _end_shift(term)
+    finally:
+        term.close()
+    flat = " ".join(shown.split())
+    assert "not judged" in flat and all(w in flat for w in words), shown
+    assert "replace the valve" not in flat.lower(), shown
+    assert "EXITED 0" in ended

@@ -178,6 +178,8 @@ def test_a_valve_page_shows_its_visits_trend_and_what_was_withdrawn_or_changed(c
     story = client.get("/valve", params={"id": "V-0815"}).text
     decisions = re.findall(r'<td class="verdict (\w+)">', story)
     assert decisions == ["PASS", "PASS", "MARGINAL", "FAIL"]
+    # each visit's part at fault (#67): the worn valve's friction the same along the stroke, said as such
+    assert re.findall(r'<td class="part">([^<]*)</td>', story) == ["none", "none", "none", "valve or rack"]
     assert 'alt="wear trend of V-0815"' in story and "data:image/svg+xml;base64," in story
     withdrawn = client.get("/valve", params={"id": "V-0815-typo"}).text
     assert "WITHDRAWN" in withdrawn and "valve id typed wrong" in withdrawn

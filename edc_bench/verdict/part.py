@@ -1,0 +1,237 @@
+"""Which part of the fuel-injection module is at fault: the valve, the control rack or the rack-travel sensor.
+
+:func:`diagnose_parts` holds each signature a test measured (:mod:`edc_bench.identification.signatures`, and the
+motion parameters against the baseline's) to its limit (the variant's ``[diagnosis.parts]``) and names the part:
+
+- the **rack-travel sensor** first: a reading that drops out, spikes, is noisier than the sensor's stated noise, or
+  reads the rack at rest off its stop, or scales every motion parameter (a2, a0: volts per millimetre of the
+  reading) together. Such a reading biases every figure of the test, the valve's too: the valve is not judged;
+- the **rack**, where the sensor's reading is sound: friction that rises at one place (a bind) or along the stroke
+  (a slope). A valve's friction is the same wherever the rack is; the valve is not judged ("retest after the rack is
+  free"), since the valve's own friction cannot be told from the rack's there;
+- **valve or rack**: friction above a new valve's that is the same along the whole stroke is a worn valve or a rack
+  that drags evenly; this test cannot tell them apart, and says so;
+- otherwise nothing beyond the valve: its verdict stands alone.
+
+The result is one typed value, :class:`PartDiagnosis`, from which the advice, ``--json``, the record and the history
+speak (:mod:`edc_bench.verdict.part_sections` holds its shape, a leaf the record's schema reads).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+from edc_bench.config.models import PartLimits, Variant
+from edc_bench.identification.signatures import FrictionProfile, PumpSignatures, ReadingStatistics
+from edc_bench.verdict.baseline import Baseline
+from edc_bench.verdict.part_sections import (
+    FrictionProfileSummary,
+    Part,
+    PartDiagnosis,
+    PartFinding,
+    ReadingSummary,
+    Signature,
+)
+from edc_bench.verdict.sections import ParameterEstimate
+
+#: A signature counts only this many standard errors clear of nothing as well as beyond its limit.
+SIGNIFICANCE = 3.0
+#: Beyond this variation of the solenoid's pull over the swing (+/-, as the spring's Delta^2 term gives it) the
+#: friction along the stroke is not judged: the correction for it leaves tilts of tens of per cent in a sound
+#: rack's profile (a +/-20 % solenoid: -24 %), and at +/-25 % the model does not fit the pump at all. The shipped
+#: variants' solenoids vary +/-10 % at the most (p-edc-hard).
+PROFILE_GAIN_LIMIT_REL = 0.15
+#: What this test's excitation does not identify, said in every diagnosis.
+NOT_IDENTIFIED = ("friction that differs between the directions of travel (it differs from the spring's preload "
+                  "line only by a straight line)",)
+
+
+def _outside_swing(profile: FrictionProfileSummary | None, stroke_mm: float) -> str:
+    if profile is None or not profile.positions_mm:
+        return "the rack's friction along the stroke (too little of the test slid)"
+    return (f"the rack's friction outside {profile.positions_mm[0]:.1f}-{profile.positions_mm[-1]:.1f} mm of its "
+            f"{stroke_mm:g} mm stroke (the test's swing)")
+
+
+def _motion_ratio(parameters: Mapping[str, ParameterEstimate], baseline: Baseline | None,
+                  key: str, name: str) -> tuple[float, float] | None:
+    """The test's parameter over the baseline's mean, and that ratio's spread between new valves (None: not known)."""
+    if baseline is None:
+        return None
+    held = baseline.motion(key)
+    estimate = parameters.get(name)
+    if held is None or estimate is None or not estimate.estimated or estimate.value is None:
+        return None
+    mean, sd, _ = held
+    if not (math.isfinite(estimate.value) and estimate.value > 0 and mean > 0):
+        return None
+    return estimate.value / mean, abs(sd / mean)
+
+
+def _reading_findings(limits: PartLimits, reading: ReadingStatistics) -> list[PartFinding]:
+    """The sensor's own statistics (its dropouts, spikes, noise) and its reading at rest, against their limits."""
+    noise = reading.noise_ratio
+    found = [
+        PartFinding(signature=Signature.SENSOR_DROPOUTS, part=Part.SENSOR, figure=reading.dropouts,
+                    limit=limits.sensor_dropouts, beyond=reading.dropouts >= limits.sensor_dropouts),
+        PartFinding(signature=Signature.SENSOR_SPIKES, part=Part.SENSOR, figure=reading.spikes,
+                    limit=limits.sensor_spikes, beyond=reading.spikes >= limits.sensor_spikes),
+        PartFinding(signature=Signature.SENSOR_NOISE, part=Part.SENSOR, figure=noise, limit=limits.sensor_noise_ratio,
+                    unit="x", beyond=math.isfinite(noise) and noise > limits.sensor_noise_ratio),
+    ]
+    if math.isfinite(reading.rest_mm):
+        found.append(PartFinding(signature=Signature.SENSOR_ZERO, part=Part.SENSOR, figure=reading.rest_mm,
+                                 limit=limits.sensor_offset_mm, unit="mm",
+                                 beyond=abs(reading.rest_mm) > limits.sensor_offset_mm))
+    return found
+
+
+def _rack_findings(limits: PartLimits, profile: FrictionProfile, af0: float) -> list[PartFinding]:
+    """The rack's friction along the swing: its highest place and its slope, in shares of a new valve's friction."""
+    return [
+        PartFinding(signature=Signature.RACK_BIND, part=Part.RACK, figure=profile.peak_v / af0,
+                    limit=limits.rack_bind_rel, at_mm=profile.peak_at_mm, std=profile.peak_std_v / af0,
+                    beyond=profile.peak_v / af0 > limits.rack_bind_rel
+                    and profile.peak_v > SIGNIFICANCE * profile.peak_std_v),
+        PartFinding(signature=Signature.RACK_SLOPE, part=Part.RACK, figure=profile.slope_v / af0,
+                    limit=limits.rack_slope_rel, std=profile.slope_std_v / af0,
+                    beyond=abs(profile.slope_v) / af0 > limits.rack_slope_rel
+                    and abs(profile.slope_v) > SIGNIFICANCE * profile.slope_std_v),
+    ]
+
+
+def _mass_ratio(parameters: Mapping[str, ParameterEstimate], baseline: Baseline, tau_s: float,
+                a2: tuple[float, float]) -> tuple[float, float] | None:
+    """a2's share from the rack's mass (m R / K) over the baseline's: a2 less the coil's L/R times a1.
+
+    a2 = (m R + L c) / K holds the damping c too, which a worn valve raises (+10 % on a worn valve of the default
+    pump); a1 = (L k' + R c) / K, so a2 - (L / R) a1 = m R / K - L^2 k' / (R K): the damping cancels, and what is
+    left scales with the reading's gain as a2 does.
+    """
+    a1, a2_estimate = parameters.get("a1"), parameters.get("a2")
+    held = baseline.motion("a2_v_s2_per_mm")
+    if a1 is None or a1.value is None or held is None or not math.isfinite(a1.value) or a2_estimate is None:
+        return None
+    test_v = a2_estimate.value
+    base_v = held[0] - tau_s * baseline.a1_v_s_per_mm
+    if test_v is None or base_v <= 0:
+        return None
+    return (test_v - tau_s * a1.value) / base_v, a2[1] * held[0] / base_v
+
+
+def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstimate], baseline: Baseline | None,
+                     rest_mm: float, tau_s: float) -> list[PartFinding]:
+    """The sensor's gain and linearity from a2, a0 and b against the baseline's.
+
+    A reading g times too long makes a2 and a0 (volts per millimetre read) 1/g of the baseline's and leaves b (volts)
+    as it was; an offset o in the swing moves b by -a0 o and nothing else. Where the volts themselves are off (the
+    rig's current sensor, the coil referred wrongly: what the rig self-check finds) all three move by one factor:
+    then b is taken against a0's own ratio, which cancels it, and the gain is not judged. A spring's tolerance moves
+    a0 alone (the rack's mass, a2, does not change from pump to pump).
+    """
+    a2, a0, b = (_motion_ratio(parameters, baseline, key, name) for key, name in
+                 (("a2_v_s2_per_mm", "a2"), ("a0_v_per_mm", "a0"), ("b_v", "b")))
+    if a2 is None or a0 is None or b is None or baseline is None:
+        return []
+    a2 = _mass_ratio(parameters, baseline, tau_s, a2)
+    if a2 is None:
+        return []
+    found = []
+    agree = abs(a2[0] - a0[0]) <= max(limits.sensor_gain_rel, SIGNIFICANCE * math.hypot(a2[1], a0[1]))
+    gain = 2.0 / (a2[0] + a0[0])  # the reading's scale: the mean of 1 / (a2 ratio) and 1 / (a0 ratio), to first order
+    tolerance = max(limits.sensor_gain_rel, SIGNIFICANCE * a2[1])
+    b_stayed = abs(b[0] - 1.0) <= 0.5 * abs(gain - 1.0)
+    gain_beyond = agree and b_stayed and abs(gain - 1.0) > tolerance
+    found.append(PartFinding(signature=Signature.SENSOR_GAIN, part=Part.SENSOR, figure=gain - 1.0,
+                             limit=limits.sensor_gain_rel, beyond=gain_beyond))
+    if not agree and abs(a0[0] / a2[0] - 1.0) > tolerance:
+        found.append(PartFinding(signature=Signature.SPRING_RATE, part=Part.NONE, figure=a0[0] / a2[0] - 1.0,
+                                 limit=tolerance, beyond=True))
+    held_b, held_a0 = baseline.motion("b_v"), baseline.motion("a0_v_per_mm")
+    if not gain_beyond and held_b is not None and held_a0 is not None and math.isfinite(rest_mm):
+        # b's move beyond a0's as an offset of the reading in the swing (the volts' own factor cancels)
+        offset_mm = (1.0 - b[0] / a0[0]) * held_b[0] / held_a0[0]
+        limit = max(limits.sensor_linearity_mm, SIGNIFICANCE * math.hypot(b[1], a0[1]) * held_b[0] / held_a0[0])
+        found.append(PartFinding(signature=Signature.SENSOR_LINEARITY, part=Part.SENSOR, figure=offset_mm - rest_mm,
+                                 limit=limit, unit="mm", beyond=abs(offset_mm - rest_mm) > limit))
+    return found
+
+
+def diagnose_parts(variant: Variant, signatures: PumpSignatures, parameters: Mapping[str, ParameterEstimate],
+                   baseline: Baseline | None, features_rel: tuple[float, float] | None,
+                   fit_trusted: bool = True) -> PartDiagnosis:
+    """The part at fault in one test, with every signature's figure against its limit.
+
+    Parameters
+    ----------
+    variant : Variant
+        Its ``[diagnosis.parts]`` limits and the sensor's stated noise.
+    signatures : PumpSignatures
+        What the test measured of the rack and the sensor.
+    parameters : mapping of str to ParameterEstimate
+        The test's identified parameters, referred to the reference coil.
+    baseline : Baseline or None
+        The new-valve baseline the test was judged against (its af, and its a2, a0 and b where it holds them).
+    features_rel : (float, float) or None
+        af and a1 over the baseline's (None: no baseline to compare with).
+    fit_trusted : bool, optional
+        The test's fit ran its periods without the bench's own faults (no stalls, missing replies or abort): the
+        figures fitted from it (the friction profile, a2, a0, b) are judged only then; the reading's statistics
+        always.
+    """
+    limits = variant.diagnosis.parts
+    reading = signatures.reading
+    findings = _reading_findings(limits, reading)
+    reading_sound = not any(f.beyond for f in findings if f.signature is not Signature.SENSOR_ZERO)
+    profile = signatures.friction if fit_trusted else None
+    swing_mm = sum(t.amplitude_mm for t in variant.excitation.active_tones)
+    solenoid_rel = math.nan if profile is None else abs(profile.gain_slope_per_mm) * swing_mm
+    if profile is not None and not solenoid_rel <= PROFILE_GAIN_LIMIT_REL:
+        profile = None  # a solenoid this far from linear: the friction along the stroke cannot be told from it
+    af0 = baseline.af_v if baseline is not None else math.nan
+    if profile is not None and reading_sound and math.isfinite(af0) and af0 > 0:
+        findings += _rack_findings(limits, profile, af0)
+    # the motion parameters, where neither the reading nor a rack that binds (a misfit the fit spreads over every
+    # parameter) biases them
+    if fit_trusted and reading_sound and not any(f.beyond for f in findings):
+        tau_s = variant.coil.inductance_mh * 1e-3 / variant.coil.resistance_ohm  # the reference coil's L / R
+        findings += _motion_findings(limits, parameters, baseline, reading.rest_mm, tau_s)
+    beyond = [f for f in findings if f.beyond and f.part in (Part.SENSOR, Part.RACK)]
+    if any(f.part is Part.SENSOR for f in beyond):
+        part = Part.SENSOR
+    elif beyond:
+        part = Part.RACK
+    elif features_rel is not None and math.isfinite(features_rel[0]) \
+            and features_rel[0] - 1.0 > limits.uniform_friction_rel:
+        findings.append(PartFinding(signature=Signature.UNIFORM_FRICTION, part=Part.VALVE_OR_RACK,
+                                    figure=features_rel[0] - 1.0, limit=limits.uniform_friction_rel, beyond=True))
+        part = Part.VALVE_OR_RACK
+    else:
+        part = Part.NONE
+    shown = signatures.friction
+    summary = None if shown is None else FrictionProfileSummary(
+        positions_mm=list(shown.positions_mm), friction_v=list(shown.friction_v), std_v=list(shown.std_v),
+        gain_slope_per_mm=shown.gain_slope_per_mm, periods=shown.periods)
+    unknown = [*NOT_IDENTIFIED, _outside_swing(summary, variant.rack.stroke_mm)]
+    if math.isfinite(solenoid_rel) and solenoid_rel > PROFILE_GAIN_LIMIT_REL:
+        unknown.append(f"the rack's friction along the stroke: the solenoid's pull varies about +/-{solenoid_rel:.0%} "
+                       f"over the swing (judged to +/-{PROFILE_GAIN_LIMIT_REL:.0%})")
+    if baseline is None or baseline.motion("a2_v_s2_per_mm") is None:
+        unknown.append("the sensor's gain and linearity (the baseline holds no a2, a0 and b: calibrate the pump type "
+                       "again to add them)")
+    return PartDiagnosis(
+        part=part, valve_judged=part not in (Part.SENSOR, Part.RACK), findings=findings, friction_profile=summary,
+        reading=ReadingSummary(rest_mm=reading.rest_mm, noise_mm=reading.noise_mm,
+                               expected_noise_mm=reading.expected_noise_mm, spikes=reading.spikes,
+                               dropouts=reading.dropouts),
+        not_identified=unknown, compared_with=None if baseline is None else baseline.summary())
+
+
+def part_reasons(diagnosis: PartDiagnosis) -> list[str]:
+    """Why a test whose rack or sensor is at fault does not judge the valve, one sentence a finding (the engineer's
+    reasons; the technician's line is :func:`~edc_bench.records.advice.part_words`)."""
+    from edc_bench.verdict.part_words import finding_words
+
+    return [f"{finding_words(f)}; the valve's figures are biased by it, so the valve is not judged"
+            for f in diagnosis.beyond]
