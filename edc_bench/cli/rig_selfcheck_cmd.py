@@ -125,11 +125,12 @@ def _register(args: argparse.Namespace, rig: Any, by: str) -> int:
                    f"the {rig.describe()} (about {variant.excitation.duration_s + 0.5:g} s of rig time)")
         values = measure_reference(rig, variant, valve=args.valve, seed=seed, valve_id=args.valve_id,
                                    coil_temp_c=args.coil_temp_c, observer=_observer(args, rig))
-        if values.test_problems:
+        if values.test_problems or values.signal_faults:
             from edc_bench.errors import ConfigError
 
             raise ConfigError("the reference valve's test was not trustworthy, nothing was registered: "
-                              + "; ".join(values.test_problems))
+                              + "; ".join(values.test_problems + tuple(f"the LVDT's signal: {fault}" for fault in
+                                                                        values.signal_faults)))
         details = {"rig": rig.describe(), **({"seed": seed} if rig.simulated else {})}
         row = store.add_reference(registration_row(
             values, station=station, valve_id=args.valve_id, variant=variant.name, by=by, simulated=rig.simulated,

@@ -258,7 +258,8 @@ def values_of(row: ReferenceRow | RigCheckRow) -> ReferenceValues:
     figures = row.figures()
     return ReferenceValues(**{name: _float(figures[name]) for name in QUANTITIES},
                            lvdt_at_floor=bool(row.lvdt_at_floor), test_problems=tuple(details.get("test_problems", ())),
-                           coil_temp_c=_float(row.coil_temp_c if row.coil_temp_c is not None else 20.0))
+                           coil_temp_c=_float(row.coil_temp_c if row.coil_temp_c is not None else 20.0),
+                           signal_faults=tuple(details.get("signal_faults", ())))
 
 
 def _float(value: Any) -> float:
@@ -280,7 +281,9 @@ def registration_row(values: ReferenceValues, *, station: str, valve_id: str, va
 
     return {"station": station, "valve_id": valve_id, "variant": variant, **_figures_row(values),
             "simulated": simulated, "valve_spec": valve_spec if simulated else None,
-            "details": json.dumps({**(details or {}), "test_problems": list(values.test_problems)}, sort_keys=True),
+            "details": json.dumps({**(details or {}), "test_problems": list(values.test_problems),
+                                   **({"signal_faults": list(values.signal_faults)} if values.signal_faults else {})},
+                                  sort_keys=True),
             "software_version": __version__, "registered_by": by}
 
 
@@ -293,7 +296,8 @@ def rig_check_row(check: SelfCheck, station: str, by: str) -> dict[str, Any]:
                         "drift": _json_float(q.drift), "tolerance": q.tolerance, "out": q.out, "compared": q.compared,
                         "explained_by": None if q.explained_by is None else str(q.explained_by)}
                for q in result.quantities}
-    details = {**check.details, "figures": figures, "test_problems": list(check.measured.test_problems)}
+    details = {**check.details, "figures": figures, "test_problems": list(check.measured.test_problems),
+               **({"signal_faults": list(check.measured.signal_faults)} if check.measured.signal_faults else {})}
     return {"station": station, "reference_id": check.registration.id, "verdict": result.verdict,
             "causes": ",".join(str(c) for c in result.causes), "words": result.line(),
             **_figures_row(check.measured), "simulated": check.simulated,

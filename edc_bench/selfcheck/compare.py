@@ -54,6 +54,9 @@ class ReferenceValues:
         Why the reference test is not to be trusted (empty: it is).
     coil_temp_c : float
         The coil's temperature at the start of the test, as stated (20 degC: a rested coil).
+    signal_faults : tuple of str
+        What the LVDT's own signal showed beyond the part diagnosis's limits (its noise, spikes, dropouts: the same
+        signatures a pump's test judges its rack-travel sensor by), in a few words each; empty: a clean signal.
     """
 
     lvdt_zero_mm: float
@@ -65,6 +68,7 @@ class ReferenceValues:
     lvdt_at_floor: bool = False
     test_problems: tuple[str, ...] = ()
     coil_temp_c: float = 20.0
+    signal_faults: tuple[str, ...] = ()
 
     def figures(self) -> dict[str, float]:
         """The compared figures by name (:data:`QUANTITIES`)."""
@@ -109,6 +113,7 @@ class Cause(enum.StrEnum):
     DRIVE = "drive gain"
     VALVE = "reference valve or rig mechanics"
     TEST = "reference test not trustworthy"
+    LVDT_SIGNAL = "LVDT signal"
 
 
 #: Each figure's name in the technician's words and its unit (None: compared in %).
@@ -254,12 +259,17 @@ def compare(measured: ReferenceValues, registered: ReferenceValues, tolerances: 
     Returns
     -------
     SelfCheckResult
-        GO when no figure moved beyond its tolerance and the reference test was trustworthy.
+        GO when no figure moved beyond its tolerance, the reference test was trustworthy and the LVDT's signal clean.
     """
     trusted = not measured.test_problems
+    # figures read through a signal that spikes, drops out or is noisy say nothing of the valve or the rig's gains
+    readable = trusted and not measured.signal_faults
     checks = {name: _check(name, getattr(measured, name), getattr(registered, name), tolerances.of(name),
-                           trusted or name in REST_QUANTITIES) for name in QUANTITIES}
+                           readable or name in REST_QUANTITIES) for name in QUANTITIES}
     findings: list[DriftFinding] = []
+    if measured.signal_faults:  # the signal itself, before any figure read from it
+        findings.append(DriftFinding(Cause.LVDT_SIGNAL, "the LVDT's signal is not clean (" + ", ".join(
+            measured.signal_faults) + "): check the LVDT, its cable and its connector, " + _AGAIN))
     if trusted is False:
         findings.append(DriftFinding(Cause.TEST, "the reference test was not trustworthy (" + "; ".join(
             measured.test_problems[:2]) + "): check the reference valve's mounting and the rig as the reasons say, "

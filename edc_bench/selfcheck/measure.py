@@ -27,7 +27,10 @@ from typing import Any
 from edc_bench.canlib import can
 from edc_bench.config.models import Variant
 from edc_bench.physics.valve import ValveSpec
+from edc_bench.engine.problems import Problem
 from edc_bench.runtime.clock import Clock
+from edc_bench.verdict.part import part_reasons
+from edc_bench.verdict.part_sections import PartFinding, Signature
 from edc_bench.selfcheck.compare import ReferenceValues
 from edc_bench.selfcheck.rest import RestReading, measure_rest
 
@@ -69,12 +72,30 @@ def reference_values(variant: Variant, rest: RestReading, result: Any,
 
     coil = result.judgement.coil
     coil_r20_ohm = math.nan if coil is None or coil.resistance_20c_ohm is None else coil.resistance_20c_ohm
-    problems = tuple(result.reasons) if result.verdict == Verdict.INVALID else ()
+    # the part diagnosis reads the rig's own LVDT here: its signal's findings are the self-check's (the LVDT's zero
+    # and gain it compares itself, the rack's friction is the reference valve's and the rig's mechanics); a test
+    # INVALID for them alone is trusted for its figures
+    part = result.judgement.part
+    signal = tuple(_signal_words(f) for f in (part.beyond if part is not None else ()) if f.signature in SIGNAL)
+    own = result.judgement.problems & ~Problem.PUMP_FAULT
+    said = set(part_reasons(part)) if part is not None else set()
+    problems = tuple(r for r in result.reasons if r not in said) if result.verdict == Verdict.INVALID and own else ()
     return ReferenceValues(
         lvdt_zero_mm=rest.lvdt_zero_mm, current_zero_a=rest.current_zero_a,
         coil_r20_ohm=float(coil_r20_ohm),
         a0_v_per_mm=volts_20c("a0"), af_v=volts_20c("af"), a1_v_s_per_mm=volts_20c("a1"),
-        lvdt_at_floor=rest.lvdt_at_floor, test_problems=problems, coil_temp_c=temp_c)
+        lvdt_at_floor=rest.lvdt_at_floor, test_problems=problems, coil_temp_c=temp_c, signal_faults=signal)
+
+
+#: The part diagnosis's signatures of a sensor's own signal (the LVDT's, in the self-check)
+SIGNAL = (Signature.SENSOR_NOISE, Signature.SENSOR_SPIKES, Signature.SENSOR_DROPOUTS)
+
+
+def _signal_words(finding: PartFinding) -> str:
+    figure = 0.0 if finding.figure is None else float(finding.figure)
+    if finding.signature is Signature.SENSOR_NOISE:
+        return f"noise {figure:.1f}x the stated"
+    return f"{figure:.0f} {'spikes' if finding.signature is Signature.SENSOR_SPIKES else 'dropouts'}"
 
 
 def _test_options(coil_temp_c: float | None, valve_id: str, observer: Any) -> Any:

@@ -182,3 +182,26 @@ def test_a_drift_is_parsed_and_bad_ones_are_refused_in_words() -> None:
                         ("current_gain=nan", "outside")):
         with pytest.raises(ConfigError, match=words):
             parse_rig_drift(text)
+
+
+@pytest.mark.parametrize(("sensor", "said"), [("spikes", "spikes"), ("noise_sd_mm=0.02", "noise")])
+def test_an_lvdt_whose_signal_spikes_or_is_noisy_is_named_not_the_reference_valve(sensor: str, said: str) -> None:
+    """#67: the self-check judges the LVDT's own signal by the part diagnosis's signatures (a pump's test and the
+    self-check say the same): noise and spikes were blamed on the reference valve."""
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant
+    from edc_bench.selfcheck.compare import Cause, compare
+    from edc_bench.selfcheck.measure import reference_values
+    from edc_bench.selfcheck.rest import RestReading
+
+    variant = load_variant("p-edc-default")
+    rest = RestReading(lvdt_zero_mm=0.005, current_zero_a=0.002, lvdt_sd_mm=0.003, current_sd_a=0.005, samples=500,
+                       lvdt_at_floor=False)
+    registered = reference_values(variant, rest, run_simulated_test(variant, "new", 1, classify=False))
+    assert not registered.signal_faults and not registered.test_problems
+    measured = reference_values(variant, rest, run_simulated_test(variant, "new", 2, classify=False,
+                                                                  sensor_fault=sensor))
+    assert measured.signal_faults and said in measured.signal_faults[0] and not measured.test_problems
+    result = compare(measured, registered, tolerances_of(variant))
+    assert not result.go and result.causes == (Cause.LVDT_SIGNAL,), result.line()  # not the valve, through it
+    assert "check the LVDT, its cable and its connector" in result.line()
