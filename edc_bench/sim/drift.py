@@ -15,10 +15,10 @@ own sensor model (its offset, noise and resolution):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 
 from edc_bench.errors import ConfigError
+from edc_bench.sim.spec_pairs import pair_value
 
 
 @dataclass(frozen=True)
@@ -96,14 +96,5 @@ def parse_rig_drift(text: str, flag: str = "--rig-drift") -> SensorDrift:
         if not sep or key not in KEYS:
             what = given if part == text else f"{given}: {part!r}"
             raise ConfigError(f"{what} is not a drift; give key=value pairs such as {EXAMPLE}")
-        if key in values:
-            raise ConfigError(f"{given}: {key} is given twice; give it once")
-        what, low, high = KEYS[key]
-        try:
-            value = float(raw)
-        except ValueError:
-            raise ConfigError(f"{given}: {key} = {raw!r} is not a number; give {what}") from None
-        if not (math.isfinite(value) and low <= value <= high):
-            raise ConfigError(f"{given}: {key} = {raw} is outside {low:g}..{high:g} ({what})")
-        values[key] = value
+        values[key] = pair_value(given, key, raw, values, KEYS)
     return SensorDrift(**values)

@@ -34,6 +34,7 @@ import numpy as np
 
 from edc_bench.errors import ConfigError
 from edc_bench.physics.parameters import PlantParameters
+from edc_bench.sim.spec_pairs import pair_value
 
 
 @dataclass(frozen=True)
@@ -230,19 +231,11 @@ def _parse(text: str, flag: str, kind: type[_Fault], keys: dict[str, tuple[str, 
             if index == 0 and part in presets:
                 base = presets[part]
                 continue
-            raise ConfigError(f"{given}: {part!r} is not a fault; give {example}")
+            what = given if part == text else f"{given}: {part!r}"
+            raise ConfigError(f"{what} is not a fault; give {example}")
         if key not in keys:
             raise ConfigError(f"{given}: unknown key {key!r}; give {example}")
-        if key in values:
-            raise ConfigError(f"{given}: {key} is given twice; give it once")
-        what, low, high = keys[key]
-        try:
-            value = float(raw)
-        except ValueError:
-            raise ConfigError(f"{given}: {key} = {raw!r} is not a number; give {what}") from None
-        if not (math.isfinite(value) and low <= value <= high):
-            raise ConfigError(f"{given}: {key} = {raw} is outside {low:g}..{high:g} ({what})")
-        values[key] = value
+        values[key] = pair_value(given, key, raw, values, keys)
     return dataclasses.replace(base, **values)
 
 

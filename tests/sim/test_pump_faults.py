@@ -38,7 +38,7 @@ def test_a_spec_is_a_preset_refined_by_pairs_and_says_itself_back() -> None:
     ("twist", "'twist' is not a fault; give drag, dry, bind, bent, slope"),
     ("bind_n=1,bind_n=2", "bind_n is given twice"),
     ("bend_n=1", "unknown key 'bend_n'"),
-    ("drag,bind", "'bind' is not a fault"),  # one preset, first
+    ("drag,bind", "'drag,bind': 'bind' is not a fault"),  # one preset, first
 ])
 def test_a_bad_rack_spec_is_refused_in_one_line_naming_what_is_wrong(text: str, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
@@ -122,3 +122,17 @@ def test_a_bind_of_no_force_changes_nothing_wherever_it_is_put() -> None:
         a.advance(10)
         b.advance(10)
     assert (a.x_mm, a.v_mm_s, a.i_a) == (b.x_mm, b.v_mm_s, b.i_a)
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["test", "--rack-fault", "twist"], "argument --rack-fault: 'twist' is not a fault; give drag, dry, bind"),
+    (["test", "--rack-fault", "bind,twist"], "argument --rack-fault: 'bind,twist': 'twist' is not a fault"),
+    (["rig", "--listen", "127.0.0.1:0", "--sensor-fault", "gain=2"], "gain = 2 is outside 0.5..1.5"),
+    (["session", "--sensor-fault", "spikes_per_s=-1"], "spikes_per_s = -1 is outside 0..100"),
+])
+def test_a_bad_fault_on_the_command_line_is_one_line_and_exit_2(argv: list[str], message: str,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    from helpers import run_cli
+
+    code, out, err = run_cli(argv, capsys)
+    assert code == 2 and message in err and "Traceback" not in err, err
