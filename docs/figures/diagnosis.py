@@ -432,3 +432,49 @@ def boundary_table() -> str:
             f"by a shift in baseline-ratio units (positive: fewer valves fail):\n\n")
     rows = [(f"{s:+.2f}" if s else "0.00 (trained)", percent(n), percent(f)) for s, n, f in b["rows"]]
     return head + table(("shift", "reusable valves replaced needlessly", "faulty valves passed"), rows)
+
+
+# --------------------------------------------------------------------------- which part is at fault (measured)
+
+#: The variants the part study runs on: the default pump, the hard one (a solenoid whose pull varies +/-20 % over the
+#: swing, Stribeck friction) and the long-stroke one.
+PART_STUDY_VARIANTS = ("p-edc-default", "p-edc-hard", "p-edc-long")
+PART_STUDY_TESTS = 6
+PART_STUDY_SEED = 4100
+
+
+@measurement("diagnosis-parts", minutes=5.0)
+def parts_study() -> dict[str, Any]:
+    """``edc-bench evaluate --parts`` on each of :data:`PART_STUDY_VARIANTS`: every case's counts and the headline."""
+    from edc_bench.config import load_variant
+    from edc_bench.studies.part_study import part_summary, run_part_study
+
+    out: dict[str, Any] = {}
+    for name in PART_STUDY_VARIANTS:
+        results = run_part_study(load_variant(name), PART_STUDY_TESTS, PART_STUDY_SEED)
+        out[name] = {"summary": dataclasses.asdict(part_summary(results)),
+                     "cases": [{"case": r.case.name, "kind": r.case.kind, "beyond_limit": r.case.above_limit,
+                                "tests": r.tests, "parts": r.parts, "verdicts": r.verdicts,
+                                "told_replace": r.told_replace, "named_right": r.named_right} for r in results]}
+    return out
+
+
+def parts_table(variant: str) -> str:
+    """The part study's confusion matrix for one variant (``diagnosis-parts``)."""
+    from edc_bench.studies.part_study import PART_COLUMNS, VERDICT_COLUMNS
+
+    study = stored("diagnosis-parts")[variant]
+    header = ["case", "beyond its limit", "tests", *(f"named: {p}" for p in PART_COLUMNS), *VERDICT_COLUMNS,
+              "told: replace the valve", "named right"]
+    rows = [[c["case"], "yes" if c["beyond_limit"] else "no", c["tests"],
+             *(c["parts"].get(p, 0) for p in PART_COLUMNS), *(c["verdicts"].get(v, 0) for v in VERDICT_COLUMNS),
+             c["told_replace"], f"{c['named_right']}/{c['tests']}"] for c in study["cases"]]
+    return table(header, rows)
+
+
+def parts_summary(variant: str) -> str:
+    """The part study's headline for one variant, as a list."""
+    from edc_bench.studies.part_study import PartSummary, summary_lines
+
+    summary = PartSummary(**stored("diagnosis-parts")[variant]["summary"])
+    return "\n".join(f"- {line}" for line in summary_lines(summary))

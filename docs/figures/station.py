@@ -44,8 +44,32 @@ def advice_table() -> str:
     from edc_bench.engine.outcome import AbortKind
     from edc_bench.engine.problems import Problem
     from edc_bench.records.advice import advice
+    from edc_bench.verdict.part_sections import Part, PartDiagnosis, PartFinding, Signature
 
-    cases = [("PASS", Problem.NONE, None, "a reusable valve"), ("FAIL", Problem.NONE, None, "a worn valve"),
+    def found(signature: Signature, part: Part) -> PartDiagnosis:
+        beyond = PartFinding(signature=signature, part=part, figure=1.0, limit=0.1, beyond=True)
+        return PartDiagnosis(part=part, valve_judged=part is Part.VALVE_OR_RACK, findings=[beyond])
+
+    even = found(Signature.UNIFORM_FRICTION, Part.VALVE_OR_RACK)
+    parts = [("PASS", Problem.NONE, None, even, "a reusable valve, its friction 25 % or more above new along the "
+                                                "whole stroke"),
+             ("FAIL", Problem.NONE, None, even, "a worn valve: its friction the same along the stroke, as a rack "
+                                                "that drags evenly"),
+             ("INVALID", Problem.PUMP_FAULT, None, found(Signature.RACK_BIND, Part.RACK), "the rack binds at one "
+                                                                                          "place"),
+             ("INVALID", Problem.PUMP_FAULT, None, found(Signature.RACK_SLOPE, Part.RACK), "the rack's friction "
+                                                                                           "changes along its stroke"),
+             ("INVALID", Problem.PUMP_FAULT, None, found(Signature.SENSOR_GAIN, Part.SENSOR), "the rack-travel "
+                                                                                              "sensor reads long"),
+             ("INVALID", Problem.PUMP_FAULT, None, found(Signature.SENSOR_ZERO, Part.SENSOR), "its zero is off"),
+             ("INVALID", Problem.PUMP_FAULT, None, found(Signature.SENSOR_LINEARITY, Part.SENSOR), "it reads the "
+                                                                                                   "swing unevenly"),
+             ("INVALID", Problem.PUMP_FAULT, None, found(Signature.SENSOR_NOISE, Part.SENSOR), "it is noisy"),
+             ("INVALID", Problem.PUMP_FAULT | Problem.ABORTED, AbortKind.RIG_FAULT,
+              found(Signature.SENSOR_DROPOUTS, Part.SENSOR), "its reading drops out (the rig tripped on it)"),
+             ("INVALID", Problem.PUMP_FAULT, None, found(Signature.SENSOR_SPIKES, Part.SENSOR), "its reading spikes")]
+    cases = [("PASS", Problem.NONE, None, "a reusable valve"),
+             ("FAIL", Problem.NONE, None, "a worn valve, in a record from before the part diagnosis"),
              ("FAIL", Problem.COIL_OUT_OF_SPEC, None, "a coil out of its spec"),
              ("MARGINAL", Problem.NONE, None, "near the boundary"),
              ("INVALID", Problem.ABORTED, AbortKind.SILENCE, "the rig stopped answering"),
@@ -58,6 +82,8 @@ def advice_table() -> str:
     rows = ["| verdict | when | what to do |", "|---|---|---|"]
     rows += [f"| {verdict} | {when} | {advice(verdict, problems, kind).words} |"
              for verdict, problems, kind, when in cases]
+    rows += [f"| {verdict} | {when} | {advice(verdict, problems, kind, part).words} |"
+             for verdict, problems, kind, part, when in parts]
     return "\n".join(rows)
 
 

@@ -46,6 +46,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help=f"with --coverage: which populations ({', '.join(POPULATIONS)}; default: all)")
     p.add_argument("--calibration-valves", type=count_up_to(50, " new valves for a baseline"), default=5,
                    metavar="N", help="with --coverage: new valves in each population's baseline (default: 5)")
+    p.add_argument("--parts", action="store_true",
+                   help="instead: which part is at fault, over simulated pumps whose rack binds or drags or whose "
+                        "rack-travel sensor misreads, at several sizes around their limits, beside worn valves on a "
+                        "sound pump: the confusion matrix part by part, each test the bench's whole path in "
+                        "simulated time (docs/diagnosis.md, 'Which part is at fault'); --variants, --seed and "
+                        "--tests-per-case apply")
+    p.add_argument("--tests-per-case", type=count_up_to(500, " tests per case"), default=10, metavar="N",
+                   help="with --parts: tests of each case, each on a valve of its own (default: 10; a test takes "
+                        "about 0.6 s of one core)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)
 
@@ -56,11 +65,16 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.learning.evaluation import evaluate
     from edc_bench.verdict.classifier import ValveClassifier
 
-    if args.coverage and (args.from_history or args.time_to_verdict):
+    studies = [flag for flag, given in (("--coverage", args.coverage), ("--parts", args.parts),
+                                        ("--from-history", args.from_history),
+                                        ("--time-to-verdict", args.time_to_verdict)) if given]
+    if len(studies) > 1:
         from edc_bench.errors import ConfigError
 
-        other = "--from-history" if args.from_history else "--time-to-verdict"
-        raise ConfigError(f"--coverage and {other} are two different studies: give one of them")
+        count = "two" if len(studies) == 2 else str(len(studies))
+        raise ConfigError(f"{' and '.join(studies)} are {count} different studies: give one of them")
+    if args.parts:
+        return _parts(args)
     # a given --model judges every variant; without it each variant's valves are judged by their own model (the
     # station's, or the one the variant names)
     classifier = ValveClassifier(args.model) if args.model is not None else None
@@ -95,6 +109,36 @@ def run(args: argparse.Namespace) -> int:
           file=sys.stderr)
     print(f"INVALID (not converged): {report.invalid}")
     _print_report(report, report.judged, "by physics")
+    return 0
+
+
+def _parts(args: argparse.Namespace) -> int:
+    """Which part is at fault over simulated faulty pumps, per variant: the confusion matrix and its headline."""
+    import os
+
+    from edc_bench.config import load_variant
+    from edc_bench.studies.part_study import part_summary, part_table, run_part_study, summary_lines
+
+    variants = [load_variant(name) for name in args.variants]  # every name checked before minutes of work
+    out = {}
+    for variant in variants:
+        if not args.json:
+            print(f"{variant.name}: {args.tests_per_case} tests a case ...", file=sys.stderr)
+        results = run_part_study(variant, args.tests_per_case, args.seed, workers=min(2, os.cpu_count() or 1))
+        summary = part_summary(results)
+        if args.json:
+            out[variant.name] = {"summary": dataclasses.asdict(summary),
+                                 "cases": [{"case": r.case.name, "kind": r.case.kind, "beyond_limit": r.case.above_limit,
+                                            "tests": r.tests, "parts": r.parts, "verdicts": r.verdicts,
+                                            "told_replace": r.told_replace, "named_right": r.named_right}
+                                           for r in results]}
+            continue
+        print(f"{variant.name}, seed {args.seed}:")
+        print(part_table(results))
+        for line in summary_lines(summary):
+            print(f"  {line}")
+    if args.json:
+        print(json.dumps(out, indent=2))
     return 0
 
 

@@ -276,8 +276,10 @@ def _engineer_text(page: Page, record: Record, folder_name: str, size_pt: float)
     left = [section("Classifier", content.classifier_rows(record)), section("Baseline", content.baseline_rows(record)),
             section("Coil", content.coil_rows(record))]
     right = [section("Test", content.test_details_rows(record)),
-             section("Model fit", content.model_fit_rows(record)),
-             section("Which part is at fault", content.part_rows(record))]
+             section("Model fit", content.model_fit_rows(record))]
+    # the part at fault under the shorter column (a model that does not fit makes the right one long)
+    (left if _sections_height_pt(left) <= _sections_height_pt(right) else right).append(
+        section("Which part is at fault", content.part_rows(record)))
     # the timing under the shorter column: a model that does not fit makes the right one long
     shorter = left if _sections_height_pt(left) <= _sections_height_pt(right) else right
     shorter.append(section("Timing", content.timing_rows(record)))
@@ -356,7 +358,7 @@ def _reasons(page: Page, record: Record, top_pt: float, size_pt: float) -> float
 def _engineer_plots(page: Page, record: Record, trace: dict[str, np.ndarray], top_pt: float) -> None:
     """The convergence of af and a1 and the tracking error, side by side, down to the footer (or, on a page the
     text has filled, a line saying where they are)."""
-    if _plot_room_pt(top_pt) < _MIN_PLOT_PT / 2:
+    if _plot_room_pt(top_pt) < _MIN_PLOT_PT:  # smaller, their axis labels run into their titles
         page.paragraph(MARGIN_PT, top_pt, "No room left on this page for the convergence and tracking-error plots; "
                        "the record's trace.mf4 holds their data.", CONTENT_WIDTH_PT, 7.5, max_lines=2, colour=GREY)
         return

@@ -281,19 +281,17 @@ def test_details_rows(record: Record) -> list[tuple[str, str]]:
 
 
 def part_rows(record: Record) -> list[tuple[str, str]]:
-    """Which part is at fault, and every signature measured against its limit (page 2)."""
+    """What the part diagnosis found beyond its limits, and the signatures within them (page 2; the part at fault
+    itself is in the page's header)."""
     part = record.part_diagnosis
-    rows = [("Part at fault", part_line(record.part))]
     if part.part is Part.NOT_JUDGED:
-        return rows + [("Note", "recorded before the part diagnosis: the valve alone was judged")]
-    rows += [finding_row(f) for f in part.findings if f.beyond]
+        return [("Part at fault", part_line(record.part)),
+                ("Note", "recorded before the part diagnosis: the valve alone was judged")]
+    # the part itself heads the page (its header's rows): here what was measured
+    rows = [finding_row(f) for f in part.findings if f.beyond] or [("Part at fault", part_line(record.part))]
     within = [str(f.signature) for f in part.findings if not f.beyond]
     if within:
         rows.append(("Within limits", ", ".join(within)))
-    profile = part.friction_profile
-    if profile is not None and profile.positions_mm:
-        rows.append(("Swing", f"friction measured over {profile.positions_mm[0]:.1f}-{profile.positions_mm[-1]:.1f} "
-                              "mm (record.json: the profile, what was not identified)"))
     return rows
 
 

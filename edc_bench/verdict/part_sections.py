@@ -7,7 +7,6 @@ A leaf (pydantic only), so the record's schema, the advice and the report read i
 from __future__ import annotations
 
 import enum
-import math
 
 from edc_bench.section import Section
 from edc_bench.verdict.sections import BaselineSummary
@@ -128,7 +127,3 @@ class PartDiagnosis(Section):
 #: What older records say (read back as this: the valve alone was judged).
 VALVE_ONLY = PartDiagnosis(part=Part.NOT_JUDGED)
 
-
-def finite_or_none(value: float | None) -> float | None:
-    """A figure as a record keeps it (JSON has no NaN)."""
-    return value if value is not None and math.isfinite(value) else None

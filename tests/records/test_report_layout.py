@@ -161,6 +161,9 @@ def report_of(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Callable[[st
             "marginal": (lambda: run_simulated_test(variant, "clearance=0.185", 0, identity=Identity(**IDENTITY)),
                          Verdict.MARGINAL),
             "invalid": (aborted, Verdict.INVALID),
+            # a sound valve in a pump whose rack binds (#67): the part at fault on both pages
+            "rack": (lambda: run_simulated_test(variant, "new", 3, rack_fault="bind", identity=Identity(**IDENTITY)),
+                     Verdict.INVALID),
             # the FAIL's test as if the ids had been typed this long (one simulation fewer)
             "long values": (lambda: replace(result_of("fail"), identity=Identity(**LONG_IDENTITY), valve_id=LONG_VALVE_ID),
                             Verdict.FAIL),
@@ -216,7 +219,8 @@ class local_time_zone:  # noqa: N801  (a context manager named as it reads)
 # pass, invalid and the retest in CI's slow pass: the default suite stays under 5 minutes
 @pytest.mark.parametrize("kind", [pytest.param("pass", marks=pytest.mark.slow), "fail", "marginal",
                                   pytest.param("invalid", marks=pytest.mark.slow), "long values",
-                                  pytest.param("retest", marks=pytest.mark.slow)])
+                                  pytest.param("retest", marks=pytest.mark.slow),
+                                  pytest.param("rack", marks=pytest.mark.slow)])
 def test_no_word_leaves_the_page_or_runs_into_another(report_of: Callable[[str], Path], kind: str) -> None:
     words, pages = pdf_words(report_of(kind))
     assert len(words) > 100  # the PDF's text is there to be read (not drawn as paths)
@@ -291,3 +295,20 @@ def test_an_aborted_test_says_it_was_not_judged_and_why(report_of: Callable[[str
 
     flat = " ".join(text.split())
     assert "Why:" not in text and any(words in flat for words in CUSTOMER_WORDS.values()), flat
+
+
+@pytest.mark.slow
+def test_a_pump_whose_rack_binds_names_the_rack_on_both_pages(report_of: Callable[[str], Path]) -> None:
+    """#67: page 1 tells the customer the pump's rack binds and the valve was not judged; page 2 gives the engineer
+    the part, the finding with its figure against its limit, and what was within the limits."""
+    pdf = report_of("rack")
+    first, second = page_text(pdf, 1), page_text(pdf, 2)
+    for shown in ("INVALID", "Not judged: the rack binds at one place: free or repair the rack",
+                  "The pump's control rack binds at one place along its travel.",
+                  "The pump's control rack or its rack-travel sensor is faulty"):
+        assert shown in first, shown
+    assert "replace the valve" not in first.lower()
+    for shown in ("Part at fault rack: rack bind", "Which part is at fault", "Rack bind", "BEYOND", "Within limits"):
+        assert shown in second, shown
+    # a model that does not fit explains at length: the plots where they have their room, else where their data is
+    assert "Estimates of af and a1 during the test" in second or "the record's trace.mf4 holds their data" in second
