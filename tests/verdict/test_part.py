@@ -191,3 +191,16 @@ def test_test_json_and_plain_output_say_the_part(tmp_path: Path, capsys: pytest.
     lines = out.splitlines()
     assert code == 12 and lines[0].startswith("verdict: INVALID, not judged: the rack-travel sensor's zero is off")
     assert "part at fault: rack-travel sensor: sensor zero" in lines
+
+
+@pytest.mark.slow
+def test_evaluate_parts_prints_the_confusion_matrix_and_its_json(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_cli(["evaluate", "--parts", "--variants", "p-edc-default", "--tests-per-case", "1",
+                            "--json"], capsys)
+    study = json.loads(out)["p-edc-default"]
+    assert code == 0 and len(study["cases"]) > 25
+    by_case = {c["case"]: c for c in study["cases"]}
+    assert by_case["bent rack"]["parts"] == {"rack": 1} and by_case["new valve"]["parts"] == {"none": 1}
+    assert study["summary"]["sound_valves_told_replace"] == 0
+    code, out, _ = run_cli(["evaluate", "--parts", "--variants", "p-edc-default", "--tests-per-case", "1"], capsys)
+    assert code == 0 and "| bent rack | rack, new valve | yes | 1 | 0 | 0 | 1 | 0 |" in out
