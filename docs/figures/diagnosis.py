@@ -447,16 +447,10 @@ PART_STUDY_SEED = 4100
 def parts_study() -> dict[str, Any]:
     """``edc-bench evaluate --parts`` on each of :data:`PART_STUDY_VARIANTS`: every case's counts and the headline."""
     from edc_bench.config import load_variant
-    from edc_bench.studies.part_study import part_summary, run_part_study
+    from edc_bench.studies.part_study import run_part_study, study_json
 
-    out: dict[str, Any] = {}
-    for name in PART_STUDY_VARIANTS:
-        results = run_part_study(load_variant(name), PART_STUDY_TESTS, PART_STUDY_SEED)
-        out[name] = {"summary": dataclasses.asdict(part_summary(results)),
-                     "cases": [{"case": r.case.name, "kind": r.case.kind, "beyond_limit": r.case.above_limit,
-                                "tests": r.tests, "parts": r.parts, "verdicts": r.verdicts,
-                                "told_replace": r.told_replace, "named_right": r.named_right} for r in results]}
-    return out
+    return {name: study_json(run_part_study(load_variant(name), PART_STUDY_TESTS, PART_STUDY_SEED))
+            for name in PART_STUDY_VARIANTS}
 
 
 def parts_table(variant: str) -> str:

@@ -117,7 +117,7 @@ def _parts(args: argparse.Namespace) -> int:
     import os
 
     from edc_bench.config import load_variant
-    from edc_bench.studies.part_study import part_summary, part_table, run_part_study, summary_lines
+    from edc_bench.studies.part_study import part_summary, part_table, run_part_study, study_json, summary_lines
 
     variants = [load_variant(name) for name in args.variants]  # every name checked before minutes of work
     out = {}
@@ -127,11 +127,7 @@ def _parts(args: argparse.Namespace) -> int:
         results = run_part_study(variant, args.tests_per_case, args.seed, workers=min(2, os.cpu_count() or 1))
         summary = part_summary(results)
         if args.json:
-            out[variant.name] = {"summary": dataclasses.asdict(summary),
-                                 "cases": [{"case": r.case.name, "kind": r.case.kind, "beyond_limit": r.case.above_limit,
-                                            "tests": r.tests, "parts": r.parts, "verdicts": r.verdicts,
-                                            "told_replace": r.told_replace, "named_right": r.named_right}
-                                           for r in results]}
+            out[variant.name] = study_json(results)
             continue
         print(f"{variant.name}, seed {args.seed}:")
         print(part_table(results))

@@ -32,7 +32,8 @@ def population_run(variant: Variant, tests: int, seed: int) -> tuple[list[Baseli
         figures[4] = fit.systematic_rms_v
     motion = {key: result.parameters[:, PARAMETER_NAMES.index(MOTION_PARAMETERS[key])] for key in MOTION_KEYS}
     kept = [BaselineTest(float(af[n]), float(a1[n]), valve_id=f"{valves[n].label} (seed {seed})",
-                         source=BaselineSource.SIMULATED_POPULATION, **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))),
+                         source=BaselineSource.SIMULATED_POPULATION,
+                         **_known(dict(zip(UNCERTAINTY_KEYS, figures[:, n]))),
                          **_known({key: float(values[n]) for key, values in motion.items()}))
             for n in range(tests) if result.trusted[n]]
     return kept, result

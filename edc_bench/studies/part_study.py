@@ -206,6 +206,14 @@ PART_COLUMNS = ("none", "valve or rack", "rack", "rack-travel sensor")
 VERDICT_COLUMNS = ("PASS", "MARGINAL", "FAIL", "INVALID")
 
 
+def study_json(results: Sequence[CaseResult]) -> dict[str, object]:
+    """A study as ``evaluate --parts --json`` prints it and the docs store it: the headline and every case."""
+    return {"summary": dataclasses.asdict(part_summary(results)),
+            "cases": [{"case": r.case.name, "kind": r.case.kind, "beyond_limit": r.case.above_limit, "tests": r.tests,
+                       "parts": r.parts, "verdicts": r.verdicts, "told_replace": r.told_replace,
+                       "named_right": r.named_right} for r in results]}
+
+
 def part_table(results: Sequence[CaseResult]) -> str:
     """The confusion matrix as a Markdown table: per case, the parts named, the verdicts, "replace the valve"."""
     head = ["case", "what it is", "beyond its limit", "tests", *(f"named: {p}" for p in PART_COLUMNS),

@@ -114,8 +114,8 @@ def verdict_of(problems: Problem, classified: Verdict | None) -> Verdict:
     A test the trust rule does not trust is INVALID; else a coil out of spec fails the valve whatever its wear (it
     is replaced or repaired first; the coil's spec needs no baseline); else a pump whose rack binds or whose
     rack-travel sensor misreads is INVALID (the valve's figures are biased: the part diagnosis); else a variant
-    without a measured baseline is INVALID; else the classifier's verdict stands, and a trustworthy test that was not classified (baseline
-    calibration) is UNCLASSIFIED.
+    without a measured baseline is INVALID; else the classifier's verdict stands, and a trustworthy test that was
+    not classified (baseline calibration) is UNCLASSIFIED.
 
     The one place the rule is written: :func:`judge_run` decides with it, and
     :mod:`edc_bench.records.consistency` re-decides a record's verdict with it from the problems and the

@@ -31,10 +31,12 @@ def finding_words(finding: PartFinding) -> str:
         return (f"the rack-travel sensor reads {x:+.1%} of the rack's travel: a2 and a0 moved together against the "
                 f"new-valve baseline (limit +/-{limit:.0%})")
     if s is Signature.SENSOR_LINEARITY:
-        return (f"the rack-travel sensor reads {x:+.2f} mm off in the swing but not at rest (the preload term b moved): "
-                f"a sensor that is not linear, or a return spring whose preload differs (limit +/-{limit:.2g} mm)")
+        return (f"the rack-travel sensor reads {x:+.2f} mm off in the swing but not at rest (the preload term b "
+                f"moved): a sensor that is not linear, or a return spring whose preload differs (limit "
+                f"+/-{limit:.2g} mm)")
     if s is Signature.SPRING_RATE:
-        return f"the spring rate a0 differs {x:+.1%} from the new-valve baseline's (the rack's mass did not: the spring)"
+        return (f"the spring rate a0 differs {x:+.1%} from the new-valve baseline's (the rack's mass did not: the "
+                "spring)")
     if s is Signature.RACK_BIND:
         at = "" if finding.at_mm is None else f" near {finding.at_mm:.1f} mm"
         return (f"the rack's friction rises{at} by {x:.0%} of a new valve's friction above the rest of the stroke "

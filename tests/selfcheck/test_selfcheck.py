@@ -184,7 +184,8 @@ def test_a_drift_is_parsed_and_bad_ones_are_refused_in_words() -> None:
             parse_rig_drift(text)
 
 
-@pytest.mark.parametrize(("sensor", "said"), [("spikes", "spikes"), ("noise_sd_mm=0.02", "noise")])
+@pytest.mark.parametrize(("sensor", "said"), [("spikes", "spikes"),
+                                               pytest.param("noise_sd_mm=0.02", "noise", marks=pytest.mark.slow)])
 def test_an_lvdt_whose_signal_spikes_or_is_noisy_is_named_not_the_reference_valve(sensor: str, said: str) -> None:
     """#67: the self-check judges the LVDT's own signal by the part diagnosis's signatures (a pump's test and the
     self-check say the same): noise and spikes were blamed on the reference valve."""
