@@ -242,6 +242,14 @@ def _residual_weight(setup: FitSetup) -> float:
     return float(np.sqrt(impulse @ impulse))
 
 
+def _greatest_bend_mm(variant: Variant) -> float:
+    """The most the rack's step can change from one tick to the next (mm): its greatest acceleration times T^2."""
+    rack, coil = variant.rack, variant.coil
+    force_n = coil.force_constant_n_per_a * variant.rig.over_current_a + rack.spring_n_per_mm * rack.stroke_mm \
+        + rack.preload_n
+    return force_n / rack.mass_kg * 1e3 * variant.controller.period_s ** 2  # mm/s^2 times s^2
+
+
 def reading_statistics(variant: Variant, trace: dict[str, np.ndarray]) -> ReadingStatistics:
     """The rest reading, the noise, the spikes and the dropouts of the rack-travel sensor's reading in ``trace``."""
     from edc_bench.identification.period_fit import _smooth, _smoothing_kernels
@@ -266,7 +274,14 @@ def reading_statistics(variant: Variant, trace: dict[str, np.ndarray]) -> Readin
     step = np.diff(filled)
     noise_guess = 1.4826 * float(np.median(np.abs(step - np.median(step)))) / math.sqrt(2.0)
     jump_mm = max(JUMP_MM, JUMP_NOISE_FACTOR * noise_guess)
-    jumps = np.flatnonzero(np.abs(step) > jump_mm)
+    # and beyond what the rack itself can do in a tick: its greatest acceleration (the solenoid at the rig's
+    # over-current trip against the spring at full stroke) changes its step by no more than a T^2 (an unstable loop
+    # drives the rack hard; its own motion is no spike)
+    bend = np.abs(np.diff(filled, 2))
+    bent = np.zeros(len(step), dtype=bool)
+    bent[:-1] |= bend > _greatest_bend_mm(variant)
+    bent[1:] |= bend > _greatest_bend_mm(variant)
+    jumps = np.flatnonzero((np.abs(step) > jump_mm) & bent)
     spikes = dropouts = 0
     bad = np.zeros(len(x), dtype=bool)
     k = 0

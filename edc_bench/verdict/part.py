@@ -69,8 +69,10 @@ def _motion_ratio(parameters: Mapping[str, ParameterEstimate], baseline: Baselin
     return estimate.value / mean, abs(sd / mean)
 
 
-def _reading_findings(limits: PartLimits, reading: ReadingStatistics) -> list[PartFinding]:
-    """The sensor's own statistics (its dropouts, spikes, noise) and its reading at rest, against their limits."""
+def _reading_findings(limits: PartLimits, reading: ReadingStatistics, fit_trusted: bool) -> list[PartFinding]:
+    """The sensor's own statistics (its dropouts, spikes, noise) and its reading at rest, against their limits; the
+    noise (about the smoothed trajectory) only where the rack moved as the test meant it to (an unstable loop's own
+    shaking is no sensor's noise)."""
     noise = reading.noise_ratio
     found = [
         PartFinding(signature=Signature.SENSOR_DROPOUTS, part=Part.SENSOR, figure=reading.dropouts,
@@ -78,7 +80,7 @@ def _reading_findings(limits: PartLimits, reading: ReadingStatistics) -> list[Pa
         PartFinding(signature=Signature.SENSOR_SPIKES, part=Part.SENSOR, figure=reading.spikes,
                     limit=limits.sensor_spikes, beyond=reading.spikes >= limits.sensor_spikes),
         PartFinding(signature=Signature.SENSOR_NOISE, part=Part.SENSOR, figure=noise, limit=limits.sensor_noise_ratio,
-                    unit="x", beyond=math.isfinite(noise) and noise > limits.sensor_noise_ratio),
+                    unit="x", beyond=fit_trusted and math.isfinite(noise) and noise > limits.sensor_noise_ratio),
     ]
     if math.isfinite(reading.rest_mm):
         found.append(PartFinding(signature=Signature.SENSOR_ZERO, part=Part.SENSOR, figure=reading.rest_mm,
@@ -177,12 +179,12 @@ def diagnose_parts(variant: Variant, signatures: PumpSignatures, parameters: Map
         af and a1 over the baseline's (None: no baseline to compare with).
     fit_trusted : bool, optional
         The test's fit ran its periods without the bench's own faults (no stalls, missing replies or abort): the
-        figures fitted from it (the friction profile, a2, a0, b) are judged only then; the reading's statistics
-        always.
+        figures fitted from it (the friction profile, a2, a0, b) and the reading's noise are judged only then; its
+        spikes, dropouts and rest reading always.
     """
     limits = variant.diagnosis.parts
     reading = signatures.reading
-    findings = _reading_findings(limits, reading)
+    findings = _reading_findings(limits, reading, fit_trusted)
     reading_sound = not any(f.beyond for f in findings if f.signature is not Signature.SENSOR_ZERO)
     profile = signatures.friction if fit_trusted else None
     swing_mm = sum(t.amplitude_mm for t in variant.excitation.active_tones)

@@ -92,12 +92,12 @@ def test_a_shift_as_a_technician_works_it(tmp_path: Path) -> None:
 
     (worn, marginal, asked, switched, again), app = asyncio.run(shift())
     assert "valve worn was judged in this shift already (FAIL at " in asked and "scan it again to take it" in asked
-    assert "FAIL" in worn and "WORN: REPLACE THE VALVE" in worn and "report ready (F5 prints it)" in worn
+    assert "FAIL" in worn and "WORN VALVE OR A DRAGGING RACK" in worn and "report ready (F5 prints it)" in worn
     assert "FAIL  (MARGINAL, retest MARGINAL)" in marginal and "NEAR THE LIMIT TWICE: REPLACE THE VALVE" in marginal
     assert "retest: MARGINAL" in marginal and "retest.decide.MARGINAL = FAIL" in marginal
     assert "near the limit: retest" not in marginal  # one decision on screen: not the first test's own line
     assert "pump type switched to p-edc-long" in switched and "valve worn, tested before" in switched
-    assert "p-edc-long (PE-EDC-0002)" in again and "WORN: REPLACE THE VALVE" in again
+    assert "p-edc-long (PE-EDC-0002)" in again and "WORN VALVE OR A DRAGGING RACK" in again
     # what was kept: the operator for the next session, every test with its report in the history
     assert remembered_operator() == "Anna Schmidt"
     with HistoryStore(db) as store:
@@ -190,12 +190,12 @@ def test_the_session_checks_the_rig_at_the_start_and_holds_the_tests_while_it_is
 
     asked, seen, app = asyncio.run(shift(None))
     assert "mount the reference valve REF-1, then press Enter" in asked and "start of the shift" in asked
-    assert "rig self-check: GO" in seen and "WORN: REPLACE THE VALVE" in seen
+    assert "rig self-check: GO" in seen and "WORN VALVE OR A DRAGGING RACK" in seen
     assert [c.go for c in app.shift.rig_checks] == [True]
 
     asked, seen, app = asyncio.run(shift("current_gain=1.03"))
     assert "rig self-check: NO-GO" in seen and "current" in seen
-    assert "WORN: REPLACE THE VALVE" not in seen  # no valve is judged on a drifted rig
+    assert "WORN VALVE OR A DRAGGING RACK" not in seen  # no valve is judged on a drifted rig
     assert "mount the reference valve REF-1" in seen  # asked for again before the valve's test
     assert [c.go for c in app.shift.rig_checks] == [False]
     with HistoryStore(db) as store:
@@ -350,7 +350,7 @@ def test_the_verdict_is_shown_before_the_report_is_drawn_and_the_screen_says_whe
 
     shown, f5_early, ending, _ = asyncio.run(session())
     assert "the shift is ending: the last report is being finished" in ending
-    assert "WORN: REPLACE THE VALVE" in shown and "report being drawn" in shown
+    assert "WORN VALVE OR A DRAGGING RACK" in shown and "report being drawn" in shown
     assert "the report is being drawn: press F5 again when it is ready" in f5_early
     assert "finishing the last report: the shift ends then" in ending
     (record,) = [p for p in out.iterdir() if p.is_dir()]

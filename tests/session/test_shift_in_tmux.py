@@ -129,7 +129,7 @@ def test_a_shift_of_ten_valves_records_exactly_what_was_scanned_and_one_decision
                            "test it")
         term.keys("Enter")
         failed = shift.wait_for_tests(2)
-        assert "WORN: REPLACE THE VALVE" in failed
+        assert "WORN VALVE OR A DRAGGING RACK" in failed
 
         # 3. a MARGINAL retested MARGINAL: one decision, FAIL
         pair = shift.valve(PAIR, "PS-3", tests=2)
