@@ -277,10 +277,11 @@ def reading_statistics(variant: Variant, trace: dict[str, np.ndarray]) -> Readin
     # and beyond what the rack itself can do in a tick: its greatest acceleration (the solenoid at the rig's
     # over-current trip against the spring at full stroke) changes its step by no more than a T^2 (an unstable loop
     # drives the rack hard; its own motion is no spike)
+    greatest_bend_mm = _greatest_bend_mm(variant)
     bend = np.abs(np.diff(filled, 2))
     bent = np.zeros(len(step), dtype=bool)
-    bent[:-1] |= bend > _greatest_bend_mm(variant)
-    bent[1:] |= bend > _greatest_bend_mm(variant)
+    bent[:-1] |= bend > greatest_bend_mm
+    bent[1:] |= bend > greatest_bend_mm
     jumps = np.flatnonzero((np.abs(step) > jump_mm) & bent)
     spikes = dropouts = 0
     bad = np.zeros(len(x), dtype=bool)
@@ -289,7 +290,9 @@ def reading_statistics(variant: Variant, trace: dict[str, np.ndarray]) -> Readin
         start = jumps[k]
         back = [j for j in jumps[k + 1:k + 40] if np.sign(step[j]) != np.sign(step[start]) and j - start < 40]
         if not back:
-            if len(x) - start <= 40:  # the test ended while the reading was away (a dropout the rig tripped on)
+            # the test ended while the reading was away (a dropout the rig tripped on): a fall far beyond what a
+            # rack stopped at its end stop does in a tick
+            if len(x) - start <= 40 and abs(step[start]) > 3.0 * greatest_bend_mm:
                 dropouts += 1
                 bad[start + 1:] = True
                 break
