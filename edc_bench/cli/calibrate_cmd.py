@@ -292,7 +292,13 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: Bas
     af, a1 = result.features.af, result.features.a1
     print(f"{head}: af {af:.5f} V, a1 {a1:.6f} V s/mm (record {record})", file=sys.stderr)
     return [BaselineTest(af, a1, result.valve_id, source, result.started_at, str(record.resolve()),
-                         **_uncertainty(result.identification), **_motion(result.judgement))]
+                         **kept_figures(result))]
+
+
+def kept_figures(result: Any) -> dict[str, float | None]:
+    """What a baseline keeps of one new-valve test besides af and a1: its standard errors, core shifts and repeating
+    residual, and its a2, a0 and b (:class:`~edc_bench.verdict.baseline.BaselineTest`'s optional fields)."""
+    return {**_uncertainty(result.identification), **_motion(result.judgement)}
 
 
 def _motion(judgement: Any) -> dict[str, float | None]:

@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from edc_bench.bench import BenchOptions, BenchResult, run_on_simulated_rig
+from edc_bench.cli.calibrate_cmd import kept_figures
 from edc_bench.config import Variant, load_variant
 from edc_bench.config.loader import variant_file
 from edc_bench.physics.valve import ValveSpec
@@ -462,35 +463,6 @@ def write_variant(folder: Path) -> Path:
     return path
 
 
-def _uncertainty(result: BenchResult) -> dict[str, float | None]:
-    """The test's standard errors, core shifts and repeating residual, as ``edc-bench calibrate`` keeps them."""
-    out: dict[str, float | None] = {}
-    ident = result.identification
-    if ident is None:
-        return out
-    shifts = ident.model_fit.core_shift_rel if ident.model_fit is not None else None
-    for name in ("af", "a1"):
-        value, std = ident.final.get(name), ident.std.get(name)
-        se = abs(std / value) if value and std is not None else math.nan
-        out[f"{name}_se_rel"] = se if math.isfinite(se) else None
-        shift = (shifts or {}).get(name)
-        out[f"{name}_core_shift_rel"] = shift if shift is not None and math.isfinite(shift) else None
-    systematic = ident.model_fit.systematic_rms_v if ident.model_fit is not None else math.nan
-    out["systematic_rms_v"] = systematic if math.isfinite(systematic) else None
-    return out
-
-
-def _motion(result: BenchResult) -> dict[str, float | None]:
-    """The test's a2, a0 and b (V s^2/mm, V/mm, V)."""
-    out: dict[str, float | None] = {}
-    for key, name in (("a2_v_s2_per_mm", "a2"), ("a0_v_per_mm", "a0"), ("b_v", "b")):
-        estimate = result.judgement.parameters.get(name)
-        good = estimate is not None and estimate.estimated and estimate.value is not None \
-            and math.isfinite(estimate.value)
-        out[key] = float(estimate.value) if good else None
-    return out
-
-
 def calibrate(variant: Variant, tests: int = 5, seed: int = 9000) -> tuple[Baseline, Path]:
     """Run ``tests`` new valves (classify off) and write the station's baseline of ``variant`` from them.
 
@@ -521,8 +493,7 @@ def calibrate(variant: Variant, tests: int = 5, seed: int = 9000) -> tuple[Basel
                   file=sys.stderr)
             continue
         kept.append(BaselineTest(result.features.af, result.features.a1, result.valve_id,
-                                 BaselineSource.SIMULATED_RIG, result.started_at, "", **_uncertainty(result),
-                                 **_motion(result)))
+                                 BaselineSource.SIMULATED_RIG, result.started_at, "", **kept_figures(result)))
     if len(kept) < 2:
         raise RuntimeError(f"only {len(kept)} of {tests} calibration tests converged")
     baseline = baseline_from_tests(kept, station="second plant", command="tests.parts.second_plant")
