@@ -122,8 +122,21 @@ def _mass_ratio(parameters: Mapping[str, ParameterEstimate], baseline: Baseline,
     return (test_v - tau_s * a1.value) / base_v, a2[1] * held[0] / base_v
 
 
+def _spring_line(a0_v_per_mm: float, b_v: float, slope_per_mm: float, mid_mm: float) -> tuple[float, float]:
+    """The spring's line (a0, b) with the solenoid's pull variation taken out of the fit's.
+
+    A pull k_i (1 + s Delta) (Delta = x - x_m) divides the spring's part a0 x + b by 1 + s Delta: its value at
+    mid-stroke C = a0 x_m + b stays, its slope becomes a0 - s C (the period fit's a0), and its curve is the fit's
+    Delta^2 term. With s 0 the fit's a0 and b are the line's.
+    """
+    at_mid_v = b_v + a0_v_per_mm * mid_mm
+    a0_line = a0_v_per_mm + slope_per_mm * at_mid_v
+    return a0_line, at_mid_v - a0_line * mid_mm
+
+
 def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstimate], baseline: Baseline | None,
-                     rest_mm: float, tau_s: float) -> list[PartFinding]:
+                     rest_mm: float, tau_s: float, slope_per_mm: float = 0.0,
+                     mid_mm: float = 0.0) -> list[PartFinding]:
     """The sensor's gain and linearity from a2, a0 and b against the baseline's.
 
     A reading g times too long makes a2 and a0 (volts per millimetre read) 1/g of the baseline's and leaves b (volts)
@@ -131,6 +144,13 @@ def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstim
     rig's current sensor, the coil referred wrongly: what the rig self-check finds) all three move by one factor:
     then b is taken against a0's own ratio, which cancels it, and the gain is not judged. A spring's tolerance moves
     a0 alone (the rack's mass, a2, does not change from pump to pump).
+
+    A solenoid whose pull varies along the stroke by s per mm (``slope_per_mm``, from the fit's Delta^2 term, per
+    millimetre read) mixes the spring's line into the fit's a0 and b; they are taken apart first
+    (:func:`_spring_line`). A reading g times long, o off at rest, then swings the rack about a middle
+    ((g - 1) x_m + o) / g short of x_m, where the pull is kappa = 1 - s ((g - 1) x_m + o) / g of the baseline's:
+    every figure is 1/kappa of what the gain alone makes it, and the slope read is s / (g kappa), so the
+    baseline's s is the test's over a0's ratio.
     """
     a2, a0, b = (_motion_ratio(parameters, baseline, key, name) for key, name in
                  (("a2_v_s2_per_mm", "a2"), ("a0_v_per_mm", "a0"), ("b_v", "b")))
@@ -139,21 +159,39 @@ def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstim
     a2 = _mass_ratio(parameters, baseline, tau_s, a2)
     if a2 is None:
         return []
+    held_b, held_a0 = baseline.motion("b_v"), baseline.motion("a0_v_per_mm")
+    assert held_b is not None and held_a0 is not None  # _motion_ratio found them
+    base_slope = slope_per_mm
+    if slope_per_mm != 0.0:
+        test_line = _spring_line(parameters["a0"].value, parameters["b"].value, slope_per_mm, mid_mm)
+        for _ in range(3):  # the baseline's slope is the test's over a0's ratio (a2's a misfit moves): a fixed point
+            base_line = _spring_line(held_a0[0], held_b[0], base_slope, mid_mm)
+            base_slope = slope_per_mm * base_line[0] / test_line[0]
+        a0 = (test_line[0] / base_line[0], a0[1])
+        b = (test_line[1] / base_line[1], b[1])
+        held_a0, held_b = (base_line[0],) + held_a0[1:], (base_line[1],) + held_b[1:]
     found = []
     agree = abs(a2[0] - a0[0]) <= max(limits.sensor_gain_rel, SIGNIFICANCE * math.hypot(a2[1], a0[1]))
-    gain = 2.0 / (a2[0] + a0[0])  # the reading's scale: the mean of 1 / (a2 ratio) and 1 / (a0 ratio), to first order
+    # the reading's scale: 1/g kappa is the mean of the a2 and a0 ratios, to first order; kappa from the same g
+    shrink = 2.0 / (a2[0] + a0[0])
+    off_mm = rest_mm if math.isfinite(rest_mm) else 0.0
+    gain = (shrink - base_slope * (mid_mm - off_mm)) / (1.0 - base_slope * mid_mm)
+    kappa = 1.0 - base_slope * ((gain - 1.0) * mid_mm + off_mm) / gain
     tolerance = max(limits.sensor_gain_rel, SIGNIFICANCE * a2[1])
-    b_stayed = abs(b[0] - 1.0) <= 0.5 * abs(gain - 1.0)
+    b_stayed = abs(b[0] * kappa - 1.0) <= 0.5 * abs(gain - 1.0)
     gain_beyond = agree and b_stayed and abs(gain - 1.0) > tolerance
     found.append(PartFinding(signature=Signature.SENSOR_GAIN, part=Part.SENSOR, figure=gain - 1.0,
                              limit=limits.sensor_gain_rel, beyond=gain_beyond))
     if not agree and abs(a0[0] / a2[0] - 1.0) > tolerance:
         found.append(PartFinding(signature=Signature.SPRING_RATE, part=Part.NONE, figure=a0[0] / a2[0] - 1.0,
                                  limit=tolerance, beyond=True))
-    held_b, held_a0 = baseline.motion("b_v"), baseline.motion("a0_v_per_mm")
-    if not gain_beyond and held_b is not None and held_a0 is not None and math.isfinite(rest_mm):
-        # b's move beyond a0's as an offset of the reading in the swing (the volts' own factor cancels)
-        offset_mm = (1.0 - b[0] / a0[0]) * held_b[0] / held_a0[0]
+    if not gain_beyond and math.isfinite(rest_mm):
+        # b's move beyond a0's as an offset o of the reading in the swing: b over a0 ratios g - a0 o / b (kappa
+        # cancels). Whether a0 moved by a gain g within its limit or by the volts' own factor (g 1: it cancels) one
+        # test cannot tell: the offset is the one of the two nearer the rest reading. Where a2 does not move with
+        # a0, g is not known (a2 is the figure a misfit moves most: a small bind near a reversal, 7 %)
+        offset_mm = min(((g - b[0] / a0[0]) * held_b[0] / held_a0[0] for g in ((1.0, gain) if agree else (1.0,))),
+                        key=lambda o: abs(o - rest_mm))
         limit = max(limits.sensor_linearity_mm, SIGNIFICANCE * math.hypot(b[1], a0[1]) * held_b[0] / held_a0[0])
         found.append(PartFinding(signature=Signature.SENSOR_LINEARITY, part=Part.SENSOR, figure=offset_mm - rest_mm,
                                  limit=limit, unit="mm", beyond=abs(offset_mm - rest_mm) > limit))
@@ -198,7 +236,9 @@ def diagnose_parts(variant: Variant, signatures: PumpSignatures, parameters: Map
     # parameter) biases them
     if fit_trusted and reading_sound and not any(f.beyond for f in findings):
         tau_s = variant.coil.inductance_mh * 1e-3 / variant.coil.resistance_ohm  # the reference coil's L / R
-        findings += _motion_findings(limits, parameters, baseline, reading.rest_mm, tau_s)
+        slope = signatures.friction.gain_slope_per_mm if signatures.friction is not None else 0.0
+        findings += _motion_findings(limits, parameters, baseline, reading.rest_mm, tau_s, slope,
+                                     variant.rack.mid_stroke_mm)
     beyond = [f for f in findings if f.beyond and f.part in (Part.SENSOR, Part.RACK)]
     if any(f.part is Part.SENSOR for f in beyond):
         part = Part.SENSOR
