@@ -39,6 +39,7 @@ from edc_bench.records.schema import Record
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.judgement import Judgement, judge_run
+from edc_bench.verdict.part_sections import Signature
 from edc_bench.verdict.verdicts import Verdict
 
 #: The command carries the drive in mV; a replayed drive further off than this is a different run.
@@ -168,6 +169,9 @@ CORE_ROWS_SCHEMA = 6
 #: The first record schema whose uncertainties carry the held gain terms' error and whose interval the residual's
 #: repeating part (docs/method.md, section 7): an older record's std are smaller, its early stop judged a narrower box.
 RESIDUAL_SCHEMA = 7
+#: The first record schema whose part diagnosis takes the solenoid's pull along the stroke out of a sensor's gain and
+#: tells a sensor that reads unevenly from a rack that binds (#67): a schema 11 record's part may differ.
+PART_METHOD_SCHEMA = 12
 
 
 def _same(a: Any, b: Any, rel_tol: float = 0.0) -> bool:
@@ -299,6 +303,12 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            "leaves the rows a stall touched out of the fit and judges what remains, so the verdict "
                            "may differ from the recorded one")
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
+    part_moved = any(d.startswith(("part at fault:", *(f"{s}:" for s in Signature))) for d in differences)
+    if PART_SCHEMA <= record.schema_version < PART_METHOD_SCHEMA and part_moved:
+        notes_after.append(f"recorded by an edc-bench whose part diagnosis read a sensor's gain without the "
+                           f"solenoid's pull along the stroke and had no test for a sensor that reads unevenly "
+                           f"(record schema {record.schema_version}); today's has both (docs/diagnosis.md, "
+                           "\"Which part is at fault\"), so the part's figures, and the part, may differ")
     if altered:
         differences.insert(0, f"changed after the test (its integrity manifest): {', '.join(altered)}")
     return ReplayReport(judged, run, differences, compared=True, notes=notes_after)

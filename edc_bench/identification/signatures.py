@@ -80,6 +80,16 @@ class FrictionProfile:
         The solenoid's pull variation the profile was put right by (per mm), from the fit's Delta^2 term.
     periods : int
         Excitation periods it rests on.
+    bend_v : float
+        The largest bend at one inner position of what depends on the position alike in both directions, beyond the
+        spring's line and the solenoid's curve (V; 0: none): a sensor that reads unevenly there reads the spring's
+        force where the rack is not.
+    bend_mm : float
+        That bend in millimetres read (over the fit's spring rate a0): how far the reading is off a straight line.
+    bend_at_mm : float
+        Where it is.
+    bend_std_mm : float
+        Its standard error (from the spread between excitation periods).
     """
 
     positions_mm: tuple[float, ...]
@@ -93,6 +103,10 @@ class FrictionProfile:
     peak_std_v: float
     gain_slope_per_mm: float
     periods: int
+    bend_v: float = 0.0
+    bend_mm: float = 0.0
+    bend_at_mm: float = math.nan
+    bend_std_mm: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -201,6 +215,17 @@ def friction_profile(variant: Variant, trace: dict[str, np.ndarray]) -> Friction
     theta = np.linalg.lstsq(A[rows_ok], y[rows_ok], rcond=None)[0]
     friction = theta[-PROFILE_POSITIONS:] * correction
     spread = np.array(per_block)[:, -PROFILE_POSITIONS:] * correction
+    # the inner hats' bend beyond the solenoid's curve d2 Delta^2 (which they hold too: d2 is not among this fit's
+    # terms), as the hats hold a curve: its values at the knots less the chord through the end knots
+    curve = d2 * (knots - setup.mid_mm) ** 2
+    curve = (curve - np.interp(knots, knots[[0, -1]], curve[[0, -1]]))[1:-1]
+    inner = slice(len(moving), len(moving) + PROFILE_POSITIONS - 2)
+    bends = theta[inner] - curve
+    bend_j = int(np.argmax(np.abs(bends)))
+    bend_sd_v = float(np.std(np.array(per_block)[:, inner][:, bend_j], ddof=1)) / math.sqrt(len(per_block))
+    # the hats take the spring's force less what it would be on the line: -a0 times the reading's own bend
+    bend_mm = -float(bends[bend_j]) / a0 if a0 > 0 else 0.0
+    bend_std_mm = bend_sd_v / a0 if a0 > 0 else math.inf
     periods = len(per_block)
     # the spread between periods pooled over the positions (each period's profile about its own mean level)
     deviations = spread - spread.mean(axis=0)
@@ -216,7 +241,9 @@ def friction_profile(variant: Variant, trace: dict[str, np.ndarray]) -> Friction
         positions_mm=tuple(float(k) for k in knots), friction_v=tuple(float(f) for f in friction),
         std_v=tuple(float(s) for s in std), mean_v=float(friction.mean()), slope_v=slope_per_mm * span,
         slope_std_v=slope_se * span, peak_v=float(friction[peak] - line[peak]), peak_at_mm=float(knots[peak]),
-        peak_std_v=float(math.hypot(std[0], line_se)), gain_slope_per_mm=float(gain_slope), periods=periods)
+        peak_std_v=float(math.hypot(std[0], line_se)), gain_slope_per_mm=float(gain_slope), periods=periods,
+        bend_v=float(abs(bends[bend_j])), bend_mm=bend_mm, bend_at_mm=float(knots[bend_j + 1]),
+        bend_std_mm=float(bend_std_mm))
 
 
 def _line(knots: np.ndarray, friction: np.ndarray, fit: np.ndarray, std_v: float = 0.0,

@@ -98,6 +98,10 @@ class SensorFault:
         Zero shift of the reading (mm).
     bow_mm : float
         Non-linearity: the reading's bow at mid-stroke, zero at both ends (mm).
+    step_mm, step_at_mm, step_width_mm : float
+        Non-linearity over a few millimetres: the reading rises by ``step_mm`` more than the rack does about
+        ``step_at_mm`` (a tanh step of half width ``step_width_mm``; the reading at rest unchanged), as a worn or
+        contaminated track of the sensor reads.
     noise_sd_mm : float
         Noise added to every reading (mm, standard deviation).
     dropouts_per_s, dropout_ms : float
@@ -109,6 +113,9 @@ class SensorFault:
     gain: float = 1.0
     offset_mm: float = 0.0
     bow_mm: float = 0.0
+    step_mm: float = 0.0
+    step_at_mm: float = 12.0
+    step_width_mm: float = 1.0
     noise_sd_mm: float = 0.0
     dropouts_per_s: float = 0.0
     dropout_ms: float = 3.0
@@ -118,7 +125,8 @@ class SensorFault:
     @property
     def none(self) -> bool:
         """True for a sound sensor."""
-        return self.gain == 1.0 and self.offset_mm == 0.0 and self.bow_mm == 0.0 and self.noise_sd_mm == 0.0 \
+        return self.gain == 1.0 and self.offset_mm == 0.0 and self.bow_mm == 0.0 and self.step_mm == 0.0 \
+            and self.noise_sd_mm == 0.0 \
             and self.dropouts_per_s == 0.0 and self.spikes_per_s == 0.0
 
     def spec(self) -> str:
@@ -162,6 +170,8 @@ class FaultySensorReading:
             return 0.0
         u = x_mm / self._stroke_mm
         value = f.gain * x_mm + f.offset_mm + f.bow_mm * 4.0 * u * (1.0 - u)
+        if f.step_mm != 0.0:
+            value += 0.5 * f.step_mm * (1.0 + math.tanh((x_mm - f.step_at_mm) / f.step_width_mm))
         if f.noise_sd_mm > 0:
             value += f.noise_sd_mm * float(self._rng.standard_normal())
         if t_s >= self._next_spike_s:
@@ -184,6 +194,9 @@ SENSOR_KEYS: dict[str, tuple[str, float, float]] = {
     "gain": ("the reading's scale, 1 for none", 0.5, 1.5),
     "offset_mm": ("the reading's zero shift, mm", -2.0, 2.0),
     "bow_mm": ("the reading's bow at mid-stroke, mm", -2.0, 2.0),
+    "step_mm": ("the reading's local step, mm", -2.0, 2.0),
+    "step_at_mm": ("where the step is, mm from the stop", 0.0, 30.0),
+    "step_width_mm": ("the step's half width, mm", 0.2, 10.0),
     "noise_sd_mm": ("noise added to each reading, mm", 0.0, 0.5),
     "dropouts_per_s": ("contact dropouts a second", 0.0, 50.0),
     "dropout_ms": ("each dropout's length, ms", 0.5, 20.0),
@@ -202,6 +215,7 @@ SENSOR_PRESETS: dict[str, SensorFault] = {
     "long": SensorFault(gain=1.08),
     "zero": SensorFault(offset_mm=0.3),
     "bow": SensorFault(bow_mm=0.3),
+    "kink": SensorFault(step_mm=0.3, step_at_mm=12.0, step_width_mm=1.0),
     "noisy": SensorFault(noise_sd_mm=0.02),
     "dropouts": SensorFault(dropouts_per_s=1.0),
     "spikes": SensorFault(spikes_per_s=2.0),

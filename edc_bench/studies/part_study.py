@@ -2,8 +2,8 @@
 
 Each case is a kind of pump at a severity: new and worn valves on a sound pump, a sound valve in a pump whose rack
 drags, binds at one place or whose friction rises along the stroke, or whose rack-travel sensor reads long, off
-its zero, bowed, noisy, with dropouts or spikes, each at several sizes around its limit, and a worn valve on a
-binding rack. Every test runs the bench's whole path (:func:`~edc_bench.bench.run_simulated_test`: the loop, the
+its zero, bowed, with a step, noisy, with dropouts or spikes, each at several sizes around its limit, and a worn
+valve on a binding rack. Every test runs the bench's whole path (:func:`~edc_bench.bench.run_simulated_test`: the loop, the
 period fit, the verdict and the part diagnosis) on a valve drawn with the variant's spread between valves, each
 with its own noise seed; a bind sits at a random place within the swing. The study counts, case by case, the part
 the bench named and the verdict it gave, and whether it told the technician to replace the valve.
@@ -44,7 +44,7 @@ class PartCase:
     above_limit : bool
         The fault is beyond its ``[diagnosis.parts]`` limit (by its physics): the bench must name its part.
     bind_anywhere : bool
-        A bind placed at random within the swing, test by test.
+        A bind (or the sensor's step) placed at random within the swing, test by test.
     """
 
     name: str
@@ -82,6 +82,9 @@ def part_cases(variant: Variant) -> list[PartCase]:
               for o in (0.05, 0.15, 0.3)]
     cases += [PartCase(f"bow {b} mm", SENSOR, sensor=f"bow_mm={b}", above_limit=abs(b) > limits.sensor_linearity_mm)
               for b in (0.05, 0.2, 0.4)]
+    # a step (over about 2 mm) reads the rack above it h off, against the reading at its stop
+    cases += [PartCase(f"step {h} mm", SENSOR, sensor=f"step_mm={h},step_width_mm=1",
+                       above_limit=h > limits.sensor_linearity_mm, bind_anywhere=True) for h in (0.05, 0.3, 0.5)]
     stated_mm = variant.sensors.lvdt.noise_sd
     cases += [PartCase(f"noise {n} mm", SENSOR, sensor=f"noise_sd_mm={n}",
                        above_limit=math.hypot(n, stated_mm) > limits.sensor_noise_ratio * stated_mm)
@@ -135,8 +138,12 @@ def _one(job: tuple[str, PartCase, dict, int, float]) -> tuple[str, str, bool]:
 
     variant_name, case, valve, seed, bind_at = job
     variant = load_variant(variant_name)
-    rack = case.rack if not case.bind_anywhere else f"{case.rack},bind_at_mm={bind_at:.2f}"
-    result = run_simulated_test(variant, ValveSpec(**valve), seed, rack_fault=rack, sensor_fault=case.sensor,
+    rack, sensor = case.rack, case.sensor
+    if case.bind_anywhere and case.kind == SENSOR:
+        sensor = f"{sensor},step_at_mm={bind_at:.2f}"
+    elif case.bind_anywhere:
+        rack = f"{rack},bind_at_mm={bind_at:.2f}"
+    result = run_simulated_test(variant, ValveSpec(**valve), seed, rack_fault=rack, sensor_fault=sensor,
                                 valve_id=f"{case.name} {seed}")
     part = result.judgement.part
     return (str(part.part) if part is not None else "none", str(result.verdict),

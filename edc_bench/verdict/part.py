@@ -5,7 +5,9 @@ motion parameters against the baseline's) to its limit (the variant's ``[diagnos
 
 - the **rack-travel sensor** first: a reading that drops out, spikes, is noisier than the sensor's stated noise, or
   reads the rack at rest off its stop, or scales every motion parameter (a2, a0: volts per millimetre of the
-  reading) together. Such a reading biases every figure of the test, the valve's too: the valve is not judged;
+  reading) together, or bends over a few millimetres more than the rack's friction there could make it (a step in
+  its characteristic, which the rack's figures alone would take for a bind or a slope). Such a reading biases every
+  figure of the test, the valve's too: the valve is not judged;
 - the **rack**, where the sensor's reading is sound: friction that rises at one place (a bind) or along the stroke
   (a slope). A valve's friction is the same wherever the rack is; the valve is not judged ("retest after the rack is
   free"), since the valve's own friction cannot be told from the rack's there;
@@ -42,6 +44,9 @@ SIGNIFICANCE = 3.0
 #: rack's profile (a +/-20 % solenoid: -24 %), and at +/-25 % the model does not fit the pump at all. The shipped
 #: variants' solenoids vary +/-10 % at the most (p-edc-hard).
 PROFILE_GAIN_LIMIT_REL = 0.15
+#: A bend alike in both directions this share of the friction's rise or more is a sensor that reads unevenly, not
+#: the rack's friction leaking into it (:func:`_uneven_finding`).
+UNEVEN_SHARE = 0.7
 #: What this test's excitation does not identify, said in every diagnosis.
 NOT_IDENTIFIED = ("friction that differs between the directions of travel (it differs from the spring's preload "
                   "line only by a straight line)",)
@@ -101,6 +106,27 @@ def _rack_findings(limits: PartLimits, profile: FrictionProfile, af0: float) -> 
                     beyond=abs(profile.slope_v) / af0 > limits.rack_slope_rel
                     and abs(profile.slope_v) > SIGNIFICANCE * profile.slope_std_v),
     ]
+
+
+def _uneven_finding(profile: FrictionProfile, rack: list[PartFinding]) -> PartFinding | None:
+    """Whether the rack's findings are a sensor that reads unevenly over a few millimetres (None: no rack finding).
+
+    A sensor that reads e(x) off reads the spring's force a0 e where the rack is not: the same in both directions of
+    travel, the profile's bend (:attr:`FrictionProfile.bend_v`). It misreads the rack's motion there too, and a
+    share of that lands in the friction at that place, as a small bind or slope. A rack's bind is friction: it flips
+    with the direction, and the part of it the profile's hats cannot hold leaks into the bend: 0.02 to 0.52 of its
+    rise in volts (binds of 0.5 and 1 N near either end of the swing, on the three shipped pumps; the most near its
+    upper end). A bend at least :data:`UNEVEN_SHARE` of the friction's rise is the sensor's (a step of 0.3 mm in the
+    sensor's reading near the swing's ends: 0.86 to 0.97).
+    """
+    if not any(f.beyond for f in rack) or profile.bend_v <= 0:
+        return None
+    rise_v = max(abs(profile.peak_v), abs(profile.slope_v))
+    mm_per_v = abs(profile.bend_mm) / profile.bend_v
+    leak_mm = UNEVEN_SHARE * rise_v * mm_per_v
+    beyond = abs(profile.bend_mm) > leak_mm and abs(profile.bend_mm) > SIGNIFICANCE * profile.bend_std_mm
+    return PartFinding(signature=Signature.SENSOR_UNEVEN, part=Part.SENSOR, figure=profile.bend_mm,
+                       limit=leak_mm, unit="mm", at_mm=profile.bend_at_mm, std=profile.bend_std_mm, beyond=beyond)
 
 
 def _mass_ratio(parameters: Mapping[str, ParameterEstimate], baseline: Baseline, tau_s: float,
@@ -231,7 +257,9 @@ def diagnose_parts(variant: Variant, signatures: PumpSignatures, parameters: Map
         profile = None  # a solenoid this far from linear: the friction along the stroke cannot be told from it
     af0 = baseline.af_v if baseline is not None else math.nan
     if profile is not None and reading_sound and math.isfinite(af0) and af0 > 0:
-        findings += _rack_findings(limits, profile, af0)
+        rack = _rack_findings(limits, profile, af0)
+        uneven = _uneven_finding(profile, rack)
+        findings += rack if uneven is None else [uneven, *rack]
     # the motion parameters, where neither the reading nor a rack that binds (a misfit the fit spreads over every
     # parameter) biases them
     if fit_trusted and reading_sound and not any(f.beyond for f in findings):

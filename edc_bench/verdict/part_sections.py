@@ -32,6 +32,7 @@ class Signature(enum.StrEnum):
     SENSOR_ZERO = "sensor zero"
     SENSOR_GAIN = "sensor gain"
     SENSOR_LINEARITY = "sensor linearity"
+    SENSOR_UNEVEN = "sensor uneven"
     SPRING_RATE = "spring rate"
     RACK_BIND = "rack bind"
     RACK_SLOPE = "rack friction slope"

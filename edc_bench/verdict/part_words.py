@@ -34,6 +34,11 @@ def finding_words(finding: PartFinding) -> str:
         return (f"the rack-travel sensor reads {x:+.2f} mm off in the swing but not at rest (the preload term b "
                 f"moved): a sensor that is not linear, or a return spring whose preload differs (limit "
                 f"+/-{limit:.2g} mm)")
+    if s is Signature.SENSOR_UNEVEN:
+        at = "" if finding.at_mm is None else f" near {finding.at_mm:.1f} mm"
+        return (f"the rack-travel sensor reads {x:+.2f} mm off a straight line{at}, alike in both directions of travel: "
+                f"more than the friction's rise there makes of a rack that binds (+/-{limit:.2g} mm): a sensor that "
+                f"reads unevenly over part of its travel")
     if s is Signature.SPRING_RATE:
         return (f"the spring rate a0 differs {x:+.1%} from the new-valve baseline's (the rack's mass did not: the "
                 "spring)")
@@ -62,6 +67,9 @@ _ACTIONS: tuple[tuple[Signature, str], ...] = (
                             "sensor, then retest the valve"),
     (Signature.SENSOR_LINEARITY, "the rack-travel sensor is not linear, or the return spring's preload differs: "
                                  "check the sensor over a reference travel, then retest the valve"),
+    (Signature.SENSOR_UNEVEN, "the rack-travel sensor reads unevenly over part of its travel: check it over a "
+                              "reference travel (if it reads true, the rack binds there: free it), then retest the "
+                              "valve"),
     (Signature.RACK_BIND, "the rack binds at one place: free or repair the rack (if it moves freely by hand, the "
                           "rack-travel sensor may read unevenly there: check it over a reference travel), then "
                           "retest the valve"),

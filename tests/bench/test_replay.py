@@ -193,3 +193,24 @@ def test_a_record_from_before_the_core_rows_fit_says_why_its_numbers_may_differ(
     code = main(["replay", str(folder)])
     out = capsys.readouterr().out
     assert code != 0 and "NOT reproduced:" in out and "note: recorded by an edc-bench whose af and a1" in out
+
+
+def test_a_record_whose_part_diagnosis_was_older_says_why_its_part_may_differ(tmp_path: Path) -> None:
+    """Schema 11 read a sensor 5 % long on p-edc-hard (its solenoid pulls +/-10 % across the swing) as a PASS, part
+    none; today's diagnosis names the sensor. Such a record replays with the difference and a note saying why; a
+    record of today's schema has no such note."""
+    from edc_bench.verdict.part_sections import Signature
+
+    result = run_simulated_test(load_variant("p-edc-hard"), "new", 3, sensor_fault="gain=1.05")
+    folder = write_record(result, tmp_path, figure=False)
+    doc = json.loads((folder / "record.json").read_text())
+    assert doc["schema"] >= 12 and doc["part"]["part"] == "rack-travel sensor"
+    assert replay_record(folder).reproduced and not any("part diagnosis" in n for n in replay_record(folder).notes)
+    doc["schema"] = 11
+    doc["part"]["part"] = "none"  # as schema 11's diagnosis had it
+    gain = next(f for f in doc["part"]["findings"] if f["signature"] == Signature.SENSOR_GAIN)
+    gain["figure"], gain["beyond"] = 0.037, False
+    rewrite_record_json(folder, doc)
+    report = replay_record(folder)
+    assert not report.reproduced and "part at fault: recorded none, replayed rack-travel sensor" in report.differences
+    assert any("part diagnosis read a sensor's gain without the solenoid's pull" in n for n in report.notes)

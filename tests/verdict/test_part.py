@@ -41,6 +41,8 @@ SOUND_VALVE_IN_A_FAULTY_PUMP = [
     ("a local bind ('check the part number' then)", "bind", "none", Part.RACK, Verdict.INVALID),
     ("a strongly bent rack ('the solenoid's force constant' then)", "bent", "none", Part.RACK, Verdict.INVALID),
     ("a non-linear sensor ('check the part number' then)", "none", "bow", Part.SENSOR, Verdict.INVALID),
+    ("a sensor that steps 0.3 mm over 2 mm (a friction slope, 'the rack', before it was told apart)", "none", "kink",
+     Part.SENSOR, Verdict.INVALID),
     ("contact dropouts", "none", "dropouts", Part.SENSOR, Verdict.INVALID),
     ("spikes", "none", "spikes", Part.SENSOR, Verdict.INVALID),
 ]
@@ -221,3 +223,21 @@ def test_a_sensors_gain_is_named_where_the_solenoids_pull_varies_along_the_strok
     if part is Part.SENSOR:
         gain = said.finding(Signature.SENSOR_GAIN)
         assert gain.beyond and gain.figure == pytest.approx(float(sensor.split("=")[1]) - 1.0, abs=0.015)
+
+
+@pytest.mark.parametrize("at_mm", [8.0, 12.0])
+def test_a_sensor_that_reads_unevenly_is_told_from_a_rack_that_binds_there(variant, at_mm: float) -> None:
+    """A step in the sensor's characteristic misreads the spring's force alike in both directions; a share of it
+    lands in the friction there (a slope of 19 % of F_c at 12 mm: 'the rack' before). A bind at the same place bends
+    the same figure by a tenth to a quarter of its friction's rise: still the rack."""
+    sensor = run_simulated_test(variant, "new", 3, sensor_fault=f"kink,step_at_mm={at_mm}").judgement.part
+    uneven = sensor.finding(Signature.SENSOR_UNEVEN)
+    assert sensor.part is Part.SENSOR
+    if at_mm == 12.0:  # the step the rack's findings took for a slope
+        assert uneven is not None and uneven.beyond and uneven.at_mm == pytest.approx(at_mm, abs=1.5)
+        assert any(f.part is Part.RACK and f.beyond for f in sensor.findings)
+        assert "reads unevenly" in part_words(sensor) and "reads unevenly" in finding_words(uneven)
+    rack = run_simulated_test(variant, "new", 3, rack_fault=f"bind,bind_at_mm={at_mm}").judgement.part
+    assert rack.part is Part.RACK
+    held = rack.finding(Signature.SENSOR_UNEVEN)
+    assert held is not None and not held.beyond and abs(held.figure) < held.limit
