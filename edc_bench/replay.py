@@ -39,7 +39,6 @@ from edc_bench.records.schema import Record
 from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline
 from edc_bench.verdict.judgement import Judgement, judge_run
-from edc_bench.verdict.part_sections import Signature
 from edc_bench.verdict.verdicts import Verdict
 
 #: The command carries the drive in mV; a replayed drive further off than this is a different run.
@@ -202,6 +201,12 @@ def compare_with_record(judged: Judgement, record: Record, rel_tol: float = 0.0)
         for key in ("probability_faulty", "distance"):
             if not _same(getattr(cls, key), getattr(rec_cls, key), rel_tol):
                 diffs.append(f"{key}: recorded {getattr(rec_cls, key)!r}, replayed {getattr(cls, key)!r}")
+    return diffs + _part_differences(judged, record, rel_tol)
+
+
+def _part_differences(judged: Judgement, record: Record, rel_tol: float) -> list[str]:
+    """Where the replayed part diagnosis differs from the recorded one: the part, and each finding's figure."""
+    diffs: list[str] = []
     if record.part is not None and judged.part is not None:
         if judged.part.part != record.part.part:
             diffs.append(f"part at fault: recorded {record.part.part}, replayed {judged.part.part}")
@@ -303,8 +308,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            "leaves the rows a stall touched out of the fit and judges what remains, so the verdict "
                            "may differ from the recorded one")
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
-    part_moved = any(d.startswith(("part at fault:", *(f"{s}:" for s in Signature))) for d in differences)
-    if PART_SCHEMA <= record.schema_version < PART_METHOD_SCHEMA and part_moved:
+    if PART_SCHEMA <= record.schema_version < PART_METHOD_SCHEMA and _part_differences(judged, record, rel_tol):
         notes_after.append(f"recorded by an edc-bench whose part diagnosis read a sensor's gain without the "
                            f"solenoid's pull along the stroke and had no test for a sensor that reads unevenly "
                            f"(record schema {record.schema_version}); today's has both (docs/diagnosis.md, "
