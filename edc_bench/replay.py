@@ -204,6 +204,16 @@ def compare_with_record(judged: Judgement, record: Record, rel_tol: float = 0.0)
     return diffs + _part_differences(judged, record, rel_tol)
 
 
+def _part_method_note(judged: Judgement, record: Record, rel_tol: float) -> list[str]:
+    """Why a record of schema 11 whose part replayed otherwise differs (none where it does not)."""
+    if not PART_SCHEMA <= record.schema_version < PART_METHOD_SCHEMA or not _part_differences(judged, record, rel_tol):
+        return []
+    return [f"recorded by an edc-bench whose part diagnosis read a sensor's gain without the solenoid's pull along "
+            f"the stroke and had no test for a sensor that reads unevenly (record schema {record.schema_version}); "
+            "today's has both (docs/diagnosis.md, \"Which part is at fault\"), so the part's figures, and the part, "
+            "may differ"]
+
+
 def _part_differences(judged: Judgement, record: Record, rel_tol: float) -> list[str]:
     """Where the replayed part diagnosis differs from the recorded one: the part, and each finding's figure."""
     diffs: list[str] = []
@@ -308,11 +318,7 @@ def replay_record(folder: Any, classifier_path: Any = None, can_log: Any = None)
                            "leaves the rows a stall touched out of the fit and judges what remains, so the verdict "
                            "may differ from the recorded one")
     differences = compare_with_record(judged, record, rel_tol) + run.notes + notes
-    if PART_SCHEMA <= record.schema_version < PART_METHOD_SCHEMA and _part_differences(judged, record, rel_tol):
-        notes_after.append(f"recorded by an edc-bench whose part diagnosis read a sensor's gain without the "
-                           f"solenoid's pull along the stroke and had no test for a sensor that reads unevenly "
-                           f"(record schema {record.schema_version}); today's has both (docs/diagnosis.md, "
-                           "\"Which part is at fault\"), so the part's figures, and the part, may differ")
+    notes_after += _part_method_note(judged, record, rel_tol)
     if altered:
         differences.insert(0, f"changed after the test (its integrity manifest): {', '.join(altered)}")
     return ReplayReport(judged, run, differences, compared=True, notes=notes_after)

@@ -215,17 +215,9 @@ def friction_profile(variant: Variant, trace: dict[str, np.ndarray]) -> Friction
     theta = np.linalg.lstsq(A[rows_ok], y[rows_ok], rcond=None)[0]
     friction = theta[-PROFILE_POSITIONS:] * correction
     spread = np.array(per_block)[:, -PROFILE_POSITIONS:] * correction
-    # the inner hats' bend beyond the solenoid's curve d2 Delta^2 (which they hold too: d2 is not among this fit's
-    # terms), as the hats hold a curve: its values at the knots less the chord through the end knots
-    curve = d2 * (knots - setup.mid_mm) ** 2
-    curve = (curve - np.interp(knots, knots[[0, -1]], curve[[0, -1]]))[1:-1]
     inner = slice(len(moving), len(moving) + PROFILE_POSITIONS - 2)
-    bends = theta[inner] - curve
-    bend_j = int(np.argmax(np.abs(bends)))
-    bend_sd_v = float(np.std(np.array(per_block)[:, inner][:, bend_j], ddof=1)) / math.sqrt(len(per_block))
-    # the hats take the spring's force less what it would be on the line: -a0 times the reading's own bend
-    bend_mm = -float(bends[bend_j]) / a0 if a0 > 0 else 0.0
-    bend_std_mm = bend_sd_v / a0 if a0 > 0 else math.inf
+    bend_v, bend_mm, bend_at_mm, bend_std_mm = _bend(theta[inner], np.array(per_block)[:, inner], knots, d2, a0,
+                                                     setup.mid_mm)
     periods = len(per_block)
     # the spread between periods pooled over the positions (each period's profile about its own mean level)
     deviations = spread - spread.mean(axis=0)
@@ -242,8 +234,23 @@ def friction_profile(variant: Variant, trace: dict[str, np.ndarray]) -> Friction
         std_v=tuple(float(s) for s in std), mean_v=float(friction.mean()), slope_v=slope_per_mm * span,
         slope_std_v=slope_se * span, peak_v=float(friction[peak] - line[peak]), peak_at_mm=float(knots[peak]),
         peak_std_v=float(math.hypot(std[0], line_se)), gain_slope_per_mm=float(gain_slope), periods=periods,
-        bend_v=float(abs(bends[bend_j])), bend_mm=bend_mm, bend_at_mm=float(knots[bend_j + 1]),
-        bend_std_mm=float(bend_std_mm))
+        bend_v=bend_v, bend_mm=bend_mm, bend_at_mm=bend_at_mm, bend_std_mm=bend_std_mm)
+
+
+def _bend(inner_v: np.ndarray, per_period_v: np.ndarray, knots: np.ndarray, d2: float, a0: float,
+          mid_mm: float) -> tuple[float, float, float, float]:
+    """The inner hats' largest bend beyond the solenoid's curve d2 Delta^2 (which they hold too: d2 is not among
+    the profile fit's terms): in volts, in mm read, where, and its standard error in mm. The hats hold a curve as
+    its values at the knots less the chord through the end knots, and the spring's force less what it would be on
+    the line: -a0 times the reading's own bend."""
+    curve = d2 * (knots - mid_mm) ** 2
+    curve = (curve - np.interp(knots, knots[[0, -1]], curve[[0, -1]]))[1:-1]
+    bends = inner_v - curve
+    j = int(np.argmax(np.abs(bends)))
+    sd_v = float(np.std(per_period_v[:, j], ddof=1)) / math.sqrt(len(per_period_v))
+    if a0 <= 0:
+        return float(abs(bends[j])), 0.0, float(knots[j + 1]), math.inf
+    return float(abs(bends[j])), -float(bends[j]) / a0, float(knots[j + 1]), sd_v / a0
 
 
 def _line(knots: np.ndarray, friction: np.ndarray, fit: np.ndarray, std_v: float = 0.0,

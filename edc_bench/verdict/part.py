@@ -189,7 +189,7 @@ def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstim
     assert held_b is not None and held_a0 is not None  # _motion_ratio found them
     base_slope = slope_per_mm
     if slope_per_mm != 0.0:
-        test_line = _spring_line(parameters["a0"].value, parameters["b"].value, slope_per_mm, mid_mm)
+        test_line = _spring_line(a0[0] * held_a0[0], b[0] * held_b[0], slope_per_mm, mid_mm)  # the test's a0, b
         for _ in range(3):  # the baseline's slope is the test's over a0's ratio (a2's a misfit moves): a fixed point
             base_line = _spring_line(held_a0[0], held_b[0], base_slope, mid_mm)
             base_slope = slope_per_mm * base_line[0] / test_line[0]
