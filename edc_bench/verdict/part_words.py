@@ -96,7 +96,7 @@ def part_line(diagnosis: PartDiagnosis | None) -> str:
     if diagnosis is None:
         return str(Part.NOT_JUDGED)
     if diagnosis.part in (Part.SENSOR, Part.RACK):
-        beyond = [f.signature for f in diagnosis.beyond]
+        beyond = [f.signature for f in diagnosis.beyond if f.part is diagnosis.part]  # a sensor's: not the rack's too
         return f"{diagnosis.part}: {', '.join(str(s) for s in beyond)}"
     return str(diagnosis.part)
 
@@ -110,6 +110,7 @@ _CUSTOMER: tuple[tuple[Signature, str], ...] = (
     (Signature.SENSOR_GAIN, "The pump's rack-travel sensor reads the rack's travel too long or too short."),
     (Signature.SENSOR_LINEARITY, "The pump's rack-travel sensor does not read the rack's travel evenly (or the "
                                  "rack's return spring is not as it should be)."),
+    (Signature.SENSOR_UNEVEN, "The pump's rack-travel sensor reads part of the rack's travel unevenly."),
     (Signature.RACK_BIND, "The pump's control rack binds at one place along its travel."),
     (Signature.RACK_SLOPE, "The pump's control rack moves less freely at one end of its travel than at the other."),
 )

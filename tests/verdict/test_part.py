@@ -18,7 +18,7 @@ from edc_bench.records.advice import Action, Area, Cause
 from edc_bench.verdict.baseline import load_baseline
 from edc_bench.verdict.part import diagnose_parts
 from edc_bench.verdict.part_sections import Part, PartDiagnosis, Signature
-from edc_bench.verdict.part_words import finding_words, part_words
+from edc_bench.verdict.part_words import customer_words, finding_words, part_line, part_words
 from edc_bench.verdict.verdicts import Verdict
 from helpers import run_cli
 
@@ -237,6 +237,9 @@ def test_a_sensor_that_reads_unevenly_is_told_from_a_rack_that_binds_there(varia
         assert uneven is not None and uneven.beyond and uneven.at_mm == pytest.approx(at_mm, abs=1.5)
         assert any(f.part is Part.RACK and f.beyond for f in sensor.findings)
         assert "reads unevenly" in part_words(sensor) and "reads unevenly" in finding_words(uneven)
+        # page 1 and the history's column name the sensor alone, not the rack's finding it explains
+        assert "sensor" in customer_words(sensor) and "control rack" not in customer_words(sensor)
+        assert part_line(sensor) == "rack-travel sensor: sensor uneven"
     rack = run_simulated_test(variant, "new", 3, rack_fault=f"bind,bind_at_mm={at_mm}").judgement.part
     assert rack.part is Part.RACK
     held = rack.finding(Signature.SENSOR_UNEVEN)
