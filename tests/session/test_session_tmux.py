@@ -86,11 +86,12 @@ def test_at_80x24_the_prompts_wrap_and_keys_typed_during_a_test_are_held_back(tm
 @pytest.mark.parametrize(("fault", "words"), [
     (["--rack-fault", "bind"], ("the rack binds at one", "free or repair the rack")),
     (["--sensor-fault", "gain=1.08"], ("rack-travel sensor is out of", "calibrate or replace the")),
+    (["--sensor-fault", "kink"], ("sensor reads unevenly over part", "check it over a reference travel")),
 ])
 def test_at_80x24_the_verdict_names_the_part_at_fault(tmp_path: Path, fault: list[str],
                                                        words: tuple[str, str]) -> None:
-    """#67: a sound valve in a pump whose rack binds or whose sensor reads long: the session's verdict box names the
-    part and what to do, every word whole at 80x24, and never says replace the valve."""
+    """#67: a sound valve in a pump whose rack binds, whose sensor reads long or reads unevenly: the session's verdict
+    box names the part and what to do, every word whole at 80x24, and never says replace the valve."""
     env = terminal_env({"EDC_BENCH_DATA_DIR": str(set_up_station(tmp_path / "data"))})
     term = Terminal([sys.executable, "-m", "edc_bench", "session", "--operator", "Anna", *fault,
                      "--db", f"sqlite:///{tmp_path / 'h.sqlite'}"], tmp_path, env, columns=80, rows=24)
