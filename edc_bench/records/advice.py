@@ -41,8 +41,11 @@ class Advice:
 #: The trust problems a technician meets at the bench, the first that applies deciding what to check.
 _CHECKS: tuple[tuple[Problem, str], ...] = (
     (Problem.NOT_IDENTIFIED, CHECK_RIG),
-    (Problem.MODEL_DOES_NOT_FIT, "check the pump's part number (--variant) and the valve's mounting: the pump does "
-                                 "not behave as its variant says"),
+    # a rack or sensor fault the part diagnosis could not tell apart (a sensor's step near the swing's end) shows
+    # as a misfit too
+    (Problem.MODEL_DOES_NOT_FIT, "check the pump's part number (--variant) and the valve's mounting, then that the "
+                                 "rack moves freely and the rack-travel sensor reads true over its travel: the pump "
+                                 "does not behave as its variant says"),
     (Problem.TIMING, CHECK_PC),
     (Problem.REPLIES_MISSING, CHECK_BUS),
     (Problem.DRIFTING, CHECK_PUMP + ", then retest"),

@@ -244,3 +244,14 @@ def test_a_sensor_that_reads_unevenly_is_told_from_a_rack_that_binds_there(varia
     assert rack.part is Part.RACK
     held = rack.finding(Signature.SENSOR_UNEVEN)
     assert held is not None and not held.beyond and abs(held.figure) < held.limit
+
+
+def test_a_pump_the_model_does_not_fit_names_the_rack_and_the_sensor_among_what_to_check(variant) -> None:
+    """A 0.3 mm step of the sensor at the swing's lower end: the fit's Delta^2 term takes it, no part's signature is
+    beyond its limit, and the model does not fit. The line the technician acts on said "check the pump's part
+    number and the valve's mounting" alone (the issue's seven cases); it names the rack and the sensor too."""
+    result = run_simulated_test(variant, "new", 3, sensor_fault="kink,step_at_mm=6.9")
+    assert Problem.MODEL_DOES_NOT_FIT in result.judgement.problems and result.judgement.part.part is Part.NONE
+    words = result.advice.words
+    assert "the rack moves freely" in words and "rack-travel sensor reads true" in words, words
+    assert result.advice.action is not Action.REPLACE
