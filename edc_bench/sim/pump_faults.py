@@ -15,7 +15,8 @@ properties of the simulated pump, with physics of their own (docs/diagnosis.md, 
 
 **The sensor** (:class:`SensorFault`), as a reading the rack does not cause::
 
-    reading = gain * x + offset_mm + bow_mm * 4 (x / S)(1 - x / S) + noise    (S the stroke)
+    reading = gain * x + offset_mm + bow_mm * 4 (x / S)(1 - x / S) + step + noise    (S the stroke)
+    step = step_mm (1 + tanh((x - step_at_mm) / step_width_mm)) / 2                  (a track that reads unevenly)
 
 plus contact dropouts (the reading falls to the sensor's zero for ``dropout_ms``, ``dropouts_per_s`` on average)
 and spikes (one reading ``spike_mm`` off, ``spikes_per_s`` on average), both at random times of a seeded stream.
