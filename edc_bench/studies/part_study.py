@@ -3,9 +3,9 @@
 Each case is a kind of pump at a severity: new and worn valves on a sound pump, a sound valve in a pump whose rack
 drags, binds at one place or whose friction rises along the stroke, or whose rack-travel sensor reads long, off
 its zero, bowed, with a step, noisy, with dropouts or spikes, each at several sizes around its limit, and a worn
-valve on a binding rack. Every test runs the bench's whole path (:func:`~edc_bench.bench.run_simulated_test`: the loop, the
-period fit, the verdict and the part diagnosis) on a valve drawn with the variant's spread between valves, each
-with its own noise seed; a bind sits at a random place within the swing. The study counts, case by case, the part
+valve on a binding rack. Every test runs the bench's whole path (:func:`~edc_bench.bench.run_simulated_test`: the
+loop, the period fit, the verdict and the part diagnosis) on a valve drawn with the variant's spread between valves,
+each with its own noise seed; a bind, or a sensor's step, sits at a random place within the swing. The study counts, case by case, the part
 the bench named and the verdict it gave, and whether it told the technician to replace the valve.
 """
 
@@ -43,8 +43,8 @@ class PartCase:
         The ``--rack-fault`` and ``--sensor-fault`` specs (``none`` for sound).
     above_limit : bool
         The fault is beyond its ``[diagnosis.parts]`` limit (by its physics): the bench must name its part.
-    bind_anywhere : bool
-        A bind (or the sensor's step) placed at random within the swing, test by test.
+    placed_at_random : bool
+        The fault's place (a bind's, or a sensor step's) drawn at random within the swing, test by test.
     """
 
     name: str
@@ -53,7 +53,7 @@ class PartCase:
     rack: str = "none"
     sensor: str = "none"
     above_limit: bool = True
-    bind_anywhere: bool = False
+    placed_at_random: bool = False
 
 
 def part_cases(variant: Variant) -> list[PartCase]:
@@ -71,7 +71,7 @@ def part_cases(variant: Variant) -> list[PartCase]:
     cases += [PartCase(f"drag {newton(r):g} N ({r:.0%} of F_c)", DRAG, rack=f"drag_n={newton(r)}")
               for r in (0.6, 1.0)]  # beyond uniform_friction_rel with the spread between new valves (8 %, 3 sd)
     cases += [PartCase(f"bind {newton(r):g} N ({r:.0%} of F_c)", RACK, rack=f"bind_n={newton(r)},bind_width_mm=1",
-                       above_limit=r > limits.rack_bind_rel, bind_anywhere=True) for r in (0.06, 0.3, 1.0, 2.0)]
+                       above_limit=r > limits.rack_bind_rel, placed_at_random=True) for r in (0.06, 0.3, 1.0, 2.0)]
     cases += [PartCase("bent rack", RACK, rack="bent")]
     cases += [PartCase(f"slope {newton(r) / swing_mm:.4g} N/mm ({r:.0%} of F_c over the swing)", RACK,
                        rack=f"slope_n_per_mm={newton(r) / swing_mm:.6g}", above_limit=r > limits.rack_slope_rel)
@@ -84,7 +84,7 @@ def part_cases(variant: Variant) -> list[PartCase]:
               for b in (0.05, 0.2, 0.4)]
     # a step (over about 2 mm) reads the rack above it h off, against the reading at its stop
     cases += [PartCase(f"step {h} mm", SENSOR, sensor=f"step_mm={h},step_width_mm=1",
-                       above_limit=h > limits.sensor_linearity_mm, bind_anywhere=True) for h in (0.05, 0.3, 0.5)]
+                       above_limit=h > limits.sensor_linearity_mm, placed_at_random=True) for h in (0.05, 0.3, 0.5)]
     stated_mm = variant.sensors.lvdt.noise_sd
     cases += [PartCase(f"noise {n} mm", SENSOR, sensor=f"noise_sd_mm={n}",
                        above_limit=math.hypot(n, stated_mm) > limits.sensor_noise_ratio * stated_mm)
@@ -92,7 +92,7 @@ def part_cases(variant: Variant) -> list[PartCase]:
     cases += [PartCase(f"dropouts {r}/s", SENSOR, sensor=f"dropouts_per_s={r}") for r in (0.5, 2.0)]
     cases += [PartCase(f"spikes {r}/s", SENSOR, sensor=f"spikes_per_s={r}") for r in (1.0, 3.0)]
     cases += [PartCase(f"worn valve, bind {newton(1.0):g} N", WORN_ON_RACK, valve="worn",
-                       rack=f"bind_n={newton(1.0)},bind_width_mm=1", bind_anywhere=True)]
+                       rack=f"bind_n={newton(1.0)},bind_width_mm=1", placed_at_random=True)]
     return cases
 
 
@@ -136,13 +136,13 @@ def _one(job: tuple[str, PartCase, dict, int, float]) -> tuple[str, str, bool]:
     from edc_bench.physics.valve import ValveSpec
     from edc_bench.records.advice import Action
 
-    variant_name, case, valve, seed, bind_at = job
+    variant_name, case, valve, seed, place_mm = job
     variant = load_variant(variant_name)
     rack, sensor = case.rack, case.sensor
-    if case.bind_anywhere and case.kind == SENSOR:
-        sensor = f"{sensor},step_at_mm={bind_at:.2f}"
-    elif case.bind_anywhere:
-        rack = f"{rack},bind_at_mm={bind_at:.2f}"
+    if case.placed_at_random and case.kind == SENSOR:
+        sensor = f"{sensor},step_at_mm={place_mm:.2f}"
+    elif case.placed_at_random:
+        rack = f"{rack},bind_at_mm={place_mm:.2f}"
     result = run_simulated_test(variant, ValveSpec(**valve), seed, rack_fault=rack, sensor_fault=sensor,
                                 valve_id=f"{case.name} {seed}")
     part = result.judgement.part
@@ -183,8 +183,8 @@ def run_part_study(variant: Variant, tests_per_case: int = 10, seed: int = 4100,
             valve = sample_valve(variant, clearance, rng, variant.valve.presets[case.valve].roughness,
                                  label=f"{case.valve} (spread)")
             fields = dataclasses.asdict(valve)
-            bind_at = float(rng.uniform(mid - 0.7 * swing, mid + 0.7 * swing))
-            jobs.append((variant_argument(variant), case, fields, seed + 1000 * c + n, bind_at))
+            place_mm = float(rng.uniform(mid - 0.7 * swing, mid + 0.7 * swing))
+            jobs.append((variant_argument(variant), case, fields, seed + 1000 * c + n, place_mm))
     outcomes: list[tuple[str, str, bool]] = []
     if workers > 1:
         import multiprocessing

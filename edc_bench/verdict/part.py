@@ -187,15 +187,15 @@ def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstim
         return []
     held_b, held_a0 = baseline.motion("b_v"), baseline.motion("a0_v_per_mm")
     assert held_b is not None and held_a0 is not None  # _motion_ratio found them
+    base_a0, base_b = held_a0[0], held_b[0]  # the baseline's spring line
     base_slope = slope_per_mm
     if slope_per_mm != 0.0:
-        test_line = _spring_line(a0[0] * held_a0[0], b[0] * held_b[0], slope_per_mm, mid_mm)  # the test's a0, b
+        test_line = _spring_line(a0[0] * base_a0, b[0] * base_b, slope_per_mm, mid_mm)  # the test's a0, b
         for _ in range(3):  # the baseline's slope is the test's over a0's ratio (a2's a misfit moves): a fixed point
-            base_line = _spring_line(held_a0[0], held_b[0], base_slope, mid_mm)
-            base_slope = slope_per_mm * base_line[0] / test_line[0]
-        a0 = (test_line[0] / base_line[0], a0[1])
-        b = (test_line[1] / base_line[1], b[1])
-        held_a0, held_b = (base_line[0],) + held_a0[1:], (base_line[1],) + held_b[1:]
+            base_a0, base_b = _spring_line(held_a0[0], held_b[0], base_slope, mid_mm)
+            base_slope = slope_per_mm * base_a0 / test_line[0]
+        a0, b = (test_line[0] / base_a0, a0[1]), (test_line[1] / base_b, b[1])
+    lever_mm = base_b / base_a0  # b over a0: how far b's move reads as an offset of the reading
     found = []
     agree = abs(a2[0] - a0[0]) <= max(limits.sensor_gain_rel, SIGNIFICANCE * math.hypot(a2[1], a0[1]))
     # the reading's scale: 1/g kappa is the mean of the a2 and a0 ratios, to first order; kappa from the same g
@@ -216,9 +216,9 @@ def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstim
         # cancels). Whether a0 moved by a gain g within its limit or by the volts' own factor (g 1: it cancels) one
         # test cannot tell: the offset is the one of the two nearer the rest reading. Where a2 does not move with
         # a0, g is not known (a2 is the figure a misfit moves most: a small bind near a reversal, 7 %)
-        offset_mm = min(((g - b[0] / a0[0]) * held_b[0] / held_a0[0] for g in ((1.0, gain) if agree else (1.0,))),
+        offset_mm = min(((g - b[0] / a0[0]) * lever_mm for g in ((1.0, gain) if agree else (1.0,))),
                         key=lambda o: abs(o - rest_mm))
-        limit = max(limits.sensor_linearity_mm, SIGNIFICANCE * math.hypot(b[1], a0[1]) * held_b[0] / held_a0[0])
+        limit = max(limits.sensor_linearity_mm, SIGNIFICANCE * math.hypot(b[1], a0[1]) * lever_mm)
         found.append(PartFinding(signature=Signature.SENSOR_LINEARITY, part=Part.SENSOR, figure=offset_mm - rest_mm,
                                  limit=limit, unit="mm", beyond=abs(offset_mm - rest_mm) > limit))
     return found

@@ -36,9 +36,9 @@ def finding_words(finding: PartFinding) -> str:
                 f"+/-{limit:.2g} mm)")
     if s is Signature.SENSOR_UNEVEN:
         at = "" if finding.at_mm is None else f" near {finding.at_mm:.1f} mm"
-        return (f"the rack-travel sensor reads {x:+.2f} mm off a straight line{at}, alike in both directions of travel: "
-                f"more than the friction's rise there makes of a rack that binds (+/-{limit:.2g} mm): a sensor that "
-                f"reads unevenly over part of its travel")
+        return (f"the rack-travel sensor reads {x:+.2f} mm off a straight line{at}, alike in both directions of "
+                f"travel: more than the friction's rise there makes of a rack that binds (+/-{limit:.2g} mm): a "
+                f"sensor that reads unevenly over part of its travel")
     if s is Signature.SPRING_RATE:
         return (f"the spring rate a0 differs {x:+.1%} from the new-valve baseline's (the rack's mass did not: the "
                 "spring)")
