@@ -436,7 +436,7 @@ def boundary_table() -> str:
 
 # --------------------------------------------------------------------------- which part is at fault (measured)
 
-#: The variants the part study runs on: the default pump, the hard one (a solenoid whose pull varies +/-20 % over the
+#: The variants the part study runs on: the default pump, the hard one (a solenoid whose pull varies +/-10 % over the
 #: swing, Stribeck friction) and the long-stroke one.
 PART_STUDY_VARIANTS = ("p-edc-default", "p-edc-hard", "p-edc-long")
 PART_STUDY_TESTS = 6
@@ -451,6 +451,60 @@ def parts_study() -> dict[str, Any]:
 
     return {name: study_json(run_part_study(load_variant(name), PART_STUDY_TESTS, PART_STUDY_SEED))
             for name in PART_STUDY_VARIANTS}
+
+
+#: The binds and steps the uneven reading's share is measured on (``diagnosis-uneven-shares``): binds near either end
+#: of the swing (where they leak the most into the bend), steps of the sensor nearer mid-swing (nearer the ends a
+#: step is read as the solenoid's pull: docs/diagnosis.md); each on three valves.
+UNEVEN_BINDS_N = (0.5, 1.0)
+UNEVEN_STEP_MM = 0.3
+UNEVEN_SEEDS = (1, 2, 3)
+
+
+@measurement("diagnosis-uneven-shares", minutes=1.0)
+def uneven_shares() -> dict[str, Any]:
+    """The bend alike in both directions over the friction's rise (the share :data:`~edc_bench.verdict.part.
+    UNEVEN_SHARE` holds to) of binds and of the sensor's steps, where a rack finding is beyond its limit: the most a
+    bind gave and the least a step gave, per variant."""
+    from edc_bench.bench import run_simulated_test
+    from edc_bench.config import load_variant
+    from edc_bench.verdict.part import UNEVEN_SHARE
+    from edc_bench.verdict.part_sections import Signature
+
+    out: dict[str, Any] = {"threshold": UNEVEN_SHARE}
+    for name in PART_STUDY_VARIANTS:
+        variant = load_variant(name)
+        mid, swing = variant.rack.mid_stroke_mm, sum(t.amplitude_mm for t in variant.excitation.active_tones)
+
+        def shares(rack: str, sensor: str) -> list[float]:
+            found = []
+            for seed in UNEVEN_SEEDS:
+                part = run_simulated_test(variant, "new", seed, rack_fault=rack, sensor_fault=sensor).judgement.part
+                uneven = part.finding(Signature.SENSOR_UNEVEN) if part is not None else None
+                if uneven is not None and uneven.limit > 0:
+                    found.append(UNEVEN_SHARE * abs(uneven.figure) / uneven.limit)
+            return found
+
+        binds = [x for n in UNEVEN_BINDS_N for at in (mid - 0.7 * swing, mid + 0.7 * swing)
+                 for x in shares(f"bind_n={n},bind_width_mm=1,bind_at_mm={at:.2f}", "none")]
+        steps = [x for at in (mid - 0.45 * swing, mid + 0.45 * swing)
+                 for x in shares("none", f"step_mm={UNEVEN_STEP_MM},step_width_mm=1,step_at_mm={at:.2f}")]
+        out[name] = {"binds": len(binds), "bind_max": round(max(binds), 3) if binds else None,
+                     "steps": len(steps), "step_min": round(min(steps), 3) if steps else None}
+    return out
+
+
+def uneven_share_range() -> str:
+    """The measured shares, for the signatures' table: binds' most, steps' least, over the variants."""
+    m = stored("diagnosis-uneven-shares")
+    rows = [m[v] for v in PART_STUDY_VARIANTS]
+    binds = [r["bind_max"] for r in rows if r["bind_max"] is not None]
+    steps = [r["step_min"] for r in rows if r["step_min"] is not None]
+    return (f"binds of {' and '.join(f'{n:g}' for n in UNEVEN_BINDS_N)} N near either end of the swing on the three "
+            f"shipped pumps leak at most {max(binds):.2f} of their rise into this bend ({sum(r['binds'] for r in rows)} "
+            f"tests), where {UNEVEN_STEP_MM:g} mm steps of the sensor that the rack's findings took for a bind or "
+            f"slope bend it at least {min(steps):.2f} of the rise ({sum(r['steps'] for r in rows)} tests; "
+            f"`python docs/regenerate.py --measure diagnosis-uneven-shares`)")
 
 
 def parts_table(variant: str) -> str:

@@ -114,10 +114,10 @@ def _uneven_finding(profile: FrictionProfile, rack: list[PartFinding]) -> PartFi
     A sensor that reads e(x) off reads the spring's force a0 e where the rack is not: the same in both directions of
     travel, the profile's bend (:attr:`FrictionProfile.bend_v`). It misreads the rack's motion there too, and a
     share of that lands in the friction at that place, as a small bind or slope. A rack's bind is friction: it flips
-    with the direction, and the part of it the profile's hats cannot hold leaks into the bend: 0.02 to 0.52 of its
-    rise in volts (binds of 0.5 and 1 N near either end of the swing, on the three shipped pumps; the most near its
-    upper end). A bend at least :data:`UNEVEN_SHARE` of the friction's rise is the sensor's (a step of 0.3 mm in the
-    sensor's reading near the swing's ends: 0.86 to 0.97).
+    with the direction, and the part of it the profile's hats cannot hold leaks into the bend, less than a step of the
+    sensor does (binds and steps on the three shipped pumps: ``python docs/regenerate.py --measure
+    diagnosis-uneven-shares``, docs/diagnosis.md prints them). A bend at least :data:`UNEVEN_SHARE` of the friction's
+    rise is the sensor's.
     """
     if not any(f.beyond for f in rack) or profile.bend_v <= 0:
         return None
