@@ -58,7 +58,7 @@ MEANINGS: dict[int, str] = {
     ExitCode.RIG_ERROR: "rig or bus error (the bus does not open, the rig process does not start)",
     ExitCode.INTERNAL_ERROR: "internal error: a bug in edc-bench (the details are printed)",
     ExitCode.INTERRUPTED: "interrupted (Ctrl-C or SIGTERM); a started test's record is still written, nothing "
-                          "else cut short is saved",
+                          "else cut short is saved (a signal once a test has ended leaves its verdict's code)",
     ExitCode.RECORD_NOT_WRITTEN: "a full disk: a record, baseline or report could not be written whole (a test's "
                                  "verdict is printed all the same)",
 }

@@ -39,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from edc_bench.records.consistency import disagreements, refusal
     from edc_bench.records.reader import load_record
     from edc_bench.records.report import draw_report
+    from edc_bench.runtime.signals import settle
 
     record = load_record(args.record_dir)  # a folder that is not a record, or changed since its test, ...
     _check_text(record, args.record_dir)  # ... text that cannot be drawn, ...
@@ -56,10 +57,38 @@ def run(args: argparse.Namespace) -> int:
     if standing is not None and standing.differs:  # ... or a record that is not the one the history first indexed
         raise ConfigError(f"{args.record_dir}: {standing.differs}: no report drawn; 'edc-bench history --audit "
                           f"{record.valve_id}' shows the test as indexed")
-    pdf, pngs = draw_report(args.record_dir, args.out, None if standing is None else standing.note())
+    out_dir = args.record_dir if args.out is None else args.out
+    before = _report_files(out_dir)
+    try:
+        pdf, pngs = draw_report(args.record_dir, args.out, None if standing is None else standing.note())
+        settle()  # Ctrl-C that a library swallowed while drawing is still Ctrl-C; one after this is only noted
+    except KeyboardInterrupt:  # interrupted: no half of a report is left to pass for the whole of one
+        _remove_drawn(out_dir, before)
+        raise
     print(f"report: {pdf}\npage images: {', '.join(map(str, pngs))}"
           + ("" if standing is None else f"\nhistory: {standing.note()} (printed on page 1)"))
     return 0
+
+
+def _report_files(folder: Path) -> dict[Path, tuple[int, int] | None]:
+    """The report's files in ``folder`` as they are now (inode and modification time; None: absent)."""
+    from edc_bench.records.report import REPORT_PDF, REPORT_PNGS
+
+    found: dict[Path, tuple[int, int] | None] = {}
+    for name in (REPORT_PDF, *REPORT_PNGS):
+        try:
+            stat = (folder / name).stat()
+            found[folder / name] = (stat.st_ino, stat.st_mtime_ns)
+        except OSError:
+            found[folder / name] = None
+    return found
+
+
+def _remove_drawn(folder: Path, before: dict[Path, tuple[int, int] | None]) -> None:
+    """Remove the report's files this run wrote (new or replaced since ``before``): an interrupted report is none."""
+    for path, now in _report_files(folder).items():
+        if now is not None and now != before[path]:
+            path.unlink(missing_ok=True)
 
 
 def _check_text(record: Record, folder: Path) -> None:

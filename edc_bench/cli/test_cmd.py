@@ -166,12 +166,27 @@ def run(args: argparse.Namespace) -> int:
         _check_chain_model(args)
     # the first Ctrl-C aborts the test; later ones cannot cost the record; 130 is said here, in this command's words
     with interrupt_guard(reraise=False):
-        code = _run_guarded(args)
-        if stop_requested() and code not in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN):
+        ran = _run_guarded(args)
+        if not stop_requested() or ran.code in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN):
+            return ran.code
+        if ran.last is None or _interrupted(ran.last.result):
             # the record is written (INVALID, "interrupted by the operator"); the exit code says who ended it
             print("edc-bench test: interrupted by the operator; the record is written (INVALID)", file=sys.stderr)
             return ExitCode.INTERRUPTED
-        return code
+        # the signal came once the test had ended: its verdict, recorded and said, stands (one decision, not a
+        # PASS said and then an INVALID exit); what the interrupt cut short is said with it
+        verdict = ran.last.decision.verdict if ran.last.decision is not None else ran.last.result.verdict
+        print(f"edc-bench test: interrupted after the test had ended: {verdict} stands, as its record "
+              f"{ran.last.record_dir} holds it"
+              + ("; the retest was not run: test the valve again for its decision" if ran.retest_skipped else ""),
+              file=sys.stderr)
+        return ran.code
+
+
+def _interrupted(result: Any) -> bool:
+    """Whether the operator's interrupt cut this test short (its record says INVALID, interrupted)."""
+    abort = result.outcome.abort
+    return abort is not None and abort.kind is AbortKind.INTERRUPTED
 
 
 def _check_chain_model(args: argparse.Namespace) -> None:
@@ -235,7 +250,17 @@ def _observer(args: argparse.Namespace, title: str) -> Any:
     return contextlib.nullcontext(PlainLog(sys.stderr))
 
 
-def _run_guarded(args: argparse.Namespace) -> int:
+@dataclasses.dataclass(frozen=True)
+class _Ran:
+    """What ``test`` did: its exit code, its last test (None: none was stored) and whether an interrupt that came
+    after a MARGINAL kept its retest from running."""
+
+    code: int
+    last: _Tested | None = None
+    retest_skipped: bool = False
+
+
+def _run_guarded(args: argparse.Namespace) -> _Ran:
     from edc_bench.cli.common import check_output_folder
 
     check_output_folder(args.out, "--out")  # before the test, not after it
@@ -263,7 +288,7 @@ def _bus_opened_ahead(bus_config: BusSettings | None) -> Iterator[Any]:
         opened.__exit__(None, None, None)  # closes once: nothing left to do after the test closed it
 
 
-def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, opened: Any) -> int:
+def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, opened: Any) -> _Ran:
     """The test, and after a MARGINAL its retest (the first test on ``opened``, the bus opened ahead, if any)."""
     from edc_bench.runtime.signals import stop_requested
     from edc_bench.verdict.retest import retest_wanted
@@ -276,12 +301,14 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
               "read it off the valve); give --valve-id ID to follow this valve in 'edc-bench history --trend' "
               "and 'edc-bench label'", file=sys.stderr)
     first = _test_once(args, variant, bus_config, valve_id, args.seed, retest_of=None, opened=opened)
+    wanted = not args.no_retest and retest_wanted(first.result.verdict, variant.retest)
     if (first.record_dir is None or first.code in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN)
-            or stop_requested() or args.no_retest or not retest_wanted(first.result.verdict, variant.retest)):
+            or stop_requested() or not wanted):
         if args.json:
             print_quietly_if_closed(lambda: print(json.dumps(TestSummary.of(first.result, first.record_dir).as_json(),
                                                              indent=2)))
-        return first.code
+        return _Ran(first.code, first if first.record_dir is not None else None,
+                    retest_skipped=wanted and stop_requested())
     # the MARGINAL procedure: the valve stays mounted and is tested again; on the simulated rig with new noise
     retest_seed = (args.seed + 1) % (MAX_SEED + 1)
     if not args.json:
@@ -290,7 +317,7 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
               + ". Leave the valve mounted.", flush=True)
     second = _test_once(args, variant, bus_config, valve_id, retest_seed, retest_of=first)
     if second.decision is None:  # not written, or a bug: said already
-        return second.code
+        return _Ran(second.code)
     if args.json:
         out = dataclasses.replace(TestSummary.of(second.result, second.record_dir, second.decision),
                                   first_test=TestSummary.of(first.result, first.record_dir))
@@ -305,9 +332,9 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
         print_quietly_if_closed(lambda: print(f"\ndecision: {second.decision.verdict}, {second.decision.words} "
                                               f"(first test MARGINAL, retest {second.result.verdict}; "
                                               f"rule {second.decision.rule})"))
-    if stop_requested() or second.code == ExitCode.RECORD_NOT_WRITTEN:  # a retest's record missing a part: 74 too
-        return second.code
-    return exit_code_for(second.decision.verdict)
+    if second.code == ExitCode.RECORD_NOT_WRITTEN or (stop_requested() and _interrupted(second.result)):
+        return _Ran(second.code, second)  # a retest's record missing a part: 74 too
+    return _Ran(exit_code_for(second.decision.verdict), second)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -47,6 +47,10 @@ class _Interrupts:
     raised: bool = False
     #: whether a raise_on_interrupt block is open now
     raising: bool = False
+    #: whether the open raise_on_interrupt block's command has settled its outcome (:func:`settle`)
+    settled: bool = False
+    #: signals that came after it settled (noted, not raised)
+    after_settled: int = 0
 
 
 _state = _Interrupts()
@@ -103,6 +107,9 @@ def interrupt_guard(*, reraise: bool = True) -> Iterator[None]:
 
 
 def _raise(signum: int, frame: object) -> None:
+    if _state.settled:  # the command's outcome stands (written and said): the signal cannot change it
+        _state.after_settled += 1
+        return
     _state.raised = True
     raise KeyboardInterrupt
 
@@ -120,6 +127,7 @@ def raise_on_interrupt() -> Iterator[None]:
         yield
         return
     _state.raised = False
+    _state.settled, _state.after_settled = False, 0
     was_raising, _state.raising = _state.raising, True
     previous = {sig: signal.signal(sig, _raise) for sig in _SIGNALS if signal.getsignal(sig) is not signal.SIG_IGN}
     previous_hook = sys.unraisablehook
@@ -128,6 +136,7 @@ def raise_on_interrupt() -> Iterator[None]:
         yield
     finally:
         _state.raising = was_raising
+        _state.settled = False
         sys.unraisablehook = previous_hook
         for sig, handler in previous.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)  # None: not set from Python
@@ -165,3 +174,22 @@ def stop_if_interrupted() -> None:
     """
     if _state.raising and _state.raised:
         raise KeyboardInterrupt
+
+
+def settle() -> None:
+    """The command's outcome is decided: say it now or say interrupted, never both.
+
+    An interrupt raised before now that a library swallowed raises :class:`KeyboardInterrupt` here
+    (:func:`stop_if_interrupted`: the caller removes what it wrote and the command exits 130, having announced
+    nothing); from here to the end of the :func:`raise_on_interrupt` block, Ctrl-C and SIGTERM are noted
+    (:func:`interrupted_after_settling`) and raise nothing, so a command that has written and is announcing its
+    result is not then reported interrupted (its files and its words would contradict the exit code).
+    """
+    stop_if_interrupted()
+    if _state.raising:
+        _state.settled = True
+
+
+def interrupted_after_settling() -> int:
+    """How many Ctrl-C or SIGTERM came after :func:`settle` in the open block (noted, not acted on)."""
+    return _state.after_settled

@@ -380,17 +380,30 @@ def record(tmp_path_factory: pytest.TempPathFactory) -> Path:
 ])
 def test_report_interrupted_says_so_in_one_line_and_announces_no_report(
         command: Callable[..., Command], tmp_path: Path, record: Path, moment: str, imported: str, sig: int) -> None:
-    report = command("report", str(record), "--out", "report", python_flags=("-X", "importtime"))
-    if not report.wait_for_line(rf"\| +{re.escape(imported)}$"):
-        raise AssertionError(f"{imported} was never imported: {report.text()[-500:]}")
-    report.send(sig)
-    code, out, err = report.finish()
-    said = [line for line in err.splitlines() if not line.startswith("import time:")]
-    assert code == INTERRUPTED, f"{moment}: exit {code}\n" + "\n".join(said)
-    assert said in (["edc-bench: interrupted"], ["edc-bench report: interrupted"]), said  # one line, no traceback
-    assert out == ""  # no "report: ..." line: nothing drawn is announced
-    folder = tmp_path / "report"
-    assert not (list(folder.glob(".*")) if folder.exists() else []), "a temporary file was left behind"
+    """One decision: interrupted (one line, 130, nothing announced, no report file left) or, for a signal that came
+    once the report was written and said, the whole report (0) - never the report said and then "interrupted" (a
+    Ctrl-C a library swallowed while drawing had done that on CI). A signal too late for the moment is sent again
+    in a new run: the interrupted path is the one judged here."""
+    for attempt in range(3):
+        folder = tmp_path / f"report-{attempt}"
+        report = command("report", str(record), "--out", str(folder), python_flags=("-X", "importtime"))
+        if not report.wait_for_line(rf"\| +{re.escape(imported)}$"):
+            raise AssertionError(f"{imported} was never imported: {report.text()[-500:]}")
+        report.send(sig)
+        code, out, err = report.finish()
+        said = [line for line in err.splitlines() if not line.startswith("import time:")]
+        drawn = sorted(p.name for p in folder.iterdir()) if folder.exists() else []
+        assert not [name for name in drawn if name.startswith(".")], f"a temporary file was left behind: {drawn}"
+        if code == 0:  # the signal came after the report was said: it stands, whole, and nothing else is said
+            assert said == [] and out.startswith("report: "), (out, said)
+            assert drawn == ["report-page-2.png", "report-page.png", "report.pdf"], drawn
+            continue
+        assert code == INTERRUPTED, f"{moment}: exit {code}\n" + "\n".join(said)
+        assert said in (["edc-bench: interrupted"], ["edc-bench report: interrupted"]), said  # one line, no traceback
+        assert out == ""  # no "report: ..." line: nothing drawn is announced
+        assert drawn == [], f"an interrupted report left {drawn}"
+        return
+    raise AssertionError(f"{moment}: the signal came after the report was done in 3 runs of 3")
 
 
 # -- test --realtime ------------------------------------------------------------------------------------------------
