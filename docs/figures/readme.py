@@ -44,12 +44,15 @@ def test_suite_paragraph() -> str:
     """The paragraph after the quick start: what the README's second command runs, and how long it takes."""
     minutes = stored("readme-suite-minutes")["default_suite_min"]
     slow = _collected("slow")
+    realtime = _collected("realtime and not slow")
     return wrap(f"The second runs the default suite on two workers (pytest-xdist; `-n 0` for one): "
             f"{minutes:.1f} minutes ({when_and_where('readme-suite-minutes')}; "
-            f"`python docs/regenerate.py --measure readme-suite-minutes` measures it again). It leaves out the {slow} slow tests (the paper's "
+            f"`python docs/regenerate.py --measure readme-suite-minutes` measures it again). Nothing it judges "
+            f"depends on how busy the PC is (docs/testing.md). It leaves out the {slow} slow tests (the paper's "
             f"experiment, model rebuilds, population runs, the docs' measurements, the benchmark, long "
-            f"real-time runs; the two-worker summary does not count them): run them with `pytest -m slow -n 0`, "
-            f"one at a time, since the real-time ones want the machine to themselves. CI runs both, the slow "
+            f"real-time runs) and {realtime} short real-time ones (a rig process on loopback in wall-clock time; "
+            f"the two-worker summary counts neither): run them with `pytest -m 'slow or realtime' -n 0`, "
+            f"one at a time, since the real-time ones want the machine to themselves. CI runs them all, the slow "
             f"tests in simulated time on two workers and the real-time ones and the benchmark alone "
             f"(`.ci/run`). Both commands may share one virtual environment (re-running `venv` on it keeps what "
             f"is installed). The history and caches go under your home folder (\"Where files go\" below).")

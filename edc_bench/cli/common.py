@@ -93,6 +93,41 @@ def count_up_to(limit: int, why: str = "") -> Callable[[str], int]:
     return parse
 
 
+def port_number(text: str) -> int:
+    """A TCP port: a whole number from 1 to 65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number: give a whole number from 1 to 65535") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{value} is not a port number: give one from 1 to 65535")
+    return value
+
+
+#: the modules each optional extra (pyproject.toml's [project.optional-dependencies]) brings
+EXTRAS = {"train": ("sklearn", "skl2onnx", "onnx")}
+
+
+def require_extra(extra: str, what: str) -> None:
+    """Refuse, before any work, a command that needs an extra this install lacks: one line naming the extra.
+
+    Parameters
+    ----------
+    extra : str
+        A key of :data:`EXTRAS`.
+    what : str
+        What needs it, as the line says it ("training", "the paper's experiment").
+    """
+    import importlib.util
+
+    missing = [module for module in EXTRAS[extra] if importlib.util.find_spec(module) is None]
+    if missing:
+        from edc_bench.errors import ConfigError
+
+        raise ConfigError(f"{what} needs the '{extra}' extra ({', '.join(missing)} not installed): pip install "
+                          f"'edc-bench[{extra}]' (in a clone of the repository: pip install '.[{extra}]')")
+
+
 #: valves a simulated population may have per variant (a run of the largest takes hours)
 MAX_POPULATION = 20_000
 

@@ -31,6 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiment, print the table, draw the figure."""
+    from edc_bench.cli.common import require_extra
+
+    require_extra("train", "the paper's experiment (it trains its classifier)")  # before minutes of simulation
     from edc_bench.config import load_variant
     from edc_bench.experiments.studies import PAPER_OUTCOME, draw_figure7, paper_experiment
 

@@ -102,12 +102,9 @@ def run(args: argparse.Namespace) -> int:
         _check_rebuild(args)
     if args.adopt is not None:  # adopting needs no training extra
         return _adopt(args)
-    try:
-        import sklearn  # noqa: F401
+    from edc_bench.cli.common import require_extra
 
-        from edc_bench.learning.train import train  # noqa: F401
-    except ImportError:
-        raise ConfigError("training needs the 'train' extra: pip install '.[train]'") from None
+    require_extra("train", "training")
     if args.count < 20:
         raise ConfigError(f"--count {args.count}: train on at least 20 valves per variant")
     _check_training_inputs(args)

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import ipaddress
 import secrets
+import socket
 import sys
 from pathlib import Path
 
-from edc_bench.cli.common import add_history_db_argument, positive_int
+from edc_bench.cli.common import add_history_db_argument, port_number, positive_int
 
 #: Hosts a station's SQLite history is served on without --allow-remote.
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
@@ -24,7 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "token printed at start (docs/web.md).")
     add_history_db_argument(p)
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1, this PC only)")
-    p.add_argument("--port", type=positive_int, default=8080, help="port (default: 8080)")
+    p.add_argument("--port", type=port_number, default=8080, help="port, 1 to 65535 (default: 8080)")
     p.add_argument("--records", type=Path, default=Path("records"), metavar="DIR",
                    help="the records folder: a test's PDF report is served only from inside it (default: ./records)")
     p.add_argument("--allow-remote", action="store_true",
@@ -83,12 +85,13 @@ def run(args: argparse.Namespace) -> int:
     if config.records_dir is None:
         print(f"edc-bench web: warning: no records folder {args.records}: reports will not be served (--records DIR)",
               file=sys.stderr)
+    listening = _listening_socket(args.host, args.port)  # a port in use or a host not this PC's: said, not a URL
     scheme = "https" if args.certfile else "http"
     host = f"[{args.host}]" if ":" in args.host else args.host
     print(f"edc-bench web: serving {config.url if config.is_sqlite else _shown(url)} on {scheme}://{host}:{args.port}/"
           + (f"  access token: {config.token}" if config.is_sqlite else "  (sign in with your database login)"),
           flush=True)
-    return _serve(config, args)
+    return _serve(config, args, listening)
 
 
 def _shown(url: str) -> str:
@@ -111,14 +114,41 @@ def _token(path: Path | None) -> str:
     return token
 
 
-def _serve(config: object, args: argparse.Namespace) -> int:
+def _listening_socket(host: str, port: int) -> socket.socket:
+    """The server's socket, bound and listening, or one line saying why it cannot be (before the URL is printed)."""
+    from edc_bench.errors import ConfigError
+
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM,
+                                                             flags=socket.AI_PASSIVE)[0]
+    except (socket.gaierror, UnicodeError) as exc:
+        raise ConfigError(f"--host {host}: not a host name or address this PC knows ({exc}); give 127.0.0.1 or "
+                          "one of this PC's addresses") from None
+    listening = socket.socket(family, kind, proto)
+    try:
+        listening.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listening.bind(address)
+        listening.listen(2048)
+    except OSError as exc:
+        listening.close()
+        why = {errno.EADDRINUSE: "another program (or another edc-bench web) serves on it: give another --port",
+               errno.EACCES: "this user may not use a port below 1024: give one from 1024 up",
+               errno.EADDRNOTAVAIL: "the address is not this PC's: give 127.0.0.1 or one of this PC's addresses"}
+        raise ConfigError(f"--host {host} --port {port}: cannot serve there ({exc.strerror}): "
+                          f"{why.get(exc.errno or 0, 'give another --host or --port')}") from None
+    return listening
+
+
+def _serve(config: object, args: argparse.Namespace, listening: socket.socket) -> int:
     import uvicorn
 
     from edc_bench.web.app import create_app, settle_for_serving
 
     app = create_app(config)  # type: ignore[arg-type]
     settle_for_serving()
-    uvicorn.run(app, host=args.host, port=args.port, log_level="warning",
-                ssl_certfile=str(args.certfile) if args.certfile else None,
-                ssl_keyfile=str(args.keyfile) if args.keyfile else None)
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning",
+                                           ssl_certfile=str(args.certfile) if args.certfile else None,
+                                           ssl_keyfile=str(args.keyfile) if args.keyfile else None))
+    with listening:
+        server.run(sockets=[listening])
     return 0
