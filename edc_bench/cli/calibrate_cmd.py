@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from edc_bench.cli.common import add_bus_arguments, count_up_to, identity, seed_number
+from edc_bench.cli.common import add_bus_arguments, count_up_to, given_path, identity, seed_number
 from edc_bench.cli.exit_codes import ExitCode
 from edc_bench.verdict.baseline_source import BaselineSource, sources_text
 
@@ -41,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     how.add_argument("--write", action="store_true",
                    help="write a new station baseline from these tests alone (the earlier one is kept in "
                         "baselines/earlier/); default: print the baseline only")
-    p.add_argument("--baseline-file", type=Path, default=None, metavar="FILE",
+    p.add_argument("--baseline-file", type=given_path, default=None, metavar="FILE",
                    help="write the baseline to this file instead of the station's (e.g. configs/baselines/"
                         "<variant>.toml for a shipped variant)")
     p.add_argument("--valve", default=None, metavar="SPEC",
@@ -54,7 +54,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "tests already in the baseline; each test adds its number)")
     add_bus_arguments(p, interface_help="python-can interface of a real rig, e.g. slcan, socketcan, pcan",
                       channel_help="python-can channel of a real rig, e.g. socket://127.0.0.1:5000 or can0")
-    p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
+    p.add_argument("--out", type=given_path, default=Path("records"), metavar="DIR",
                    help="folder for the calibration tests' records (default: ./records), as in 'edc-bench test'")
     p.add_argument("--station", type=identity(), default=None,
                    help="name of this bench station (default: the host name)")

@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from edc_bench.cli.common import positive_float, print_quietly_if_closed
+from edc_bench.cli.common import given_path, positive_float, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 from edc_bench.timefmt import local_text
 
@@ -94,13 +94,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "where they differ, or the record's verdict does not follow from its own figures, one line "
                     "says so (both verdicts, and why) and the exit code is 13.",
     )
-    p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
+    p.add_argument("record_dir", nargs="?", type=given_path, default=None, help="a record folder")
     p.add_argument("--variant", default=None, metavar="NAME|PART|PATH", help="pump variant (for --af/--a1)")
     p.add_argument("--af", type=positive_float("af in V as 'edc-bench test' prints it, e.g. 0.07"), default=None,
                    help="identified af in V")
     p.add_argument("--a1", type=positive_float("a1 in V s/mm as 'edc-bench test' prints it, e.g. 0.0038"),
                    default=None, help="identified a1 in V s/mm")
-    p.add_argument("--model", type=Path, default=None,
+    p.add_argument("--model", type=given_path, default=None,
                    help="ONNX model (default: the variant's own if its [diagnosis] model names one, else the "
                    "station's: the adopted one, else the packaged network)")
     p.add_argument("--nominal-baseline", action="store_true",

@@ -61,6 +61,21 @@ def add_hidden_alias(parser: Any, old: str, dest: str, **kwargs: Any) -> None:
 # -- argparse types: each names what was wrong and what to give instead ------------------------------------------
 
 
+def given_path(text: str) -> Path:
+    """A file or folder flag's path: refused empty (``--out ''`` would be the current folder, unsaid)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path: give a file or folder name ('.' for the current folder)")
+    return Path(text)
+
+
+def history_url(text: str) -> str:
+    """``--db URL``: refused empty (``--db ''`` would be the default history, unsaid)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty URL: give sqlite:///FILE or postgresql+psycopg://USER@HOST/DB, "
+                                         "or leave --db out for the default history")
+    return text
+
+
 def seed_number(text: str) -> int:
     """``--seed``: a whole number from 0 to :data:`MAX_SEED`."""
     try:
@@ -224,7 +239,7 @@ def add_population_arguments(parser: argparse.ArgumentParser, count: int, seed: 
                         default=count, help=f"valves per variant (default: {count}; at most {MAX_POPULATION})")
     parser.add_argument("--seed", type=seed_number, default=seed,
                         help=f"population seed (default: {seed}; the shipped models were trained with 2026)")
-    parser.add_argument("--model", type=Path, default=None,
+    parser.add_argument("--model", type=given_path, default=None,
                         help="ONNX model (default: the variant's own if its [diagnosis] model names one, else the "
                         "station's: the adopted one, else the packaged network)")
 
@@ -480,10 +495,10 @@ def add_history_db_argument(parser: Any, when: str = "", dest: str = "db") -> No
 
     ``--history-db`` (what ``test`` called it before) stays as a hidden alias.
     """
-    parser.add_argument("--db", dest=dest, default=None, metavar="URL",
+    parser.add_argument("--db", dest=dest, default=None, metavar="URL", type=history_url,
                         help=f"{when}history database: sqlite:///FILE or postgresql+psycopg://USER@HOST/DB "
                              "(default: EDC_BENCH_HISTORY_URL, else the station's SQLite file)")
-    add_hidden_alias(parser, "--history-db", dest)
+    add_hidden_alias(parser, "--history-db", dest, type=history_url)
 
 
 def add_history_label_arguments(parser: argparse.ArgumentParser) -> None:

@@ -7,7 +7,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-from edc_bench.cli.common import check_output_file, count_up_to, seed_number
+from edc_bench.cli.common import check_output_file, count_up_to, given_path, seed_number
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=seed_number, default=2010, help="seed (default: 2010)")
     p.add_argument("--runs", type=count_up_to(100, " (each run is minutes)"), default=1,
                    help="repeat with seeds seed, seed+1, ... and report each (default: 1)")
-    p.add_argument("--figure", type=Path, default=Path("paper-fig7.png"), metavar="PNG",
+    p.add_argument("--figure", type=given_path, default=Path("paper-fig7.png"), metavar="PNG",
                    help="where to draw Fig. 7 (a .png file; default: paper-fig7.png)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=run)

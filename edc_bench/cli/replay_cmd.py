@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from edc_bench.cli.common import print_quietly_if_closed
+from edc_bench.cli.common import given_path, print_quietly_if_closed
 from edc_bench.cli.exit_codes import ExitCode, exit_code_for
 
 if TYPE_CHECKING:
@@ -25,12 +25,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "record's trace.mf4). With --can-log and --variant and no folder, a raw log is replayed on its "
                     "own (exit code of the verdict). Logs: candump .log, .asc, .blf, .mf4, .trc (also gzipped).",
     )
-    p.add_argument("record_dir", nargs="?", type=Path, default=None, help="a record folder")
-    p.add_argument("--can-log", type=Path, default=None, metavar="FILE",
+    p.add_argument("record_dir", nargs="?", type=given_path, default=None, help="a record folder")
+    p.add_argument("--can-log", type=given_path, default=None, metavar="FILE",
                    help="a CAN log in any format python-can reads (.log .asc .blf .mf4 .trc .csv .db, also "
                         ".gz; the suffix names it)")
     p.add_argument("--variant", default=None, help="with --can-log: the variant the test ran (name, part number, file)")
-    p.add_argument("--model", type=Path, default=None, metavar="ONNX",
+    p.add_argument("--model", type=given_path, default=None, metavar="ONNX",
                    help="classifier model (default: the one that judged the record, found by its hash; else the "
                         "station's)")
     p.add_argument("--nominal-baseline", action="store_true",

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from edc_bench.cli.common import given_path
+
 if TYPE_CHECKING:
     from edc_bench.records.schema import Record
 
@@ -23,8 +25,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "test, or whose verdict does not follow from its own figures (problems, classification, "
                     "features, baseline), is refused, naming what disagrees.",
     )
-    p.add_argument("record_dir", type=Path, help="a record folder written by 'edc-bench test'")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR", help="folder for the report (default: the record's)")
+    p.add_argument("record_dir", type=given_path, help="a record folder written by 'edc-bench test'")
+    p.add_argument("--out", type=given_path, default=None, metavar="DIR", help="folder for the report (default: the record's)")
     from edc_bench.cli.common import add_history_db_argument
 
     add_history_db_argument(p, "where the test's chain hash is looked up (page 1 prints it), and the record held to "

@@ -8,6 +8,8 @@ from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from edc_bench.cli.common import given_path
+
 from edc_bench.cli.exit_codes import ExitCode
 
 if TYPE_CHECKING:
@@ -40,7 +42,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--provoke-trips", action="store_true",
                    help="also provoke the over-current and travel-limit trips: drives the rack to its stop and the "
                         "coil beyond its rating for a millisecond; only on a rig built for it")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+    p.add_argument("--out", type=given_path, default=None, metavar="DIR",
                    help="where rig-check.json and rig-check.pdf go (default: rig-checks/<date-time>)")
     p.add_argument("--json", action="store_true", help="print only JSON")
     p.set_defaults(run=run)

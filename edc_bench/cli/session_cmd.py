@@ -11,6 +11,7 @@ from edc_bench.cli.common import (
     add_history_db_argument,
     add_pump_fault_arguments,
     add_rig_drift_argument,
+    given_path,
     identity,
     seed_number,
 )
@@ -38,7 +39,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                       channel_help="python-can channel, e.g. can0 or socket://127.0.0.1:5000")
     p.add_argument("--seed", type=seed_number, default=0,
                    help="simulated rig: the first test's noise seed; each later test takes the next (default: 0)")
-    p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
+    p.add_argument("--out", type=given_path, default=Path("records"), metavar="DIR",
                    help="folder for record folders and the shift summary (default: ./records)")
     p.add_argument("--station", type=identity(), default=None, help="this bench station's name (default: host name)")
     p.add_argument("--operator", type=identity(), default=None,

@@ -11,6 +11,7 @@ from edc_bench.cli.common import (
     add_population_arguments,
     check_output_file,
     check_population_inputs,
+    given_path,
 )
 
 
@@ -24,7 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_population_arguments(p, count=1000, seed=31)
     add_history_label_arguments(p)
-    p.add_argument("--figure", type=Path, default=Path("boundary-tradeoff.png"), metavar="PNG",
+    p.add_argument("--figure", type=given_path, default=Path("boundary-tradeoff.png"), metavar="PNG",
                    help="where to draw the trade-off (a .png file; default: boundary-tradeoff.png)")
     p.set_defaults(run=run)
 

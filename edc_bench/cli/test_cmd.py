@@ -18,6 +18,7 @@ from edc_bench.cli.common import (
     add_pump_fault_arguments,
     add_rig_drift_argument,
     add_variant_arguments,
+    given_path,
     identity,
     print_quietly_if_closed,
     seed_number,
@@ -60,7 +61,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the coil's temperature at the start of the test, to refer its measured resistance to "
                         "20 degC (default: 20, a coil that has rested in the workshop; give it for a coil still "
                         "warm from earlier tests)")
-    p.add_argument("--out", type=Path, default=Path("records"), metavar="DIR",
+    p.add_argument("--out", type=given_path, default=Path("records"), metavar="DIR",
                    help="folder for record folders (default: ./records)")
     p.add_argument("--json", action="store_true", help="print only a JSON summary on stdout")
     p.add_argument("--no-stiction", action="store_true",

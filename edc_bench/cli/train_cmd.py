@@ -16,6 +16,7 @@ from edc_bench.cli.common import (
     check_output_file,
     check_output_folder,
     count_up_to,
+    given_path,
     identity,
     seed_number,
 )
@@ -50,9 +51,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help=f"seed of data and weights (default: {DEFAULT_SEED})")
     p.add_argument("--marginal-band", type=float, default=0.03,
                    help="half-width of the MARGINAL band around the boundary, in baseline ratios (default: 0.03)")
-    p.add_argument("--dataset", type=Path, default=None, metavar="FILE",
+    p.add_argument("--dataset", type=given_path, default=None, metavar="FILE",
                    help="train on this dataset file instead of simulating")
-    p.add_argument("--save-dataset", type=Path, default=None, metavar="FILE",
+    p.add_argument("--save-dataset", type=given_path, default=None, metavar="FILE",
                    help="also write the simulated dataset to this file")
     p.add_argument("--own", action="store_true",
                    help="train one variant's own network (give one --variants name or file), for a pump whose "
@@ -60,10 +61,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "written into the station's models folder as the file its [diagnosis] model line names, "
                         "else valve_mlp-NAME.onnx (then add that line); a file the package ships is written as a "
                         "candidate instead, and the shipped one kept")
-    p.add_argument("--models-dir", type=Path, default=None, metavar="DIR",
+    p.add_argument("--models-dir", type=given_path, default=None, metavar="DIR",
                    help="folder to write the models into (default: the station's models folder; never the "
                         "package's)")
-    add_hidden_alias(p, "--out-dir", "models_dir", type=Path)  # its name before the flags were made consistent
+    add_hidden_alias(p, "--out-dir", "models_dir", type=given_path)  # its name before the flags were made consistent
     p.add_argument("--rebuild-shipped", action="store_true",
                    help="write the models into the package's source tree, as the shipped ones (developers: a "
                         "source checkout only, never an installed package)")
@@ -76,10 +77,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                       help="how many labelled tests the whole simulated population counts as (default: 50; 0: the "
                            "labels alone)")
     shop.add_argument("--name", default=None, help="the candidate's name (default: shop- and its labels' hash)")
-    shop.add_argument("--candidate-file", type=Path, default=None, metavar="ONNX",
+    shop.add_argument("--candidate-file", type=given_path, default=None, metavar="ONNX",
                       help="the file to write the candidate to (default: candidates/NAME.onnx in the station's "
                            "models folder)")
-    add_hidden_alias(shop, "--out", "candidate_file", type=Path)  # its name before --out meant a folder only
+    add_hidden_alias(shop, "--out", "candidate_file", type=given_path)  # its name before --out meant a folder only
     shop.add_argument("--adopt", default=None, metavar="ONNX|shipped",
                       help="make this model the station's (a candidate file), or go back to the shipped network")
     shop.add_argument("--by", type=identity(), default=None, metavar="NAME",

@@ -10,7 +10,7 @@ import socket
 import sys
 from pathlib import Path
 
-from edc_bench.cli.common import add_history_db_argument, port_number, positive_int
+from edc_bench.cli.common import add_history_db_argument, given_path, port_number, positive_int
 
 #: Hosts a station's SQLite history is served on without --allow-remote.
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
@@ -27,18 +27,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_history_db_argument(p)
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1, this PC only)")
     p.add_argument("--port", type=port_number, default=8080, help="port, 1 to 65535 (default: 8080)")
-    p.add_argument("--records", type=Path, default=Path("records"), metavar="DIR",
+    p.add_argument("--records", type=given_path, default=Path("records"), metavar="DIR",
                    help="the records folder: a test's PDF report is served only from inside it (default: ./records)")
     p.add_argument("--allow-remote", action="store_true",
                    help="serve a station's SQLite history on an address other than this PC's (another PC then "
                         "signs in with the access token)")
-    p.add_argument("--certfile", type=Path, default=None, metavar="PEM",
+    p.add_argument("--certfile", type=given_path, default=None, metavar="PEM",
                    help="serve HTTPS with this certificate (with --keyfile): needed for sign-in from other PCs, "
                         "whose browsers keep the secure session cookie only over HTTPS")
-    p.add_argument("--keyfile", type=Path, default=None, metavar="PEM", help="the certificate's private key")
+    p.add_argument("--keyfile", type=given_path, default=None, metavar="PEM", help="the certificate's private key")
     p.add_argument("--idle-minutes", type=positive_int, default=30,
                    help="a session ends after this many minutes without a page (default: 30)")
-    p.add_argument("--token-file", type=Path, default=None, metavar="FILE",
+    p.add_argument("--token-file", type=given_path, default=None, metavar="FILE",
                    help="SQLite: read the access token from FILE instead of making a new one")
     p.set_defaults(run=run)
 
