@@ -538,7 +538,26 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
               f"or shown whole from {record_dir}: free space on the disk, then test the valve again.",
               file=sys.stderr)
         return record_dir, ExitCode.RECORD_NOT_WRITTEN
+    figure_error = None if args.no_figure else _figure_error(record_dir)
+    if figure_error is not None:  # the data is whole and the figure is drawn again from it: said, and no clean exit
+        from edc_bench.records.writer import FIGURE_FILE
+
+        print(f"edc-bench test: error: {record_dir / FIGURE_FILE} could not be written ({figure_error}). The verdict "
+              f"above stands and the record holds the data: free space on the disk, then draw the figures with: "
+              f"edc-bench report {record_dir}", file=sys.stderr)
+        return record_dir, ExitCode.RECORD_NOT_WRITTEN
     return record_dir, exit_code_for(result.verdict)
+
+
+def _figure_error(record_dir: Path) -> str | None:
+    """Why the record's figure (report.png) is missing, as record.json says it (None: drawn)."""
+    from edc_bench.records.reader import load_record
+
+    try:
+        files = load_record(record_dir).files
+    except Exception:  # noqa: BLE001 - the record was just written; a reader's refusal is said elsewhere
+        return None
+    return None if files.figure else str((files.model_extra or {}).get("figure_error", "not drawn"))
 
 
 def _report_escalation(args: argparse.Namespace, record_dir: Path) -> None:
@@ -593,8 +612,7 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None, no
         return written, None if missing is None else f"the record is incomplete: {missing}", missing is None
     except OSError as exc:
         first = f"{type(exc).__name__}: {exc}"
-    where = f" (what was written is in {folder})" if folder is not None else ""
-    notes = [*notes, f"the record could not be written under {args.out} ({first}){where}"]
+    notes = [*notes, f"the record could not be written under {args.out} ({first})"]
     try:
         fallback = Path(tempfile.mkdtemp(prefix="edc-bench-record-"))
         written = write_record(result, fallback, figure=False, folder=fallback, notes=notes, retest=retest)
@@ -603,10 +621,30 @@ def _write_record(result: Any, args: argparse.Namespace, folder: Path | None, no
     missing = incomplete(written)
     if missing is not None:
         return written, (f"the record could not be written under {args.out} ({first}), and in {written} it is "
-                         f"incomplete: {missing}"), False
+                         f"incomplete: {missing}" + (f"; what was written under {args.out} is in {folder}"
+                                                     if folder is not None and folder.exists() else "")), False
+    left = _remove_half_written(folder)  # the CAN log streamed there is whole in the saved record
     return written, (f"the record could not be written under {args.out} ({first}); it was saved to {written} "
                      "instead and is not in the history: move it to the records folder once there is room, then "
-                     "add it with: edc-bench history --add FOLDER"), True
+                     "add it with: edc-bench history --add FOLDER"
+                     + (f"; {folder} holds what was written there before the disk filled ({left}): remove it"
+                        if left else "")), True
+
+
+def _remove_half_written(folder: Path | None) -> str:
+    """Remove the record folder a full disk left without its record.json (its CAN log, streamed there while the
+    test ran, is whole in the record saved elsewhere); what could not be removed, said ("" when nothing is left)."""
+    import shutil
+
+    from edc_bench.records.writer import RECORD_FILE
+
+    if folder is None or not folder.is_dir() or (folder / RECORD_FILE).exists():
+        return ""
+    try:
+        shutil.rmtree(folder)
+    except OSError as exc:
+        return f"it could not be removed: {exc}"
+    return ""
 
 
 def _index(record_dir: Path, url: str | None) -> str | None:

@@ -240,3 +240,55 @@ def test_tune_on_a_full_disk_exits_74_and_leaves_the_variant_file_whole(tmp_path
     assert "cannot write the gains (No space left on device)" in captured.err and "Traceback" not in captured.err
     assert path.read_text(encoding="utf-8") == before  # the variant file whole, as it was
     assert [p.name for p in path.parent.iterdir()] == [path.name]  # and no part-written file beside it
+
+
+def test_a_figure_the_full_disk_left_unwritten_is_named_and_exits_74(tmp_path: Path, monkeypatch, capsys) -> None:
+    """The tester's finding: with the disk full when report.png was written, the figure was missing, exit 0,
+    nothing said. The data is whole (the figure is drawn again from it): the verdict stands, one line names the
+    file and how to draw it later."""
+    from edc_bench import paths
+
+    original = paths.atomic_write
+
+    def no_room_for_the_figure(path, *args, **kwargs):
+        if Path(path).name == "report.png":
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return original(path, *args, **kwargs)
+
+    monkeypatch.setattr(paths, "atomic_write", no_room_for_the_figure)
+    out = tmp_path / "records"
+    code = main(["test", "--valve", "new", "--out", str(out), "--no-history", "--plain"])
+    captured = capsys.readouterr()
+    (folder,) = out.iterdir()
+    assert "verdict: PASS" in captured.out
+    assert code == ExitCode.RECORD_NOT_WRITTEN, captured.err
+    assert (f"error: {folder / 'report.png'} could not be written (OSError: [Errno 28] No space left on device"
+            in captured.err)
+    assert f"edc-bench report {folder}" in captured.err
+    assert json.loads((folder / "record.json").read_text())["verdict"] == "PASS"
+
+
+def test_a_full_records_disk_leaves_no_half_written_folder_under_out(tmp_path: Path, monkeypatch, capsys) -> None:
+    """The tester's finding: with the disk full at record.json, the record went to the temp folder as promised, but
+    a folder with only a partial can.log stayed under --out, unmentioned. Its CAN log is whole in the saved
+    record: the folder is removed."""
+    from edc_bench.records import record as record_module
+
+    out = tmp_path / "records"
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    written = record_module.write_json
+
+    def no_room_under_out(path, *args, **kwargs):
+        if Path(path).resolve().is_relative_to(out.resolve()):
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return written(path, *args, **kwargs)
+
+    monkeypatch.setattr(record_module, "write_json", no_room_under_out)
+    code = main(["test", "--valve", "new", "--out", str(out), "--no-figure", "--no-history", "--plain"])
+    err = capsys.readouterr().err
+    assert code == ExitCode.PASS, err  # whole, in the temp folder, and said
+    (saved,) = (tmp_path / "tmp").glob("edc-bench-record-*")
+    assert f"it was saved to {saved}" in err
+    assert (saved / "can.log").stat().st_size > 0
+    assert list(out.iterdir()) == [], "a half-written record folder was left under --out"
