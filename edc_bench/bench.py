@@ -105,6 +105,9 @@ class BenchOptions:
         Called once the loop has ended: what the record says of a simulated rig (``simulation``).
     icd : Icd or None
         Compiled ICD (the packaged one by default).
+    rig_on_this_pc : bool
+        The rig is a process on this PC (the simulated rig process, a loopback socket, a pseudo-terminal): a link's
+        abort then points at the PC, not a cable (the record's ``timing.rig_on_this_pc``).
     """
 
     valve_id: str = ""
@@ -121,6 +124,7 @@ class BenchOptions:
     truth: FeedforwardParameters | None = None
     describe_rig: Callable[[], SimulationSummary] | None = None
     icd: Icd | None = None
+    rig_on_this_pc: bool = False
 
 
 def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: BenchOptions | None = None) -> BenchResult:
@@ -174,7 +178,8 @@ def run_bench_test(bus: can.BusABC, clock: Clock, variant: Variant, options: Ben
         cpu_steal_s=outcome.cpu_steal_s, first_tick_unix_s=outcome.first_tick_unix_s,
         scheduling=None if priority is None else priority.describe(),
         # the early stop's longest call, which a real-time tick had to wait for
-        stop_check_max_us=None if stop_rule is None else outcome.stop_check_max_s * 1e6)
+        stop_check_max_us=None if stop_rule is None else outcome.stop_check_max_s * 1e6,
+        rig_on_this_pc=o.rig_on_this_pc or None)
     if o.observer is not None:
         o.observer.phase(Phase.CLASSIFY)
     judgement = judge_run(variant, trace, loop.controller, outcome, timing, truth=o.truth, classify=o.classify,

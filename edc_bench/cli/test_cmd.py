@@ -405,6 +405,29 @@ def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: BusSett
               "valve mounted is what is tested", file=sys.stderr)
 
 
+def rig_on_this_pc(bus_config: BusSettings) -> bool:
+    """Whether the bus reaches a rig that is a process on this PC: slcan over a loopback socket (``edc-bench rig
+    --listen 127.0.0.1:PORT``) or a pseudo-terminal (``rig --pty``). A USB adapter or a socketcan interface is a
+    cable away."""
+    import ipaddress
+    from urllib.parse import urlsplit
+
+    channel = str(bus_config.get("channel") or "")
+    if bus_config.get("interface") != "slcan":
+        return False
+    if channel.startswith("/dev/pts/"):
+        return True
+    if not channel.startswith("socket://"):
+        return False
+    host = urlsplit(channel).hostname or ""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
 def _options(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, valve_id: str,
              folder: list[Path]) -> Any:
     """The test's options from the command line; ``folder`` receives the record folder once the CAN log starts."""
@@ -419,7 +442,8 @@ def _options(args: argparse.Namespace, variant: Any, bus_config: BusSettings | N
 
     return BenchOptions(valve_id=valve_id, identity=_identity(args), coil_temp_c=args.coil_temp_c,
                         nominal_baseline=args.nominal_baseline, full_length=args.full_length,
-                        calibrate_command=_calibrate_command(variant, bus_config), stream_can_log=stream_target)
+                        calibrate_command=_calibrate_command(variant, bus_config), stream_can_log=stream_target,
+                        rig_on_this_pc=args.realtime if bus_config is None else rig_on_this_pc(bus_config))
 
 
 def _run(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None,
@@ -550,14 +574,16 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
 
 
 def _figure_error(record_dir: Path) -> str | None:
-    """Why the record's figure (report.png) is missing, as record.json says it (None: drawn)."""
+    """Why the record's figure (report.png) could not be written, as record.json says it (None: drawn, or nothing to
+    draw)."""
     from edc_bench.records.reader import load_record
 
     try:
         files = load_record(record_dir).files
     except Exception:  # noqa: BLE001 - the record was just written; a reader's refusal is said elsewhere
         return None
-    return None if files.figure else str((files.model_extra or {}).get("figure_error", "not drawn"))
+    error = (files.model_extra or {}).get("figure_error")  # a test without a trace has no figure, and no error
+    return None if files.figure or error is None else str(error)
 
 
 def _report_escalation(args: argparse.Namespace, record_dir: Path) -> None:

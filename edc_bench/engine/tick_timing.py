@@ -40,6 +40,10 @@ class TickTiming(BaseModel):
         The loop thread's scheduling (real-time runs only).
     stop_check_max_us : float or None
         The early stop's longest call (tests with an early stop only).
+    rig_on_this_pc : bool or None
+        The rig is a process on this PC (the simulated rig process, or one served on a loopback socket or a
+        pseudo-terminal): replies it stopped sending are the PC's doing, never a cable's. None: a rig on a bus, or
+        not known (older records).
     """
 
     model_config = ConfigDict(frozen=True, extra="allow")  # a newer edc-bench's figures kept, not refused
@@ -55,6 +59,7 @@ class TickTiming(BaseModel):
     first_tick_unix_s: float | None = None
     scheduling: str | None = None
     stop_check_max_us: float | None = None
+    rig_on_this_pc: bool | None = None
 
     @property
     def lateness_us(self) -> tuple[float, float, float] | None:

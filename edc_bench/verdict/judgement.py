@@ -32,7 +32,7 @@ from edc_bench.engine.tick_timing import TickTiming
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.part import diagnose_parts, part_reasons
 from edc_bench.verdict.part_sections import PartDiagnosis
-from edc_bench.verdict.pc_stall import pc_stall_reason, pc_stall_s
+from edc_bench.verdict.pc_stall import RIG_ON_THIS_PC_REASON, a_stall_can_cause, pc_stall_reason, pc_stall_s
 from edc_bench.verdict.sections import (
     BaselineSummary,
     ClassificationSummary,
@@ -273,6 +273,9 @@ def judge_run(variant: Variant, trace: dict[str, np.ndarray], controller: FelCon
     if stall_s > 0:  # the PC, not the rig or the bus, is what the technician checks
         problems |= Problem.PC_STALLED
         reasons.append(pc_stall_reason(stall_s, outcome.cpu_steal_s))
+    elif timing.rig_on_this_pc and outcome.abort is not None and a_stall_can_cause(outcome.abort):
+        problems |= Problem.PC_STALLED  # the rig's side of the PC stalled: no cable between them to check
+        reasons.append(RIG_ON_THIS_PC_REASON)
     parameters: dict[str, ParameterEstimate] = {}
     inductive = inductive_shares(variant)._asdict()
     r_ref, r_hat = variant.coil.resistance_ohm, measured_resistance_ohm(trace, variant)

@@ -91,6 +91,12 @@ def pc_stall_s(abort: Abort | None, trace: dict[str, np.ndarray], variant: Varia
     return stall_s if stall_s >= shortest_cause_s(abort, variant) else 0.0
 
 
+#: The reason for a link's abort when the rig is a process on this PC (the simulated rig): the PC did not run it in
+#: time, whatever the bench's own ticks show
+RIG_ON_THIS_PC_REASON = ("the rig is a process on this PC and stopped answering in time: the PC did not run it "
+                         "(a busy PC, the rig at normal priority), which no CAN cable or termination causes")
+
+
 def pc_stall_reason(stall_s: float, cpu_steal_s: float) -> str:
     """The reason's sentence for a stall that points at the PC."""
     steal = (f"; the hypervisor took {cpu_steal_s:.2f} s of CPU during the test" if cpu_steal_s >= 0.005 else "")
