@@ -23,7 +23,8 @@ from hypothesis import settings
 
 # Property tests draw the same examples on every run (seeded by the test's name): CI never fails on an example
 # no one ran before. `pytest --hypothesis-profile explore` draws new ones, to hunt for what the fixed set misses.
-settings.register_profile("default", derandomize=True)
+# no deadline: an example held off the CPU on a busy machine is not a failing one (the suite judges no speed)
+settings.register_profile("default", derandomize=True, deadline=None)
 settings.register_profile("explore", derandomize=False, max_examples=2000)
 settings.load_profile("default")
 

@@ -42,12 +42,18 @@ def _wait_for_record_folder(tmp_path: Path, proc: subprocess.Popen) -> Path:
 @pytest.mark.parametrize("signals", [[signal.SIGTERM], [signal.SIGINT, signal.SIGINT, signal.SIGTERM]],
                          ids=["sigterm", "ctrl-c-twice-then-sigterm"])
 def test_interrupts_abort_safely_and_keep_the_record(tmp_path: Path, signals: list[int]) -> None:
-    proc = _start_test(tmp_path)
+    """The signals are sent mid-test (its CAN log holds ticks). The simulated test runs faster than real time: if
+    it had ended before they came (this process held up longer than its child, which then says the verdict stood),
+    the moment was missed, and that is a skip, not a fault; --full-length makes the window 30 s of simulated time,
+    about 2 s of the machine's."""
+    proc = _start_test(tmp_path, "--full-length")
     folder = _wait_for_record_folder(tmp_path, proc)
     for sig in signals:
         proc.send_signal(sig)
         time.sleep(0.005)
     out, err = proc.communicate(timeout=120)
+    if "interrupted after the test had ended" in err:
+        pytest.skip("the machine was too busy: the test had ended before the signal came (its verdict stood)")
     assert proc.returncode == 130, err  # interrupted (README); the record says INVALID
     assert "aborted: interrupted by the operator" in out
     assert not re.search(r"\bnan\b", out, re.IGNORECASE), out  # a figure not identified says so, never "nan"
