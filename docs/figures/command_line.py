@@ -78,6 +78,13 @@ def _parse(argv: list[str]):
     return build_parser().parse_args(argv)
 
 
+def exit_meanings_table() -> str:
+    """What each exit code means (``edc_bench/cli/exit_codes.py``'s MEANINGS)."""
+    from edc_bench.cli.exit_codes import MEANINGS
+
+    return table(("code", "meaning"), [(f"`{int(code)}`", meaning) for code, meaning in MEANINGS.items()])
+
+
 def exit_codes_table() -> str:
     """Each command and the exit codes it can return (as its ``--help`` lists them)."""
     from edc_bench.cli.exit_codes import COMMAND_CODES, command_codes

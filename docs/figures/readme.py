@@ -56,3 +56,33 @@ def test_suite_paragraph() -> str:
             f"tests in simulated time on two workers and the real-time ones and the benchmark alone "
             f"(`.ci/run`). Both commands may share one virtual environment (re-running `venv` on it keeps what "
             f"is installed). The history and caches go under your home folder (\"Where files go\" below).")
+
+
+@measurement("readme-sizes", minutes=1)
+def sizes() -> dict[str, float]:
+    """What an install and a test take on disk: this virtual environment (it must hold the test extras, as README
+    command 2 installs them) and the record folder of one default test on the simulated rig."""
+    import importlib.util
+    import tempfile
+
+    missing = [m for m in ("pytest", "sklearn", "skl2onnx", "selenium") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise RuntimeError(f"measure the sizes in a venv with the test extras (pip install '.[test]'): {missing}")
+
+    def size_mb(folder: Path) -> float:
+        return sum(f.stat().st_size for f in folder.rglob("*") if f.is_file() and not f.is_symlink()) / 1e6
+
+    with tempfile.TemporaryDirectory() as out:
+        subprocess.run([sys.executable, "-m", "edc_bench", "test", "--no-history", "--plain", "--out", out],
+                       cwd=out, capture_output=True, text=True, check=True)
+        (record,) = Path(out).iterdir()
+        record_mb = size_mb(record)
+    return {"venv_gb": round(size_mb(Path(sys.prefix)) / 1e3, 1), "record_mb": round(record_mb, 1)}
+
+
+def sizes_sentence() -> str:
+    """README's prerequisites: the disk an install with the test extras takes and a test's record."""
+    measured = stored("readme-sizes")
+    return (f"about {measured['venv_gb']:.1f} GB for the virtual environment with the test extras "
+            f"(`python docs/regenerate.py --measure readme-sizes`), and {measured['record_mb']:.1f} MB for each "
+            f"test's record (`record.json`, `trace.mf4`, `can.log`, `report.png`)")

@@ -30,7 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(
         prog="edc-bench",
         description="Bench diagnosis of P-EDC solenoid valves over CAN.",
-        epilog="Every command's --help ends with the exit codes it can return (README.md lists them all).",
+        epilog="Every command's --help ends with the exit codes it can return (docs/command-line.md says what each means).",
     )
     parser.add_argument("--version", action="version", version=f"edc-bench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)

@@ -38,7 +38,7 @@ def exit_code_for(verdict: str) -> ExitCode:
             Verdict.INVALID: ExitCode.INVALID}.get(verdict, ExitCode.OK)
 
 
-#: What each code means, in the words of README's exit-code table and every command's ``--help``.
+#: What each code means, in the words of docs/command-line.md's exit-code table and every command's ``--help``.
 MEANINGS: dict[int, str] = {
     ExitCode.PASS: "PASS (a test, a classification, a replayed raw log), or done",
     ExitCode.MARGINAL: "MARGINAL: near the boundary, retest",

@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
             broken += f", pump's {name} faulty: {fault.spec()}"
     print(f"rig: variant {variant.name}, valve {args.valve}, adapter {adapter.name}, {args.firmware} firmware{broken}, "
           f"serving slcan at {where}", flush=True)
-    from edc_bench.runtime.priority import BENCH_PRIORITY, how_to_allow, realtime_priority
+    from edc_bench.runtime.priority import BENCH_PRIORITY, how_to_allow, realtime_permitted, realtime_priority
 
     # the rig is the hardware's side: one above the bench's priority, as the rig process a test starts is (a rig
     # at normal priority beside a bench at real-time priority on one PC went unserved: "the rig stopped answering")
@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"rig: scheduling {priority.describe()}", flush=True)
         if not priority.realtime:
             print("rig: warning: a bench on this PC may find this rig late on a busy PC; "
-                  f"{how_to_allow() if priority.how.startswith('not permitted') else priority.how}",
+                  f"{priority.how if realtime_permitted() else how_to_allow()}",
                   file=sys.stderr, flush=True)
         server.serve_forever()
     # the longest the rig went without serving while a host was connected: a test can tell a disturbed rig

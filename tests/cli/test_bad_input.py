@@ -486,10 +486,11 @@ def test_every_help_ends_with_the_exit_codes_it_can_return(command: str, capsys:
     assert {ExitCode.BAD_INPUT, ExitCode.INTERNAL_ERROR, ExitCode.INTERRUPTED} <= set(listed)
 
 
-def test_readme_states_the_exit_codes_as_they_are() -> None:
+def test_readme_and_the_command_line_doc_state_the_exit_codes_as_they_are() -> None:
     readme = " ".join((REPO / "README.md").read_text(encoding="utf-8").split())
     assert exit_codes_sentence() in readme
-    rows = dict(re.findall(r"^\| `(\d+)` \| ([^|]+) \|", (REPO / "README.md").read_text(encoding="utf-8"), re.MULTILINE))
+    doc = (REPO / "docs" / "command-line.md").read_text(encoding="utf-8")
+    rows = dict(re.findall(r"^\| `(\d+)` \| ([^|]+) \|", doc, re.MULTILINE))
     assert {int(k): v.strip() for k, v in rows.items()} == {int(k): v for k, v in MEANINGS.items()}
     assert set(COMMAND_CODES) == set(COMMANDS)
 
@@ -501,9 +502,10 @@ def test_the_command_line_doc_lists_each_commands_exit_codes() -> None:
         name: command_codes(name) for name in COMMANDS}
 
 
-def test_readme_test_flag_table_is_the_parser() -> None:
-    """Every flag README's ``edc-bench test`` table names exists, and every visible flag of the command is there."""
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+def test_the_commands_doc_test_flag_table_is_the_parser() -> None:
+    """Every flag docs/commands.md's ``edc-bench test`` table names exists, and every visible flag of the command is
+    there."""
+    readme = (REPO / "docs" / "commands.md").read_text(encoding="utf-8")
     start = readme.index("\n|", readme.index("`edc-bench test` flags:"))
     table = readme[start:readme.index("\n\n", start)]
     documented = set(re.findall(r"`(--[a-z0-9-]+)", table))
