@@ -85,10 +85,9 @@ def render_snapshot(s: Snapshot, title: str) -> Panel:
     if s.ticks:
         bar = ProgressBar(total=s.ticks, completed=s.tick + 1, width=40)
         if s.expected_end_s == s.expected_end_s:  # early stop: when the verdict is expected to be known
-            how = "at least" if s.expected_end_is_earliest else "about"
-            when = f"{s.t_s:5.1f} s, {how} {s.time_left_s:4.1f} s left (at most {s.max_time_left_s:.0f} s)"
+            when = f"{s.t_s:5.1f} s, {s.time_left_words}"
         else:
-            when = f"{s.t_s:5.1f} s of {s.duration_s:g} s, {s.time_left_s:4.1f} s left"
+            when = f"{s.t_s:5.1f} s of {s.duration_s:g} s, {s.time_left_words}"
         grid.add_row("time", Group(Text(when), bar))
         error_um = (s.reference_mm - s.position_mm) * 1e3
         both = list(s.rack_history) + list(s.reference_history)

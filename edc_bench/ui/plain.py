@@ -43,6 +43,7 @@ class PlainLog:
         if s.t_s + 1e-9 < self._next_s:
             return
         self._next_s += self.every_s
-        self._write(f"[{s.t_s:5.1f} s] {s.time_left_s:5.1f} s left | rack {s.position_mm:6.2f} mm, reference "
+        # the live panel's words: "10.0 s left" alone, after "at most 30 s", read as a contradiction
+        self._write(f"[{s.t_s:5.1f} s] {s.time_left_words} | rack {s.position_mm:6.2f} mm, reference "
                     f"{s.reference_mm:6.2f} mm | af {s.af:8.5f} V | a1 {s.a1:9.6f} V s/mm | ticks late or lost {s.ticks_late_or_lost}, "
                     f"missed replies {s.missed_replies}")

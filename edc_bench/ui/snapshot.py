@@ -75,6 +75,15 @@ class Snapshot:
         return max(min(end_s, self.duration_s) - self.tick * self.period_s, 0.0)
 
     @property
+    def time_left_words(self) -> str:
+        """How long the test has left, as the technician reads it: ``at least 10.0 s left (at most 30 s)`` with an
+        early stop expected (``about`` once its time is estimated), ``12.0 s left`` without one."""
+        if self.expected_end_s == self.expected_end_s:  # early stop: when the verdict is expected to be known
+            how = "at least" if self.expected_end_is_earliest else "about"
+            return f"{how} {self.time_left_s:4.1f} s left (at most {self.max_time_left_s:.0f} s)"
+        return f"{self.time_left_s:4.1f} s left"
+
+    @property
     def max_time_left_s(self) -> float:
         """Seconds left at most (the full length)."""
         return max(self.ticks - self.tick, 0) * self.period_s

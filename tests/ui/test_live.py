@@ -168,3 +168,19 @@ def test_before_the_first_tick_the_panel_says_what_the_bench_waits_for() -> None
     snapshot.enter("soft start")
     snapshot.ticks = 30_000
     assert "waiting for" not in shown(snapshot)
+
+
+def test_the_plain_log_says_time_left_as_the_panel_does_never_less_than_the_line_above_it(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The tester's finding: the plain log said "at most 30 s", then "10.0 s left" at 0.0 s. Now each line says the
+    early stop's "at least ... (at most ...)" as the live panel does."""
+    from edc_bench.cli import main
+
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as out:
+        assert main(["test", "--plain", "--no-history", "--no-figure", "--out", out]) == 0
+    err = capsys.readouterr().err
+    first = next(line for line in err.splitlines() if line.startswith("[  0.0 s]") and "left" in line)
+    assert "at least 10.0 s left (at most 30 s)" in first, first
+    assert all("(at most" in line for line in err.splitlines() if " s left" in line), err
