@@ -46,7 +46,7 @@ def settings_section(name: str, data_folder: Path | None = None) -> tuple[dict[s
 
 
 #: ``[station]``'s keys, and how long each may be (characters)
-_STATION_KEYS = {"name": 100, "shop": 100, "shop_address": 300}
+_STATION_KEYS = {"name": 100, "shown_name": 100, "shop": 100, "shop_address": 300}
 
 
 @dataclass(frozen=True)
@@ -62,13 +62,20 @@ class StationIdentity:
     """
 
     name: str = ""
+    shown_name: str = ""
     shop: str = ""
     shop_address: str = ""
 
+    def for_customers(self, given: str | None = None) -> str:
+        """The station's name as a customer's page prints it: ``given`` (``--station``), else ``shown_name``, else
+        ``name``; "" when the shop named it nowhere (the PC's host name is never printed for a customer)."""
+        return given or self.shown_name or self.name
+
 
 def station_identity(data_folder: Path | None = None) -> StationIdentity:
-    """``[station]`` of the station's settings: ``name`` (what reports and the history call this station, instead
-    of the PC's host name), ``shop`` and ``shop_address`` (the customer's page prints them); "" where not set.
+    """``[station]`` of the station's settings: ``name`` (what the records and the history call this station,
+    instead of the PC's host name), ``shown_name`` (what the customer's page calls it, if not ``name``), ``shop`` and
+    ``shop_address`` (the customer's page prints them); "" where not set.
 
     Raises
     ------
@@ -112,9 +119,10 @@ def workshop_asked(data_folder: Path | None = None) -> bool:
     return "shop" in section
 
 
-def remember_workshop(shop: str, address: str, data_folder: Path | None = None) -> Path:
+def remember_workshop(shop: str, address: str, data_folder: Path | None = None, shown_name: str | None = None
+                      ) -> Path:
     """Write the workshop's name and address into ``[station]`` of the station's settings (created if missing; its
-    other settings and comments kept); the file.
+    other settings and comments kept), and ``shown_name`` (the station's name for customers) where given; the file.
 
     Raises
     ------
@@ -126,7 +134,8 @@ def remember_workshop(shop: str, address: str, data_folder: Path | None = None) 
     from edc_bench.paths import atomic_write
 
     shop, address = shop.strip(), address.strip()
-    for key, value in (("shop", shop), ("shop_address", address)):
+    shown = None if shown_name is None else shown_name.strip()
+    for key, value in (("shop", shop), ("shop_address", address), ("shown_name", shown or "")):
         longest = _STATION_KEYS[key]
         if len(value) > longest or not value.isprintable():
             raise ConfigError(f"the workshop's {key.replace('_', ' ')} must be at most {longest} printable "
@@ -142,6 +151,8 @@ def remember_workshop(shop: str, address: str, data_folder: Path | None = None) 
         document["station"] = station
     station["shop"] = shop.strip()
     station["shop_address"] = address.strip()
+    if shown is not None:
+        station["shown_name"] = shown
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, lambda f: f.write(tomlkit.dumps(document)), mode="w")

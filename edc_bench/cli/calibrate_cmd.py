@@ -262,7 +262,10 @@ def _identity(args: argparse.Namespace) -> Identity:
     from edc_bench.records.schema import Identity
     from edc_bench.station_settings import default_station
 
-    return Identity(station=args.station or default_station(), purpose="calibration")
+    from edc_bench.station_settings import station_identity
+
+    return Identity(station=args.station or default_station(),
+                    station_shown=station_identity().for_customers(args.station), purpose="calibration")
 
 
 def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: BaselineSource) -> list[Any]:

@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
                     rack_fault=args.rack_fault, sensor_fault=args.sensor_fault)
     app = make_app(args.variant, rig, args.out, args.db,
                    args.station or default_station(), args.operator or remembered_operator(),
-                   ask_workshop=not workshop_asked())
+                   ask_workshop=not workshop_asked(), station_given=args.station)
     from edc_bench.runtime.signals import interrupt_guard, stop_requested
 
     # Ctrl-C or SIGTERM sent to the session (kill, a shutdown) is held back: a test running ends as an abort (SAFE,

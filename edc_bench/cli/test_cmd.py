@@ -227,8 +227,9 @@ def _identity(args: argparse.Namespace) -> Identity:
     except (KeyError, OSError):  # no user name in this environment
         operator = ""
     shop = station_identity()
-    return Identity(pump_serial=args.pump_serial or "", station=args.station or default_station(), operator=operator,
-                    shop=shop.shop, shop_address=shop.shop_address, job_ref=args.job_ref or "")
+    return Identity(pump_serial=args.pump_serial or "", station=args.station or default_station(),
+                    station_shown=shop.for_customers(args.station), operator=operator, shop=shop.shop,
+                    shop_address=shop.shop_address, job_ref=args.job_ref or "")
 
 
 def _live(args: argparse.Namespace) -> bool:

@@ -70,9 +70,11 @@ def test_rows(record: Record) -> list[tuple[str, str]]:
     """Page 1's who and when: the workshop (from the station's settings, when set), the date, station and operator."""
     identity = record.identity
     workshop = ", ".join(filter(None, [identity.shop, *identity.shop_address.splitlines()]))
+    # the station as the shop named it for customers; a record from before that printed what it held
+    shown_station = identity.station if identity.station_shown is None else identity.station_shown
     rows = [("Workshop", workshop)] if workshop else []
     rows += [("Date", local_time(record.started_at)),
-             ("Station", identity.station or "-"),
+             *([("Station", shown_station)] if shown_station else []),
              ("Operator", identity.operator or "-")]
     if record.simulated_rig:  # a demonstration or a test run: never to be taken for a valve's test on a rig
         rows.append(("Rig", "SIMULATED: no real valve was tested"))

@@ -62,6 +62,10 @@ class Identity(Section):
 
     pump_serial: str = ""
     station: str = ""
+    # the station's name for the customer's page ([station] shown_name or name, or --station): "" when the shop named
+    # it nowhere (then the page prints no station: never the PC's host name); None in older records (the page then
+    # prints ``station`` as it did)
+    station_shown: str | None = None
     operator: str = ""
     shop: str = ""  # the workshop ([station] shop in station.toml): the customer's page prints it
     shop_address: str = ""

@@ -111,18 +111,23 @@ class ScanInput(Input):
         await super()._on_key(event)
 
 
-class WorkshopScreen(ModalScreen[tuple[str, str] | None]):
+class WorkshopScreen(ModalScreen[tuple[str, ...] | None]):
     """Asks the workshop's name and address once per station, for the customer's page of every report (kept in the
-    station's settings, ``[station] shop`` and ``shop_address``; Enter alone in both: none is printed). One entry,
+    station's settings, ``[station] shop`` and ``shop_address``; Enter alone in both: none is printed), and where the
+    settings name no station, the bench's name that page prints (``[station] shown_name``; the PC's host name never
+    is). One entry,
     one line at a time, as the scans are taken: a line typed at once after the name's Enter is the address whole."""
 
     ASKED = ("The customer's reports name your workshop. Type the WORKSHOP's NAME, then Enter (Enter alone: none)",
-             "Now its ADDRESS on one line, then Enter (Enter alone: none)")
-    LONGEST = (100, 300)
+             "Now its ADDRESS on one line, then Enter (Enter alone: none)",
+             "And this BENCH's NAME as the reports print it, e.g. Bench 2, then Enter (Enter alone: none)")
+    LONGEST = (100, 300, 100)
+    PLACEHOLDERS = ("workshop name", "street, town", "bench name")
 
-    def __init__(self) -> None:
+    def __init__(self, ask_station: bool = False) -> None:
         super().__init__()
         self.answers: list[str] = []
+        self.asked = 3 if ask_station else 2  # the bench's name only where the station's settings give none
 
     def compose(self) -> ComposeResult:
         with Vertical(id="operator-box"):
@@ -132,7 +137,7 @@ class WorkshopScreen(ModalScreen[tuple[str, str] | None]):
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         event.stop()  # the scan entry's handler is the app's: not this line's
-        if len(self.answers) >= len(self.LONGEST):  # an Enter queued behind the last answer: the screen is closing
+        if len(self.answers) >= self.asked:  # an Enter queued behind the last answer: the screen is closing
             return
         value = event.value.strip()
         longest = self.LONGEST[len(self.answers)]
@@ -142,11 +147,11 @@ class WorkshopScreen(ModalScreen[tuple[str, str] | None]):
             return
         self.answers.append(value)
         self.query_one("#workshop-message", Label).update("")
-        if len(self.answers) == 2:
-            self.dismiss((self.answers[0], self.answers[1]))
+        if len(self.answers) == self.asked:
+            self.dismiss(tuple(self.answers))
             return
-        self.query_one("#workshop-asked", Label).update(self.ASKED[1])
-        self.query_one("#workshop-line", Input).placeholder = "street, town"
+        self.query_one("#workshop-asked", Label).update(self.ASKED[len(self.answers)])
+        self.query_one("#workshop-line", Input).placeholder = self.PLACEHOLDERS[len(self.answers)]
 
 
 class SessionApp(App[None]):
@@ -175,6 +180,9 @@ class SessionApp(App[None]):
     remember_workshop : callable, optional
         Keeps the workshop's name and address in the station's settings: given where they are not set yet, and the
         session asks for them once, after the operator (None: not asked).
+    ask_station_name : bool
+        With the workshop, ask the bench's name the customer's page prints (the settings name no station for
+        customers, and no --station was given): kept by ``remember_workshop(..., shown_name=NAME)``.
     """
 
     TITLE = "edc-bench session"
@@ -207,9 +215,10 @@ class SessionApp(App[None]):
                  part_numbers: Mapping[str, str], operator: str, remember_operator: Callable[[str], None],
                  history_of: Callable[[str], list[str]], shift_folder: Path,
                  selfcheck: SessionSelfCheck | None = None, scan_rules: ScanRules | None = None,
-                 remember_workshop: Callable[[str, str], Any] | None = None) -> None:
+                 remember_workshop: Callable[..., Any] | None = None, ask_station_name: bool = False) -> None:
         super().__init__()
         self.remember_workshop = remember_workshop
+        self.ask_station_name = ask_station_name
         self.scan_rules = scan_rules or ScanRules()
         self.runner, self.variant_loader, self.part_numbers = runner, variant_loader, part_numbers
         self.remember, self.history_of, self.shift_folder = remember_operator, history_of, shift_folder
@@ -288,18 +297,19 @@ class SessionApp(App[None]):
         if self.remember_workshop is None:
             self._start_of_shift()
             return
-        self.push_screen(WorkshopScreen(), self._workshop_named)
+        self.push_screen(WorkshopScreen(ask_station=self.ask_station_name), self._workshop_named)
 
-    def _workshop_named(self, workshop: tuple[str, str] | None) -> None:
+    def _workshop_named(self, workshop: tuple[str, ...] | None) -> None:
         remember, self.remember_workshop = self.remember_workshop, None
         if workshop is not None and remember is not None:
             try:
-                path = remember(*workshop)
+                path = (remember(*workshop[:2], shown_name=workshop[2]) if len(workshop) == 3
+                        else remember(*workshop))
             except Exception as exc:  # noqa: BLE001 - the shift goes on; asked again next session
                 self._say(f"the workshop could not be kept ({exc}): the reports name none until it is")
             else:
-                self._say(f"workshop kept in {path} for every report ([station] shop and shop_address there "
-                          "change it)")
+                self._say(f"workshop kept in {path} for every report ([station] shop, shop_address and "
+                          "shown_name there change it)")
         self._start_of_shift()
 
     def _start_of_shift(self) -> None:

@@ -9,7 +9,7 @@ from typing import Any
 
 
 def make_app(variant_name: str | None, rig: Any, out_dir: Path, history_url: str | None, station: str,
-             operator: str, ask_workshop: bool = False) -> Any:
+             operator: str, ask_workshop: bool = False, station_given: str | None = None) -> Any:
     """The session's app on ``rig`` (a :class:`~edc_bench.session.runner.RigChoice`), as the command runs it
     (``ask_workshop``: the station's settings do not name the workshop yet: the session asks for it once)."""
     from edc_bench.config import load_variant
@@ -18,14 +18,15 @@ def make_app(variant_name: str | None, rig: Any, out_dir: Path, history_url: str
     from edc_bench.session.rig_selfcheck import SessionSelfCheck
     from edc_bench.session.runner import SessionRunner
     from edc_bench.session.scan_rules import station_scan_rules
-    from edc_bench.station_settings import remember_workshop
+    from edc_bench.station_settings import remember_workshop, station_identity
 
     scan_rules = station_scan_rules()  # a settings file that cannot be read is said before the screen opens
-    runner = SessionRunner(rig, out_dir, history_url, station, operator)
+    runner = SessionRunner(rig, out_dir, history_url, station, operator, station_given=station_given)
     selfcheck = SessionSelfCheck(rig, history_url, station, by=lambda: runner.operator or "session")
     return SessionApp(runner, load_variant, variant_name, library_part_numbers(), operator, remember_operator,
                       history_lines(history_url), out_dir, selfcheck=selfcheck, scan_rules=scan_rules,
-                      remember_workshop=remember_workshop if ask_workshop else None)
+                      remember_workshop=remember_workshop if ask_workshop else None,
+                      ask_station_name=ask_workshop and not station_identity().for_customers(station_given))
 
 
 def library_part_numbers() -> dict[str, str]:

@@ -143,9 +143,10 @@ class SessionRunner:
     """
 
     def __init__(self, rig: RigChoice, out_dir: Path, history_url: str | None, station: str, operator: str,
-                 report: bool = True) -> None:
+                 report: bool = True, station_given: str | None = None) -> None:
         self.rig, self.out_dir, self.history_url = rig, Path(out_dir), history_url
         self.station, self.operator, self.report = station, operator, report
+        self.station_given = station_given  # --station, which the customer's page prints as given
         self.tests_run = 0
 
     def run_valve(self, variant: Variant, valve_id: str, pump_serial: str,
@@ -195,8 +196,10 @@ class SessionRunner:
 
         shop = station_identity()
         options = BenchOptions(
-            valve_id=valve_id, identity=Identity(pump_serial=pump_serial, station=self.station, operator=self.operator,
-                                                 shop=shop.shop, shop_address=shop.shop_address, job_ref=job_ref),
+            valve_id=valve_id, identity=Identity(pump_serial=pump_serial, station=self.station,
+                                                 station_shown=shop.for_customers(self.station_given),
+                                                 operator=self.operator, shop=shop.shop,
+                                                 shop_address=shop.shop_address, job_ref=job_ref),
             calibrate_command=default_calibrate_command(variant, ["--valve", "new"] if self.rig.simulated else []),
             stream_can_log=stream_target, observer=observer)
         seed = self.rig.first_seed + self.tests_run

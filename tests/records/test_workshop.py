@@ -105,6 +105,9 @@ def test_the_session_asks_for_the_workshop_once_after_the_operator(tmp_path: Pat
             asked += " " + " ".join(str(w.render()) for w in app.screen.query("Label"))
             await pilot.press("enter")
             await pilot.pause()
+            asked += " " + " ".join(str(w.render()) for w in app.screen.query("Label"))
+            await pilot.press(*"Bench 2", "enter")  # the settings name no station: its name for the customer's page
+            await pilot.pause()
             prompt = str(app.query_one("#prompt").render())
             message = app.message
             await pilot.press("ctrl+q", "ctrl+q")
@@ -117,12 +120,15 @@ def test_the_session_asks_for_the_workshop_once_after_the_operator(tmp_path: Pat
     assert "workshop kept in" in message
     assert station_identity(data).shop == "Diesel Müller GmbH"
     assert station_identity(data).shop_address == "Hauptstraße 5, 80331 München"
+    assert "this BENCH's NAME as the reports print it" in asked
+    assert station_identity(data).shown_name == "Bench 2" and station_identity(data).name == ""
     assert workshop_asked()
 
 
 def test_enter_pressed_fast_at_the_workshop_question_takes_none_and_never_fails(tmp_path: Path, monkeypatch) -> None:
-    """Three Enters in one burst (Enter alone twice, and one more queued while the screen closes, as a scanner's CR
-    LF gives): no workshop is printed, the session goes on (the third once raised IndexError)."""
+    """Four Enters in one burst (Enter alone at each of the three questions, and one more queued while the screen
+    closes, as a scanner's CR LF gives): no workshop is printed, the session goes on (the last once raised
+    IndexError)."""
     import asyncio
 
     from edc_bench.session.build import make_app
@@ -140,7 +146,7 @@ def test_enter_pressed_fast_at_the_workshop_question_takes_none_and_never_fails(
             from textual.widgets import Input
 
             line = app.screen.query_one("#workshop-line", Input)
-            for _ in range(3):  # queued together, as a burst of keys is, before the screen can close
+            for _ in range(4):  # queued together, as a burst of keys is, before the screen can close
                 line.post_message(Input.Submitted(line, ""))
             await pilot.pause()
             await pilot.pause()
@@ -150,3 +156,34 @@ def test_enter_pressed_fast_at_the_workshop_question_takes_none_and_never_fails(
 
     assert asyncio.run(session()) == "Scan or type the VALVE ID, then Enter"
     assert workshop_asked(data) and station_identity(data).shop == ""
+
+
+def test_the_customers_page_never_prints_the_pcs_host_name(tmp_path: Path, monkeypatch) -> None:
+    """The tester's finding: page 1 said "Station vm" (the PC's host name) when the shop had named its station
+    nowhere. Unnamed: no station row; a name for customers ([station] shown_name) or --station: that name."""
+    import socket
+
+    from edc_bench.cli import main
+    from edc_bench.records.reader import load_record
+    from edc_bench.records.report_content import test_rows
+
+    data = tmp_path / "station-data"
+    monkeypatch.setenv("EDC_BENCH_DATA_DIR", str(data))
+
+    def page_rows(*flags: str) -> dict[str, str]:
+        out = tmp_path / f"records-{len(list(tmp_path.iterdir()))}"
+        assert main(["test", "--no-history", "--no-figure", "--plain", "--out", str(out), *flags]) == 0
+        (folder,) = out.iterdir()
+        return dict(test_rows(load_record(folder)))
+
+    unnamed = page_rows()
+    assert "Station" not in unnamed and socket.gethostname() not in unnamed.values()
+    assert page_rows("--station", "S-4")["Station"] == "S-4"
+    data.mkdir(exist_ok=True)
+    (data / "station.toml").write_text('[station]\nshown_name = "Bench 2"\n', encoding="utf-8")
+    assert page_rows()["Station"] == "Bench 2"
+    # a record from before the field (station_shown absent) prints its station as it did
+    from edc_bench.records.schema import Record
+
+    older = Record.model_validate({"verdict": "PASS", "identity": {"station": "bench-pc"}})
+    assert dict(test_rows(older))["Station"] == "bench-pc"
