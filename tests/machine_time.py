@@ -50,6 +50,7 @@ MODULES: dict[str, tuple[tuple[Kind, ...], str]] = {
                                                           "1 s); a signal that came after the moment (the child's "
                                                           "CPU time, or its output, says so) skips"),
     "tests/cli/test_plain_install.py": ((L,), "a port held by another socket: refused, at any speed"),
+    "tests/cli/test_rig_priority.py": ((H,), "the rig's first two lines read, then it is stopped: 60 s for 1 s"),
     "tests/config/test_config.py": ((H,), "120 s timeout for a command of 0.5 s"),
     "tests/experiments/test_coverage.py": ((H,), "60 s timeouts for refusals of 0.5 s"),
     "tests/firmware/test_c_firmware.py": ((S,), "the C firmware in simulated time (its real-time test is slow and "

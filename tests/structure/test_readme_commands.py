@@ -86,3 +86,10 @@ def test_command_1_and_the_tour_run_verbatim_in_a_fresh_venv(tmp_path: Path) -> 
         if command.startswith("edc-bench test --valve worn"):
             (folder,) = [p.name for p in (clone / "records").iterdir() if "V-2040" in p.name]
             fail_folder = folder
+    # the plain install (no extras): a command that needs one says which in one line, before any work; a port
+    # that cannot be served is one line, not a traceback
+    paper = run(activate + "edc-bench paper", timeout=120)
+    assert paper.returncode == 2 and "needs the 'train' extra" in paper.stderr, paper.stderr[-2000:]
+    assert paper.stderr.count("\n") == 1
+    web = run(activate + "edc-bench web --port 99999", timeout=120)
+    assert web.returncode == 2 and "give one from 1 to 65535" in web.stderr and web.stdout == "", web.stderr
