@@ -149,10 +149,9 @@ def remember_workshop(shop: str, address: str, data_folder: Path | None = None, 
     if station is None:
         station = tomlkit.table()
         document["station"] = station
-    station["shop"] = shop.strip()
-    station["shop_address"] = address.strip()
-    if shown is not None:
-        station["shown_name"] = shown
+    written = {"shop": shop, "shop_address": address, **({} if shown is None else {"shown_name": shown})}
+    for key, value in written.items():  # the keys of _STATION_KEYS; the file's other keys and comments kept
+        station[key] = value
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, lambda f: f.write(tomlkit.dumps(document)), mode="w")
