@@ -30,6 +30,8 @@ def test_a_technician_works_a_short_shift_in_a_real_terminal(tmp_path: Path) -> 
         term.keys("Anna", "Enter")
         term.wait_for("Type the WORKSHOP's")  # a station new to the session: asked once, after the operator
         term.keys("Diesel Müller GmbH", "Enter", "Hauptstraße 5, 80331 München", "Enter")
+        term.wait_for("BENCH's NAME")  # the settings name no station: the name the customer's page prints
+        term.keys("Bench 2", "Enter")
         term.wait_for("workshop kept in")
         term.wait_for("operator Anna")
         term.keys("clearance=0.185", "Enter")

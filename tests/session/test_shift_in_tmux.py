@@ -295,3 +295,5 @@ def test_a_rig_no_go_at_the_start_of_a_shift_holds_every_valve_and_says_the_next
         ("NO-GO", "Anna"), ("NO-GO", "Anna"), ("SKIPPED", "Anna"), ("GO", "Anna")]
     assert [r["valve_id"] for r in json.loads(edc_bench("history", "--json", "--db", db, env=env).stdout)] == ["V-1"]
     assert "shop = \"Diesel Müller GmbH\"" in (data / "station.toml").read_text(encoding="utf-8")
+    # --station names the bench for the customer's page: its name is not asked
+    assert "shown_name" not in (data / "station.toml").read_text(encoding="utf-8")
