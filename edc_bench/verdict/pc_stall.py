@@ -94,7 +94,8 @@ def pc_stall_s(abort: Abort | None, trace: dict[str, np.ndarray], variant: Varia
 #: The reason for a link's abort when the rig is a process on this PC (the simulated rig): the PC did not run it in
 #: time, whatever the bench's own ticks show
 RIG_ON_THIS_PC_REASON = ("the rig is a process on this PC and stopped answering in time: the PC did not run it "
-                         "(a busy PC, the rig at normal priority), which no CAN cable or termination causes")
+                         "in time (other programs, or a virtual machine's host, held it up), which no CAN cable or "
+                         "termination causes")
 
 
 def pc_stall_reason(stall_s: float, cpu_steal_s: float) -> str:
