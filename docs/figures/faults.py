@@ -198,7 +198,7 @@ def _rows(variant: Any) -> list[Row]:
     from edc_bench.engine.outcome import Abort, AbortKind, describe
     from edc_bench.engine.problems import Problem
     from edc_bench.records.advice import advice
-    from edc_bench.verdict.pc_stall import pc_stall_reason
+    from edc_bench.verdict.pc_stall import RIG_ON_THIS_PC_REASON, pc_stall_reason
     from edc_bench.verdict.verdicts import Verdict
 
     a = variant.acceptance
@@ -236,6 +236,12 @@ def _rows(variant: Any) -> list[Row]:
             says="`" + describe(Abort(AbortKind.RIG_FAULT, RigFaultFigures(flags=("watchdog tripped",)))) + "`, and `"
                  + pc_stall_reason(0.025, 0.0) + "`; the advice names the PC "
                  "(`" + advice(Verdict.INVALID, Problem.ABORTED | Problem.PC_STALLED).words + "`)"),
+        Row("a rig that is a process on this PC (`test --realtime`'s rig process, or `edc-bench rig` on a loopback "
+            "socket or a pseudo-terminal) stops answering: the PC did not run it in time", "replies missing, "
+            "heartbeat lost or the rig's watchdog", "abort, SAFE", "12", safe="as the rig's own",
+            says="the abort's sentence, and `" + RIG_ON_THIS_PC_REASON + "`; the advice names the PC, as for a stall "
+                 "of the bench (`timing.rig_on_this_pc` in the record). `edc-bench rig` raises itself one above the "
+                 "bench's real-time priority where the PC permits and says which it runs at (`rig: scheduling ...`)"),
         Row("python-can error on send or receive", "`CanOperationError`", "abort, SAFE attempted", "12", "send-error"),
         Row("bus-off", "every send and receive fails", "abort", "12", "bus-off"),
         Row("rig cut off", "replies missing", "abort", "12", "rig-cut-off"),
