@@ -87,7 +87,7 @@ MODULES: dict[str, tuple[tuple[Kind, ...], str]] = {
     "tests/ui/test_live.py": ((S, D), "the panel's process skips the test when it was killed for being late"),
     "tests/verdict/test_variant_model.py": ((S, H), "120 s timeouts for commands of 1 s"),
     "tests/web/test_web_browser.py": ((H,), "30 s for the server to start (0.1 s) and for each element "
-                                            "(0.1-0.5 s)"),
+                                            "(0.1-0.5 s); 120 s for a PDF drawn on request (2-3 s)"),
     "tests/web/test_web_command.py": ((L, H), "the page is fetched once the URL is printed (the socket listens by "
                                               "then); 60 s for a page of 0.05 s"),
     "tests/web/test_web_postgres.py": ((H,), "10 s for a reload the server makes in 0.1 s; the sign-in throttle's "

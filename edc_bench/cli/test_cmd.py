@@ -158,7 +158,7 @@ def _coil_temp(text: str) -> float:
 
 def run(args: argparse.Namespace) -> int:
     """Run the test, write the record, report."""
-    from edc_bench.runtime.signals import interrupt_guard, stop_requested
+    from edc_bench.runtime.signals import interrupt_guard, settle, stop_requested
 
     if not args.no_history:
         from edc_bench.cli.common import check_history_url
@@ -168,8 +168,13 @@ def run(args: argparse.Namespace) -> int:
     # the first Ctrl-C aborts the test; later ones cannot cost the record; 130 is said here, in this command's words
     with interrupt_guard(reraise=False):
         ran = _run_guarded(args)
-        if not stop_requested() or ran.code in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN):
-            return ran.code
+        code = (ExitCode.RECORD_NOT_WRITTEN if ran.figure_lost and ran.code != ExitCode.INTERNAL_ERROR
+                else ran.code)  # a figure a full disk cost is no clean exit, after the retest it did not hold up
+        # what is said from here stands: a signal now is only noted (the guard's end puts back a handler that
+        # would raise, and a second Ctrl-C would make a said PASS an exit 130)
+        settle(raise_swallowed=False)
+        if not stop_requested() or code in (ExitCode.INTERNAL_ERROR, ExitCode.RECORD_NOT_WRITTEN):
+            return code
         if ran.last is None or _interrupted(ran.last.result):
             # the record is written (INVALID, "interrupted by the operator"); the exit code says who ended it
             print("edc-bench test: interrupted by the operator; the record is written (INVALID)", file=sys.stderr)
@@ -181,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
               f"{ran.last.record_dir} holds it"
               + ("; the retest was not run: test the valve again for its decision" if ran.retest_skipped else ""),
               file=sys.stderr)
-        return ran.code
+        return code
 
 
 def _interrupted(result: Any) -> bool:
@@ -260,6 +265,7 @@ class _Ran:
     code: int
     last: _Tested | None = None
     retest_skipped: bool = False
+    figure_lost: bool = False  # a test's report.png not written for a full disk
 
 
 def _run_guarded(args: argparse.Namespace) -> _Ran:
@@ -310,7 +316,7 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
             print_quietly_if_closed(lambda: print(json.dumps(TestSummary.of(first.result, first.record_dir).as_json(),
                                                              indent=2)))
         return _Ran(first.code, first if first.record_dir is not None else None,
-                    retest_skipped=wanted and stop_requested())
+                    retest_skipped=wanted and stop_requested(), figure_lost=first.figure_lost)
     # the MARGINAL procedure: the valve stays mounted and is tested again; on the simulated rig with new noise
     retest_seed = (args.seed + 1) % (MAX_SEED + 1)
     if not args.json:
@@ -319,7 +325,7 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
               + ". Leave the valve mounted.", flush=True)
     second = _test_once(args, variant, bus_config, valve_id, retest_seed, retest_of=first)
     if second.decision is None:  # not written, or a bug: said already
-        return _Ran(second.code)
+        return _Ran(second.code, figure_lost=first.figure_lost)
     if args.json:
         out = dataclasses.replace(TestSummary.of(second.result, second.record_dir, second.decision),
                                   first_test=TestSummary.of(first.result, first.record_dir))
@@ -335,8 +341,8 @@ def _test_and_retest(args: argparse.Namespace, variant: Any, bus_config: BusSett
                                               f"(first test MARGINAL, retest {second.result.verdict}; "
                                               f"rule {second.decision.rule})"))
     if second.code == ExitCode.RECORD_NOT_WRITTEN or (stop_requested() and _interrupted(second.result)):
-        return _Ran(second.code, second)  # a retest's record missing a part: 74 too
-    return _Ran(exit_code_for(second.decision.verdict), second)
+        return _Ran(second.code, second, figure_lost=first.figure_lost or second.figure_lost)  # 74 too
+    return _Ran(exit_code_for(second.decision.verdict), second, figure_lost=first.figure_lost or second.figure_lost)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -347,6 +353,7 @@ class _Tested:
     record_dir: Path | None
     code: int
     decision: Any = None
+    figure_lost: bool = False  # report.png not written for a full disk: the run's exit is 74
 
 
 def _test_once(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, valve_id: str, seed: int,
@@ -373,7 +380,8 @@ def _test_once(args: argparse.Namespace, variant: Any, bus_config: BusSettings |
         decision = decide(result.verdict, variant.retest, result.advice.words)
         retest = decision.record_entry(retest_of.record_dir.name, retest_of.result.verdict)
     record_dir, code = _finish(args, result, folder[0] if folder else None, notes, retest)
-    return _Tested(result, record_dir, code, decision if record_dir is not None else None)
+    lost = record_dir is not None and code != ExitCode.INTERNAL_ERROR and _figure_lost(args, record_dir)
+    return _Tested(result, record_dir, code, decision if record_dir is not None else None, figure_lost=lost)
 
 
 def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None) -> None:
@@ -563,28 +571,32 @@ def _finish(args: argparse.Namespace, result: Any, folder: Path | None, notes: l
               f"or shown whole from {record_dir}: free space on the disk, then test the valve again.",
               file=sys.stderr)
         return record_dir, ExitCode.RECORD_NOT_WRITTEN
-    figure_error = None if args.no_figure else _figure_error(record_dir)
-    if figure_error is not None:  # the data is whole and the figure is drawn again from it: said, and no clean exit
-        from edc_bench.records.writer import FIGURE_FILE
-
-        print(f"edc-bench test: error: {record_dir / FIGURE_FILE} could not be written ({figure_error}). The verdict "
-              f"above stands and the record holds the data: free space on the disk, then draw the figures with: "
-              f"edc-bench report {record_dir}", file=sys.stderr)
-        return record_dir, ExitCode.RECORD_NOT_WRITTEN
     return record_dir, exit_code_for(result.verdict)
 
 
-def _figure_error(record_dir: Path) -> str | None:
-    """Why the record's figure (report.png) could not be written, as record.json says it (None: drawn, or nothing to
-    draw)."""
+def _figure_lost(args: argparse.Namespace, record_dir: Path) -> bool:
+    """Say a figure the test could not write (report.png); True when a full disk is why (the run's exit is then
+    74, after a MARGINAL's retest: the data is whole and the retest needs none of it)."""
     from edc_bench.records.reader import load_record
+    from edc_bench.records.writer import FIGURE_FILE
 
+    if args.no_figure:
+        return False
     try:
         files = load_record(record_dir).files
     except Exception:  # noqa: BLE001 - the record was just written; a reader's refusal is said elsewhere
-        return None
-    error = (files.model_extra or {}).get("figure_error")  # a test without a trace has no figure, and no error
-    return None if files.figure or error is None else str(error)
+        return False
+    if files.figure_error is None:  # drawn, or a test without a trace: nothing to draw
+        return False
+    redraw = (f"the record holds the data; 'edc-bench report {record_dir}' draws the test's report (its PDF and "
+              "page images) from it")
+    if files.figure_no_room:
+        print(f"edc-bench test: error: {record_dir / FIGURE_FILE} could not be written ({files.figure_error}): the "
+              f"disk is full. The verdict above stands and {redraw} once there is room.", file=sys.stderr)
+        return True
+    print(f"edc-bench test: warning: {record_dir / FIGURE_FILE} could not be drawn ({files.figure_error}): a bug in "
+          f"edc-bench, said in the record. The verdict above stands and {redraw}.", file=sys.stderr)
+    return False
 
 
 def _report_escalation(args: argparse.Namespace, record_dir: Path) -> None:

@@ -11,6 +11,8 @@ plane), so the report reads the folder alone.
 
 from __future__ import annotations
 
+import errno
+
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -306,6 +308,7 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
     if folder is None:
         folder = new_record_dir(Path(out_dir), result.valve_id, result.variant.name, result.started_at)
     trace = can_log = drawn = None
+    no_room = False
     errors: dict[str, str] = {}  # RecordFiles's <name>_error: why a file could not be written
     try:
         write_trace_mf4(folder / TRACE_FILE, result.trace, result.frames, ticks_start_s=result.outcome.ticks_start_s,
@@ -333,11 +336,12 @@ def write_record(result: BenchResult, out_dir: Path, figure: bool = True, folder
             drawn = FIGURE_FILE
         except Exception as exc:  # noqa: BLE001 - a figure is never worth losing the record
             errors.update(figure_error=f"{type(exc).__name__}: {exc}")
+            no_room = isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)
     from edc_bench.records.escalation_link import find_escalation
 
     escalated = find_escalation(folder, result.valve_id, result.variant.name, result.started_at, str(result.verdict),
                                 result.invalid_cause)
-    files = RecordFiles(trace=trace, can_log=can_log, figure=drawn, **errors)
+    files = RecordFiles(trace=trace, can_log=can_log, figure=drawn, figure_no_room=no_room or None, **errors)
     record = build_record(result, files, retest, escalated, notes)
     doc = record_json(record)
     # what the test wrote, as it wrote it: every reader checks it (records.integrity)

@@ -152,6 +152,14 @@ class RecordFiles(Section):
     trace: str | None = None
     can_log: str | None = None
     figure: str | None = None
+    #: the figure could not be written for want of room (a full disk or quota), not for a fault in its drawing
+    figure_no_room: bool | None = None
+
+    @property
+    def figure_error(self) -> str | None:
+        """Why the figure could not be drawn or written (None: drawn, or nothing to draw)."""
+        error = (self.model_extra or {}).get("figure_error")
+        return None if self.figure or error is None else str(error)
 
     def missing(self) -> dict[str, str]:
         """The data files the folder could not hold, with why (the figure aside: it is redrawn from the data)."""

@@ -176,7 +176,7 @@ def stop_if_interrupted() -> None:
         raise KeyboardInterrupt
 
 
-def settle() -> None:
+def settle(*, raise_swallowed: bool = True) -> None:
     """The command's outcome is decided: say it now or say interrupted, never both.
 
     An interrupt raised before now that a library swallowed raises :class:`KeyboardInterrupt` here
@@ -184,8 +184,15 @@ def settle() -> None:
     nothing); from here to the end of the :func:`raise_on_interrupt` block, Ctrl-C and SIGTERM are noted
     (:func:`interrupted_after_settling`) and raise nothing, so a command that has written and is announcing its
     result is not then reported interrupted (its files and its words would contradict the exit code).
+
+    Parameters
+    ----------
+    raise_swallowed : bool
+        False for a command that has said its outcome already (``test``: its verdict, inside a guard that kept the
+        interrupts as a stop request): only the signals to come are settled.
     """
-    stop_if_interrupted()
+    if raise_swallowed:
+        stop_if_interrupted()
     if _state.raising:
         _state.settled = True
 

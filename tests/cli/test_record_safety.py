@@ -292,3 +292,42 @@ def test_a_full_records_disk_leaves_no_half_written_folder_under_out(tmp_path: P
     assert f"it was saved to {saved}" in err
     assert (saved / "can.log").stat().st_size > 0
     assert list(out.iterdir()) == [], "a half-written record folder was left under --out"
+
+
+def test_a_figure_that_fails_to_draw_is_a_warning_and_a_marginal_is_still_retested(tmp_path: Path, monkeypatch,
+                                                                                   capsys) -> None:
+    """A fault in the figure's drawing is no full disk: the verdict's own code, a warning that names it as a bug,
+    and a MARGINAL's retest runs (the review's finding: it had been exit 74, 'free space on the disk', no retest)."""
+    from edc_bench.records import figure
+
+    def broken(*args, **kwargs):
+        raise ValueError("a drawing bug")
+
+    monkeypatch.setattr(figure, "draw_report_figure", broken)
+    out = tmp_path / "records"
+    code = main(["test", "--valve", "clearance=0.185", "--out", str(out), "--no-history", "--plain"])
+    err = capsys.readouterr().err
+    assert len(list(out.iterdir())) == 2, err  # the MARGINAL and its retest
+    assert code in (ExitCode.PASS, ExitCode.MARGINAL, ExitCode.FAIL), err  # the pair's decision
+    assert "could not be drawn (ValueError: a drawing bug): a bug in edc-bench" in err
+    assert "disk is full" not in err
+
+
+def test_a_marginals_figure_lost_to_a_full_disk_still_retests_then_exits_74(tmp_path: Path, monkeypatch,
+                                                                            capsys) -> None:
+    from edc_bench import paths
+
+    original = paths.atomic_write
+
+    def no_room_for_the_figure(path, *args, **kwargs):
+        if Path(path).name == "report.png":
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return original(path, *args, **kwargs)
+
+    monkeypatch.setattr(paths, "atomic_write", no_room_for_the_figure)
+    out = tmp_path / "records"
+    code = main(["test", "--valve", "clearance=0.185", "--out", str(out), "--no-history", "--plain"])
+    captured = capsys.readouterr()
+    assert len(list(out.iterdir())) == 2, captured.err  # retested all the same
+    assert "decision:" in captured.out
+    assert code == ExitCode.RECORD_NOT_WRITTEN, captured.err

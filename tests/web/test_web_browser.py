@@ -32,6 +32,9 @@ from edc_bench.web.app import WebConfig, create_app
 CHROMIUM, CHROMEDRIVER = shutil.which("chromium") or "/usr/bin/chromium", shutil.which("chromedriver") or \
     "/usr/bin/chromedriver"
 WAIT_S = 30.0
+#: a PDF report is drawn on request (2-3 s quiet, matplotlib): httpx's default 5 s was twice that, and failed beside
+#: a CPU load; a hang guard is many times what it needs
+PDF_WAIT_S = 120.0
 
 pytestmark = pytest.mark.skipif(not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()),
                                 reason="Chromium and its driver are not installed here (Debian: apt-get install "
@@ -214,12 +217,12 @@ def test_a_valves_pdf_report_opens_from_its_page(site: dict, browser: object) ->
     assert href.endswith(f"/report/{real.id}")
     # the browser's own session opens it (its cookie, as a click would send it)
     cookies = {c["name"]: c["value"] for c in driver.get_cookies()}  # type: ignore[attr-defined]
-    report = httpx.get(href, cookies=cookies)
+    report = httpx.get(href, cookies=cookies, timeout=PDF_WAIT_S)
     assert report.status_code == 200 and report.headers["content-type"] == "application/pdf"
     assert report.content.startswith(b"%PDF")
     driver.find_element(By.CSS_SELECTOR, "form.signout button").click()  # type: ignore[attr-defined]
     _wait_for(driver, "form.signin")
-    assert httpx.get(href, cookies=cookies).status_code == 303  # signed out: the cookie opens nothing
+    assert httpx.get(href, cookies=cookies, timeout=PDF_WAIT_S).status_code == 303  # signed out: the cookie opens nothing
 
 
 # --- the chain's PostgreSQL, each role signing in with its own database login ---------------------------------
@@ -329,6 +332,6 @@ def test_each_role_reads_the_chains_postgresql_in_a_browser(pg_site: dict, brows
     decisions = [td.text for td in driver.find_elements(By.CSS_SELECTOR, "#visits td.verdict")]  # type: ignore
     assert decisions == [pg_site["real_verdict"]]
     cookies = {c["name"]: c["value"] for c in driver.get_cookies()}  # type: ignore[attr-defined]
-    report = httpx.get(link.get_attribute("href"), cookies=cookies)  # type: ignore[attr-defined]
+    report = httpx.get(link.get_attribute("href"), cookies=cookies, timeout=PDF_WAIT_S)  # type: ignore[attr-defined]
     assert report.status_code == 200 and report.content.startswith(b"%PDF")
     _sign_out(driver)
