@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
+import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -59,38 +62,26 @@ def run(args: argparse.Namespace) -> int:
     if standing is not None and standing.differs:  # ... or a record that is not the one the history first indexed
         raise ConfigError(f"{args.record_dir}: {standing.differs}: no report drawn; 'edc-bench history --audit "
                           f"{record.valve_id}' shows the test as indexed")
-    out_dir = args.record_dir if args.out is None else args.out
-    before = _report_files(out_dir)
+    out_dir = Path(args.record_dir if args.out is None else args.out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    # drawn beside, then put in place: an interrupt, or a library's error made of one, leaves the report that was
+    # there as it was (a report half replaced would pass for the whole of one)
+    drawing = Path(tempfile.mkdtemp(prefix=".report-", dir=out_dir))
     try:
-        pdf, pngs = draw_report(args.record_dir, args.out, None if standing is None else standing.note())
+        drawn_pdf, drawn_pngs = draw_report(args.record_dir, drawing, None if standing is None else standing.note())
         settle()  # Ctrl-C that a library swallowed while drawing is still Ctrl-C; one after this is only noted
-    except KeyboardInterrupt:  # interrupted: no half of a report is left to pass for the whole of one
-        _remove_drawn(out_dir, before)
+        pdf, pngs = out_dir / drawn_pdf.name, tuple(out_dir / png.name for png in drawn_pngs)
+        for drawn, placed in zip((drawn_pdf, *drawn_pngs), (pdf, *pngs), strict=True):
+            os.replace(drawn, placed)
+    except OSError as exc:  # named as the file it was to be (a full disk's one line), not the drawing folder's
+        if exc.filename is not None and Path(exc.filename).parent == drawing:
+            raise OSError(exc.errno, exc.strerror, str(out_dir / Path(exc.filename).name)) from exc
         raise
+    finally:
+        shutil.rmtree(drawing, ignore_errors=True)
     print(f"report: {pdf}\npage images: {', '.join(map(str, pngs))}"
           + ("" if standing is None else f"\nhistory: {standing.note()} (printed on page 1)"))
     return 0
-
-
-def _report_files(folder: Path) -> dict[Path, tuple[int, int] | None]:
-    """The report's files in ``folder`` as they are now (inode and modification time; None: absent)."""
-    from edc_bench.records.report import REPORT_PDF, REPORT_PNGS
-
-    found: dict[Path, tuple[int, int] | None] = {}
-    for name in (REPORT_PDF, *REPORT_PNGS):
-        try:
-            stat = (folder / name).stat()
-            found[folder / name] = (stat.st_ino, stat.st_mtime_ns)
-        except OSError:
-            found[folder / name] = None
-    return found
-
-
-def _remove_drawn(folder: Path, before: dict[Path, tuple[int, int] | None]) -> None:
-    """Remove the report's files this run wrote (new or replaced since ``before``): an interrupted report is none."""
-    for path, now in _report_files(folder).items():
-        if now is not None and now != before[path]:
-            path.unlink(missing_ok=True)
 
 
 def _check_text(record: Record, folder: Path) -> None:

@@ -76,3 +76,29 @@ def test_report_with_an_interrupt_swallowed_while_drawing_announces_nothing_and_
     assert code == ExitCode.INTERRUPTED, err
     assert out == "" and err.strip() == "edc-bench report: interrupted"
     assert list(out_dir.iterdir()) == []
+
+
+def test_an_interrupted_report_leaves_the_report_that_was_there_whole(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+        worn_record: Path) -> None:
+    """The review's finding: the interrupt removed the new report.pdf after it had replaced the old one, leaving
+    the old page images without a PDF. Drawn beside and put in place only once settled, the old report stays."""
+    import edc_bench.records.report as report
+    from edc_bench.cli import main
+    from edc_bench.cli.exit_codes import ExitCode
+
+    out_dir = tmp_path / "report"
+    assert main(["report", str(worn_record), "--out", str(out_dir)]) == 0
+    capsys.readouterr()
+    before = {p.name: p.read_bytes() for p in out_dir.iterdir()}
+    assert set(before) == {"report.pdf", "report-page.png", "report-page-2.png"}
+    drawn = report.draw_report
+
+    def draw_then_swallow(*args: object, **kwargs: object) -> object:
+        result = drawn(*args, **kwargs)  # the new files written (beside), then a Ctrl-C a library swallows
+        _swallowed_interrupt()
+        return result
+
+    monkeypatch.setattr(report, "draw_report", draw_then_swallow)
+    assert main(["report", str(worn_record), "--out", str(out_dir)]) == ExitCode.INTERRUPTED
+    assert {p.name: p.read_bytes() for p in out_dir.iterdir()} == before  # nothing else, nothing changed
