@@ -30,7 +30,8 @@ class Kind(enum.StrEnum):
 
 #: What makes a module read the clock or wait (the structure test's search, on each module's source).
 READS_A_CLOCK = re.compile(r"time\.monotonic|perf_counter|time\.time\(\)|time\.sleep|RealTimeClock|"
-                           r"import socket|socket\.|\btimeout(?:_s)?=|getloadavg|WebDriverWait|\.join\(\d")
+                           r"import socket|socket\.|\btimeout(?:_s)?=|getloadavg|WebDriverWait|\.join\(\d|"
+                           r"\.wait\(\d|asyncio\.sleep|\.wait_for\(")
 
 S, L, H, D = Kind.SIMULATED, Kind.LOCKSTEP, Kind.HANG_GUARD, Kind.SKIPS_WHEN_DISTURBED
 
@@ -79,6 +80,8 @@ MODULES: dict[str, tuple[tuple[Kind, ...], str]] = {
     "tests/runtime/test_priority.py": ((H,), "120 s timeout for a child of 0.3 s"),
     "tests/runtime/test_signals.py": ((L, H), "signals sent to itself; a child's 30-60 s deadline for 0.3 s"),
     "tests/runtime/test_stop_worker.py": ((S, H), "thread hand-offs awaited for 30 s (they take microseconds)"),
+    "tests/session/test_session_app.py": ((L, H), "the app driven by Textual's pilot; a test's worker waits for the "
+                                                  "keys (an event, 30-60 s for what comes in milliseconds)"),
     "tests/session/test_session_interrupts.py": ((H, D), "90 s for screens of 1 s; a signal that came after the "
                                                          "test it was meant for ended (its record says so) skips"),
     "tests/sim/test_kernels.py": ((S,), "the plant's kernels in simulated time"),
@@ -102,6 +105,7 @@ ONLY_IN_SLOW_TESTS: dict[str, str] = {
     "tests/package_files.py": "the wheel's install, for the installed-package tests (slow)",
     "tests/parts/second_plant.py": "the second plant's study prints its own duration when run by hand; its "
                                    "tests are slow",
+    "tests/session/test_session_tmux.py": "the session in a real terminal: every test in it is slow",
     "tests/runtime/test_realtime.py": "every real-time test in it is slow and realtime; the one default test reads "
                                       "no clock",
 }

@@ -68,6 +68,14 @@ def given_path(text: str) -> Path:
     return Path(text)
 
 
+def given_path_text(text: str) -> str:
+    """A file flag's value kept as text (``-`` for standard output, ``shipped``): refused empty (it would be taken
+    for the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path: give a file name")
+    return text
+
+
 def history_url(text: str) -> str:
     """``--db URL``: refused empty (``--db ''`` would be the default history, unsaid)."""
     if not text.strip():
@@ -119,8 +127,9 @@ def port_number(text: str) -> int:
     return value
 
 
-#: the modules each optional extra (pyproject.toml's [project.optional-dependencies]) brings
-EXTRAS = {"train": ("sklearn", "skl2onnx", "onnx")}
+#: the modules each optional extra (pyproject.toml's [project.optional-dependencies]) brings, by the name pip knows
+#: each one's package by
+EXTRAS = {"train": {"sklearn": "scikit-learn", "skl2onnx": "skl2onnx", "onnx": "onnx"}}
 
 
 def require_extra(extra: str, what: str) -> None:
@@ -135,7 +144,7 @@ def require_extra(extra: str, what: str) -> None:
     """
     import importlib.util
 
-    missing = [module for module in EXTRAS[extra] if importlib.util.find_spec(module) is None]
+    missing = [package for module, package in EXTRAS[extra].items() if importlib.util.find_spec(module) is None]
     if missing:
         from edc_bench.errors import ConfigError
 

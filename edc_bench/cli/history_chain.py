@@ -11,7 +11,7 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager
 from typing import Any
 
-from edc_bench.cli.common import identity, positive_int, print_quietly_if_closed
+from edc_bench.cli.common import given_path_text, identity, positive_int, print_quietly_if_closed
 from edc_bench.history.rows import AuditEvent, ChainHead
 from edc_bench.timefmt import local_column, local_text
 
@@ -36,7 +36,7 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
                             "missing folders, those changed since they were first indexed, tests indexed again with "
                             "other content, and rows changed, deleted or put in by hand (exit 16 if any; --station: "
                             "one station's)")
-    chain.add_argument("--heads", nargs="?", const="-", default=None, metavar="FILE",
+    chain.add_argument("--heads", nargs="?", const="-", default=None, type=given_path_text, metavar="FILE",
                        help="print each chain's last row and hash (JSON) to keep outside the station; with --verify: "
                             "check that the history still holds the heads kept in FILE")
     chain.add_argument("--map-login", nargs="?", const="", default=None, metavar="LOGIN",
@@ -244,8 +244,10 @@ def _heads(args: argparse.Namespace) -> int:
     else:
         from pathlib import Path
 
+        from edc_bench.cli.common import check_output_file
         from edc_bench.paths import atomic_write
 
+        check_output_file(Path(args.heads), "--heads")  # a folder, or one that cannot be written: one line
         atomic_write(Path(args.heads), lambda f: f.write(text + "\n"), mode="w")
         print(f"wrote {len(heads)} chain head(s) to {args.heads}: keep it away from the station; "
               f"'edc-bench history --verify --heads {args.heads}' checks them later", file=sys.stderr)

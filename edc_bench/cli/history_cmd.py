@@ -14,6 +14,7 @@ from edc_bench.cli.common import (
     add_history_db_argument,
     add_include_simulated_argument,
     given_path,
+    given_path_text,
     identity,
     positive_int,
     print_quietly_if_closed,
@@ -48,7 +49,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="one valve's af and a1 over its visits")
     add_include_simulated_argument(p, "with --trend or --summary: show")
     p.add_argument("--plot", type=given_path, default=None, metavar="PNG", help="with --trend: also draw it (a .png file)")
-    p.add_argument("--csv", default=None, metavar="FILE", help="write the listed tests as CSV ('-': stdout)")
+    p.add_argument("--csv", default=None, type=given_path_text, metavar="FILE",
+                   help="write the listed tests as CSV ('-': stdout)")
     p.add_argument("--add", nargs="+", type=given_path, default=None, metavar="RECORD_DIR",
                    help="index record folders (after a test ran with --no-history, or to rebuild the history): "
                         "each good one is indexed, each bad one listed (exit 2)")

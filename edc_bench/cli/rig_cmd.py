@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 
@@ -89,7 +90,10 @@ def run(args: argparse.Namespace) -> int:
 
     # the rig is the hardware's side: one above the bench's priority, as the rig process a test starts is (a rig
     # at normal priority beside a bench at real-time priority on one PC went unserved: "the rig stopped answering")
-    with realtime_priority(BENCH_PRIORITY + 1) as priority:
+    with contextlib.ExitStack() as raised:
+        priority = raised.enter_context(realtime_priority(BENCH_PRIORITY + 1))
+        if not priority.realtime:  # a login allowed the bench's own priority (rtprio 50) and no more: that one
+            priority = raised.enter_context(realtime_priority(BENCH_PRIORITY))
         print(f"rig: scheduling {priority.describe()}", flush=True)
         if not priority.realtime:
             print("rig: warning: a bench on this PC may find this rig late on a busy PC; "

@@ -17,6 +17,7 @@ from edc_bench.cli.common import (
     check_output_folder,
     count_up_to,
     given_path,
+    given_path_text,
     identity,
     seed_number,
 )
@@ -81,7 +82,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                       help="the file to write the candidate to (default: candidates/NAME.onnx in the station's "
                            "models folder)")
     add_hidden_alias(shop, "--out", "candidate_file", type=given_path)  # its name before --out meant a folder only
-    shop.add_argument("--adopt", default=None, metavar="ONNX|shipped",
+    shop.add_argument("--adopt", default=None, type=given_path_text, metavar="ONNX|shipped",
                       help="make this model the station's (a candidate file), or go back to the shipped network")
     shop.add_argument("--by", type=identity(), default=None, metavar="NAME",
                       help="with --adopt: who adopts (default: login name)")

@@ -63,6 +63,14 @@ def run(args: argparse.Namespace) -> int:
     for name, path in (("--certfile", args.certfile), ("--keyfile", args.keyfile)):
         if path is not None and not path.is_file():
             raise ConfigError(f"{name} {path}: no such file")
+    if args.certfile is not None:  # loaded now, as the server would: a file that is no certificate is one line
+        import ssl
+
+        try:
+            ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(args.certfile, args.keyfile)
+        except (ssl.SSLError, OSError) as exc:
+            raise ConfigError(f"--certfile {args.certfile} --keyfile {args.keyfile}: not a certificate and its key "
+                              f"in PEM ({exc}): give the server's certificate and private key") from None
     url = args.db or default_url()
     check_url(url, must_exist=True)
     config = WebConfig(url=url, records_dir=args.records.resolve() if args.records.is_dir() else None,

@@ -62,7 +62,7 @@ class Identity(Section):
 
     pump_serial: str = ""
     station: str = ""
-    # the station's name for the customer's page ([station] shown_name or name, or --station): "" when the shop named
+    # the station's name for the customer's page (--station, else [station] shown_name, else name): "" when the shop named
     # it nowhere (then the page prints no station: never the PC's host name); None in older records (the page then
     # prints ``station`` as it did)
     station_shown: str | None = None

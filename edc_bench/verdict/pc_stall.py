@@ -93,9 +93,10 @@ def pc_stall_s(abort: Abort | None, trace: dict[str, np.ndarray], variant: Varia
 
 #: The reason for a link's abort when the rig is a process on this PC (the simulated rig): the PC did not run it in
 #: time, whatever the bench's own ticks show
-RIG_ON_THIS_PC_REASON = ("the rig is a process on this PC and stopped answering in time: the PC did not run it "
-                         "in time (other programs, or a virtual machine's host, held it up), which no CAN cable or "
-                         "termination causes")
+RIG_ON_THIS_PC_REASON = ("the rig is a process on this PC and stopped answering in time: most likely the PC did "
+                         "not run it in time (other programs, or a virtual machine's host, held it up); there is no "
+                         "CAN cable between them to check (a rig whose firmware breaks the protocol does this too: "
+                         "edc-bench rig-check tells)")
 
 
 def pc_stall_reason(stall_s: float, cpu_steal_s: float) -> str:

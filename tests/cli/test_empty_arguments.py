@@ -42,3 +42,36 @@ def test_an_empty_path_or_url_is_refused_in_one_line(argv: list[str], says: str,
     out, err = capsys.readouterr()
     assert exited.value.code == 2 and out == ""
     assert says in err and err.count("\n") == 1, err
+
+
+def test_every_flag_that_names_a_file_or_folder_refuses_an_empty_one() -> None:
+    """Whatever its type (a path, or text such as '-' or 'shipped' beside a file): the review found --heads '' a
+    traceback and --csv '' refused as '--csv .', a path never typed."""
+    import argparse
+
+    commands = build_parser()._subparsers._group_actions[0].choices  # type: ignore[union-attr]
+    checked = []
+    for name, command in commands.items():
+        for action in command._actions:
+            metavar = str(action.metavar or "")
+            if not any(word in metavar for word in ("FILE", "DIR", "ONNX", "PATH")) or metavar.startswith("NAME"):
+                continue  # a variant's NAME|PART|PATH is looked up by name first, and an empty one is refused so
+            assert action.type is not None, f"{name} {action.option_strings}: a {metavar} taken as any text"
+            try:
+                action.type("")  # type: ignore[operator]
+            except argparse.ArgumentTypeError:
+                checked.append((name, action.option_strings[-1] if action.option_strings else action.dest))
+                continue
+            raise AssertionError(f"{name} {action.option_strings or action.dest} takes an empty {metavar}")
+    assert ("history", "--heads") in checked and ("history", "--csv") in checked and ("train", "--adopt") in checked
+
+
+def test_history_heads_into_a_folder_is_one_line(tmp_path: object, capsys: pytest.CaptureFixture[str]) -> None:
+    """The review's finding: ``history --heads .`` was an OSError traceback, exit 70."""
+    from edc_bench.history.store import HistoryStore
+
+    url = f"sqlite:///{tmp_path}/h.sqlite"
+    HistoryStore(url).close()
+    code = main(["history", "--db", url, "--heads", str(tmp_path)])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1 and "is a folder; give a file name" in err, err

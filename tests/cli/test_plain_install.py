@@ -28,7 +28,8 @@ def _cli(argv: list[str]) -> int:
 @pytest.fixture()
 def without_the_train_extra(monkeypatch: pytest.MonkeyPatch) -> None:
     """As if scikit-learn, skl2onnx and onnx were not installed (the modules looked for are ones that are not)."""
-    monkeypatch.setitem(common.EXTRAS, "train", ("edc_bench_no_such_module_sklearn", "edc_bench_no_such_skl2onnx"))
+    monkeypatch.setitem(common.EXTRAS, "train", {"edc_bench_no_such_module_sklearn": "scikit-learn",
+                                                 "edc_bench_no_such_skl2onnx": "skl2onnx"})
 
 
 @pytest.mark.parametrize("argv", [["paper"], ["paper", "--runs", "3"], ["train", "--variants", "p-edc-default"]],
@@ -47,7 +48,7 @@ def test_a_command_that_needs_the_train_extra_says_so_before_any_work(
     assert code == ExitCode.BAD_INPUT, err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and "needs the 'train' extra" in lines[0], err
-    assert "pip install 'edc-bench[train]'" in lines[0] and "edc_bench_no_such_module_sklearn" in lines[0]
+    assert "pip install 'edc-bench[train]'" in lines[0] and "(scikit-learn, skl2onnx not installed)" in lines[0]
     assert out == ""
 
 
@@ -122,3 +123,15 @@ def test_a_web_port_in_use_is_one_line_before_any_url(tmp_path: Path, capsys: py
     assert code == ExitCode.BAD_INPUT, err
     assert out == ""  # no "serving ... on http://..." for a server that never served
     assert f"--port {port}: cannot serve there" in err and "give another --port" in err
+
+
+def test_a_web_certificate_that_is_none_is_one_line_before_any_url(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The review's finding: a --certfile that is no PEM printed the URL, then an ssl.SSLError traceback (exit 70)."""
+    bogus = tmp_path / "cert.pem"
+    bogus.write_text("not a certificate\n", encoding="utf-8")
+    code = _cli(["web", "--host", "0.0.0.0", "--allow-remote", "--certfile", str(bogus), "--keyfile", str(bogus),
+                 "--db", f"sqlite:///{tmp_path}/h.sqlite"])
+    out, err = capsys.readouterr()
+    assert code == ExitCode.BAD_INPUT and out == "", err
+    assert "not a certificate and its key in PEM" in err and err.count("\n") == 1, err

@@ -75,7 +75,8 @@ def test_each_listed_module_says_its_kinds_and_why() -> None:
 
 def test_the_search_finds_a_clock_read_in_any_of_its_forms() -> None:
     for text in ("time.monotonic()", "time.perf_counter_ns()", "time.sleep(0.1)", "RealTimeClock()",
-                 "import socket", "proc.wait(timeout=5)", "os.getloadavg()", "thread.join(30)"):
+                 "import socket", "proc.wait(timeout=5)", "os.getloadavg()", "thread.join(30)",
+                 "typed.wait(30)", "await asyncio.sleep(0.1)"):
         assert READS_A_CLOCK.search(text), text
     assert not READS_A_CLOCK.search("simulated_time_s = clock.now_s()")
 
