@@ -414,34 +414,12 @@ def _check_rig_flags(args: argparse.Namespace, variant: Any, bus_config: BusSett
               "valve mounted is what is tested", file=sys.stderr)
 
 
-def rig_on_this_pc(bus_config: BusSettings) -> bool:
-    """Whether the bus reaches a rig that is a process on this PC: slcan over a loopback socket (``edc-bench rig
-    --listen 127.0.0.1:PORT``) or a pseudo-terminal (``rig --pty``). A USB adapter or a socketcan interface is a
-    cable away."""
-    import ipaddress
-    from urllib.parse import urlsplit
-
-    channel = str(bus_config.get("channel") or "")
-    if bus_config.get("interface") != "slcan":
-        return False
-    if channel.startswith("/dev/pts/"):
-        return True
-    if not channel.startswith("socket://"):
-        return False
-    host = urlsplit(channel).hostname or ""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
 def _options(args: argparse.Namespace, variant: Any, bus_config: BusSettings | None, valve_id: str,
              folder: list[Path]) -> Any:
     """The test's options from the command line; ``folder`` receives the record folder once the CAN log starts."""
     from edc_bench.bench import BenchOptions
     from edc_bench.records.writer import CAN_LOG_FILE, new_record_dir
+    from edc_bench.runtime.bus_config import rig_on_this_pc
 
     def stream_target(started: str) -> Path:
         # the record folder exists from the first frame on: a killed test leaves its CAN log; it is named by the

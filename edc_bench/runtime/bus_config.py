@@ -146,6 +146,29 @@ INTERFACES_PAGE = "https://python-can.readthedocs.io/en/stable/interfaces.html"
 _ARGUMENT_EXAMPLES = {"host": "192.168.1.10", "port": "29536"}
 
 
+def rig_on_this_pc(bus_config: BusSettings) -> bool:
+    """Whether the bus reaches a rig that is a process on this PC: slcan over a loopback socket (``edc-bench rig
+    --listen 127.0.0.1:PORT``) or a pseudo-terminal (``rig --pty``). A USB adapter or a socketcan interface is a
+    cable away."""
+    import ipaddress
+    from urllib.parse import urlsplit
+
+    channel = str(bus_config.get("channel") or "")
+    if bus_config.get("interface") != "slcan":
+        return False
+    if channel.startswith("/dev/pts/"):
+        return True
+    if not channel.startswith("socket://"):
+        return False
+    host = urlsplit(channel).hostname or ""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
 def interface_needs(interface: str, channel: bool = True) -> str:
     """What ``interface`` needs, in words for the end of a message: what to install and (``channel``) what
     ``--channel`` is for it; "" for an interface that needs nothing to be said."""

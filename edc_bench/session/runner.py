@@ -191,6 +191,7 @@ class SessionRunner:
 
         from edc_bench.bench import BenchOptions
         from edc_bench.records.schema import Identity
+        from edc_bench.runtime.bus_config import rig_on_this_pc
         from edc_bench.station_settings import station_identity
         from edc_bench.verdict.judgement import default_calibrate_command
 
@@ -201,7 +202,8 @@ class SessionRunner:
                                                  operator=self.operator, shop=shop.shop,
                                                  shop_address=shop.shop_address, job_ref=job_ref),
             calibrate_command=default_calibrate_command(variant, ["--valve", "new"] if self.rig.simulated else []),
-            stream_can_log=stream_target, observer=observer)
+            stream_can_log=stream_target, observer=observer,
+            rig_on_this_pc=self.rig.bus_config is not None and rig_on_this_pc(self.rig.bus_config))
         seed = self.rig.first_seed + self.tests_run
         self.tests_run += 1
         result = self._run(variant, valve_id, options, seed)

@@ -14,7 +14,6 @@ from pathlib import Path
 import pytest
 
 from edc_bench.bench import run_simulated_test
-from edc_bench.cli.test_cmd import rig_on_this_pc
 from edc_bench.config.models import Variant
 from edc_bench.engine.outcome import AbortKind
 from edc_bench.engine.problems import Problem
@@ -22,7 +21,7 @@ from edc_bench.records.advice import Cause
 from edc_bench.records.reader import load_record
 from edc_bench.records.record import write_record
 from edc_bench.replay import replay_record
-from edc_bench.runtime.bus_config import BusSettings
+from edc_bench.runtime.bus_config import BusSettings, rig_on_this_pc
 from edc_bench.runtime.clock import Clock
 
 
