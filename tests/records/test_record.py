@@ -38,7 +38,8 @@ def test_record_folder_is_complete(record) -> None:
     assert doc["config"]["pump"]["name"] == "p-edc-default"
     assert doc["parameters"]["af"]["std"] > 0
     assert doc["timing"]["ticks"] == 12_000
-    assert doc["files"] == {"trace": "trace.mf4", "can_log": "can.log", "figure": "report.png"}
+    assert doc["files"] == {"trace": "trace.mf4", "can_log": "can.log", "figure": "report.png",
+                            "figure_no_room": None}
     assert (folder / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
