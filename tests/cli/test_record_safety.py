@@ -242,20 +242,25 @@ def test_tune_on_a_full_disk_exits_74_and_leaves_the_variant_file_whole(tmp_path
     assert [p.name for p in path.parent.iterdir()] == [path.name]  # and no part-written file beside it
 
 
-def test_a_figure_the_full_disk_left_unwritten_is_named_and_exits_74(tmp_path: Path, monkeypatch, capsys) -> None:
-    """The tester's finding: with the disk full when report.png was written, the figure was missing, exit 0,
-    nothing said. The data is whole (the figure is drawn again from it): the verdict stands, one line names the
-    file and how to draw it later."""
+def _no_room_for_the_figure(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The disk is full when report.png is written, and only then (the data files fit)."""
     from edc_bench import paths
 
     original = paths.atomic_write
 
-    def no_room_for_the_figure(path, *args, **kwargs):
+    def no_room(path, *args, **kwargs):
         if Path(path).name == "report.png":
             raise OSError(errno.ENOSPC, "No space left on device", str(path))
         return original(path, *args, **kwargs)
 
-    monkeypatch.setattr(paths, "atomic_write", no_room_for_the_figure)
+    monkeypatch.setattr(paths, "atomic_write", no_room)
+
+
+def test_a_figure_the_full_disk_left_unwritten_is_named_and_exits_74(tmp_path: Path, monkeypatch, capsys) -> None:
+    """The tester's finding: with the disk full when report.png was written, the figure was missing, exit 0,
+    nothing said. The data is whole (the figure is drawn again from it): the verdict stands, one line names the
+    file and how to draw it later."""
+    _no_room_for_the_figure(monkeypatch)
     out = tmp_path / "records"
     code = main(["test", "--valve", "new", "--out", str(out), "--no-history", "--plain"])
     captured = capsys.readouterr()
@@ -315,16 +320,7 @@ def test_a_figure_that_fails_to_draw_is_a_warning_and_a_marginal_is_still_retest
 
 def test_a_marginals_figure_lost_to_a_full_disk_still_retests_then_exits_74(tmp_path: Path, monkeypatch,
                                                                             capsys) -> None:
-    from edc_bench import paths
-
-    original = paths.atomic_write
-
-    def no_room_for_the_figure(path, *args, **kwargs):
-        if Path(path).name == "report.png":
-            raise OSError(errno.ENOSPC, "No space left on device", str(path))
-        return original(path, *args, **kwargs)
-
-    monkeypatch.setattr(paths, "atomic_write", no_room_for_the_figure)
+    _no_room_for_the_figure(monkeypatch)
     out = tmp_path / "records"
     code = main(["test", "--valve", "clearance=0.185", "--out", str(out), "--no-history", "--plain"])
     captured = capsys.readouterr()
