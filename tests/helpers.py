@@ -119,7 +119,7 @@ class _DrivesKept:
     """Stands in for the batch path's plant: keeps the drives the batch sends it."""
 
     def __init__(self) -> None:
-        self.params = [None]
+        self.params = self.valve_params = [None]
         self.drives: list[float] = []
 
     def advance_period(self, drive_v: Any) -> None:

@@ -21,6 +21,7 @@ import math
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -57,6 +58,8 @@ from edc_bench.sim.kernels import compiled, pump_constants, speed_note
 from edc_bench.population.valve_axis import take_last_axis
 from edc_bench.sim.adapter import AdapterModel
 from edc_bench.sim.plant import STICK_SPEED_MM_S, THERMAL_STEP_S
+from edc_bench.sim.pump_faults import RackFault, SensorFault, SensorFaultReadings
+from edc_bench.sim.rig import firmware_limits
 
 QUANTA_PER_PERIOD = 10
 HISTORY_EVERY = 10  # ticks between stored estimates (settle times at 10 ms resolution)
@@ -93,6 +96,10 @@ class BatchResult:
     stop : StopOutcome or None
         With a stop rule: where each test stopped and what it had found then (the fields above are those figures;
         ``periods`` is None, as a stopped test's later periods do not exist).
+    tripped_s : numpy.ndarray
+        (N,) when a sample tripped the rig firmware's limits (over-current, the travel limits, the LVDT's range), in s
+        from the first tick; NaN where none did. The loop's test aborts there (``problems`` has ABORTED, not
+        converged); the batch runs on, its later figures not a test's.
 
     ``parameters`` and ``truth`` are referred to the reference coil, as the full loop's are.
     """
@@ -111,6 +118,7 @@ class BatchResult:
     periods: PeriodResults | None = None
     problems: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     stop: StopOutcome | None = None
+    tripped_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def trusted(self) -> np.ndarray:
@@ -123,12 +131,18 @@ class BatchResult:
 
 
 class _VectorPlant:
-    """The plant of N valves (same pump, different friction and damping)."""
+    """The plant of N valves (one pump type, different friction and damping; each pump's rack its own)."""
 
-    def __init__(self, variant: Variant, valves: Sequence[ValveSpec], stiction: bool, period_s: float) -> None:
-        params = [plant_parameters(variant, v, stiction=stiction) for v in valves]
+    def __init__(self, variant: Variant, valves: Sequence[ValveSpec], stiction: bool, period_s: float,
+                 racks: Sequence[RackFault] | None = None) -> None:
+        #: each valve's own physics (the truth its test is held to), and the plant with its pump's rack
+        self.valve_params = [plant_parameters(variant, v, stiction=stiction) for v in valves]
+        stiction_ratio = variant.valve.stiction_ratio if stiction else 1.0
+        params = self.valve_params if racks is None else \
+            [rack.applied(p, stiction_ratio) for rack, p in zip(racks, self.valve_params, strict=True)]
         self.params = params
-        # the pump's own parameters are the same for every valve: read them from the first
+        # the pump type's own parameters (coil, amplifier, stroke, heat) are the same for every valve: read them
+        # from the first; each rack's friction along the stroke is in its row of ``_pumps``
         self.pump = params[0]
         n = len(params)
         self.fc = np.array([p.coulomb_friction_n for p in params])
@@ -150,12 +164,12 @@ class _VectorPlant:
         self.v = np.zeros(n)
         self.i = np.zeros(n)
         self.stuck = np.ones(n, dtype=bool)
-        pump = self.pump
-        self._pump = pump_constants(pump.linear, pump.preload_n, pump.stribeck_velocity_mm_s,
-                                    pump.force_constant_n_per_a, pump.force_constant_slope_per_mm,
-                                    pump.force_constant_mid_mm, pump.net_stiffness_n_per_mm, pump.stroke_mm,
-                                    STICK_SPEED_MM_S, pump.rack_bind_n, pump.rack_bind_at_mm, pump.rack_bind_width_mm,
-                                    pump.rack_friction_slope_n_per_mm)
+        self._pumps = np.array([pump_constants(p.linear, p.preload_n, p.stribeck_velocity_mm_s,
+                                               p.force_constant_n_per_a, p.force_constant_slope_per_mm,
+                                               p.force_constant_mid_mm, p.net_stiffness_n_per_mm, p.stroke_mm,
+                                               STICK_SPEED_MM_S, p.rack_bind_n, p.rack_bind_at_mm,
+                                               p.rack_bind_width_mm, p.rack_friction_slope_n_per_mm)
+                                for p in params])
         self._every = np.zeros(0, dtype=np.int64)
         # the coil warms as in :class:`~edc_bench.sim.plant.Plant`: stepped every THERMAL_STEP_S
         self.temp_c = np.array([p.coil_temp_c for p in params])
@@ -167,6 +181,8 @@ class _VectorPlant:
     def take(self, keep: np.ndarray) -> None:
         """Keep the valves ``keep`` (indices) only: the others' tests have stopped."""
         self.params = [self.params[j] for j in keep]
+        self.valve_params = [self.valve_params[j] for j in keep]
+        self._pumps = np.ascontiguousarray(self._pumps[keep])
         take_last_axis(self, keep, ("fc", "fs", "phi", "gam", "phi_q", "gam_q", "x", "v", "i", "stuck", "temp_c",
                                     "resistance_ohm", "_r20", "_heat_j"))
         self._aug = self._aug[keep]
@@ -202,7 +218,7 @@ class _VectorPlant:
             self._period_dt = np.full(n, self._period_s)
         compiled().advance(self._every, self._whole_period, self.phi, self.gam, self._period_dt, self.x, self.v,
                            self.i, self.stuck, self.phi_q, self.gam_q, coil_v, self.fc, self.fs,
-                           self._period_s / QUANTA_PER_PERIOD, self._pump)
+                           self._period_s / QUANTA_PER_PERIOD, self._pumps)
 
     def advance_quanta(self, quanta: np.ndarray, drive_v: np.ndarray) -> None:
         """Advance each valve by its own number of quanta (0..QUANTA_PER_PERIOD) under a constant drive.
@@ -221,7 +237,7 @@ class _VectorPlant:
         coil_v = self.pump.amplifier_gain * law.ARRAYS.clip(drive_v[moving], self.pump.amplifier_limit_v)
         compiled().advance(moving, m, phi, gam, m * (self._period_s / QUANTA_PER_PERIOD), self.x, self.v, self.i,
                            self.stuck, self.phi_q, self.gam_q, coil_v, self.fc, self.fs,
-                           self._period_s / QUANTA_PER_PERIOD, self._pump)
+                           self._period_s / QUANTA_PER_PERIOD, self._pumps)
 
 
 def _coefficients(augmented: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -340,9 +356,15 @@ class _Sensors:
     """The rig's LVDT and current sensor for N valves: the plant's true values, noise from a stream per valve,
     offset and resolution, as the simulated rig's sensors give them."""
 
-    def __init__(self, variant: Variant, plant: _VectorPlant, seeds: Sequence[int], sensor_noise: bool) -> None:
+    def __init__(self, variant: Variant, plant: _VectorPlant, seeds: Sequence[int], sensor_noise: bool,
+                 faults: Sequence[SensorFault] | None = None) -> None:
         lvdt, current = variant.sensors.lvdt, variant.sensors.current
         self.plant = plant
+        #: the pumps' rack-travel sensors where one misreads (:mod:`edc_bench.sim.pump_faults`), and the time of the
+        #: tick being sampled (the loop sets it: a dropout or a spike comes at a time)
+        self.faults = None if faults is None or all(f.none for f in faults) else \
+            SensorFaultReadings(faults, variant.rack.stroke_mm, seeds)
+        self.t_s = 0.0
         self.noise = _Noise(seeds, lvdt.noise_sd if sensor_noise else 0.0)
         self._resolution = lvdt.resolution if sensor_noise else 1e-9
         self._offset = lvdt.offset if sensor_noise else 0.0
@@ -355,10 +377,14 @@ class _Sensors:
         """Keep the valves ``keep`` (indices) only."""
         self.noise.take(keep)
         self._current_noise.take(keep)
+        if self.faults is not None:
+            self.faults.take(keep)
 
-    def read(self, true_mm: np.ndarray, noise_mm: np.ndarray) -> np.ndarray:
-        """The LVDT's reading of rack positions ``true_mm`` with the given noise."""
-        return compiled().quantised_reading(true_mm, self._offset, noise_mm, self._resolution)
+    def read(self, true_mm: np.ndarray, noise_mm: np.ndarray, valves: np.ndarray | None = None) -> np.ndarray:
+        """The LVDT's reading of rack positions ``true_mm`` with the given noise (of every valve, or of ``valves``
+        only): the pump's sensor's signal, through the rig's conditioning."""
+        signal_mm = true_mm if self.faults is None else self.faults.read(true_mm, self.t_s, valves)
+        return compiled().quantised_reading(signal_mm, self._offset, noise_mm, self._resolution)
 
     def sample(self) -> np.ndarray:
         """The rack position now, as the LVDT reads it."""
@@ -464,7 +490,8 @@ def _say_speed_once() -> None:
 
 def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int], *, stiction: bool = True,
               sensor_noise: bool = True, adapter: AdapterModel | None = None,
-              stop: BatchStopRule | None = None) -> BatchResult:
+              stop: BatchStopRule | None = None, rack_faults: RackFault | Sequence[RackFault] | None = None,
+              sensor_faults: SensorFault | Sequence[SensorFault] | None = None) -> BatchResult:
     """Run one simulated bench test per valve, vectorised.
 
     Parameters
@@ -485,6 +512,11 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
         The bench's early stop (:mod:`edc_bench.population.batch_stop`): each test ends after the period where the
         loop's would, and the result holds what it had found then (``BatchResult.stop``; no ``periods``). By
         default every test runs its full length.
+    rack_faults, sensor_faults : RackFault or SensorFault, or a sequence of them, optional
+        The pumps' control racks and rack-travel sensors (:mod:`edc_bench.sim.pump_faults`, as ``--rack-fault`` and
+        ``--sensor-fault`` give the simulated rig): one for every valve, or one per valve. Sound by default. The
+        truth (``BatchResult.truth``) stays each valve's own: what a faulty rack or sensor makes of it is what the
+        test identifies.
 
     Returns
     -------
@@ -493,12 +525,27 @@ def run_batch(variant: Variant, valves: Sequence[ValveSpec], seeds: Sequence[int
     n = len(valves)
     if n == 0 or len(seeds) != n:
         raise ValueError("one seed per valve, and at least one valve")
+    racks, sensors = _per_valve(rack_faults, n, "rack_faults"), _per_valve(sensor_faults, n, "sensor_faults")
     _say_speed_once()
     design = ControllerDesign.from_variant(variant)
-    plant = _VectorPlant(variant, valves, stiction, design.period_s)
-    run = _prepared(variant, design, plant, _Sensors(variant, plant, seeds, sensor_noise), seeds, adapter, stop)
+    plant = _VectorPlant(variant, valves, stiction, design.period_s, racks)
+    run = _prepared(variant, design, plant, _Sensors(variant, plant, seeds, sensor_noise, sensors), seeds, adapter,
+                    stop)
     run.all_ticks(run.feeder.setup)
     return run.result(variant, valves, seeds)
+
+
+_Part = TypeVar("_Part", RackFault, SensorFault)
+
+
+def _per_valve(faults: _Part | Sequence[_Part] | None, n: int, name: str) -> list[_Part] | None:
+    """One fault for every valve, or one per valve, as a list; None where every part is sound."""
+    if faults is None:
+        return None
+    given = [faults] * n if isinstance(faults, (RackFault, SensorFault)) else list(faults)
+    if len(given) != n:
+        raise ValueError(f"{name}: one per valve ({n}), or one for all; got {len(given)}")
+    return None if all(f.none for f in given) else given
 
 
 def _prepared(variant: Variant, design: ControllerDesign, plant: _VectorPlant, sensors: _Sensors,
@@ -530,7 +577,7 @@ class _BatchRun:
         self.design, self.plant, self.sensors, self.controller = design, plant, sensors, controller
         self.reference = controller.reference
         self.link, self.feeder, self.lag, self.periods = link, feeder, lag, periods
-        self.valve_plants = list(plant.params)  # every valve's, as the plant drops those that stop
+        self.valve_plants = list(plant.valve_params)  # every valve's own physics, as the plant drops those that stop
         n = len(self.reference.start)
         self.history = np.zeros((design.ticks // HISTORY_EVERY + 1, 2, n))
         self.hist_rows = 0
@@ -546,6 +593,10 @@ class _BatchRun:
         self.alive = np.arange(n)  # the valves still running, by their place in the batch
         self.stop_rule, self.stopped = stop, StopOutcome(n) if stop is not None else None
         self._settle = {name: np.full(n, np.nan) for name in ("af", "a1")}
+        # the rig firmware's checks of every sample (firmware_proto.firmware): where one trips, the loop's test
+        # aborts there; the batch marks it (a faulty sensor's dropout, a drive that runs away)
+        self._limits = firmware_limits(periods.variant)
+        self.tripped_s = np.full(n, np.nan)  # by the valve's place in the batch
 
     def all_ticks(self, setup: FitSetup) -> None:
         """Run every tick of the test (or until every valve has stopped), then feed the fit what is left."""
@@ -563,6 +614,7 @@ class _BatchRun:
             # average over seconds, where the adapter's milliseconds do not count)
             if k > 0:  # the first tick's current came under no drive of the test's (as in the loop: left out)
                 self._pending_current, self._u_before = self.sensors.current(), self._u_last
+                self._trip_where(~(np.abs(self._pending_current) <= self._limits.over_current_a), k)
             self._u_last = u
             feeder.tick(k, u, rho, r1)
             if k in block_end_ticks:  # a loop stopped here would refer its parameters to this coil figure
@@ -597,8 +649,10 @@ class _BatchRun:
         it delivers them). Returns the whole periods in the fit when a sample completed one, else 0."""
         plant, sensors, link, feeder = self.plant, self.sensors, self.link, self.feeder
         whole = 0
+        sensors.t_s = k * self.design.period_s
         if link is None:
             self._x_meas = sensors.sample()
+            self._trip_where(self._outside_travel(self._x_meas), k)
             whole = feeder.sample(k, self._x_meas)
             plant.advance_period(u)
             self._r_prev = self.reference.now(k)
@@ -606,9 +660,24 @@ class _BatchRun:
             link.send(k, u, sensors.noise.next())
             link.advance_period(k, plant.advance_quanta, lambda: plant.x, sensors.read)
             if k >= self.lag:
-                whole = feeder.sample(k - self.lag, *link.delivered_sample(k - self.lag))
+                position_mm, delivered = link.delivered_sample(k - self.lag)
+                self._trip_where(delivered & self._outside_travel(position_mm), k)
+                whole = feeder.sample(k - self.lag, position_mm, delivered)
         plant.add_heat(self.design.period_s)
         return whole
+
+    def _outside_travel(self, position_mm: np.ndarray) -> np.ndarray:
+        """Where a rack sample trips the rig: outside the LVDT's range or the travel limits (NaN too)."""
+        lim = self._limits
+        return ~((lim.lvdt_min_mm <= position_mm) & (position_mm <= lim.lvdt_max_mm)
+                 & (lim.travel_min_mm <= position_mm) & (position_mm <= lim.travel_max_mm))
+
+    def _trip_where(self, tripped: np.ndarray, k: int) -> None:
+        """The running valves ``tripped`` (a mask) tripped their rig at tick ``k``, unless they had already."""
+        if tripped.any():
+            at = self.alive[tripped]
+            first = at[np.isnan(self.tripped_s[at])]
+            self.tripped_s[first] = k * self.design.period_s
 
     def _keep_history(self) -> None:
         theta = self.controller.theta
@@ -660,17 +729,22 @@ class _BatchRun:
         truth = np.array([list(feedforward_truth(replace(p, resistance_ohm=r_ref))) for p in self.valve_plants])
         ages = dict(sorted(link.ages.items())) if link is not None else {}
         stopped = self.stopped
+        aborted = np.isfinite(self.tripped_s)
         if stopped is not None:
             condition = max(periods.reference_condition, float(np.nanmedian(stopped.condition_number))
                             if np.isfinite(stopped.condition_number).any() else math.inf)
+            stopped.aborted(aborted, self.tripped_s)
             return BatchResult(stopped.parameters, truth, stopped.converged, self._settle, condition, list(valves),
                                list(seeds), ages, stopped.coil_ohm, stopped.coil_end_ohm,
-                               model_fits=stopped.model_fits, problems=stopped.problems, stop=stopped)
+                               model_fits=stopped.model_fits, problems=stopped.problems, stop=stopped,
+                               tripped_s=self.tripped_s)
         at_end = periods.at(periods.blocks)
-        return BatchResult(at_end.parameters, truth, at_end.converged, self._settle_times_s(slice(None)),
+        return BatchResult(at_end.parameters, truth, at_end.converged & ~aborted, self._settle_times_s(slice(None)),
                            at_end.condition_number, list(valves), list(seeds), ages,
                            controller.coil_average.mean.copy(), plant.resistance_ohm.copy(),
-                           model_fits=at_end.model_fits, periods=periods, problems=at_end.problems)
+                           model_fits=at_end.model_fits, periods=periods,
+                           problems=np.where(aborted, at_end.problems | int(Problem.ABORTED), at_end.problems),
+                           tripped_s=self.tripped_s)
 
 
 @dataclass

@@ -154,8 +154,8 @@ class BatchLink:
         self._noise[slot] = noise_mm
 
     def advance_period(self, k: int, advance: Callable[[np.ndarray, np.ndarray], None],
-                       position_mm: Callable[[], np.ndarray], read: Callable[[np.ndarray, np.ndarray], np.ndarray],
-                       ) -> None:
+                       position_mm: Callable[[], np.ndarray],
+                       read: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]) -> None:
         """Let period k pass: each command due in it reaches the rig, which samples and applies its drive.
 
         Parameters
@@ -167,7 +167,7 @@ class BatchLink:
         position_mm : callable
             The plants' true rack positions now.
         read : callable
-            ``read(true_mm, noise_mm)``: the LVDT reading.
+            ``read(true_mm, noise_mm, valves)``: the LVDT reading of those valves.
         """
         first, end = k * self.quanta, (k + 1) * self.quanta
         done = np.full(len(self._cols), first, dtype=np.int64)
@@ -186,7 +186,7 @@ class BatchLink:
             idx = np.nonzero(due)[0]
             ss = slot[idx]
             # the rig samples the rack, then applies the new drive; its reply starts back at once
-            self._sample[ss, idx] = read(position_mm()[idx], self._noise[ss, idx])
+            self._sample[ss, idx] = read(position_mm()[idx], self._noise[ss, idx], idx)
             self.applied_v[idx] = self._drive[ss, idx]
             up = self._deliver(idx, self._down_s[ss, idx], self._last_up[idx])
             self._last_up[idx] = up

@@ -19,6 +19,7 @@ import numpy as np
 from edc_bench.config.models import PARAMETER_NAMES, Variant
 from edc_bench.control.design import ControllerDesign
 from edc_bench.identification.period_fit import FitSetup
+from edc_bench.identification.trust import Problem
 from edc_bench.verdict.baseline import Baseline, load_baseline
 from edc_bench.verdict.classifier import ValveClassifier, default_classifier
 from edc_bench.verdict.early_stop import Interval, relative_box, stop_flags
@@ -146,6 +147,14 @@ class StopOutcome:
             self.systematic_rms_v[which] = at.fit.systematic_rms_v[stop]
         self.coil_ohm[which] = coil_ohm[stop]
         self.coil_end_ohm[which] = coil_end_ohm[stop]
+
+    def aborted(self, tripped: np.ndarray, tripped_s: np.ndarray) -> None:
+        """The tests ``tripped`` (a mask) were aborted by the rig at ``tripped_s`` before they stopped: no verdict
+        stands (the loop's test ends there, with what it had identified, untrusted)."""
+        self.problems[tripped] |= int(Problem.ABORTED)
+        for name in ("converged", "trusted", "certain"):
+            getattr(self, name)[tripped] = False
+        self.time_s[tripped] = tripped_s[tripped]
 
 
 __all__ = ["BatchStopRule", "StopDecision", "StopOutcome"]

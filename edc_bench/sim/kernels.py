@@ -127,7 +127,7 @@ def pump_constants(linear: bool, preload_n: float, stribeck_velocity_mm_s: float
                    force_constant_slope_per_mm: float, force_constant_mid_mm: float, net_stiffness_n_per_mm: float,
                    stroke_mm: float, stick_speed_mm_s: float, rack_bind_n: float = 0.0, rack_bind_at_mm: float = 0.0,
                    rack_bind_width_mm: float = 1.0, rack_friction_slope_n_per_mm: float = 0.0) -> np.ndarray:
-    """The pump's own numbers, the same for every valve, packed for the kernels.
+    """The pump's own numbers, packed for the kernels.
 
     The rack's own friction (a local bind, a slope: :class:`~edc_bench.physics.parameters.PlantParameters`) is the
     pump's, not the valve's; a pump with it is not the linear one (``linear`` False).
@@ -229,18 +229,20 @@ def step_valve(phi: np.ndarray, gam: np.ndarray, m: int, dt_s: float, quanta: in
 
 def advance(valves: np.ndarray, quanta: np.ndarray, phi: np.ndarray, gam: np.ndarray, dt_s: np.ndarray,
             x: np.ndarray, v: np.ndarray, i: np.ndarray, stuck: np.ndarray, phi_q: np.ndarray, gam_q: np.ndarray,
-            coil_v: np.ndarray, fc: np.ndarray, fs: np.ndarray, quantum_s: float, pump: np.ndarray) -> None:
+            coil_v: np.ndarray, fc: np.ndarray, fs: np.ndarray, quantum_s: float, pumps: np.ndarray) -> None:
     """Advance valves ``valves[m]`` by ``quanta[m]`` quanta each, in place.
 
     ``phi``, ``gam`` (9 and 6 rows), ``dt_s`` and ``coil_v`` are per entry of ``valves`` (the exact step over
     those quanta, and the coil voltage held); the state ``x``, ``v``, ``i``, ``stuck`` and ``phi_q``, ``gam_q``
-    (a quantum's step), ``fc``, ``fs`` are per valve of the batch. A valve that slides through takes the exact
-    step; otherwise its quanta are replayed one by one from where it was (:func:`step_valve`, each).
+    (a quantum's step), ``fc``, ``fs`` and the rows of ``pumps`` (each valve's pump, as :func:`pump_constants`
+    packs it: a pump's rack may bind where another's does not) are per valve of the batch. A valve that slides
+    through takes the exact step; otherwise its quanta are replayed one by one from where it was
+    (:func:`step_valve`, each).
     """
     for m in range(len(valves)):
         j = valves[m]
         x[j], v[j], i[j], stuck[j], _ = step_valve(phi, gam, m, dt_s[m], quanta[m], x[j], v[j], i[j], stuck[j],
-                                                   phi_q, gam_q, j, coil_v[m], fc[j], fs[j], quantum_s, pump)
+                                                   phi_q, gam_q, j, coil_v[m], fc[j], fs[j], quantum_s, pumps[j])
 
 
 def dissipate(heat_j: np.ndarray, resistance_ohm: np.ndarray, i: np.ndarray, dt_s: float) -> None:

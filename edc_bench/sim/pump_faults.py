@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import TypeVar
 
@@ -54,6 +55,11 @@ class RackFault:
         Where the bind is (mm from the stop) and how wide (mm, the Gaussian's 1/e half width).
     slope_n_per_mm : float
         Friction rising along the stroke (N per mm from the stop).
+    spring_rel, preload_rel : float
+        This pump's return spring against the pump type's (``[rack]``): its rate and its preload off by these shares
+        (0.03: 3 % stiffer). Not a fault: pumps of one type differ within the spring's tolerance
+        (``[rack] spring_tolerance_rel``, ``preload_tolerance_rel``), and the part diagnosis must not take that
+        for a fault of the sensor.
     """
 
     drag_n: float = 0.0
@@ -62,12 +68,14 @@ class RackFault:
     bind_at_mm: float = 12.0
     bind_width_mm: float = 1.0
     slope_n_per_mm: float = 0.0
+    spring_rel: float = 0.0
+    preload_rel: float = 0.0
 
     @property
     def none(self) -> bool:
-        """True for a sound rack."""
+        """True for a sound rack on the pump type's nominal spring."""
         return self.drag_n == 0.0 and self.drag_damping_n_s_per_mm == 0.0 and self.bind_n == 0.0 \
-            and self.slope_n_per_mm == 0.0
+            and self.slope_n_per_mm == 0.0 and self.spring_rel == 0.0 and self.preload_rel == 0.0
 
     def spec(self) -> str:
         """The ``--rack-fault`` text that gives this fault (``none`` for none)."""
@@ -75,11 +83,14 @@ class RackFault:
 
     def applied(self, params: PlantParameters, stiction_ratio: float) -> PlantParameters:
         """The pump's plant with this rack: its drag added to the valve's friction (breakaway by the valve's
-        ``stiction_ratio``) and damping, its bind and slope as friction that depends on the position."""
+        ``stiction_ratio``) and damping, its bind and slope as friction that depends on the position, its spring's
+        rate and preload."""
         if self.none:
             return params
         return dataclasses.replace(
             params,
+            spring_n_per_mm=params.spring_n_per_mm * (1.0 + self.spring_rel),
+            preload_n=params.preload_n * (1.0 + self.preload_rel),
             coulomb_friction_n=params.coulomb_friction_n + self.drag_n,
             stiction_friction_n=params.stiction_friction_n + self.drag_n * stiction_ratio,
             damping_n_s_per_mm=params.damping_n_s_per_mm + self.drag_damping_n_s_per_mm,
@@ -182,6 +193,90 @@ class FaultySensorReading:
         return value
 
 
+class SensorFaultReadings:
+    """N faulty sensors' readings at once, one per valve of the batch path (:mod:`edc_bench.population.batch`).
+
+    The same formula and events as :class:`FaultySensorReading` (its module docstring), on arrays; the noise and
+    the events' times come from streams of their own per valve (as the batch's noise is the loop's model, not its
+    stream). A sound sensor among them reads the rack as it is.
+
+    Parameters
+    ----------
+    faults : sequence of SensorFault
+        One per valve.
+    stroke_mm : float
+        The rack's stroke.
+    seeds : sequence of int
+        One per valve: the seed of its noise and of its dropouts' and spikes' times.
+    block : int
+        Noise drawn this many readings ahead per valve.
+    """
+
+    def __init__(self, faults: Sequence[SensorFault], stroke_mm: float, seeds: Sequence[int],
+                 block: int = 1000) -> None:
+        if len(faults) != len(seeds):
+            raise ValueError("one seed per sensor")
+        self._stroke_mm = stroke_mm
+        self._f = {f.name: np.array([getattr(fault, f.name) for fault in faults], dtype=float)
+                   for f in fields(SensorFault)}
+        n = len(faults)
+        self._rngs = [np.random.default_rng([seed, 0x5E45]) for seed in seeds]
+        self._noise_rngs = [np.random.default_rng([seed, 0x5E46]) for seed in seeds]
+        self._block = block
+        self._noise = np.zeros((block, n))
+        self._row = np.full(n, block)  # each valve's next noise row; ``block``: draw its column again
+        self._dropout_until_s = np.full(n, -math.inf)
+        self._next_dropout_s = np.array([self._after(j, 0.0, "dropouts_per_s") for j in range(n)])
+        self._next_spike_s = np.array([self._after(j, 0.0, "spikes_per_s") for j in range(n)])
+        self.dropouts = np.zeros(n, dtype=np.int64)
+        self.spikes = np.zeros(n, dtype=np.int64)
+
+    def _after(self, j: int, t_s: float, rate_key: str) -> float:
+        rate = self._f[rate_key][j]
+        return t_s + float(self._rngs[j].exponential(1.0 / rate)) if rate > 0 else math.inf
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the sensors ``keep`` (indices) only: each keeps its own streams."""
+        self._f = {key: values[keep] for key, values in self._f.items()}
+        self._rngs = [self._rngs[j] for j in keep]
+        self._noise_rngs = [self._noise_rngs[j] for j in keep]
+        self._noise = np.ascontiguousarray(self._noise[:, keep])
+        for name in ("_row", "_dropout_until_s", "_next_dropout_s", "_next_spike_s", "dropouts", "spikes"):
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _noise_of(self, idx: np.ndarray) -> np.ndarray:
+        for j in idx[self._row[idx] >= self._block]:
+            self._noise[:, j] = self._noise_rngs[j].standard_normal(self._block)
+            self._row[j] = 0
+        value = self._noise[self._row[idx], idx]
+        self._row[idx] += 1
+        return value
+
+    def read(self, x_mm: np.ndarray, t_s: float, valves: np.ndarray | None = None) -> np.ndarray:
+        """The sensors' signals (mm) for racks at ``x_mm`` at time ``t_s``: of every sensor, or of ``valves``
+        (indices) only, ``x_mm`` then theirs."""
+        idx = np.arange(len(self._row)) if valves is None else np.asarray(valves)
+        f = {key: values[idx] for key, values in self._f.items()}
+        due = idx[t_s >= self._next_dropout_s[idx]]
+        for j in due:
+            self._dropout_until_s[j] = t_s + self._f["dropout_ms"][j] * 1e-3
+            self._next_dropout_s[j] = self._after(j, t_s, "dropouts_per_s")
+            self.dropouts[j] += 1
+        u = x_mm / self._stroke_mm
+        value = f["gain"] * x_mm + f["offset_mm"] + f["bow_mm"] * 4.0 * u * (1.0 - u)
+        value += 0.5 * f["step_mm"] * (1.0 + np.tanh((x_mm - f["step_at_mm"]) / f["step_width_mm"]))
+        reading = ~(t_s < self._dropout_until_s[idx])  # a sensor whose contact is open reads its zero
+        noisy = (f["noise_sd_mm"] > 0) & reading
+        if noisy.any():
+            value[noisy] += f["noise_sd_mm"][noisy] * self._noise_of(idx[noisy])
+        for m in np.nonzero(reading & (t_s >= self._next_spike_s[idx]))[0]:
+            j = idx[m]
+            self._next_spike_s[j] = self._after(j, t_s, "spikes_per_s")
+            self.spikes[j] += 1
+            value[m] += self._f["spike_mm"][j] * (1.0 if self._rngs[j].random() < 0.5 else -1.0)
+        return np.where(reading, value, 0.0)
+
+
 #: Each key: (what it is, lowest, highest): generous but physical.
 RACK_KEYS: dict[str, tuple[str, float, float]] = {
     "drag_n": ("Coulomb friction added along the stroke, N", 0.0, 10.0),
@@ -190,6 +285,8 @@ RACK_KEYS: dict[str, tuple[str, float, float]] = {
     "bind_at_mm": ("where the bind is, mm from the stop", 0.0, 30.0),
     "bind_width_mm": ("the bind's half width, mm", 0.1, 10.0),
     "slope_n_per_mm": ("friction rising along the stroke, N per mm", -0.2, 0.2),
+    "spring_rel": ("the return spring's rate off the pump type's, relative", -0.3, 0.3),
+    "preload_rel": ("the return spring's preload off the pump type's, relative", -0.5, 0.5),
 }
 SENSOR_KEYS: dict[str, tuple[str, float, float]] = {
     "gain": ("the reading's scale, 1 for none", 0.5, 1.5),

@@ -10,7 +10,10 @@ from edc_bench.config import load_variant
 from edc_bench.physics.valve import parse_valve_spec
 from edc_bench.population.batch import run_batch
 from edc_bench.population.valves import draw_population
+from edc_bench.engine.problems import Problem
+from edc_bench.population.batch_stop import BatchStopRule
 from edc_bench.sim.adapter import parse_adapter
+from edc_bench.sim.pump_faults import SensorFault, parse_rack_fault, parse_sensor_fault
 
 NAMES = ("a3", "a2", "a1", "a0", "b", "af")
 
@@ -39,6 +42,58 @@ def test_batch_path_gives_the_full_loops_parameters(variant_name: str, valve: st
     assert bool(batch.converged[0]) == full.converged
     assert batch.condition_number == pytest.approx(full.identification.condition_number, rel=0.05)
     assert np.allclose(batch.truth[0], list(full.truth))
+
+
+@pytest.mark.parametrize(("rack", "sensor"), [
+    ("bind", "long"),  # the rack's friction along the stroke and the sensor's reading in one pump: both paths
+    pytest.param("drag", "none", marks=pytest.mark.slow),
+    pytest.param("slope", "zero", marks=pytest.mark.slow),
+    pytest.param("none", "bow", marks=pytest.mark.slow),
+    pytest.param("none", "spikes", marks=pytest.mark.slow),
+    pytest.param("none", "noisy", marks=pytest.mark.slow),
+])
+def test_a_batch_pump_with_a_faulty_rack_or_sensor_gives_the_full_loops_parameters(rack: str, sensor: str) -> None:
+    """#67: the population engine gets the pumps' faults the simulated rig has (``--rack-fault``,
+    ``--sensor-fault``), and finds what the loop finds of them within the documented tolerance (noise and spikes
+    from streams of their own: a2 within 3 % as the noise allows); the truth stays the valve's own."""
+    variant = load_variant()
+    spec = parse_valve_spec("new", variant)
+    full = run_simulated_test(variant, spec, 1, check_gains=False, classify=False, rack_fault=rack,
+                              sensor_fault=sensor)
+    batch = run_batch(variant, [spec], [1], rack_faults=parse_rack_fault(rack),
+                      sensor_faults=parse_sensor_fault(sensor))
+    sound = run_batch(variant, [spec], [1])
+    for j, name in enumerate(NAMES):
+        rel = abs(batch.parameters[0, j] / full.parameters[name].value - 1)
+        assert rel <= BATCH_TOLERANCE[name], (name, rel)
+    assert bool(batch.converged[0]) == full.converged
+    assert np.allclose(batch.truth[0], list(full.truth)) and np.array_equal(batch.truth, sound.truth)
+    assert not np.allclose(batch.parameters, sound.parameters, rtol=0.01)  # the fault moved what was identified
+    assert np.isnan(batch.tripped_s).all()
+
+
+@pytest.mark.slow  # 14 s
+def test_a_batch_test_whose_sensor_trips_the_rig_is_aborted_as_the_loops() -> None:
+    """A contact that drops out reads the sensor's zero: the loop drives the rack after it until the rig's
+    over-current trips and the test aborts; the batch has no firmware of its own but checks every sample against
+    the rig's limits, and its test is marked aborted where it tripped (not converged, not trusted, no certain
+    verdict), with or without the early stop; its pump-mates run on untouched."""
+    variant = load_variant()
+    spec = parse_valve_spec("new", variant)
+    full = run_simulated_test(variant, spec, 1, check_gains=False, classify=False, sensor_fault="dropouts")
+    assert full.outcome.abort is not None and not full.converged
+    faults = [parse_sensor_fault("dropouts"), SensorFault()]
+    alone = run_batch(variant, [spec], [2])
+    for stop in (None, BatchStopRule.shipped(variant)):
+        batch = run_batch(variant, [spec, spec], [1, 2], sensor_faults=faults, stop=stop)
+        assert 0.0 < batch.tripped_s[0] < 30.0 and np.isnan(batch.tripped_s[1])
+        assert list(batch.converged) == [False, True]
+        assert batch.problems[0] & Problem.ABORTED and not batch.trusted[0] and batch.trusted[1]
+        if stop is None:
+            assert np.array_equal(batch.parameters[1], alone.parameters[0])
+        else:
+            assert batch.stop is not None and not batch.stop.certain[0]
+            assert batch.stop.time_s[0] == batch.tripped_s[0]
 
 
 @pytest.mark.slow

@@ -18,6 +18,7 @@ from edc_bench.population.valves import draw_population
 from edc_bench.physics.valve import plant_parameters
 from edc_bench.sim.kernels import compiled
 from edc_bench.sim.plant import Plant
+from edc_bench.sim.pump_faults import RACK_PRESETS, RackFault
 
 
 def _plant(n: int = 2) -> _VectorPlant:
@@ -107,6 +108,35 @@ def test_the_batchs_valves_step_as_the_simulated_rigs_plant_to_the_bit(variant_n
     assert held > 0 and stops > 0  # the run went through the Karnopp replay and the stops, not only the exact step
     assert sum(p.stick_events for p in rigs) > 0
     assert not np.array_equal(batch.resistance_ohm, [p.params.resistance_ohm for p in rigs])  # the coils warmed
+
+
+def test_the_batchs_pumps_each_with_its_own_rack_step_as_the_rig_plant_of_that_pump() -> None:
+    """#67: the batch's valves sit in pumps whose racks differ (a bind, a slope, a dragging guide, a sound one):
+    each steps as the simulated rig's plant of that valve in that pump, to the bit (the rig's plant takes the rack
+    as :meth:`RackFault.applied` gives it)."""
+    variant = load_variant("p-edc-default")
+    valves = draw_population(variant, 5, 7)
+    racks = [RACK_PRESETS["bind"], RackFault(), RACK_PRESETS["slope"], RACK_PRESETS["drag"],
+             RackFault(bind_n=0.4, bind_at_mm=9.0, bind_width_mm=2.0, slope_n_per_mm=-0.01)]
+    batch = _VectorPlant(variant, valves, True, 1e-3, racks)
+    ratio = variant.valve.stiction_ratio
+    rigs = [Plant(rack.applied(plant_parameters(variant, valve, stiction=True), ratio),
+                  quantum_s=1e-3 / QUANTA_PER_PERIOD) for valve, rack in zip(valves, racks)]
+    sound = _VectorPlant(variant, valves, True, 1e-3)
+    rng = np.random.default_rng(3)
+    for k in range(600):
+        drive_v = _drives(rng, k, len(valves))
+        for plant in (batch, sound):
+            plant.advance_period(drive_v)
+            plant.add_heat(1e-3)
+        for plant, drive in zip(rigs, drive_v):
+            plant.set_drive_v(float(drive))
+            plant.advance(QUANTA_PER_PERIOD)
+        for got, want in zip((batch.x, batch.v, batch.i, batch.stuck),
+                             zip(*[(p.x_mm, p.v_mm_s, p.i_a, p.stuck) for p in rigs])):
+            assert np.array_equal(got, np.array(want)), f"tick {k}"
+    assert batch.x[1] == sound.x[1]  # the sound pump's valve as in a sound batch
+    assert all(batch.x[j] != sound.x[j] for j in (0, 2, 3, 4))  # each rack moved its valve
 
 
 def test_steps_of_part_of_a_period_are_the_rig_plants_too() -> None:

@@ -18,6 +18,7 @@ from edc_bench.sim.pump_faults import (
     FaultySensorReading,
     RackFault,
     SensorFault,
+    SensorFaultReadings,
     parse_rack_fault,
     parse_sensor_fault,
 )
@@ -106,6 +107,52 @@ def test_the_faulty_sensors_reading_follows_its_formula_and_its_events_their_rat
     assert np.sum(np.abs(readings - 10.0) == 0.5) == noisy.spikes  # each spike one reading, 0.5 mm off
     again = FaultySensorReading(noisy.fault, stroke, np.random.default_rng(2))
     assert np.array_equal(readings, [again.read(10.0, k * 1e-3) for k in range(20_000)])  # seeded
+
+
+def test_the_batch_paths_sensors_read_by_the_one_sensors_formula_and_its_events() -> None:
+    """The batch's N sensors (:class:`SensorFaultReadings`) against the loop's one (:class:`FaultySensorReading`):
+    the same reading where no event falls, to the last bits of numpy's tanh; the same events at their rates, each
+    sensor from its own stream, a sound one among them reading the rack as it is."""
+    stroke = 20.0
+    shapes = [SensorFault(gain=1.08, offset_mm=0.3, bow_mm=0.2), SensorFault(step_mm=0.3, step_at_mm=7.0),
+              SensorFault(), SensorFault(gain=0.93, bow_mm=-0.1, step_mm=-0.2, step_at_mm=15.0, step_width_mm=2.0)]
+    many = SensorFaultReadings(shapes, stroke, [1, 2, 3, 4])
+    ones = [FaultySensorReading(f, stroke, np.random.default_rng(9)) for f in shapes]
+    for x in np.linspace(0.0, stroke, 41):
+        got = many.read(np.full(len(shapes), x), 0.0)
+        assert got == pytest.approx([one.read(float(x), 0.0) for one in ones], abs=1e-12)
+        assert got[2] == x
+
+    eventful = SensorFault(dropouts_per_s=2.0, dropout_ms=3.0, spikes_per_s=5.0)
+    many = SensorFaultReadings([eventful, SensorFault(), eventful], stroke, [5, 6, 7])
+    readings = np.array([many.read(np.full(3, 10.0), k * 1e-3) for k in range(20_000)])  # 20 s at 1 kHz
+    assert list(many.dropouts[[0, 2]]) != [0, 0] and many.dropouts[1] == 0 and many.spikes[1] == 0
+    for j in (0, 2):
+        assert 25 <= many.dropouts[j] <= 55 and 70 <= many.spikes[j] <= 130  # Poisson: 40 and 100 expected
+        assert (readings[:, j] == 0.0).sum() >= 2.5 * many.dropouts[j]  # each dropout reads zero for about 3 ms
+        assert np.sum(np.abs(readings[:, j] - 10.0) == 0.5) == many.spikes[j]  # each spike one reading 0.5 mm off
+    assert not np.array_equal(readings[:, 0], readings[:, 2])  # each its own stream
+    assert np.all(readings[:, 1] == 10.0)
+
+
+def test_the_batch_paths_sensors_read_in_part_keep_each_sensors_stream() -> None:
+    """Through a CAN adapter the batch reads a few valves at a time, and valves leave as their tests stop: each
+    sensor's noise and events stay its own however the batch reads it."""
+    stroke = 20.0
+    faults = [SensorFault(noise_sd_mm=0.02, spikes_per_s=20.0), SensorFault(noise_sd_mm=0.01, dropouts_per_s=10.0),
+              SensorFault(noise_sd_mm=0.03)]
+    whole = SensorFaultReadings(faults, stroke, [1, 2, 3], block=7)
+    parts = SensorFaultReadings(faults, stroke, [1, 2, 3], block=7)
+    x = np.array([5.0, 10.0, 15.0])
+    for k in range(200):
+        t_s = k * 1e-3
+        expected = whole.read(x, t_s)
+        got = np.concatenate([parts.read(x[[0, 2]], t_s, np.array([0, 2])), parts.read(x[[1]], t_s, np.array([1]))])
+        assert np.array_equal(got, expected[[0, 2, 1]])
+    whole.take(np.array([1, 2]))
+    parts.take(np.array([1, 2]))
+    for k in range(200, 300):
+        assert np.array_equal(parts.read(x[1:], k * 1e-3), whole.read(x[1:], k * 1e-3))
 
 
 def test_a_bind_of_no_force_changes_nothing_wherever_it_is_put() -> None:
