@@ -171,6 +171,10 @@ RESIDUAL_SCHEMA = 7
 #: The first record schema whose part diagnosis takes the solenoid's pull along the stroke out of a sensor's gain and
 #: tells a sensor that reads unevenly from a rack that binds (#67): a schema 11 record's part may differ.
 PART_METHOD_SCHEMA = 12
+#: The first record schema whose part diagnosis allows the pump's return spring within the pump type's tolerance
+#: (``[rack] spring_tolerance_rel``, ``preload_tolerance_rel``; #67): an older record's sensor may have been named
+#: for a spring.
+PUMP_SPRING_SCHEMA = 13
 
 
 def _same(a: Any, b: Any, rel_tol: float = 0.0) -> bool:
@@ -205,9 +209,15 @@ def compare_with_record(judged: Judgement, record: Record, rel_tol: float = 0.0)
 
 
 def _part_method_note(judged: Judgement, record: Record, rel_tol: float) -> list[str]:
-    """Why a record of schema 11 whose part replayed otherwise differs (none where it does not)."""
-    if not PART_SCHEMA <= record.schema_version < PART_METHOD_SCHEMA or not _part_differences(judged, record, rel_tol):
+    """Why a record of schema 11 or 12 whose part replayed otherwise differs (none where it does not)."""
+    if not PART_SCHEMA <= record.schema_version < PUMP_SPRING_SCHEMA or not _part_differences(judged, record,
+                                                                                            rel_tol):
         return []
+    if record.schema_version >= PART_METHOD_SCHEMA:
+        return [f"recorded by an edc-bench whose part diagnosis did not allow the pump's return spring to differ "
+                f"within the pump type's tolerance (record schema {record.schema_version}); today's does "
+                "(docs/diagnosis.md, \"What the baseline must hold\"), so the sensor's linearity and the spring's "
+                "figures, and the part, may differ"]
     return [f"recorded by an edc-bench whose part diagnosis read a sensor's gain without the solenoid's pull along "
             f"the stroke and had no test for a sensor that reads unevenly (record schema {record.schema_version}); "
             "today's has both (docs/diagnosis.md, \"Which part is at fault\"), so the part's figures, and the part, "

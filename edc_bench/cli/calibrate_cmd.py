@@ -49,6 +49,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "clearance=0.09), through the full loop as 'edc-bench test' runs it")
     p.add_argument("--valve-id", type=identity(), default=None, metavar="ID",
                    help="identity of the valve mounted, for the records")
+    p.add_argument("--pump-serial", type=identity(), default=None, metavar="SERIAL",
+                   help="serial number of the pump the valve is mounted in: pumps of one type differ by their return "
+                        "spring, so a baseline over valves in several pumps (3 or more) judges the rack-travel "
+                        "sensor more finely than one from a single pump (docs/diagnosis.md)")
     p.add_argument("--seed", type=seed_number, default=None,
                    help="seed of the simulated rig's noise or the simulated population (default: 100 plus the "
                         "tests already in the baseline; each test adds its number)")
@@ -167,10 +171,73 @@ def _write_baseline(args: argparse.Namespace, variant: Any, target: Path | None,
         print(f"edc-bench calibrate: note: {baseline.tests} test(s) so far; new valves differ by several per cent, "
               f"so calibrate at least {RECOMMENDED_TESTS} valves: mount the next new valve and run: {again}",
               file=sys.stderr)
+    for line in pump_lines(variant, baseline):
+        print(f"edc-bench calibrate: {line}", file=sys.stderr)
     if target is not None:
         kept = write_baseline(target, text)
         print(f"baseline of {variant.name} written to {target}" + (f" (the earlier one kept as {kept})" if kept
                                                                     else ""), file=sys.stderr)
+
+
+def pump_lines(variant: Any, baseline: Any) -> list[str]:
+    """What the baseline holds of the pumps its valves ran in, and what that lets the part diagnosis judge.
+
+    A baseline's a0 and b are its pumps' return springs; a test's pump may differ by the type's tolerance
+    (:func:`~edc_bench.verdict.part.pump_allowance`). With three or more pumps named, the spread between them is
+    measured and held against the tolerance the variant states.
+    """
+    from edc_bench.verdict.baseline import RECOMMENDED_PUMPS
+    from edc_bench.verdict.part import linearity_allowance_mm
+
+    rack = variant.rack
+    pumps = baseline.pumps
+    stated = (f"the pump type's spring tolerance (spring rate +/-{rack.spring_tolerance_rel:.0%}, preload "
+              f"+/-{rack.preload_tolerance_rel:.0%}, [rack] in the variant)")
+    judged = linearity_allowance_mm(variant, pumps)
+    if pumps == 0:
+        return [f"the baseline's valves ran in simulated pumps, on the type's own spring: a pump tested against it "
+                f"may differ within {stated}, and the rack-travel sensor's linearity is judged to {judged:.2f} mm"]
+    if pumps is None or pumps < RECOMMENDED_PUMPS:
+        which = "pumps not named (--pump-serial)" if pumps is None else f"{pumps} pump(s)"
+        finer = linearity_allowance_mm(variant, RECOMMENDED_PUMPS)
+        again = _next_valve_command(sys.argv[1:])
+        return [f"note: the baseline's valves ran in {which}: its spring is that pump's, which may lie anywhere "
+                f"within {stated}, so the rack-travel sensor's linearity is judged to {judged:.2f} mm; with new "
+                f"valves in {RECOMMENDED_PUMPS} or more pumps of the type it is judged to {finer:.2f} mm: mount a "
+                f"new valve in another pump and run: {again} --pump-serial SERIAL"]
+    spread = _pump_spread(baseline)
+    lines = [f"the baseline's valves ran in {pumps} pumps; between them the spring rate a0 spreads "
+             f"{spread[0]:.1%} and the preload term b {spread[1]:.1%} (standard deviation); the sensor's linearity "
+             f"is judged to {judged:.2f} mm"]
+    # a uniform spread within +/-t has a standard deviation of t / sqrt(3): beyond twice that the stated tolerance is
+    # not what these pumps hold
+    net = rack.spring_n_per_mm - variant.coil.magnetic_stiffness_n_per_mm
+    spring_sd = rack.spring_tolerance_rel * rack.spring_n_per_mm / net / math.sqrt(3.0)
+    for name, measured, stated_sd, key in (("spring rate", spread[0], spring_sd, "spring_tolerance_rel"),
+                                           ("preload", spread[1], rack.preload_tolerance_rel / math.sqrt(3.0),
+                                            "preload_tolerance_rel")):
+        if measured > 2.0 * stated_sd:
+            lines.append(f"warning: the pumps' {name} spreads more than {stated} allows: check those pumps' return "
+                         f"springs, or state the type's tolerance ([rack] {key}) as its spring's data sheet gives "
+                         "it")
+    return lines
+
+
+def _pump_spread(baseline: Any) -> tuple[float, float]:
+    """The spread between the baseline's pumps of a0 over a2 (the spring rate, the reading's scale taken out) and of
+    b (relative standard deviations of the pumps' means)."""
+    import numpy as np
+
+    by_pump: dict[str, list[Any]] = {}
+    for test in baseline.test_list:
+        if None not in (test.a2_v_s2_per_mm, test.a0_v_per_mm, test.b_v):
+            by_pump.setdefault(test.pump_serial or "simulated", []).append(test)
+    means = np.array([[np.mean([t.a0_v_per_mm / t.a2_v_s2_per_mm for t in tests]), np.mean([t.b_v for t in tests])]
+                      for tests in by_pump.values()])
+    if len(means) < 2:
+        return math.nan, math.nan
+    spread = np.std(means, axis=0, ddof=1) / np.abs(np.mean(means, axis=0))
+    return float(spread[0]), float(spread[1])
 
 
 def _refuse_worn_valve(spec: str, variant: Any) -> None:
@@ -264,7 +331,7 @@ def _identity(args: argparse.Namespace) -> Identity:
 
     from edc_bench.station_settings import station_identity
 
-    return Identity(station=args.station or default_station(),
+    return Identity(station=args.station or default_station(), pump_serial=args.pump_serial or "",
                     station_shown=station_identity().for_customers(args.station), purpose="calibration")
 
 
@@ -295,7 +362,7 @@ def _keep(args: argparse.Namespace, result: Any, n: int, tests: int, source: Bas
     af, a1 = result.features.af, result.features.a1
     print(f"{head}: af {af:.5f} V, a1 {a1:.6f} V s/mm (record {record})", file=sys.stderr)
     return [BaselineTest(af, a1, result.valve_id, source, result.started_at, str(record.resolve()),
-                         **kept_figures(result))]
+                         **kept_figures(result), pump_serial=args.pump_serial or "")]
 
 
 def kept_figures(result: Any) -> dict[str, float | None]:

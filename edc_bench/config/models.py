@@ -91,6 +91,13 @@ class RackSection(_Section):
     damping_n_s_per_mm: NonNegativeFloat = Field(
         description="pump-side viscous damping, excluding the valve's own"
     )
+    spring_tolerance_rel: Annotated[float, Field(ge=0, le=0.3, allow_inf_nan=False)] = Field(
+        default=0.05, description="how far one pump's return spring rate may lie from spring_n_per_mm, either way "
+                                  "(relative): pumps of the type differ by it, and the part diagnosis allows it")
+    preload_tolerance_rel: Annotated[float, Field(ge=0, le=0.5, allow_inf_nan=False)] = Field(
+        default=0.05, description="how far one pump's return spring preload may lie from preload_n, either way "
+                                  "(relative): a preload moves the spring's line as a sensor's bow does, so the "
+                                  "sensor's linearity is judged no finer than this allows")
 
 
 class CoilSection(_Section):

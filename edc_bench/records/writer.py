@@ -23,12 +23,14 @@ from edc_bench.timefmt import folder_stamp
 # 4: the controller's sums in today's order (replay to the bit); 5: record.json carries its integrity manifest
 # (records.integrity); 6: af and a1 are the period fit over the core rows (#37)
 # 7: the interval carries the held gain terms' error and the repeating residual (#37)
-RECORD_SCHEMA = 12  # 8: the test's own id (test_id), made at its start: the history's key for the test (#51); 9: host
+RECORD_SCHEMA = 13  # 8: the test's own id (test_id), made at its start: the history's key for the test (#51); 9: host
 #                    stalls cost the rows they touched, not the test (the trust rule's timing, #53); 10: the baseline's
 #                    sources as values (baseline.sources), not only its sentence (#54); 11: the part at fault
 #                    (part: the valve, the rack or the rack-travel sensor, #67; older records: "valve only judged");
 #                    12: the part's sensor gain with the solenoid's pull along the stroke, an uneven sensor told
-#                    from a bind (#67: replay notes that a schema 11 record's part may differ)
+#                    from a bind (#67: replay notes that a schema 11 record's part may differ); 13: the part
+#                    allows the pump's return spring within the type's tolerance, and the baseline says how many
+#                    pumps it ran in (baseline.pumps; #67: replay notes that an older record's part may differ)
 TRACE_FILE = "trace.mf4"  # ASAM MDF 4 (records.mdf); records before schema 3 hold trace.npz
 LEGACY_TRACE_FILE = "trace.npz"
 CAN_LOG_FILE = "can.log"

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import TypeVar
@@ -217,8 +218,9 @@ class SensorFaultReadings:
         if len(faults) != len(seeds):
             raise ValueError("one seed per sensor")
         self._stroke_mm = stroke_mm
-        self._f = {f.name: np.array([getattr(fault, f.name) for fault in faults], dtype=float)
-                   for f in fields(SensorFault)}
+        # one array per field of SensorFault, a value per sensor
+        self._f = types.SimpleNamespace(**{f.name: np.array([getattr(fault, f.name) for fault in faults], dtype=float)
+                                           for f in fields(SensorFault)})
         n = len(faults)
         self._rngs = [np.random.default_rng([seed, 0x5E45]) for seed in seeds]
         self._noise_rngs = [np.random.default_rng([seed, 0x5E46]) for seed in seeds]
@@ -232,12 +234,12 @@ class SensorFaultReadings:
         self.spikes = np.zeros(n, dtype=np.int64)
 
     def _after(self, j: int, t_s: float, rate_key: str) -> float:
-        rate = self._f[rate_key][j]
+        rate = getattr(self._f, rate_key)[j]
         return t_s + float(self._rngs[j].exponential(1.0 / rate)) if rate > 0 else math.inf
 
     def take(self, keep: np.ndarray) -> None:
         """Keep the sensors ``keep`` (indices) only: each keeps its own streams."""
-        self._f = {key: values[keep] for key, values in self._f.items()}
+        self._f = types.SimpleNamespace(**{key: values[keep] for key, values in vars(self._f).items()})
         self._rngs = [self._rngs[j] for j in keep]
         self._noise_rngs = [self._noise_rngs[j] for j in keep]
         self._noise = np.ascontiguousarray(self._noise[:, keep])
@@ -256,24 +258,24 @@ class SensorFaultReadings:
         """The sensors' signals (mm) for racks at ``x_mm`` at time ``t_s``: of every sensor, or of ``valves``
         (indices) only, ``x_mm`` then theirs."""
         idx = np.arange(len(self._row)) if valves is None else np.asarray(valves)
-        f = {key: values[idx] for key, values in self._f.items()}
+        f = types.SimpleNamespace(**{key: values[idx] for key, values in vars(self._f).items()})
         due = idx[t_s >= self._next_dropout_s[idx]]
         for j in due:
-            self._dropout_until_s[j] = t_s + self._f["dropout_ms"][j] * 1e-3
+            self._dropout_until_s[j] = t_s + self._f.dropout_ms[j] * 1e-3
             self._next_dropout_s[j] = self._after(j, t_s, "dropouts_per_s")
             self.dropouts[j] += 1
         u = x_mm / self._stroke_mm
-        value = f["gain"] * x_mm + f["offset_mm"] + f["bow_mm"] * 4.0 * u * (1.0 - u)
-        value += 0.5 * f["step_mm"] * (1.0 + np.tanh((x_mm - f["step_at_mm"]) / f["step_width_mm"]))
+        value = f.gain * x_mm + f.offset_mm + f.bow_mm * 4.0 * u * (1.0 - u)
+        value += 0.5 * f.step_mm * (1.0 + np.tanh((x_mm - f.step_at_mm) / f.step_width_mm))
         reading = ~(t_s < self._dropout_until_s[idx])  # a sensor whose contact is open reads its zero
-        noisy = (f["noise_sd_mm"] > 0) & reading
+        noisy = (f.noise_sd_mm > 0) & reading
         if noisy.any():
-            value[noisy] += f["noise_sd_mm"][noisy] * self._noise_of(idx[noisy])
+            value[noisy] += f.noise_sd_mm[noisy] * self._noise_of(idx[noisy])
         for m in np.nonzero(reading & (t_s >= self._next_spike_s[idx]))[0]:
             j = idx[m]
             self._next_spike_s[j] = self._after(j, t_s, "spikes_per_s")
             self.spikes[j] += 1
-            value[m] += self._f["spike_mm"][j] * (1.0 if self._rngs[j].random() < 0.5 else -1.0)
+            value[m] += self._f.spike_mm[j] * (1.0 if self._rngs[j].random() < 0.5 else -1.0)
         return np.where(reading, value, 0.0)
 
 

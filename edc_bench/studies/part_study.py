@@ -3,7 +3,9 @@
 Each case is a kind of pump at a severity: new and worn valves on a sound pump, a sound valve in a pump whose rack
 drags, binds at one place or whose friction rises along the stroke, or whose rack-travel sensor reads long, off
 its zero, bowed, with a step, noisy, with dropouts or spikes, each at several sizes around its limit, and a worn
-valve on a binding rack. Every test runs the bench's whole path (:func:`~edc_bench.bench.run_simulated_test`: the
+valve on a binding rack, and sound pumps at the corners of their return spring's tolerance. Each test's pump has a
+spring of its own, drawn within the type's tolerance (``[rack] spring_tolerance_rel``, ``preload_tolerance_rel``), as
+pumps of one type differ. Every test runs the bench's whole path (:func:`~edc_bench.bench.run_simulated_test`: the
 loop, the period fit, the verdict and the part diagnosis) on a valve drawn with the variant's spread between valves,
 each with its own noise seed; a bind, or a sensor's step, sits at a random place within the swing. The study counts, case by case, the part
 the bench named and the verdict it gave, and whether it told the technician to replace the valve.
@@ -45,6 +47,10 @@ class PartCase:
         The fault is beyond its ``[diagnosis.parts]`` limit (by its physics): the bench must name its part.
     placed_at_random : bool
         The fault's place (a bind's, or a sensor step's) drawn at random within the swing, test by test.
+    pump : str
+        The pump's return spring (``spring_rel=..,preload_rel=..`` of ``--rack-fault``); empty: drawn test by test
+        within the type's tolerance (``[rack] spring_tolerance_rel``, ``preload_tolerance_rel``), as pumps of one
+        type differ.
     """
 
     name: str
@@ -54,12 +60,15 @@ class PartCase:
     sensor: str = "none"
     above_limit: bool = True
     placed_at_random: bool = False
+    pump: str = ""
 
 
 def part_cases(variant: Variant) -> list[PartCase]:
     """The study's cases for ``variant``: the rack's faults sized in shares of a new valve's friction F_c (the limits'
     unit: a bind's peak, a slope's rise over the swing), the sensor's in its own units (docs/diagnosis.md gives the
     limits); each case beyond its limit or not by that size."""
+    from edc_bench.verdict.part import linearity_allowance_mm
+
     limits = variant.diagnosis.parts
     friction_n = variant.valve.coulomb_friction_new_n
     swing_mm = 2.0 * sum(t.amplitude_mm for t in variant.excitation.active_tones)
@@ -67,7 +76,12 @@ def part_cases(variant: Variant) -> list[PartCase]:
     def newton(share: float) -> float:
         return round(share * friction_n, 4)
 
+    spring, preload = variant.rack.spring_tolerance_rel, variant.rack.preload_tolerance_rel
     cases = [PartCase("new valve", SOUND, above_limit=False), PartCase("worn valve", WORN, valve="worn")]
+    # pumps at the corners of the spring's tolerance: sound, however their springs differ from the type's
+    cases += [PartCase(f"spring {sign * spring:+.0%}, preload {sign * turn * preload:+.0%}", SOUND,
+                       above_limit=False, pump=f"spring_rel={sign * spring:g},preload_rel={sign * turn * preload:g}")
+              for sign, turn in ((1, 1), (-1, -1), (1, -1), (-1, 1))]
     cases += [PartCase(f"drag {newton(r):g} N ({r:.0%} of F_c)", DRAG, rack=f"drag_n={newton(r)}")
               for r in (0.6, 1.0)]  # beyond uniform_friction_rel with the spread between new valves (8 %, 3 sd)
     cases += [PartCase(f"bind {newton(r):g} N ({r:.0%} of F_c)", RACK, rack=f"bind_n={newton(r)},bind_width_mm=1",
@@ -80,11 +94,12 @@ def part_cases(variant: Variant) -> list[PartCase]:
               for g in (1.015, 1.05, 1.08, 0.93)]
     cases += [PartCase(f"zero {o} mm", SENSOR, sensor=f"offset_mm={o}", above_limit=abs(o) > limits.sensor_offset_mm)
               for o in (0.05, 0.15, 0.3)]
-    cases += [PartCase(f"bow {b} mm", SENSOR, sensor=f"bow_mm={b}", above_limit=abs(b) > limits.sensor_linearity_mm)
-              for b in (0.05, 0.2, 0.4)]
+    linearity_mm = linearity_allowance_mm(variant, 0)  # against the shipped baselines: simulated pumps
+    cases += [PartCase(f"bow {b:.2f} mm", SENSOR, sensor=f"bow_mm={b:.2f}", above_limit=abs(b) > linearity_mm)
+              for b in (0.05, round(2.0 * linearity_mm, 2), round(3.0 * linearity_mm, 2))]
     # a step (over about 2 mm) reads the rack above it h off, against the reading at its stop
     cases += [PartCase(f"step {h} mm", SENSOR, sensor=f"step_mm={h},step_width_mm=1",
-                       above_limit=h > limits.sensor_linearity_mm, placed_at_random=True) for h in (0.05, 0.3, 0.5)]
+                       above_limit=h > linearity_mm, placed_at_random=True) for h in (0.05, 0.3, 0.5)]
     stated_mm = variant.sensors.lvdt.noise_sd
     cases += [PartCase(f"noise {n} mm", SENSOR, sensor=f"noise_sd_mm={n}",
                        above_limit=math.hypot(n, stated_mm) > limits.sensor_noise_ratio * stated_mm)
@@ -129,20 +144,21 @@ def _right(case: PartCase, part: str, verdict: str) -> bool:
     return part == Part.SENSOR
 
 
-def _one(job: tuple[str, PartCase, dict, int, float]) -> tuple[str, str, bool]:
+def _one(job: tuple[str, PartCase, dict, int, float, str]) -> tuple[str, str, bool]:
     """One test: the part named, the verdict, and whether the technician was told to replace the valve."""
     from edc_bench.bench import run_simulated_test
     from edc_bench.config import load_variant
     from edc_bench.physics.valve import ValveSpec
     from edc_bench.records.advice import Action
 
-    variant_name, case, valve, seed, place_mm = job
+    variant_name, case, valve, seed, place_mm, pump = job
     variant = load_variant(variant_name)
     rack, sensor = case.rack, case.sensor
     if case.placed_at_random and case.kind == SENSOR:
         sensor = f"{sensor},step_at_mm={place_mm:.2f}"
     elif case.placed_at_random:
         rack = f"{rack},bind_at_mm={place_mm:.2f}"
+    rack = pump if rack == "none" else f"{rack},{pump}"
     result = run_simulated_test(variant, ValveSpec(**valve), seed, rack_fault=rack, sensor_fault=sensor,
                                 valve_id=f"{case.name} {seed}")
     part = result.judgement.part
@@ -174,6 +190,8 @@ def run_part_study(variant: Variant, tests_per_case: int = 10, seed: int = 4100,
 
     chosen = list(cases) if cases is not None else part_cases(variant)
     rng = np.random.default_rng(seed)
+    pumps = np.random.default_rng([seed, 0x9A3])  # each test's pump (a stream of its own: the valves as before)
+    spring, preload = variant.rack.spring_tolerance_rel, variant.rack.preload_tolerance_rel
     swing = sum(t.amplitude_mm for t in variant.excitation.active_tones)
     mid = variant.rack.mid_stroke_mm
     jobs = []
@@ -184,7 +202,9 @@ def run_part_study(variant: Variant, tests_per_case: int = 10, seed: int = 4100,
                                  label=f"{case.valve} (spread)")
             fields = dataclasses.asdict(valve)
             place_mm = float(rng.uniform(mid - 0.7 * swing, mid + 0.7 * swing))
-            jobs.append((variant_argument(variant), case, fields, seed + 1000 * c + n, place_mm))
+            drawn = pumps.uniform(-1.0, 1.0, 2) * (spring, preload)
+            pump = case.pump or f"spring_rel={drawn[0]:.4f},preload_rel={drawn[1]:.4f}"
+            jobs.append((variant_argument(variant), case, fields, seed + 1000 * c + n, place_mm, pump))
     outcomes: list[tuple[str, str, bool]] = []
     if workers > 1:
         import multiprocessing

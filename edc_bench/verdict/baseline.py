@@ -40,6 +40,11 @@ EARLIER_DIR = "earlier"
 #: Fewer tests than this and calibrate says the baseline is thin (the spread between new valves is about 8 %).
 RECOMMENDED_TESTS = 5
 NOMINAL_SOURCE = str(BaselineSource.NOMINAL)
+#: Where a test's pump is the pump type's own figures (a simulated rig or population, the nominal physics).
+_SIMULATED = frozenset({BaselineSource.SIMULATED_RIG, BaselineSource.SIMULATED_POPULATION, BaselineSource.NOMINAL})
+#: From this many pumps on, calibrate does not ask for more (the mean of their springs is within the type's
+#: tolerance over the square root of the pumps: 0.6 of it with three).
+RECOMMENDED_PUMPS = 3
 #: A [[test]] table's optional figures for the baseline's own uncertainty (:meth:`Baseline.noise_rel`,
 #: :meth:`Baseline.core_shift_rel`, :meth:`Baseline.systematic_rms_v`).
 UNCERTAINTY_KEYS = ("af_se_rel", "a1_se_rel", "af_core_shift_rel", "a1_core_shift_rel", "systematic_rms_v")
@@ -77,6 +82,10 @@ class BaselineTest:
     a2_v_s2_per_mm, a0_v_per_mm, b_v : float or None
         Its identified a2, a0 and b, referred to the reference coil (None: not known, as in files written before
         2026-12-01): the part diagnosis compares a test's with their mean.
+    pump_serial : str
+        The pump the valve was tested in (empty: not said). Pumps of one type differ by their return spring's
+        tolerance; a baseline over several pumps holds the type's spring, one over a single pump that pump's
+        (:attr:`Baseline.pumps`).
     """
 
     af_v: float
@@ -93,6 +102,7 @@ class BaselineTest:
     a2_v_s2_per_mm: float | None = None
     a0_v_per_mm: float | None = None
     b_v: float | None = None
+    pump_serial: str = ""
 
     def __post_init__(self) -> None:
         if self.source is not None and not isinstance(self.source, BaselineSource):  # a file's or caller's word
@@ -125,6 +135,8 @@ class Baseline:
     held_motion : tuple of (str, float, float, int)
         The motion parameters' (mean, spread, tests) as a record's summary holds them, for a baseline read back
         from a record (its test list is not kept there): :meth:`motion` answers from them.
+    held_pumps : int or None
+        :attr:`pumps` as a record's summary holds it, for a baseline read back from a record.
     test_list : tuple of BaselineTest
         The tests behind it, each with its record (empty in files that do not list them).
     sources : frozenset of BaselineSource
@@ -145,6 +157,27 @@ class Baseline:
     test_list: tuple[BaselineTest, ...] = field(default=(), repr=False)
     sources: frozenset[BaselineSource] = frozenset({BaselineSource.NOMINAL})
     held_motion: tuple[tuple[str, float, float, int], ...] = ()
+    held_pumps: int | None = None
+
+    @property
+    def pumps(self) -> int | None:
+        """How many pumps of the type its tests ran in: what its a0 and b hold of the type's return spring.
+
+        0 for tests on simulated pumps alone (the type's own spring: ``[rack]``'s figures); for a rig's tests, the
+        pumps their serials name (a simulated one among them counts as one more); None where a rig's test does not
+        name its pump (then it may be any one pump's, as if from one: :func:`~edc_bench.verdict.part.pump_allowance`).
+        """
+        if not self.test_list:
+            if self.held_pumps is not None or self.sources - _SIMULATED:
+                return self.held_pumps
+            return 0
+        rig = [t for t in self.test_list if t.source not in _SIMULATED]
+        if not rig:
+            return 0
+        serials = {t.pump_serial for t in rig}
+        if "" in serials:
+            return None
+        return len(serials) + (len(rig) < len(self.test_list))
 
     @property
     def calibrated(self) -> bool:
@@ -212,7 +245,8 @@ class Baseline:
         return cls(float(summary["af_v"]), float(summary["a1_v_s_per_mm"]), float(summary.get("af_sd_v", 0.0)),
                    float(summary.get("a1_sd_v_s_per_mm", 0.0)), tests,
                    *(_text(summary, key) for key in ("source", "written_at", "station", "software", "command",
-                                                      "path")), sources=sources, held_motion=motion)
+                                                      "path")), sources=sources, held_motion=motion,
+                   held_pumps=_count(summary.get("pumps")))
 
     def motion(self, key: str) -> tuple[float, float, int] | None:
         """One of :data:`MOTION_KEYS` over the tests that hold it: (mean, standard deviation between tests, tests);
@@ -235,7 +269,8 @@ class Baseline:
             sources=sorted(self.sources), calibrated=self.calibrated, written_at=self.written_at,
             station=self.station, software=self.software, path=self.path,
             motion={key: MotionFigure(mean=held[0], sd=held[1], tests=held[2])
-                    for key in MOTION_KEYS if (held := self.motion(key)) is not None} or None)
+                    for key in MOTION_KEYS if (held := self.motion(key)) is not None} or None,
+            pumps=self.pumps)
 
     def to_toml(self, variant: str, note: str = "") -> str:
         """The baseline file's text (TOML), the tests behind it listed as ``[[test]]`` tables."""
@@ -268,6 +303,8 @@ class Baseline:
                     value = getattr(test, key)
                     if value is not None and math.isfinite(value):
                         table.add(key, value)
+                if test.pump_serial:
+                    table.add("pump_serial", test.pump_serial)
                 tests.append(table)
             document.add("test", tests)
         return tomlkit.dumps(document)
@@ -331,6 +368,10 @@ def _number(data: dict[str, Any], key: str) -> float | None:
     return None if value is None else float(value)
 
 
+def _count(value: object) -> int | None:
+    return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else None
+
+
 def _text(data: dict[str, Any], key: str) -> str:
     value = data.get(key, "")
     return value if isinstance(value, str) else str(value)
@@ -354,7 +395,8 @@ def read_baseline(path: Path, variant_name: str | None = None) -> Baseline:
         tests = tuple(BaselineTest(float(t["af_v"]), float(t["a1_v_s_per_mm"]), _text(t, "valve_id"),
                                    _text(t, "source"), _text(t, "started_at"), _text(t, "record"),
                                    *(_number(t, key) for key in UNCERTAINTY_KEYS),
-                                   **{key: _number(t, key) for key in MOTION_KEYS})
+                                   **{key: _number(t, key) for key in MOTION_KEYS},
+                                   pump_serial=_text(t, "pump_serial"))
                       for t in data.get("test", []))
         baseline = Baseline.from_summary(data)
         # a file that lists its tests: where they ran decides, not the file's sentence

@@ -160,9 +160,38 @@ def _spring_line(a0_v_per_mm: float, b_v: float, slope_per_mm: float, mid_mm: fl
     return a0_line, at_mid_v - a0_line * mid_mm
 
 
+def pump_allowance(variant: Variant, pumps: int | None) -> tuple[float, float]:
+    """How far this pump's return spring may lie from the baseline's, from the type's tolerance: (a0, b) relative.
+
+    Pumps of one type differ by their spring's rate and preload (``[rack] spring_tolerance_rel``,
+    ``preload_tolerance_rel``): a rate moves a0 (by the spring's share of the net stiffness), a preload b. The
+    baseline's own a0 and b are its pumps' mean: the type's figures on simulated pumps, within the tolerance over
+    the square root of its pumps where it names them, and any one pump's (a whole tolerance off) where it does not
+    (:attr:`~edc_bench.verdict.baseline.Baseline.pumps`, given as ``pumps``). So a test's pump lies within the
+    tolerance times one plus that share.
+    """
+    share = 0.0 if pumps == 0 else 1.0 if not pumps else 1.0 / math.sqrt(pumps)
+    rack = variant.rack
+    net = rack.spring_n_per_mm - variant.coil.magnetic_stiffness_n_per_mm
+    spring_a0 = rack.spring_tolerance_rel * rack.spring_n_per_mm / net if net > 0 else math.inf
+    return spring_a0 * (1.0 + share), rack.preload_tolerance_rel * (1.0 + share)
+
+
+def linearity_allowance_mm(variant: Variant, pumps: int | None) -> float:
+    """How finely the sensor's linearity is judged on this pump type against a baseline over ``pumps`` pumps
+    (:attr:`~edc_bench.verdict.baseline.Baseline.pumps`): the variant's ``sensor_linearity_mm``, or what a preload
+    within the pump's allowance (:func:`pump_allowance`) moves the reading by plus the sensor's stated zero,
+    whichever is larger (on a test that moved nothing else; its own spread widens it further)."""
+    rack = variant.rack
+    lever_mm = rack.preload_n / (rack.spring_n_per_mm - variant.coil.magnetic_stiffness_n_per_mm)
+    return max(variant.diagnosis.parts.sensor_linearity_mm,
+               pump_allowance(variant, pumps)[1] * lever_mm + abs(variant.sensors.lvdt.offset))
+
+
 def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstimate], baseline: Baseline | None,
                      rest_mm: float, tau_s: float, slope_per_mm: float = 0.0,
-                     mid_mm: float = 0.0) -> list[PartFinding]:
+                     mid_mm: float = 0.0, allowance: tuple[float, float] = (0.0, 0.0),
+                     zero_mm: float = 0.0) -> list[PartFinding]:
     """The sensor's gain and linearity from a2, a0 and b against the baseline's.
 
     A reading g times too long makes a2 and a0 (volts per millimetre read) 1/g of the baseline's and leaves b (volts)
@@ -177,6 +206,11 @@ def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstim
     ((g - 1) x_m + o) / g short of x_m, where the pull is kappa = 1 - s ((g - 1) x_m + o) / g of the baseline's:
     every figure is 1/kappa of what the gain alone makes it, and the slope read is s / (g kappa), so the
     baseline's s is the test's over a0's ratio.
+
+    This pump's spring may differ from the baseline's by ``allowance`` (:func:`pump_allowance`): a0 alone by a
+    rate within it (the reading's offset is then b's move over a0's, b not scaled; the gain is not judged), b by a
+    preload, which reads as an offset in the swing: the linearity is judged no finer than that, nor finer than the
+    reading at rest is known (``zero_mm``, the sensor's stated zero).
     """
     a2, a0, b = (_motion_ratio(parameters, baseline, key, name) for key, name in
                  (("a2_v_s2_per_mm", "a2"), ("a0_v_per_mm", "a0"), ("b_v", "b")))
@@ -197,28 +231,34 @@ def _motion_findings(limits: PartLimits, parameters: Mapping[str, ParameterEstim
         a0, b = (test_line[0] / base_a0, a0[1]), (test_line[1] / base_b, b[1])
     lever_mm = base_b / base_a0  # b over a0: how far b's move reads as an offset of the reading
     found = []
+    spring_allowed, preload_allowed = allowance
     agree = abs(a2[0] - a0[0]) <= max(limits.sensor_gain_rel, SIGNIFICANCE * math.hypot(a2[1], a0[1]))
-    # the reading's scale: 1/g kappa is the mean of the a2 and a0 ratios, to first order; kappa from the same g
+    # the reading's scale: 1/g kappa is the mean of the a2 and a0 ratios, to first order; kappa from the same g. Where
+    # the spring moved a0, a2 alone would give the scale, but a2 is what a misfit moves most (a small bind near a
+    # reversal: 7 %, as far as a spring moves a0): the gain is then not judged
     shrink = 2.0 / (a2[0] + a0[0])
     off_mm = rest_mm if math.isfinite(rest_mm) else 0.0
     gain = (shrink - base_slope * (mid_mm - off_mm)) / (1.0 - base_slope * mid_mm)
     kappa = 1.0 - base_slope * ((gain - 1.0) * mid_mm + off_mm) / gain
     tolerance = max(limits.sensor_gain_rel, SIGNIFICANCE * a2[1])
-    b_stayed = abs(b[0] * kappa - 1.0) <= 0.5 * abs(gain - 1.0)
+    b_stayed = abs(b[0] * kappa - 1.0) <= 0.5 * abs(gain - 1.0)  # a gain leaves b (volts); the volts' factor not
     gain_beyond = agree and b_stayed and abs(gain - 1.0) > tolerance
     found.append(PartFinding(signature=Signature.SENSOR_GAIN, part=Part.SENSOR, figure=gain - 1.0,
                              limit=limits.sensor_gain_rel, beyond=gain_beyond))
     if not agree and abs(a0[0] / a2[0] - 1.0) > tolerance:
+        spring_limit = max(tolerance, spring_allowed + SIGNIFICANCE * math.hypot(a2[1], a0[1]))
         found.append(PartFinding(signature=Signature.SPRING_RATE, part=Part.NONE, figure=a0[0] / a2[0] - 1.0,
-                                 limit=tolerance, beyond=True))
+                                 limit=spring_limit, beyond=abs(a0[0] / a2[0] - 1.0) > spring_limit))
     if not gain_beyond and math.isfinite(rest_mm):
         # b's move beyond a0's as an offset o of the reading in the swing: b over a0 ratios g - a0 o / b (kappa
-        # cancels). Whether a0 moved by a gain g within its limit or by the volts' own factor (g 1: it cancels) one
-        # test cannot tell: the offset is the one of the two nearer the rest reading. Where a2 does not move with
-        # a0, g is not known (a2 is the figure a misfit moves most: a small bind near a reversal, 7 %)
-        offset_mm = min(((g - b[0] / a0[0]) * lever_mm for g in ((1.0, gain) if agree else (1.0,))),
-                        key=lambda o: abs(o - rest_mm))
-        limit = max(limits.sensor_linearity_mm, SIGNIFICANCE * math.hypot(b[1], a0[1]) * lever_mm)
+        # cancels). Whether a0 moved by a gain g within its limit, by the volts' own factor (g 1: it cancels) or by
+        # the pump's spring (which moves a0 and not b: g 1 / a0's ratio, whatever a misfit did to a2, the figure it
+        # moves most) one test cannot tell: the offset is the one nearest the rest reading
+        scales = (1.0, gain, 1.0 / a0[0]) if agree else (1.0, 1.0 / a0[0])
+        offset_mm = min(((g - b[0] / a0[0]) * lever_mm for g in scales), key=lambda o: abs(o - rest_mm))
+        # a preload within the pump's allowance moves b as an offset of that many millimetres would
+        limit = max(limits.sensor_linearity_mm,
+                    (preload_allowed + SIGNIFICANCE * math.hypot(b[1], a0[1])) * lever_mm / a0[0] + zero_mm)
         found.append(PartFinding(signature=Signature.SENSOR_LINEARITY, part=Part.SENSOR, figure=offset_mm - rest_mm,
                                  limit=limit, unit="mm", beyond=abs(offset_mm - rest_mm) > limit))
     return found
@@ -266,7 +306,9 @@ def diagnose_parts(variant: Variant, signatures: PumpSignatures, parameters: Map
         tau_s = variant.coil.inductance_mh * 1e-3 / variant.coil.resistance_ohm  # the reference coil's L / R
         slope = signatures.friction.gain_slope_per_mm if signatures.friction is not None else 0.0
         findings += _motion_findings(limits, parameters, baseline, reading.rest_mm, tau_s, slope,
-                                     variant.rack.mid_stroke_mm)
+                                     variant.rack.mid_stroke_mm,
+                                     pump_allowance(variant, None if baseline is None else baseline.pumps),
+                                     abs(variant.sensors.lvdt.offset))
     beyond = [f for f in findings if f.beyond and f.part in (Part.SENSOR, Part.RACK)]
     if any(f.part is Part.SENSOR for f in beyond):
         part = Part.SENSOR

@@ -88,6 +88,9 @@ class BaselineSummary(Section):
     software: str | None = None
     path: str | None = None
     motion: dict[str, MotionFigure] | None = None
+    #: the pumps its tests ran in (:attr:`~edc_bench.verdict.baseline.Baseline.pumps`: 0 simulated pumps alone, the
+    #: type's own spring; None not known; schema 13 on)
+    pumps: int | None = None
 
 
 class DecisionPlane(Section):

@@ -214,3 +214,25 @@ def test_a_record_whose_part_diagnosis_was_older_says_why_its_part_may_differ(tm
     report = replay_record(folder)
     assert not report.reproduced and "part at fault: recorded none, replayed rack-travel sensor" in report.differences
     assert any("part diagnosis read a sensor's gain without the solenoid's pull" in n for n in report.notes)
+
+
+def test_a_record_from_before_the_pumps_spring_tolerance_says_why_its_part_may_differ(tmp_path: Path) -> None:
+    """Schema 12 named the rack-travel sensor of a sound pump whose return spring was 3 % stiffer ('not linear');
+    today's allows the spring within the type's tolerance and names no part. Such a record replays with the
+    difference and a note saying why."""
+    from edc_bench.verdict.part_sections import Signature
+
+    result = run_simulated_test(load_variant(), "new", 3, rack_fault="spring_rel=0.03")
+    folder = write_record(result, tmp_path, figure=False)
+    doc = json.loads((folder / "record.json").read_text())
+    assert doc["schema"] >= 13 and doc["part"]["part"] == "none"
+    assert doc["part"]["compared_with"]["pumps"] == 0
+    assert replay_record(folder).reproduced
+    doc["schema"] = 12
+    doc["part"]["part"] = "rack-travel sensor"  # as schema 12's diagnosis had it
+    linearity = next(f for f in doc["part"]["findings"] if f["signature"] == Signature.SENSOR_LINEARITY)
+    linearity["figure"], linearity["beyond"] = 0.1211, True
+    rewrite_record_json(folder, doc)
+    report = replay_record(folder)
+    assert not report.reproduced and "part at fault: recorded rack-travel sensor, replayed none" in report.differences
+    assert any("did not allow the pump's return spring to differ" in n for n in report.notes), report.notes

@@ -155,3 +155,35 @@ def test_where_a_baselines_tests_ran_is_a_value_an_older_sentence_read_once() ->
     assert record.baseline is not None and record.baseline.sources == [BaselineSource.RIG]
     nominal = typed_record(upgraded({"schema": 9, "verdict": "PASS", "baseline": {**older, "tests": 0}}), "x")
     assert nominal.baseline is not None and nominal.baseline.sources == [BaselineSource.NOMINAL]
+
+
+def test_calibrate_keeps_each_tests_pump_and_says_what_its_pumps_let_the_sensor_be_judged_to(tmp_path: Path) -> None:
+    """#67: the bring-up measures the pumps' spread where it measures the baseline: each test names its pump
+    (--pump-serial), and calibrate says how finely the sensor's linearity is judged with the pumps it has, and
+    asks for more pumps; with three or more it prints their spread and warns where it is wider than the type's
+    stated tolerance."""
+    import dataclasses
+
+    from edc_bench.cli.calibrate_cmd import pump_lines
+    from edc_bench.verdict.baseline import BaselineSource, baseline_from_tests
+
+    out = tmp_path / "baseline.toml"
+    proc = edc_bench("calibrate", "--valve", "new", "--pump-serial", "PUMP-1", "--seed", "3", "--baseline-file",
+                     str(out), "--out", str(tmp_path / "records"), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    baseline = read_baseline(out, "p-edc-default")
+    assert [t.pump_serial for t in baseline.test_list] == ["PUMP-1"] and baseline.pumps == 0  # a simulated rig
+    variant = load_variant()
+    rig = [dataclasses.replace(t, source=BaselineSource.RIG) for t in baseline.test_list]
+    one = baseline_from_tests(rig)
+    [line] = pump_lines(variant, one)
+    assert "ran in 1 pump(s)" in line and "--pump-serial SERIAL" in line and "3 or more pumps" in line
+
+    def pump(serial: str, b_scale: float) -> object:
+        return dataclasses.replace(rig[0], pump_serial=serial, b_v=rig[0].b_v * b_scale)
+
+    even = baseline_from_tests([pump("A", 1.0), pump("B", 1.01), pump("C", 0.99)])
+    lines = pump_lines(variant, even)
+    assert "ran in 3 pumps" in lines[0] and "preload term b 1.0%" in lines[0] and len(lines) == 1
+    wide = baseline_from_tests([pump("A", 1.0), pump("B", 1.12), pump("C", 0.88)])
+    assert any(line.startswith("warning: the pumps' preload spreads more") for line in pump_lines(variant, wide))

@@ -229,8 +229,11 @@ def test_a_sensors_gain_is_named_where_the_solenoids_pull_varies_along_the_strok
 def test_a_sensor_that_reads_unevenly_is_told_from_a_rack_that_binds_there(variant, at_mm: float) -> None:
     """A step in the sensor's characteristic misreads the spring's force alike in both directions; a share of it
     lands in the friction there (a slope of 19 % of F_c at 12 mm: 'the rack' before). A bind at the same place bends
-    the same figure by a tenth to a quarter of its friction's rise: still the rack."""
-    sensor = run_simulated_test(variant, "new", 3, sensor_fault=f"kink,step_at_mm={at_mm}").judgement.part
+    the same figure by a tenth to a quarter of its friction's rise: still the rack. (At 8 mm the kink's 0.3 mm
+    step shows only in b, as a preload within the return spring's tolerance would: it is read as the spring; a
+    step of 0.5 mm is beyond what the spring's tolerance explains.)"""
+    step = "" if at_mm == 12.0 else ",step_mm=0.5"
+    sensor = run_simulated_test(variant, "new", 3, sensor_fault=f"kink,step_at_mm={at_mm}{step}").judgement.part
     uneven = sensor.finding(Signature.SENSOR_UNEVEN)
     assert sensor.part is Part.SENSOR
     if at_mm == 12.0:  # the step the rack's findings took for a slope
@@ -255,3 +258,45 @@ def test_a_pump_the_model_does_not_fit_names_the_rack_and_the_sensor_among_what_
     words = result.advice.words
     assert "the rack moves freely" in words and "rack-travel sensor reads true" in words, words
     assert result.advice.action is not Action.REPLACE
+
+
+@pytest.mark.parametrize("rack", [
+    "spring_rel=0.03",  # named the sensor before (INVALID, 'not linear'): a0 moved and the offset read from b over it
+    "spring_rel=-0.05,preload_rel=0.04",
+    "preload_rel=-0.05",  # a preload moves b as a bow does: within the tolerance, a spring
+])
+def test_a_sound_pump_whose_return_spring_differs_within_its_tolerance_names_no_part(variant, rack: str) -> None:
+    """Pumps of one type differ by their return spring (``[rack] spring_tolerance_rel``, ``preload_tolerance_rel``:
+    5 % each); a sound valve in a sound pump at the edge of that tolerance was told its rack-travel sensor is not
+    linear (a spring 3 % stiffer: INVALID, the sensor named)."""
+    result = run_simulated_test(variant, "new", 3, rack_fault=rack)
+    said = result.judgement.part
+    assert said.part is Part.NONE and result.verdict is Verdict.PASS, said.findings
+    linearity = next(f for f in said.findings if f.signature is Signature.SENSOR_LINEARITY)
+    assert linearity.limit > variant.diagnosis.parts.sensor_linearity_mm  # widened by the preload's tolerance
+
+
+def test_how_far_a_pump_may_lie_from_the_baseline_follows_the_pumps_behind_it(variant) -> None:
+    """On simulated pumps the baseline holds the type's spring; over n named pumps their mean (the tolerance over
+    sqrt(n) off it); over one pump, or pumps not named, any one pump's (twice the tolerance, all told)."""
+    import dataclasses
+
+    from edc_bench.verdict.baseline import BaselineSource, BaselineTest, baseline_from_tests
+    from edc_bench.verdict.part import linearity_allowance_mm, pump_allowance
+
+    def tests(serials: list[str]) -> list[BaselineTest]:
+        return [BaselineTest(0.07, 0.0038, f"v{n}", BaselineSource.RIG, pump_serial=s) for n, s in enumerate(serials)]
+
+    shipped = load_baseline(variant)
+    assert shipped.pumps == 0 and shipped.summary().pumps == 0
+    assert baseline_from_tests(tests(["P1", "P1", "P2"])).pumps == 2
+    assert baseline_from_tests(tests(["P1", ""])).pumps is None
+    mixed = baseline_from_tests([*tests(["P1"]), dataclasses.replace(shipped.test_list[0])])
+    assert mixed.pumps == 2  # a simulated pump among them counts as one more
+    preload = variant.rack.preload_tolerance_rel
+    assert pump_allowance(variant, 0)[1] == pytest.approx(preload)
+    assert pump_allowance(variant, 4)[1] == pytest.approx(1.5 * preload)
+    assert pump_allowance(variant, 1) == pump_allowance(variant, None)
+    assert pump_allowance(variant, None)[1] == pytest.approx(2 * preload)
+    assert linearity_allowance_mm(variant, 0) < linearity_allowance_mm(variant, 3) < linearity_allowance_mm(variant,
+                                                                                                           None)
