@@ -258,7 +258,8 @@ class SensorFaultReadings:
         """The sensors' signals (mm) for racks at ``x_mm`` at time ``t_s``: of every sensor, or of ``valves``
         (indices) only, ``x_mm`` then theirs."""
         idx = np.arange(len(self._row)) if valves is None else np.asarray(valves)
-        f = types.SimpleNamespace(**{key: values[idx] for key, values in vars(self._f).items()})
+        f = self._f if valves is None else \
+            types.SimpleNamespace(**{key: values[idx] for key, values in vars(self._f).items()})
         due = idx[t_s >= self._next_dropout_s[idx]]
         for j in due:
             self._dropout_until_s[j] = t_s + self._f.dropout_ms[j] * 1e-3

@@ -75,6 +75,13 @@ def test_a_reading_rounds_half_to_even_as_numpy_does() -> None:
 # -- the oracle: the simulated rig's own plant, one valve at a time ---------------------------------------------------
 
 
+def _assert_same_state(batch: _VectorPlant, rigs: list[Plant], k: int) -> None:
+    """The batch's valves are the rig plants to the bit after tick ``k``."""
+    for got, want in zip((batch.x, batch.v, batch.i, batch.stuck),
+                         zip(*[(p.x_mm, p.v_mm_s, p.i_a, p.stuck) for p in rigs])):
+        assert np.array_equal(got, np.array(want)), f"tick {k}"
+
+
 def _drives(rng: np.random.Generator, k: int, n: int) -> np.ndarray:
     """Reversals at several frequencies, noise, and two drives past the limit (the stops)."""
     drive_v = 2.0 + 1.5 * np.sin(2 * np.pi * rng.uniform(1.0, 9.0, n) * k * 1e-3) + rng.normal(0.0, 0.8, n)
@@ -100,9 +107,7 @@ def test_the_batchs_valves_step_as_the_simulated_rigs_plant_to_the_bit(variant_n
         for plant, drive in zip(rigs, drive_v):
             plant.set_drive_v(float(drive))
             plant.advance(QUANTA_PER_PERIOD)
-        for got, want in zip((batch.x, batch.v, batch.i, batch.stuck),
-                             zip(*[(p.x_mm, p.v_mm_s, p.i_a, p.stuck) for p in rigs])):
-            assert np.array_equal(got, np.array(want)), f"tick {k}"
+        _assert_same_state(batch, rigs, k)
         held += int(batch.stuck.sum())
         stops += int(((batch.x == 0.0) | (batch.x == batch.pump.stroke_mm)).sum())
     assert held > 0 and stops > 0  # the run went through the Karnopp replay and the stops, not only the exact step
@@ -132,9 +137,7 @@ def test_the_batchs_pumps_each_with_its_own_rack_step_as_the_rig_plant_of_that_p
         for plant, drive in zip(rigs, drive_v):
             plant.set_drive_v(float(drive))
             plant.advance(QUANTA_PER_PERIOD)
-        for got, want in zip((batch.x, batch.v, batch.i, batch.stuck),
-                             zip(*[(p.x_mm, p.v_mm_s, p.i_a, p.stuck) for p in rigs])):
-            assert np.array_equal(got, np.array(want)), f"tick {k}"
+        _assert_same_state(batch, rigs, k)
     assert batch.x[1] == sound.x[1]  # the sound pump's valve as in a sound batch
     assert all(batch.x[j] != sound.x[j] for j in (0, 2, 3, 4))  # each rack moved its valve
 
